@@ -1,0 +1,1 @@
+"""The body: BVH reading, rotations, resampling, the avatar and retargeting."""

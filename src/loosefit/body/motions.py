@@ -1,0 +1,75 @@
+"""One entry point for every way a user names a motion: a BVH file, a saved motion, a procedural move."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from loosefit.body.avatar import Avatar
+from loosefit.body.bvh import read_bvh
+from loosefit.body.procedural import MOVES, named_motion, random_dance
+from loosefit.body.resample import resample_motion
+from loosefit.body.retarget import RetargetConfig, retarget_bvh
+from loosefit.errors import LoosefitInputError
+from loosefit.types import Motion
+
+PROCEDURAL_NAMES = ("dance", *MOVES)
+
+
+def load_motion(
+    spec: str | Path,
+    avatar: Avatar,
+    fps: float = 30.0,
+    seed: int = 0,
+    retarget: RetargetConfig | None = None,
+    max_frames: int | None = None,
+) -> Motion:
+    """A motion on the avatar's skeleton from a file or a procedural name.
+
+    Args:
+        spec: a ``.bvh`` file (retargeted), a ``.npz`` motion saved by
+            :meth:`Motion.save`, a procedural move name (``spin``, ``walk``, ...),
+            ``dance`` (a random dance of 12 s), or ``dance:SECONDS``.
+        avatar: the avatar that the motion must fit.
+        fps: the frame rate of the result.
+        seed: seeds procedural motions.
+        retarget: options for BVH files.
+        max_frames: keep at most this many frames.
+
+    Returns:
+        A validated :class:`Motion` on ``avatar``'s joints at ``fps``.
+    """
+    text = str(spec)
+    path = Path(text)
+    if path.suffix.lower() == ".bvh":
+        if not path.is_file():
+            raise LoosefitInputError(path, "<file>", "an existing BVH file", "no such file")
+        cfg = retarget or RetargetConfig()
+        cfg = RetargetConfig(**{**cfg.__dict__, "fps": fps})
+        motion = retarget_bvh(read_bvh(path), avatar.skeleton, avatar.floor_height, cfg)
+    elif path.suffix.lower() == ".npz":
+        motion = Motion.load(path)
+        avatar.check_motion(motion)
+        if abs(motion.fps - fps) > 1e-6:
+            motion = resample_motion(motion, fps)
+    elif text.split(":")[0] in PROCEDURAL_NAMES:
+        name, _, arg = text.partition(":")
+        if name == "dance" and arg:
+            try:
+                seconds = float(arg)
+            except ValueError:
+                raise LoosefitInputError(
+                    "motion", "dance:SECONDS", "a number of seconds", repr(arg)
+                ) from None
+            motion = random_dance(avatar.joint_names, avatar.floor_height, seconds, seed, fps)
+        else:
+            motion = named_motion(name, avatar.joint_names, avatar.floor_height, seed, fps)
+    else:
+        raise LoosefitInputError(
+            "motion",
+            "spec",
+            f"a .bvh or .npz file, or one of {list(PROCEDURAL_NAMES)} (dance:SECONDS)",
+            repr(text),
+        )
+    if max_frames is not None and motion.num_frames > max_frames:
+        motion = motion.slice(0, max_frames)
+    return motion

@@ -1,0 +1,312 @@
+"""Retargeting motion capture to the avatar's skeleton by joint names.
+
+The method copies each mapped source joint's *world* rotation, measured from
+the source's zero pose, onto the avatar bone it maps to:
+
+    G_a(t) = C Q_b(t) C^T  A_a
+
+where ``Q_b(t)`` is the source joint's world rotation at frame t (identity at
+the BVH zero pose, normally a T-pose), ``C`` turns the source's axes into the
+avatar's (Z up, facing -Y), and ``A_a`` is the **rest-pose alignment**: the
+world rotation that carries the avatar bone from its own rest pose (anny's
+A-pose) to the pose of the source skeleton at zero rotation. For limbs (listed
+in the joint map's ``align``), ``A_a`` is the smallest rotation taking the
+avatar bone's direction onto the source bone's direction at rest, so a T-pose
+capture gives the avatar's T-pose; other bones (spine, neck, head) keep
+``A_a = A_parent``: the two skeletons are taken to stand alike there, and the
+avatar keeps its own posture. Unmapped avatar joints follow their parent
+rigidly. Local rotations are then ``R_a = G_parent^T G_a``.
+
+The root translation is the source root's position scaled by the ratio of the
+two skeletons' leg lengths, recentred to start at the origin in XY, and shifted
+in Z so the feet rest on the floor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from loosefit.body.avatar import Skeleton
+from loosefit.body.bvh import BvhClip, forward_kinematics, rest_positions
+from loosefit.body.resample import filter_rotation_glitches, resample_motion
+from loosefit.body.rotations import rotation_between
+from loosefit.errors import LoosefitInputError
+from loosefit.types import Motion
+
+_SIDES = (("Left", "l"), ("Right", "r"))
+
+
+def _sided(template: dict[str, str]) -> dict[str, str]:
+    """Expand '{S}'/'{s}' placeholders into left and right entries."""
+    out = {}
+    for avatar, source in template.items():
+        if "{S}" in avatar or "{s}" in avatar:
+            for S, s in _SIDES:
+                out[avatar.format(S=S, s=s.upper())] = source.format(S=S, s=s)
+        else:
+            out[avatar] = source
+    return out
+
+
+@dataclass(frozen=True)
+class JointMap:
+    """How a source skeleton's joints drive the avatar's (cmu_mb rig).
+
+    Attributes:
+        name: the map's name.
+        joints: avatar joint name -> source joint name.
+        align: avatar joints whose rest direction is aligned to the source's.
+    """
+
+    name: str
+    joints: dict[str, str]
+    align: tuple[str, ...] = field(default_factory=tuple)
+
+
+_LIMBS = tuple(
+    f"{S}{b}"
+    for S, _ in _SIDES
+    for b in ("Shoulder", "Arm", "ForeArm", "Hand", "UpLeg", "Leg", "Foot")
+)
+
+# DAZ-style names, as in the CMU salsa BVH conversions (hip, abdomen, lThigh, ...).
+DAZ_MAP = JointMap(
+    name="daz",
+    joints=_sided(
+        {
+            "Hips": "hip",
+            "LowerBack": "abdomen",
+            "Spine1": "chest",
+            "Neck": "neck",
+            "Head": "head",
+            "{s}HipJoint": "{s}Buttock",
+            "{S}UpLeg": "{s}Thigh",
+            "{S}Leg": "{s}Shin",
+            "{S}Foot": "{s}Foot",
+            "{S}Shoulder": "{s}Collar",
+            "{S}Arm": "{s}Shldr",
+            "{S}ForeArm": "{s}ForeArm",
+            "{S}Hand": "{s}Hand",
+        }
+    ),
+    align=_LIMBS,
+)
+
+_CMU_NAMES = (
+    "Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase LowerBack Spine Spine1 "
+    "LeftShoulder LeftArm LeftForeArm LeftHand LThumb LeftFingerBase LeftHandFinger1 Neck Neck1 "
+    "Head RightShoulder RightArm RightForeArm RightHand RThumb RightFingerBase RightHandFinger1 "
+    "RHipJoint RightUpLeg RightLeg RightFoot RightToeBase"
+).split()
+
+# CMU MotionBuilder names (the CMU database's own BVH conversions): the avatar's names.
+CMU_MB_MAP = JointMap(
+    name="cmu_mb",
+    joints={n: n for n in _CMU_NAMES},
+    align=_LIMBS + ("LeftToeBase", "RightToeBase"),
+)
+
+JOINT_MAPS: dict[str, JointMap] = {m.name: m for m in (DAZ_MAP, CMU_MB_MAP)}
+
+_AXES = {
+    "+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0),
+    "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1),
+}  # fmt: skip
+
+
+@dataclass
+class RetargetConfig:
+    """How a BVH clip becomes a motion on the avatar."""
+
+    joint_map: str = "auto"  # a name in JOINT_MAPS, or "auto": the map covering most joints
+    source_up: str = "+y"  # the source's up axis
+    source_forward: str = "+z"  # the direction the source skeleton faces at zero rotation
+    fps: float | None = 30.0  # resample to this rate (None keeps the source's)
+    filter_glitches: bool = True  # remove single-frame rotation pops before retargeting
+    recenter: bool = True  # start the root at x = y = 0
+    ground: bool = True  # shift in z so the feet rest on the floor
+
+
+def axis_change(up: str, forward: str) -> np.ndarray:
+    """(3, 3) rotation taking a source frame (up, forward) to the avatar's (+Z up, -Y forward)."""
+    if up not in _AXES or forward not in _AXES:
+        raise LoosefitInputError(
+            "RetargetConfig", "source_up/source_forward", f"one of {list(_AXES)}", f"{up}/{forward}"
+        )
+    u, f = np.array(_AXES[up], float), np.array(_AXES[forward], float)
+    if abs(u @ f) > 0:
+        raise LoosefitInputError(
+            "RetargetConfig", "source_up/source_forward", "perpendicular axes", f"{up}/{forward}"
+        )
+    src = np.stack([np.cross(u, f), u, f], 1)  # columns: left, up, forward
+    dst = np.stack([np.array([1.0, 0, 0]), np.array([0, 0, 1.0]), np.array([0, -1.0, 0])], 1)
+    return dst @ src.T
+
+
+def choose_joint_map(source_names: list[str] | tuple[str, ...], name: str = "auto") -> JointMap:
+    """The joint map by name, or the shipped map whose source joints the clip covers best."""
+    if name != "auto":
+        if name not in JOINT_MAPS:
+            raise LoosefitInputError(
+                "RetargetConfig", "joint_map", f"one of {['auto', *JOINT_MAPS]}", repr(name)
+            )
+        return JOINT_MAPS[name]
+    have = set(source_names)
+    return max(
+        JOINT_MAPS.values(),
+        key=lambda m: sum(s in have for s in m.joints.values()) / len(m.joints),
+    )
+
+
+def _world_fk(skeleton: Skeleton, world: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """(T, J, 3) joint positions of the avatar from world rotation deltas (T, J, 3, 3)."""
+    pos = np.zeros(world.shape[:2] + (3,))
+    for j, p in enumerate(skeleton.parents):
+        if p < 0:
+            pos[:, j] = root
+        else:
+            pos[:, j] = pos[:, p] + world[:, p] @ (skeleton.heads[j] - skeleton.heads[p])
+    return pos
+
+
+def _leg_length(positions: np.ndarray, names, hip: str, knee: str, ankle: str) -> float | None:
+    try:
+        a, b, c = (positions[names.index(n)] for n in (hip, knee, ankle))
+    except ValueError:
+        return None
+    return float(np.linalg.norm(b - a) + np.linalg.norm(c - b))
+
+
+def retarget_bvh(
+    clip: BvhClip,
+    skeleton: Skeleton,
+    floor_height: float,
+    config: RetargetConfig | None = None,
+    name: str | None = None,
+) -> Motion:
+    """A BVH clip as a :class:`Motion` on the avatar's skeleton.
+
+    Args:
+        clip: the parsed BVH (see :func:`loosefit.body.bvh.read_bvh`).
+        skeleton: the avatar's skeleton (``Avatar.skeleton``).
+        floor_height: height of the avatar's root above its soles at rest
+            (``Avatar.floor_height``).
+        config: options; defaults to :class:`RetargetConfig`.
+        name: the motion's name (default: the file's stem).
+
+    Returns:
+        The motion, resampled to ``config.fps``.
+    """
+    config = config or RetargetConfig()
+    src_names = list(clip.joint_names)
+    jmap = choose_joint_map(src_names, config.joint_map)
+    source = str(clip.path)
+    root_name = skeleton.names[0]
+    if jmap.joints.get(root_name) not in src_names:
+        raise LoosefitInputError(
+            source,
+            "HIERARCHY",
+            f"the root joint '{jmap.joints.get(root_name)}' of the '{jmap.name}' joint map",
+            f"joints {src_names[:8]}...",
+            hint="pass a joint map that matches this skeleton",
+        )
+    present = {a: src_names.index(s) for a, s in jmap.joints.items() if s in src_names}
+    needed = [a for a in jmap.align if a in jmap.joints and a not in present]
+    if needed:
+        raise LoosefitInputError(
+            source,
+            "HIERARCHY",
+            f"the joints {[jmap.joints[a] for a in needed]} of the '{jmap.name}' joint map",
+            "them missing",
+        )
+
+    rotations = clip.rotations.astype(np.float64)
+    if config.filter_glitches:
+        rotations = filter_rotation_glitches(rotations, clip.fps)
+    C = axis_change(config.source_up, config.source_forward)
+    src_pos, src_world = forward_kinematics(
+        BvhClip(**{**clip.__dict__, "rotations": rotations})
+    )  # (T, Js, 3), (T, Js, 3, 3)
+    src_world = C @ src_world @ C.T
+    src_pos = src_pos @ C.T
+    src_rest = rest_positions(clip) @ C.T  # (Js, 3)
+    src_parents = np.asarray(clip.parents)
+
+    def is_descendant(b: int, ancestor: int) -> bool:
+        while b >= 0:
+            b = src_parents[b]
+            if b == ancestor:
+                return True
+        return False
+
+    # 1. Rest-pose alignment A_a of every avatar bone.
+    J = len(skeleton.names)
+    align = np.tile(np.eye(3), (J, 1, 1))
+    for a, an in enumerate(skeleton.names):
+        p = skeleton.parents[a]
+        align[a] = align[p] if p >= 0 else np.eye(3)
+        if an not in jmap.align or an not in present:
+            continue
+        b = present[an]
+        kids = [c for c in skeleton.children(a) if skeleton.names[c] in present]
+        kids = [c for c in kids if is_descendant(present[skeleton.names[c]], b)]
+        if kids:
+            c = min(kids, key=lambda c: np.linalg.norm(skeleton.heads[c] - skeleton.tails[a]))
+            d_av = skeleton.heads[c] - skeleton.heads[a]
+            d_src = src_rest[present[skeleton.names[c]]] - src_rest[b]
+        elif b in clip.end_offsets:
+            d_av = skeleton.tails[a] - skeleton.heads[a]
+            d_src = C @ clip.end_offsets[b]
+        else:
+            continue
+        if np.linalg.norm(d_src) > 1e-9 and np.linalg.norm(d_av) > 1e-9:
+            align[a] = rotation_between(d_av[None], d_src[None])[0].astype(np.float64)
+
+    # 2. World rotation deltas of the avatar's bones.
+    T = clip.rotations.shape[0]
+    world = np.zeros((T, J, 3, 3))
+    for a, an in enumerate(skeleton.names):
+        p = skeleton.parents[a]
+        if an in present:
+            world[:, a] = src_world[:, present[an]] @ align[a]
+        else:
+            world[:, a] = world[:, p] if p >= 0 else np.eye(3)
+
+    # 3. Local rotations.
+    local = np.empty_like(world)
+    local[:, 0] = world[:, 0]
+    par = skeleton.parents[1:]
+    local[:, 1:] = np.swapaxes(world[:, par], -1, -2) @ world[:, 1:]
+
+    # 4. Root translation, scaled by leg length.
+    root = src_pos[:, present[root_name]].copy()
+    av_leg = _leg_length(skeleton.heads, skeleton.names, "LeftUpLeg", "LeftLeg", "LeftFoot")
+    src_leg = None
+    legs = [jmap.joints.get(n) for n in ("LeftUpLeg", "LeftLeg", "LeftFoot")]
+    if all(n in src_names for n in legs):
+        src_leg = _leg_length(src_rest, src_names, *legs)
+    scale = av_leg / src_leg if av_leg and src_leg else 1.0
+    root = root * scale
+    if config.recenter:
+        root[:, :2] -= root[0, :2]
+    if config.ground:
+        pos = _world_fk(skeleton, world, root)
+        feet = [skeleton.names.index(n) for n in skeleton.names if "Foot" in n or "Toe" in n]
+        # Height of each foot joint above the floor at the avatar's rest pose.
+        rest_h = skeleton.heads[feet, 2] + floor_height
+        lowest = (pos[:, feet, 2] - rest_h).min(1)  # (T,) sole height per frame
+        root[:, 2] -= np.percentile(lowest, 5)
+
+    motion = Motion(
+        joint_names=skeleton.names,
+        rotations=local.astype(np.float32),
+        root_translation=root.astype(np.float32),
+        fps=clip.fps,
+        name=name or (clip.path.stem if clip.path is not None else "bvh"),
+        meta={"source": source, "joint_map": jmap.name, "scale": scale},
+    )
+    if config.fps is not None and abs(config.fps - clip.fps) > 1e-6:
+        motion = resample_motion(motion, config.fps)
+    return motion

@@ -1,0 +1,253 @@
+"""The ``loosefit`` command: thin wiring from arguments to one function each.
+
+Subcommands:
+    demo     pose the avatar with a procedural dance, dress it, write a video
+    render   render a motion (BVH, saved or procedural) or a saved sequence to MP4 + PNG
+    motion   convert a BVH file or a procedural move to a motion file (.npz)
+    garment  make a parametric skirt or import an OBJ, write OBJ + template (.npz)
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from loosefit.errors import LoosefitInputError
+
+
+def _log(msg: str) -> None:
+    print(f"[loosefit] {msg}", file=sys.stderr, flush=True)
+
+
+def _add_avatar_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--shape",
+        default="",
+        help="body shape as anny phenotypes in [0, 1], e.g. 'gender=0.9,height=0.6,weight=0.4'",
+    )
+    p.add_argument("--device", default="cpu", help="torch device for posing (cpu, cuda)")
+
+
+def _add_render_args(p: argparse.ArgumentParser, views: str = "front,three_quarter,side") -> None:
+    p.add_argument("--views", default=views, help="comma-separated camera views")
+    p.add_argument("--size", type=int, default=480, help="pixels per view (square)")
+    p.add_argument("--png-every", type=int, default=0, help="also save every Nth frame as PNG")
+    p.add_argument("--follow", action="store_true", help="cameras follow the dancer")
+
+
+def _parse_shape(text: str) -> dict[str, float]:
+    shape = {}
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        key, sep, value = item.partition("=")
+        try:
+            if not sep:
+                raise ValueError
+            shape[key.strip()] = float(value)
+        except ValueError:
+            raise LoosefitInputError("--shape", item, "NAME=VALUE", repr(item)) from None
+    return shape
+
+
+def _avatar(args: argparse.Namespace):
+    from loosefit.body.avatar import Avatar, AvatarConfig
+
+    t = time.perf_counter()
+    _log("building the avatar (anny; the first run builds its cache, about 2 minutes)")
+    avatar = Avatar(AvatarConfig(shape=_parse_shape(args.shape)), device=args.device)
+    _log(f"avatar ready in {time.perf_counter() - t:.1f} s")
+    return avatar
+
+
+def _skirt_config(style: str, resolution: str, length: float | None):
+    from loosefit.garment.skirt import SkirtConfig
+
+    extra = {} if length is None else {"length": length}
+    return SkirtConfig.preset(resolution, style, **extra)
+
+
+def _garment(spec: str, avatar, resolution: str = "cpu", length: float | None = None):
+    """A garment template in the avatar's rest frame from a style name or an OBJ file."""
+    from loosefit.dress import fit_skirt
+    from loosefit.garment.skirt import STYLES
+
+    if spec == "none":
+        return None
+    if spec in STYLES:
+        return fit_skirt(avatar, _skirt_config(spec, resolution, length))
+    if spec.lower().endswith(".obj"):
+        from loosefit.garment.obj import load_garment_obj
+
+        return load_garment_obj(spec)
+    raise LoosefitInputError("--garment", "value", f"one of {STYLES}, 'none' or an .obj", repr(spec))
+
+
+def _render(args, avatar, motion, template, garment_vertices, out: Path, title: str):
+    from loosefit.render.clip import render_clip
+    from loosefit.render.renderer import RenderConfig, RenderMesh
+
+    body = avatar.pose_motion(motion)
+    scene = [RenderMesh(avatar.faces.cpu().numpy(), body.vertices.cpu().numpy(), "body", name="body")]
+    if template is not None:
+        scene.append(RenderMesh(template.faces, garment_vertices, "garment", name=template.name))
+    config = RenderConfig(
+        width=args.size,
+        height=args.size,
+        views=tuple(v.strip() for v in args.views.split(",") if v.strip()),
+        follow=args.follow,
+    )
+    result = render_clip(
+        scene, out, fps=motion.fps, config=config, title=title, png_every=args.png_every
+    )
+    _log(f"wrote {result.video}")
+    if result.sheet is not None:
+        _log(f"wrote {result.sheet}")
+    return result
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from loosefit.body.motions import load_motion
+    from loosefit.dress import carry_rigidly
+    from loosefit.sequence import DressedSequence
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    avatar = _avatar(args)
+    motion = load_motion(args.motion, avatar, fps=args.fps, seed=args.seed)
+    _log(f"motion '{motion.name}': {motion.num_frames} frames at {motion.fps:g} fps")
+    template = _garment(args.garment, avatar, args.resolution)
+    body = avatar.pose_motion(motion)
+    garment = carry_rigidly(template, body, avatar).cpu().numpy()
+    seq = DressedSequence(
+        motion, template, garment, {"rig": avatar.config.rig, "shape": avatar.shape}, "rigid"
+    )
+    seq.save(out / "sequence.npz")
+    _log(f"wrote {out / 'sequence.npz'} (garment carried rigidly by the hips: no physics yet)")
+    _render(args, avatar, motion, template, garment, out, f"loosefit demo: {motion.name}")
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from loosefit.body.motions import load_motion
+    from loosefit.dress import carry_rigidly
+    from loosefit.sequence import DressedSequence
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if args.sequence:
+        seq = DressedSequence.load(args.sequence)
+        args.shape = ",".join(f"{k}={v}" for k, v in seq.avatar.get("shape", {}).items())
+        avatar = _avatar(args)
+        motion, template, garment = seq.motion, seq.garment, seq.garment_vertices
+        avatar.check_motion(motion)
+        if args.max_frames:
+            motion = motion.slice(0, args.max_frames)
+            garment = garment[: args.max_frames]
+        title = f"{Path(args.sequence).stem} ({seq.source})"
+    elif args.motion:
+        avatar = _avatar(args)
+        motion = load_motion(
+            args.motion, avatar, fps=args.fps, seed=args.seed, max_frames=args.max_frames
+        )
+        template = _garment(args.garment, avatar)
+        garment = None
+        if template is not None:
+            garment = carry_rigidly(template, avatar.pose_motion(motion), avatar).cpu().numpy()
+        title = motion.name
+    else:
+        raise LoosefitInputError("loosefit render", "arguments", "--motion or --sequence", "neither")
+    _log(f"rendering {motion.num_frames} frames")
+    _render(args, avatar, motion, template, garment, out, title)
+    return 0
+
+
+def cmd_motion(args: argparse.Namespace) -> int:
+    from loosefit.body.motions import load_motion
+
+    avatar = _avatar(args)
+    motion = load_motion(args.spec, avatar, fps=args.fps, seed=args.seed, max_frames=args.max_frames)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    motion.save(out)
+    _log(f"wrote {out}: {motion.num_frames} frames at {motion.fps:g} fps, {motion.duration:.1f} s")
+    return 0
+
+
+def cmd_garment(args: argparse.Namespace) -> int:
+    from loosefit.garment.obj import write_obj
+
+    avatar = _avatar(args)
+    template = _garment(args.source, avatar, args.resolution, args.length)
+    if template is None:
+        raise LoosefitInputError("loosefit garment", "source", "a style or an .obj", "'none'")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    name = Path(args.source).stem
+    write_obj(out / f"{name}.obj", template.vertices, template.faces, template.uvs, template.face_uvs)
+    template.save(out / f"{name}.npz")
+    _log(
+        f"wrote {out / (name + '.obj')} and {out / (name + '.npz')}: {template.num_vertices} "
+        f"vertices, {len(template.faces)} faces, {len(template.waist)} waistband vertices"
+    )
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="loosefit", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("demo", help="the built-in default: a dance, a skirt, a video")
+    p.add_argument("--out", default="out/demo", help="output folder")
+    p.add_argument("--motion", default="dance:8", help="procedural move, dance:SECONDS, or a file")
+    p.add_argument("--garment", default="flared", help="skirt style (aline, flared, circle)")
+    p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--fps", type=float, default=30.0)
+    _add_avatar_args(p)
+    _add_render_args(p)
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("render", help="render a motion or a saved sequence to MP4 and PNG")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--motion", help="a .bvh or .npz motion, or a procedural move name")
+    src.add_argument("--sequence", help="a sequence .npz written by loosefit")
+    p.add_argument("--garment", default="none", help="with --motion: a skirt style, an .obj or none")
+    p.add_argument("--out", default="out/render", help="output folder")
+    p.add_argument("--max-frames", type=int, default=None, help="render at most this many frames")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--fps", type=float, default=30.0)
+    _add_avatar_args(p)
+    _add_render_args(p, views="front,side")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("motion", help="convert a BVH or a procedural move to a motion .npz")
+    p.add_argument("spec", help="a .bvh file, a procedural move name, or dance:SECONDS")
+    p.add_argument("--out", required=True, help="output .npz")
+    p.add_argument("--fps", type=float, default=30.0)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-frames", type=int, default=None)
+    _add_avatar_args(p)
+    p.set_defaults(func=cmd_motion)
+
+    p = sub.add_parser("garment", help="make a skirt or import an OBJ garment")
+    p.add_argument("source", help="skirt style (aline, flared, circle) or an .obj file")
+    p.add_argument("--out", default="out/garment", help="output folder")
+    p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"))
+    p.add_argument("--length", type=float, default=None, help="skirt length, metres")
+    _add_avatar_args(p)
+    p.set_defaults(func=cmd_garment)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except LoosefitInputError as exc:
+        print(f"loosefit: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""Pure geometry: skinning, normals, queries."""

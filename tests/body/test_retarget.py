@@ -1,0 +1,206 @@
+import numpy as np
+import pytest
+
+from loosefit.body.bvh import read_bvh
+from loosefit.body.retarget import RetargetConfig, axis_change, choose_joint_map, retarget_bvh
+from loosefit.errors import LoosefitInputError
+from tests.conftest import SALSA, needs_salsa
+
+# A small DAZ-named T-pose skeleton, Y up, facing +Z, arms straight out, legs down.
+TPOSE_BVH = """HIERARCHY
+ROOT hip
+{
+  OFFSET 0 0 0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation
+  JOINT abdomen
+  {
+    OFFSET 0 0.10 0
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    JOINT chest
+    {
+      OFFSET 0 0.15 0
+      CHANNELS 3 Zrotation Xrotation Yrotation
+      JOINT neck
+      {
+        OFFSET 0 0.15 0
+        CHANNELS 3 Zrotation Xrotation Yrotation
+        JOINT head
+        {
+          OFFSET 0 0.08 0
+          CHANNELS 3 Zrotation Xrotation Yrotation
+          End Site
+          {
+            OFFSET 0 0.15 0
+          }
+        }
+      }
+{arms}
+    }
+  }
+{legs}
+}
+MOTION
+Frames: 2
+Frame Time: 0.0333333
+{frames}
+"""
+
+ARM = """      JOINT {s}Collar
+      {{
+        OFFSET {x1} 0.12 0
+        CHANNELS 3 Zrotation Xrotation Yrotation
+        JOINT {s}Shldr
+        {{
+          OFFSET {x2} 0 0
+          CHANNELS 3 Zrotation Xrotation Yrotation
+          JOINT {s}ForeArm
+          {{
+            OFFSET {x3} 0 0
+            CHANNELS 3 Zrotation Xrotation Yrotation
+            JOINT {s}Hand
+            {{
+              OFFSET {x4} 0 0
+              CHANNELS 3 Zrotation Xrotation Yrotation
+              End Site
+              {{
+                OFFSET {x5} 0 0
+              }}
+            }}
+          }}
+        }}
+      }}
+"""
+
+LEG = """  JOINT {s}Buttock
+  {{
+    OFFSET {x1} 0 0
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    JOINT {s}Thigh
+    {{
+      OFFSET 0 -0.05 0
+      CHANNELS 3 Zrotation Xrotation Yrotation
+      JOINT {s}Shin
+      {{
+        OFFSET 0 -0.40 0
+        CHANNELS 3 Zrotation Xrotation Yrotation
+        JOINT {s}Foot
+        {{
+          OFFSET 0 -0.40 0
+          CHANNELS 3 Zrotation Xrotation Yrotation
+          End Site
+          {{
+            OFFSET 0 -0.04 0.12
+          }}
+        }}
+      }}
+    }}
+  }}
+"""
+
+
+def write_tpose(path, frames: list[list[float]] | None = None):
+    arms = "".join(
+        ARM.format(s=s, x1=k * 0.03, x2=k * 0.15, x3=k * 0.27, x4=k * 0.25, x5=k * 0.08)
+        for s, k in (("l", 1), ("r", -1))
+    )
+    legs = "".join(LEG.format(s=s, x1=k * 0.09) for s, k in (("l", 1), ("r", -1)))
+    n_channels = 6 + 3 * (4 + 8 + 8)
+    if frames is None:
+        frames = [[0.0] * n_channels, [0.0] * n_channels]
+    rows = "\n".join(" ".join(f"{v:g}" for v in f) for f in frames)
+    text = TPOSE_BVH.replace("{arms}", arms).replace("{legs}", legs).replace("{frames}", rows)
+    path.write_text(text)
+    return path
+
+
+def test_axis_change_bvh_to_avatar():
+    C = axis_change("+y", "+z")
+    assert np.allclose(C @ [0, 1, 0], [0, 0, 1])  # up
+    assert np.allclose(C @ [0, 0, 1], [0, -1, 0])  # forward: avatar faces -Y
+    assert np.allclose(C @ [1, 0, 0], [1, 0, 0])  # the character's left stays +X
+    assert np.isclose(np.linalg.det(C), 1.0)
+    with pytest.raises(LoosefitInputError, match="perpendicular"):
+        axis_change("+y", "-y")
+
+
+def test_tpose_capture_gives_avatar_tpose(avatar, tmp_path):
+    clip = read_bvh(write_tpose(tmp_path / "tpose.bvh"))
+    motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height, RetargetConfig(fps=None))
+    body = avatar.pose_motion(motion)
+    pos = body.joint_poses[0, :, :3, 3].numpy()
+    idx = {n: i for i, n in enumerate(avatar.joint_names)}
+    for side, sign in (("Left", 1), ("Right", -1)):
+        shoulder, elbow, hand = (pos[idx[f"{side}{b}"]] for b in ("Arm", "ForeArm", "Hand"))
+        # Arms horizontal and straight out to the side: a T-pose.
+        for a, b in ((shoulder, elbow), (elbow, hand)):
+            d = (b - a) / np.linalg.norm(b - a)
+            assert d[0] * sign > 0.99, f"{side} arm segment direction {d}"
+        # Legs straight down.
+        hip, knee, ankle = (pos[idx[f"{side}{b}"]] for b in ("UpLeg", "Leg", "Foot"))
+        for a, b in ((hip, knee), (knee, ankle)):
+            d = (b - a) / np.linalg.norm(b - a)
+            assert d[2] < -0.99, f"{side} leg segment direction {d}"
+    # Feet on the floor.
+    assert abs(float(body.vertices[0, :, 2].min())) < 0.02
+    # The spine and head keep the avatar's own posture: same as at the rest pose.
+    assert np.allclose(motion.rotations[0, idx["Spine1"]], np.eye(3), atol=1e-5)
+
+
+def test_rotating_the_capture_root_turns_the_avatar(avatar, tmp_path):
+    n = 6 + 3 * 20
+    f0, f1 = [0.0] * n, [0.0] * n
+    f1[4] = 90.0  # Yrotation of the root: a quarter turn about the capture's up axis
+    clip = read_bvh(write_tpose(tmp_path / "turn.bvh", [f0, f1]))
+    motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height, RetargetConfig(fps=None))
+    # Capture Y (up) becomes avatar Z: a 90 degree turn about +Z.
+    expected = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]], float)
+    assert np.allclose(motion.rotations[1, 0], expected, atol=1e-5)
+
+
+def test_missing_root_joint_is_an_error(avatar, tmp_path):
+    path = write_tpose(tmp_path / "noroot.bvh")
+    path.write_text(path.read_text().replace("ROOT hip", "ROOT pelvis"))
+    clip = read_bvh(path)
+    with pytest.raises(LoosefitInputError, match=r"noroot\.bvh.*HIERARCHY.*'hip'"):
+        retarget_bvh(clip, avatar.skeleton, avatar.floor_height, RetargetConfig(joint_map="daz"))
+
+
+def test_missing_limb_joint_is_an_error(avatar, tmp_path):
+    path = write_tpose(tmp_path / "noshin.bvh")
+    path.write_text(path.read_text().replace("lShin", "lCalf"))
+    with pytest.raises(LoosefitInputError, match=r"noshin\.bvh.*lShin"):
+        retarget_bvh(read_bvh(path), avatar.skeleton, avatar.floor_height)
+
+
+def test_unknown_joint_map_is_an_error():
+    with pytest.raises(LoosefitInputError, match="joint_map"):
+        choose_joint_map(["hip"], "smpl")
+
+
+def test_auto_map_detection():
+    assert choose_joint_map(["hip", "abdomen", "lThigh", "rThigh"]).name == "daz"
+    assert choose_joint_map(["Hips", "LeftUpLeg", "RightUpLeg", "Spine"]).name == "cmu_mb"
+
+
+@needs_salsa
+def test_salsa_clip_retargets_to_plausible_dance(avatar):
+    clip = read_bvh(SALSA / "61_01.bvh")
+    motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height)
+    assert motion.fps == 30.0
+    assert motion.num_frames == int(np.floor((clip.num_frames - 1) / clip.fps * 30 + 1e-9)) + 1
+    body = avatar.pose_motion(motion)
+    v = body.vertices.numpy()
+    lowest = v[:, :, 2].min(1)
+    # Feet on the floor most of the time, never deep below it, no flying.
+    assert np.median(np.abs(lowest)) < 0.03 and lowest.min() > -0.06 and lowest.max() < 0.15
+    # Head above hips in every frame, at a standing height.
+    pos = body.joint_poses[:, :, :3, 3].numpy()
+    head, hips = pos[:, avatar.joint_names.index("Head")], pos[:, 0]
+    assert (head[:, 2] > hips[:, 2] + 0.4).all()
+    # Knees bend forward, never backward past straight: angle of hip-knee-ankle
+    idx = {n: i for i, n in enumerate(avatar.joint_names)}
+    for side in ("Left", "Right"):
+        thigh = pos[:, idx[f"{side}Leg"]] - pos[:, idx[f"{side}UpLeg"]]
+        shin = pos[:, idx[f"{side}Foot"]] - pos[:, idx[f"{side}Leg"]]
+        cos = (thigh * shin).sum(-1) / np.linalg.norm(thigh, axis=-1) / np.linalg.norm(shin, axis=-1)
+        assert np.degrees(np.arccos(np.clip(cos, -1, 1))).max() < 120
