@@ -34,7 +34,11 @@ def _add_render_args(p: argparse.ArgumentParser, views: str = "front,three_quart
     p.add_argument("--views", default=views, help="comma-separated camera views")
     p.add_argument("--size", type=int, default=480, help="pixels per view (square)")
     p.add_argument("--png-every", type=int, default=0, help="also save every Nth frame as PNG")
-    p.add_argument("--follow", action="store_true", help="cameras follow the dancer")
+    p.add_argument(
+        "--fixed-camera",
+        action="store_true",
+        help="frame the whole path once instead of following the dancer",
+    )
 
 
 def _parse_shape(text: str) -> dict[str, float]:
@@ -80,7 +84,9 @@ def _garment(spec: str, avatar, resolution: str = "cpu", length: float | None = 
         from loosefit.garment.obj import load_garment_obj
 
         return load_garment_obj(spec)
-    raise LoosefitInputError("--garment", "value", f"one of {STYLES}, 'none' or an .obj", repr(spec))
+    raise LoosefitInputError(
+        "--garment", "value", f"one of {STYLES}, 'none' or an .obj", repr(spec)
+    )
 
 
 def _render(args, avatar, motion, template, garment_vertices, out: Path, title: str):
@@ -88,14 +94,16 @@ def _render(args, avatar, motion, template, garment_vertices, out: Path, title: 
     from loosefit.render.renderer import RenderConfig, RenderMesh
 
     body = avatar.pose_motion(motion)
-    scene = [RenderMesh(avatar.faces.cpu().numpy(), body.vertices.cpu().numpy(), "body", name="body")]
+    scene = [
+        RenderMesh(avatar.faces.cpu().numpy(), body.vertices.cpu().numpy(), "body", name="body")
+    ]
     if template is not None:
         scene.append(RenderMesh(template.faces, garment_vertices, "garment", name=template.name))
     config = RenderConfig(
         width=args.size,
         height=args.size,
         views=tuple(v.strip() for v in args.views.split(",") if v.strip()),
-        follow=args.follow,
+        follow=not args.fixed_camera,
     )
     result = render_clip(
         scene, out, fps=motion.fps, config=config, title=title, png_every=args.png_every
@@ -156,7 +164,9 @@ def cmd_render(args: argparse.Namespace) -> int:
             garment = carry_rigidly(template, avatar.pose_motion(motion), avatar).cpu().numpy()
         title = motion.name
     else:
-        raise LoosefitInputError("loosefit render", "arguments", "--motion or --sequence", "neither")
+        raise LoosefitInputError(
+            "loosefit render", "arguments", "--motion or --sequence", "neither"
+        )
     _log(f"rendering {motion.num_frames} frames")
     _render(args, avatar, motion, template, garment, out, title)
     return 0
@@ -166,7 +176,9 @@ def cmd_motion(args: argparse.Namespace) -> int:
     from loosefit.body.motions import load_motion
 
     avatar = _avatar(args)
-    motion = load_motion(args.spec, avatar, fps=args.fps, seed=args.seed, max_frames=args.max_frames)
+    motion = load_motion(
+        args.spec, avatar, fps=args.fps, seed=args.seed, max_frames=args.max_frames
+    )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     motion.save(out)
@@ -184,7 +196,9 @@ def cmd_garment(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     name = Path(args.source).stem
-    write_obj(out / f"{name}.obj", template.vertices, template.faces, template.uvs, template.face_uvs)
+    write_obj(
+        out / f"{name}.obj", template.vertices, template.faces, template.uvs, template.face_uvs
+    )
     template.save(out / f"{name}.npz")
     _log(
         f"wrote {out / (name + '.obj')} and {out / (name + '.npz')}: {template.num_vertices} "
@@ -212,7 +226,9 @@ def build_parser() -> argparse.ArgumentParser:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--motion", help="a .bvh or .npz motion, or a procedural move name")
     src.add_argument("--sequence", help="a sequence .npz written by loosefit")
-    p.add_argument("--garment", default="none", help="with --motion: a skirt style, an .obj or none")
+    p.add_argument(
+        "--garment", default="none", help="with --motion: a skirt style, an .obj or none"
+    )
     p.add_argument("--out", default="out/render", help="output folder")
     p.add_argument("--max-frames", type=int, default=None, help="render at most this many frames")
     p.add_argument("--seed", type=int, default=0)

@@ -1,4 +1,6 @@
-"""A dressed animation on disk: the motion, the avatar's shape, the garment template and its vertices.
+"""A dressed animation on disk.
+
+It holds the motion, the avatar's shape, the garment template and its vertices.
 
 The body is not stored: it is reproduced exactly by posing the avatar (same
 rig and shape) with the motion, which keeps a file ~20x smaller than storing

@@ -31,7 +31,10 @@ def _check_array(
     shape: tuple[int | None, ...],
     kind: str = "f",
 ) -> None:
-    """Raise a :class:`LoosefitInputError` unless ``array`` has ``shape`` (None = any) and no NaN."""
+    """Raise a :class:`LoosefitInputError` unless ``array`` has ``shape`` and no NaN.
+
+    A ``None`` in ``shape`` accepts any size on that axis.
+    """
     if not isinstance(array, np.ndarray):
         raise LoosefitInputError(source, name, "a numpy array", type(array).__name__)
     want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
@@ -225,11 +228,16 @@ class GarmentTemplate:
                 )
         if len(self.waist) and (self.waist.min() < 0 or self.waist.max() >= V):
             raise LoosefitInputError(
-                src, "waist", f"indices in [0, {V})", f"range [{self.waist.min()}, {self.waist.max()}]"
+                src,
+                "waist",
+                f"indices in [0, {V})",
+                f"range [{self.waist.min()}, {self.waist.max()}]",
             )
         if (self.uvs < -1e-6).any() or (self.uvs > 1 + 1e-6).any():
             raise LoosefitInputError(
-                src, "uvs", "coordinates in the unit square",
+                src,
+                "uvs",
+                "coordinates in the unit square",
                 f"range [{self.uvs.min():.3g}, {self.uvs.max():.3g}]",
             )
 

@@ -202,5 +202,7 @@ def test_salsa_clip_retargets_to_plausible_dance(avatar):
     for side in ("Left", "Right"):
         thigh = pos[:, idx[f"{side}Leg"]] - pos[:, idx[f"{side}UpLeg"]]
         shin = pos[:, idx[f"{side}Foot"]] - pos[:, idx[f"{side}Leg"]]
-        cos = (thigh * shin).sum(-1) / np.linalg.norm(thigh, axis=-1) / np.linalg.norm(shin, axis=-1)
+        cos = (
+            (thigh * shin).sum(-1) / np.linalg.norm(thigh, axis=-1) / np.linalg.norm(shin, axis=-1)
+        )
         assert np.degrees(np.arccos(np.clip(cos, -1, 1))).max() < 120

@@ -33,7 +33,9 @@ def test_nearest_rotation_is_proper_and_exact_for_rotations():
     rng = np.random.default_rng(1)
     M = torch.from_numpy(rng.normal(size=(50, 3, 3)))
     R = nearest_rotation(M)
-    assert torch.allclose(R @ R.transpose(-1, -2), torch.eye(3).double().expand(50, 3, 3), atol=1e-10)
+    assert torch.allclose(
+        R @ R.transpose(-1, -2), torch.eye(3).double().expand(50, 3, 3), atol=1e-10
+    )
     assert (torch.det(R) > 0).all()
     assert torch.allclose(nearest_rotation(R), R, atol=1e-10)
 

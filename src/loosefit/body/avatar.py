@@ -345,7 +345,7 @@ class Avatar(torch.nn.Module):
     # -- body regions and seed points ----------------------------------------
 
     def vertices_of_bones(self, bones: tuple[str, ...]) -> torch.Tensor:
-        """(N,) indices of the body vertices whose largest skinning weight is on one of ``bones``."""
+        """(N,) indices of the body vertices skinned mostly (largest weight) to one of ``bones``."""
         unknown = [b for b in bones if b not in self.joint_names]
         if unknown:
             raise LoosefitInputError(
@@ -357,7 +357,9 @@ class Avatar(torch.nn.Module):
         allowed = torch.tensor([self.joint_names.index(b) for b in bones], device=dominant.device)
         return torch.nonzero(torch.isin(dominant, allowed))[:, 0]
 
-    def seed_points(self, count: int = 256, bones: tuple[str, ...] = LOWER_BODY_BONES) -> SeedPoints:
+    def seed_points(
+        self, count: int = 256, bones: tuple[str, ...] = LOWER_BODY_BONES
+    ) -> SeedPoints:
         """Seed points spread regularly over the skin of the given bones (paper 3.2).
 
         Args:

@@ -1,4 +1,7 @@
-"""One entry point for every way a user names a motion: a BVH file, a saved motion, a procedural move."""
+"""One entry point for every way a user names a motion.
+
+A BVH file, a saved motion, or a procedural move.
+"""
 
 from __future__ import annotations
 

@@ -359,7 +359,10 @@ def compose(
         for jn, v in out.angles.items():
             if jn not in joint_names:
                 raise LoosefitInputError(
-                    "compose", "joint_names", f"a skeleton with joint '{jn}'", f"{list(joint_names)}"
+                    "compose",
+                    "joint_names",
+                    f"a skeleton with joint '{jn}'",
+                    f"{list(joint_names)}",
                 )
             aa[:, joint_names.index(jn)] += w[:, None] * place(v, i)
         for k in root:
@@ -423,9 +426,7 @@ def named_motion(
     if name == "dance":
         return random_dance(joint_names, floor_height, 12.0, seed, fps)
     if name not in MOVES:
-        raise LoosefitInputError(
-            "motion name", "name", f"one of {['dance', *MOVES]}", repr(name)
-        )
+        raise LoosefitInputError("motion name", "name", f"one of {['dance', *MOVES]}", repr(name))
     lo, hi = _DURATIONS[name]
     specs = [MoveSpec("idle", 0.5), MoveSpec(name, hi), MoveSpec("idle", 0.8)]
     return compose(specs, joint_names, floor_height, fps=fps, seed=seed, name=name)

@@ -380,7 +380,8 @@ def normalize_uvs(uvs: np.ndarray, margin: float = 0.02, *, keep_aspect: bool = 
 
 def _first_face(mesh: ObjMesh, f: int) -> str:
     line = "" if mesh.face_lines is None else f" (line {int(mesh.face_lines[f])})"
-    return f"triangle {f}{line} with vertices {mesh.faces[f].tolist()}"
+    corners = ", ".join(str(int(k) + 1) for k in mesh.faces[f])
+    return f"triangle {f}{line} with vertices {corners} (1-based, as in the file)"
 
 
 def load_garment_obj(

@@ -76,7 +76,9 @@ def closest_points(
     """
     mesh = wp.Mesh(
         points=wp.array(np.ascontiguousarray(vertices, np.float32), dtype=wp.vec3, device=device),
-        indices=wp.array(np.ascontiguousarray(faces, np.int32).ravel(), dtype=wp.int32, device=device),
+        indices=wp.array(
+            np.ascontiguousarray(faces, np.int32).ravel(), dtype=wp.int32, device=device
+        ),
     )
     n = len(queries)
     q = wp.array(np.ascontiguousarray(queries, np.float32), dtype=wp.vec3, device=device)
@@ -99,4 +101,3 @@ def closest_points(
         inside=sign.numpy() < 0,
         distance=np.linalg.norm(points - np.asarray(queries, np.float32), axis=-1),
     )
-

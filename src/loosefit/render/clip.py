@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from loosefit.render.renderer import Renderer, RenderConfig, RenderMesh
+from loosefit.render.renderer import RenderConfig, Renderer, RenderMesh
 from loosefit.render.video import contact_sheet, write_video
 
 

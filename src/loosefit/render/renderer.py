@@ -16,7 +16,7 @@ Example::
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -264,7 +264,7 @@ class _Frame:
 class RenderedFrames:
     """A lazily rendered sequence of tiled images; iterate it, ``len()`` gives the frame count."""
 
-    def __init__(self, make: callable, length: int) -> None:
+    def __init__(self, make: Callable[[], Iterator[np.ndarray]], length: int) -> None:
         self._make, self._length = make, length
 
     def __len__(self) -> int:

@@ -202,7 +202,8 @@ def contact_sheet(
     Args:
         images: N (H_i, W_i, 3) uint8 images.
         cols: images per row.
-        labels: optional N captions drawn in the top-left corner of each cell.
+        labels: optional N captions drawn in the top-right corner of each cell (the
+            renderer's own title and view names sit top-left and bottom-left).
         gap: pixels between cells and around the sheet.
         background: colour of the gaps, 0-255 RGB.
         font_size: caption size, pixels.
@@ -236,9 +237,15 @@ def contact_sheet(
         font = ImageFont.load_default(size=font_size)
         for i, text in enumerate(labels):
             r, c = divmod(i, cols)
-            xy = (gap + c * (W + gap) + 6, gap + r * (H + gap) + 4)
+            xy = (gap + c * (W + gap) + W - 6, gap + r * (H + gap) + 4)  # top right
             draw.text(
-                xy, text, fill=(20, 20, 20), font=font, stroke_width=2, stroke_fill=(255, 255, 255)
+                xy,
+                text,
+                fill=(20, 20, 20),
+                font=font,
+                anchor="ra",
+                stroke_width=2,
+                stroke_fill=(255, 255, 255),
             )
         sheet = np.asarray(pil).copy()
     return sheet

@@ -1,0 +1,41 @@
+import imageio.v3 as iio
+
+from loosefit.cli import main
+from tests.conftest import SALSA, needs_salsa
+
+
+def test_demo_writes_video_and_sequence(tmp_path, avatar):
+    out = tmp_path / "demo"
+    code = main(["demo", "--out", str(out), "--motion", "kick", "--size", "96", "--views", "front"])
+    assert code == 0
+    assert (out / "sequence.npz").is_file() and (out / "video_sheet.png").is_file()
+    frames = iio.imread(out / "video.mp4")
+    assert frames.shape[0] > 30 and frames.shape[-1] == 3
+    assert not list(out.glob("*partial*"))
+    # The saved sequence renders again from the file.
+    code = main(["render", "--sequence", str(out / "sequence.npz"), "--out", str(out / "again"),
+                 "--size", "64", "--views", "side", "--max-frames", "5"])  # fmt: skip
+    assert code == 0 and (out / "again" / "video.mp4").is_file()
+
+
+def test_bad_motion_name_is_a_clear_error(tmp_path, capsys, avatar):
+    code = main(["motion", "moonwalk", "--out", str(tmp_path / "m.npz")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "moonwalk" in err and "expected" in err and "found" in err
+    assert not (tmp_path / "m.npz").exists()
+
+
+def test_bad_shape_argument_is_a_clear_error(tmp_path, capsys):
+    code = main(["motion", "spin", "--out", str(tmp_path / "m.npz"), "--shape", "gender"])
+    assert code == 2 and "NAME=VALUE" in capsys.readouterr().err
+
+
+@needs_salsa
+def test_motion_from_bvh(tmp_path, avatar):
+    from loosefit.types import Motion
+
+    out = tmp_path / "salsa.npz"
+    assert main(["motion", str(SALSA / "61_01.bvh"), "--out", str(out), "--max-frames", "60"]) == 0
+    m = Motion.load(out)
+    assert m.num_frames == 60 and m.fps == 30.0 and m.joint_names == avatar.joint_names
