@@ -5,6 +5,7 @@ Subcommands:
     render   render a motion (BVH, saved or procedural) or a saved sequence to MP4 + PNG
     motion   convert a BVH file or a procedural move to a motion file (.npz)
     garment  make a parametric skirt or import an OBJ, write OBJ + template (.npz)
+    simulate simulate a garment dataset with Newton's VBD cloth solver
 """
 
 from __future__ import annotations
@@ -207,6 +208,20 @@ def cmd_garment(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from loosefit.sim.generate import format_report, generate, preset
+
+    config = preset(args.preset, bvh_folder=args.bvh)
+    if args.device:
+        config.cloth.device = args.device
+    if args.max_frames is not None:
+        config.motions.max_frames = args.max_frames
+    manifest = generate(config, args.out, workers=args.workers, progress=True)
+    print(format_report(manifest))
+    _log(f"dataset in {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="loosefit", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -237,6 +252,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_render_args(p, views="front,side")
     p.set_defaults(func=cmd_render)
 
+    p = sub.add_parser("simulate", help="simulate a garment dataset with Newton (resumable)")
+    p.add_argument("--preset", default="demo", help="tiny, demo, salsa or paper")
+    p.add_argument("--out", default=None, help="dataset folder (default datasets/PRESET)")
+    p.add_argument("--bvh", default=None, help="salsa/paper: a folder of BVH clips")
+    p.add_argument("--workers", type=int, default=2, help="parallel simulations")
+    p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
+    p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
+    p.set_defaults(func=cmd_simulate)
+
     p = sub.add_parser("motion", help="convert a BVH or a procedural move to a motion .npz")
     p.add_argument("spec", help="a .bvh file, a procedural move name, or dance:SECONDS")
     p.add_argument("--out", required=True, help="output .npz")
@@ -258,6 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.command == "simulate" and args.out is None:
+        args.out = f"datasets/{args.preset}"
     try:
         return args.func(args)
     except LoosefitInputError as exc:

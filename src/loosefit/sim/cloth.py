@@ -1,0 +1,649 @@
+"""Ground-truth cloth: a garment simulated on the avatar as it moves, with Newton's VBD solver.
+
+The garment is a Newton cloth mesh (Vertex Block Descent, He Chen et al. 2024)
+and the body a collision mesh that deforms with the motion:
+
+* **Body.** One static mesh shape holds the full-resolution, watertight anny
+  body. Before every substep its ``wp.Mesh`` points are overwritten with the
+  body posed for the *end* of that substep (linear interpolation between the
+  frame's start and end vertices), its velocities with the frame's vertex
+  velocities (for friction), and its BVH is refitted. Newton's soft contacts
+  test inside/outside against a watertight mesh by ray parity, so a cloth
+  vertex that ends up inside the body is pushed back out (up to
+  ``body_contact_gap + body_contact_distance`` deep; deeper ones get no contact).
+* **Waistband.** Its vertices are not simulated: each is glued to a point of
+  the body surface (a face and barycentric coordinates found once, at the
+  start), ``waist_offset`` outside along the face normal, and is moved there
+  before every substep.
+* **Timeline.** The garment first drapes under gravity on the rest pose
+  (``settle_seconds``), then the body blends from the rest pose into the
+  motion's first frame (``blend_seconds``: slerp of local rotations, lerp of
+  the root); recording starts at the motion's first frame, so frame ``t`` of
+  the result is motion frame ``t``.
+
+The simulator follows Newton's pattern: a static ``Model``, two ``State``\\ s
+swapped after every ``solver.step``. Warp's CPU kernels run on one thread;
+the first run compiles them (about 35 s, cached under ``~/.cache/warp``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+import warp as wp
+
+from loosefit.body.rotations import matrix_to_quat, quat_slerp, quat_to_matrix
+from loosefit.errors import LoosefitInputError
+from loosefit.geometry.query import closest_points
+from loosefit.types import GarmentTemplate, Motion
+
+
+class SimulationError(RuntimeError):
+    """The simulation diverged (NaN, or a vertex flew away); nothing is returned."""
+
+
+@dataclass
+class ClothConfig:
+    """How the garment is simulated. Units: metres, kilograms, seconds."""
+
+    substeps: int = 20  # solver steps per motion frame (dt = 1/600 s at 30 fps)
+    iterations: int = 5  # VBD iterations per substep
+    density: float = 0.15  # kg/m^2: 150 g/m^2, a light woven skirt fabric (cotton lawn to poplin)
+    stretch_ke: float = 1.0e3  # N/m, membrane shear stiffness (Newton's tri_ke, Lame mu)
+    stretch_ka: float = 1.0e3  # N/m, membrane area stiffness (Newton's tri_ka, Lame lambda)
+    stretch_kd: float = 1.0e-2  # s, membrane strain-rate damping (Newton's tri_kd)
+    bend_ke: float = 1.0e-2  # N m/rad per metre of edge, dihedral bending stiffness (edge_ke)
+    bend_kd: float = 1.0e-3  # bending damping (Newton's edge_kd)
+    flat_rest: bool = True  # bending rest angle 0 (flat fabric), not the template's draped shape
+    air_damping: float = 0.3  # 1/s: velocities decay as exp(-air_damping t), a stand-in for air drag
+    settle_damping: float = 5.0  # 1/s: the same during the settle phase, so the drape comes to rest
+    gravity: float = -9.81  # m/s^2 along +Z
+    jitter: float = 1.0e-4  # m, random offset of the initial cloth vertices (from seed), breaks symmetry
+    body_contact_distance: float = 0.004  # m, cloth vertices are kept this far outside the body
+    body_contact_gap: float = 0.02  # m, extra reach of body-contact detection beyond that distance
+    contact_ke: float = 1.0e4  # N/m, contact stiffness (cloth-body and cloth-cloth)
+    contact_kd: float = 1.0e-2  # N s/m, contact damping (cloth-body and cloth-cloth)
+    body_friction: float = 0.3  # Coulomb friction between cloth and body
+    self_friction: float = 0.2  # Coulomb friction between two layers of cloth
+    self_contact: bool = True  # resolve cloth-cloth contact (costs ~3x; without it folds interpenetrate)
+    self_contact_margin: float = 0.005  # m, distance kept between two layers of cloth
+    self_contact_gap: float = 0.01  # m, extra reach of self-contact detection; a vertex moves at most
+    # 0.85 * (margin + gap) per substep with self-contact on, so this also bounds cloth speed
+    settle_seconds: float = 1.0  # drape under gravity on the rest pose before anything moves
+    blend_seconds: float = 0.5  # body blends from the rest pose into the motion's first frame
+    settle_at_start: bool = True  # settle where the motion starts (its root's floor position and
+    # heading) rather than at the origin facing -Y, so the blend never drags the skirt across the room
+    waist_offset: float = 0.003  # m, waistband held this far outside the body surface along its normal
+    max_distance: float = 10.0  # m, a vertex farther than this from the body's box stops the run
+    device: str = "cpu"  # warp device, "cpu" or "cuda:0"
+    seed: int = 0  # seeds the initial jitter; results are identical for a given seed and device
+
+    def __post_init__(self) -> None:
+        src = "ClothConfig"
+        for name in ("substeps", "iterations"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise LoosefitInputError(src, name, "an integer >= 1", repr(value))
+        positive = ("density", "stretch_ke", "body_contact_distance", "contact_ke", "max_distance")
+        nonnegative = (
+            "stretch_ka", "stretch_kd", "bend_ke", "bend_kd", "air_damping", "settle_damping",
+            "jitter", "body_contact_gap", "contact_kd", "body_friction", "self_friction",
+            "self_contact_margin", "self_contact_gap", "settle_seconds", "blend_seconds",
+            "waist_offset",
+        )  # fmt: skip
+        for name in positive + nonnegative:
+            value = getattr(self, name)
+            low_ok = value > 0 if name in positive else value >= 0
+            if not (isinstance(value, int | float) and math.isfinite(value) and low_ok):
+                want = "a finite number > 0" if name in positive else "a finite number >= 0"
+                raise LoosefitInputError(src, name, want, repr(value))
+        if self.self_contact and self.self_contact_margin + self.self_contact_gap <= 0:
+            raise LoosefitInputError(
+                src, "self_contact_margin + self_contact_gap", "> 0 with self_contact on", "0"
+            )
+        if self.body_friction > 0 and self.self_friction <= 0:
+            # Newton mixes friction as sqrt(mu_cloth * mu_shape); see ClothSimulator.
+            raise LoosefitInputError(
+                src, "self_friction", "> 0 when body_friction > 0", repr(self.self_friction)
+            )
+
+    @classmethod
+    def tiny(cls, **overrides) -> ClothConfig:
+        """A fast configuration for tests: 8 substeps, 0.3 s of settling, a short blend."""
+        kwargs = dict(substeps=8, iterations=4, settle_seconds=0.3, blend_seconds=0.2)
+        kwargs.update(overrides)
+        return cls(**kwargs)
+
+
+@dataclass
+class SimResult:
+    """A simulated garment sequence.
+
+    Attributes:
+        garment_vertices: (T, V, 3) float32 world positions, one per motion frame.
+        faces: (F, 3) int64 garment triangles (the template's).
+        fps: frames per second (the motion's).
+        seconds_per_frame: wall-clock seconds per simulated frame, settle and blend included.
+        preroll_frames: frames simulated before the motion's first frame (settle + blend).
+        settled_vertices: (V, 3) float32 garment at the end of the settle phase.
+        quality: :func:`quality` of the recorded frames.
+        stats: sizes and timings (numbers), for reports.
+    """
+
+    garment_vertices: np.ndarray
+    faces: np.ndarray
+    fps: float
+    seconds_per_frame: float
+    preroll_frames: int
+    settled_vertices: np.ndarray
+    quality: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+
+# -- warp kernels ---------------------------------------------------------------
+
+
+@wp.kernel
+def _pose_body_kernel(
+    start: wp.array(dtype=wp.vec3),
+    end: wp.array(dtype=wp.vec3),
+    alpha: float,
+    inv_frame_dt: float,
+    points: wp.array(dtype=wp.vec3),
+    velocities: wp.array(dtype=wp.vec3),
+):
+    """Body vertices a fraction ``alpha`` into the frame, and their (constant) velocities."""
+    i = wp.tid()
+    a = start[i]
+    d = end[i] - a
+    points[i] = a + alpha * d
+    velocities[i] = d * inv_frame_dt
+
+
+@wp.kernel
+def _pin_waist_kernel(
+    points: wp.array(dtype=wp.vec3),
+    body_faces: wp.array(dtype=wp.vec3i),
+    waist_faces: wp.array(dtype=wp.int32),
+    waist_bary: wp.array(dtype=wp.vec3),
+    waist_particles: wp.array(dtype=wp.int32),
+    offset: float,
+    q0: wp.array(dtype=wp.vec3),
+    q1: wp.array(dtype=wp.vec3),
+):
+    """Move each waistband particle to its glued body point, ``offset`` out along the face normal."""
+    i = wp.tid()
+    f = body_faces[waist_faces[i]]
+    x0 = points[f[0]]
+    x1 = points[f[1]]
+    x2 = points[f[2]]
+    b = waist_bary[i]
+    n = wp.normalize(wp.cross(x1 - x0, x2 - x0))
+    p = b[0] * x0 + b[1] * x1 + b[2] * x2 + offset * n
+    q0[waist_particles[i]] = p
+    q1[waist_particles[i]] = p
+
+
+@wp.kernel
+def _damp_kernel(factor: float, qd: wp.array(dtype=wp.vec3)):
+    i = wp.tid()
+    qd[i] = qd[i] * factor
+
+
+# -- the simulator ----------------------------------------------------------------
+
+
+def _signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Volume enclosed by a closed mesh: positive when its faces wind counter-clockwise outside."""
+    a, b, c = (vertices[faces[:, i]].astype(np.float64) for i in range(3))
+    return float(np.einsum("ij,ij->", a, np.cross(b, c)) / 6.0)
+
+
+class ClothSimulator:
+    """Newton VBD cloth on a deforming body: a static Model, two swapped States, one step per substep.
+
+    Args:
+        garment_vertices: (V, 3) initial cloth positions, world frame.
+        garment_faces: (F, 3) cloth triangles; the initial positions are also the rest shape.
+        waist: (W,) indices of the waistband vertices, glued to the body.
+        body_vertices: (Vb, 3) the body at the start, world frame.
+        body_faces: (Fb, 3) triangles of a closed (watertight) body mesh.
+        config: the physics.
+        frame_dt: seconds per frame; each :meth:`step_frame` runs ``config.substeps`` substeps.
+        bounds: (lower (3,), upper (3,)) a box that holds the body over the whole motion;
+            contacts are culled outside it. Default: the starting body's box grown by 2 m.
+    """
+
+    def __init__(
+        self,
+        garment_vertices: np.ndarray,
+        garment_faces: np.ndarray,
+        waist: np.ndarray,
+        body_vertices: np.ndarray,
+        body_faces: np.ndarray,
+        config: ClothConfig,
+        frame_dt: float,
+        bounds: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
+        import newton  # imported here: importing it takes seconds
+
+        self.config = cfg = config
+        self.frame_dt = float(frame_dt)
+        self.device = wp.get_device(cfg.device)
+        garment_vertices = np.asarray(garment_vertices, np.float64)
+        body_vertices = np.ascontiguousarray(body_vertices, np.float32)
+        body_faces = np.ascontiguousarray(body_faces, np.int32)
+        waist = np.asarray(waist, np.int64)
+        self.num_vertices = len(garment_vertices)
+        self.num_body_vertices = len(body_vertices)
+
+        # 1. Glue the waistband: nearest body face and barycentric coordinates, once.
+        hit = closest_points(body_vertices, body_faces, garment_vertices[waist], device="cpu")
+        outward = 1.0 if _signed_volume(body_vertices, body_faces) > 0 else -1.0
+        self._waist_offset = outward * cfg.waist_offset
+
+        # 2. The cloth, with a seeded jitter that breaks the template's exact symmetry.
+        rng = np.random.default_rng(cfg.seed)
+        start = garment_vertices + cfg.jitter * rng.standard_normal(garment_vertices.shape)
+        builder = newton.ModelBuilder(gravity=(0.0, 0.0, cfg.gravity))
+        builder.add_cloth_mesh(
+            pos=wp.vec3(0.0, 0.0, 0.0),
+            rot=wp.quat_identity(),
+            scale=1.0,
+            vel=wp.vec3(0.0, 0.0, 0.0),
+            vertices=[wp.vec3(*v) for v in garment_vertices],
+            indices=np.asarray(garment_faces, np.int32).ravel().tolist(),
+            density=cfg.density,
+            tri_ke=cfg.stretch_ke,
+            tri_ka=cfg.stretch_ka,
+            tri_kd=cfg.stretch_kd,
+            edge_ke=cfg.bend_ke,
+            edge_kd=cfg.bend_kd,
+            particle_radius=cfg.body_contact_distance,
+        )
+        builder.color(include_bending=True)  # VBD solves one colour of vertices at a time
+
+        # 3. The body: one static mesh shape. Newton mixes contact materials as the mean of
+        #    ke and kd and the geometric mean of mu, so the shape's mu is chosen to give
+        #    sqrt(self_friction * shape_mu) = body_friction.
+        shape_mu = cfg.body_friction**2 / cfg.self_friction if cfg.self_friction > 0 else 0.0
+        self._body_mesh = newton.Mesh(body_vertices, body_faces.ravel(), compute_inertia=False)
+        shape_cfg = newton.ModelBuilder.ShapeConfig(
+            ke=cfg.contact_ke,
+            kd=cfg.contact_kd,
+            mu=shape_mu,
+            margin=0.0,
+            gap=cfg.body_contact_gap,
+            has_shape_collision=False,
+            has_particle_collision=True,
+        )
+        builder.add_shape_mesh(body=-1, mesh=self._body_mesh, cfg=shape_cfg)
+
+        self.model = model = builder.finalize(device=self.device)
+        model.soft_contact_ke = cfg.contact_ke
+        model.soft_contact_kd = cfg.contact_kd
+        model.soft_contact_mu = cfg.self_friction
+        if cfg.flat_rest:
+            model.edge_rest_angle.zero_()
+        # The shape's cached box is the starting body's: widen it to the whole motion.
+        if bounds is None:
+            bounds = (body_vertices.min(0) - 2.0, body_vertices.max(0) + 2.0)
+        lower = np.asarray(bounds[0], np.float32).reshape(1, 3)
+        upper = np.asarray(bounds[1], np.float32).reshape(1, 3)
+        model.shape_collision_aabb_lower.assign(lower)
+        model.shape_collision_aabb_upper.assign(upper)
+
+        # 4. The waistband is kinematic: inactive, infinite mass.
+        flags = model.particle_flags.numpy()
+        flags[waist] &= ~int(newton.ParticleFlags.ACTIVE)
+        model.particle_flags.assign(flags)
+        inv_mass = model.particle_inv_mass.numpy()
+        inv_mass[waist] = 0.0
+        model.particle_inv_mass.assign(inv_mass)
+
+        # 5. Contacts, solver, the two states.
+        self.pipeline = newton.CollisionPipeline(model, soft_contact_gap=cfg.body_contact_gap)
+        self.contacts = self.pipeline.contacts()
+        self.solver = newton.solvers.SolverVBD(
+            model,
+            iterations=cfg.iterations,
+            integrate_with_external_rigid_solver=True,  # the body moves outside the solver
+            particle_enable_self_contact=cfg.self_contact,
+            particle_self_contact_margin=cfg.self_contact_margin,
+            particle_self_contact_gap=cfg.self_contact_gap,
+        )
+        self.state_0 = model.state()
+        self.state_1 = model.state()
+        self.control = model.control()
+        q = start.astype(np.float32)
+        self.state_0.particle_q.assign(q)
+        self.state_1.particle_q.assign(q)
+
+        # 6. Device buffers for the body's frame and the glue.
+        d = self.device
+        self._body_faces = wp.array(body_faces, dtype=wp.vec3i, device=d)
+        self._body_start = wp.array(body_vertices, dtype=wp.vec3, device=d)
+        self._body_end = wp.array(body_vertices, dtype=wp.vec3, device=d)
+        self._waist_faces = wp.array(hit.faces.astype(np.int32), dtype=wp.int32, device=d)
+        self._waist_bary = wp.array(hit.barycentric.astype(np.float32), dtype=wp.vec3, device=d)
+        self._waist_particles = wp.array(waist.astype(np.int32), dtype=wp.int32, device=d)
+        self._pose_body(1.0)
+        self._pin_waist()
+
+    # -- one substep at a time --------------------------------------------------
+
+    @property
+    def _wp_mesh(self) -> wp.Mesh:
+        return self._body_mesh.mesh
+
+    def _pose_body(self, alpha: float) -> None:
+        mesh = self._wp_mesh
+        wp.launch(
+            _pose_body_kernel,
+            dim=self.num_body_vertices,
+            inputs=[self._body_start, self._body_end, alpha, 1.0 / self.frame_dt],
+            outputs=[mesh.points, mesh.velocities],
+            device=self.device,
+        )
+        mesh.refit()
+
+    def _pin_waist(self) -> None:
+        wp.launch(
+            _pin_waist_kernel,
+            dim=len(self._waist_particles),
+            inputs=[
+                self._wp_mesh.points,
+                self._body_faces,
+                self._waist_faces,
+                self._waist_bary,
+                self._waist_particles,
+                self._waist_offset,
+            ],
+            outputs=[self.state_0.particle_q, self.state_1.particle_q],
+            device=self.device,
+        )
+
+    def step_frame(
+        self, body_start: np.ndarray, body_end: np.ndarray, damping: float | None = None
+    ) -> None:
+        """Advance one frame while the body moves linearly from ``body_start`` to ``body_end``.
+
+        Args:
+            body_start: (Vb, 3) body vertices at the start of the frame.
+            body_end: (Vb, 3) body vertices at the end of the frame.
+            damping: velocity decay rate, 1/s (default ``config.air_damping``).
+        """
+        cfg = self.config
+        dt = self.frame_dt / cfg.substeps
+        rate = cfg.air_damping if damping is None else damping
+        factor = math.exp(-rate * dt)
+        self._body_start.assign(np.ascontiguousarray(body_start, np.float32))
+        self._body_end.assign(np.ascontiguousarray(body_end, np.float32))
+        self.solver.rebuild_bvh(self.state_0)  # self-contact BVH, rebuilt once a frame
+        for s in range(cfg.substeps):
+            # Pose the body for the end of the substep before detecting contacts against it.
+            self._pose_body((s + 1) / cfg.substeps)
+            self._pin_waist()
+            self.pipeline.collide(self.state_0, self.contacts)
+            self.solver.step(self.state_0, self.state_1, self.control, self.contacts, dt)
+            if factor != 1.0:
+                wp.launch(
+                    _damp_kernel,
+                    dim=self.num_vertices,
+                    inputs=[factor],
+                    outputs=[self.state_1.particle_qd],
+                    device=self.device,
+                )
+            self.state_0, self.state_1 = self.state_1, self.state_0
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(V, 3) float32 current cloth positions (a copy)."""
+        return self.state_0.particle_q.numpy().copy()
+
+
+# -- driving it with a motion -----------------------------------------------------
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    return x * x * (3.0 - 2.0 * x)
+
+
+def preroll(
+    motion: Motion, floor_height: float, config: ClothConfig
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The settle and blend frames that come before a motion.
+
+    Settle: the rest pose standing on the floor, for ``settle_seconds`` (one frame
+    more, so that the cloth settles for exactly that long). With
+    ``settle_at_start`` it stands where the motion starts, turned to its heading
+    (the root's yaw); otherwise at the origin facing -Y. Blend: local rotations
+    slerp and the root translation lerps into the motion's first frame, with
+    smoothstep timing, over ``blend_seconds``.
+
+    Args:
+        motion: the motion that follows (T, J joints).
+        floor_height: the avatar's root height when standing.
+        config: settle and blend durations.
+
+    Returns:
+        rotations (P, J, 3, 3) float32, root translations (P, 3) float32, and the
+        number of settle frames (the first frames of the P).
+    """
+    J = motion.num_joints
+    n_settle = int(round(config.settle_seconds * motion.fps)) + 1
+    n_blend = int(round(config.blend_seconds * motion.fps))
+    rest_rot = np.broadcast_to(np.eye(3, dtype=np.float32), (J, 3, 3)).copy()
+    rest_root = np.array([0.0, 0.0, floor_height], np.float32)
+    if config.settle_at_start:
+        forward = motion.rotations[0, 0] @ np.array([0.0, -1.0, 0.0], np.float32)
+        if np.hypot(forward[0], forward[1]) > 1e-6:  # else the root looks straight up/down
+            yaw = math.atan2(forward[0], -forward[1])  # Rz(yaw) takes -Y to forward's heading
+            c, s = math.cos(yaw), math.sin(yaw)
+            rest_rot[0] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], np.float32)
+        rest_root[:2] = motion.root_translation[0, :2]
+    w = _smoothstep(np.arange(1, n_blend + 1) / (n_blend + 1.0))  # (B,)
+    q0 = matrix_to_quat(rest_rot)  # (J, 4)
+    q1 = matrix_to_quat(motion.rotations[0])  # (J, 4)
+    blend_rot = quat_to_matrix(quat_slerp(q0[None], q1[None], w[:, None]))  # (B, J, 3, 3)
+    blend_root = rest_root + w[:, None] * (motion.root_translation[0] - rest_root)  # (B, 3)
+    rotations = np.concatenate([np.broadcast_to(rest_rot, (n_settle, J, 3, 3)), blend_rot])
+    root = np.concatenate([np.broadcast_to(rest_root, (n_settle, 3)), blend_root])
+    return rotations.astype(np.float32), root.astype(np.float32), n_settle
+
+
+def _check_template(template: GarmentTemplate) -> None:
+    src = f"garment '{template.name}'"
+    if len(template.waist) == 0:
+        raise LoosefitInputError(
+            src, "waist", "at least one waistband vertex to attach to the body", "none",
+            hint="a garment with no waistband would fall off the body",
+        )  # fmt: skip
+
+
+def _guard(positions: np.ndarray, body: np.ndarray, limit: float, where: str) -> None:
+    """Raise :class:`SimulationError` on NaN or a vertex farther than ``limit`` from the body's box."""
+    bad = ~np.isfinite(positions).all(-1)
+    if bad.any():
+        raise SimulationError(f"cloth simulation diverged at {where}: {int(bad.sum())} NaN vertices")
+    lo, hi = body.min(0), body.max(0)
+    gap = np.linalg.norm(positions - np.clip(positions, lo, hi), axis=-1)
+    if gap.max() > limit:
+        raise SimulationError(
+            f"cloth simulation diverged at {where}: a vertex is {gap.max():.1f} m from the body"
+        )
+
+
+def _frame_name(k: int, n_settle: int, n_pre: int) -> str:
+    if k < n_settle:
+        return f"settle frame {k}"
+    if k < n_pre:
+        return f"blend frame {k - n_settle}"
+    return f"motion frame {k - n_pre}"
+
+
+def simulate(
+    avatar,
+    template: GarmentTemplate,
+    motion: Motion,
+    config: ClothConfig | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> SimResult:
+    """Simulate a garment on the avatar through a motion.
+
+    Args:
+        avatar: the :class:`~loosefit.body.avatar.Avatar` the motion drives.
+        template: the garment in the avatar's rest frame (root joint at the origin),
+            e.g. from :func:`~loosefit.dress.fit_skirt`.
+        motion: T frames on the avatar's skeleton.
+        config: the physics (default :class:`ClothConfig`).
+        progress: called as ``progress(done, total)`` after every simulated frame.
+
+    Returns:
+        A :class:`SimResult` whose ``garment_vertices`` (T, V, 3) are in the world
+        frame, frame ``t`` matching motion frame ``t``.
+
+    Raises:
+        LoosefitInputError: a template without waistband, a motion on other joints.
+        SimulationError: NaN or a vertex more than ``config.max_distance`` from the body.
+    """
+    config = config or ClothConfig()
+    avatar.check_motion(motion)
+    _check_template(template)
+
+    # 1. The body over the whole timeline: settle, blend, motion.
+    pre_rot, pre_root, n_settle = preroll(motion, avatar.floor_height, config)
+    n_pre = len(pre_rot)
+    rotations = torch.from_numpy(np.concatenate([pre_rot, motion.rotations]))
+    root = torch.from_numpy(np.concatenate([pre_root, motion.root_translation]))
+    with torch.no_grad():
+        posed = avatar.pose(rotations, root)
+    body = posed.vertices.detach().to("cpu", torch.float32).numpy()  # (P + T, Vb, 3)
+    body_faces = avatar.faces.cpu().numpy()
+    root_pose = posed.joint_transforms[0, 0].detach().double().cpu().numpy()  # (4, 4)
+    garment = template.vertices.astype(np.float64) @ root_pose[:3, :3].T + root_pose[:3, 3]
+
+    # 2. The simulator, with contact culling widened to the whole motion.
+    t0 = time.perf_counter()
+    bounds = (body.min((0, 1)) - 2.0, body.max((0, 1)) + 2.0)
+    sim = ClothSimulator(
+        garment, template.faces, template.waist, body[0], body_faces, config,
+        frame_dt=1.0 / motion.fps, bounds=bounds,
+    )  # fmt: skip
+    t_build = time.perf_counter() - t0
+
+    # 3. Step through the timeline; record from the motion's first frame on.
+    total = len(body) - 1
+    out = np.empty((motion.num_frames, template.num_vertices, 3), np.float32)
+    settled = sim.positions
+    t0 = time.perf_counter()
+    for k in range(total):
+        settling = k + 1 < n_settle
+        sim.step_frame(body[k], body[k + 1], config.settle_damping if settling else None)
+        positions = sim.positions
+        _guard(positions, body[k + 1], config.max_distance, _frame_name(k + 1, n_settle, n_pre))
+        if k + 1 == n_settle - 1:
+            settled = positions
+        if k + 1 >= n_pre:
+            out[k + 1 - n_pre] = positions
+        if progress is not None:
+            progress(k + 1, total)
+    t_sim = time.perf_counter() - t0
+    if n_pre == 0:  # pragma: no cover - preroll always has a settle frame
+        out[0] = sim.positions
+
+    stats = {
+        "vertices": template.num_vertices,
+        "body_vertices": int(body.shape[1]),
+        "frames_simulated": total,
+        "build_seconds": t_build,
+        "simulate_seconds": t_sim,
+        "config": asdict(config),
+    }
+    return SimResult(
+        garment_vertices=out,
+        faces=template.faces.copy(),
+        fps=motion.fps,
+        seconds_per_frame=t_sim / max(total, 1),
+        preroll_frames=n_pre,
+        settled_vertices=settled,
+        quality=quality(out, template, body[n_pre:], body_faces, motion.fps),
+        stats=stats,
+    )
+
+
+# -- quality numbers ----------------------------------------------------------------
+
+
+def unique_edges(faces: np.ndarray) -> np.ndarray:
+    """(E, 2) int64 undirected edges of a triangle mesh, each once, sorted."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    return np.unique(np.sort(e, axis=1), axis=0)
+
+
+def quality(
+    garment_vertices: np.ndarray,
+    template: GarmentTemplate,
+    body_vertices: np.ndarray,
+    body_faces: np.ndarray,
+    fps: float = 30.0,
+) -> dict:
+    """Per-frame plausibility numbers of a garment sequence on a body sequence.
+
+    Args:
+        garment_vertices: (T, V, 3) garment positions.
+        template: the garment's rest shape (edge rest lengths) and faces.
+        body_vertices: (T, Vb, 3) posed body, the same frames.
+        body_faces: (Fb, 3) triangles of the closed body mesh.
+        fps: frame rate, for speeds.
+
+    Returns:
+        A dict: ``inside_fraction`` (T,) fraction of garment vertices inside the
+        body per frame, and its ``inside_max`` and ``inside_mean``; ``strain_p50``,
+        ``strain_p95``, ``strain_p99``, ``strain_max`` percentiles of
+        ``|length / rest_length - 1|`` over all edges and frames; ``max_speed``
+        (m/s) of any vertex between consecutive frames; ``nan_count``, the number
+        of non-finite vertex positions. NaN vertices are left out of the others.
+    """
+    g = np.asarray(garment_vertices, np.float32)
+    b = np.asarray(body_vertices, np.float32)
+    V = template.num_vertices
+    if g.ndim != 3 or g.shape[1:] != (V, 3):
+        raise LoosefitInputError(
+            "quality", "garment_vertices", f"shape (T, {V}, 3)", f"shape {g.shape}"
+        )
+    if b.ndim != 3 or b.shape[0] != g.shape[0] or b.shape[2] != 3:
+        raise LoosefitInputError(
+            "quality", "body_vertices", f"shape ({g.shape[0]}, Vb, 3)", f"shape {b.shape}"
+        )
+    finite = np.isfinite(g).all(-1)  # (T, V)
+    inside = np.zeros(g.shape[0])
+    for t in range(g.shape[0]):
+        hit = closest_points(b[t], body_faces, np.where(finite[t, :, None], g[t], 0.0))
+        inside[t] = (hit.inside & finite[t]).mean()
+    edges = unique_edges(template.faces)
+    rest = np.linalg.norm(template.vertices[edges[:, 0]] - template.vertices[edges[:, 1]], axis=-1)
+    length = np.linalg.norm(g[:, edges[:, 0]] - g[:, edges[:, 1]], axis=-1)  # (T, E)
+    strain = np.abs(length / rest - 1.0)[finite[:, edges[:, 0]] & finite[:, edges[:, 1]]]
+    p50, p95, p99 = np.percentile(strain, [50, 95, 99]) if strain.size else (np.nan,) * 3
+    if g.shape[0] > 1:
+        speed = np.linalg.norm(np.diff(g, axis=0), axis=-1) * fps  # (T - 1, V)
+        speed = speed[finite[1:] & finite[:-1]]
+    else:
+        speed = np.zeros(0)
+    return {
+        "inside_fraction": inside,
+        "inside_max": float(inside.max()),
+        "inside_mean": float(inside.mean()),
+        "strain_p50": float(p50),
+        "strain_p95": float(p95),
+        "strain_p99": float(p99),
+        "strain_max": float(strain.max()) if strain.size else float("nan"),
+        "max_speed": float(speed.max()) if speed.size else 0.0,
+        "nan_count": int((~finite).sum()),
+    }

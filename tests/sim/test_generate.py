@@ -1,0 +1,91 @@
+import json
+
+import numpy as np
+import pytest
+
+import loosefit.sim.generate as gen
+from loosefit.data.format import DatasetReader
+from loosefit.errors import LoosefitInputError
+
+
+@pytest.fixture(scope="module")
+def tiny_dataset(tmp_path_factory, avatar):
+    out = tmp_path_factory.mktemp("ds") / "tiny"
+    manifest = gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
+    return out, manifest
+
+
+def test_tiny_dataset_is_complete_and_readable(tiny_dataset):
+    out, manifest = tiny_dataset
+    assert manifest["complete"] and manifest["summary"]["clips_ok"] == 2
+    assert manifest["split"] == {"train": ["kick_000"], "test": ["spin_001"]}
+    for key in ("torch", "newton", "warp-lang", "anny"):
+        assert key in manifest["versions"]
+    reader = DatasetReader(out)
+    seq = reader.read("kick_000")
+    assert seq.garment_vertices.shape == (12, reader.template.num_vertices, 3)
+    assert np.isfinite(seq.garment_vertices).all()
+    q = manifest["sequences"]["kick_000"]["quality"]
+    assert q["inside_max"] <= 0.01 and q["nan_count"] == 0
+    assert "kick_000" in gen.format_report(manifest)
+
+
+def test_rerun_with_same_config_does_nothing(tiny_dataset, monkeypatch):
+    out, _ = tiny_dataset
+    calls = []
+    monkeypatch.setattr(gen, "_run_job", lambda *a: calls.append(a) or {})
+    before = (out / "sequences" / "kick_000.npz").stat().st_mtime_ns
+    gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
+    assert calls == []
+    assert (out / "sequences" / "kick_000.npz").stat().st_mtime_ns == before
+
+
+def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
+    """A run killed after its first clip keeps it; the rerun only simulates the rest."""
+    out = tmp_path / "ds"
+    real = gen._run_job
+    done = []
+
+    def first_then_die(config, job, out_dir):
+        if done:
+            # A half-written file from the kill must never count as a sequence.
+            (out / "sequences" / f"{job.name}.partial.npz").write_bytes(b"half")
+            raise KeyboardInterrupt
+        done.append(job.name)
+        return real(config, job, out_dir)
+
+    monkeypatch.setattr(gen, "_run_job", first_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert not manifest["complete"] and list(manifest["sequences"]) == ["kick_000"]
+    with pytest.raises(LoosefitInputError, match="unfinished"):
+        DatasetReader(out)
+
+    resumed = []
+    monkeypatch.setattr(gen, "_run_job", lambda c, j, o: resumed.append(j.name) or real(c, j, o))
+    manifest = gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
+    assert resumed == ["spin_001"]
+    assert manifest["complete"] and not list(out.rglob("*partial*"))
+    DatasetReader(out).read("spin_001")
+
+
+def test_folder_with_another_dataset_is_rejected(tiny_dataset):
+    out, _ = tiny_dataset
+    other = gen.preset("tiny")
+    other.seed = 7
+    with pytest.raises(LoosefitInputError, match=r"another dataset.*seed"):
+        gen.generate(other, out, workers=1, progress=False)
+
+
+def test_non_dataset_folder_is_rejected(tmp_path):
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(LoosefitInputError, match="empty or new folder"):
+        gen.generate(gen.preset("tiny"), tmp_path, workers=1, progress=False)
+
+
+def test_unknown_preset_and_empty_bvh_folder(tmp_path):
+    with pytest.raises(LoosefitInputError, match="one of tiny, demo, salsa, paper"):
+        gen.preset("huge")
+    with pytest.raises(LoosefitInputError, match=r"\*\.bvh.*no \.bvh files"):
+        gen.plan_jobs(gen.preset("salsa", bvh_folder=str(tmp_path)))
