@@ -25,6 +25,7 @@ def load_motion(
     seed: int = 0,
     retarget: RetargetConfig | None = None,
     max_frames: int | None = None,
+    start_frame: int = 0,
 ) -> Motion:
     """A motion on the avatar's skeleton from a file or a procedural name.
 
@@ -37,6 +38,7 @@ def load_motion(
         seed: seeds procedural motions.
         retarget: options for BVH files.
         max_frames: keep at most this many frames.
+        start_frame: drop the frames before this one (after resampling to ``fps``).
 
     Returns:
         A validated :class:`Motion` on ``avatar``'s joints at ``fps``.
@@ -73,6 +75,11 @@ def load_motion(
             f"a .bvh or .npz file, or one of {list(PROCEDURAL_NAMES)} (dance:SECONDS)",
             repr(text),
         )
-    if max_frames is not None and motion.num_frames > max_frames:
-        motion = motion.slice(0, max_frames)
+    if not 0 <= start_frame < motion.num_frames:
+        raise LoosefitInputError(
+            f"motion '{motion.name}'", "start_frame", f"in [0, {motion.num_frames})", start_frame
+        )
+    stop = None if max_frames is None else start_frame + max_frames
+    if start_frame or (stop is not None and stop < motion.num_frames):
+        motion = motion.slice(start_frame, stop)
     return motion

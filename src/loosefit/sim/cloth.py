@@ -12,9 +12,10 @@ and the body a collision mesh that deforms with the motion:
   vertex that ends up inside the body is pushed back out (up to
   ``body_contact_gap + body_contact_distance`` deep; deeper ones get no contact).
 * **Waistband.** Its vertices are not simulated: each is glued to a point of
-  the body surface (a face and barycentric coordinates found once, at the
-  start), ``waist_offset`` outside along the face normal, and is moved there
-  before every substep.
+  the body (a face, barycentric coordinates and an offset in the face's frame,
+  found once, at the start) and moved there before every substep. By default
+  the band is first pulled onto the body, ``waist_offset`` outside it and
+  respaced along its length (:func:`glue_waist`).
 * **Timeline.** The garment first drapes under gravity on the rest pose
   (``settle_seconds``), then the body blends from the rest pose into the
   motion's first frame (``blend_seconds``: slerp of local rotations, lerp of
@@ -32,6 +33,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -42,6 +44,9 @@ from loosefit.errors import LoosefitInputError
 from loosefit.geometry.query import closest_points
 from loosefit.types import GarmentTemplate, Motion
 
+if TYPE_CHECKING:
+    from loosefit.body.avatar import Avatar
+
 
 class SimulationError(RuntimeError):
     """The simulation diverged (NaN, or a vertex flew away); nothing is returned."""
@@ -51,37 +56,58 @@ class SimulationError(RuntimeError):
 class ClothConfig:
     """How the garment is simulated. Units: metres, kilograms, seconds."""
 
+    # time stepping
     substeps: int = 20  # solver steps per motion frame (dt = 1/600 s at 30 fps)
     iterations: int = 5  # VBD iterations per substep
-    density: float = 0.15  # kg/m^2: 150 g/m^2, a light woven skirt fabric (cotton lawn to poplin)
+    # fabric
+    density: float = 0.15  # kg/m^2: 150 g/m^2, a light woven skirt fabric (cotton lawn, poplin)
     stretch_ke: float = 1.0e3  # N/m, membrane shear stiffness (Newton's tri_ke, Lame mu)
     stretch_ka: float = 1.0e3  # N/m, membrane area stiffness (Newton's tri_ka, Lame lambda)
     stretch_kd: float = 1.0e-2  # s, membrane strain-rate damping (Newton's tri_kd)
     bend_ke: float = 1.0e-2  # N m/rad per metre of edge, dihedral bending stiffness (edge_ke)
     bend_kd: float = 1.0e-3  # bending damping (Newton's edge_kd)
     flat_rest: bool = True  # bending rest angle 0 (flat fabric), not the template's draped shape
-    air_damping: float = 0.3  # 1/s: velocities decay as exp(-air_damping t), a stand-in for air drag
-    settle_damping: float = 5.0  # 1/s: the same during the settle phase, so the drape comes to rest
+    # colour the mesh so that no bending edge joins two vertices of a colour: 7 colours
+    # instead of 3-4 and ~1.4x slower; bending is weak, so solving it Jacobi-style is harmless
+    color_bending: bool = False
+    # forces on the cloth
     gravity: float = -9.81  # m/s^2 along +Z
-    jitter: float = 1.0e-4  # m, random offset of the initial cloth vertices (from seed), breaks symmetry
+    air_damping: float = 0.3  # 1/s, velocities decay as exp(-air_damping t): a stand-in for drag
+    settle_damping: float = 5.0  # 1/s, the same while settling, so the drape comes to rest
+    # contact with the body
     body_contact_distance: float = 0.004  # m, cloth vertices are kept this far outside the body
-    body_contact_gap: float = 0.02  # m, extra reach of body-contact detection beyond that distance
+    body_contact_gap: float = 0.02  # m, extra reach of body-contact detection; a vertex deeper
+    # than gap + distance inside the body gets no contact at all
     contact_ke: float = 1.0e4  # N/m, contact stiffness (cloth-body and cloth-cloth)
     contact_kd: float = 1.0e-2  # N s/m, contact damping (cloth-body and cloth-cloth)
     body_friction: float = 0.3  # Coulomb friction between cloth and body
     self_friction: float = 0.2  # Coulomb friction between two layers of cloth
-    self_contact: bool = True  # resolve cloth-cloth contact (costs ~3x; without it folds interpenetrate)
+    # contact of the cloth with itself (costs ~3x; without it ~10% of triangles cross in a spin)
+    self_contact: bool = True  # resolve cloth-cloth contact
     self_contact_margin: float = 0.005  # m, distance kept between two layers of cloth
-    self_contact_gap: float = 0.01  # m, extra reach of self-contact detection; a vertex moves at most
-    # 0.85 * (margin + gap) per substep with self-contact on, so this also bounds cloth speed
+    # m, extra reach of self-contact detection. With self-contact a vertex moves at most
+    # 0.85 (margin + gap) per substep (Newton's DAT truncation), so this caps cloth speed:
+    # 7.6 m/s with the defaults; 4 mm in all froze a spinning skirt into a twist
+    self_contact_gap: float = 0.01
+    # m, cloth points closer than this in the rest shape never collide: ~20% faster at 5 cm,
+    # but tight folds then cross (1% of triangles in a spin instead of 0.05%)
+    self_contact_rest_exclusion: float = 0.0
+    # timeline
     settle_seconds: float = 1.0  # drape under gravity on the rest pose before anything moves
-    blend_seconds: float = 0.5  # body blends from the rest pose into the motion's first frame
-    settle_at_start: bool = True  # settle where the motion starts (its root's floor position and
-    # heading) rather than at the origin facing -Y, so the blend never drags the skirt across the room
-    waist_offset: float = 0.003  # m, waistband held this far outside the body surface along its normal
-    max_distance: float = 10.0  # m, a vertex farther than this from the body's box stops the run
+    blend_seconds: float = 0.5  # the body blends from the rest pose into the motion's first frame
+    # settle where the motion starts (the root's floor position and heading) rather than at
+    # the origin facing -Y, so the blend never drags the skirt across the room
+    settle_at_start: bool = True
+    # attachment and safety
+    # m, the waistband is held this far outside the body along its normal (snugger than the
+    # template's band, 1-2.5 cm out, so it gathers ~10%); None holds it exactly as placed
+    waist_offset: float | None = 0.003
+    jitter: float = 1.0e-4  # m, seeded random offset of the initial vertices: breaks symmetry
+    max_distance: float = 10.0  # m, a vertex this far from the body's box stops the run
+    # execution
+    capture: bool = True  # replay recorded warp graphs for the substeps (~20% faster on CPU)
     device: str = "cpu"  # warp device, "cpu" or "cuda:0"
-    seed: int = 0  # seeds the initial jitter; results are identical for a given seed and device
+    seed: int = 0  # seeds the jitter; results are identical for a given seed and device
 
     def __post_init__(self) -> None:
         src = "ClothConfig"
@@ -93,9 +119,11 @@ class ClothConfig:
         nonnegative = (
             "stretch_ka", "stretch_kd", "bend_ke", "bend_kd", "air_damping", "settle_damping",
             "jitter", "body_contact_gap", "contact_kd", "body_friction", "self_friction",
-            "self_contact_margin", "self_contact_gap", "settle_seconds", "blend_seconds",
-            "waist_offset",
+            "self_contact_margin", "self_contact_gap", "self_contact_rest_exclusion",
+            "settle_seconds", "blend_seconds",
         )  # fmt: skip
+        if self.waist_offset is not None:
+            nonnegative += ("waist_offset",)
         for name in positive + nonnegative:
             value = getattr(self, name)
             low_ok = value > 0 if name in positive else value >= 0
@@ -165,34 +193,44 @@ def _pose_body_kernel(
     velocities[i] = d * inv_frame_dt
 
 
+@wp.func
+def _face_frame(x0: wp.vec3, x1: wp.vec3, x2: wp.vec3, outward: float):
+    """A face's orthonormal frame: first edge, in-plane normal to it, outward normal."""
+    t1 = wp.normalize(x1 - x0)
+    n = outward * wp.normalize(wp.cross(x1 - x0, x2 - x0))
+    return t1, wp.cross(n, t1), n
+
+
 @wp.kernel
 def _pin_waist_kernel(
     points: wp.array(dtype=wp.vec3),
     body_faces: wp.array(dtype=wp.vec3i),
-    waist_faces: wp.array(dtype=wp.int32),
-    waist_bary: wp.array(dtype=wp.vec3),
+    glue_faces: wp.array(dtype=wp.int32),
+    glue_bary: wp.array(dtype=wp.vec3),
+    glue_local: wp.array(dtype=wp.vec3),
+    outward: float,
     waist_particles: wp.array(dtype=wp.int32),
-    offset: float,
     q0: wp.array(dtype=wp.vec3),
     q1: wp.array(dtype=wp.vec3),
 ):
-    """Move each waistband particle to its glued body point, ``offset`` out along the face normal."""
+    """Move each waistband particle to its glued point (see :class:`WaistGlue`)."""
     i = wp.tid()
-    f = body_faces[waist_faces[i]]
+    f = body_faces[glue_faces[i]]
     x0 = points[f[0]]
     x1 = points[f[1]]
     x2 = points[f[2]]
-    b = waist_bary[i]
-    n = wp.normalize(wp.cross(x1 - x0, x2 - x0))
-    p = b[0] * x0 + b[1] * x1 + b[2] * x2 + offset * n
+    t1, t2, n = _face_frame(x0, x1, x2, outward)
+    b = glue_bary[i]
+    o = glue_local[i]
+    p = b[0] * x0 + b[1] * x1 + b[2] * x2 + o[0] * t1 + o[1] * t2 + o[2] * n
     q0[waist_particles[i]] = p
     q1[waist_particles[i]] = p
 
 
 @wp.kernel
-def _damp_kernel(factor: float, qd: wp.array(dtype=wp.vec3)):
+def _damp_kernel(factor: wp.array(dtype=float), qd: wp.array(dtype=wp.vec3)):
     i = wp.tid()
-    qd[i] = qd[i] * factor
+    qd[i] = qd[i] * factor[0]
 
 
 # -- the simulator ----------------------------------------------------------------
@@ -204,8 +242,103 @@ def _signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(np.einsum("ij,ij->", a, np.cross(b, c)) / 6.0)
 
 
+@dataclass
+class WaistGlue:
+    """Where each waistband vertex is held on the body.
+
+    The point is ``sum(barycentric * face corners) + local @ (t1, t2, n)`` with
+    ``(t1, t2, n)`` the face's frame (first edge, in-plane perpendicular, outward
+    normal), so it follows the skin as the body moves and bends.
+
+    Attributes:
+        faces: (W,) body face of each waistband vertex (its closest at the start).
+        barycentric: (W, 3) weights of the closest point on that face.
+        local: (W, 3) offset from the closest point in the face's frame.
+        outward: +1 if the body's faces wind counter-clockwise seen from outside, else -1.
+    """
+
+    faces: np.ndarray
+    barycentric: np.ndarray
+    local: np.ndarray
+    outward: float
+
+
+def _resample_like(curve: np.ndarray, like: np.ndarray) -> np.ndarray:
+    """Points on the closed polyline ``curve`` (N, 3) at the arc-length fractions of ``like``."""
+
+    def fractions(c: np.ndarray) -> tuple[np.ndarray, float]:
+        seg = np.linalg.norm(np.roll(c, -1, 0) - c, axis=-1)  # segment i: c[i] -> c[i + 1]
+        return np.concatenate([[0.0], np.cumsum(seg)]) / seg.sum(), seg.sum()
+
+    s_curve, _ = fractions(curve)
+    s_like, _ = fractions(like)
+    closed = np.concatenate([curve, curve[:1]])  # (N + 1, 3)
+    return np.stack([np.interp(s_like[:-1], s_curve, closed[:, k]) for k in range(3)], -1)
+
+
+def glue_waist(
+    waist_points: np.ndarray,
+    body_vertices: np.ndarray,
+    body_faces: np.ndarray,
+    offset: float | None,
+) -> WaistGlue:
+    """Glue a waistband (a closed loop of points, in order) to the body surface.
+
+    With ``offset`` None each point keeps its offset from its closest body point,
+    in that face's frame: the band is held exactly as placed. With an ``offset``,
+    the band is pulled onto the body: the loop is projected onto the surface,
+    respaced along its length as the original points were (projection bunches
+    points where the body is flatter than the band), and each point is held
+    ``offset`` outside its closest surface point along the normal.
+
+    Args:
+        waist_points: (W, 3) waistband vertices placed on the body, in loop order.
+        body_vertices: (Vb, 3) the body as the waistband is placed on it.
+        body_faces: (Fb, 3) triangles of the closed body mesh.
+        offset: metres outside the surface; None keeps each point's own offset.
+
+    Returns:
+        The :class:`WaistGlue`; :func:`glued_points` evaluates it on a posed body.
+    """
+    placed = np.asarray(waist_points, np.float64)
+    points = placed
+    if offset is not None and len(points) >= 3:
+        for _ in range(4):  # projecting moves the respaced points a little: repeat
+            surface = closest_points(body_vertices, body_faces, points).points.astype(np.float64)
+            points = _resample_like(surface, placed)
+    hit = closest_points(body_vertices, body_faces, points)
+    outward = 1.0 if _signed_volume(body_vertices, body_faces) > 0 else -1.0
+    t1, t2, n = _face_frames(body_vertices, body_faces[hit.faces], outward)  # (W, 3) each
+    delta = points - hit.points
+    local = np.stack([(delta * t).sum(-1) for t in (t1, t2, n)], axis=-1)  # (W, 3)
+    if offset is not None:
+        local[:, :2] = 0.0
+        local[:, 2] = offset
+    return WaistGlue(hit.faces, hit.barycentric.astype(np.float64), local, outward)
+
+
+def _face_frames(
+    vertices: np.ndarray, corners: np.ndarray, outward: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frames (t1, t2, n), each (N, 3), of the faces with corner indices (N, 3); see _face_frame."""
+    x0, x1, x2 = (np.asarray(vertices, np.float64)[corners[:, i]] for i in range(3))
+    t1 = (x1 - x0) / np.linalg.norm(x1 - x0, axis=-1, keepdims=True)
+    n = np.cross(x1 - x0, x2 - x0)
+    n = outward * n / np.linalg.norm(n, axis=-1, keepdims=True)
+    return t1, np.cross(n, t1), n
+
+
+def glued_points(glue: WaistGlue, body_vertices: np.ndarray, body_faces: np.ndarray) -> np.ndarray:
+    """(W, 3) the glued waistband points on a posed body (Vb, 3) (numpy twin of the kernel)."""
+    corners = body_faces[glue.faces]  # (W, 3)
+    x = np.asarray(body_vertices, np.float64)[corners]  # (W, 3 corners, 3)
+    t1, t2, n = _face_frames(body_vertices, corners, glue.outward)
+    surface = (glue.barycentric[:, :, None] * x).sum(1)
+    return surface + glue.local[:, :1] * t1 + glue.local[:, 1:2] * t2 + glue.local[:, 2:] * n
+
+
 class ClothSimulator:
-    """Newton VBD cloth on a deforming body: a static Model, two swapped States, one step per substep.
+    """Newton VBD cloth on a deforming body: a static Model, two swapped States, a step a substep.
 
     Args:
         garment_vertices: (V, 3) initial cloth positions, world frame.
@@ -242,10 +375,8 @@ class ClothSimulator:
         self.num_vertices = len(garment_vertices)
         self.num_body_vertices = len(body_vertices)
 
-        # 1. Glue the waistband: nearest body face and barycentric coordinates, once.
-        hit = closest_points(body_vertices, body_faces, garment_vertices[waist], device="cpu")
-        outward = 1.0 if _signed_volume(body_vertices, body_faces) > 0 else -1.0
-        self._waist_offset = outward * cfg.waist_offset
+        # 1. Glue the waistband to the body, once.
+        self.glue = glue_waist(garment_vertices[waist], body_vertices, body_faces, cfg.waist_offset)
 
         # 2. The cloth, with a seeded jitter that breaks the template's exact symmetry.
         rng = np.random.default_rng(cfg.seed)
@@ -266,7 +397,8 @@ class ClothSimulator:
             edge_kd=cfg.bend_kd,
             particle_radius=cfg.body_contact_distance,
         )
-        builder.color(include_bending=True)  # VBD solves one colour of vertices at a time
+        # VBD solves one colour of vertices at a time.
+        builder.color(include_bending=cfg.color_bending)
 
         # 3. The body: one static mesh shape. Newton mixes contact materials as the mean of
         #    ke and kd and the geometric mean of mu, so the shape's mu is chosen to give
@@ -316,6 +448,7 @@ class ClothSimulator:
             particle_enable_self_contact=cfg.self_contact,
             particle_self_contact_margin=cfg.self_contact_margin,
             particle_self_contact_gap=cfg.self_contact_gap,
+            particle_rest_shape_contact_exclusion_radius=cfg.self_contact_rest_exclusion,
         )
         self.state_0 = model.state()
         self.state_1 = model.state()
@@ -329,9 +462,14 @@ class ClothSimulator:
         self._body_faces = wp.array(body_faces, dtype=wp.vec3i, device=d)
         self._body_start = wp.array(body_vertices, dtype=wp.vec3, device=d)
         self._body_end = wp.array(body_vertices, dtype=wp.vec3, device=d)
-        self._waist_faces = wp.array(hit.faces.astype(np.int32), dtype=wp.int32, device=d)
-        self._waist_bary = wp.array(hit.barycentric.astype(np.float32), dtype=wp.vec3, device=d)
+        g = self.glue
+        self._glue_faces = wp.array(g.faces.astype(np.int32), dtype=wp.int32, device=d)
+        self._glue_bary = wp.array(g.barycentric.astype(np.float32), dtype=wp.vec3, device=d)
+        self._glue_local = wp.array(g.local.astype(np.float32), dtype=wp.vec3, device=d)
         self._waist_particles = wp.array(waist.astype(np.int32), dtype=wp.int32, device=d)
+        self._damp_factor = wp.ones(1, dtype=float, device=d)
+        self._graphs: list = [None, None]  # recorded substeps, by parity of the state swap
+        self._swaps = 0
         self._pose_body(1.0)
         self._pin_waist()
 
@@ -359,12 +497,27 @@ class ClothSimulator:
             inputs=[
                 self._wp_mesh.points,
                 self._body_faces,
-                self._waist_faces,
-                self._waist_bary,
+                self._glue_faces,
+                self._glue_bary,
+                self._glue_local,
+                self.glue.outward,
                 self._waist_particles,
-                self._waist_offset,
             ],
             outputs=[self.state_0.particle_q, self.state_1.particle_q],
+            device=self.device,
+        )
+
+    def _substep(self) -> None:
+        """One substep once the body is posed: device work only, so that a graph can record it."""
+        dt = self.frame_dt / self.config.substeps
+        self._pin_waist()
+        self.pipeline.collide(self.state_0, self.contacts)
+        self.solver.step(self.state_0, self.state_1, self.control, self.contacts, dt)
+        wp.launch(
+            _damp_kernel,
+            dim=self.num_vertices,
+            inputs=[self._damp_factor],
+            outputs=[self.state_1.particle_qd],
             device=self.device,
         )
 
@@ -379,27 +532,29 @@ class ClothSimulator:
             damping: velocity decay rate, 1/s (default ``config.air_damping``).
         """
         cfg = self.config
-        dt = self.frame_dt / cfg.substeps
         rate = cfg.air_damping if damping is None else damping
-        factor = math.exp(-rate * dt)
+        self._damp_factor.fill_(math.exp(-rate * self.frame_dt / cfg.substeps))
         self._body_start.assign(np.ascontiguousarray(body_start, np.float32))
         self._body_end.assign(np.ascontiguousarray(body_end, np.float32))
         self.solver.rebuild_bvh(self.state_0)  # self-contact BVH, rebuilt once a frame
         for s in range(cfg.substeps):
             # Pose the body for the end of the substep before detecting contacts against it.
+            # (Outside any graph: a CPU graph does not replay wp.Mesh.refit.)
             self._pose_body((s + 1) / cfg.substeps)
-            self._pin_waist()
-            self.pipeline.collide(self.state_0, self.contacts)
-            self.solver.step(self.state_0, self.state_1, self.control, self.contacts, dt)
-            if factor != 1.0:
-                wp.launch(
-                    _damp_kernel,
-                    dim=self.num_vertices,
-                    inputs=[factor],
-                    outputs=[self.state_1.particle_qd],
-                    device=self.device,
-                )
+            if cfg.capture and self._swaps >= 2:
+                # One graph per direction of the swap, state_0 -> state_1 and back, recorded
+                # after a plain substep each (which allocates whatever the solver allocates
+                # lazily).
+                parity = self._swaps % 2
+                if self._graphs[parity] is None:
+                    with wp.ScopedCapture(device=self.device) as capture:
+                        self._substep()
+                    self._graphs[parity] = capture.graph
+                wp.capture_launch(self._graphs[parity])
+            else:
+                self._substep()
             self.state_0, self.state_1 = self.state_1, self.state_0
+            self._swaps += 1
 
     @property
     def positions(self) -> np.ndarray:
@@ -467,10 +622,12 @@ def _check_template(template: GarmentTemplate) -> None:
 
 
 def _guard(positions: np.ndarray, body: np.ndarray, limit: float, where: str) -> None:
-    """Raise :class:`SimulationError` on NaN or a vertex farther than ``limit`` from the body's box."""
+    """Raise :class:`SimulationError` on NaN or a vertex more than ``limit`` from the body's box."""
     bad = ~np.isfinite(positions).all(-1)
     if bad.any():
-        raise SimulationError(f"cloth simulation diverged at {where}: {int(bad.sum())} NaN vertices")
+        raise SimulationError(
+            f"cloth simulation diverged at {where}: {int(bad.sum())} NaN vertices"
+        )
     lo, hi = body.min(0), body.max(0)
     gap = np.linalg.norm(positions - np.clip(positions, lo, hi), axis=-1)
     if gap.max() > limit:
@@ -488,7 +645,7 @@ def _frame_name(k: int, n_settle: int, n_pre: int) -> str:
 
 
 def simulate(
-    avatar,
+    avatar: Avatar,
     template: GarmentTemplate,
     motion: Motion,
     config: ClothConfig | None = None,
@@ -554,8 +711,6 @@ def simulate(
         if progress is not None:
             progress(k + 1, total)
     t_sim = time.perf_counter() - t0
-    if n_pre == 0:  # pragma: no cover - preroll always has a settle frame
-        out[0] = sim.positions
 
     stats = {
         "vertices": template.num_vertices,
@@ -604,9 +759,11 @@ def quality(
 
     Returns:
         A dict: ``inside_fraction`` (T,) fraction of garment vertices inside the
-        body per frame, and its ``inside_max`` and ``inside_mean``; ``strain_p50``,
+        body per frame, its ``inside_max`` and ``inside_mean``, and
+        ``inside_depth_max`` (m), the deepest of those vertices; ``strain_p50``,
         ``strain_p95``, ``strain_p99``, ``strain_max`` percentiles of
-        ``|length / rest_length - 1|`` over all edges and frames; ``max_speed``
+        ``|length / rest_length - 1|`` over all edges and frames (but those along
+        the waistband, whose length the body sets); ``max_speed``
         (m/s) of any vertex between consecutive frames; ``nan_count``, the number
         of non-finite vertex positions. NaN vertices are left out of the others.
     """
@@ -623,10 +780,15 @@ def quality(
         )
     finite = np.isfinite(g).all(-1)  # (T, V)
     inside = np.zeros(g.shape[0])
+    depth = 0.0
     for t in range(g.shape[0]):
         hit = closest_points(b[t], body_faces, np.where(finite[t, :, None], g[t], 0.0))
         inside[t] = (hit.inside & finite[t]).mean()
+        if (hit.inside & finite[t]).any():
+            depth = max(depth, float(hit.distance[hit.inside & finite[t]].max()))
     edges = unique_edges(template.faces)
+    pinned = np.isin(edges, template.waist).all(1)  # along the waistband: the body sets them
+    edges = edges[~pinned]
     rest = np.linalg.norm(template.vertices[edges[:, 0]] - template.vertices[edges[:, 1]], axis=-1)
     length = np.linalg.norm(g[:, edges[:, 0]] - g[:, edges[:, 1]], axis=-1)  # (T, E)
     strain = np.abs(length / rest - 1.0)[finite[:, edges[:, 0]] & finite[:, edges[:, 1]]]
@@ -640,6 +802,7 @@ def quality(
         "inside_fraction": inside,
         "inside_max": float(inside.max()),
         "inside_mean": float(inside.mean()),
+        "inside_depth_max": depth,
         "strain_p50": float(p50),
         "strain_p95": float(p95),
         "strain_p99": float(p99),

@@ -94,7 +94,8 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
         return DatasetConfig(
             preset=name,
             garment=SkirtConfig.preset("cpu", "flared"),
-            motions=MotionSource(kind="procedural", count=6, seconds=3.0, test_every=3),
+            cloth=ClothConfig(settle_seconds=0.6, blend_seconds=0.4),
+            motions=MotionSource(kind="procedural", count=4, seconds=4.0, test_every=4),
         )
     if name == "salsa":
         return DatasetConfig(
@@ -237,6 +238,13 @@ def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
 # -- the driver -------------------------------------------------------------------------
 
 
+class _Direct:
+    """A stand-in for a progress queue that calls back at once (single process)."""
+
+    def __init__(self, callback) -> None:
+        self.put = lambda item: callback(*item)
+
+
 def _open_manifest(config: DatasetConfig, out: Path, jobs: list[Job]) -> dict:
     """A new manifest, or the existing one of the same configuration (resume)."""
     mpath = out / "manifest.json"
@@ -316,17 +324,30 @@ def generate(
         if e.get("status") == "flagged" or (out / "sequences" / f"{n}.npz").is_file()
     }  # fmt: skip
     todo = [j for j in jobs if j.name not in done]
-    frames_of = {j.name: None for j in todo}
+    # Frames to simulate per clip (settle and blend included), for the bar's ETA.
+    from loosefit.body.motions import load_motion
 
+    preroll = round((config.cloth.settle_seconds + config.cloth.blend_seconds) * config.fps)
+    frames_of = {
+        j.name: load_motion(
+            j.spec, avatar, fps=config.fps, seed=j.seed, max_frames=config.motions.max_frames
+        ).num_frames
+        + preroll
+        for j in todo
+    }
     bar = tqdm(
-        total=0, unit="frame", desc=f"simulate {config.preset}", disable=not progress, smoothing=0.1
+        total=sum(frames_of.values()),
+        unit="frame",
+        desc=f"simulate {config.preset} ({len(todo)} clips)",
+        disable=not progress,
+        smoothing=0.05,
     )
     seen: dict[str, int] = {}
 
     def on_progress(name: str, k: int, total: int) -> None:
-        if frames_of.get(name) is None:
+        if frames_of.get(name) != total:  # the estimate was off: correct the total
             frames_of[name] = total
-            bar.total = sum(v for v in frames_of.values() if v)
+            bar.total = sum(frames_of.values())
             bar.refresh()
         bar.update(k - seen.get(name, 0))
         seen[name] = k
@@ -338,13 +359,9 @@ def generate(
             tqdm.write(f"flagged {job.name}: {entry['reason']}")
 
     if workers <= 1:
-        q: queue.Queue = queue.Queue()
-        _worker_init(config, q)
+        _worker_init(config, _Direct(on_progress))
         for job in todo:
-            entry = _run_job(config, job, str(out))
-            while not q.empty():
-                on_progress(*q.get())
-            record(job, entry)
+            record(job, _run_job(config, job, str(out)))
     else:
         ctx = mp.get_context("spawn")
         with ctx.Manager() as manager:
