@@ -14,6 +14,7 @@ import dataclasses
 import datetime as _dt
 import importlib.metadata
 import multiprocessing as mp
+import os
 import platform
 import queue
 import time
@@ -277,7 +278,11 @@ def _open_manifest(config: DatasetConfig, out: Path, jobs: list[Job]) -> dict:
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "config": cfg,
         "versions": package_versions(),
-        "machine": {"platform": platform.platform(), "processor": platform.processor()},
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor(),
+            "cpu_count": os.cpu_count(),
+        },
         "sequences": {},
         "split": {"train": [], "test": []},
     }
