@@ -55,6 +55,28 @@ def _check_array(
         raise LoosefitInputError(source, name, "an integer array", f"dtype {array.dtype}")
 
 
+def load_npz(path: str | Path, what: str, required: tuple[str, ...]):
+    """Open an ``.npz`` file and check that it has the ``required`` fields.
+
+    Args:
+        path: the file.
+        what: what the file should be, for messages (e.g. "a .npz motion file").
+        required: field names that must be present.
+
+    Returns:
+        The opened ``np.lib.npyio.NpzFile``.
+    """
+    path = Path(path)
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise LoosefitInputError(path, "<file>", what, str(exc)) from exc
+    missing = sorted(set(required) - set(data.files))
+    if missing:
+        raise LoosefitInputError(path, ", ".join(missing), "present", "missing")
+    return data
+
+
 @dataclass
 class Motion:
     """A body motion on the avatar's skeleton.
@@ -154,13 +176,9 @@ class Motion:
     def load(cls, path: str | Path) -> Motion:
         """Read a motion written by :meth:`save`, validating every field."""
         path = Path(path)
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise LoosefitInputError(path, "<file>", "a .npz motion file", str(exc)) from exc
-        missing = {"joint_names", "rotations", "root_translation", "fps"} - set(data.files)
-        if missing:
-            raise LoosefitInputError(path, ", ".join(sorted(missing)), "present", "missing")
+        data = load_npz(
+            path, "a .npz motion file", ("joint_names", "rotations", "root_translation", "fps")
+        )
         try:
             return cls(
                 tuple(str(n) for n in data["joint_names"]),
@@ -257,14 +275,8 @@ class GarmentTemplate:
     def load(cls, path: str | Path) -> GarmentTemplate:
         """Read a template written by :meth:`save`, validating every field."""
         path = Path(path)
-        try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise LoosefitInputError(path, "<file>", "a .npz garment template", str(exc)) from exc
-        need = {"vertices", "faces", "uvs", "face_uvs", "waist"}
-        missing = need - set(data.files)
-        if missing:
-            raise LoosefitInputError(path, ", ".join(sorted(missing)), "present", "missing")
+        need = ("vertices", "faces", "uvs", "face_uvs", "waist")
+        data = load_npz(path, "a .npz garment template", need)
         try:
             return cls(
                 **{k: data[k] for k in need},

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.types import GarmentTemplate, Motion, _check_array
+from loosefit.types import GarmentTemplate, Motion, _check_array, load_npz
 
 FORMAT = "loosefit.dataset/1"
 SEQUENCE_FIELDS = ("joint_names", "rotations", "root_translation", "fps", "garment_vertices")
@@ -95,13 +95,7 @@ def read_sequence(path: Path, template: GarmentTemplate | None = None) -> Sequen
             wrong shape or dtype, NaN, or a vertex count that is not the template's.
     """
     path = Path(path)
-    try:
-        d = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise LoosefitInputError(path, "<file>", "a sequence .npz", str(exc)) from exc
-    missing = [k for k in SEQUENCE_FIELDS if k not in d.files]
-    if missing:
-        raise LoosefitInputError(path, ", ".join(missing), "present", "missing")
+    d = load_npz(path, "a sequence .npz", SEQUENCE_FIELDS)
     gv = d["garment_vertices"]
     T = gv.shape[0] if gv.ndim == 3 else -1
     V = template.num_vertices if template is not None else None
