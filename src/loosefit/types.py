@@ -179,13 +179,18 @@ class Motion:
         data = load_npz(
             path, "a .npz motion file", ("joint_names", "rotations", "root_translation", "fps")
         )
+        return cls.from_npz(data, path)
+
+    @classmethod
+    def from_npz(cls, data, path: Path) -> Motion:
+        """A motion from an opened ``.npz`` holding its fields; errors name ``path``."""
         try:
             return cls(
                 tuple(str(n) for n in data["joint_names"]),
                 data["rotations"],
                 data["root_translation"],
                 float(data["fps"]),
-                str(data["name"]) if "name" in data.files else path.stem,
+                str(data["name"]) if "name" in data.files else Path(path).stem,
             )
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found) from exc

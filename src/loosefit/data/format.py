@@ -107,17 +107,7 @@ def read_sequence(path: Path, template: GarmentTemplate | None = None) -> Sequen
             raise LoosefitInputError(path, key, "dtype float32", f"dtype {d[key].dtype}")
     names = tuple(str(n) for n in d["joint_names"])
     _check_array(str(path), "rotations", d["rotations"], (T, len(names), 3, 3))
-    try:
-        motion = Motion(
-            names,
-            d["rotations"],
-            d["root_translation"],
-            float(d["fps"]),
-            str(d["name"]) if "name" in d.files else path.stem,
-        )
-    except LoosefitInputError as exc:
-        raise LoosefitInputError(path, exc.field, exc.expected, exc.found) from exc
-    return Sequence(name=path.stem, motion=motion, garment_vertices=gv)
+    return Sequence(name=path.stem, motion=Motion.from_npz(d, path), garment_vertices=gv)
 
 
 class DatasetReader:
