@@ -29,3 +29,16 @@ def test_rigid_carry_follows_the_hips(avatar):
     g = carry_rigidly(skirt, body, avatar)
     assert g.shape == (2, skirt.num_vertices, 3)
     assert torch.allclose(g[1] - g[0], torch.tensor([0.3, 0.0, 0.0]).expand_as(g[0]), atol=1e-5)
+
+
+def test_template_file_keeps_meta(avatar, tmp_path):
+    from loosefit.types import GarmentTemplate
+
+    skirt = fit_skirt(avatar)
+    skirt.save(tmp_path / "skirt.npz")
+    back = GarmentTemplate.load(tmp_path / "skirt.npz")
+    assert np.array_equal(back.vertices, skirt.vertices)
+    assert (
+        back.meta["style"] == "aline"
+        and back.meta["config"]["rings"] == skirt.meta["config"]["rings"]
+    )

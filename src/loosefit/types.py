@@ -16,6 +16,7 @@ Conventions, stated once and kept everywhere in loosefit:
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -53,6 +54,11 @@ def _check_array(
             )
     elif kind == "i" and not np.issubdtype(array.dtype, np.integer):
         raise LoosefitInputError(source, name, "an integer array", f"dtype {array.dtype}")
+
+
+def _plain(x):
+    """JSON fallback for numpy values in ``meta`` dicts."""
+    return x.tolist() if hasattr(x, "tolist") else str(x)
 
 
 def load_npz(path: str | Path, what: str, required: tuple[str, ...]):
@@ -274,6 +280,7 @@ class GarmentTemplate:
             face_uvs=self.face_uvs,
             waist=self.waist,
             name=np.array(self.name),
+            meta=np.array(json.dumps(self.meta, default=_plain)),
         )
 
     @classmethod
@@ -282,10 +289,12 @@ class GarmentTemplate:
         path = Path(path)
         need = ("vertices", "faces", "uvs", "face_uvs", "waist")
         data = load_npz(path, "a .npz garment template", need)
+        meta = json.loads(str(data["meta"])) if "meta" in data.files else {}
         try:
             return cls(
                 **{k: data[k] for k in need},
                 name=str(data["name"]) if "name" in data.files else path.stem,
+                meta=meta,
             )
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found) from exc

@@ -173,6 +173,21 @@ def _config_dict(config: DatasetConfig) -> dict:
 _WORKER: dict = {}
 
 
+def _exit_with_parent(poll_seconds: float = 2.0) -> None:
+    """In a worker process: exit when the parent dies (a killed run leaves no orphans)."""
+    import threading
+
+    parent = os.getppid()
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_seconds)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
 def _worker_init(config: DatasetConfig, progress_queue) -> None:
     """Build the avatar and garment once per worker process."""
     import torch
@@ -181,6 +196,7 @@ def _worker_init(config: DatasetConfig, progress_queue) -> None:
     from loosefit.dress import fit_skirt
 
     torch.set_num_threads(1)
+    _exit_with_parent()
     avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
     _WORKER.update(avatar=avatar, template=fit_skirt(avatar, config.garment), queue=progress_queue)
 
