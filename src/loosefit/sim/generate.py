@@ -196,9 +196,14 @@ def _worker_init(config: DatasetConfig, progress_queue) -> None:
     from loosefit.dress import fit_skirt
 
     torch.set_num_threads(1)
-    _exit_with_parent()
     avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
     _WORKER.update(avatar=avatar, template=fit_skirt(avatar, config.garment), queue=progress_queue)
+
+
+def _pool_worker_init(config: DatasetConfig, progress_queue) -> None:
+    """A pool worker: exit with the parent, then build what every clip needs."""
+    _exit_with_parent()
+    _worker_init(config, progress_queue)
 
 
 def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
@@ -388,7 +393,10 @@ def generate(
         with ctx.Manager() as manager:
             q = manager.Queue()
             with ProcessPoolExecutor(
-                max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(config, q)
+                max_workers=workers,
+                mp_context=ctx,
+                initializer=_pool_worker_init,
+                initargs=(config, q),
             ) as pool:
                 futures = {pool.submit(_run_job, config, j, str(out)): j for j in todo}
                 pending = set(futures)
