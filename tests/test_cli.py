@@ -1,4 +1,5 @@
 import imageio.v3 as iio
+import pytest
 
 from loosefit.cli import main
 from tests.conftest import SALSA, needs_salsa
@@ -6,7 +7,8 @@ from tests.conftest import SALSA, needs_salsa
 
 def test_demo_writes_video_and_sequence(tmp_path, avatar):
     out = tmp_path / "demo"
-    code = main(["demo", "--out", str(out), "--motion", "kick", "--size", "96", "--views", "front"])
+    args = ["demo", "--out", str(out), "--motion", "kick", "--no-physics", "--size", "96"]
+    code = main([*args, "--views", "front"])
     assert code == 0
     assert (out / "sequence.npz").is_file() and (out / "video_sheet.png").is_file()
     frames = iio.imread(out / "video.mp4")
@@ -16,6 +18,18 @@ def test_demo_writes_video_and_sequence(tmp_path, avatar):
     code = main(["render", "--sequence", str(out / "sequence.npz"), "--out", str(out / "again"),
                  "--size", "64", "--views", "side", "--max-frames", "5"])  # fmt: skip
     assert code == 0 and (out / "again" / "video.mp4").is_file()
+
+
+@pytest.mark.slow
+def test_demo_with_physics(tmp_path, avatar):
+    """The README's main job as it runs, on a short clip (minutes on a CPU)."""
+    out = tmp_path / "demo"
+    args = ["demo", "--out", str(out), "--max-frames", "10", "--size", "64", "--views", "front"]
+    assert main(args) == 0
+    from loosefit.sequence import DressedSequence
+
+    seq = DressedSequence.load(out / "sequence.npz")
+    assert seq.source == "newton-vbd" and seq.garment_vertices.shape[0] == 10
 
 
 def test_bad_motion_name_is_a_clear_error(tmp_path, capsys, avatar):
