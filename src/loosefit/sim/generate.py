@@ -41,6 +41,7 @@ class MotionSource:
     seconds: float = 6.0  # procedural: length of each dance
     folder: str = ""  # bvh: the folder of .bvh files
     max_frames: int | None = None  # keep at most this many frames of each clip (None: all)
+    start_frame: int = 0  # drop the frames of each clip before this one
     test: tuple[str, ...] = ()  # bvh: clip names held out for testing
     test_every: int = 4  # procedural: every n-th dance is held out for testing
 
@@ -88,7 +89,11 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
                 substeps=8, iterations=4, settle_seconds=0.3, blend_seconds=0.1, self_contact=False
             ),
             motions=MotionSource(
-                kind="procedural", moves=("kick", "spin"), max_frames=12, test_every=2
+                kind="procedural",
+                moves=("kick", "spin"),
+                start_frame=15,  # after the moves' opening half second of standing
+                max_frames=12,
+                test_every=2,
             ),
         )
     if name == "demo":
@@ -212,7 +217,12 @@ def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
 
     avatar, template, q = _WORKER["avatar"], _WORKER["template"], _WORKER["queue"]
     motion = load_motion(
-        job.spec, avatar, fps=config.fps, seed=job.seed, max_frames=config.motions.max_frames
+        job.spec,
+        avatar,
+        fps=config.fps,
+        seed=job.seed,
+        max_frames=config.motions.max_frames,
+        start_frame=config.motions.start_frame,
     )
     cloth = dataclasses.replace(config.cloth, seed=job.seed)
     t0 = time.perf_counter()
@@ -356,7 +366,12 @@ def generate(
     preroll = round((config.cloth.settle_seconds + config.cloth.blend_seconds) * config.fps)
     frames_of = {
         j.name: load_motion(
-            j.spec, avatar, fps=config.fps, seed=j.seed, max_frames=config.motions.max_frames
+            j.spec,
+            avatar,
+            fps=config.fps,
+            seed=j.seed,
+            max_frames=config.motions.max_frames,
+            start_frame=config.motions.start_frame,
         ).num_frames
         + preroll
         for j in todo
