@@ -158,6 +158,21 @@ def plan_jobs(config: DatasetConfig) -> list[Job]:
     return jobs
 
 
+def job_motion(config: DatasetConfig, job: Job, avatar):
+    """The motion a job simulates, on ``avatar``'s skeleton at the dataset's frame rate."""
+    from loosefit.body.motions import load_motion
+
+    m = config.motions
+    return load_motion(
+        job.spec,
+        avatar,
+        fps=config.fps,
+        seed=job.seed,
+        max_frames=m.max_frames,
+        start_frame=m.start_frame,
+    )
+
+
 def package_versions() -> dict[str, str]:
     """Versions of the packages that decide a dataset's content."""
     out = {"python": platform.python_version()}
@@ -213,17 +228,9 @@ def _pool_worker_init(config: DatasetConfig, progress_queue) -> None:
 
 def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
     """Simulate one clip and write it; returns its manifest entry."""
-    from loosefit.body.motions import load_motion
 
     avatar, template, q = _WORKER["avatar"], _WORKER["template"], _WORKER["queue"]
-    motion = load_motion(
-        job.spec,
-        avatar,
-        fps=config.fps,
-        seed=job.seed,
-        max_frames=config.motions.max_frames,
-        start_frame=config.motions.start_frame,
-    )
+    motion = job_motion(config, job, avatar)
     cloth = dataclasses.replace(config.cloth, seed=job.seed)
     t0 = time.perf_counter()
 
@@ -361,21 +368,9 @@ def generate(
     }  # fmt: skip
     todo = [j for j in jobs if j.name not in done]
     # Frames to simulate per clip (settle and blend included), for the bar's ETA.
-    from loosefit.body.motions import load_motion
 
     preroll = round((config.cloth.settle_seconds + config.cloth.blend_seconds) * config.fps)
-    frames_of = {
-        j.name: load_motion(
-            j.spec,
-            avatar,
-            fps=config.fps,
-            seed=j.seed,
-            max_frames=config.motions.max_frames,
-            start_frame=config.motions.start_frame,
-        ).num_frames
-        + preroll
-        for j in todo
-    }
+    frames_of = {j.name: job_motion(config, j, avatar).num_frames + preroll for j in todo}
     bar = tqdm(
         total=sum(frames_of.values()),
         unit="frame",
