@@ -90,11 +90,11 @@ def _garment(spec: str, avatar, resolution: str = "cpu", length: float | None = 
     )
 
 
-def _render(args, avatar, motion, template, garment_vertices, out: Path, title: str):
+def _render(args, avatar, motion, template, garment_vertices, out: Path, title: str, body=None):
     from loosefit.render.clip import render_clip
     from loosefit.render.renderer import RenderConfig, RenderMesh
 
-    body = avatar.pose_motion(motion)
+    body = body if body is not None else avatar.pose_motion(motion)
     scene = [
         RenderMesh(avatar.faces.cpu().numpy(), body.vertices.cpu().numpy(), "body", name="body")
     ]
@@ -133,8 +133,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     _log(f"motion '{motion.name}': {motion.num_frames} frames at {motion.fps:g} fps")
     template = _garment(args.garment, avatar, args.resolution)
+    body = avatar.pose_motion(motion)
     if args.no_physics:
-        garment = carry_rigidly(template, avatar.pose_motion(motion), avatar).cpu().numpy()
+        garment = carry_rigidly(template, body, avatar).cpu().numpy()
         source = "rigid"
     else:
         from loosefit.sim.cloth import ClothConfig, simulate
@@ -154,7 +155,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     seq.save(out / "sequence.npz")
     _log(f"wrote {out / 'sequence.npz'} ({source})")
-    _render(args, avatar, motion, template, garment, out, f"loosefit demo: {motion.name}")
+    title = f"loosefit demo: {motion.name}"
+    _render(args, avatar, motion, template, garment, out, title, body=body)
     return 0
 
 
@@ -175,6 +177,16 @@ class tqdm_bar:  # noqa: N801 - reads like the tqdm call it wraps
         self.bar.close()
 
 
+def _stored_clip(args, shape: dict, motion, garment):
+    """The avatar of a stored clip's body shape, and the clip cut to ``--max-frames``."""
+    args.shape = ",".join(f"{k}={v}" for k, v in shape.items())
+    avatar = _avatar(args)
+    avatar.check_motion(motion)
+    if args.max_frames:
+        motion, garment = motion.slice(0, args.max_frames), garment[: args.max_frames]
+    return avatar, motion, garment
+
+
 def cmd_render(args: argparse.Namespace) -> int:
     from loosefit.body.motions import load_motion
     from loosefit.dress import carry_rigidly
@@ -182,15 +194,13 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    body = None
     if args.sequence:
         seq = DressedSequence.load(args.sequence)
-        args.shape = ",".join(f"{k}={v}" for k, v in seq.avatar.get("shape", {}).items())
-        avatar = _avatar(args)
-        motion, template, garment = seq.motion, seq.garment, seq.garment_vertices
-        avatar.check_motion(motion)
-        if args.max_frames:
-            motion = motion.slice(0, args.max_frames)
-            garment = garment[: args.max_frames]
+        avatar, motion, garment = _stored_clip(
+            args, seq.avatar.get("shape", {}), seq.motion, seq.garment_vertices
+        )
+        template = seq.garment
         title = f"{Path(args.sequence).stem} ({seq.source})"
     elif args.dataset:
         from loosefit.data.format import DatasetReader
@@ -198,12 +208,10 @@ def cmd_render(args: argparse.Namespace) -> int:
         reader = DatasetReader(args.dataset, allow_incomplete=True)
         name = args.clip or reader.split("all")[0]
         seq = reader.read(name)
-        args.shape = ",".join(f"{k}={v}" for k, v in reader.body.get("shape", {}).items())
-        avatar = _avatar(args)
-        motion, template, garment = seq.motion, reader.template, seq.garment_vertices
-        avatar.check_motion(motion)
-        if args.max_frames:
-            motion, garment = motion.slice(0, args.max_frames), garment[: args.max_frames]
+        avatar, motion, garment = _stored_clip(
+            args, reader.body.get("shape", {}), seq.motion, seq.garment_vertices
+        )
+        template = reader.template
         title = f"{Path(args.dataset).name}/{name} (simulated)"
     elif args.motion:
         avatar = _avatar(args)
@@ -213,14 +221,15 @@ def cmd_render(args: argparse.Namespace) -> int:
         template = _garment(args.garment, avatar)
         garment = None
         if template is not None:
-            garment = carry_rigidly(template, avatar.pose_motion(motion), avatar).cpu().numpy()
+            body = avatar.pose_motion(motion)
+            garment = carry_rigidly(template, body, avatar).cpu().numpy()
         title = motion.name
     else:
         raise LoosefitInputError(
-            "loosefit render", "arguments", "--motion or --sequence", "neither"
+            "loosefit render", "arguments", "--motion, --sequence or --dataset", "none"
         )
     _log(f"rendering {motion.num_frames} frames")
-    _render(args, avatar, motion, template, garment, out, title)
+    _render(args, avatar, motion, template, garment, out, title, body=body)
     return 0
 
 
