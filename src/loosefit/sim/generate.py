@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import importlib.metadata
+import json
 import multiprocessing as mp
 import os
 import platform
@@ -284,13 +285,11 @@ class _Direct:
         self.put = lambda item: callback(*item)
 
 
-def _open_manifest(config: DatasetConfig, out: Path, jobs: list[Job]) -> dict:
+def _open_manifest(config: DatasetConfig, out: Path) -> dict:
     """A new manifest, or the existing one of the same configuration (resume)."""
     mpath = out / "manifest.json"
     cfg = _config_dict(config)
     if mpath.is_file():
-        import json
-
         manifest = json.loads(mpath.read_text())
         if manifest.get("format") != FORMAT or manifest.get("config") != json.loads(
             json.dumps(cfg, default=str)
@@ -345,7 +344,7 @@ def generate(
 
     out = Path(out_dir)
     jobs = plan_jobs(config)
-    manifest = _open_manifest(config, out, jobs)
+    manifest = _open_manifest(config, out)
     (out / "sequences").mkdir(parents=True, exist_ok=True)
     for stale in (out / "sequences").glob("*.partial.npz"):
         stale.unlink()  # left by a killed run: never a whole sequence
