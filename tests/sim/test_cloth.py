@@ -174,7 +174,13 @@ def test_quality_on_known_cases():
     g[0, 1] = np.nan
     q = quality(g, garment, b, body_faces, fps=30.0)
     np.testing.assert_allclose(q["inside_fraction"], [0.0, 1.0 / 8.0])
+    np.testing.assert_allclose(q["penetration_fraction"], [0.0, 1.0 / 8.0])  # 10 cm deep
     assert q["nan_count"] == 1 and q["inside_depth_max"] == pytest.approx(0.1, abs=1e-5)
+    g[1, 0] = [0.0, 0.0, 0.2 - 0.004]  # 4 mm inside the top: touching, not penetrating
+    q = quality(g, garment, b, body_faces, fps=30.0)
+    np.testing.assert_allclose(q["inside_fraction"], [0.0, 1.0 / 8.0])
+    assert q["penetration_max"] == 0.0
+    assert q["inside_depth_max"] == pytest.approx(0.004, abs=1e-5)
     edges = unique_edges(f)
     assert len(edges) == 18  # a cube's 12 sides and 6 face diagonals
     with pytest.raises(LoosefitInputError):
