@@ -1,0 +1,1 @@
+"""Evaluation metrics for predicted garment sequences against ground truth."""
