@@ -282,6 +282,72 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_train(args: argparse.Namespace) -> int:
+    import torch
+
+    from loosefit.train.generative import TrainGenerativeConfig, train_generative
+
+    cfg = TrainGenerativeConfig.preset(
+        args.preset, decoder=args.decoder, epochs=args.epochs, device=args.device,
+        max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr,
+    )  # fmt: skip
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
+    report = train_generative(args.data, out, cfg, log=_log)
+    print(Path(out, "report.md").read_text())
+    _log(f"run in {out}; checkpoint {Path(out, 'checkpoint.pt')}")
+    return 0 if report else 1
+
+
+def _frame_ref(text: str, names: list[str], source: str) -> tuple[str, int]:
+    name, _, frame = text.rpartition(":")
+    if not name or not frame.isdigit():
+        raise LoosefitInputError(source, "frame", "CLIP:FRAME, e.g. 'dance_000:40'", repr(text))
+    if name not in names:
+        raise LoosefitInputError(source, "clip", f"one of {names}", repr(name))
+    return name, int(frame)
+
+
+def cmd_interpolate(args: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+
+    from loosefit.data.format import DatasetReader
+    from loosefit.model.frames import avatar_for, prepare_split
+    from loosefit.render.clip import render_clip
+    from loosefit.render.renderer import RenderConfig, RenderMesh
+    from loosefit.train.generative import load_checkpoint
+
+    reader = DatasetReader(args.data)
+    model, cfg, _ = load_checkpoint(args.checkpoint, reader.template)
+    frames = prepare_split(reader, "all", avatar_for(reader), cfg.skinning)
+    picks = []
+    for which, text in (("--a", args.a), ("--b", args.b)):
+        name, f = _frame_ref(text, frames.names, which)
+        sel = torch.nonzero((frames.clip == frames.names.index(name)) & (frames.frame == f))
+        if len(sel) == 0:
+            n = int((frames.clip == frames.names.index(name)).sum())
+            raise LoosefitInputError(which, "frame", f"a frame of '{name}' (0..{n - 1})", f)
+        picks.append(int(sel[0, 0]))
+    with torch.no_grad():
+        mu, _ = model.encode(frames.posed[picks])
+        alpha = torch.linspace(0, 1, args.steps)[:, None]
+        garments = model.decode((1 - alpha) * mu[0] + alpha * mu[1])["vertices"].numpy()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    np.savez(out / "interpolation.npz", vertices=garments, faces=reader.template.faces,
+             alpha=alpha[:, 0].numpy())  # fmt: skip
+    _log(f"wrote {out / 'interpolation.npz'} ({args.steps} garments, root frame)")
+    scene = [RenderMesh(reader.template.faces, garments, "garment", name="garment")]
+    config = RenderConfig(width=args.size, height=args.size, views=("front", "side"),
+                          follow=False)  # fmt: skip
+    result = render_clip(scene, out, fps=4.0, config=config, png_every=1,
+                         title=f"latent interpolation {args.a} -> {args.b}")  # fmt: skip
+    _log(f"wrote {result.video}" + (f" and {result.sheet}" if result.sheet else ""))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="loosefit", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -326,6 +392,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
     p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("train", help="train a learned stage (resumable)")
+    p.add_argument("stage", choices=("generative",), help="generative: the garment VAE (3.2)")
+    p.add_argument("--data", default="datasets/demo", help="a dataset folder")
+    p.add_argument("--preset", default="cpu", help="cpu (about 20 CPU minutes) or full (GPU)")
+    p.add_argument("--decoder", default="decomposed", help="decomposed, vertex or ssdr")
+    p.add_argument("--out", default=None, help="run folder (default runs/generative-...)")
+    p.add_argument("--epochs", type=int, default=None)
+    p.add_argument("--batch-size", type=int, default=None)
+    p.add_argument("--lr", type=float, default=None)
+    p.add_argument("--max-frames", type=int, default=None, help="frames per clip")
+    p.add_argument("--device", default="cpu", help="torch device")
+    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("interpolate", help="garments along a line between two latent codes")
+    p.add_argument("--checkpoint", required=True, help="a generative run's checkpoint.pt")
+    p.add_argument("--data", default="datasets/demo", help="the dataset holding the two frames")
+    p.add_argument("--a", required=True, help="CLIP:FRAME of the first garment")
+    p.add_argument("--b", required=True, help="CLIP:FRAME of the second garment")
+    p.add_argument("--steps", type=int, default=8)
+    p.add_argument("--out", default="out/interpolation")
+    p.add_argument("--size", type=int, default=384)
+    p.set_defaults(func=cmd_interpolate)
 
     p = sub.add_parser("motion", help="convert a BVH or a procedural move to a motion .npz")
     p.add_argument("spec", help="a .bvh file, a procedural move name, or dance:SECONDS")

@@ -1,0 +1,159 @@
+"""The frame the learned models see garments in, and the arrays they train on.
+
+**Root frame.** A garment enters the models in the body's root frame with the
+dancer's global translation and heading taken out: ``x_root = H^T (x_world - p)``
+where ``p`` is the root joint's world position and ``H`` the rotation about +Z
+by the heading (the yaw of the pelvis's forward direction, -Y at rest). The
+pelvis's tilt and roll stay in, so the garment still sees the hips bend. The
+latent space then spends nothing on where the dancer stands or which way they
+face; decoded garments go back with :func:`from_root_frame`.
+
+**Unposed targets.** The unposed decoder is supervised by the inverse skinning
+of each simulated frame (paper Eq. 4) with seed points on the body, computed
+here once per dataset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from loosefit.body.avatar import Avatar, AvatarConfig
+from loosefit.data.format import DatasetReader
+from loosefit.errors import LoosefitInputError
+from loosefit.geometry.inverse_skinning import InverseSkinningConfig, seed_weights, unskin
+
+
+def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The heading rotation and origin of the root frame.
+
+    Args:
+        root_transforms: (T, 4, 4) the root joint's skinning transform (rest to world).
+
+    Returns:
+        H (T, 3, 3), rotations about +Z by the heading, and p (T, 3), the root's position.
+    """
+    forward = -root_transforms[:, :3, 1]  # the rest's -Y axis, rotated
+    yaw = torch.atan2(forward[:, 0], -forward[:, 1])
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    zero, one = torch.zeros_like(c), torch.ones_like(c)
+    H = torch.stack([c, -s, zero, s, c, zero, zero, zero, one], -1).view(-1, 3, 3)
+    return H, root_transforms[:, :3, 3]
+
+
+def to_root_frame(x: torch.Tensor, H: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
+    """World points (T, N, 3) into the root frame of :func:`heading_frames`."""
+    return (x - p[:, None]) @ H
+
+
+def from_root_frame(x: torch.Tensor, H: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
+    """Root-frame points (T, N, 3) back into the world."""
+    return x @ H.transpose(1, 2) + p[:, None]
+
+
+@dataclass
+class PreparedFrames:
+    """A split of a dataset, ready for training (all frames of all its clips).
+
+    Attributes:
+        names: the clips.
+        clip: (N,) int64 index into ``names`` of each frame.
+        frame: (N,) int64 frame index within its clip.
+        posed: (N, V, 3) float32 simulated garment, root frame.
+        unposed: (N, V, 3) float32 its inverse skinning, canonical frame.
+        heading: (N, 3, 3) float32 and origin (N, 3) float32 of each root frame.
+        fps: frames per second of the clips.
+    """
+
+    names: list[str]
+    clip: torch.Tensor
+    frame: torch.Tensor
+    posed: torch.Tensor
+    unposed: torch.Tensor
+    heading: torch.Tensor
+    origin: torch.Tensor
+    fps: float
+
+    def __len__(self) -> int:
+        return int(self.posed.shape[0])
+
+    def world(self, index: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
+        """Root-frame garments (B, V, 3) of frames ``index`` (B,) back into the world."""
+        return from_root_frame(x, self.heading[index], self.origin[index])
+
+
+def avatar_for(reader: DatasetReader, device: str = "cpu") -> Avatar:
+    """The avatar a dataset was simulated on (its manifest's body shape)."""
+    return Avatar(AvatarConfig(shape=dict(reader.body.get("shape", {}))), device=device)
+
+
+def prepare_split(
+    reader: DatasetReader,
+    split: str,
+    avatar: Avatar,
+    skinning: InverseSkinningConfig | None = None,
+    max_frames: int | None = None,
+) -> PreparedFrames:
+    """Root-frame garments and inverse-skinning targets for every frame of a split.
+
+    Args:
+        reader: the dataset.
+        split: "train", "test" or "all".
+        avatar: the body the dataset was made on (:func:`avatar_for`).
+        skinning: seed count and softmax temperature of the inverse skinning.
+        max_frames: keep at most this many frames of each clip (for quick runs).
+
+    Returns:
+        :class:`PreparedFrames`.
+    """
+    skinning = skinning or InverseSkinningConfig()
+    names = reader.split(split)
+    if not names:
+        raise LoosefitInputError(reader.root, f"split '{split}'", "at least one clip", "none")
+    template = torch.from_numpy(reader.template.vertices)
+    seeds = avatar.seed_points(skinning.num_seeds)
+    weights = seed_weights(template, seeds.rest.float().cpu(), skinning.temperature)[None]
+    out: dict[str, list] = {k: [] for k in ("clip", "frame", "posed", "unposed", "H", "p")}
+    fps = None
+    for i, name in enumerate(names):
+        seq = reader.read(name)
+        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
+        g = torch.from_numpy(seq.garment_vertices[: motion.num_frames])
+        fps = motion.fps if fps is None else fps
+        if motion.fps != fps:
+            raise LoosefitInputError(
+                reader.sequence_path(name), "fps", f"{fps} like the other clips", motion.fps
+            )
+        with torch.no_grad():
+            body = avatar.pose_motion(motion)
+            R, t = avatar.seed_frames(seeds, body)
+            H, p = heading_frames(body.joint_transforms[:, 0].float().cpu())
+            unposed = unskin(g, weights, R.float().cpu(), t.float().cpu())
+        out["clip"].append(torch.full((len(g),), i, dtype=torch.long))
+        out["frame"].append(torch.arange(len(g)))
+        out["posed"].append(to_root_frame(g, H, p))
+        out["unposed"].append(unposed)
+        out["H"].append(H)
+        out["p"].append(p)
+    return PreparedFrames(
+        names=names,
+        clip=torch.cat(out["clip"]),
+        frame=torch.cat(out["frame"]),
+        posed=torch.cat(out["posed"]).contiguous(),
+        unposed=torch.cat(out["unposed"]).contiguous(),
+        heading=torch.cat(out["H"]),
+        origin=torch.cat(out["p"]),
+        fps=float(fps),
+    )
+
+
+def garment_fingerprint(vertices: np.ndarray, faces: np.ndarray) -> str:
+    """A short hash of a garment's rest shape and triangles, to match checkpoints to data."""
+    import hashlib
+
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(np.round(vertices, 5), np.float32).tobytes())
+    h.update(np.ascontiguousarray(faces, np.int64).tobytes())
+    return h.hexdigest()[:16]

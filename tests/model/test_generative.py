@@ -1,0 +1,185 @@
+"""The generative model: shapes of each decoder, the losses, root frames, training and resume."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from loosefit.body.motions import load_motion
+from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
+from loosefit.dress import carry_rigidly, fit_skirt
+from loosefit.errors import LoosefitInputError
+from loosefit.garment.skirt import SkirtConfig
+from loosefit.model.frames import from_root_frame, heading_frames, to_root_frame
+from loosefit.model.generative import (
+    GarmentGenerativeModel,
+    GenerativeConfig,
+    GenerativeLossConfig,
+    generative_loss,
+    kl_divergence,
+)
+from loosefit.train.generative import TrainGenerativeConfig, load_checkpoint, train_generative
+
+SMALL = dict(uv_size=32, channels=(4, 8, 8, 8), rec_hidden=(16, 16, 16))
+
+
+@pytest.fixture(scope="module")
+def skirt(avatar):
+    return fit_skirt(avatar, SkirtConfig(style="aline", rings=6, segments=16))
+
+
+@pytest.fixture(scope="module")
+def toy_dataset(avatar, skirt, tmp_path_factory):
+    """Two train clips and one test clip: the skirt carried by the hips, swaying sideways."""
+    root = tmp_path_factory.mktemp("toy") / "ds"
+    (root / "sequences").mkdir(parents=True)
+    skirt.save(root / "template.npz")
+    for name, move in (("a", "spin"), ("b", "kick"), ("c", "sway")):
+        motion = load_motion(move, avatar).slice(10, 26)
+        body = avatar.pose_motion(motion)
+        g = carry_rigidly(skirt, body, avatar).numpy()
+        depth = skirt.vertices[:, 2].max() - skirt.vertices[:, 2]  # 0 at the waist
+        phase = np.sin(np.arange(len(g)) / 3.0)[:, None]
+        g[..., 0] += 0.3 * depth[None] * phase  # the hem swings, the waist stays
+        write_sequence(root / "sequences" / f"{name}.npz", Sequence(name, motion, g))
+    manifest = {
+        "format": FORMAT,
+        "complete": True,
+        "body": {"model": "anny", "rig": "cmu_mb", "shape": {}, "floor_height": 0.9},
+        "split": {"train": ["a", "b"], "test": ["c"]},
+    }
+    write_json_atomic(root / "manifest.json", manifest)
+    return root
+
+
+@pytest.mark.parametrize("decoder", ["decomposed", "vertex", "ssdr"])
+def test_decoders_give_garments_of_the_template(skirt, decoder):
+    V = skirt.num_vertices
+    ssdr = None
+    if decoder == "ssdr":
+        B = 3
+        w = np.full((V, B), 1.0 / B, np.float32)
+        ssdr = (skirt.vertices, w, np.tile(np.eye(3, 4, dtype=np.float32), (B, 1, 1)))
+    model = GarmentGenerativeModel(skirt, GenerativeConfig(decoder=decoder, **SMALL), ssdr=ssdr)
+    x = torch.from_numpy(skirt.vertices)[None].repeat(2, 1, 1)
+    out = model(x)
+    assert out.vertices.shape == (2, V, 3) and out.mu.shape == (2, 128)
+    if decoder == "decomposed":
+        torch.testing.assert_close(out.vertices, out.unposed + out.offsets)
+    else:
+        assert out.unposed is None
+    if decoder == "ssdr":  # starts at the mean transforms: identity here, the rest shape
+        torch.testing.assert_close(model.decode(torch.randn(2, 128))["vertices"], x)
+
+
+def test_bad_configurations_and_inputs(skirt):
+    with pytest.raises(LoosefitInputError, match="decoder"):
+        GenerativeConfig(decoder="linear")
+    with pytest.raises(LoosefitInputError, match="uv_size"):
+        GenerativeConfig(uv_size=40)
+    with pytest.raises(LoosefitInputError, match="ssdr"):
+        GarmentGenerativeModel(skirt, GenerativeConfig(decoder="ssdr", **SMALL))
+    model = GarmentGenerativeModel(skirt, GenerativeConfig(**SMALL))
+    with pytest.raises(LoosefitInputError, match="vertices"):
+        model.encode(torch.zeros(1, 5, 3))
+
+
+def test_losses():
+    mu, logvar = torch.zeros(3, 8), torch.zeros(3, 8)
+    assert float(kl_divergence(mu, logvar)) == 0.0
+    assert float(kl_divergence(mu + 1.0, logvar)) == pytest.approx(4.0)  # 8 * 0.5 * 1
+    from loosefit.model.generative import GenerativeOutput
+
+    target = torch.zeros(2, 4, 3)
+    out = GenerativeOutput(target + 0.01, mu[:2], logvar[:2], mu[:2], target, target + 0.01)
+    terms = generative_loss(out, target, target, target[0], lambda x: 0 * x, GenerativeLossConfig())
+    assert float(terms["geometry"]) == pytest.approx(3.0)  # (1 cm)^2 per axis, 3 axes
+    assert float(terms["unposed"]) == 0.0 and float(terms["template"]) == 0.0
+    assert float(terms["total"]) == pytest.approx(3.0)
+
+
+def test_root_frame_takes_out_translation_and_heading():
+    c, s = np.cos(1.1), np.sin(1.1)
+    T = torch.eye(4).repeat(2, 1, 1)
+    T[1, :3, :3] = torch.tensor([[c, -s, 0], [s, c, 0], [0, 0, 1]], dtype=torch.float32)
+    T[:, :3, 3] = torch.tensor([[0.0, 0.0, 0.9], [2.0, -1.0, 0.95]])
+    H, p = heading_frames(T)
+    x = torch.randn(1, 5, 3)
+    world = from_root_frame(x.repeat(2, 1, 1), H, p)
+    # the same root-frame garment is placed by each frame's root and heading ...
+    torch.testing.assert_close(world[1], x[0] @ T[1, :3, :3].T + T[1, :3, 3])
+    # ... and comes back unchanged
+    torch.testing.assert_close(to_root_frame(world, H, p), x.repeat(2, 1, 1))
+
+
+def _config(**kw) -> TrainGenerativeConfig:
+    cfg = TrainGenerativeConfig(
+        model=GenerativeConfig(**SMALL), epochs=25, batch_size=8, lr=2e-3, eval_every=1000,
+        checkpoint_every=1,
+    )  # fmt: skip
+    for k, v in kw.items():
+        setattr(cfg, k, v)
+    return cfg
+
+
+def test_training_lowers_the_loss_and_reports(toy_dataset, skirt, tmp_path):
+    report = train_generative(toy_dataset, tmp_path / "run", _config(), log=lambda *_: None,
+                              progress=False)  # fmt: skip
+    history = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=False)["history"]
+    assert history[-1]["total"] < 0.5 * history[0]["total"]
+    assert report["test"]["frames"] == 16 and report["train"]["frames"] == 32
+    assert np.isfinite(report["test"]["rmse_cm"]) and report["test"]["hausdorff_cm"] > 0
+    saved = json.loads((tmp_path / "run" / "report.json").read_text())
+    assert saved["train"]["rmse_cm"] == pytest.approx(report["train"]["rmse_cm"])
+    model, cfg, _ = load_checkpoint(tmp_path / "run" / "checkpoint.pt", skirt)
+    assert cfg.epochs == 25 and not model.training
+    # another run's configuration in the same folder is refused before any training
+    with pytest.raises(LoosefitInputError, match="configuration"):
+        train_generative(toy_dataset, tmp_path / "run", _config(lr=1e-3), log=lambda *_: None)
+
+
+def test_checkpoint_of_another_garment_is_refused(toy_dataset, tmp_path, avatar):
+    train_generative(toy_dataset, tmp_path / "run", _config(epochs=1), log=lambda *_: None,
+                     progress=False)  # fmt: skip
+    other = fit_skirt(avatar, SkirtConfig(style="aline", rings=5, segments=16))
+    with pytest.raises(LoosefitInputError, match="garment"):
+        load_checkpoint(tmp_path / "run" / "checkpoint.pt", other)
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    with pytest.raises(LoosefitInputError, match="junk.pt"):
+        load_checkpoint(tmp_path / "junk.pt")
+
+
+def test_a_killed_run_resumes(toy_dataset, tmp_path):
+    run = tmp_path / "run"
+    repo = str(Path(__file__).resolve().parents[2])
+    code = (
+        f"import sys; sys.path.insert(0, {repo!r})\n"
+        "from tests.model.test_generative import _config\n"
+        "from loosefit.train.generative import train_generative\n"
+        f"train_generative({str(toy_dataset)!r}, {str(run)!r}, _config(epochs=40),"
+        " progress=False)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)  # fmt: skip
+    ckpt = run / "checkpoint.pt"
+    deadline = time.time() + 240
+    while time.time() < deadline and proc.poll() is None:
+        if ckpt.is_file() and torch.load(ckpt, weights_only=False)["epoch"] >= 2:
+            break
+        time.sleep(0.5)
+    proc.kill()
+    proc.wait()
+    done = torch.load(ckpt, weights_only=False)["epoch"]
+    assert 2 <= done < 40 and not (run / "report.json").exists()
+    lines = []
+    train_generative(toy_dataset, run, _config(epochs=40), log=lines.append, progress=False)
+    assert any(f"at epoch {done}" in line for line in lines)
+    history = torch.load(ckpt, weights_only=False)["history"]
+    assert [h["epoch"] for h in history] == list(range(1, 41))
