@@ -6,7 +6,7 @@ preset, then writes their reconstruction errors on the held-out clips as a
 Markdown table::
 
     python bench/generative_ablation.py --data datasets/demo --preset cpu \
-        --out runs/ablation-demo --table docs/GENERATIVE.md
+        --out runs/ablation-demo --table docs/GENERATIVE_TABLE.md
 """
 
 from __future__ import annotations

@@ -183,3 +183,21 @@ def test_a_killed_run_resumes(toy_dataset, tmp_path):
     assert any(f"at epoch {done}" in line for line in lines)
     history = torch.load(ckpt, weights_only=False)["history"]
     assert [h["epoch"] for h in history] == list(range(1, 41))
+
+
+def test_train_and_interpolate_commands(toy_dataset, tmp_path):
+    from loosefit.cli import main
+
+    run = tmp_path / "cli-run"
+    args = ["train", "generative", "--data", str(toy_dataset), "--preset", "cpu", "--epochs", "1"]
+    assert main([*args, "--max-frames", "4", "--out", str(run)]) == 0
+    assert (run / "report.md").is_file() and (run / "checkpoint.pt").is_file()
+    out = tmp_path / "interp"
+    common = ["interpolate", "--checkpoint", str(run / "checkpoint.pt"), "--data", str(toy_dataset)]
+    assert main([*common, "--a", "a:0", "--b", "b:3", "--steps", "3", "--size", "64",
+                 "--out", str(out)]) == 0  # fmt: skip
+    with np.load(out / "interpolation.npz") as z:
+        assert z["vertices"].shape[0] == 3 and np.isfinite(z["vertices"]).all()
+    assert any(out.glob("*.mp4"))
+    # a frame the clip does not have is an error naming the option
+    assert main([*common, "--a", "a:99", "--b", "b:0", "--out", str(out)]) == 2
