@@ -339,7 +339,9 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
     np.savez(out / "interpolation.npz", vertices=garments, faces=reader.template.faces,
              alpha=alpha[:, 0].numpy())  # fmt: skip
     _log(f"wrote {out / 'interpolation.npz'} ({args.steps} garments, root frame)")
-    scene = [RenderMesh(reader.template.faces, garments, "garment", name="garment")]
+    # root frame -> standing on the floor, root joint at its rest height
+    lifted = garments + np.array([0.0, 0.0, float(reader.body.get("floor_height", 0.9))])
+    scene = [RenderMesh(reader.template.faces, lifted, "garment", name="garment")]
     config = RenderConfig(width=args.size, height=args.size, views=("front", "side"),
                           follow=False)  # fmt: skip
     result = render_clip(scene, out, fps=4.0, config=config, png_every=1,
