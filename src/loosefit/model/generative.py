@@ -25,7 +25,7 @@ The ablations of paper 4.2 are configurations of the same class:
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from itertools import pairwise
 
 import numpy as np
@@ -61,9 +61,6 @@ class GenerativeConfig:
             raise LoosefitInputError(src, "channels", "4 widths", repr(self.channels))
         self.channels = tuple(int(c) for c in self.channels)
         self.rec_hidden = tuple(int(c) for c in self.rec_hidden)
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 def _conv_block(cin: int, cout: int) -> nn.Sequential:

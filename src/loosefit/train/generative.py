@@ -136,16 +136,11 @@ def save_checkpoint(path: Path, model: GarmentGenerativeModel, template: Garment
     os.replace(tmp, path)
 
 
-def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
-    """A trained generative model from a checkpoint.
-
-    Args:
-        path: the ``checkpoint.pt`` of a run.
-        template: if given, the garment the model must have been trained on.
-        device: where to put the model.
+def read_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
+    """A checkpoint's contents, checked to be a generative model's (of ``template``'s garment).
 
     Returns:
-        (model in eval mode, its :class:`TrainGenerativeConfig`, the raw checkpoint dict).
+        The checkpoint dict and the garment template it holds.
 
     Raises:
         LoosefitInputError: not a generative-model checkpoint, or another garment.
@@ -173,6 +168,25 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
                 f"{data['garment']['fingerprint']})",
                 hint="train a model on this garment's dataset",
             )  # fmt: skip
+    return data, stored
+
+
+def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
+    """A trained generative model from a checkpoint.
+
+    Args:
+        path: the ``checkpoint.pt`` of a run.
+        template: if given, the garment the model must have been trained on.
+        device: where to put the model.
+
+    Returns:
+        (model in eval mode, its :class:`TrainGenerativeConfig`, the raw checkpoint dict).
+
+    Raises:
+        LoosefitInputError: not a generative-model checkpoint, another garment, or
+            weights that do not fit the configuration it records.
+    """
+    data, stored = read_checkpoint(path, template, device)
     config = TrainGenerativeConfig.from_dict(data["config"])
     ssdr = None
     if config.model.decoder == "ssdr":
@@ -311,7 +325,7 @@ def train_generative(
     optim = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     epoch, history = 0, []
     if ckpt_path.is_file():
-        _, _, data_ = load_checkpoint(ckpt_path, template, device)
+        data_, _ = read_checkpoint(ckpt_path, template, device)
         model.load_state_dict(data_["model"])
         optim.load_state_dict(data_["optimizer"])
         epoch, history = data_["epoch"], data_["history"]
