@@ -202,3 +202,42 @@ def test_recorded_graphs_replay_exactly(avatar, tiny):
     skirt, motion, result, _ = tiny
     plain = simulate(avatar, skirt, motion, ClothConfig.tiny(capture=False))
     np.testing.assert_array_equal(plain.garment_vertices, result.garment_vertices)
+
+
+class _Kill(Exception):
+    pass
+
+
+def test_killed_run_resumes_from_its_saved_state(avatar, tiny, tmp_path):
+    skirt, motion, result, done = tiny
+    total = done[-1][1]
+    path = tmp_path / "run.npz"
+    stop = total - 3  # after the save at frame 2 * every, inside the motion
+
+    def kill(d, t):
+        if d == stop:
+            raise _Kill
+
+    with pytest.raises(_Kill):
+        simulate(avatar, skirt, motion, ClothConfig.tiny(), progress=kill, resume=path,
+                 resume_every=4)  # fmt: skip
+    assert path.is_file()
+    seen = []
+    again = simulate(
+        avatar, skirt, motion, ClothConfig.tiny(), progress=lambda d, t: seen.append(d),
+        resume=path, resume_every=4,
+    )  # fmt: skip
+    assert seen[0] > 1  # it did not start over
+    np.testing.assert_array_equal(again.garment_vertices, result.garment_vertices)
+    assert not path.exists()  # removed once the run is whole
+
+
+def test_resume_ignores_the_state_of_another_run(avatar, tiny, tmp_path):
+    skirt, motion, result, done = tiny
+    path = tmp_path / "run.npz"
+    np.savez(path, key=np.array("another run"), frame=np.int64(3))
+    seen = []
+    again = simulate(avatar, skirt, motion, ClothConfig.tiny(), resume=path,
+                     progress=lambda d, t: seen.append(d))  # fmt: skip
+    assert seen[0] == 1
+    np.testing.assert_array_equal(again.garment_vertices, result.garment_vertices)

@@ -89,3 +89,14 @@ def test_unknown_preset_and_empty_bvh_folder(tmp_path):
         gen.preset("huge")
     with pytest.raises(LoosefitInputError, match=r"\*\.bvh.*no \.bvh files"):
         gen.plan_jobs(gen.preset("salsa", bvh_folder=str(tmp_path)))
+
+
+def test_salsa_holds_out_its_test_clips_as_one_long_sequence(tmp_path):
+    for name in ("60_01", "60_03", "61_03", "60_02"):
+        (tmp_path / f"{name}.bvh").write_text("")
+    cfg = gen.preset("salsa", bvh_folder=str(tmp_path))
+    jobs = gen.plan_jobs(cfg)
+    assert [(j.name, j.test) for j in jobs] == [
+        ("60_01", False), ("60_02", False), ("chain_60_03_61_03", True),
+    ]  # fmt: skip
+    assert jobs[-1].spec == f"{tmp_path / '60_03.bvh'}+{tmp_path / '61_03.bvh'}"

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from loosefit.body.avatar import Avatar
 from loosefit.body.bvh import read_bvh
+from loosefit.body.chain import chain_motions
 from loosefit.body.procedural import MOVES, named_motion, random_dance
 from loosefit.body.resample import resample_motion
 from loosefit.body.retarget import RetargetConfig, retarget_bvh
@@ -32,19 +33,29 @@ def load_motion(
     Args:
         spec: a ``.bvh`` file (retargeted), a ``.npz`` motion saved by
             :meth:`Motion.save`, a procedural move name (``spin``, ``walk``, ...),
-            ``dance`` (a random dance of 12 s), or ``dance:SECONDS``.
+            ``dance`` (a random dance of 12 s), ``dance:SECONDS``, or several of
+            these joined by ``+``: played one after another as one motion
+            (:func:`~loosefit.body.chain.chain_motions`, 0.5 s transitions).
         avatar: the avatar that the motion must fit.
         fps: the frame rate of the result.
         seed: seeds procedural motions.
         retarget: options for BVH files.
         max_frames: keep at most this many frames.
-        start_frame: drop the frames before this one (after resampling to ``fps``).
+        start_frame: drop the frames before this one (after resampling to ``fps``);
+            in a chain, from each of its parts.
 
     Returns:
         A validated :class:`Motion` on ``avatar``'s joints at ``fps``.
     """
     text = str(spec)
     path = Path(text)
+    if "+" in text and not path.exists():
+        parts = [p for p in text.split("+") if p]
+        motion = chain_motions(
+            [load_motion(p, avatar, fps, seed + i, retarget, None, start_frame)
+             for i, p in enumerate(parts)]
+        )  # fmt: skip
+        return motion if max_frames is None else motion.slice(0, max_frames)
     if path.suffix.lower() == ".bvh":
         if not path.is_file():
             raise LoosefitInputError(path, "<file>", "an existing BVH file", "no such file")

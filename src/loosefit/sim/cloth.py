@@ -29,10 +29,14 @@ the first run compiles them (about 35 s, cached under ``~/.cache/warp``).
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
 import time
+import zipfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -561,6 +565,16 @@ class ClothSimulator:
         """(V, 3) float32 current cloth positions (a copy)."""
         return self.state_0.particle_q.numpy().copy()
 
+    def get_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """(V, 3) float32 positions and (V, 3) float32 velocities: all the solver carries over."""
+        return self.positions, self.state_0.particle_qd.numpy().copy()
+
+    def set_state(self, positions: np.ndarray, velocities: np.ndarray) -> None:
+        """Continue from a state taken by :meth:`get_state` (after the same number of frames)."""
+        for state in (self.state_0, self.state_1):
+            state.particle_q.assign(np.ascontiguousarray(positions, np.float32))
+            state.particle_qd.assign(np.ascontiguousarray(velocities, np.float32))
+
 
 # -- driving it with a motion -----------------------------------------------------
 
@@ -644,12 +658,40 @@ def _frame_name(k: int, n_settle: int, n_pre: int) -> str:
     return f"motion frame {k - n_pre}"
 
 
+def _run_key(body: np.ndarray, template: GarmentTemplate, config: ClothConfig) -> str:
+    """A fingerprint of everything that decides a simulation's frames."""
+    h = hashlib.sha256()
+    for a in (body[:: max(len(body) // 64, 1)], template.vertices, template.faces, template.waist):
+        h.update(np.ascontiguousarray(a).tobytes())
+    h.update(str((body.shape, sorted(asdict(config).items()))).encode())
+    return h.hexdigest()[:32]
+
+
+def _write_resume(path: Path, **arrays) -> None:
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def _read_resume(path: Path, key: str, total: int) -> dict | None:
+    """The saved state of the same run, or None (a missing, other or unreadable file)."""
+    try:
+        with np.load(path) as data:
+            if str(data["key"]) != key or not 0 < int(data["frame"]) <= total:
+                return None
+            return {k: data[k] for k in data.files}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+
+
 def simulate(
     avatar: Avatar,
     template: GarmentTemplate,
     motion: Motion,
     config: ClothConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
+    resume: str | Path | None = None,
+    resume_every: int = 50,
 ) -> SimResult:
     """Simulate a garment on the avatar through a motion.
 
@@ -660,6 +702,11 @@ def simulate(
         motion: T frames on the avatar's skeleton.
         config: the physics (default :class:`ClothConfig`).
         progress: called as ``progress(done, total)`` after every simulated frame.
+        resume: a ``.npz`` file where the run saves its state (atomically, every
+            ``resume_every`` frames) and from which a killed run of the same body
+            motion, garment and configuration continues; deleted when the run
+            ends. A file of another run is ignored and overwritten.
+        resume_every: frames between saves.
 
     Returns:
         A :class:`SimResult` whose ``garment_vertices`` (T, V, 3) are in the world
@@ -698,8 +745,26 @@ def simulate(
     total = len(body) - 1
     out = np.empty((motion.num_frames, template.num_vertices, 3), np.float32)
     settled = sim.positions
+    first, t_before = 0, 0.0
+    resume = Path(resume) if resume is not None else None
+    key = _run_key(body, template, config) if resume is not None else ""
+    saved = _read_resume(resume, key, total) if resume is not None else None
+    if saved is not None:
+        first, t_before = int(saved["frame"]), float(saved["seconds"])
+        sim.set_state(saved["positions"], saved["velocities"])
+        settled = saved["settled"]
+        recorded = max(first - n_pre + 1, 0)
+        out[:recorded] = saved["garment"][:recorded]
     t0 = time.perf_counter()
-    for k in range(total):
+    for k in range(first, total):
+        if resume is not None and k > first and k % resume_every == 0:
+            q, qd = sim.get_state()
+            recorded = max(k - n_pre + 1, 0)
+            _write_resume(
+                resume, key=np.array(key), frame=np.int64(k), positions=q, velocities=qd,
+                settled=settled, garment=out[:recorded],
+                seconds=np.float64(t_before + time.perf_counter() - t0),
+            )  # fmt: skip
         settling = k + 1 < n_settle
         sim.step_frame(body[k], body[k + 1], config.settle_damping if settling else None)
         positions = sim.positions
@@ -710,7 +775,9 @@ def simulate(
             out[k + 1 - n_pre] = positions
         if progress is not None:
             progress(k + 1, total)
-    t_sim = time.perf_counter() - t0
+    t_sim = t_before + time.perf_counter() - t0
+    if resume is not None:
+        resume.unlink(missing_ok=True)
 
     stats = {
         "vertices": template.num_vertices,

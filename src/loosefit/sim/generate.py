@@ -44,6 +44,7 @@ class MotionSource:
     max_frames: int | None = None  # keep at most this many frames of each clip (None: all)
     start_frame: int = 0  # drop the frames of each clip before this one
     test: tuple[str, ...] = ()  # bvh: clip names held out for testing
+    chain_test: bool = False  # bvh: the test clips play one after another as one long sequence
     test_every: int = 4  # procedural: every n-th dance is held out for testing
 
 
@@ -111,7 +112,9 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
             preset=name,
             garment=SkirtConfig.preset("cpu", "flared"),
             # from a third of a second in: the captures open with the arms swinging into place
-            motions=MotionSource(kind="bvh", folder=salsa, test=salsa_test, start_frame=10),
+            motions=MotionSource(
+                kind="bvh", folder=salsa, test=salsa_test, start_frame=10, chain_test=True
+            ),
         )
     if name == "paper":
         return DatasetConfig(
@@ -148,8 +151,15 @@ def plan_jobs(config: DatasetConfig) -> list[Job]:
                 else "no .bvh files",
             )  # fmt: skip
         jobs += [
-            Job(f.stem, str(f), config.seed + i, f.stem in m.test) for i, f in enumerate(files)
+            Job(f.stem, str(f), config.seed + i, f.stem in m.test)
+            for i, f in enumerate(files)
+            if not (m.chain_test and f.stem in m.test)
         ]
+        held_out = [f for f in files if f.stem in m.test]
+        if m.chain_test and held_out:
+            # One long held-out sequence, so that rollouts can be judged over 1,200+ frames.
+            name = "chain_" + "_".join(f.stem for f in held_out)
+            jobs.append(Job(name, "+".join(str(f) for f in held_out), config.seed + 500, True))
     if m.kind == "procedural" and m.moves:
         for i, move in enumerate(m.moves):
             test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
@@ -245,13 +255,18 @@ def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
             q.put((job.name, done, total))
 
     entry = {
-        "spec": job.spec if not job.spec.endswith(".bvh") else Path(job.spec).name,
+        "spec": "+".join(Path(p).name if p.endswith(".bvh") else p for p in job.spec.split("+")),
         "seed": job.seed,
         "frames": motion.num_frames,
         "test": job.test,
     }
     try:
-        result = simulate(avatar, template, motion, cloth, progress=progress)
+        resume_dir = Path(out_dir) / "resume"
+        resume_dir.mkdir(exist_ok=True)
+        result = simulate(
+            avatar, template, motion, cloth, progress=progress,
+            resume=resume_dir / f"{job.name}.npz",
+        )  # fmt: skip
     except SimulationError as exc:
         entry.update(status="flagged", reason=str(exc), seconds=time.perf_counter() - t0)
         return entry
@@ -417,7 +432,9 @@ def generate(
                 initializer=_pool_worker_init,
                 initargs=(config, q),
             ) as pool:
-                futures = {pool.submit(_run_job, config, j, str(out)): j for j in todo}
+                # Longest first, so that no long clip starts last and runs alone.
+                ordered = sorted(todo, key=lambda j: -frames_of[j.name])
+                futures = {pool.submit(_run_job, config, j, str(out)): j for j in ordered}
                 pending = set(futures)
                 while pending:
                     finished = {f for f in pending if f.done()}
