@@ -22,3 +22,42 @@ def avatar():
     from loosefit.body.avatar import Avatar
 
     return Avatar()
+
+
+@pytest.fixture(scope="session")
+def skirt(avatar):
+    """A coarse skirt (96 vertices) for the learned stages' tests."""
+    from loosefit.dress import fit_skirt
+    from loosefit.garment.skirt import SkirtConfig
+
+    return fit_skirt(avatar, SkirtConfig(style="aline", rings=6, segments=16))
+
+
+@pytest.fixture(scope="session")
+def toy_dataset(avatar, skirt, tmp_path_factory):
+    """Two train clips and one test clip: the skirt carried by the hips, swaying sideways."""
+    import numpy as np
+
+    from loosefit.body.motions import load_motion
+    from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
+    from loosefit.dress import carry_rigidly
+
+    root = tmp_path_factory.mktemp("toy") / "ds"
+    (root / "sequences").mkdir(parents=True)
+    skirt.save(root / "template.npz")
+    for name, move in (("a", "spin"), ("b", "kick"), ("c", "sway")):
+        motion = load_motion(move, avatar).slice(10, 26)
+        body = avatar.pose_motion(motion)
+        g = carry_rigidly(skirt, body, avatar).numpy()
+        depth = skirt.vertices[:, 2].max() - skirt.vertices[:, 2]  # 0 at the waist
+        phase = np.sin(np.arange(len(g)) / 3.0)[:, None]
+        g[..., 0] += 0.3 * depth[None] * phase  # the hem swings, the waist stays
+        write_sequence(root / "sequences" / f"{name}.npz", Sequence(name, motion, g))
+    manifest = {
+        "format": FORMAT,
+        "complete": True,
+        "body": {"model": "anny", "rig": "cmu_mb", "shape": {}, "floor_height": 0.9},
+        "split": {"train": ["a", "b"], "test": ["c"]},
+    }
+    write_json_atomic(root / "manifest.json", manifest)
+    return root

@@ -11,6 +11,7 @@ Subcommands:
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -285,19 +286,127 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     import torch
 
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    if args.stage == "motion":
+        return _train_motion(args)
     from loosefit.train.generative import TrainGenerativeConfig, train_generative
 
     cfg = TrainGenerativeConfig.preset(
         args.preset, decoder=args.decoder, epochs=args.epochs, device=args.device,
         max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr,
     )  # fmt: skip
-    if args.threads:
-        torch.set_num_threads(args.threads)
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
     report = train_generative(args.data, out, cfg, log=_log)
     print(Path(out, "report.md").read_text())
     _log(f"run in {out}; checkpoint {Path(out, 'checkpoint.pt')}")
     return 0 if report else 1
+
+
+def _train_motion(args: argparse.Namespace) -> int:
+    from loosefit.train.motion import TrainMotionConfig, train_motion
+
+    if not args.generative:
+        raise LoosefitInputError(
+            "loosefit train motion", "--generative", "the trained generative model's checkpoint",
+            "none",
+        )  # fmt: skip
+    cfg = TrainMotionConfig.preset(
+        args.preset, epochs=args.epochs, device=args.device, max_frames=args.max_frames,
+        batch_size=args.batch_size, lr=args.lr, previous=args.previous,
+        previous_state=False if args.no_previous_state else None,
+    )  # fmt: skip
+    kind = "ps" if cfg.model.previous_state else "nops"
+    out = args.out or f"runs/motion-{args.preset}-{kind}"
+    report = train_motion(args.data, args.generative, out, cfg, log=_log)
+    print(Path(out, "report.md").read_text())
+    _log(f"run in {out}; model {Path(out, 'model.pt')}")
+    return 0 if report else 1
+
+
+def cmd_animate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from loosefit.body.avatar import Avatar, AvatarConfig
+    from loosefit.body.chain import chain_motions
+    from loosefit.body.motions import load_motion
+    from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
+    from loosefit.train.motion import load_animation_model
+
+    model = load_animation_model(args.checkpoint, args.generative)
+    avatar = Avatar(AvatarConfig(shape=dict(model.body.get("shape", {}))))
+    motion = load_motion(args.motion, avatar, fps=model.fps, seed=args.seed,
+                         start_frame=args.start_frame)  # fmt: skip
+    if args.frames is not None:
+        if args.frames < 1:
+            raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
+        if args.frames > motion.num_frames:  # play it again, from where it ended
+            repeats = -(-args.frames // motion.num_frames)
+            motion = chain_motions([motion] * repeats, name=motion.name)
+        motion = motion.slice(0, args.frames)
+    out = Path(args.out)
+    if (out / "manifest.json").is_file():
+        old = json.loads((out / "manifest.json").read_text())
+        if old.get("preset") != "animate":
+            raise LoosefitInputError(out, "manifest.json", "a new folder or an earlier animation",
+                                     f"a dataset of preset {old.get('preset')}")  # fmt: skip
+    (out / "sequences").mkdir(parents=True, exist_ok=True)
+    (out / "manifest.json").unlink(missing_ok=True)
+    name = Path(str(args.motion)).stem.replace(":", "_").replace("+", "_")
+    _log(f"animating {motion.num_frames} frames of '{motion.name}'")
+    from tqdm import tqdm
+
+    bar = tqdm(total=None, unit="frame", desc="rollout")
+
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    result = model.animate(motion, progress)
+    bar.close()
+    model.template.save(out / "template.npz")
+    write_sequence(out / "sequences" / f"{name}.npz", Sequence(name, motion, result.vertices))
+    manifest = {
+        "format": FORMAT, "preset": "animate", "complete": True,
+        "source": {"checkpoint": str(Path(args.checkpoint).resolve()), "motion": str(args.motion),
+                   "frames": motion.num_frames, "frames_per_second": result.frames_per_second},
+        "body": {**model.body, "floor_height": model.floor_height},
+        "garment": {"name": model.template.name, "num_vertices": model.template.num_vertices},
+        "sequences": {name: {"status": "done", "frames": motion.num_frames}},
+        "split": {"train": [], "test": [name]},
+    }  # fmt: skip
+    write_json_atomic(out / "manifest.json", manifest)
+    assert np.isfinite(result.vertices).all()
+    _log(
+        f"wrote {out / 'sequences' / (name + '.npz')}: {motion.num_frames} frames at "
+        f"{result.frames_per_second:.0f} frames per second ({result.frames} with the preroll)"
+    )
+    if args.render:
+        _render(args, avatar, motion, model.template, result.vertices, out / "render",
+                f"{motion.name} (loosefit rollout)")  # fmt: skip
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from loosefit.data.format import DatasetReader
+    from loosefit.eval.report import write_rollout_report
+    from loosefit.train.motion import evaluate_rollouts, load_animation_model
+
+    model = load_animation_model(args.checkpoint, args.generative)
+    reader = DatasetReader(args.data)
+    try:
+        horizons = tuple(int(h) for h in args.horizons.split(","))
+    except ValueError:
+        raise LoosefitInputError("--horizons", "horizons", "comma-separated frame counts",
+                                 repr(args.horizons)) from None  # fmt: skip
+    result = evaluate_rollouts(model, reader, args.split, horizons, surface=not args.rmse_only,
+                               max_frames=args.max_frames)  # fmt: skip
+    result["checkpoint"] = str(Path(args.checkpoint).resolve())
+    result["dataset"] = str(Path(args.data).resolve())
+    write_rollout_report(result, args.out, f"Rollouts of {Path(args.checkpoint).parent.name}")
+    print(Path(args.out, "evaluation.md").read_text())
+    _log(f"wrote {args.out}/evaluation.{{md,csv,json}} and rmse_per_frame.png")
+    return 0
 
 
 def _frame_ref(text: str, names: list[str], source: str) -> tuple[str, int]:
@@ -396,10 +505,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("train", help="train a learned stage (resumable)")
-    p.add_argument("stage", choices=("generative",), help="generative: the garment VAE (3.2)")
+    p.add_argument(
+        "stage",
+        choices=("generative", "motion"),
+        help="generative: the garment VAE (3.2); motion: the motion encoder (3.3)",
+    )
+    p.add_argument("--generative", default=None, help="motion: the generative checkpoint")
+    p.add_argument(
+        "--no-previous-state",
+        action="store_true",
+        help="motion: the 'w/o ps' ablation (no previous garment input)",
+    )
+    p.add_argument(
+        "--previous",
+        default=None,
+        choices=("scheduled", "teacher"),
+        help="motion: previous states by scheduled sampling (default) or ground truth",
+    )
     p.add_argument("--data", default="datasets/demo", help="a dataset folder")
     p.add_argument("--preset", default="cpu", help="cpu (about 20 CPU minutes) or full (GPU)")
-    p.add_argument("--decoder", default="decomposed", help="decomposed, vertex or ssdr")
+    p.add_argument("--decoder", default="decomposed", help="generative: decomposed, vertex or ssdr")
     p.add_argument("--out", default=None, help="run folder (default runs/generative-...)")
     p.add_argument("--epochs", type=int, default=None)
     p.add_argument("--batch-size", type=int, default=None)
@@ -408,6 +533,42 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="cpu", help="torch device")
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
     p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("animate", help="animate the garment on a motion with a trained model")
+    p.add_argument("checkpoint", help="a motion run's model.pt or checkpoint.pt")
+    p.add_argument("motion", help="a .bvh or .npz motion, a procedural move, or dance:SECONDS")
+    p.add_argument(
+        "--generative",
+        default=None,
+        help="the generative checkpoint (default: the one the motion checkpoint records)",
+    )
+    p.add_argument(
+        "--frames",
+        type=int,
+        default=None,
+        help="frames to animate (longer than the motion: it plays again)",
+    )
+    p.add_argument("--start-frame", type=int, default=0)
+    p.add_argument("--out", default="out/animate", help="output folder (dataset format)")
+    p.add_argument("--render", action="store_true", help="also render a video and PNGs")
+    p.add_argument("--seed", type=int, default=0)
+    _add_render_args(p, views="front,side")
+    p.set_defaults(func=cmd_animate)
+
+    p = sub.add_parser("evaluate", help="roll out held-out clips and compare with the simulation")
+    p.add_argument("--checkpoint", required=True, help="a motion run's model.pt or checkpoint.pt")
+    p.add_argument(
+        "--generative",
+        default=None,
+        help="the generative checkpoint (default: the one the motion checkpoint records)",
+    )
+    p.add_argument("--data", default="datasets/salsa", help="a dataset folder")
+    p.add_argument("--split", default="test", help="train, test or all")
+    p.add_argument("--horizons", default="100,500,1200", help="frames for iter-N errors")
+    p.add_argument("--max-frames", type=int, default=None, help="roll out at most this many")
+    p.add_argument("--rmse-only", action="store_true", help="skip Hausdorff and STED (faster)")
+    p.add_argument("--out", default="out/evaluate")
+    p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("interpolate", help="garments along a line between two latent codes")
     p.add_argument("--checkpoint", required=True, help="a generative run's checkpoint.pt")

@@ -12,9 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from loosefit.body.motions import load_motion
-from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
-from loosefit.dress import carry_rigidly, fit_skirt
+from loosefit.dress import fit_skirt
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.model.frames import from_root_frame, heading_frames, to_root_frame
@@ -28,35 +26,6 @@ from loosefit.model.generative import (
 from loosefit.train.generative import TrainGenerativeConfig, load_checkpoint, train_generative
 
 SMALL = dict(uv_size=32, channels=(4, 8, 8, 8), rec_hidden=(16, 16, 16))
-
-
-@pytest.fixture(scope="module")
-def skirt(avatar):
-    return fit_skirt(avatar, SkirtConfig(style="aline", rings=6, segments=16))
-
-
-@pytest.fixture(scope="module")
-def toy_dataset(avatar, skirt, tmp_path_factory):
-    """Two train clips and one test clip: the skirt carried by the hips, swaying sideways."""
-    root = tmp_path_factory.mktemp("toy") / "ds"
-    (root / "sequences").mkdir(parents=True)
-    skirt.save(root / "template.npz")
-    for name, move in (("a", "spin"), ("b", "kick"), ("c", "sway")):
-        motion = load_motion(move, avatar).slice(10, 26)
-        body = avatar.pose_motion(motion)
-        g = carry_rigidly(skirt, body, avatar).numpy()
-        depth = skirt.vertices[:, 2].max() - skirt.vertices[:, 2]  # 0 at the waist
-        phase = np.sin(np.arange(len(g)) / 3.0)[:, None]
-        g[..., 0] += 0.3 * depth[None] * phase  # the hem swings, the waist stays
-        write_sequence(root / "sequences" / f"{name}.npz", Sequence(name, motion, g))
-    manifest = {
-        "format": FORMAT,
-        "complete": True,
-        "body": {"model": "anny", "rig": "cmu_mb", "shape": {}, "floor_height": 0.9},
-        "split": {"train": ["a", "b"], "test": ["c"]},
-    }
-    write_json_atomic(root / "manifest.json", manifest)
-    return root
 
 
 @pytest.mark.parametrize("decoder", ["decomposed", "vertex", "ssdr"])

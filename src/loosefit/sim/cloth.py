@@ -799,6 +799,43 @@ def simulate(
     )
 
 
+def settle(
+    avatar: Avatar, template: GarmentTemplate, config: ClothConfig | None = None, fps: float = 30.0
+) -> np.ndarray:
+    """The garment draped on the rest pose: the settle phase of :func:`simulate` on its own.
+
+    This is where every simulated clip starts from (the same drape, moved to where
+    the motion starts), and so where a learned rollout starts from.
+
+    Args:
+        avatar: the body.
+        template: the garment in the avatar's rest frame.
+        config: the physics (``settle_seconds``, ``settle_damping``, ...).
+        fps: the frame rate of the clips (the settle phase steps whole frames).
+
+    Returns:
+        (V, 3) float32 vertices in the rest pose's root frame (root joint at the
+        origin, facing -Y).
+    """
+    config = config or ClothConfig()
+    _check_template(template)
+    J = len(avatar.joint_names)
+    rest = torch.eye(3).expand(1, J, 3, 3).contiguous()
+    root = torch.tensor([[0.0, 0.0, avatar.floor_height]])
+    with torch.no_grad():
+        body = avatar.pose(rest, root).vertices[0].detach().to("cpu", torch.float32).numpy()
+    garment = template.vertices.astype(np.float64) + root.numpy()[0]
+    sim = ClothSimulator(
+        garment, template.faces, template.waist, body, avatar.faces.cpu().numpy(), config,
+        frame_dt=1.0 / fps, bounds=(body.min(0) - 2.0, body.max(0) + 2.0),
+    )  # fmt: skip
+    n_settle = int(round(config.settle_seconds * fps)) + 1
+    for k in range(n_settle - 1):
+        sim.step_frame(body, body, config.settle_damping)
+        _guard(sim.positions, body, config.max_distance, f"settle frame {k + 1}")
+    return (sim.positions - root.numpy()).astype(np.float32)
+
+
 # -- quality numbers ----------------------------------------------------------------
 
 

@@ -1,0 +1,89 @@
+"""Writing rollout evaluations: Markdown, CSV, JSON and a plot of error against frame."""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from pathlib import Path
+
+from loosefit.data.format import write_json_atomic
+
+
+def rollout_markdown(result: dict, title: str = "Rollout evaluation") -> str:
+    """A table of :func:`loosefit.train.motion.evaluate_rollouts`' result (lengths in cm)."""
+    hs = sorted({h for c in result["clips"].values() for h in c["horizons"]}, key=int)
+    surface = "hausdorff_cm" in result
+    head = "| clip | frames | RMSE | " + " | ".join(f"iter-{h}" for h in hs)
+    head += " | Hausdorff | STED |" if surface else " |"
+    rule = "|---|---:|---:|" + "---:|" * len(hs) + ("---:|---:|" if surface else "") + "---:|"
+    lines = [
+        f"# {title}",
+        "",
+        f"Split `{result['split']}`; rollouts from each clip's first frame; RMSE and "
+        "Hausdorff in centimetres; iter-N: RMSE over the first N frames.",
+        "",
+        head + " rollout fps |",
+        rule,
+    ]
+    rows = list(result["clips"].items()) + [("**all**", result)]
+    for name, c in rows:
+        cells = [f"{c['horizons'][h]:.3f}" if h in c["horizons"] else "-" for h in hs]
+        row = f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | " + " | ".join(cells)
+        if surface:
+            row += f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f}"
+        fps = c.get("frames_per_second")
+        row += f" | {fps:.0f} |" if fps else " | |"
+        lines.append(row)
+    return "\n".join(lines) + "\n"
+
+
+def rollout_csv(result: dict) -> str:
+    """One row per clip and frame: ``clip,frame,rmse_cm``."""
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(["clip", "frame", "rmse_cm"])
+    for name, c in result["clips"].items():
+        for t, e in enumerate(c["rmse_per_frame_cm"]):
+            w.writerow([name, t, f"{e:.5f}"])
+    return buf.getvalue()
+
+
+def plot_rollout_error(result: dict, path: Path, title: str = "") -> Path:
+    """RMSE (cm) against frame for every clip, as a PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 3.6), dpi=120)
+    for name, c in result["clips"].items():
+        ax.plot(c["rmse_per_frame_cm"], lw=1.0, label=name)
+    for h in result.get("horizons", {}):
+        ax.axvline(int(h), color="0.7", lw=0.8, ls="--")
+    ax.set_xlabel("frame of the rollout")
+    ax.set_ylabel("RMSE (cm)")
+    ax.set_ylim(bottom=0)
+    ax.set_title(title or f"rollout error, split {result['split']}")
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    tmp = path.with_name(path.stem + ".partial.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path
+
+
+def write_rollout_report(result: dict, out: str | Path, title: str = "Rollout evaluation"):
+    """``evaluation.md``, ``evaluation.csv``, ``evaluation.json`` and ``rmse_per_frame.png``.
+
+    The JSON is written last, so a folder with it holds a whole report.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "evaluation.json").unlink(missing_ok=True)
+    (out / "evaluation.md").write_text(rollout_markdown(result, title))
+    (out / "evaluation.csv").write_text(rollout_csv(result))
+    plot_rollout_error(result, out / "rmse_per_frame.png", title)
+    write_json_atomic(out / "evaluation.json", result)
+    return out

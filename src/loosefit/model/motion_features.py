@@ -1,0 +1,94 @@
+"""Body motion as the dynamic motion encoder sees it (the paper's M_t), and the root frames.
+
+The features of frame ``t`` (``num_features(J) = 6 (J - 1) + 11`` numbers):
+
+* the local rotation of every joint but the root, in the continuous 6D form
+  (the first two columns of the matrix, Zhou et al. 2019);
+* the root's rotation *relative to its heading* (``H_t^T R_root``): the
+  pelvis's tilt and roll, in 6D;
+* the root's velocity in the heading frame of ``t`` (m/s): ``H_t^T (p_t -
+  p_{t-1}) fps``;
+* the heading's turn rate (rad/s, wrapped to (-pi, pi] per frame);
+* the root's height above its standing height (m).
+
+Velocities at frame 0 are 0: motions start standing still (the rollout's and
+the simulator's preroll blend from the rest pose). None of the features
+change when the whole motion is moved on the floor or turned about the
+vertical, so the encoder generalises over where the dancer stands and which
+way they face; the garment is predicted in the same root frame
+(:mod:`loosefit.model.frames`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+
+def num_features(num_joints: int) -> int:
+    """The length F of a frame's features for a skeleton of ``num_joints`` joints."""
+    return 6 * (num_joints - 1) + 6 + 3 + 1 + 1
+
+
+def heading_yaw(root_rotations: torch.Tensor) -> torch.Tensor:
+    """(T, 3, 3) root rotations to (T,) yaw about +Z taking -Y (the rest facing) to the facing."""
+    forward = -root_rotations[..., :3, 1]
+    return torch.atan2(forward[..., 0], -forward[..., 1])
+
+
+def yaw_matrix(yaw: torch.Tensor) -> torch.Tensor:
+    """(T,) angles to (T, 3, 3) rotations about +Z."""
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    zero, one = torch.zeros_like(c), torch.ones_like(c)
+    return torch.stack([c, -s, zero, s, c, zero, zero, zero, one], -1).view(*yaw.shape, 3, 3)
+
+
+def root_frames(
+    rotations: torch.Tensor, root_translation: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The root frame of every frame: heading H (T, 3, 3) and origin p (T, 3).
+
+    The same frames as :func:`loosefit.model.frames.heading_frames` of the root's
+    skinning transform, computed from the motion alone.
+
+    Args:
+        rotations: (T, J, 3, 3) local joint rotations (joint 0 is the root).
+        root_translation: (T, 3) root positions, metres.
+    """
+    return yaw_matrix(heading_yaw(rotations[:, 0])), root_translation
+
+
+def _six_d(r: torch.Tensor) -> torch.Tensor:
+    """(..., 3, 3) to (..., 6): the first two columns."""
+    return torch.cat([r[..., :, 0], r[..., :, 1]], -1)
+
+
+def motion_features(
+    rotations: torch.Tensor, root_translation: torch.Tensor, fps: float, floor_height: float
+) -> torch.Tensor:
+    """The per-frame features of a motion (see the module's docstring).
+
+    Args:
+        rotations: (T, J, 3, 3) local joint rotations.
+        root_translation: (T, 3) root positions, metres.
+        fps: frames per second.
+        floor_height: the root's height when the avatar stands.
+
+    Returns:
+        (T, 6 (J - 1) + 11) float32 features.
+    """
+    rotations = rotations.double()
+    root = root_translation.double()
+    T = rotations.shape[0]
+    yaw = heading_yaw(rotations[:, 0])
+    H = yaw_matrix(yaw)
+    joints = _six_d(rotations[:, 1:]).reshape(T, -1)
+    tilt = _six_d(H.transpose(-1, -2) @ rotations[:, 0])
+    step = torch.zeros_like(root)
+    step[1:] = root[1:] - root[:-1]
+    velocity = (step.unsqueeze(1) @ H).squeeze(1) * fps  # H^T step, as a row vector
+    turn = torch.zeros_like(yaw)
+    turn[1:] = torch.remainder(yaw[1:] - yaw[:-1] + math.pi, 2 * math.pi) - math.pi
+    height = root[:, 2:] - floor_height
+    return torch.cat([joints, tilt, velocity, (turn * fps)[:, None], height], -1).float()

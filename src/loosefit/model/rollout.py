@@ -1,0 +1,154 @@
+"""Rollout: a motion to an animated garment, frame after frame (paper 3.3 at inference).
+
+A rollout starts as the simulator does: the body stands in the rest pose for
+a few frames (``warm_frames``, which also warm the GRU up), then blends into
+the motion's first frame (``blend_seconds``), and the garment starts from its
+settled drape on the rest pose (:func:`loosefit.sim.cloth.settle`). From then
+on each frame's garment is decoded from ``Z_t = E(M_t, V_{t-1})`` and fed back
+as the next frame's previous state. Training runs the same timeline, so the
+encoder has seen every kind of frame it meets here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from loosefit.model.frames import from_root_frame, to_root_frame
+from loosefit.model.generative import GarmentGenerativeModel
+from loosefit.model.motion_encoder import DynamicMotionEncoder
+from loosefit.model.motion_features import motion_features, root_frames
+from loosefit.types import Motion
+
+
+class RolloutError(RuntimeError):
+    """A rollout produced NaN or a garment far from the body; the message names the frame."""
+
+
+@dataclass
+class RolloutConfig:
+    """The timeline before a motion's first frame, and when a rollout has failed."""
+
+    warm_frames: int = 5  # rest-pose frames before the blend
+    blend_seconds: float = 0.5  # rest pose to the motion's first frame (the simulator's blend)
+    max_distance: float = 3.0  # m from the root: a vertex farther away means the rollout diverged
+
+
+def timeline(
+    motion: Motion, floor_height: float, config: RolloutConfig
+) -> tuple[torch.Tensor, torch.Tensor, int]:
+    """The rest frames, the blend and the motion, as one sequence.
+
+    Returns:
+        rotations (P + T, J, 3, 3) float32, root translations (P + T, 3) float32,
+        and P, the number of frames before the motion's first.
+    """
+    from loosefit.sim.cloth import ClothConfig, preroll
+
+    fps = motion.fps
+    cfg = dataclasses.replace(
+        ClothConfig(),
+        settle_seconds=max(config.warm_frames - 1, 0) / fps,
+        blend_seconds=config.blend_seconds,
+        settle_at_start=True,
+    )
+    rot, root, _ = preroll(motion, floor_height, cfg)
+    rotations = torch.from_numpy(np.concatenate([rot, motion.rotations]))
+    roots = torch.from_numpy(np.concatenate([root, motion.root_translation]))
+    return rotations, roots, len(rot)
+
+
+def change_frame(
+    x: torch.Tensor, H0: torch.Tensor, p0: torch.Tensor, H1: torch.Tensor, p1: torch.Tensor
+) -> torch.Tensor:
+    """Points (B, V, 3) in root frames (H0, p0) to root frames (H1, p1); H (B, 3, 3), p (B, 3)."""
+    return to_root_frame(from_root_frame(x, H0, p0), H1, p1)
+
+
+def check_garment(x: torch.Tensor, limit: float, where: str) -> None:
+    """Raise :class:`RolloutError` on NaN in garments (B, V, 3) or a vertex past ``limit`` (m)."""
+    if not torch.isfinite(x).all():
+        raise RolloutError(f"rollout diverged at {where}: the garment holds NaN")
+    far = x.norm(dim=-1).max()
+    if far > limit:
+        raise RolloutError(
+            f"rollout diverged at {where}: a vertex is {float(far):.2f} m from the root "
+            f"(limit {limit} m)"
+        )
+
+
+@dataclass
+class RolloutResult:
+    """An animated garment.
+
+    Attributes:
+        vertices: (T, V, 3) float32 world positions, frame ``t`` on motion frame ``t``.
+        seconds: wall-clock seconds of the network work (all P + T frames).
+        frames: P + T, the frames computed.
+    """
+
+    vertices: np.ndarray
+    seconds: float
+    frames: int
+
+    @property
+    def frames_per_second(self) -> float:
+        return self.frames / max(self.seconds, 1e-9)
+
+
+@torch.no_grad()
+def rollout(
+    generative: GarmentGenerativeModel,
+    encoder: DynamicMotionEncoder,
+    motion: Motion,
+    rest_state: torch.Tensor,
+    floor_height: float,
+    config: RolloutConfig | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> RolloutResult:
+    """Animate the garment through ``motion``.
+
+    Args:
+        generative: the trained generative model (its decoders).
+        encoder: the trained dynamic motion encoder.
+        motion: T frames on the skeleton the encoder was trained on.
+        rest_state: (V, 3) the settled drape in the rest pose's root frame.
+        floor_height: the avatar's standing root height.
+        config: the preroll and the divergence limit.
+        progress: called as ``progress(done, total)`` every frame.
+
+    Returns:
+        :class:`RolloutResult`.
+
+    Raises:
+        RolloutError: NaN, or a vertex farther than ``config.max_distance`` from the root.
+    """
+    config = config or RolloutConfig()
+    generative.eval()
+    encoder.eval()
+    device = rest_state.device
+    rot, root, P = timeline(motion, floor_height, config)
+    feats = motion_features(rot, root, motion.fps, floor_height).to(device)
+    H, p = (a.float().to(device) for a in root_frames(rot.double(), root.double()))
+    total = len(feats)
+    out = torch.empty(motion.num_frames, encoder.num_vertices, 3)
+    hidden = encoder.initial_hidden(1, device)
+    prev = rest_state[None].float()
+    t0 = time.perf_counter()
+    for t in range(total):
+        if t > 0:
+            prev = change_frame(prev, H[t - 1 : t], p[t - 1 : t], H[t : t + 1], p[t : t + 1])
+        z, hidden = encoder(feats[t : t + 1], prev, hidden)
+        prev = generative.decode(z)["vertices"]
+        where = f"motion frame {t - P}" if t >= P else f"preroll frame {t}"
+        check_garment(prev, config.max_distance, where)
+        if t >= P:
+            out[t - P] = from_root_frame(prev, H[t : t + 1], p[t : t + 1])[0].cpu()
+        if progress is not None:
+            progress(t + 1, total)
+    return RolloutResult(out.numpy(), time.perf_counter() - t0, total)

@@ -1,0 +1,717 @@
+"""Training the dynamic motion encoder (paper 3.3, Eqs. 10-12) on a frozen generative model.
+
+A run is a folder like the generative model's (``config.json``,
+``checkpoint.pt`` written atomically, TensorBoard events, ``report.json/.md``)
+plus ``model.pt``: the trained encoder alone, half precision, for sharing.
+
+**The previous state.** At inference a rollout feeds the encoder its own
+outputs for thousands of frames, while ground-truth previous frames (teacher
+forcing) are all that training would see by default: the classic exposure
+bias, whose errors compound into drift. Training therefore runs the very
+timeline of a rollout (rest frames, blend, motion; the garment starting from
+its settled drape) clip by clip in windows of ``window`` frames (truncated
+backpropagation through time: the GRU state and the previous garment carry
+over between windows, detached), and the previous state of each frame is the
+ground truth with probability ``p`` and the encoder's own last prediction
+otherwise (scheduled sampling, Bengio et al. 2015). ``p`` falls linearly from
+``teacher_start`` to 0 over the first ``teacher_fraction`` of the epochs, so
+the rest of training is pure rollout. ``previous="teacher"`` keeps ``p = 1``
+(for comparison); the previous state is always an input, never differentiated
+through.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import resource
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from loosefit.data.format import DatasetReader, write_json_atomic
+from loosefit.errors import LoosefitInputError
+from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
+from loosefit.geometry.laplacian import Laplacian
+from loosefit.model.frames import avatar_for, garment_fingerprint, to_root_frame
+from loosefit.model.generative import GarmentGenerativeModel, squared_error
+from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
+from loosefit.model.motion_features import motion_features, num_features, root_frames
+from loosefit.model.rollout import RolloutConfig, change_frame, rollout, timeline
+from loosefit.train.generative import load_checkpoint as load_generative
+from loosefit.types import GarmentTemplate, Motion
+
+CHECKPOINT_FORMAT = "loosefit.motion/1"
+HORIZONS = (100, 500, 1200)  # the paper's Table 1: iter-100, iter-500, iter-1200
+
+
+@dataclass
+class MotionLossConfig:
+    """Eqs. 10-12 and the length unit of the geometry terms."""
+
+    laplacian: float = 1.5  # lambda_4
+    latent: float = 0.5  # lambda_5
+    length_scale: float = 100.0  # metres to centimetres, as in the generative loss
+
+
+@dataclass
+class TrainMotionConfig:
+    """One training run of the dynamic motion encoder."""
+
+    model: MotionEncoderConfig = field(default_factory=MotionEncoderConfig)
+    loss: MotionLossConfig = field(default_factory=MotionLossConfig)
+    rollout: RolloutConfig = field(default_factory=RolloutConfig)
+    epochs: int = 300
+    batch_size: int = 1  # clips run side by side
+    window: int = 50  # frames of truncated backpropagation through time
+    lr: float = 1.0e-4
+    weight_decay: float = 1.0e-3
+    grad_clip: float = 10.0  # max gradient norm per step
+    previous: str = "scheduled"  # "scheduled" (sampling, see the module) or "teacher"
+    teacher_start: float = 1.0  # probability of a ground-truth previous state at epoch 0
+    teacher_fraction: float = 0.5  # ... falling to 0 over this fraction of the epochs
+    checkpoint_every: int = 5  # epochs
+    eval_every: int = 10  # epochs; held-out rollout errors into TensorBoard
+    max_frames: int | None = None  # per clip, for quick runs
+    seed: int = 0
+    device: str = "cpu"
+
+    def __post_init__(self) -> None:
+        if self.previous not in ("scheduled", "teacher"):
+            raise LoosefitInputError("TrainMotionConfig", "previous", "scheduled or teacher",
+                                     repr(self.previous))  # fmt: skip
+        if not (isinstance(self.window, int) and self.window >= 1):
+            raise LoosefitInputError("TrainMotionConfig", "window", "an integer >= 1", self.window)
+
+    @classmethod
+    def preset(cls, name: str, **overrides) -> TrainMotionConfig:
+        """``full``: the paper's (300 epochs, batch 1, lr 1e-4); ``cpu``: fewer, batched epochs.
+
+        ``cpu`` runs 8 clips side by side with a 10x learning rate (1e-3) for 60
+        epochs; the encoder, the loss and the windows are the paper's.
+        """
+        prev = overrides.pop("previous_state", None)
+        if name == "full":
+            cfg = cls()
+        elif name == "cpu":
+            cfg = cls(epochs=60, batch_size=8, lr=1.0e-3, checkpoint_every=2, eval_every=10)
+        else:
+            raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
+        if prev is not None:
+            cfg.model.previous_state = bool(prev)
+        for k, v in overrides.items():
+            if v is not None:
+                setattr(cfg, k, v)
+        cfg.__post_init__()
+        return cfg
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TrainMotionConfig:
+        d = dict(d)
+        d["model"] = MotionEncoderConfig(**d["model"])
+        d["loss"] = MotionLossConfig(**d["loss"])
+        d["rollout"] = RolloutConfig(**d["rollout"])
+        return cls(**d)
+
+    def teacher_probability(self, epoch: int) -> float:
+        """The chance of a ground-truth previous state during epoch ``epoch`` (0-based)."""
+        if self.previous == "teacher":
+            return 1.0
+        span = self.teacher_fraction * self.epochs
+        if span <= 0:
+            return 0.0
+        return float(max(0.0, self.teacher_start * (1.0 - epoch / span)))
+
+
+# -- the data ------------------------------------------------------------------------
+
+
+@dataclass
+class Clip:
+    """One clip on the rollout timeline (P frames before the motion, then T).
+
+    Attributes:
+        name: the clip.
+        motion: the body motion (T frames).
+        features: (P + T, F) motion features.
+        heading: (P + T, 3, 3) and ``origin`` (P + T, 3): the root frames.
+        target: (T, V, 3) simulated garment, root frame.
+        latent: (T, latent) the generative encoder's code of ``target`` (Z*).
+        preroll: P.
+    """
+
+    name: str
+    motion: Motion
+    features: torch.Tensor
+    heading: torch.Tensor
+    origin: torch.Tensor
+    target: torch.Tensor
+    latent: torch.Tensor
+    preroll: int
+
+    @property
+    def length(self) -> int:
+        return int(self.features.shape[0])
+
+
+@torch.no_grad()
+def prepare_clips(
+    reader: DatasetReader,
+    split: str,
+    generative: GarmentGenerativeModel,
+    floor_height: float,
+    config: RolloutConfig,
+    max_frames: int | None = None,
+) -> list[Clip]:
+    """Every clip of a split on the rollout timeline, with its targets."""
+    names = reader.split(split)
+    if not names:
+        raise LoosefitInputError(reader.root, f"split '{split}'", "at least one clip", "none")
+    clips = []
+    for name in names:
+        seq = reader.read(name)
+        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
+        rot, root, P = timeline(motion, floor_height, config)
+        H, p = (a.float() for a in root_frames(rot.double(), root.double()))
+        g = torch.from_numpy(seq.garment_vertices[: motion.num_frames])
+        target = to_root_frame(g, H[P:], p[P:])
+        mu = torch.cat([generative.encode(target[s : s + 128])[0] for s in range(0, len(g), 128)])
+        clips.append(Clip(name, motion, motion_features(rot, root, motion.fps, floor_height),
+                          H, p, target, mu, P))  # fmt: skip
+    return clips
+
+
+def rest_state_for(reader: DatasetReader, fps: float) -> torch.Tensor:
+    """(V, 3) the settled drape of the dataset's garment (its cloth configuration)."""
+    from loosefit.sim.cloth import ClothConfig, settle
+
+    cloth = reader.manifest.get("config", {}).get("cloth")
+    if cloth is None:
+        raise LoosefitInputError(
+            reader.root / "manifest.json", "config.cloth", "the cloth configuration of the "
+            "simulation (to settle the garment where rollouts start)", "none",
+        )  # fmt: skip
+    cloth = dict(cloth)
+    cloth["device"] = "cpu"
+    return torch.from_numpy(settle(avatar_for(reader), reader.template, ClothConfig(**cloth), fps))
+
+
+# -- fingerprints and checkpoints ----------------------------------------------------
+
+
+def model_fingerprint(model: torch.nn.Module) -> str:
+    """A short hash of a model's weights, rounded to half precision (as shared checkpoints are)."""
+    h = hashlib.sha256()
+    for k, v in sorted(model.state_dict().items()):
+        h.update(k.encode())
+        h.update(v.detach().cpu().half().numpy().tobytes() if v.is_floating_point()
+                 else v.detach().cpu().numpy().tobytes())  # fmt: skip
+    return h.hexdigest()[:16]
+
+
+def _template_dict(t: GarmentTemplate) -> dict:
+    return {
+        "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
+        "waist": t.waist, "name": t.name,
+    }  # fmt: skip
+
+
+def save_checkpoint(path: Path, encoder: DynamicMotionEncoder, meta: dict, half: bool = False,
+                    **state) -> None:  # fmt: skip
+    """Write a checkpoint atomically; ``half`` stores floating weights in half precision."""
+    weights = {
+        k: (v.half() if half and v.is_floating_point() else v)
+        for k, v in encoder.state_dict().items()
+    }
+    data = {"format": CHECKPOINT_FORMAT, **meta, "model": weights, **state}
+    tmp = path.with_name(path.name + ".partial")
+    torch.save(data, tmp)
+    os.replace(tmp, path)
+
+
+def _read(path: Path, device) -> dict:
+    if not path.is_file():
+        raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
+    try:
+        data = torch.load(path, map_location=device, weights_only=False)
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
+        raise LoosefitInputError(path, "<file>", "a torch checkpoint", str(exc)) from exc
+    fmt = data.get("format") if isinstance(data, dict) else None
+    if fmt != CHECKPOINT_FORMAT:
+        hint = None
+        if fmt == "loosefit.generative/1":
+            hint = "this is the generative stage; pass the motion stage's checkpoint"
+        raise LoosefitInputError(path, "format", repr(CHECKPOINT_FORMAT), repr(fmt), hint=hint)
+    return data
+
+
+@dataclass
+class AnimationModel:
+    """Everything a rollout needs, loaded from a motion-stage checkpoint."""
+
+    generative: GarmentGenerativeModel
+    encoder: DynamicMotionEncoder
+    template: GarmentTemplate
+    rest_state: torch.Tensor  # (V, 3)
+    joint_names: tuple[str, ...]
+    floor_height: float
+    fps: float
+    body: dict
+    config: TrainMotionConfig
+    path: Path
+
+    def check_motion(self, motion: Motion) -> None:
+        """A clear error for a motion on other joints or at another frame rate."""
+        if tuple(motion.joint_names) != self.joint_names:
+            missing = [j for j in self.joint_names if j not in motion.joint_names]
+            raise LoosefitInputError(
+                f"motion '{motion.name}'", "joint_names",
+                f"the {len(self.joint_names)} joints the checkpoint {self.path.name} was "
+                "trained on, in its order",
+                f"{len(motion.joint_names)} joints" + (f", missing {missing[:5]}" if missing
+                                                       else ", in another order"),
+            )  # fmt: skip
+        if (
+            not np.isfinite(motion.rotations).all()
+            or not np.isfinite(motion.root_translation).all()
+        ):
+            raise LoosefitInputError(f"motion '{motion.name}'", "rotations/root_translation",
+                                     "finite numbers", "NaN or infinity")  # fmt: skip
+
+    def animate(self, motion: Motion, progress=None):
+        """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first)."""
+        self.check_motion(motion)
+        return rollout(self.generative, self.encoder, motion, self.rest_state,
+                       self.floor_height, self.config.rollout, progress)  # fmt: skip
+
+
+def load_animation_model(
+    path: str | Path, generative: str | Path | None = None, device="cpu"
+) -> AnimationModel:
+    """The generative and motion stages of a trained model.
+
+    Args:
+        path: a motion-stage checkpoint (``checkpoint.pt`` or ``model.pt`` of a run).
+        generative: the generative-stage checkpoint it was trained on; by default
+            the one it records (relative to ``path``'s folder, then absolute).
+        device: where to put the networks.
+
+    Raises:
+        LoosefitInputError: not a motion-stage checkpoint, a missing generative
+            checkpoint, or one other than the encoder was trained on.
+    """
+    path = Path(path)
+    data = _read(path, device)
+    g = data["generative"]
+    if generative is not None:
+        candidates = [Path(generative)]
+    else:
+        candidates = [path.parent / g["relative"], Path(g["absolute"])]
+    gpath = next((c for c in candidates if c.is_file()), None)
+    if gpath is None:
+        raise LoosefitInputError(
+            path, "generative", "the generative checkpoint it was trained on",
+            f"none of {[str(c) for c in candidates]} exists", hint="pass --generative FILE",
+        )  # fmt: skip
+    gmodel, _, _ = load_generative(gpath, device=device)
+    found = model_fingerprint(gmodel)
+    if found != g["fingerprint"]:
+        raise LoosefitInputError(
+            gpath, "model", f"the generative model {path.name} was trained on "
+            f"(fingerprint {g['fingerprint']})", f"another one (fingerprint {found})",
+        )  # fmt: skip
+    t = data["garment"]["template"]
+    template = GarmentTemplate(t["vertices"], t["faces"], t["uvs"], t["face_uvs"], t["waist"],
+                               t["name"])  # fmt: skip
+    config = TrainMotionConfig.from_dict(data["config"])
+    encoder = DynamicMotionEncoder(gmodel, data["num_features"], config.model).to(device)
+    try:
+        encoder.load_state_dict({k: v.float() if v.is_floating_point() else v
+                                 for k, v in data["model"].items()})  # fmt: skip
+    except RuntimeError as exc:
+        raise LoosefitInputError(path, "model", "weights of this model's configuration",
+                                 str(exc).splitlines()[0]) from exc  # fmt: skip
+    for p in gmodel.parameters():
+        p.requires_grad_(False)
+    return AnimationModel(
+        gmodel.eval(), encoder.eval(), template, torch.as_tensor(data["rest_state"]).float(),
+        tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
+        dict(data["body"]), config, path,
+    )  # fmt: skip
+
+
+# -- evaluation ------------------------------------------------------------------------
+
+
+def evaluate_rollouts(
+    model: AnimationModel,
+    reader: DatasetReader,
+    split: str = "test",
+    horizons: tuple[int, ...] = HORIZONS,
+    surface: bool = True,
+    max_frames: int | None = None,
+) -> dict:
+    """Roll every clip of a split out from its first frame and compare with the simulation.
+
+    Args:
+        model: the trained stages.
+        reader: the dataset.
+        split: "train", "test" or "all".
+        horizons: report the RMSE over the first h frames for each h (the paper's
+            iter-100/500/1200); a clip shorter than h gives none for it.
+        surface: also Hausdorff and STED (slower).
+        max_frames: roll out at most this many frames per clip.
+
+    Returns:
+        Per clip: frames, RMSE (cm) over the clip and per horizon, the RMSE of
+        every frame (cm), Hausdorff (cm, mean over frames), STED, frames per
+        second; and frame-weighted means over the clips.
+    """
+    faces = reader.template.faces
+    clips = {}
+    for name in reader.split(split):
+        seq = reader.read(name)
+        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
+        result = model.animate(motion)
+        pred, true = result.vertices, seq.garment_vertices[: motion.num_frames]
+        per_frame = 100 * rmse_per_frame(pred, true)  # (T,) cm
+        entry = {
+            "frames": int(len(pred)),
+            "rmse_cm": float(np.sqrt(np.mean(per_frame**2))),
+            "horizons": {
+                str(h): float(np.sqrt(np.mean(per_frame[:h] ** 2)))
+                for h in horizons if len(pred) >= h
+            },
+            "rmse_per_frame_cm": per_frame.tolist(),
+            "frames_per_second": result.frames_per_second,
+        }  # fmt: skip
+        if surface:
+            entry["hausdorff_cm"] = 100 * float(hausdorff(pred, true, faces).mean())
+            entry["sted"] = sted(pred, true, faces, motion.fps)["sted"] if len(pred) > 1 else 0.0
+        clips[name] = entry
+    n = np.array([c["frames"] for c in clips.values()], float)
+
+    def mean(key: str) -> float:
+        return float((np.array([c[key] for c in clips.values()]) * n).sum() / n.sum())
+
+    summary = {"frames": int(n.sum()), "rmse_cm": float(np.sqrt(
+        sum(c["rmse_cm"] ** 2 * c["frames"] for c in clips.values()) / n.sum()))}  # fmt: skip
+    if surface:
+        summary.update(hausdorff_cm=mean("hausdorff_cm"), sted=mean("sted"))
+    summary["horizons"] = {}
+    for h in horizons:
+        have = [c for c in clips.values() if str(h) in c["horizons"]]
+        if have:
+            summary["horizons"][str(h)] = float(np.sqrt(np.mean([c["horizons"][str(h)] ** 2
+                                                                 for c in have])))  # fmt: skip
+    return {"split": split, "clips": clips, **summary}
+
+
+# -- training --------------------------------------------------------------------------
+
+
+def _stack(clips: list[Clip]) -> dict[str, torch.Tensor]:
+    """Clips side by side, padded to the longest by repeating their last frame."""
+    L = max(c.length for c in clips)
+    T = max(c.target.shape[0] for c in clips)
+
+    def pad(x: torch.Tensor, n: int) -> torch.Tensor:
+        return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
+
+    return {
+        "features": torch.stack([pad(c.features, L) for c in clips]),  # (B, L, F)
+        "heading": torch.stack([pad(c.heading, L) for c in clips]),
+        "origin": torch.stack([pad(c.origin, L) for c in clips]),
+        "target": torch.stack([pad(c.target, T) for c in clips]),  # (B, T, V, 3)
+        "latent": torch.stack([pad(c.latent, T) for c in clips]),
+        "preroll": torch.tensor([c.preroll for c in clips]),
+        "length": torch.tensor([c.length for c in clips]),
+    }
+
+
+def run_window(
+    encoder: DynamicMotionEncoder,
+    generative: GarmentGenerativeModel,
+    laplacian,
+    batch: dict[str, torch.Tensor],
+    start: int,
+    stop: int,
+    hidden: torch.Tensor,
+    previous: torch.Tensor,
+    teacher: float,
+    loss: MotionLossConfig,
+    generator: torch.Generator | None = None,
+) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
+    """Frames ``start:stop`` of stacked clips: the loss and the state to carry on.
+
+    Args:
+        encoder, generative, laplacian: the networks (the generative one frozen).
+        batch: :func:`_stack` of B clips.
+        start, stop: the window, on the rollout timeline.
+        hidden: (B, gru) the GRU state after frame ``start - 1`` (detached here).
+        previous: (B, V, 3) the garment of frame ``start - 1`` in its root frame.
+        teacher: the chance that a frame's previous state is the ground truth.
+        loss: the weights.
+        generator: draws the teacher choices.
+
+    Returns:
+        The loss terms (means over the window's valid frames; ``total``
+        differentiable w.r.t. the encoder through this window only), the detached
+        GRU state and the previous garment for the next window.
+    """
+    s = loss.length_scale
+    B = hidden.shape[0]
+    hidden = hidden.detach()
+    previous = previous.detach()
+    P, length = batch["preroll"], batch["length"]
+    H, p = batch["heading"], batch["origin"]
+    sums = {"geometry": 0.0, "laplacian": 0.0, "latent": 0.0}
+    count = 0
+    for t in range(start, stop):
+        if t > 0:
+            previous = change_frame(previous, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
+        z, hidden = encoder(batch["features"][:, t], previous, hidden)
+        v = generative.decode(z)["vertices"]
+        m = t - P  # (B,) motion frame
+        valid = (m >= 0) & (t < length)
+        k = m.clamp(0, batch["target"].shape[1] - 1)
+        if valid.any():
+            rows = torch.arange(B)[valid]
+            vt, zt = batch["target"][rows, k[valid]], batch["latent"][rows, k[valid]]
+            vp, zp = v[valid], z[valid]
+            n = int(valid.sum())
+            sums["geometry"] = sums["geometry"] + n * squared_error(s * vp, s * vt)
+            sums["laplacian"] = sums["laplacian"] + n * loss.laplacian * squared_error(
+                s * laplacian(vp), s * laplacian(vt)
+            )
+            sums["latent"] = sums["latent"] + n * loss.latent * (zp - zt).pow(2).sum(-1).mean()
+            count += n
+        previous = v.detach()
+        if teacher > 0:
+            use = (torch.rand(B, generator=generator) < teacher) & valid
+            if use.any():
+                gt = batch["target"][torch.arange(B), k]
+                previous = torch.where(use[:, None, None], gt, previous)
+    terms = {k: v / max(count, 1) for k, v in sums.items()}
+    terms = {k: (v if torch.is_tensor(v) else torch.tensor(v)) for k, v in terms.items()}
+    terms["total"] = terms["geometry"] + terms["laplacian"] + terms["latent"]
+    return terms, hidden.detach(), previous
+
+
+def train_motion(
+    data: str | Path,
+    generative: str | Path,
+    out: str | Path,
+    config: TrainMotionConfig,
+    log=print,
+    progress: bool = True,
+    rest_state: torch.Tensor | None = None,
+) -> dict:
+    """Train (or resume) the dynamic motion encoder on a dataset and report rollout errors.
+
+    Args:
+        data: a dataset folder.
+        generative: the trained generative model's checkpoint (frozen here).
+        out: the run folder; an existing run with the same configuration resumes.
+        config: the run.
+        log: where progress lines go.
+        progress: show a tqdm bar.
+        rest_state: (V, 3) the garment's settled drape in the rest pose's root frame;
+            by default simulated with the dataset's cloth configuration
+            (:func:`rest_state_for`, cached in the run folder).
+
+    Returns:
+        The report (also ``out/report.json`` and ``out/report.md``).
+    """
+    from torch.utils.tensorboard import SummaryWriter
+    from tqdm import tqdm
+
+    out = Path(out)
+    reader = DatasetReader(data)
+    template = reader.template
+    gpath = Path(generative).resolve()
+    gmodel, _, _ = load_generative(gpath, template, config.device)
+    for prm in gmodel.parameters():
+        prm.requires_grad_(False)
+    gmeta = {
+        "relative": os.path.relpath(gpath, out.resolve()),
+        "absolute": str(gpath),
+        "fingerprint": model_fingerprint(gmodel),
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    cfg_path, ckpt_path = out / "config.json", out / "checkpoint.pt"
+    stored = {"dataset": str(Path(data).resolve()), "generative": gmeta["fingerprint"],
+              "train": config.to_dict()}  # fmt: skip
+    if cfg_path.is_file():
+        if json.loads(cfg_path.read_text()) != json.loads(json.dumps(stored)):
+            raise LoosefitInputError(
+                cfg_path, "train", "the configuration of this command", "another run's",
+                hint="use another --out folder, or delete this one to start over",
+            )  # fmt: skip
+    else:
+        write_json_atomic(cfg_path, stored)
+    (out / "report.json").unlink(missing_ok=True)
+
+    torch.manual_seed(config.seed)
+    gen = torch.Generator().manual_seed(config.seed)
+    floor = float(reader.body["floor_height"])
+    t0 = time.perf_counter()
+    train = prepare_clips(reader, "train", gmodel, floor, config.rollout, config.max_frames)
+    fps = train[0].motion.fps
+    rest_path = out / "rest_state.npy"
+    if rest_state is not None:
+        rest = torch.as_tensor(rest_state).float()
+    elif rest_path.is_file():
+        rest = torch.from_numpy(np.load(rest_path))
+    else:
+        rest = rest_state_for(reader, fps)
+        np.save(rest_path, rest.numpy())
+    log(f"prepared {len(train)} train clips ({sum(c.length for c in train)} frames) "
+        f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
+    all_feats = torch.cat([c.features for c in train])
+    F = all_feats.shape[1]
+    joint_names = train[0].motion.joint_names
+    if F != num_features(len(joint_names)):
+        raise LoosefitInputError(reader.root, "features", num_features(len(joint_names)), F)
+    encoder = DynamicMotionEncoder(gmodel, F, config.model, all_feats.mean(0), all_feats.std(0))
+    encoder.to(config.device)
+    lap = Laplacian(template.faces, template.num_vertices).to(config.device)
+    optim = torch.optim.Adam(encoder.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    meta = {
+        "config": config.to_dict(),
+        "generative": gmeta,
+        "garment": {
+            "fingerprint": garment_fingerprint(template.vertices, template.faces),
+            "template": _template_dict(template),
+        },  # fmt: skip
+        "num_features": F,
+        "joint_names": list(joint_names),
+        "floor_height": floor,
+        "fps": fps,
+        "body": dict(reader.body),
+        "rest_state": rest.numpy(),
+        "dataset": str(Path(data).resolve()),
+    }
+    epoch, history = 0, []
+    if ckpt_path.is_file():
+        saved = _read(ckpt_path, config.device)
+        encoder.load_state_dict(saved["model"])
+        optim.load_state_dict(saved["optimizer"])
+        epoch, history = saved["epoch"], saved["history"]
+        torch.set_rng_state(saved["rng"])
+        gen.set_state(saved["sampling_rng"])
+        log(f"resumed {ckpt_path} at epoch {epoch}")
+
+    writer = SummaryWriter(str(out))
+    bar = tqdm(total=config.epochs, initial=epoch, desc="train motion encoder", unit="epoch",
+               disable=not progress)  # fmt: skip
+    t_start, epochs_run = time.perf_counter(), 0
+    while epoch < config.epochs:
+        encoder.train()
+        teacher = config.teacher_probability(epoch)
+        order = torch.randperm(len(train), generator=gen).tolist()
+        sums: dict[str, float] = {}
+        steps = 0
+        for b in range(0, len(order), config.batch_size):
+            batch = _stack([train[i] for i in order[b : b + config.batch_size]])
+            B = len(batch["length"])
+            hidden = encoder.initial_hidden(B)
+            previous = rest[None].expand(B, -1, -1).clone()
+            for start in range(0, int(batch["length"].max()), config.window):
+                stop = min(start + config.window, int(batch["length"].max()))
+                terms, hidden, previous = run_window(
+                    encoder, gmodel, lap, batch, start, stop, hidden, previous, teacher,
+                    config.loss, gen,
+                )  # fmt: skip
+                if not terms["total"].requires_grad:
+                    continue  # a window with no motion frame (all preroll)
+                optim.zero_grad(set_to_none=True)
+                terms["total"].backward()
+                torch.nn.utils.clip_grad_norm_(encoder.parameters(), config.grad_clip)
+                optim.step()
+                steps += 1
+                for k, v in terms.items():
+                    sums[k] = sums.get(k, 0.0) + float(v.detach())
+        sums = {k: v / max(steps, 1) for k, v in sums.items()}
+        if not np.isfinite(sums.get("total", 0.0)):
+            raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {sums['total']}")
+        epoch += 1
+        epochs_run += 1
+        history.append({"epoch": epoch, "teacher": teacher, **sums})
+        for k, v in sums.items():
+            writer.add_scalar(f"loss/{k}", v, epoch)
+        writer.add_scalar("train/teacher_probability", teacher, epoch)
+        bar.set_postfix(loss=f"{sums.get('total', float('nan')):.3g}", teacher=f"{teacher:.2f}")
+        bar.update(1)
+        if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
+            save_checkpoint(ckpt_path, encoder, meta, optimizer=optim.state_dict(), epoch=epoch,
+                            history=history, rng=torch.get_rng_state(),
+                            sampling_rng=gen.get_state())  # fmt: skip
+        if epoch % config.eval_every == 0 or epoch == config.epochs:
+            model = load_animation_model(ckpt_path, gpath, config.device)
+            err = evaluate_rollouts(model, reader, "test", surface=False)
+            writer.add_scalar("test/rollout_rmse_cm", err["rmse_cm"], epoch)
+            history[-1]["test_rollout_rmse_cm"] = err["rmse_cm"]
+            bar.write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
+    bar.close()
+    seconds = time.perf_counter() - t_start
+    save_checkpoint(out / "model.pt", encoder, meta, half=True, epoch=epoch)
+
+    model = load_animation_model(out / "model.pt", gpath, config.device)
+    report = {
+        "previous_state": config.model.previous_state,
+        "previous": config.previous,
+        "dataset": str(Path(data).resolve()),
+        "generative": str(gpath),
+        "epochs": config.epochs,
+        "parameters": sum(p.numel() for p in encoder.parameters()),
+        "seconds_per_epoch": seconds / epochs_run if epochs_run else None,
+        "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, torch "
+        f"{torch.__version__}, {torch.get_num_threads()} threads, {config.device}",
+        "final_loss": history[-1] if history else None,
+        "test": evaluate_rollouts(model, reader, "test"),
+    }
+    write_json_atomic(out / "report.json", report)
+    (out / "report.md").write_text(format_report(report))
+    writer.close()
+    return report
+
+
+def format_report(report: dict) -> str:
+    """A Markdown summary of a run's report."""
+    t = report["test"]
+    hs = list(t["horizons"])
+    lines = [
+        f"# Dynamic motion encoder ({'with' if report['previous_state'] else 'w/o'} previous "
+        f"state), {report['epochs']} epochs",
+        "",
+        "Rollouts of the held-out clips from their first frame; lengths in centimetres.",
+        "",
+        "| clip | frames | RMSE | "
+        + " | ".join(f"iter-{h}" for h in hs)
+        + " | Hausdorff | STED | rollout fps |",
+        "|---|---:|---:|" + "---:|" * len(hs) + "---:|---:|---:|",
+    ]
+    for name, c in t["clips"].items():
+        cells = [f"{c['horizons'][h]:.3f}" if h in c["horizons"] else "-" for h in hs]
+        lines.append(f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | " + " | ".join(cells)
+                     + f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f} | "
+                     f"{c['frames_per_second']:.0f} |")  # fmt: skip
+    spe = report.get("seconds_per_epoch")
+    lines += [
+        "",
+        f"{report['parameters']:,} parameters; "
+        + (f"{spe:.1f} s per epoch; " if spe else "")
+        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,61 @@
+"""Motion features: invariance to where the dancer stands and faces; root frames."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from loosefit.body.motions import load_motion
+from loosefit.model.frames import heading_frames
+from loosefit.model.motion_features import (
+    motion_features,
+    num_features,
+    root_frames,
+    yaw_matrix,
+)
+
+
+def _moved(rotations, root, yaw: float, shift: tuple[float, float]):
+    R = yaw_matrix(torch.tensor(yaw, dtype=torch.float64))
+    rot = rotations.double().clone()
+    rot[:, 0] = R @ rot[:, 0]
+    moved = root.double() @ R.T + torch.tensor([shift[0], shift[1], 0.0], dtype=torch.float64)
+    return rot, moved
+
+
+def test_features_ignore_a_global_shift_and_turn(avatar):
+    m = load_motion("walk", avatar).slice(0, 40)
+    rot, root = torch.from_numpy(m.rotations), torch.from_numpy(m.root_translation)
+    f = motion_features(rot, root, m.fps, avatar.floor_height)
+    assert f.shape == (40, num_features(len(avatar.joint_names)))
+    for yaw, shift in ((2.5, (3.0, -7.0)), (-math.pi + 0.01, (0.0, 40.0))):
+        g = motion_features(*_moved(rot, root, yaw, shift), m.fps, avatar.floor_height)
+        torch.testing.assert_close(g, f, atol=1e-4, rtol=0)
+
+
+def test_features_see_speed_turning_and_height(avatar):
+    m = load_motion("walk", avatar).slice(0, 40)
+    rot, root = torch.from_numpy(m.rotations), torch.from_numpy(m.root_translation)
+    f = motion_features(rot, root, m.fps, avatar.floor_height)
+    J = len(avatar.joint_names)
+    vel = f[:, 6 * J : 6 * J + 3]
+    speed = np.linalg.norm(np.diff(m.root_translation, axis=0), axis=-1) * m.fps
+    np.testing.assert_allclose(vel[1:].norm(dim=-1).numpy(), speed, atol=1e-4)
+    assert (vel[0] == 0).all()
+    # Walking forward: the heading-frame velocity points along -Y (the facing).
+    assert vel[5:, 1].mean() < -0.3
+    slow = motion_features(rot, root, m.fps / 2, avatar.floor_height)
+    torch.testing.assert_close(slow[:, 6 * J : 6 * J + 4], f[:, 6 * J : 6 * J + 4] / 2)
+    lifted = motion_features(rot, root + torch.tensor([0, 0, 0.1]), m.fps, avatar.floor_height)
+    torch.testing.assert_close(lifted[:, -1], f[:, -1] + 0.1, atol=1e-5, rtol=0)
+
+
+def test_root_frames_match_the_skinning_heading(avatar):
+    m = load_motion("spin", avatar).slice(0, 30)
+    body = avatar.pose_motion(m)
+    H0, p0 = heading_frames(body.joint_transforms[:, 0].float())
+    H, p = root_frames(torch.from_numpy(m.rotations), torch.from_numpy(m.root_translation))
+    torch.testing.assert_close(H, H0, atol=1e-5, rtol=0)
+    torch.testing.assert_close(p, p0, atol=1e-5, rtol=0)

@@ -1,0 +1,171 @@
+"""The dynamic motion encoder's training, checkpoints, rollouts and their errors (paper 3.3)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+import loosefit.train.motion as tm
+from loosefit.data.format import DatasetReader
+from loosefit.errors import LoosefitInputError
+from loosefit.geometry.laplacian import Laplacian
+from loosefit.model.generative import GenerativeConfig
+from loosefit.model.motion_encoder import MotionEncoderConfig
+from loosefit.model.rollout import RolloutConfig
+from loosefit.train.generative import TrainGenerativeConfig, train_generative
+from loosefit.types import Motion
+
+SMALL = dict(uv_size=32, channels=(4, 8, 8, 8), rec_hidden=(16, 16, 16))
+
+
+@pytest.fixture(scope="module")
+def generative(toy_dataset, tmp_path_factory):
+    """A small generative model, trained a little on the toy data."""
+    out = tmp_path_factory.mktemp("gen")
+    cfg = TrainGenerativeConfig(model=GenerativeConfig(**SMALL), epochs=15, batch_size=8,
+                                lr=2e-3, eval_every=1000, checkpoint_every=5)  # fmt: skip
+    train_generative(toy_dataset, out, cfg, log=lambda *_: None, progress=False)
+    return out / "checkpoint.pt"
+
+
+def _config(**kw) -> tm.TrainMotionConfig:
+    cfg = tm.TrainMotionConfig(
+        model=MotionEncoderConfig(motion_fc=16, gru=24),
+        rollout=RolloutConfig(warm_frames=2, blend_seconds=0.1),
+        epochs=12, batch_size=2, window=6, lr=3e-3, checkpoint_every=1, eval_every=1000,
+    )  # fmt: skip
+    return dataclasses.replace(cfg, **kw)
+
+
+def _train(toy_dataset, generative, skirt, out, **kw):
+    return tm.train_motion(toy_dataset, generative, out, _config(**kw), log=lambda *_: None,
+                           progress=False, rest_state=torch.from_numpy(skirt.vertices))  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def trained(toy_dataset, generative, skirt, tmp_path_factory):
+    out = tmp_path_factory.mktemp("motion")
+    report = _train(toy_dataset, generative, skirt, out)
+    return out, report
+
+
+def test_training_lowers_the_loss_and_reports_rollouts(trained):
+    out, report = trained
+    history = torch.load(out / "checkpoint.pt", weights_only=False)["history"]
+    assert history[-1]["total"] < 0.7 * history[0]["total"]
+    assert history[0]["teacher"] == 1.0 and history[-1]["teacher"] == 0.0  # scheduled sampling
+    test = report["test"]
+    assert list(test["clips"]) == ["c"] and test["clips"]["c"]["frames"] == 16
+    assert len(test["clips"]["c"]["rmse_per_frame_cm"]) == 16
+    assert test["horizons"] == {}  # 16 frames: shorter than every horizon
+    assert np.isfinite(test["rmse_cm"]) and test["hausdorff_cm"] > 0
+    assert (out / "model.pt").is_file() and (out / "report.md").is_file()
+
+
+def test_rollout_is_deterministic_and_on_the_motion(trained, toy_dataset):
+    out, _ = trained
+    model = tm.load_animation_model(out / "model.pt")
+    motion = DatasetReader(toy_dataset).read("c").motion
+    a, b = model.animate(motion), model.animate(motion)
+    assert a.vertices.shape == (16, model.template.num_vertices, 3)
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    # The garment goes where the body goes: near the root in every frame.
+    gap = np.linalg.norm(a.vertices.mean(1) - motion.root_translation, axis=-1)
+    assert gap.max() < 0.6
+    assert a.frames == 16 + 2 + 3 and a.frames_per_second > 0
+
+
+def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, generative, skirt):
+    out, _ = trained
+    model = tm.load_animation_model(out / "model.pt")
+    reader = DatasetReader(toy_dataset)
+    clips = tm.prepare_clips(reader, "train", model.generative, model.floor_height,
+                             model.config.rollout)  # fmt: skip
+    batch = tm._stack(clips)
+    batch["features"] = batch["features"].clone().requires_grad_(True)
+    enc = model.encoder.train()
+    lap = Laplacian(skirt.faces, skirt.num_vertices)
+    hidden = enc.initial_hidden(2)
+    prev = model.rest_state[None].expand(2, -1, -1)
+    loss = model.config.loss
+    first, hidden, prev = tm.run_window(enc, model.generative, lap, batch, 0, 10, hidden, prev,
+                                        0.0, loss)  # fmt: skip
+    second, _, _ = tm.run_window(enc, model.generative, lap, batch, 10, 20, hidden, prev, 0.0, loss)
+    (g,) = torch.autograd.grad(second["total"], batch["features"])
+    assert g[:, :10].abs().max() == 0  # nothing flows back into the previous window
+    assert g[:, 10:20].abs().max() > 0
+
+
+def test_resume_after_a_kill_gives_the_same_model(toy_dataset, generative, skirt, tmp_path,
+                                                  monkeypatch, trained):  # fmt: skip
+    saves = []
+    real = tm.save_checkpoint
+
+    def dying(path, *a, **kw):
+        real(path, *a, **kw)
+        saves.append(path)
+        if len(saves) == 5:
+            raise KeyboardInterrupt  # killed right after the 5th epoch's checkpoint
+
+    monkeypatch.setattr(tm, "save_checkpoint", dying)
+    with pytest.raises(KeyboardInterrupt):
+        _train(toy_dataset, generative, skirt, tmp_path / "run")
+    monkeypatch.setattr(tm, "save_checkpoint", real)
+    assert not (tmp_path / "run" / "report.json").exists()  # nothing that looks finished
+    lines = []
+    tm.train_motion(toy_dataset, generative, tmp_path / "run", _config(), log=lines.append,
+                    progress=False, rest_state=torch.from_numpy(skirt.vertices))  # fmt: skip
+    assert any("resumed" in s and "epoch 5" in s for s in lines)
+    whole = torch.load(trained[0] / "model.pt", weights_only=False)["model"]
+    resumed = torch.load(tmp_path / "run" / "model.pt", weights_only=False)["model"]
+    for k in whole:
+        torch.testing.assert_close(resumed[k], whole[k])
+
+
+def test_ablation_without_previous_state_trains(toy_dataset, generative, skirt, tmp_path):
+    report = _train(
+        toy_dataset,
+        generative,
+        skirt,
+        tmp_path / "nops",
+        epochs=3,
+        model=MotionEncoderConfig(motion_fc=16, gru=24, previous_state=False),
+    )
+    assert report["previous_state"] is False and np.isfinite(report["test"]["rmse_cm"])
+    model = tm.load_animation_model(tmp_path / "nops" / "model.pt")
+    assert not hasattr(model.encoder, "state_encoder")
+
+
+def test_bad_inputs_are_clear_errors(trained, toy_dataset, generative, avatar, tmp_path):
+    out, _ = trained
+    model = tm.load_animation_model(out / "model.pt")
+    motion = DatasetReader(toy_dataset).read("c").motion
+    fewer = Motion(motion.joint_names[:-1], motion.rotations[:, :-1], motion.root_translation,
+                   motion.fps, "fewer")  # fmt: skip
+    with pytest.raises(LoosefitInputError, match="joint_names"):
+        model.animate(fewer)
+    # A generative checkpoint where the motion stage's is expected.
+    with pytest.raises(LoosefitInputError, match="generative stage"):
+        tm.load_animation_model(generative)
+    # Another generative model than the encoder was trained on.
+    other = torch.load(generative, weights_only=False)
+    other["model"] = {k: v + 0.01 if v.is_floating_point() else v
+                      for k, v in other["model"].items()}  # fmt: skip
+    torch.save(other, tmp_path / "other.pt")
+    with pytest.raises(LoosefitInputError, match="fingerprint"):
+        tm.load_animation_model(out / "model.pt", generative=tmp_path / "other.pt")
+
+
+def test_a_diverging_rollout_names_the_frame(trained, toy_dataset):
+    out, _ = trained
+    model = tm.load_animation_model(out / "model.pt")
+    motion = DatasetReader(toy_dataset).read("c").motion
+    with torch.no_grad():
+        model.encoder.fc.bias.fill_(1e6)  # a broken network
+    from loosefit.model.rollout import RolloutError
+
+    with pytest.raises(RolloutError, match="preroll frame 0"):
+        model.animate(motion)
