@@ -53,9 +53,14 @@ def toy_dataset(avatar, skirt, tmp_path_factory):
         phase = np.sin(np.arange(len(g)) / 3.0)[:, None]
         g[..., 0] += 0.3 * depth[None] * phase  # the hem swings, the waist stays
         write_sequence(root / "sequences" / f"{name}.npz", Sequence(name, motion, g))
+    from dataclasses import asdict
+
+    from loosefit.sim.cloth import ClothConfig
+
     manifest = {
         "format": FORMAT,
         "complete": True,
+        "config": {"cloth": asdict(ClothConfig.tiny())},
         "body": {"model": "anny", "rig": "cmu_mb", "shape": {}, "floor_height": 0.9},
         "split": {"train": ["a", "b"], "test": ["c"]},
     }

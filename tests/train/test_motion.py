@@ -169,3 +169,32 @@ def test_a_diverging_rollout_names_the_frame(trained, toy_dataset):
 
     with pytest.raises(RolloutError, match="preroll frame 0"):
         model.animate(motion)
+
+
+def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
+    from loosefit.cli import main
+
+    gen_run, run = tmp_path / "gen", tmp_path / "motion"
+    data = ["--data", str(toy_dataset), "--preset", "cpu", "--epochs", "1", "--max-frames", "8"]
+    assert main(["train", "generative", *data, "--out", str(gen_run)]) == 0
+    gen = str(gen_run / "checkpoint.pt")
+    assert main(["train", "motion", *data, "--generative", gen, "--out", str(run)]) == 0
+    assert (run / "model.pt").is_file() and (run / "rest_state.npy").is_file()
+
+    out = tmp_path / "anim"
+    args = ["animate", str(run / "model.pt"), "sway", "--frames", "150", "--out", str(out)]
+    assert main(args) == 0
+    reader = DatasetReader(out)
+    seq = reader.read(reader.split("test")[0])
+    assert seq.garment_vertices.shape == (150, reader.template.num_vertices, 3)
+    assert np.isfinite(seq.garment_vertices).all()
+
+    ev = tmp_path / "eval"
+    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
+                 "--horizons", "4,8", "--out", str(ev)]) == 0  # fmt: skip
+    for name in ("evaluation.md", "evaluation.csv", "evaluation.json", "rmse_per_frame.png"):
+        assert (ev / name).is_file(), name
+    assert "iter-8" in (ev / "evaluation.md").read_text()
+    # The generative checkpoint where the motion one belongs: a clear error, exit 2.
+    assert main(["animate", gen, "sway", "--out", str(tmp_path / "x")]) == 2
+    assert not (tmp_path / "x" / "manifest.json").exists()
