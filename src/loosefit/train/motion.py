@@ -342,7 +342,8 @@ def load_animation_model(
     for p in gmodel.parameters():
         p.requires_grad_(False)
     return AnimationModel(
-        gmodel.eval(), encoder.eval(), template, torch.as_tensor(data["rest_state"]).float(),
+        gmodel.eval(), encoder.eval(), template,
+        torch.as_tensor(data["rest_state"]).float().to(device),
         tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
         dict(data["body"]), config, path,
     )  # fmt: skip
@@ -598,6 +599,7 @@ def train_motion(
         "fps": fps,
         "body": dict(reader.body),
         "rest_state": rest.numpy(),
+        "cloth": reader.manifest.get("config", {}).get("cloth"),  # the physics of the data
         "dataset": str(Path(data).resolve()),
     }
     epoch, history = 0, []

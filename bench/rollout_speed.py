@@ -1,0 +1,120 @@
+"""Learned rollout against the simulation that made its data: seconds per frame, same garment.
+
+Times, in one run, on the same garment and the same motion:
+
+* the rollout of a trained model (``loosefit animate``'s work: motion features,
+  the encoder, the frozen decoders, one frame after another) with 1 CPU thread
+  and with all of them, and on the GPU when there is one;
+* Newton's VBD simulation of that garment on that motion, with the cloth
+  configuration of the model's training data (one CPU core, or the GPU).
+
+Only motion frames are timed (the rollout's and the simulation's preroll are
+not), after a warm-up. The figures go in docs/BENCHMARKS.md::
+
+    python bench/rollout_speed.py --checkpoint runs/motion-cpu-ps/model.pt \
+        --motion ../shared/mocap/cmu-salsa/60_01.bvh --frames 300 --sim-frames 40
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from loosefit.body.avatar import Avatar, AvatarConfig
+from loosefit.body.motions import load_motion
+from loosefit.train.motion import load_animation_model
+
+
+def time_rollout(model, motion, threads: int, repeats: int) -> dict:
+    torch.set_num_threads(threads)
+    model.animate(motion.slice(0, min(20, motion.num_frames)))  # warm-up
+    per_frame = []
+    for _ in range(repeats):
+        marks = {}
+
+        def progress(done, total, marks=marks):
+            if done == total - motion.num_frames:  # the preroll is over
+                marks["start"] = time.perf_counter()
+
+        model.animate(motion, progress)
+        per_frame.append((time.perf_counter() - marks["start"]) / motion.num_frames)
+    s = float(np.median(per_frame))
+    return {"threads": threads, "seconds_per_frame": s, "frames_per_second": 1.0 / s}
+
+
+def time_simulation(model, avatar, motion, device: str) -> dict:
+    from loosefit.sim.cloth import ClothConfig, simulate
+
+    cloth = dict(model_cloth(model))
+    cloth["device"] = device
+    marks = {}
+
+    def progress(done, total):
+        if done == total - motion.num_frames:
+            marks["start"] = time.perf_counter()
+
+    simulate(avatar, model.template, motion, ClothConfig(**cloth), progress=progress)
+    s = (time.perf_counter() - marks["start"]) / motion.num_frames
+    return {"device": device, "seconds_per_frame": s}
+
+
+def model_cloth(model) -> dict:
+    data = torch.load(model.path, map_location="cpu", weights_only=False)
+    if not data.get("cloth"):
+        raise SystemExit(f"{model.path} records no cloth configuration; retrain it")
+    return data["cloth"]
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--checkpoint", required=True, help="a motion run's model.pt")
+    p.add_argument("--motion", default="../shared/mocap/cmu-salsa/60_01.bvh")
+    p.add_argument("--start-frame", type=int, default=10)
+    p.add_argument("--frames", type=int, default=300, help="rollout frames")
+    p.add_argument("--sim-frames", type=int, default=40, help="simulated frames (of the same)")
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--out", default=None, help="also write the figures here (JSON)")
+    args = p.parse_args()
+
+    model = load_animation_model(args.checkpoint)
+    avatar = Avatar(AvatarConfig(shape=dict(model.body.get("shape", {}))))
+    motion = load_motion(args.motion, avatar, fps=model.fps, start_frame=args.start_frame,
+                         max_frames=args.frames)  # fmt: skip
+    cores = os.cpu_count() or 1
+    result = {
+        "machine": f"{platform.processor() or platform.machine()}, {cores} CPUs, "
+        f"torch {torch.__version__}",
+        "garment_vertices": model.template.num_vertices,
+        "motion": f"{Path(args.motion).name} from frame {args.start_frame}",
+        "rollout": [time_rollout(model, motion, t, args.repeats) for t in sorted({1, cores})],
+    }
+    if torch.cuda.is_available():
+        gpu = load_animation_model(args.checkpoint, device="cuda")
+        r = time_rollout(gpu, motion, cores, args.repeats)
+        r["device"] = torch.cuda.get_device_name()
+        result["rollout_gpu"] = r
+    sim_motion = motion.slice(0, args.sim_frames)
+    result["simulation"] = [time_simulation(model, avatar, sim_motion, "cpu")]
+    if torch.cuda.is_available():
+        result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0"))
+    sim = result["simulation"][0]["seconds_per_frame"]
+    best_cpu = min(r["seconds_per_frame"] for r in result["rollout"])
+    result["speedup_cpu"] = sim / best_cpu
+    print(json.dumps(result, indent=2))
+    print(
+        f"\nrollout {1 / best_cpu:.0f} frames/s on the CPU; simulation {sim:.2f} s/frame; "
+        f"the rollout is {sim / best_cpu:.0f}x faster per frame"
+    )
+    if args.out:
+        Path(args.out).write_text(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
