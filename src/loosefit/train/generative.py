@@ -15,9 +15,6 @@ can be used without its dataset.
 
 from __future__ import annotations
 
-import json
-import os
-import platform
 import resource
 import time
 from dataclasses import asdict, dataclass, field
@@ -42,6 +39,15 @@ from loosefit.model.generative import (
     GenerativeConfig,
     GenerativeLossConfig,
     generative_loss,
+)
+from loosefit.train.common import (
+    apply_overrides,
+    machine,
+    open_run,
+    read_checkpoint_file,
+    save_atomic,
+    template_dict,
+    template_from_dict,
 )
 from loosefit.types import GarmentTemplate
 
@@ -91,10 +97,7 @@ class TrainGenerativeConfig:
             )  # fmt: skip
         else:
             raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
-        for k, v in overrides.items():
-            if v is not None:
-                setattr(cfg, k, v)
-        return cfg
+        return apply_overrides(cfg, overrides)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -111,13 +114,6 @@ class TrainGenerativeConfig:
 # -- checkpoints -----------------------------------------------------------------
 
 
-def _template_dict(t: GarmentTemplate) -> dict:
-    return {
-        "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
-        "waist": t.waist, "name": t.name,
-    }  # fmt: skip
-
-
 def save_checkpoint(path: Path, model: GarmentGenerativeModel, template: GarmentTemplate,
                     config: TrainGenerativeConfig, **state) -> None:  # fmt: skip
     """Write a checkpoint atomically (a temporary file, then a rename)."""
@@ -126,14 +122,12 @@ def save_checkpoint(path: Path, model: GarmentGenerativeModel, template: Garment
         "config": config.to_dict(),
         "garment": {
             "fingerprint": garment_fingerprint(template.vertices, template.faces),
-            "template": _template_dict(template),
+            "template": template_dict(template),
         },
         "model": model.state_dict(),
         **state,
     }
-    tmp = path.with_name(path.name + ".partial")
-    torch.save(data, tmp)
-    os.replace(tmp, path)
+    save_atomic(data, path)
 
 
 def read_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
@@ -146,18 +140,10 @@ def read_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
         LoosefitInputError: not a generative-model checkpoint, or another garment.
     """
     path = Path(path)
-    if not path.is_file():
-        raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
-    try:
-        data = torch.load(path, map_location=device, weights_only=False)
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
-        raise LoosefitInputError(path, "<file>", "a torch checkpoint", str(exc)) from exc
-    fmt = data.get("format") if isinstance(data, dict) else None
-    if fmt != CHECKPOINT_FORMAT:
-        raise LoosefitInputError(path, "format", repr(CHECKPOINT_FORMAT), repr(fmt))
-    g = data["garment"]["template"]
-    stored = GarmentTemplate(g["vertices"], g["faces"], g["uvs"], g["face_uvs"], g["waist"],
-                             g["name"])  # fmt: skip
+    data = read_checkpoint_file(path, CHECKPOINT_FORMAT, device, {
+        "loosefit.motion/1": "this is the motion stage; pass the generative stage's checkpoint"
+    })  # fmt: skip
+    stored = template_from_dict(data["garment"]["template"])
     if template is not None:
         want = garment_fingerprint(template.vertices, template.faces)
         if want != data["garment"]["fingerprint"]:
@@ -290,19 +276,8 @@ def train_generative(
     out = Path(out)
     reader = DatasetReader(data)
     template = reader.template
-    out.mkdir(parents=True, exist_ok=True)
-    cfg_path, ckpt_path = out / "config.json", out / "checkpoint.pt"
-    stored = {"dataset": str(Path(data).resolve()), "train": config.to_dict()}
-    if cfg_path.is_file():
-        previous = json.loads(cfg_path.read_text())
-        if previous != json.loads(json.dumps(stored)):
-            raise LoosefitInputError(
-                cfg_path, "train", "the configuration of this command", "another run's",
-                hint="use another --out folder, or delete this one to start over",
-            )  # fmt: skip
-    else:
-        write_json_atomic(cfg_path, stored)
-    (out / "report.json").unlink(missing_ok=True)  # a report only once the run is complete
+    ckpt_path = out / "checkpoint.pt"
+    open_run(out, {"dataset": str(Path(data).resolve()), "train": config.to_dict()})
 
     torch.manual_seed(config.seed)
     device = torch.device(config.device)
@@ -381,8 +356,7 @@ def train_generative(
         "parameters": sum(p.numel() for p in model.parameters()),
         "seconds_per_epoch": seconds / epochs_run if epochs_run else None,
         "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-        "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, torch "
-        f"{torch.__version__}, {torch.get_num_threads()} threads, {config.device}",
+        "machine": machine(config.device),
         "final_loss": history[-1] if history else None,
         "train": evaluate(model, train, template.faces),
         "test": evaluate(model, test, template.faces),

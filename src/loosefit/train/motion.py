@@ -23,9 +23,7 @@ through.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
-import platform
 import resource
 import time
 from dataclasses import asdict, dataclass, field
@@ -43,6 +41,15 @@ from loosefit.model.generative import GarmentGenerativeModel, squared_error
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
 from loosefit.model.motion_features import motion_features, num_features, root_frames
 from loosefit.model.rollout import RolloutConfig, change_frame, rollout, timeline
+from loosefit.train.common import (
+    apply_overrides,
+    machine,
+    open_run,
+    read_checkpoint_file,
+    save_atomic,
+    template_dict,
+    template_from_dict,
+)
 from loosefit.train.generative import load_checkpoint as load_generative
 from loosefit.types import GarmentTemplate, Motion
 
@@ -104,10 +111,7 @@ class TrainMotionConfig:
             raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
         if prev is not None:
             cfg.model.previous_state = bool(prev)
-        for k, v in overrides.items():
-            if v is not None:
-                setattr(cfg, k, v)
-        cfg.__post_init__()
+        apply_overrides(cfg, overrides).__post_init__()
         return cfg
 
     def to_dict(self) -> dict:
@@ -217,13 +221,6 @@ def model_fingerprint(model: torch.nn.Module) -> str:
     return h.hexdigest()[:16]
 
 
-def _template_dict(t: GarmentTemplate) -> dict:
-    return {
-        "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
-        "waist": t.waist, "name": t.name,
-    }  # fmt: skip
-
-
 def save_checkpoint(path: Path, encoder: DynamicMotionEncoder, meta: dict, half: bool = False,
                     **state) -> None:  # fmt: skip
     """Write a checkpoint atomically; ``half`` stores floating weights in half precision."""
@@ -231,26 +228,13 @@ def save_checkpoint(path: Path, encoder: DynamicMotionEncoder, meta: dict, half:
         k: (v.half() if half and v.is_floating_point() else v)
         for k, v in encoder.state_dict().items()
     }
-    data = {"format": CHECKPOINT_FORMAT, **meta, "model": weights, **state}
-    tmp = path.with_name(path.name + ".partial")
-    torch.save(data, tmp)
-    os.replace(tmp, path)
+    save_atomic({"format": CHECKPOINT_FORMAT, **meta, "model": weights, **state}, path)
 
 
 def _read(path: Path, device) -> dict:
-    if not path.is_file():
-        raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
-    try:
-        data = torch.load(path, map_location=device, weights_only=False)
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
-        raise LoosefitInputError(path, "<file>", "a torch checkpoint", str(exc)) from exc
-    fmt = data.get("format") if isinstance(data, dict) else None
-    if fmt != CHECKPOINT_FORMAT:
-        hint = None
-        if fmt == "loosefit.generative/1":
-            hint = "this is the generative stage; pass the motion stage's checkpoint"
-        raise LoosefitInputError(path, "format", repr(CHECKPOINT_FORMAT), repr(fmt), hint=hint)
-    return data
+    return read_checkpoint_file(path, CHECKPOINT_FORMAT, device, {
+        "loosefit.generative/1": "this is the generative stage; pass the motion stage's checkpoint"
+    })  # fmt: skip
 
 
 @dataclass
@@ -328,9 +312,7 @@ def load_animation_model(
             gpath, "model", f"the generative model {path.name} was trained on "
             f"(fingerprint {g['fingerprint']})", f"another one (fingerprint {found})",
         )  # fmt: skip
-    t = data["garment"]["template"]
-    template = GarmentTemplate(t["vertices"], t["faces"], t["uvs"], t["face_uvs"], t["waist"],
-                               t["name"])  # fmt: skip
+    template = template_from_dict(data["garment"]["template"])
     config = TrainMotionConfig.from_dict(data["config"])
     encoder = DynamicMotionEncoder(gmodel, data["num_features"], config.model).to(device)
     try:
@@ -547,19 +529,9 @@ def train_motion(
         "absolute": str(gpath),
         "fingerprint": model_fingerprint(gmodel),
     }
-    out.mkdir(parents=True, exist_ok=True)
-    cfg_path, ckpt_path = out / "config.json", out / "checkpoint.pt"
-    stored = {"dataset": str(Path(data).resolve()), "generative": gmeta["fingerprint"],
-              "train": config.to_dict()}  # fmt: skip
-    if cfg_path.is_file():
-        if json.loads(cfg_path.read_text()) != json.loads(json.dumps(stored)):
-            raise LoosefitInputError(
-                cfg_path, "train", "the configuration of this command", "another run's",
-                hint="use another --out folder, or delete this one to start over",
-            )  # fmt: skip
-    else:
-        write_json_atomic(cfg_path, stored)
-    (out / "report.json").unlink(missing_ok=True)
+    ckpt_path = out / "checkpoint.pt"
+    open_run(out, {"dataset": str(Path(data).resolve()), "generative": gmeta["fingerprint"],
+                   "train": config.to_dict()})  # fmt: skip
 
     torch.manual_seed(config.seed)
     gen = torch.Generator().manual_seed(config.seed)
@@ -591,7 +563,7 @@ def train_motion(
         "generative": gmeta,
         "garment": {
             "fingerprint": garment_fingerprint(template.vertices, template.faces),
-            "template": _template_dict(template),
+            "template": template_dict(template),
         },  # fmt: skip
         "num_features": F,
         "joint_names": list(joint_names),
@@ -677,8 +649,7 @@ def train_motion(
         "parameters": sum(p.numel() for p in encoder.parameters()),
         "seconds_per_epoch": seconds / epochs_run if epochs_run else None,
         "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-        "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, torch "
-        f"{torch.__version__}, {torch.get_num_threads()} threads, {config.device}",
+        "machine": machine(config.device),
         "final_loss": history[-1] if history else None,
         "test": evaluate_rollouts(model, reader, "test"),
     }

@@ -1,0 +1,94 @@
+"""What the training stages share: run folders, atomic checkpoints, garment templates."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+from pathlib import Path
+
+import torch
+
+from loosefit.data.format import write_json_atomic
+from loosefit.errors import LoosefitInputError
+from loosefit.types import GarmentTemplate
+
+
+def apply_overrides(config, overrides: dict):
+    """Set the ``overrides`` that are not None on ``config``; returns it."""
+    for k, v in overrides.items():
+        if v is not None:
+            setattr(config, k, v)
+    return config
+
+
+def template_dict(t: GarmentTemplate) -> dict:
+    """A garment template as plain arrays, for a checkpoint."""
+    return {
+        "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
+        "waist": t.waist, "name": t.name,
+    }  # fmt: skip
+
+
+def template_from_dict(g: dict) -> GarmentTemplate:
+    """The inverse of :func:`template_dict`."""
+    return GarmentTemplate(g["vertices"], g["faces"], g["uvs"], g["face_uvs"], g["waist"],
+                           g["name"])  # fmt: skip
+
+
+def save_atomic(data: dict, path: Path) -> None:
+    """``torch.save`` to a temporary file, then a rename: never a half-written checkpoint."""
+    tmp = path.with_name(path.name + ".partial")
+    torch.save(data, tmp)
+    os.replace(tmp, path)
+
+
+def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict | None = None):
+    """A checkpoint's dict, checked to carry ``format == fmt``.
+
+    Args:
+        path: the file.
+        fmt: the expected format string.
+        device: ``map_location``.
+        hints: a hint to show per format found instead (another stage's checkpoint).
+
+    Raises:
+        LoosefitInputError: a missing or unreadable file, or another format.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
+    try:
+        data = torch.load(path, map_location=device, weights_only=False)
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
+        raise LoosefitInputError(path, "<file>", "a torch checkpoint", str(exc)) from exc
+    found = data.get("format") if isinstance(data, dict) else None
+    if found != fmt:
+        raise LoosefitInputError(path, "format", repr(fmt), repr(found),
+                                 hint=(hints or {}).get(found))  # fmt: skip
+    return data
+
+
+def open_run(out: Path, stored: dict) -> None:
+    """Create a run folder or check that it holds a run of the same configuration.
+
+    Raises:
+        LoosefitInputError: ``out/config.json`` records another configuration.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    cfg_path = out / "config.json"
+    if cfg_path.is_file():
+        if json.loads(cfg_path.read_text()) != json.loads(json.dumps(stored)):
+            raise LoosefitInputError(
+                cfg_path, "train", "the configuration of this command", "another run's",
+                hint="use another --out folder, or delete this one to start over",
+            )  # fmt: skip
+    else:
+        write_json_atomic(cfg_path, stored)
+    (out / "report.json").unlink(missing_ok=True)  # a report only once the run is complete
+
+
+def machine(device: str) -> str:
+    """The machine a run ran on, for reports."""
+    return (f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
+            f"{torch.get_num_threads()} threads, {device}")  # fmt: skip
