@@ -49,10 +49,10 @@ def time_rollout(model, motion, threads: int, repeats: int) -> dict:
     return {"threads": threads, "seconds_per_frame": s, "frames_per_second": 1.0 / s}
 
 
-def time_simulation(model, avatar, motion, device: str) -> dict:
+def time_simulation(model, avatar, motion, device: str, cloth: dict) -> dict:
     from loosefit.sim.cloth import ClothConfig, simulate
 
-    cloth = dict(model_cloth(model))
+    cloth = dict(cloth)
     cloth["device"] = device
     marks = {}
 
@@ -65,10 +65,13 @@ def time_simulation(model, avatar, motion, device: str) -> dict:
     return {"device": device, "seconds_per_frame": s}
 
 
-def model_cloth(model) -> dict:
+def model_cloth(model, dataset: str | None) -> dict:
+    """The cloth configuration of the model's training data (its checkpoint's, or a dataset's)."""
+    if dataset:
+        return json.loads((Path(dataset) / "manifest.json").read_text())["config"]["cloth"]
     data = torch.load(model.path, map_location="cpu", weights_only=False)
     if not data.get("cloth"):
-        raise SystemExit(f"{model.path} records no cloth configuration; retrain it")
+        raise SystemExit(f"{model.path} records no cloth configuration; pass --cloth-from DATASET")
     return data["cloth"]
 
 
@@ -80,6 +83,12 @@ def main() -> None:
     p.add_argument("--frames", type=int, default=300, help="rollout frames")
     p.add_argument("--sim-frames", type=int, default=40, help="simulated frames (of the same)")
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument(
+        "--cloth-from",
+        default=None,
+        help="take the cloth configuration from this "
+        "dataset folder (default: the one the checkpoint records)",
+    )
     p.add_argument("--out", default=None, help="also write the figures here (JSON)")
     args = p.parse_args()
 
@@ -101,9 +110,10 @@ def main() -> None:
         r["device"] = torch.cuda.get_device_name()
         result["rollout_gpu"] = r
     sim_motion = motion.slice(0, args.sim_frames)
-    result["simulation"] = [time_simulation(model, avatar, sim_motion, "cpu")]
+    cloth = model_cloth(model, args.cloth_from)
+    result["simulation"] = [time_simulation(model, avatar, sim_motion, "cpu", cloth)]
     if torch.cuda.is_available():
-        result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0"))
+        result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0", cloth))
     sim = result["simulation"][0]["seconds_per_frame"]
     best_cpu = min(r["seconds_per_frame"] for r in result["rollout"])
     result["speedup_cpu"] = sim / best_cpu
