@@ -459,6 +459,44 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_reconstruct(args: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+
+    from loosefit.data.format import DatasetReader
+    from loosefit.eval.metrics import rmse
+    from loosefit.model.frames import from_root_frame, to_root_frame
+    from loosefit.model.motion_features import root_frames
+    from loosefit.train.generative import load_checkpoint
+
+    reader = DatasetReader(args.data)
+    model, _, _ = load_checkpoint(args.checkpoint, reader.template)
+    name = args.clip or reader.split("test")[0]
+    seq = reader.read(name)
+    avatar, motion, garment = _stored_clip(args, reader.body.get("shape", {}), seq.motion,
+                                           seq.garment_vertices)  # fmt: skip
+    H, p = (
+        a.float()
+        for a in root_frames(
+            torch.from_numpy(motion.rotations).double(),
+            torch.from_numpy(motion.root_translation).double(),
+        )
+    )
+    with torch.no_grad():
+        x = to_root_frame(torch.from_numpy(garment), H, p)
+        rec = torch.cat([model(x[s : s + 64], sample=False).vertices
+                         for s in range(0, len(x), 64)])  # fmt: skip
+        world = from_root_frame(rec, H, p).numpy()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    np.savez(out / "reconstruction.npz", vertices=world, faces=reader.template.faces)
+    _log(f"{name}: {len(world)} frames, RMSE {100 * rmse(world, garment):.2f} cm; wrote "
+         f"{out / 'reconstruction.npz'}")  # fmt: skip
+    _render(args, avatar, motion, reader.template, world, out,
+            f"{name}: generative reconstruction")  # fmt: skip
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="loosefit", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -569,6 +607,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rmse-only", action="store_true", help="skip Hausdorff and STED (faster)")
     p.add_argument("--out", default="out/evaluate")
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser("reconstruct", help="encode and decode a clip with a generative model")
+    p.add_argument("--checkpoint", required=True, help="a generative run's checkpoint.pt")
+    p.add_argument("--data", default="datasets/demo", help="a dataset folder")
+    p.add_argument("--clip", default=None, help="the clip (default: the first test clip)")
+    p.add_argument("--max-frames", type=int, default=None)
+    p.add_argument("--out", default="out/reconstruct")
+    _add_avatar_args(p)
+    _add_render_args(p, views="front,side")
+    p.set_defaults(func=cmd_reconstruct)
 
     p = sub.add_parser("interpolate", help="garments along a line between two latent codes")
     p.add_argument("--checkpoint", required=True, help="a generative run's checkpoint.pt")
