@@ -170,3 +170,9 @@ def test_train_and_interpolate_commands(toy_dataset, tmp_path):
     assert any(out.glob("*.mp4"))
     # a frame the clip does not have is an error naming the option
     assert main([*common, "--a", "a:99", "--b", "b:0", "--out", str(out)]) == 2
+    rec = tmp_path / "rec"
+    assert main(["reconstruct", "--checkpoint", str(run / "checkpoint.pt"), "--data",
+                 str(toy_dataset), "--clip", "c", "--max-frames", "3", "--size", "64",
+                 "--out", str(rec)]) == 0  # fmt: skip
+    with np.load(rec / "reconstruction.npz") as z:
+        assert z["vertices"].shape == (3, 96, 3) and np.isfinite(z["vertices"]).all()
