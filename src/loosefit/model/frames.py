@@ -35,12 +35,9 @@ def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.T
     Returns:
         H (T, 3, 3), rotations about +Z by the heading, and p (T, 3), the root's position.
     """
-    forward = -root_transforms[:, :3, 1]  # the rest's -Y axis, rotated
-    yaw = torch.atan2(forward[:, 0], -forward[:, 1])
-    c, s = torch.cos(yaw), torch.sin(yaw)
-    zero, one = torch.zeros_like(c), torch.ones_like(c)
-    H = torch.stack([c, -s, zero, s, c, zero, zero, zero, one], -1).view(-1, 3, 3)
-    return H, root_transforms[:, :3, 3]
+    from loosefit.model.motion_features import heading_yaw, yaw_matrix
+
+    return yaw_matrix(heading_yaw(root_transforms[:, :3, :3])), root_transforms[:, :3, 3]
 
 
 def to_root_frame(x: torch.Tensor, H: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
