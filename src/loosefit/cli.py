@@ -325,7 +325,6 @@ def _train_motion(args: argparse.Namespace) -> int:
 
 
 def cmd_animate(args: argparse.Namespace) -> int:
-    import numpy as np
 
     from loosefit.body.avatar import Avatar, AvatarConfig
     from loosefit.body.chain import chain_motions
@@ -376,7 +375,6 @@ def cmd_animate(args: argparse.Namespace) -> int:
         "split": {"train": [], "test": [name]},
     }  # fmt: skip
     write_json_atomic(out / "manifest.json", manifest)
-    assert np.isfinite(result.vertices).all()
     _log(
         f"wrote {out / 'sequences' / (name + '.npz')}: {motion.num_frames} frames at "
         f"{result.frames_per_second:.0f} frames per second ({result.frames} with the preroll)"

@@ -630,8 +630,10 @@ def train_motion(
                             history=history, rng=torch.get_rng_state(),
                             sampling_rng=gen.get_state())  # fmt: skip
         if epoch % config.eval_every == 0 or epoch == config.epochs:
-            model = load_animation_model(ckpt_path, gpath, config.device)
-            err = evaluate_rollouts(model, reader, "test", surface=False)
+            current = AnimationModel(gmodel, encoder, template, rest.to(config.device),
+                                     tuple(joint_names), floor, fps, dict(reader.body), config,
+                                     ckpt_path)  # fmt: skip
+            err = evaluate_rollouts(current, reader, "test", surface=False)
             writer.add_scalar("test/rollout_rmse_cm", err["rmse_cm"], epoch)
             history[-1]["test_rollout_rmse_cm"] = err["rmse_cm"]
             bar.write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
