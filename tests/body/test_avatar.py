@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 import torch
 
-from loosefit.body.avatar import Avatar, AvatarConfig, farthest_point_sampling
+from loosefit.body.avatar import ARM_BONES, Avatar, AvatarConfig, farthest_point_sampling
 from loosefit.errors import LoosefitInputError
+from loosefit.geometry.cap import boundary_loops
 from loosefit.geometry.query import closest_points
 from loosefit.types import Motion
 
@@ -113,3 +114,21 @@ def test_unknown_shape_parameter_is_rejected():
         Avatar(AvatarConfig(shape={"tallness": 0.5}))
     with pytest.raises(LoosefitInputError, match="height"):
         Avatar(AvatarConfig(shape={"height": 1.5}))
+
+
+def test_armless_collider_is_closed_and_keeps_the_torso(avatar):
+    full = avatar.collider_faces(arms=True)
+    assert full is avatar.faces
+    faces = avatar.collider_faces(arms=False).numpy()
+    assert boundary_loops(faces) == []  # closed again
+    arm = avatar.vertices_of_bones(ARM_BONES).numpy()
+    used = np.unique(faces)
+    # Only the ring of arm vertices along the shoulder cut is still used.
+    assert np.isin(arm, used).mean() < 0.05
+    # Inside/outside still works on it: points inside the torso and the hands' rest places.
+    v = avatar.rest_vertices.numpy()
+    hand = avatar.vertices_of_bones(("LeftHand", "RightHand")).numpy()
+    queries = np.array([[0.0, 0.0, 0.25], [0.0, 0.0, -0.05]], np.float32)  # chest, pelvis
+    queries = np.concatenate([queries, v[hand].mean(0, keepdims=True)])
+    hit = closest_points(v, faces, queries)
+    assert hit.inside.tolist() == [True, True, False]

@@ -23,10 +23,18 @@ import numpy as np
 import torch
 
 from loosefit.errors import LoosefitInputError
+from loosefit.geometry.cap import cut_and_cap
 from loosefit.geometry.normals import vertex_normals
 from loosefit.geometry.query import closest_points
 from loosefit.geometry.skinning import rigid_point_frames
 from loosefit.types import Motion
+
+# Bones of the arms, shoulder joint down, on the cmu_mb rig (see Avatar.collider_faces).
+ARM_BONES: tuple[str, ...] = tuple(
+    f"{side}{bone}"
+    for side in ("Left", "Right")
+    for bone in ("Arm", "ForeArm", "Hand", "FingerBase", "HandFinger1")
+) + ("LThumb", "RThumb")
 
 # anny phenotype parameters, each in [0, 1]. In anny, gender 0 is male and 1 female.
 DEFAULT_SHAPE: dict[str, float] = {
@@ -179,6 +187,7 @@ class Avatar(torch.nn.Module):
         if list(self.proxy_model.bone_labels) != list(self.model.bone_labels):
             raise RuntimeError("anny proxy topology has a different skeleton")  # invariant
         self.shape = shape
+        self._armless_faces: torch.Tensor | None = None
         self._phenotype = {k: float(v) for k, v in shape.items()}
 
         # Our rest pose: identity rotations with the root joint at the origin.
@@ -356,6 +365,22 @@ class Avatar(torch.nn.Module):
         dominant = indices.gather(1, weights.argmax(1, keepdim=True))[:, 0]
         allowed = torch.tensor([self.joint_names.index(b) for b in bones], device=dominant.device)
         return torch.nonzero(torch.isin(dominant, allowed))[:, 0]
+
+    def collider_faces(self, arms: bool = True) -> torch.Tensor:
+        """(F', 3) faces of the closed mesh the cloth collides with, on the full body's vertices.
+
+        With ``arms`` it is the body's own faces; without, the faces of the arms
+        (skinned mostly to :data:`ARM_BONES`) are cut away and the two holes at
+        the shoulders closed (see :func:`~loosefit.geometry.cap.cut_and_cap`).
+        """
+        if arms:
+            return self.faces
+        if self._armless_faces is None:
+            removed = np.zeros(self.rest_vertices.shape[0], bool)
+            removed[self.vertices_of_bones(ARM_BONES).cpu().numpy()] = True
+            faces = cut_and_cap(self.faces.cpu().numpy(), removed)
+            self._armless_faces = torch.from_numpy(faces).to(self.faces.device)
+        return self._armless_faces
 
     def seed_points(
         self, count: int = 256, bones: tuple[str, ...] = LOWER_BODY_BONES

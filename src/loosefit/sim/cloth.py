@@ -85,6 +85,12 @@ class ClothConfig:
     contact_ke: float = 1.0e4  # N/m, contact stiffness (cloth-body and cloth-cloth)
     contact_kd: float = 1.0e-2  # N s/m, contact damping (cloth-body and cloth-cloth)
     body_friction: float = 0.3  # Coulomb friction between cloth and body
+    # The arms (from the shoulder down) collide with the cloth. Off by default: a forearm
+    # or hand resting on the hip pinches the cloth against the torso, and contact against
+    # one body mesh (an inside/outside test) cannot free cloth caught between two of its
+    # parts: it stretched salsa skirts by 7x. Without the arms the collider is the body
+    # with its shoulders capped; a hand passing the skirt goes through it.
+    arm_collision: bool = False
     self_friction: float = 0.2  # Coulomb friction between two layers of cloth
     # contact of the cloth with itself (costs ~3x; without it ~10% of triangles cross in a spin)
     self_contact: bool = True  # resolve cloth-cloth contact
@@ -728,7 +734,7 @@ def simulate(
     with torch.no_grad():
         posed = avatar.pose(rotations, root)
     body = posed.vertices.detach().to("cpu", torch.float32).numpy()  # (P + T, Vb, 3)
-    body_faces = avatar.faces.cpu().numpy()
+    body_faces = avatar.collider_faces(arms=config.arm_collision).cpu().numpy()
     root_pose = posed.joint_transforms[0, 0].detach().double().cpu().numpy()  # (4, 4)
     garment = template.vertices.astype(np.float64) @ root_pose[:3, :3].T + root_pose[:3, 3]
 
@@ -826,7 +832,8 @@ def settle(
         body = avatar.pose(rest, root).vertices[0].detach().to("cpu", torch.float32).numpy()
     garment = template.vertices.astype(np.float64) + root.numpy()[0]
     sim = ClothSimulator(
-        garment, template.faces, template.waist, body, avatar.faces.cpu().numpy(), config,
+        garment, template.faces, template.waist, body,
+        avatar.collider_faces(arms=config.arm_collision).cpu().numpy(), config,
         frame_dt=1.0 / fps, bounds=(body.min(0) - 2.0, body.max(0) + 2.0),
     )  # fmt: skip
     n_settle = int(round(config.settle_seconds * fps)) + 1
