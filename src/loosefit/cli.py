@@ -407,6 +407,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_package(args: argparse.Namespace) -> int:
+    from loosefit.train.motion import package_model
+
+    gout, mout = package_model(args.checkpoint, args.out, args.generative)
+    for f in (gout, mout):
+        _log(f"wrote {f} ({f.stat().st_size / 1e6:.1f} MB)")
+    return 0
+
+
 def _frame_ref(text: str, names: list[str], source: str) -> tuple[str, int]:
     name, _, frame = text.rpartition(":")
     if not name or not frame.isdigit():
@@ -605,6 +614,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rmse-only", action="store_true", help="skip Hausdorff and STED (faster)")
     p.add_argument("--out", default="out/evaluate")
     p.set_defaults(func=cmd_evaluate)
+
+    p = sub.add_parser(
+        "package", help="both stages of a trained model in one folder, half precision, to share"
+    )
+    p.add_argument("checkpoint", help="a motion run's model.pt or checkpoint.pt")
+    p.add_argument(
+        "--generative",
+        default=None,
+        help="the generative checkpoint (default: the one the motion checkpoint records)",
+    )
+    p.add_argument("--out", required=True, help="folder for generative.pt and motion.pt")
+    p.set_defaults(func=cmd_package)
 
     p = sub.add_parser("reconstruct", help="encode and decode a clip with a generative model")
     p.add_argument("--checkpoint", required=True, help="a generative run's checkpoint.pt")

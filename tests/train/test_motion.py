@@ -198,3 +198,29 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     # The generative checkpoint where the motion one belongs: a clear error, exit 2.
     assert main(["animate", gen, "sway", "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x" / "manifest.json").exists()
+
+
+def test_package_writes_a_pair_that_loads_and_animates_alike(trained, toy_dataset, generative,
+                                                              tmp_path):  # fmt: skip
+    out, _ = trained
+    gout, mout = tm.package_model(out / "model.pt", tmp_path / "shared")
+    assert {p.name for p in (tmp_path / "shared").iterdir()} == {"generative.pt", "motion.pt"}
+    gdata = torch.load(gout, weights_only=False)
+    assert (
+        "optimizer" not in gdata
+        and gdata["model"]["encoder.convs.0.0.weight"].dtype == torch.float16
+    )
+    assert torch.load(mout, weights_only=False)["generative"]["absolute"] is None
+    # Moved anywhere, the pair still loads (relative path) and animates like the original.
+    moved = tmp_path / "elsewhere"
+    (tmp_path / "shared").rename(moved)
+    original = tm.load_animation_model(out / "model.pt")
+    shared = tm.load_animation_model(moved / "motion.pt")
+    motion = DatasetReader(toy_dataset).read(DatasetReader(toy_dataset).split("test")[0]).motion
+    a = original.animate(motion).vertices
+    b = shared.animate(motion).vertices
+    assert np.abs(a - b).max() < 0.01  # metres: half-precision generative weights
+    # A motion file without its generative partner is a clear error.
+    (moved / "generative.pt").unlink()
+    with pytest.raises(LoosefitInputError, match="generative"):
+        tm.load_animation_model(moved / "motion.pt")

@@ -178,7 +178,7 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
     if config.model.decoder == "ssdr":
         m = data["model"]
         B = m["ssdr_weights"].shape[1]
-        ssdr = (m["ssdr_rest"].cpu(), m["ssdr_weights"].cpu(), torch.zeros(B, 3, 4))
+        ssdr = (m["ssdr_rest"].float().cpu(), m["ssdr_weights"].float().cpu(), torch.zeros(B, 3, 4))
     model = GarmentGenerativeModel(stored, config.model, ssdr=ssdr).to(device)
     try:
         model.load_state_dict(data["model"])

@@ -277,6 +277,22 @@ class AnimationModel:
                        self.floor_height, self.config.rollout, progress)  # fmt: skip
 
 
+def _generative_path(path: Path, recorded: dict, generative: str | Path | None) -> Path:
+    """The generative checkpoint of a motion checkpoint: given, or the one it records."""
+    if generative is not None:
+        candidates = [Path(generative)]
+    else:  # relative to the motion checkpoint's folder first, then where it was trained
+        candidates = [path.parent / recorded["relative"]]
+        candidates += [Path(recorded["absolute"])] if recorded.get("absolute") else []
+    found = next((c for c in candidates if c.is_file()), None)
+    if found is None:
+        raise LoosefitInputError(
+            path, "generative", "the generative checkpoint it was trained on",
+            f"none of {[str(c) for c in candidates]} exists", hint="pass --generative FILE",
+        )  # fmt: skip
+    return found
+
+
 def load_animation_model(
     path: str | Path, generative: str | Path | None = None, device="cpu"
 ) -> AnimationModel:
@@ -295,16 +311,7 @@ def load_animation_model(
     path = Path(path)
     data = _read(path, device)
     g = data["generative"]
-    if generative is not None:
-        candidates = [Path(generative)]
-    else:
-        candidates = [path.parent / g["relative"], Path(g["absolute"])]
-    gpath = next((c for c in candidates if c.is_file()), None)
-    if gpath is None:
-        raise LoosefitInputError(
-            path, "generative", "the generative checkpoint it was trained on",
-            f"none of {[str(c) for c in candidates]} exists", hint="pass --generative FILE",
-        )  # fmt: skip
+    gpath = _generative_path(path, g, generative)
     gmodel, _, _ = load_generative(gpath, device=device)
     found = model_fingerprint(gmodel)
     if found != g["fingerprint"]:
@@ -329,6 +336,48 @@ def load_animation_model(
         tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
         dict(data["body"]), config, path,
     )  # fmt: skip
+
+
+def _half(weights: dict) -> dict:
+    return {k: (v.half() if v.is_floating_point() else v) for k, v in weights.items()}
+
+
+def package_model(
+    path: str | Path, out: str | Path, generative: str | Path | None = None
+) -> tuple[Path, Path]:
+    """Both stages of a trained model in one folder, for sharing: weights only, half precision.
+
+    Writes ``out/generative.pt`` (the generative stage without its optimizer state)
+    and ``out/motion.pt`` (the motion stage, pointing at ``generative.pt`` beside it
+    by a relative path, and at no path of this machine). The fingerprint that ties
+    them is of half-precision weights, so the pair loads as the original did.
+
+    Args:
+        path: a motion-stage checkpoint (``model.pt`` or ``checkpoint.pt`` of a run).
+        out: the folder to write.
+        generative: its generative checkpoint, if not the one it records.
+
+    Returns:
+        The paths of the generative and the motion files.
+    """
+    from loosefit.train.generative import read_checkpoint as read_generative
+
+    path, out = Path(path), Path(out)
+    load_animation_model(path, generative)  # checks the pair belongs together
+    data = _read(path, "cpu")
+    gpath = _generative_path(path, data["generative"], generative)
+    gdata, _ = read_generative(gpath)
+    out.mkdir(parents=True, exist_ok=True)
+    gout, mout = out / "generative.pt", out / "motion.pt"
+    keep = ("format", "config", "garment", "epoch")
+    save_atomic({**{k: gdata[k] for k in keep if k in gdata}, "model": _half(gdata["model"])},
+                gout)  # fmt: skip
+    drop = ("optimizer", "rng", "sampling_rng", "history", "dataset")
+    motion = {k: v for k, v in data.items() if k not in drop}
+    motion["model"] = _half(data["model"])
+    motion["generative"] = {**data["generative"], "relative": gout.name, "absolute": None}
+    save_atomic(motion, mout)
+    return gout, mout
 
 
 # -- evaluation ------------------------------------------------------------------------
