@@ -8,6 +8,9 @@ writes the table::
     python bench/motion_ablation.py --data datasets/salsa \
         --generative runs/generative-salsa-cpu/checkpoint.pt --preset cpu \
         --out runs/motion-ablation-salsa --table docs/MOTION_TABLE.md
+
+Runs can train side by side (``--runs ps --threads 1 --no-table`` in one process,
+``--runs nops ...`` in another); a last call with every run then only writes the table.
 """
 
 from __future__ import annotations
@@ -15,6 +18,8 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+
+import torch
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.report import write_rollout_report
@@ -43,7 +48,12 @@ def main() -> None:
     p.add_argument("--out", default="runs/motion-ablation")
     p.add_argument("--table", default=None, help="write the table here (Markdown)")
     p.add_argument("--device", default="cpu")
+    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
+    p.add_argument("--no-table", action="store_true", help="train and evaluate only; e.g. one "
+                   "run per process, side by side, then one call for the table")  # fmt: skip
     args = p.parse_args()
+    if args.threads > 0:
+        torch.set_num_threads(args.threads)
     reader = DatasetReader(args.data)
     rows = []
     for key in args.runs.split(","):
@@ -62,6 +72,8 @@ def main() -> None:
             write_rollout_report(result, run / "evaluation", f"Rollouts, {label}")
         report = json.loads((run / "report.json").read_text())
         rows.append((label, result, report))
+    if args.no_table:
+        return
     hs = [str(h) for h in HORIZONS]
     lines = [
         f"Held-out clips of `{Path(args.data).name}` ({', '.join(rows[0][1]['clips'])}), "

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# The committed salsa checkpoints (checkpoints/salsa) and docs/MOTION_TABLE.md, from scratch,
+# on the CPU. Every step resumes where a killed run stopped; rerun the script to go on.
+#
+#   bash scripts/salsa_models.sh            # BVH clips from ../shared/mocap/cmu-salsa
+#   BVH=/path/to/cmu-salsa bash scripts/salsa_models.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BIN=${BIN:-.venv/bin}
+BVH=${BVH:-../shared/mocap/cmu-salsa}
+DATA=${DATA:-datasets/salsa}
+RUNS=${RUNS:-runs/salsa}
+GEN_EPOCHS=${GEN_EPOCHS:-40}
+MOTION_EPOCHS=${MOTION_EPOCHS:-40}
+
+# 1. Ground truth (issue 3): 10 training clips and the chained held-out sequence.
+"$BIN/loosefit" simulate --preset salsa --bvh "$BVH" --out "$DATA" --workers 2
+# 2. The generative model (paper 3.2), CPU configuration; salsa has 13x the frames of demo,
+#    so fewer epochs give the same number of steps.
+"$BIN/loosefit" train generative --data "$DATA" --preset cpu --epochs "$GEN_EPOCHS" \
+    --out "$RUNS/generative"
+mkdir -p "$RUNS/motion"
+# 3. The motion encoder with and without the previous state, one core each, side by side;
+#    then Table 1 (paper 3.3, 4.3) from the two runs.
+ABL=("$BIN/python" bench/motion_ablation.py --data "$DATA" --preset cpu
+     --generative "$RUNS/generative/checkpoint.pt" --epochs "$MOTION_EPOCHS" --out "$RUNS/motion")
+"${ABL[@]}" --runs nops --threads 1 --no-table > "$RUNS/motion/nops.log" 2>&1 & nops=$!
+"${ABL[@]}" --runs ps --threads 1 --no-table > "$RUNS/motion/ps.log" 2>&1 & ps=$!
+wait "$nops"
+wait "$ps"
+"${ABL[@]}" --runs nops,ps --table docs/MOTION_TABLE.md
+# 4. The shared pair: half precision, the motion stage pointing at the generative one beside it.
+"$BIN/loosefit" package "$RUNS/motion/ps/model.pt" --out checkpoints/salsa
