@@ -32,6 +32,15 @@ def _add_avatar_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", default="cpu", help="torch device for posing (cpu, cuda)")
 
 
+def _add_generative_arg(p: argparse.ArgumentParser) -> None:
+    """``--generative``, for commands that load a motion checkpoint."""
+    p.add_argument(
+        "--generative",
+        default=None,
+        help="the generative checkpoint (default: the one the motion checkpoint records)",
+    )
+
+
 def _add_render_args(p: argparse.ArgumentParser, views: str = "front,three_quarter,side") -> None:
     p.add_argument("--views", default=views, help="comma-separated camera views")
     p.add_argument("--size", type=int, default=480, help="pixels per view (square)")
@@ -582,11 +591,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("animate", help="animate the garment on a motion with a trained model")
     p.add_argument("checkpoint", help="a motion run's model.pt or checkpoint.pt")
     p.add_argument("motion", help="a .bvh or .npz motion, a procedural move, or dance:SECONDS")
-    p.add_argument(
-        "--generative",
-        default=None,
-        help="the generative checkpoint (default: the one the motion checkpoint records)",
-    )
+    _add_generative_arg(p)
     p.add_argument(
         "--frames",
         type=int,
@@ -602,11 +607,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="roll out held-out clips and compare with the simulation")
     p.add_argument("--checkpoint", required=True, help="a motion run's model.pt or checkpoint.pt")
-    p.add_argument(
-        "--generative",
-        default=None,
-        help="the generative checkpoint (default: the one the motion checkpoint records)",
-    )
+    _add_generative_arg(p)
     p.add_argument("--data", default="datasets/salsa", help="a dataset folder")
     p.add_argument("--split", default="test", help="train, test or all")
     p.add_argument("--horizons", default="100,500,1200", help="frames for iter-N errors")
@@ -619,11 +620,7 @@ def build_parser() -> argparse.ArgumentParser:
         "package", help="both stages of a trained model in one folder, half precision, to share"
     )
     p.add_argument("checkpoint", help="a motion run's model.pt or checkpoint.pt")
-    p.add_argument(
-        "--generative",
-        default=None,
-        help="the generative checkpoint (default: the one the motion checkpoint records)",
-    )
+    _add_generative_arg(p)
     p.add_argument("--out", required=True, help="folder for generative.pt and motion.pt")
     p.set_defaults(func=cmd_package)
 
