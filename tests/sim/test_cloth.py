@@ -6,6 +6,7 @@ cached under ~/.cache/warp); after that the whole file takes well under a minute
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -25,6 +26,7 @@ from loosefit.sim.cloth import (
     preroll,
     quality,
     simulate,
+    substep_schedule,
     unique_edges,
 )
 from loosefit.types import GarmentTemplate, Motion
@@ -142,6 +144,22 @@ def test_preroll_settles_at_the_start_then_blends_into_the_first_frame():
     assert origin[2] == 1
 
 
+def test_substep_schedule_follows_the_fastest_waistband_point():
+    T, W = 12, 4
+    waist = np.zeros((T, W, 3))
+    waist[7:, 2, 0] = 0.05  # one point jumps 5 cm between frames 6 and 7
+    n = substep_schedule(waist, substeps=20, max_substeps=60, max_move=0.004, widen=2)
+    assert n.shape == (T - 1,) and n.dtype == np.int64
+    expected = np.full(T - 1, 20)
+    # ceil(5 cm / 4 mm) = 13 < 20: the floor holds everywhere
+    np.testing.assert_array_equal(n, expected)
+    fast = substep_schedule(waist * 4, substeps=20, max_substeps=60, max_move=0.004, widen=2)
+    expected[4:9] = 50  # 20 cm / 4 mm, on the jump and the two frames either side
+    np.testing.assert_array_equal(fast, expected)
+    capped = substep_schedule(waist * 10, substeps=20, max_substeps=60, max_move=0.004, widen=0)
+    assert capped.max() == 60 and (capped == 60).sum() == 1
+
+
 def test_glue_holds_points_on_a_moving_body():
     v, f = _cube(0.4)
     ring = np.array([[0.25 * math.cos(a), 0.25 * math.sin(a), 0.05] for a in np.linspace(0, 6, 12)])
@@ -202,6 +220,20 @@ def test_recorded_graphs_replay_exactly(avatar, tiny):
     skirt, motion, result, _ = tiny
     plain = simulate(avatar, skirt, motion, ClothConfig.tiny(capture=False))
     np.testing.assert_array_equal(plain.garment_vertices, result.garment_vertices)
+
+
+def test_fast_frames_get_more_substeps_and_replay_exactly(avatar, tiny):
+    # The spin's waistband moves ~1-2 cm a frame: at 2 mm a substep those frames need more
+    # than 8. Each substep count records its own graphs (the step length is baked in).
+    skirt, motion, result, _ = tiny
+    config = ClothConfig.tiny(max_substeps=16, substep_waist_move=0.002)
+    fine = simulate(avatar, skirt, motion, config)
+    assert 8 < fine.stats["substeps_max"] <= 16 and fine.stats["substeps_mean"] > 8
+    assert result.stats["substeps_max"] == 8  # the default tiny config: fixed steps
+    assert np.isfinite(fine.garment_vertices).all() and fine.quality["inside_max"] < 0.005
+    assert not np.array_equal(fine.garment_vertices, result.garment_vertices)
+    plain = simulate(avatar, skirt, motion, dataclasses.replace(config, capture=False))
+    np.testing.assert_array_equal(plain.garment_vertices, fine.garment_vertices)
 
 
 class _Kill(Exception):

@@ -90,8 +90,9 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
             preset=name,
             garment=SkirtConfig(style="aline", rings=8, segments=24, length=0.45),
             cloth=ClothConfig(
-                substeps=8, iterations=4, settle_seconds=0.3, blend_seconds=0.1, self_contact=False
-            ),
+                substeps=8, max_substeps=8, iterations=4, settle_seconds=0.3, blend_seconds=0.1,
+                self_contact=False,
+            ),  # fmt: skip
             motions=MotionSource(
                 kind="procedural",
                 moves=("kick", "spin"),
@@ -295,6 +296,8 @@ def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
         reason="; ".join(problems),
         seconds=time.perf_counter() - t0,
         seconds_per_frame=result.seconds_per_frame,
+        substeps_mean=result.stats["substeps_mean"],
+        substeps_max=result.stats["substeps_max"],
         quality=qual,
     )
     return entry
