@@ -138,7 +138,14 @@ class ClothConfig:
             raise LoosefitInputError(
                 src, "max_substeps", f">= substeps ({self.substeps})", repr(self.max_substeps)
             )
-        positive = ("density", "stretch_ke", "substep_waist_move", "body_contact_distance", "contact_ke", "max_distance")
+        positive = (
+            "density",
+            "stretch_ke",
+            "substep_waist_move",
+            "body_contact_distance",
+            "contact_ke",
+            "max_distance",
+        )
         nonnegative = (
             "stretch_ka", "stretch_kd", "bend_ke", "bend_kd", "air_damping", "settle_damping",
             "jitter", "body_contact_gap", "contact_kd", "body_friction", "self_friction",

@@ -90,9 +90,13 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
             preset=name,
             garment=SkirtConfig(style="aline", rings=8, segments=24, length=0.45),
             cloth=ClothConfig(
-                substeps=8, max_substeps=8, iterations=4, settle_seconds=0.3, blend_seconds=0.1,
+                substeps=8,
+                max_substeps=8,
+                iterations=4,
+                settle_seconds=0.3,
+                blend_seconds=0.1,
                 self_contact=False,
-            ),  # fmt: skip
+            ),
             motions=MotionSource(
                 kind="procedural",
                 moves=("kick", "spin"),
