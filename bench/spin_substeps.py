@@ -82,7 +82,8 @@ def main() -> None:
     bad = np.nonzero(strain > 0.5)[0]
     print(f"frames with an edge stretched > 50 %: {len(bad)}" + (
         f", first {args.start + bad[0]}" if len(bad) else ""))  # fmt: skip
-    print("quality:", {k: round(float(v), 4) for k, v in result.quality.items()})
+    scalars = {k: round(float(v), 4) for k, v in result.quality.items() if np.ndim(v) == 0}
+    print("quality:", scalars)
     if args.save:
         source = f"newton-vbd, substeps {cloth.substeps}..{cloth.max_substeps}"
         avatar_spec = {"rig": avatar.config.rig, "shape": avatar.shape}
