@@ -408,7 +408,8 @@ class ClothSimulator:
         body_vertices: (Vb, 3) the body at the start, world frame.
         body_faces: (Fb, 3) triangles of a closed (watertight) body mesh.
         config: the physics.
-        frame_dt: seconds per frame; each :meth:`step_frame` runs ``config.substeps`` substeps.
+        frame_dt: seconds per frame; :meth:`step_frame` divides it into ``config.substeps``
+            substeps, or as many as it is given.
         bounds: (lower (3,), upper (3,)) a box that holds the body over the whole motion;
             contacts are culled outside it. Default: the starting body's box grown by 2 m.
     """
