@@ -929,6 +929,27 @@ def unique_edges(faces: np.ndarray) -> np.ndarray:
     return np.unique(np.sort(e, axis=1), axis=0)
 
 
+def edge_strain(
+    garment_vertices: np.ndarray, template: GarmentTemplate
+) -> tuple[np.ndarray, np.ndarray]:
+    """``|length / rest_length - 1|`` of every edge but those along the waistband.
+
+    Args:
+        garment_vertices: (T, V, 3) garment positions.
+        template: the rest shape (edge rest lengths), faces and waistband; the body
+            sets the length of the waistband's own edges, so they are left out.
+
+    Returns:
+        strain (T, E) and the edges (E, 2) it measures.
+    """
+    g = np.asarray(garment_vertices, np.float32)
+    edges = unique_edges(template.faces)
+    edges = edges[~np.isin(edges, template.waist).all(1)]
+    rest = np.linalg.norm(template.vertices[edges[:, 0]] - template.vertices[edges[:, 1]], axis=-1)
+    length = np.linalg.norm(g[:, edges[:, 0]] - g[:, edges[:, 1]], axis=-1)  # (T, E)
+    return np.abs(length / rest - 1.0), edges
+
+
 def quality(
     garment_vertices: np.ndarray,
     template: GarmentTemplate,
@@ -986,12 +1007,8 @@ def quality(
         deep[t] = (within & (hit.distance > tolerance)).mean()
         if within.any():
             depth = max(depth, float(hit.distance[within].max()))
-    edges = unique_edges(template.faces)
-    pinned = np.isin(edges, template.waist).all(1)  # along the waistband: the body sets them
-    edges = edges[~pinned]
-    rest = np.linalg.norm(template.vertices[edges[:, 0]] - template.vertices[edges[:, 1]], axis=-1)
-    length = np.linalg.norm(g[:, edges[:, 0]] - g[:, edges[:, 1]], axis=-1)  # (T, E)
-    strain = np.abs(length / rest - 1.0)[finite[:, edges[:, 0]] & finite[:, edges[:, 1]]]
+    strain, edges = edge_strain(g, template)
+    strain = strain[finite[:, edges[:, 0]] & finite[:, edges[:, 1]]]
     p50, p95, p99 = np.percentile(strain, [50, 95, 99]) if strain.size else (np.nan,) * 3
     if g.shape[0] > 1:
         speed = np.linalg.norm(np.diff(g, axis=0), axis=-1) * fps  # (T - 1, V)
