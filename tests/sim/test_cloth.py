@@ -131,14 +131,13 @@ def test_preroll_settles_at_the_start_then_blends_into_the_first_frame():
     rot[:, 0] = rz
     root = np.tile(np.array([2.0, 1.0, 0.95], np.float32), (T, 1))
     motion = Motion(("r", "a", "b"), rot, root, 30.0)
-    config = ClothConfig(settle_seconds=0.5, blend_seconds=0.2)
-    r, t, n_settle = preroll(motion, 0.9, config)
+    r, t, n_settle = preroll(motion, 0.9, settle_seconds=0.5, blend_seconds=0.2)
     assert n_settle == 16 and r.shape == (16 + 6, J, 3, 3) and t.shape == (22, 3)
     np.testing.assert_allclose(r[0, 0], rz, atol=1e-6)  # turned to the motion's heading
     np.testing.assert_allclose(t[0], [2.0, 1.0, 0.9], atol=1e-6)  # on the floor where it starts
     np.testing.assert_allclose(np.diff(t[:n_settle], axis=0), 0.0)
     assert 0.9 < t[-1, 2] < 0.95 and np.all(np.diff(t[n_settle - 1 :, 2]) > 0)
-    origin = preroll(motion, 0.9, ClothConfig(settle_at_start=False, settle_seconds=0.0))
+    origin = preroll(motion, 0.9, 0.0, 0.2, settle_at_start=False)
     np.testing.assert_allclose(origin[0][0, 0], np.eye(3), atol=1e-6)
     np.testing.assert_allclose(origin[1][0], [0.0, 0.0, 0.9], atol=1e-6)
     assert origin[2] == 1
@@ -282,7 +281,8 @@ def test_settle_alone_gives_the_drape_every_clip_starts_from(avatar, tiny):
     skirt, motion, result, _ = tiny
     alone = settle(avatar, skirt, ClothConfig.tiny(), fps=motion.fps)
     # simulate() settles standing where the motion starts, turned to its heading.
-    rot, root, _ = preroll(motion, avatar.floor_height, ClothConfig.tiny())
+    c = ClothConfig.tiny()
+    rot, root, _ = preroll(motion, avatar.floor_height, c.settle_seconds, c.blend_seconds)
     import torch
 
     H, p = root_frames(torch.from_numpy(rot[:1]), torch.from_numpy(root[:1]))

@@ -11,7 +11,6 @@ encoder has seen every kind of frame it meets here.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -48,16 +47,10 @@ def timeline(
         rotations (P + T, J, 3, 3) float32, root translations (P + T, 3) float32,
         and P, the number of frames before the motion's first.
     """
-    from loosefit.sim.cloth import ClothConfig, preroll
+    from loosefit.sim.cloth import preroll
 
-    fps = motion.fps
-    cfg = dataclasses.replace(
-        ClothConfig(),
-        settle_seconds=max(config.warm_frames - 1, 0) / fps,
-        blend_seconds=config.blend_seconds,
-        settle_at_start=True,
-    )
-    rot, root, _ = preroll(motion, floor_height, cfg)
+    settle = max(config.warm_frames - 1, 0) / motion.fps
+    rot, root, _ = preroll(motion, floor_height, settle, config.blend_seconds)
     rotations = torch.from_numpy(np.concatenate([rot, motion.rotations]))
     roots = torch.from_numpy(np.concatenate([root, motion.root_translation]))
     return rotations, roots, len(rot)

@@ -653,32 +653,38 @@ def _smoothstep(x: np.ndarray) -> np.ndarray:
 
 
 def preroll(
-    motion: Motion, floor_height: float, config: ClothConfig
+    motion: Motion,
+    floor_height: float,
+    settle_seconds: float,
+    blend_seconds: float,
+    settle_at_start: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """The settle and blend frames that come before a motion.
 
     Settle: the rest pose standing on the floor, for ``settle_seconds`` (one frame
     more, so that the cloth settles for exactly that long). With
-    ``settle_at_start`` it stands where the motion starts, turned to its heading
-    (the root's yaw); otherwise at the origin facing -Y. Blend: local rotations
-    slerp and the root translation lerps into the motion's first frame, with
-    smoothstep timing, over ``blend_seconds``.
+    ``settle_at_start`` (the simulator's and the rollout's choice) it stands where
+    the motion starts, turned to its heading (the root's yaw); otherwise at the
+    origin facing -Y. Blend: local rotations slerp and the root translation lerps
+    into the motion's first frame, with smoothstep timing, over ``blend_seconds``.
 
     Args:
         motion: the motion that follows (T, J joints).
         floor_height: the avatar's root height when standing.
-        config: settle and blend durations.
+        settle_seconds, blend_seconds: the two durations (``ClothConfig``'s fields of
+            those names in a simulation).
+        settle_at_start: stand where the motion starts rather than at the origin.
 
     Returns:
         rotations (P, J, 3, 3) float32, root translations (P, 3) float32, and the
         number of settle frames (the first frames of the P).
     """
     J = motion.num_joints
-    n_settle = int(round(config.settle_seconds * motion.fps)) + 1
-    n_blend = int(round(config.blend_seconds * motion.fps))
+    n_settle = int(round(settle_seconds * motion.fps)) + 1
+    n_blend = int(round(blend_seconds * motion.fps))
     rest_rot = np.broadcast_to(np.eye(3, dtype=np.float32), (J, 3, 3)).copy()
     rest_root = np.array([0.0, 0.0, floor_height], np.float32)
-    if config.settle_at_start:
+    if settle_at_start:
         forward = motion.rotations[0, 0] @ np.array([0.0, -1.0, 0.0], np.float32)
         if np.hypot(forward[0], forward[1]) > 1e-6:  # else the root looks straight up/down
             yaw = math.atan2(forward[0], -forward[1])  # Rz(yaw) takes -Y to forward's heading
@@ -790,7 +796,10 @@ def simulate(
     _check_template(template)
 
     # 1. The body over the whole timeline: settle, blend, motion.
-    pre_rot, pre_root, n_settle = preroll(motion, avatar.floor_height, config)
+    pre_rot, pre_root, n_settle = preroll(
+        motion, avatar.floor_height, config.settle_seconds, config.blend_seconds,
+        config.settle_at_start,
+    )  # fmt: skip
     n_pre = len(pre_rot)
     rotations = torch.from_numpy(np.concatenate([pre_rot, motion.rotations]))
     root = torch.from_numpy(np.concatenate([pre_root, motion.root_translation]))
