@@ -298,7 +298,8 @@ def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
     entry.update(
         status="flagged" if problems else "done",
         reason="; ".join(problems),
-        seconds=time.perf_counter() - t0,
+        # Simulation time summed over the runs a killed job was resumed in, plus this build.
+        seconds=result.stats["simulate_seconds"] + result.stats["build_seconds"],
         seconds_per_frame=result.seconds_per_frame,
         substeps_mean=result.stats["substeps_mean"],
         substeps_max=result.stats["substeps_max"],
