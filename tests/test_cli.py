@@ -5,7 +5,7 @@ from loosefit.cli import main
 from tests.conftest import SALSA, needs_salsa
 
 
-def test_demo_writes_video_and_sequence(tmp_path, avatar):
+def test_demo_writes_video_and_sequence(tmp_path, capsys, avatar):
     out = tmp_path / "demo"
     args = ["demo", "--out", str(out), "--motion", "kick", "--no-physics", "--size", "96"]
     code = main([*args, "--views", "front"])
@@ -16,8 +16,14 @@ def test_demo_writes_video_and_sequence(tmp_path, avatar):
     assert not list(out.glob("*partial*"))
     # The saved sequence renders again from the file.
     code = main(["render", "--sequence", str(out / "sequence.npz"), "--out", str(out / "again"),
-                 "--size", "64", "--views", "side", "--max-frames", "5"])  # fmt: skip
-    assert code == 0 and (out / "again" / "video.mp4").is_file()
+                 "--size", "64", "--views", "side", "--start-frame", "20",
+                 "--max-frames", "5"])  # fmt: skip
+    assert code == 0 and iio.imread(out / "again" / "video.mp4").shape[0] == 5
+    # A start past the clip's end names the option and the range.
+    code = main(["render", "--sequence", str(out / "sequence.npz"), "--out", str(out / "late"),
+                 "--start-frame", "100000"])  # fmt: skip
+    assert code == 2 and not (out / "late" / "video.mp4").exists()
+    assert "--start-frame" in capsys.readouterr().err
 
 
 @pytest.mark.slow

@@ -187,13 +187,22 @@ class tqdm_bar:  # noqa: N801 - reads like the tqdm call it wraps
         self.bar.close()
 
 
+def _frame_range(args, num_frames: int) -> tuple[int, int | None]:
+    """``--start-frame`` and ``--max-frames`` as a slice of a clip of ``num_frames``."""
+    start = getattr(args, "start_frame", 0) or 0
+    if not 0 <= start < num_frames:
+        raise LoosefitInputError("--start-frame", "start_frame", f"0 to {num_frames - 1}", start)
+    return start, (start + args.max_frames if args.max_frames else None)
+
+
 def _stored_clip(args, shape: dict, motion, garment):
-    """The avatar of a stored clip's body shape, and the clip cut to ``--max-frames``."""
+    """The avatar of a stored clip's body shape, and the clip cut to its frame range."""
     args.shape = ",".join(f"{k}={v}" for k, v in shape.items())
     avatar = _avatar(args)
     avatar.check_motion(motion)
-    if args.max_frames:
-        motion, garment = motion.slice(0, args.max_frames), garment[: args.max_frames]
+    start, stop = _frame_range(args, motion.num_frames)
+    if start or stop:
+        motion, garment = motion.slice(start, stop), garment[start:stop]
     return avatar, motion, garment
 
 
@@ -225,9 +234,9 @@ def cmd_render(args: argparse.Namespace) -> int:
         title = f"{Path(args.dataset).name}/{name} (simulated)"
     elif args.motion:
         avatar = _avatar(args)
-        motion = load_motion(
-            args.motion, avatar, fps=args.fps, seed=args.seed, max_frames=args.max_frames
-        )
+        motion = load_motion(args.motion, avatar, fps=args.fps, seed=args.seed)
+        start, stop = _frame_range(args, motion.num_frames)
+        motion = motion.slice(start, stop)
         template = _garment(args.garment, avatar)
         garment = None
         if template is not None:
@@ -238,6 +247,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise LoosefitInputError(
             "loosefit render", "arguments", "--motion, --sequence or --dataset", "none"
         )
+    if args.start_frame:
+        title += f", from frame {args.start_frame}"
     _log(f"rendering {motion.num_frames} frames")
     _render(args, avatar, motion, template, garment, out, title, body=body)
     return 0
@@ -542,6 +553,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--garment", default="none", help="with --motion: a skirt style, an .obj or none"
     )
     p.add_argument("--out", default="out/render", help="output folder")
+    p.add_argument("--start-frame", type=int, default=0, help="first frame to render (0-based)")
     p.add_argument("--max-frames", type=int, default=None, help="render at most this many frames")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--fps", type=float, default=30.0)
