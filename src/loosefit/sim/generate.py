@@ -471,10 +471,16 @@ def generate(
 
 
 def summarize(manifest: dict) -> dict:
-    """Totals and worst quality figures over the dataset's clips."""
-    entries = [e for e in manifest["sequences"].values() if "quality" in e]
-    frames = sum(e["frames"] for e in manifest["sequences"].values() if e["status"] == "done")
-    spf = [e["seconds_per_frame"] for e in entries]
+    """Totals and worst quality figures over the clips the dataset keeps.
+
+    Flagged clips count in ``clips`` and in the cost (``seconds_per_frame_mean``,
+    over every simulated clip) but not in the frames or the quality figures: those
+    describe the data a model trains and is judged on.
+    """
+    simulated = [e for e in manifest["sequences"].values() if "quality" in e]
+    entries = [e for e in simulated if e["status"] == "done"]
+    frames = sum(e["frames"] for e in entries)
+    spf = [e["seconds_per_frame"] for e in simulated]
 
     def worst(key: str) -> float:
         return max((e["quality"].get(key, 0.0) for e in entries), default=0.0)
