@@ -224,3 +224,26 @@ def test_package_writes_a_pair_that_loads_and_animates_alike(trained, toy_datase
     (moved / "generative.pt").unlink()
     with pytest.raises(LoosefitInputError, match="generative"):
         tm.load_animation_model(moved / "motion.pt")
+
+
+def test_reference_carries_the_rest_drape_with_the_root(trained, toy_dataset):
+    out, _ = trained
+    model = tm.load_animation_model(out / "model.pt")
+    reader = DatasetReader(toy_dataset)
+    motion = reader.read("c").motion
+    moved = model.carry_drape(motion).vertices  # (T, V, 3)
+    rest = model.rest_state.numpy()
+    assert moved.shape == (16, model.template.num_vertices, 3)
+    # A rigid copy of the drape in every frame: the same edge lengths, on the root.
+    i, j = model.template.faces[:, 0], model.template.faces[:, 1]
+    np.testing.assert_allclose(np.linalg.norm(moved[:, i] - moved[:, j], axis=-1),
+                               np.broadcast_to(np.linalg.norm(rest[i] - rest[j], axis=-1),
+                                               (16, len(i))), atol=1e-5)  # fmt: skip
+    offset = moved.mean(1) - motion.root_translation
+    np.testing.assert_allclose(np.linalg.norm(offset, axis=-1),
+                               np.linalg.norm(rest.mean(0)), atol=1e-4)  # fmt: skip
+    # Scored like a rollout, and not the rollout's score.
+    ref = tm.evaluate_rollouts(model, reader, "test", surface=False, reference=True)
+    learned = tm.evaluate_rollouts(model, reader, "test", surface=False)
+    assert ref["clips"]["c"]["frames"] == 16 and np.isfinite(ref["rmse_cm"])
+    assert ref["rmse_cm"] != learned["rmse_cm"]

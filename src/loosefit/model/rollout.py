@@ -145,3 +145,34 @@ def rollout(
         if progress is not None:
             progress(t + 1, total)
     return RolloutResult(out.numpy(), time.perf_counter() - t0, total)
+
+
+@torch.no_grad()
+def carried_drape(
+    motion: Motion,
+    rest_state: torch.Tensor,
+    floor_height: float,
+    config: RolloutConfig | None = None,
+) -> RolloutResult:
+    """The settled drape carried rigidly by the root frame: a garment with no dynamics at all.
+
+    Not a model: the reference that error tables set a learned rollout against (a
+    rollout that does no better has learned nothing of the motion). Frame ``t`` is
+    ``rest_state`` placed in the root frame (heading and origin) of motion frame ``t``.
+
+    Args:
+        motion: T frames.
+        rest_state: (V, 3) the settled drape in the rest pose's root frame.
+        floor_height: the avatar's standing root height (for the timeline, as in a rollout).
+        config: the preroll (only its length matters here).
+
+    Returns:
+        :class:`RolloutResult` with (T, V, 3) world positions.
+    """
+    config = config or RolloutConfig()
+    t0 = time.perf_counter()
+    rot, root, P = timeline(motion, floor_height, config)
+    H, p = (a.float() for a in root_frames(rot[P:].double(), root[P:].double()))
+    rest = rest_state.detach().float().cpu()[None].expand(len(H), -1, -1)
+    out = from_root_frame(rest, H, p)
+    return RolloutResult(out.numpy(), time.perf_counter() - t0, int(len(rot)))

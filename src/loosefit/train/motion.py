@@ -40,7 +40,13 @@ from loosefit.model.frames import avatar_for, garment_fingerprint, to_root_frame
 from loosefit.model.generative import GarmentGenerativeModel, squared_error
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
 from loosefit.model.motion_features import motion_features, num_features, root_frames
-from loosefit.model.rollout import RolloutConfig, change_frame, rollout, timeline
+from loosefit.model.rollout import (
+    RolloutConfig,
+    carried_drape,
+    change_frame,
+    rollout,
+    timeline,
+)
 from loosefit.train.common import (
     apply_overrides,
     machine,
@@ -277,6 +283,11 @@ class AnimationModel:
         return rollout(self.generative, self.encoder, motion, self.rest_state,
                        self.floor_height, self.config.rollout, progress)  # fmt: skip
 
+    def carry_drape(self, motion: Motion, progress=None):
+        """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""
+        self.check_motion(motion)
+        return carried_drape(motion, self.rest_state, self.floor_height, self.config.rollout)
+
 
 def _generative_path(path: Path, recorded: dict, generative: str | Path | None) -> Path:
     """The generative checkpoint of a motion checkpoint: given, or the one it records."""
@@ -391,6 +402,7 @@ def evaluate_rollouts(
     horizons: tuple[int, ...] = HORIZONS,
     surface: bool = True,
     max_frames: int | None = None,
+    reference: bool = False,
 ) -> dict:
     """Roll every clip of a split out from its first frame and compare with the simulation.
 
@@ -402,6 +414,8 @@ def evaluate_rollouts(
             iter-100/500/1200); a clip shorter than h gives none for it.
         surface: also Hausdorff and STED (slower).
         max_frames: roll out at most this many frames per clip.
+        reference: score the settled drape carried by the root
+            (:meth:`AnimationModel.carry_drape`) instead of the model's rollout.
 
     Returns:
         Per clip: frames, RMSE (cm) over the clip and per horizon, the RMSE of
@@ -413,7 +427,7 @@ def evaluate_rollouts(
     for name in reader.split(split):
         seq = reader.read(name)
         motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        result = model.animate(motion)
+        result = model.carry_drape(motion) if reference else model.animate(motion)
         pred, true = result.vertices, seq.garment_vertices[: motion.num_frames]
         per_frame = 100 * rmse_per_frame(pred, true)  # (T,) cm
         entry = {
