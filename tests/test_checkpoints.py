@@ -1,0 +1,54 @@
+"""The committed pretrained pair, ``checkpoints/salsa`` (both stages, trained on ``salsa``).
+
+A fresh clone must be able to animate with it: these tests load the committed files
+themselves (no training, no ../shared) and roll them out on a procedural motion that is
+not in the salsa data.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.conftest import REPO
+
+PAIR = REPO / "checkpoints" / "salsa"
+
+
+def test_the_pair_is_committed_whole_and_small():
+    sizes = {p.name: p.stat().st_size for p in PAIR.glob("*.pt")}
+    assert set(sizes) == {"generative.pt", "motion.pt"}
+    assert sum(sizes.values()) <= 25 * 2**20  # issue 5: 25 MB together at most
+
+
+@pytest.fixture(scope="module")
+def model():
+    from loosefit.train.motion import load_animation_model
+
+    return load_animation_model(PAIR / "motion.pt")  # finds generative.pt beside it
+
+
+def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
+    from loosefit.body.motions import load_motion
+    from loosefit.eval.metrics import inside_fraction
+    from loosefit.sim.cloth import edge_strain
+
+    motion = load_motion("spin", avatar, fps=model.fps).slice(0, 40)
+    vertices = model.animate(motion).vertices
+    assert vertices.shape == (40, model.template.num_vertices, 3)
+    assert np.isfinite(vertices).all()
+    strain, _ = edge_strain(vertices, model.template)
+    # a skirt, not a torn or exploded mesh (an exploded one stretches edges many times over).
+    # The learned surface is rough at the scale of an edge: p99 0.56 on the held-out chain,
+    # against 0.06 in the simulation (docs/MOTION.md, "What it does not do yet").
+    assert np.percentile(strain, 99) < 1.0
+    body = avatar.pose_motion(motion)
+    inside = inside_fraction(vertices, body.vertices, avatar.collider_faces(arms=False))
+    # worn, not sunk into the legs: up to 7.5 % of the vertices graze inside the thighs on this
+    # spin; pushing them out is the collision stage's job (paper 3.5), not the rollout's
+    assert inside.max() < 0.15
+    # the waistband stays at the waist: within a few cm of where the rest drape carried by the
+    # root puts it
+    drape = model.carry_drape(motion).vertices
+    waist = model.template.waist
+    assert np.abs(vertices[:, waist] - drape[:, waist]).max() < 0.05
