@@ -52,3 +52,18 @@ def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
     drape = model.carry_drape(motion).vertices
     waist = model.template.waist
     assert np.abs(vertices[:, waist] - drape[:, waist]).max() < 0.05
+
+
+def test_animate_without_a_checkpoint_takes_the_pretrained_pair(tmp_path):
+    import json
+
+    from loosefit.cli import main
+
+    out = tmp_path / "anim"
+    assert main(["animate", "sway", "--frames", "12", "--out", str(out)]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["source"]["checkpoint"] == str((PAIR / "motion.pt").resolve())
+    assert manifest["sequences"]["sway"]["frames"] == 12
+    # three positional arguments: an error that says what is expected, and nothing written
+    assert main(["animate", "a.pt", "sway", "extra", "--out", str(tmp_path / "x")]) == 2
+    assert not (tmp_path / "x").exists()

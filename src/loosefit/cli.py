@@ -344,8 +344,31 @@ def _train_motion(args: argparse.Namespace) -> int:
     return 0 if report else 1
 
 
+def pretrained_checkpoint() -> Path:
+    """The committed pretrained pair's motion stage (``checkpoints/salsa``, trained on salsa)."""
+    return Path(__file__).resolve().parents[2] / "checkpoints" / "salsa" / "motion.pt"
+
+
+def _animate_inputs(args: argparse.Namespace) -> None:
+    """``animate [CHECKPOINT] MOTION``: without a checkpoint, the pretrained default."""
+    if len(args.inputs) not in (1, 2):
+        raise LoosefitInputError("animate", "arguments", "[CHECKPOINT] MOTION",
+                                 f"{len(args.inputs)} arguments: {args.inputs}")  # fmt: skip
+    if len(args.inputs) == 2:
+        args.checkpoint, args.motion = args.inputs
+        return
+    args.checkpoint, args.motion = pretrained_checkpoint(), args.inputs[0]
+    if not args.checkpoint.is_file():
+        raise LoosefitInputError(
+            args.checkpoint, "checkpoint", "the pretrained pair of a loosefit clone",
+            "no such file", hint="pass a checkpoint: loosefit animate CHECKPOINT MOTION",
+        )  # fmt: skip
+    _log(f"no checkpoint given: the pretrained default {args.checkpoint}")
+
+
 def cmd_animate(args: argparse.Namespace) -> int:
 
+    _animate_inputs(args)
     from loosefit.body.avatar import Avatar, AvatarConfig
     from loosefit.body.chain import chain_motions
     from loosefit.body.motions import load_motion
@@ -601,8 +624,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("animate", help="animate the garment on a motion with a trained model")
-    p.add_argument("checkpoint", help="a motion run's model.pt or checkpoint.pt")
-    p.add_argument("motion", help="a .bvh or .npz motion, a procedural move, or dance:SECONDS")
+    p.add_argument(
+        "inputs", nargs="+", metavar="[CHECKPOINT] MOTION",
+        help="a motion run's model.pt or checkpoint.pt (default: the pretrained pair in "
+        "checkpoints/salsa), then a .bvh or .npz motion, a procedural move, or dance:SECONDS",
+    )  # fmt: skip
     _add_generative_arg(p)
     p.add_argument(
         "--frames",
