@@ -247,3 +247,27 @@ def test_reference_carries_the_rest_drape_with_the_root(trained, toy_dataset):
     learned = tm.evaluate_rollouts(model, reader, "test", surface=False)
     assert ref["clips"]["c"]["frames"] == 16 and np.isfinite(ref["rmse_cm"])
     assert ref["rmse_cm"] != learned["rmse_cm"]
+
+
+def test_restarts_reset_the_previous_state_to_the_truth(trained, toy_dataset):
+    out, _ = trained
+    model = tm.load_animation_model(out / "model.pt")
+    seq = DatasetReader(toy_dataset).read("c")
+    truth = seq.garment_vertices.astype(np.float32)
+    plain = model.animate(seq.motion).vertices
+    k = 6
+    restarted = model.animate(seq.motion, truth=truth, restart_every=k).vertices
+    # Up to the first restart, the same rollout; after it, another one.
+    np.testing.assert_array_equal(restarted[:k], plain[:k])
+    assert not np.allclose(restarted[k:], plain[k:])
+    # Frames k..2k-1 depend on the truth only through its frame k - 1.
+    other = truth.copy()
+    other[: k - 1] += 0.05
+    other[k:] += 0.05
+    again = model.animate(seq.motion, truth=other, restart_every=k).vertices
+    np.testing.assert_array_equal(again[k : 2 * k], restarted[k : 2 * k])
+    other[k - 1] += 0.05
+    moved = model.animate(seq.motion, truth=other, restart_every=k).vertices
+    assert not np.allclose(moved[k : 2 * k], restarted[k : 2 * k])
+    with pytest.raises(ValueError, match="truth"):
+        model.animate(seq.motion, truth=truth[:3], restart_every=k)

@@ -103,6 +103,8 @@ def rollout(
     floor_height: float,
     config: RolloutConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
+    truth: np.ndarray | None = None,
+    restart_every: int | None = None,
 ) -> RolloutResult:
     """Animate the garment through ``motion``.
 
@@ -114,6 +116,12 @@ def rollout(
         floor_height: the avatar's standing root height.
         config: the preroll and the divergence limit.
         progress: called as ``progress(done, total)`` every frame.
+        truth: (T, V, 3) world positions of the simulated garment on the motion's
+            frames; with ``restart_every``, a measurement of drift: every
+            ``restart_every`` motion frames the previous state is reset to the truth's
+            previous frame, so that every frame is predicted at most that many frames
+            after a true state (the GRU's state depends on the motion alone and runs on).
+        restart_every: frames between restarts (needs ``truth``).
 
     Returns:
         :class:`RolloutResult`.
@@ -132,8 +140,18 @@ def rollout(
     out = torch.empty(motion.num_frames, encoder.num_vertices, 3)
     hidden = encoder.initial_hidden(1, device)
     prev = rest_state[None].float()
+    if restart_every is not None:
+        if truth is None or restart_every < 1:
+            raise ValueError("restart_every needs truth and must be at least 1")
+        if truth.shape != (motion.num_frames, encoder.num_vertices, 3):
+            raise ValueError(f"truth: expected {(motion.num_frames, encoder.num_vertices, 3)}, "
+                             f"found {truth.shape}")  # fmt: skip
+        truth_t = torch.as_tensor(truth, dtype=torch.float32, device=device)
     t0 = time.perf_counter()
     for t in range(total):
+        m = t - P
+        if restart_every is not None and m > 0 and m % restart_every == 0:
+            prev = to_root_frame(truth_t[m - 1 : m], H[t - 1 : t], p[t - 1 : t])
         if t > 0:
             prev = change_frame(prev, H[t - 1 : t], p[t - 1 : t], H[t : t + 1], p[t : t + 1])
         z, hidden = encoder(feats[t : t + 1], prev, hidden)

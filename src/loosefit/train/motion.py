@@ -277,11 +277,12 @@ class AnimationModel:
             raise LoosefitInputError(f"motion '{motion.name}'", "rotations/root_translation",
                                      "finite numbers", "NaN or infinity")  # fmt: skip
 
-    def animate(self, motion: Motion, progress=None):
+    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None):
         """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first)."""
         self.check_motion(motion)
         return rollout(self.generative, self.encoder, motion, self.rest_state,
-                       self.floor_height, self.config.rollout, progress)  # fmt: skip
+                       self.floor_height, self.config.rollout, progress, truth,
+                       restart_every)  # fmt: skip
 
     def carry_drape(self, motion: Motion, progress=None):
         """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""
