@@ -32,6 +32,9 @@ for run in nops ps ps-teacher; do
 done
 for pid in "${pids[@]}"; do wait "$pid"; done
 "${ABL[@]}" --runs ps,nops,ps-teacher --table docs/MOTION_TABLE.md
+#    Drift on the same frames: rollouts restarted from the simulation every N frames against
+#    one unbroken rollout (Table 1's iter-N also changes which frames are scored).
+"$BIN/python" bench/motion_drift.py --data "$DATA" --runs "$RUNS/motion" --table docs/MOTION_DRIFT.md
 # 4. The shared pair: half precision, the motion stage pointing at the generative one beside it.
 "$BIN/loosefit" package "$RUNS/motion/ps/model.pt" --out checkpoints/salsa
 # 5. The committed pair on the held-out takes, chained (never seen in training), 1,957 frames,
