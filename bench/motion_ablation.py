@@ -35,6 +35,10 @@ RUNS = {
     "nops": ("w/o ps", dict(previous_state=False)),
     "ps": ("with ps (scheduled sampling, ours)", dict()),
     "ps-teacher": ("with ps, teacher forcing only", dict(previous="teacher")),
+    "ps-teacher-noise": (
+        "with ps, teacher forcing, 3 cm noise on the previous state",
+        dict(previous="teacher", previous_noise=0.03),
+    ),  # fmt: skip
 }
 
 

@@ -271,3 +271,14 @@ def test_restarts_reset_the_previous_state_to_the_truth(trained, toy_dataset):
     assert not np.allclose(moved[k : 2 * k], restarted[k : 2 * k])
     with pytest.raises(ValueError, match="truth"):
         model.animate(seq.motion, truth=truth[:3], restart_every=k)
+
+
+def test_noise_on_the_previous_state(toy_dataset, generative, skirt, tmp_path):
+    with pytest.raises(LoosefitInputError, match="previous_noise"):
+        _config(previous_noise=-0.01)
+    kw = dict(epochs=2, previous="teacher")
+    _train(toy_dataset, generative, skirt, tmp_path / "a", **kw)
+    _train(toy_dataset, generative, skirt, tmp_path / "b", previous_noise=0.03, **kw)
+    a, b = (torch.load(tmp_path / r / "checkpoint.pt", weights_only=False)["model"]
+            for r in "ab")  # fmt: skip
+    assert any(not torch.equal(a[k], b[k]) for k in a)  # the noise reaches the training

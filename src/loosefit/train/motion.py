@@ -88,6 +88,9 @@ class TrainMotionConfig:
     previous: str = "scheduled"  # "scheduled" (sampling, see the module) or "teacher"
     teacher_start: float = 1.0  # probability of a ground-truth previous state at epoch 0
     teacher_fraction: float = 0.5  # ... falling to 0 over this fraction of the epochs
+    # m, std of Gaussian noise on every vertex of a ground-truth previous state (0: none):
+    # teaches the encoder to use a previous state that is close to, but not, the truth
+    previous_noise: float = 0.0
     checkpoint_every: int = 5  # epochs
     eval_every: int = 10  # epochs; held-out rollout errors into TensorBoard
     max_frames: int | None = None  # per clip, for quick runs
@@ -98,6 +101,9 @@ class TrainMotionConfig:
         if self.previous not in ("scheduled", "teacher"):
             raise LoosefitInputError("TrainMotionConfig", "previous", "scheduled or teacher",
                                      repr(self.previous))  # fmt: skip
+        if not self.previous_noise >= 0:
+            raise LoosefitInputError("TrainMotionConfig", "previous_noise", "metres >= 0",
+                                     self.previous_noise)  # fmt: skip
         if not (isinstance(self.window, int) and self.window >= 1):
             raise LoosefitInputError("TrainMotionConfig", "window", "an integer >= 1", self.window)
 
@@ -497,6 +503,7 @@ def run_window(
     teacher: float,
     loss: MotionLossConfig,
     generator: torch.Generator | None = None,
+    noise: float = 0.0,
 ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
     """Frames ``start:stop`` of stacked clips: the loss and the state to carry on.
 
@@ -508,7 +515,8 @@ def run_window(
         previous: (B, V, 3) the garment of frame ``start - 1`` in its root frame.
         teacher: the chance that a frame's previous state is the ground truth.
         loss: the weights.
-        generator: draws the teacher choices.
+        generator: draws the teacher choices (and the noise).
+        noise: std (m) of Gaussian noise added to a ground-truth previous state.
 
     Returns:
         The loss terms (means over the window's valid frames; ``total``
@@ -547,6 +555,8 @@ def run_window(
             use = (torch.rand(B, generator=generator) < teacher) & valid
             if use.any():
                 gt = batch["target"][torch.arange(B), k]
+                if noise > 0:
+                    gt = gt + noise * torch.randn(gt.shape, generator=generator)
                 previous = torch.where(use[:, None, None], gt, previous)
     terms = {k: v / max(count, 1) for k, v in sums.items()}
     terms = {k: (v if torch.is_tensor(v) else torch.tensor(v)) for k, v in terms.items()}
@@ -668,7 +678,7 @@ def train_motion(
                 stop = min(start + config.window, int(batch["length"].max()))
                 terms, hidden, previous = run_window(
                     encoder, gmodel, lap, batch, start, stop, hidden, previous, teacher,
-                    config.loss, gen,
+                    config.loss, gen, config.previous_noise,
                 )  # fmt: skip
                 if not terms["total"].requires_grad:
                     continue  # a window with no motion frame (all preroll)
