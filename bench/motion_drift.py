@@ -29,6 +29,7 @@ RUNS = {
     "ps": "with ps (scheduled sampling, ours)",
     "nops": "w/o ps",
     "ps-teacher": "with ps, teacher forcing only",
+    "ps-teacher-noise": "with ps, teacher forcing, 3 cm noise on the previous state",
 }
 EVERY = (1, 100, 500, 1200, None)
 
