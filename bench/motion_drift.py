@@ -18,19 +18,12 @@ import argparse
 import platform
 from pathlib import Path
 
-import numpy as np
 import torch
+from motion_ablation import RUNS  # the Table 1 runs (bench/ is on the path of a script)
 
 from loosefit.data.format import DatasetReader
-from loosefit.eval.metrics import rmse_per_frame
-from loosefit.train.motion import load_animation_model
+from loosefit.train.motion import evaluate_rollouts, load_animation_model
 
-RUNS = {
-    "ps": "with ps (scheduled sampling, ours)",
-    "nops": "w/o ps",
-    "ps-teacher": "with ps, teacher forcing only",
-    "ps-teacher-noise": "with ps, teacher forcing, 3 cm noise on the previous state",
-}
 EVERY = (1, 100, 500, 1200, None)
 
 
@@ -44,10 +37,24 @@ def main() -> None:
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     reader = DatasetReader(args.data)
-    clips = {name: reader.read(name) for name in reader.split("test")}
+    rows, frames = [], 0
+    for key, (label, _) in RUNS.items():
+        path = Path(args.runs) / key / "model.pt"
+        if not path.is_file():
+            print(f"skipping {key}: no {path}")
+            continue
+        model = load_animation_model(path)
+        errors = {}
+        for every in EVERY:
+            result = evaluate_rollouts(model, reader, "test", surface=False, restart_every=every)
+            errors[every], frames = result["rmse_cm"], result["frames"]
+            print(f"{key}: N = {every}: {errors[every]:.3f} cm", flush=True)
+        cells = [f"{errors[e]:.3f}" for e in EVERY]
+        cells += [f"{100 * (errors[e] / errors[100] - 1):+.1f}%" for e in (1200, None)]
+        rows.append(f"| {label} | " + " | ".join(cells) + " |")
     lines = [
-        f"Held-out clips of `{Path(args.data).name}` ({', '.join(clips)}): RMSE (cm) over all "
-        f"{sum(s.motion.num_frames for s in clips.values())} frames of rollouts restarted "
+        f"Held-out clips of `{Path(args.data).name}` ({', '.join(reader.split('test'))}): "
+        f"RMSE (cm) over all {frames} frames of rollouts restarted "
         "from the simulated garment every N frames (every frame is predicted at most N "
         "frames after a true state), against one unbroken rollout. The same frames in every "
         "column: the difference is drift alone. N = 1 gives every frame the true previous "
@@ -57,25 +64,7 @@ def main() -> None:
         "| unbroken vs 100 |",
         "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
-    for key, label in RUNS.items():
-        path = Path(args.runs) / key / "model.pt"
-        if not path.is_file():
-            print(f"skipping {key}: no {path}")
-            continue
-        model = load_animation_model(path)
-        errors = {}
-        for every in EVERY:
-            sq = []
-            for seq in clips.values():
-                truth = seq.garment_vertices.astype(np.float32)
-                kw = {} if every is None else dict(truth=truth, restart_every=every)
-                pred = model.animate(seq.motion, **kw).vertices
-                sq.append((100 * rmse_per_frame(pred, truth)) ** 2)
-            errors[every] = float(np.sqrt(np.concatenate(sq).mean()))
-            print(f"{key}: N = {every}: {errors[every]:.3f} cm", flush=True)
-        cells = [f"{errors[e]:.3f}" for e in EVERY]
-        cells += [f"{100 * (errors[e] / errors[100] - 1):+.1f}%" for e in (1200, None)]
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    lines += rows
     lines += ["", f"Machine: {platform.machine()}, torch {torch.__version__}, cpu."]
     text = "\n".join(lines) + "\n"
     print(text)

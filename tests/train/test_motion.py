@@ -271,6 +271,11 @@ def test_restarts_reset_the_previous_state_to_the_truth(trained, toy_dataset):
     assert not np.allclose(moved[k : 2 * k], restarted[k : 2 * k])
     with pytest.raises(ValueError, match="truth"):
         model.animate(seq.motion, truth=truth[:3], restart_every=k)
+    # Scored like a rollout: no restart within the clip is the plain rollout's score.
+    reader = DatasetReader(toy_dataset)
+    score = {n: tm.evaluate_rollouts(model, reader, "test", surface=False, restart_every=n)
+             for n in (None, 16, k)}  # fmt: skip
+    assert score[16]["rmse_cm"] == score[None]["rmse_cm"] != score[k]["rmse_cm"]
 
 
 def test_noise_on_the_previous_state(toy_dataset, generative, skirt, tmp_path):

@@ -410,6 +410,7 @@ def evaluate_rollouts(
     surface: bool = True,
     max_frames: int | None = None,
     reference: bool = False,
+    restart_every: int | None = None,
 ) -> dict:
     """Roll every clip of a split out from its first frame and compare with the simulation.
 
@@ -423,6 +424,9 @@ def evaluate_rollouts(
         max_frames: roll out at most this many frames per clip.
         reference: score the settled drape carried by the root
             (:meth:`AnimationModel.carry_drape`) instead of the model's rollout.
+        restart_every: reset the rollout's previous state to the simulated garment
+            every this many frames (:func:`~loosefit.model.rollout.rollout`'s
+            ``truth``), to measure drift on the same frames.
 
     Returns:
         Per clip: frames, RMSE (cm) over the clip and per horizon, the RMSE of
@@ -434,8 +438,14 @@ def evaluate_rollouts(
     for name in reader.split(split):
         seq = reader.read(name)
         motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        result = model.carry_drape(motion) if reference else model.animate(motion)
-        pred, true = result.vertices, seq.garment_vertices[: motion.num_frames]
+        true = seq.garment_vertices[: motion.num_frames]
+        if reference:
+            result = model.carry_drape(motion)
+        elif restart_every is not None:
+            result = model.animate(motion, truth=true, restart_every=restart_every)
+        else:
+            result = model.animate(motion)
+        pred = result.vertices
         per_frame = 100 * rmse_per_frame(pred, true)  # (T,) cm
         entry = {
             "frames": int(len(pred)),
