@@ -42,3 +42,6 @@ for pid in "${pids[@]}"; do wait "$pid"; done
 "$BIN/loosefit" animate checkpoints/salsa/motion.pt \
     "$BVH/60_03.bvh+$BVH/60_07.bvh+$BVH/61_03.bvh+$BVH/61_07.bvh" \
     --start-frame 10 --out out/salsa-heldout --render --png-every 100
+# 6. The figures docs/MOTION.md cites for the committed pair: error by stretch of motion, edge
+#    strain, vertices inside the body.
+"$BIN/python" bench/motion_quality.py --checkpoint checkpoints/salsa/motion.pt --data "$DATA"
