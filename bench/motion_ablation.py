@@ -39,6 +39,14 @@ RUNS = {
         "with ps, teacher forcing, 3 cm noise on the previous state",
         dict(previous="teacher", previous_noise=0.03),
     ),  # fmt: skip
+    "ps-unroll": (
+        "with ps, scheduled sampling, unrolled through its own predictions",
+        dict(unroll=True),
+    ),
+    "ps-floor": (
+        "with ps, scheduled sampling to 20 % ground truth",
+        dict(teacher_end=0.2),
+    ),
 }
 
 

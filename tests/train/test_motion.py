@@ -287,3 +287,47 @@ def test_noise_on_the_previous_state(toy_dataset, generative, skirt, tmp_path):
     a, b = (torch.load(tmp_path / r / "checkpoint.pt", weights_only=False)["model"]
             for r in "ab")  # fmt: skip
     assert any(not torch.equal(a[k], b[k]) for k in a)  # the noise reaches the training
+
+
+def test_teacher_schedule_falls_to_its_floor():
+    cfg = _config(epochs=10, teacher_fraction=0.5, teacher_end=0.2)
+    p = [cfg.teacher_probability(e) for e in range(10)]
+    assert p[0] == 1.0 and p[5:] == [0.2] * 5
+    assert all(a > b for a, b in zip(p[:5], p[1:6], strict=True))  # falling linearly to the floor
+    assert _config(epochs=10).teacher_probability(9) == 0.0  # default: pure rollout at the end
+    assert _config(previous="teacher", teacher_end=0.2).teacher_probability(11) == 1.0
+    for bad in (dict(teacher_end=-0.1), dict(teacher_start=0.5, teacher_end=0.6)):
+        with pytest.raises(LoosefitInputError, match="teacher_end"):
+            _config(**bad)
+
+
+def test_unrolled_training_differentiates_through_its_own_predictions(trained, toy_dataset,
+                                                                       skirt):  # fmt: skip
+    out, _ = trained
+    model = tm.load_animation_model(out / "model.pt")
+    reader = DatasetReader(toy_dataset)
+    clips = tm.prepare_clips(reader, "train", model.generative, model.floor_height,
+                             model.config.rollout)  # fmt: skip
+    batch = tm._stack(clips)
+    batch["features"] = batch["features"].clone().requires_grad_(True)
+    enc = model.encoder.train()
+    lap = Laplacian(skirt.faces, skirt.num_vertices)
+    prev = model.rest_state[None].expand(2, -1, -1)
+
+    def grads(teacher: float, unroll: bool, start: int = 0, stop: int = 20):
+        hidden = enc.initial_hidden(2)
+        terms, _, carried = tm.run_window(enc, model.generative, lap, batch, start, stop,
+                                          hidden, prev, teacher, model.config.loss,
+                                          unroll=unroll)  # fmt: skip
+        assert not carried.requires_grad  # the next window starts detached either way
+        return terms["total"], torch.autograd.grad(terms["total"], batch["features"])[0]
+
+    (l0, g0), (l1, g1) = grads(0.0, False), grads(0.0, True)
+    assert torch.allclose(l0, l1)  # the same forward pass ...
+    assert not torch.allclose(g0, g1)  # ... with gradients through the fed-back predictions
+    first = int(batch["preroll"].max())  # ground truth exists from each clip's motion on
+    assert first + 10 <= int(batch["length"].min())
+    (_, g0), (_, g1) = grads(1.0, False, first, first + 10), grads(1.0, True, first, first + 10)
+    assert torch.equal(g0, g1)  # ground truth fed back: nothing to unroll
+    _, g = grads(0.0, True, 10, 20)
+    assert g[:, :10].abs().max() == 0 and g[:, 10:20].abs().max() > 0  # still within the window

@@ -14,10 +14,13 @@ backpropagation through time: the GRU state and the previous garment carry
 over between windows, detached), and the previous state of each frame is the
 ground truth with probability ``p`` and the encoder's own last prediction
 otherwise (scheduled sampling, Bengio et al. 2015). ``p`` falls linearly from
-``teacher_start`` to 0 over the first ``teacher_fraction`` of the epochs, so
-the rest of training is pure rollout. ``previous="teacher"`` keeps ``p = 1``
-(for comparison); the previous state is always an input, never differentiated
-through.
+``teacher_start`` to ``teacher_end`` (default 0: the rest of training is pure
+rollout) over the first ``teacher_fraction`` of the epochs.
+``previous="teacher"`` keeps ``p = 1`` (for comparison). By default the
+previous state is an input, never differentiated through; ``unroll=True``
+keeps the encoder's own predictions in the graph within a window, so the loss
+of a frame also trains the predictions that fed it (unrolled training, as for
+learned simulators).
 """
 
 from __future__ import annotations
@@ -87,7 +90,11 @@ class TrainMotionConfig:
     grad_clip: float = 10.0  # max gradient norm per step
     previous: str = "scheduled"  # "scheduled" (sampling, see the module) or "teacher"
     teacher_start: float = 1.0  # probability of a ground-truth previous state at epoch 0
-    teacher_fraction: float = 0.5  # ... falling to 0 over this fraction of the epochs
+    teacher_fraction: float = 0.5  # ... falling to teacher_end over this fraction of the epochs
+    teacher_end: float = 0.0  # ... and staying there for the rest of training
+    # differentiate the loss through the encoder's own previous predictions within a window
+    # (unrolled training), so it learns to correct what it fed itself, not only to use it
+    unroll: bool = False
     # m, std of Gaussian noise on every vertex of a ground-truth previous state (0: none):
     # teaches the encoder to use a previous state that is close to, but not, the truth
     previous_noise: float = 0.0
@@ -101,6 +108,10 @@ class TrainMotionConfig:
         if self.previous not in ("scheduled", "teacher"):
             raise LoosefitInputError("TrainMotionConfig", "previous", "scheduled or teacher",
                                      repr(self.previous))  # fmt: skip
+        if not (0.0 <= self.teacher_end <= self.teacher_start <= 1.0):
+            raise LoosefitInputError("TrainMotionConfig", "teacher_start, teacher_end",
+                                     "0 <= teacher_end <= teacher_start <= 1",
+                                     (self.teacher_start, self.teacher_end))  # fmt: skip
         if not self.previous_noise >= 0:
             raise LoosefitInputError("TrainMotionConfig", "previous_noise", "metres >= 0",
                                      self.previous_noise)  # fmt: skip
@@ -143,9 +154,10 @@ class TrainMotionConfig:
         if self.previous == "teacher":
             return 1.0
         span = self.teacher_fraction * self.epochs
-        if span <= 0:
-            return 0.0
-        return float(max(0.0, self.teacher_start * (1.0 - epoch / span)))
+        if span <= 0 or epoch >= span:
+            return float(self.teacher_end)
+        a, b = self.teacher_start, self.teacher_end
+        return float(a + (b - a) * epoch / span)
 
 
 # -- the data ------------------------------------------------------------------------
@@ -514,6 +526,7 @@ def run_window(
     loss: MotionLossConfig,
     generator: torch.Generator | None = None,
     noise: float = 0.0,
+    unroll: bool = False,
 ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
     """Frames ``start:stop`` of stacked clips: the loss and the state to carry on.
 
@@ -527,6 +540,9 @@ def run_window(
         loss: the weights.
         generator: draws the teacher choices (and the noise).
         noise: std (m) of Gaussian noise added to a ground-truth previous state.
+        unroll: keep the encoder's own prediction, fed back as the next frame's
+            previous state, in the graph (within this window; it is detached at the
+            window's start like the GRU state).
 
     Returns:
         The loss terms (means over the window's valid frames; ``total``
@@ -560,7 +576,7 @@ def run_window(
             )
             sums["latent"] = sums["latent"] + n * loss.latent * (zp - zt).pow(2).sum(-1).mean()
             count += n
-        previous = v.detach()
+        previous = v if unroll else v.detach()
         if teacher > 0:
             use = (torch.rand(B, generator=generator) < teacher) & valid
             if use.any():
@@ -571,7 +587,7 @@ def run_window(
     terms = {k: v / max(count, 1) for k, v in sums.items()}
     terms = {k: (v if torch.is_tensor(v) else torch.tensor(v)) for k, v in terms.items()}
     terms["total"] = terms["geometry"] + terms["laplacian"] + terms["latent"]
-    return terms, hidden.detach(), previous
+    return terms, hidden.detach(), previous.detach()
 
 
 def train_motion(
@@ -688,7 +704,7 @@ def train_motion(
                 stop = min(start + config.window, int(batch["length"].max()))
                 terms, hidden, previous = run_window(
                     encoder, gmodel, lap, batch, start, stop, hidden, previous, teacher,
-                    config.loss, gen, config.previous_noise,
+                    config.loss, gen, config.previous_noise, config.unroll,
                 )  # fmt: skip
                 if not terms["total"].requires_grad:
                     continue  # a window with no motion frame (all preroll)
