@@ -33,12 +33,14 @@ def main() -> None:
     p.add_argument("--runs", default="runs/salsa/motion", help="folder of the Table 1 runs")
     p.add_argument("--table", default=None, help="write the table here (Markdown)")
     p.add_argument("--threads", type=int, default=0)
+    p.add_argument("--only", default=",".join(RUNS), help=f"which of {list(RUNS)}")
     args = p.parse_args()
     if args.threads > 0:
         torch.set_num_threads(args.threads)
     reader = DatasetReader(args.data)
     rows, frames = [], 0
-    for key, (label, _) in RUNS.items():
+    for key in args.only.split(","):
+        label = RUNS[key][0]
         path = Path(args.runs) / key / "model.pt"
         if not path.is_file():
             print(f"skipping {key}: no {path}")

@@ -1,7 +1,8 @@
 """Figures behind docs/MOTION.md's reading of Table 1 and its limits, for a motion checkpoint.
 
-On the held-out clips: the RMSE over successive 100-frame blocks of the rollout and of the
-reference (the rest drape carried by the root: how hard each stretch of motion is), and the
+On the held-out clips: the RMSE over successive 100-frame blocks of the rollout, of the
+reference (the rest drape carried by the root: how hard each stretch of motion is) and of
+the oracle (the generative model's own code of the simulation, decoded: the floor), and the
 edge strain of the rollout against the simulation's. On the procedural spin (first 40
 frames, as in tests/test_checkpoints.py): the largest share of vertices inside the body::
 
@@ -34,8 +35,9 @@ def main() -> None:
         seq = reader.read(name)
         truth = seq.garment_vertices
         pred = model.animate(seq.motion).vertices
-        print(f"{name}: RMSE (cm) per {args.block}-frame block, rollout / reference")
-        for label, v in (("rollout", pred), ("reference", model.carry_drape(seq.motion).vertices)):
+        print(f"{name}: RMSE (cm) per {args.block}-frame block, rollout / reference / oracle")
+        for label, v in (("rollout", pred), ("reference", model.carry_drape(seq.motion).vertices),
+                         ("oracle", model.reconstruct(seq.motion, truth).vertices)):  # fmt: skip
             per = 100 * rmse_per_frame(v, truth)
             blocks = [np.sqrt(np.mean(per[i : i + args.block] ** 2))
                       for i in range(0, len(per), args.block)]  # fmt: skip

@@ -194,3 +194,42 @@ def carried_drape(
     rest = rest_state.detach().float().cpu()[None].expand(len(H), -1, -1)
     out = from_root_frame(rest, H, p)
     return RolloutResult(out.numpy(), time.perf_counter() - t0, int(len(rot)))
+
+
+@torch.no_grad()
+def reconstruction(
+    generative: GarmentGenerativeModel,
+    motion: Motion,
+    truth: np.ndarray,
+    floor_height: float,
+    config: RolloutConfig | None = None,
+    chunk: int = 128,
+) -> RolloutResult:
+    """The simulated garment through the generative model: its own code Z*, decoded.
+
+    Not a model either: the floor under any motion encoder's error, since a motion
+    encoder can do no better than map each frame to the code the generative encoder
+    gives the simulated garment (Eq. 12's Z*) and the frozen decoders decode it.
+
+    Args:
+        generative: the generative stage.
+        motion: T frames (only the root frames matter).
+        truth: (T, V, 3) the simulated garment, world positions.
+        floor_height, config: as in a rollout (the root frames of the motion frames).
+        chunk: frames per network call.
+
+    Returns:
+        :class:`RolloutResult` with (T, V, 3) world positions.
+    """
+    config = config or RolloutConfig()
+    t0 = time.perf_counter()
+    rot, root, P = timeline(motion, floor_height, config)
+    H, p = (a.float() for a in root_frames(rot[P:].double(), root[P:].double()))
+    dev = next(generative.parameters()).device
+    local = to_root_frame(torch.as_tensor(truth, dtype=torch.float32), H, p)
+    out = []
+    for s in range(0, len(local), chunk):
+        mu = generative.encode(local[s : s + chunk].to(dev))[0]
+        out.append(generative.decode(mu)["vertices"].cpu())
+    world = from_root_frame(torch.cat(out), H, p)
+    return RolloutResult(world.numpy(), time.perf_counter() - t0, int(len(local)))

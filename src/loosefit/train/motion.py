@@ -47,6 +47,7 @@ from loosefit.model.rollout import (
     RolloutConfig,
     carried_drape,
     change_frame,
+    reconstruction,
     rollout,
     timeline,
 )
@@ -307,6 +308,12 @@ class AnimationModel:
         self.check_motion(motion)
         return carried_drape(motion, self.rest_state, self.floor_height, self.config.rollout)
 
+    def reconstruct(self, motion: Motion, truth: np.ndarray):
+        """:func:`~loosefit.model.rollout.reconstruction`: the floor under the encoder's error."""
+        self.check_motion(motion)
+        return reconstruction(self.generative, motion, truth, self.floor_height,
+                              self.config.rollout)  # fmt: skip
+
 
 def _generative_path(path: Path, recorded: dict, generative: str | Path | None) -> Path:
     """The generative checkpoint of a motion checkpoint: given, or the one it records."""
@@ -423,6 +430,7 @@ def evaluate_rollouts(
     max_frames: int | None = None,
     reference: bool = False,
     restart_every: int | None = None,
+    oracle: bool = False,
 ) -> dict:
     """Roll every clip of a split out from its first frame and compare with the simulation.
 
@@ -439,6 +447,9 @@ def evaluate_rollouts(
         restart_every: reset the rollout's previous state to the simulated garment
             every this many frames (:func:`~loosefit.model.rollout.rollout`'s
             ``truth``), to measure drift on the same frames.
+        oracle: score the generative model's reconstruction of the simulated
+            garment (:meth:`AnimationModel.reconstruct`) instead: the floor under
+            the motion encoder's error.
 
     Returns:
         Per clip: frames, RMSE (cm) over the clip and per horizon, the RMSE of
@@ -453,6 +464,8 @@ def evaluate_rollouts(
         true = seq.garment_vertices[: motion.num_frames]
         if reference:
             result = model.carry_drape(motion)
+        elif oracle:
+            result = model.reconstruct(motion, true)
         elif restart_every is not None:
             result = model.animate(motion, truth=true, restart_every=restart_every)
         else:
