@@ -20,21 +20,28 @@ MOTION_EPOCHS=${MOTION_EPOCHS:-40}
 "$BIN/loosefit" train generative --data "$DATA" --preset cpu --epochs "$GEN_EPOCHS" \
     --out "$RUNS/generative"
 mkdir -p "$RUNS/motion"
-# 3. The motion encoder with and without the previous state, and with the previous state
-#    trained by teacher forcing only (the measurement behind scheduled sampling), one thread
-#    each, side by side; then Table 1 (paper 3.3, 4.3) from the three runs, with the rest
-#    drape carried by the root as the reference row.
+# 3. The motion encoder with and without the previous state, and the runs that test how the
+#    previous state is trained (teacher forcing only, with noise, unrolled, a floor under
+#    scheduled sampling, twice the epochs): bench/motion_ablation.py's RUNS, one thread each,
+#    three side by side; then Table 1 (paper 3.3, 4.3) from all of them, with the rest drape
+#    carried by the root (no dynamics) and the generative model's own code of the simulation
+#    (the floor) as reference rows.
 ABL=("$BIN/python" bench/motion_ablation.py --data "$DATA" --preset cpu
      --generative "$RUNS/generative/checkpoint.pt" --epochs "$MOTION_EPOCHS" --out "$RUNS/motion")
-pids=()
-for run in nops ps ps-teacher; do
-  "${ABL[@]}" --runs "$run" --threads 1 --no-table > "$RUNS/motion/$run.log" 2>&1 & pids+=($!)
+ALL=ps,nops,ps-teacher,ps-teacher-noise,ps-unroll,ps-floor,nops-80,ps-floor-80
+IFS=, read -ra runs <<< "$ALL"
+for ((i = 0; i < ${#runs[@]}; i += 3)); do
+  pids=()
+  for run in "${runs[@]:i:3}"; do
+    "${ABL[@]}" --runs "$run" --threads 1 --no-table > "$RUNS/motion/$run.log" 2>&1 & pids+=($!)
+  done
+  for pid in "${pids[@]}"; do wait "$pid"; done
 done
-for pid in "${pids[@]}"; do wait "$pid"; done
-"${ABL[@]}" --runs ps,nops,ps-teacher --table docs/MOTION_TABLE.md
+"${ABL[@]}" --runs "$ALL" --table docs/MOTION_TABLE.md
 #    Drift on the same frames: rollouts restarted from the simulation every N frames against
 #    one unbroken rollout (Table 1's iter-N also changes which frames are scored).
-"$BIN/python" bench/motion_drift.py --data "$DATA" --runs "$RUNS/motion" --table docs/MOTION_DRIFT.md
+"$BIN/python" bench/motion_drift.py --data "$DATA" --runs "$RUNS/motion" --only "$ALL" \
+    --table docs/MOTION_DRIFT.md
 # 4. The shared pair: half precision, the motion stage pointing at the generative one beside it.
 "$BIN/loosefit" package "$RUNS/motion/ps/model.pt" --out checkpoints/salsa
 # 5. The committed pair on the held-out takes, chained (never seen in training), 1,957 frames,
