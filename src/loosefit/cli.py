@@ -335,6 +335,7 @@ def _train_motion(args: argparse.Namespace) -> int:
         args.preset, epochs=args.epochs, device=args.device, max_frames=args.max_frames,
         batch_size=args.batch_size, lr=args.lr, previous=args.previous,
         previous_state=False if args.no_previous_state else None,
+        mirror=True if args.mirror else None,
     )  # fmt: skip
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
@@ -611,6 +612,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("scheduled", "teacher"),
         help="motion: previous states by scheduled sampling (default) or ground truth",
     )
+    p.add_argument(
+        "--mirror",
+        action="store_true",
+        help="motion: also train on every clip mirrored left-right (twice the data, no "
+        "simulation; the garment must be mirror-symmetric)",
+    )
     p.add_argument("--data", default="datasets/demo", help="a dataset folder")
     p.add_argument("--preset", default="cpu", help="cpu (about 20 CPU minutes) or full (GPU)")
     p.add_argument("--decoder", default="decomposed", help="generative: decomposed, vertex or ssdr")
@@ -627,7 +634,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "inputs", nargs="+", metavar="[CHECKPOINT] MOTION",
         help="a motion run's model.pt or checkpoint.pt (default: the pretrained pair in "
-        "checkpoints/salsa), then a .bvh or .npz motion, a procedural move, or dance:SECONDS",
+        "checkpoints/salsa), then a .bvh or .npz motion, a procedural move, or dance:SECONDS "
+        "(mirror:MOTION mirrors one left-right; A+B plays one after another)",
     )  # fmt: skip
     _add_generative_arg(p)
     p.add_argument(

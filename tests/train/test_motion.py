@@ -178,11 +178,13 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     data = ["--data", str(toy_dataset), "--preset", "cpu", "--epochs", "1", "--max-frames", "8"]
     assert main(["train", "generative", *data, "--out", str(gen_run)]) == 0
     gen = str(gen_run / "checkpoint.pt")
-    assert main(["train", "motion", *data, "--generative", gen, "--out", str(run)]) == 0
+    assert main(["train", "motion", *data, "--generative", gen, "--out", str(run),
+                 "--mirror"]) == 0  # fmt: skip
     assert (run / "model.pt").is_file() and (run / "rest_state.npy").is_file()
+    assert torch.load(run / "model.pt", weights_only=False)["config"]["mirror"] is True
 
     out = tmp_path / "anim"
-    args = ["animate", str(run / "model.pt"), "sway", "--frames", "150", "--out", str(out)]
+    args = ["animate", str(run / "model.pt"), "mirror:sway", "--frames", "150", "--out", str(out)]
     assert main(args) == 0
     reader = DatasetReader(out)
     seq = reader.read(reader.split("test")[0])
@@ -349,3 +351,24 @@ def test_unrolled_training_differentiates_through_its_own_predictions(trained, t
     assert torch.equal(g0, g1)  # ground truth fed back: nothing to unroll
     _, g = grads(0.0, True, 10, 20)
     assert g[:, :10].abs().max() == 0 and g[:, 10:20].abs().max() > 0  # still within the window
+
+
+def test_mirrored_clips_are_the_clips_mirrored(trained, toy_dataset):
+    from loosefit.body.mirror import REFLECT, mirror_garment, vertex_twins
+
+    out, _ = trained
+    model = tm.load_animation_model(out / "model.pt")
+    reader = DatasetReader(toy_dataset)
+    args = (reader, "train", model.generative, model.floor_height, model.config.rollout)
+    plain, both = tm.prepare_clips(*args), tm.prepare_clips(*args, mirror=True)
+    assert [c.name for c in both] == [n for c in plain for n in (c.name, f"{c.name}~mirror")]
+    twins = vertex_twins(reader.template.vertices)
+    for c, m in zip(both[::2], both[1::2], strict=True):
+        # Root frames follow the mirror, so the targets in them are mirrored too.
+        np.testing.assert_allclose(m.target.numpy(), mirror_garment(c.target.numpy(), twins),
+                                   atol=1e-4)  # fmt: skip
+        np.testing.assert_allclose(m.motion.root_translation,
+                                   c.motion.root_translation @ REFLECT)  # fmt: skip
+        assert not torch.allclose(m.features, c.features)  # a different dance for the encoder
+    with pytest.raises(LoosefitInputError, match="mirror"):
+        tm.TrainMotionConfig.preset("cpu", mirror="yes")

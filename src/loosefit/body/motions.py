@@ -10,6 +10,7 @@ from pathlib import Path
 from loosefit.body.avatar import Avatar
 from loosefit.body.bvh import read_bvh
 from loosefit.body.chain import chain_motions
+from loosefit.body.mirror import mirror_motion
 from loosefit.body.procedural import MOVES, named_motion, random_dance
 from loosefit.body.resample import resample_motion
 from loosefit.body.retarget import RetargetConfig, retarget_bvh
@@ -33,8 +34,10 @@ def load_motion(
     Args:
         spec: a ``.bvh`` file (retargeted), a ``.npz`` motion saved by
             :meth:`Motion.save`, a procedural move name (``spin``, ``walk``, ...),
-            ``dance`` (a random dance of 12 s), ``dance:SECONDS``, or several of
-            these joined by ``+``: played one after another as one motion
+            ``dance`` (a random dance of 12 s), ``dance:SECONDS``; any of these
+            behind ``mirror:``, danced left-right mirrored
+            (:func:`~loosefit.body.mirror.mirror_motion`); or several of these
+            joined by ``+``: played one after another as one motion
             (:func:`~loosefit.body.chain.chain_motions`, 0.5 s transitions).
         avatar: the avatar that the motion must fit.
         fps: the frame rate of the result.
@@ -56,7 +59,9 @@ def load_motion(
              for i, p in enumerate(parts)]
         )  # fmt: skip
         return motion if max_frames is None else motion.slice(0, max_frames)
-    if path.suffix.lower() == ".bvh":
+    if text.startswith("mirror:") and not path.exists():
+        motion = mirror_motion(load_motion(text[len("mirror:") :], avatar, fps, seed, retarget))
+    elif path.suffix.lower() == ".bvh":
         if not path.is_file():
             raise LoosefitInputError(path, "<file>", "an existing BVH file", "no such file")
         cfg = retarget or RetargetConfig()

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
@@ -96,6 +97,10 @@ class TrainMotionConfig:
     # differentiate the loss through the encoder's own previous predictions within a window
     # (unrolled training), so it learns to correct what it fed itself, not only to use it
     unroll: bool = False
+    # also train on every training clip mirrored left-right (the motion danced the other way
+    # round, the simulated garment reflected onto its twin vertices): twice the data for a
+    # mirror-symmetric garment, no simulation needed
+    mirror: bool = False
     # m, std of Gaussian noise on every vertex of a ground-truth previous state (0: none):
     # teaches the encoder to use a previous state that is close to, but not, the truth
     previous_noise: float = 0.0
@@ -113,6 +118,10 @@ class TrainMotionConfig:
             raise LoosefitInputError("TrainMotionConfig", "teacher_start, teacher_end",
                                      "0 <= teacher_end <= teacher_start <= 1",
                                      (self.teacher_start, self.teacher_end))  # fmt: skip
+        for name in ("unroll", "mirror"):
+            if not isinstance(getattr(self, name), bool):
+                raise LoosefitInputError("TrainMotionConfig", name, "true or false",
+                                         repr(getattr(self, name)))  # fmt: skip
         if not self.previous_noise >= 0:
             raise LoosefitInputError("TrainMotionConfig", "previous_noise", "metres >= 0",
                                      self.previous_noise)  # fmt: skip
@@ -200,22 +209,38 @@ def prepare_clips(
     floor_height: float,
     config: RolloutConfig,
     max_frames: int | None = None,
+    mirror: bool = False,
 ) -> list[Clip]:
-    """Every clip of a split on the rollout timeline, with its targets."""
+    """Every clip of a split on the rollout timeline, with its targets.
+
+    ``mirror`` adds each clip mirrored left-right (``NAME~mirror``): the motion by
+    :func:`~loosefit.body.mirror.mirror_motion`, the simulated garment reflected
+    about X = 0 onto its twin vertices (:func:`~loosefit.body.mirror.vertex_twins`;
+    the garment must be mirror-symmetric). Physics has no handedness, so that is
+    the simulation of the mirrored motion, up to the body's own asymmetry (mm).
+    """
     names = reader.split(split)
     if not names:
         raise LoosefitInputError(reader.root, f"split '{split}'", "at least one clip", "none")
+    twins = vertex_twins(reader.template.vertices) if mirror else None
     clips = []
     for name in names:
         seq = reader.read(name)
         motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        rot, root, P = timeline(motion, floor_height, config)
-        H, p = (a.float() for a in root_frames(rot.double(), root.double()))
-        g = torch.from_numpy(seq.garment_vertices[: motion.num_frames])
-        target = to_root_frame(g, H[P:], p[P:])
-        mu = torch.cat([generative.encode(target[s : s + 128])[0] for s in range(0, len(g), 128)])
-        clips.append(Clip(name, motion, motion_features(rot, root, motion.fps, floor_height),
-                          H, p, target, mu, P))  # fmt: skip
+        garment = seq.garment_vertices[: motion.num_frames]
+        versions = [(name, motion, garment)]
+        if mirror:
+            versions.append((f"{name}~mirror", mirror_motion(motion),
+                             mirror_garment(garment, twins)))  # fmt: skip
+        for label, m, v in versions:
+            rot, root, P = timeline(m, floor_height, config)
+            H, p = (a.float() for a in root_frames(rot.double(), root.double()))
+            target = to_root_frame(torch.from_numpy(np.ascontiguousarray(v, np.float32)),
+                                   H[P:], p[P:])  # fmt: skip
+            mu = torch.cat([generative.encode(target[s : s + 128])[0]
+                            for s in range(0, len(v), 128)])  # fmt: skip
+            clips.append(Clip(label, m, motion_features(rot, root, m.fps, floor_height),
+                              H, p, target, mu, P))  # fmt: skip
     return clips
 
 
@@ -651,7 +676,8 @@ def train_motion(
     gen = torch.Generator().manual_seed(config.seed)
     floor = float(reader.body["floor_height"])
     t0 = time.perf_counter()
-    train = prepare_clips(reader, "train", gmodel, floor, config.rollout, config.max_frames)
+    train = prepare_clips(reader, "train", gmodel, floor, config.rollout, config.max_frames,
+                          config.mirror)  # fmt: skip
     fps = train[0].motion.fps
     rest_path = out / "rest_state.npy"
     if rest_state is not None:
