@@ -78,16 +78,21 @@ def test_rollout_is_deterministic_and_on_the_motion(trained, toy_dataset):
     assert a.frames == 16 + 2 + 3 and a.frames_per_second > 0
 
 
-def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, generative, skirt):
-    out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
+def _windows(trained, toy_dataset, skirt):
+    """The trained toy model, its training clips stacked (features differentiable), a Laplacian."""
+    model = tm.load_animation_model(trained[0] / "model.pt")
     reader = DatasetReader(toy_dataset)
     clips = tm.prepare_clips(reader, "train", model.generative, model.floor_height,
                              model.config.rollout)  # fmt: skip
     batch = tm._stack(clips)
     batch["features"] = batch["features"].clone().requires_grad_(True)
-    enc = model.encoder.train()
-    lap = Laplacian(skirt.faces, skirt.num_vertices)
+    model.encoder.train()
+    return model, batch, Laplacian(skirt.faces, skirt.num_vertices)
+
+
+def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, skirt):
+    model, batch, lap = _windows(trained, toy_dataset, skirt)
+    enc = model.encoder
     hidden = enc.initial_hidden(2)
     prev = model.rest_state[None].expand(2, -1, -1)
     loss = model.config.loss
@@ -323,15 +328,8 @@ def test_teacher_schedule_falls_to_its_floor():
 
 def test_unrolled_training_differentiates_through_its_own_predictions(trained, toy_dataset,
                                                                        skirt):  # fmt: skip
-    out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
-    reader = DatasetReader(toy_dataset)
-    clips = tm.prepare_clips(reader, "train", model.generative, model.floor_height,
-                             model.config.rollout)  # fmt: skip
-    batch = tm._stack(clips)
-    batch["features"] = batch["features"].clone().requires_grad_(True)
-    enc = model.encoder.train()
-    lap = Laplacian(skirt.faces, skirt.num_vertices)
+    model, batch, lap = _windows(trained, toy_dataset, skirt)
+    enc = model.encoder
     prev = model.rest_state[None].expand(2, -1, -1)
 
     def grads(teacher: float, unroll: bool, start: int = 0, stop: int = 20):

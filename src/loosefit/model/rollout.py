@@ -56,6 +56,19 @@ def timeline(
     return rotations, roots, len(rot)
 
 
+def motion_root_frames(
+    motion: Motion, floor_height: float, config: RolloutConfig | None = None
+) -> tuple[torch.Tensor, torch.Tensor, int]:
+    """The root frames of the motion's own frames on the rollout timeline.
+
+    Returns:
+        H (T, 3, 3) headings and p (T, 3) origins, float32, and P, the frames before.
+    """
+    rot, root, P = timeline(motion, floor_height, config or RolloutConfig())
+    H, p = root_frames(rot[P:].double(), root[P:].double())
+    return H.float(), p.float(), P
+
+
 def change_frame(
     x: torch.Tensor, H0: torch.Tensor, p0: torch.Tensor, H1: torch.Tensor, p1: torch.Tensor
 ) -> torch.Tensor:
@@ -187,13 +200,11 @@ def carried_drape(
     Returns:
         :class:`RolloutResult` with (T, V, 3) world positions.
     """
-    config = config or RolloutConfig()
     t0 = time.perf_counter()
-    rot, root, P = timeline(motion, floor_height, config)
-    H, p = (a.float() for a in root_frames(rot[P:].double(), root[P:].double()))
+    H, p, P = motion_root_frames(motion, floor_height, config)
     rest = rest_state.detach().float().cpu()[None].expand(len(H), -1, -1)
     out = from_root_frame(rest, H, p)
-    return RolloutResult(out.numpy(), time.perf_counter() - t0, int(len(rot)))
+    return RolloutResult(out.numpy(), time.perf_counter() - t0, P + len(H))
 
 
 @torch.no_grad()
@@ -221,10 +232,8 @@ def reconstruction(
     Returns:
         :class:`RolloutResult` with (T, V, 3) world positions.
     """
-    config = config or RolloutConfig()
     t0 = time.perf_counter()
-    rot, root, P = timeline(motion, floor_height, config)
-    H, p = (a.float() for a in root_frames(rot[P:].double(), root[P:].double()))
+    H, p, _ = motion_root_frames(motion, floor_height, config)
     dev = next(generative.parameters()).device
     local = to_root_frame(torch.as_tensor(truth, dtype=torch.float32), H, p)
     out = []
