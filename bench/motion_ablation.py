@@ -49,6 +49,7 @@ RUNS = {
     ),
     # Twice the data: every training clip also mirrored left-right (no simulation needed)
     "ps-mirror": ("with ps (scheduled sampling), mirrored clips too", dict(mirror=True)),
+    "nops-mirror": ("w/o ps, mirrored clips too", dict(previous_state=False, mirror=True)),
     # Twice the epochs (the same 20-epoch ramp): does longer training change the ranking?
     "nops-80": ("w/o ps, 80 epochs", dict(previous_state=False, epochs=80)),
     "ps-floor-80": (

@@ -22,13 +22,13 @@ MOTION_EPOCHS=${MOTION_EPOCHS:-40}
 mkdir -p "$RUNS/motion"
 # 3. The motion encoder with and without the previous state, and the runs that test how the
 #    previous state is trained (teacher forcing only, with noise, unrolled, a floor under
-#    scheduled sampling, twice the epochs): bench/motion_ablation.py's RUNS, one thread each,
-#    three side by side; then Table 1 (paper 3.3, 4.3) from all of them, with the rest drape
-#    carried by the root (no dynamics) and the generative model's own code of the simulation
-#    (the floor) as reference rows.
+#    scheduled sampling, mirrored clips, twice the epochs): bench/motion_ablation.py's RUNS,
+#    one thread each, three side by side; then Table 1 (paper 3.3, 4.3) from all of them,
+#    with the rest drape carried by the root (no dynamics) and the generative model's own
+#    code of the simulation (the floor) as reference rows.
 ABL=("$BIN/python" bench/motion_ablation.py --data "$DATA" --preset cpu
      --generative "$RUNS/generative/checkpoint.pt" --epochs "$MOTION_EPOCHS" --out "$RUNS/motion")
-ALL=ps,nops,ps-teacher,ps-teacher-noise,ps-unroll,ps-floor,nops-80,ps-floor-80
+ALL=ps,nops,ps-teacher,ps-teacher-noise,ps-unroll,ps-floor,ps-mirror,nops-mirror,nops-80,ps-floor-80
 IFS=, read -ra runs <<< "$ALL"
 for ((i = 0; i < ${#runs[@]}; i += 3)); do
   pids=()
