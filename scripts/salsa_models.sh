@@ -43,7 +43,7 @@ done
 "$BIN/python" bench/motion_drift.py --data "$DATA" --runs "$RUNS/motion" --only "$ALL" \
     --table docs/MOTION_DRIFT.md
 # 4. The shared pair: half precision, the motion stage pointing at the generative one beside it.
-"$BIN/loosefit" package "$RUNS/motion/ps/model.pt" --out checkpoints/salsa
+"$BIN/loosefit" package "$RUNS/motion/ps-mirror/model.pt" --out checkpoints/salsa
 # 5. The committed pair on the held-out takes, chained (never seen in training), 1,957 frames,
 #    rendered to look at.
 "$BIN/loosefit" animate checkpoints/salsa/motion.pt \

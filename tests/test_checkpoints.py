@@ -44,7 +44,7 @@ def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
     assert np.percentile(strain, 99) < 1.0
     body = avatar.pose_motion(motion)
     inside = inside_fraction(vertices, body.vertices, avatar.collider_faces(arms=False))
-    # worn, not sunk into the legs: up to 7.5 % of the vertices graze inside the thighs on this
+    # worn, not sunk into the legs: up to 4 % of the vertices graze inside the thighs on this
     # spin; pushing them out is the collision stage's job (paper 3.5), not the rollout's
     assert inside.max() < 0.15
     # the waistband stays at the waist: within a few cm of where the rest drape carried by the
