@@ -99,6 +99,7 @@ def main() -> None:
     # (a rollout that does no better has learned nothing of the motion).
     # And the floor: the generative model's own code of the simulated garment (Z*), decoded,
     # the best any motion encoder can do through the frozen decoders.
+    model = None  # loaded once, if either row is not scored yet
     for name, kw, label in (
         ("reference", dict(reference=True),
          "reference: rest drape carried by the root, no dynamics"),
@@ -109,8 +110,9 @@ def main() -> None:
         if ref.is_file():
             result = json.loads(ref.read_text())
         else:
-            model = load_animation_model(Path(args.out) / args.runs.split(",")[0] / "model.pt",
-                                         args.generative)  # fmt: skip
+            model = model or load_animation_model(
+                Path(args.out) / args.runs.split(",")[0] / "model.pt", args.generative
+            )
             result = evaluate_rollouts(model, reader, "test", **kw)
             write_rollout_report(result, ref.parent, label[0].upper() + label[1:])
         rows.append((label, result, None))

@@ -69,6 +69,17 @@ def motion_root_frames(
     return H.float(), p.float(), P
 
 
+@torch.no_grad()
+def latent_codes(
+    generative: GarmentGenerativeModel, vertices: torch.Tensor, chunk: int = 128
+) -> torch.Tensor:
+    """(T, latent) the generative encoder's means (Z*) of garments (T, V, 3) in their root
+    frames, ``chunk`` frames per network call; on the CPU."""
+    dev = next(generative.parameters()).device
+    return torch.cat([generative.encode(vertices[s : s + chunk].to(dev))[0].cpu()
+                      for s in range(0, len(vertices), chunk)])  # fmt: skip
+
+
 def change_frame(
     x: torch.Tensor, H0: torch.Tensor, p0: torch.Tensor, H1: torch.Tensor, p1: torch.Tensor
 ) -> torch.Tensor:
@@ -236,9 +247,8 @@ def reconstruction(
     H, p, _ = motion_root_frames(motion, floor_height, config)
     dev = next(generative.parameters()).device
     local = to_root_frame(torch.as_tensor(truth, dtype=torch.float32), H, p)
-    out = []
-    for s in range(0, len(local), chunk):
-        mu = generative.encode(local[s : s + chunk].to(dev))[0]
-        out.append(generative.decode(mu)["vertices"].cpu())
+    mu = latent_codes(generative, local, chunk)
+    out = [generative.decode(mu[s : s + chunk].to(dev))["vertices"].cpu()
+           for s in range(0, len(mu), chunk)]  # fmt: skip
     world = from_root_frame(torch.cat(out), H, p)
     return RolloutResult(world.numpy(), time.perf_counter() - t0, int(len(local)))

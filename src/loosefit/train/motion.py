@@ -48,6 +48,7 @@ from loosefit.model.rollout import (
     RolloutConfig,
     carried_drape,
     change_frame,
+    latent_codes,
     reconstruction,
     rollout,
     timeline,
@@ -237,10 +238,8 @@ def prepare_clips(
             H, p = (a.float() for a in root_frames(rot.double(), root.double()))
             target = to_root_frame(torch.from_numpy(np.ascontiguousarray(v, np.float32)),
                                    H[P:], p[P:])  # fmt: skip
-            mu = torch.cat([generative.encode(target[s : s + 128])[0]
-                            for s in range(0, len(v), 128)])  # fmt: skip
             clips.append(Clip(label, m, motion_features(rot, root, m.fps, floor_height),
-                              H, p, target, mu, P))  # fmt: skip
+                              H, p, target, latent_codes(generative, target), P))  # fmt: skip
     return clips
 
 
