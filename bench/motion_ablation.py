@@ -56,6 +56,16 @@ RUNS = {
         "with ps, scheduled sampling to 20 % ground truth, 80 epochs",
         dict(teacher_end=0.2, teacher_fraction=0.25, epochs=80),
     ),
+    # Fewer inputs: only the spine and leg rotations (the arms, neck and head cannot move
+    # the skirt: they are not in the simulation's collider or out of its reach)
+    "ps-mirror-lower": (
+        "with ps (scheduled sampling), mirrored clips too, spine and leg joints only",
+        dict(mirror=True, joints="lower"),
+    ),
+    "nops-mirror-lower": (
+        "w/o ps, mirrored clips too, spine and leg joints only",
+        dict(previous_state=False, mirror=True, joints="lower"),
+    ),
 }
 
 

@@ -335,7 +335,7 @@ def _train_motion(args: argparse.Namespace) -> int:
         args.preset, epochs=args.epochs, device=args.device, max_frames=args.max_frames,
         batch_size=args.batch_size, lr=args.lr, previous=args.previous,
         previous_state=False if args.no_previous_state else None,
-        mirror=True if args.mirror else None,
+        mirror=True if args.mirror else None, joints=args.joints,
     )  # fmt: skip
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
@@ -617,6 +617,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="motion: also train on every clip mirrored left-right (twice the data, no "
         "simulation; the garment must be mirror-symmetric)",
+    )
+    p.add_argument(
+        "--joints",
+        default=None,
+        choices=("all", "lower"),
+        help="motion: the joints whose rotations the encoder sees: all (default) or lower "
+        "(spine and legs, what moves the skin a skirt touches)",
     )
     p.add_argument("--data", default="datasets/demo", help="a dataset folder")
     p.add_argument("--preset", default="cpu", help="cpu (about 20 CPU minutes) or full (GPU)")

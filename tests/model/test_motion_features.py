@@ -5,11 +5,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 import torch
 
 from loosefit.body.motions import load_motion
+from loosefit.errors import LoosefitInputError
 from loosefit.model.frames import heading_frames
+from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import (
+    LOWER_BODY_JOINTS,
+    feature_joints,
     motion_features,
     num_features,
     root_frames,
@@ -59,3 +64,35 @@ def test_root_frames_match_the_skinning_heading(avatar):
     H, p = root_frames(torch.from_numpy(m.rotations), torch.from_numpy(m.root_translation))
     torch.testing.assert_close(H, H0, atol=1e-5, rtol=0)
     torch.testing.assert_close(p, p0, atol=1e-5, rtol=0)
+
+
+def test_lower_body_features_are_the_spine_and_legs_alone(avatar):
+    m = load_motion("walk", avatar).slice(0, 20)
+    rot, root = torch.from_numpy(m.rotations), torch.from_numpy(m.root_translation)
+    names = list(avatar.joint_names)
+    lower = feature_joints(names, "lower")
+    assert [names[i] for i in lower] == [n for n in names if n in LOWER_BODY_JOINTS[1:]]
+    assert feature_joints(names, "all") == list(range(1, len(names)))
+    f = motion_features(rot, root, m.fps, avatar.floor_height, lower)
+    assert f.shape == (20, num_features(len(lower) + 1))
+    full = motion_features(rot, root, m.fps, avatar.floor_height)
+    # the same joint blocks and the same root features as the full set
+    blocks = full[:, : 6 * (len(names) - 1)].view(20, -1, 6)
+    torch.testing.assert_close(f[:, : 6 * len(lower)].view(20, -1, 6),
+                               blocks[:, [i - 1 for i in lower]])  # fmt: skip
+    torch.testing.assert_close(f[:, 6 * len(lower) :], full[:, 6 * (len(names) - 1) :])
+    # moving an arm changes the full features only
+    waved = rot.clone()
+    waved[:, names.index("LeftArm")] = yaw_matrix(torch.tensor(1.0, dtype=torch.float64))
+    assert not torch.equal(motion_features(waved, root, m.fps, avatar.floor_height), full)
+    torch.testing.assert_close(motion_features(waved, root, m.fps, avatar.floor_height, lower), f)
+
+
+def test_joint_sets_need_their_joints(avatar):
+    with pytest.raises(LoosefitInputError, match="joints.*one of"):
+        feature_joints(avatar.joint_names, "arms")
+    with pytest.raises(LoosefitInputError, match="MotionEncoderConfig.*joints"):
+        MotionEncoderConfig(joints="upper")
+    names = [n for n in avatar.joint_names if n != "LeftLeg"]
+    with pytest.raises(LoosefitInputError, match="LeftLeg"):
+        feature_joints(names, "lower")

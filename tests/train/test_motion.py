@@ -9,11 +9,13 @@ import pytest
 import torch
 
 import loosefit.train.motion as tm
+from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.model.generative import GenerativeConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
+from loosefit.model.motion_features import feature_joints, num_features
 from loosefit.model.rollout import RolloutConfig
 from loosefit.train.generative import TrainGenerativeConfig, train_generative
 from loosefit.types import Motion
@@ -142,6 +144,30 @@ def test_ablation_without_previous_state_trains(toy_dataset, generative, skirt, 
     assert report["previous_state"] is False and np.isfinite(report["test"]["rmse_cm"])
     model = tm.load_animation_model(tmp_path / "nops" / "model.pt")
     assert not hasattr(model.encoder, "state_encoder")
+
+
+def test_encoder_on_the_lower_body_joints(toy_dataset, generative, skirt, tmp_path, avatar):
+    report = _train(toy_dataset, generative, skirt, tmp_path / "lower", epochs=2,
+                    model=MotionEncoderConfig(motion_fc=16, gru=24, joints="lower"))  # fmt: skip
+    assert np.isfinite(report["test"]["rmse_cm"])
+    model = tm.load_animation_model(tmp_path / "lower" / "model.pt")
+    assert model.config.model.joints == "lower"
+    lower = feature_joints(model.joint_names, "lower")
+    assert (
+        model.encoder.num_features
+        == num_features(len(lower) + 1)
+        < num_features(len(model.joint_names))
+    )
+    assert tm.TrainMotionConfig.preset("cpu", joints="lower").model.joints == "lower"
+    motion = load_motion("walk", avatar).slice(0, 12)
+    a = model.animate(motion).vertices
+    # an arm waved differently changes nothing the encoder sees
+    waved = motion.rotations.copy()
+    waved[:, list(motion.joint_names).index("RightArm")] = np.array(
+        [[0, -1, 0], [1, 0, 0], [0, 0, 1]], np.float32
+    )
+    b = model.animate(dataclasses.replace(motion, rotations=waved)).vertices
+    np.testing.assert_array_equal(a, b)
 
 
 def test_bad_inputs_are_clear_errors(trained, toy_dataset, generative, avatar, tmp_path):

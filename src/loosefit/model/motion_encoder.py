@@ -25,6 +25,7 @@ from torch import nn
 
 from loosefit.errors import LoosefitInputError
 from loosefit.model.generative import GarmentGenerativeModel, UVEncoder
+from loosefit.model.motion_features import JOINT_SETS
 
 
 @dataclass
@@ -35,8 +36,14 @@ class MotionEncoderConfig:
     gru: int = 500  # E_m's GRU (the paper: 500)
     previous_state: bool = True  # E_s on the previous garment (False: the "w/o ps" ablation)
     init_from_generative: bool = True  # E_s starts from the generative encoder's weights
+    # the joints whose rotations E_m sees, a key of motion_features.JOINT_SETS: "all", or
+    # "lower" (the spine and legs: the joints that move what the skirt touches)
+    joints: str = "all"
 
     def __post_init__(self) -> None:
+        if self.joints not in JOINT_SETS:
+            raise LoosefitInputError("MotionEncoderConfig", "joints", f"one of {list(JOINT_SETS)}",
+                                     repr(self.joints))  # fmt: skip
         for name in ("motion_fc", "gru"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v > 0):

@@ -1,9 +1,11 @@
 """Body motion as the dynamic motion encoder sees it (the paper's M_t), and the root frames.
 
-The features of frame ``t`` (``num_features(J) = 6 (J - 1) + 11`` numbers):
+The features of frame ``t`` (``num_features(J) = 6 (J - 1) + 11`` numbers, J
+counting the root and the joints the encoder sees):
 
-* the local rotation of every joint but the root, in the continuous 6D form
-  (the first two columns of the matrix, Zhou et al. 2019);
+* the local rotation of every joint the encoder sees but the root (all of
+  them, or only :data:`LOWER_BODY_JOINTS`: see :func:`feature_joints`), in the
+  continuous 6D form (the first two columns of the matrix, Zhou et al. 2019);
 * the root's rotation *relative to its heading* (``H_t^T R_root``): the
   pelvis's tilt and roll, in 6D;
 * the root's velocity in the heading frame of ``t`` (m/s): ``H_t^T (p_t -
@@ -24,6 +26,48 @@ from __future__ import annotations
 import math
 
 import torch
+
+from loosefit.errors import LoosefitInputError
+
+# The joints that move the skin a skirt can touch: the root, the spine up to the
+# chest and both legs (CMU names). The arms are not in the simulation's collider
+# (``ClothConfig.arm_collision``) and the neck and head are out of a skirt's reach,
+# so their rotations carry nothing about the garment; on a small data set they
+# are inputs the encoder can only overfit to.
+LOWER_BODY_JOINTS: tuple[str, ...] = (
+    "Hips", "LowerBack", "Spine", "Spine1",
+    "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase",
+    "RHipJoint", "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase",
+)  # fmt: skip
+
+# names for the joint sets of ``MotionEncoderConfig.joints``
+JOINT_SETS: dict[str, tuple[str, ...] | None] = {"all": None, "lower": LOWER_BODY_JOINTS}
+
+
+def feature_joints(joint_names: tuple[str, ...] | list[str], wanted: str) -> list[int]:
+    """Indices into ``joint_names`` of the non-root joints whose rotations are features.
+
+    Args:
+        joint_names: the skeleton's J joints, the root first.
+        wanted: a key of :data:`JOINT_SETS` (``all``: every joint but the root).
+
+    Returns:
+        Increasing indices, none of them 0.
+
+    Raises:
+        LoosefitInputError: an unknown set, or a skeleton without one of its joints.
+    """
+    if wanted not in JOINT_SETS:
+        raise LoosefitInputError("MotionEncoderConfig", "joints", f"one of {list(JOINT_SETS)}",
+                                 repr(wanted))  # fmt: skip
+    names = JOINT_SETS[wanted]
+    if names is None:
+        return list(range(1, len(joint_names)))
+    missing = [n for n in names if n not in joint_names]
+    if missing:
+        raise LoosefitInputError("motion", "joint_names", f"the joints of the '{wanted}' set",
+                                 f"a skeleton without {missing}")  # fmt: skip
+    return sorted(joint_names.index(n) for n in names if joint_names.index(n) != 0)
 
 
 def num_features(num_joints: int) -> int:
@@ -65,7 +109,11 @@ def _six_d(r: torch.Tensor) -> torch.Tensor:
 
 
 def motion_features(
-    rotations: torch.Tensor, root_translation: torch.Tensor, fps: float, floor_height: float
+    rotations: torch.Tensor,
+    root_translation: torch.Tensor,
+    fps: float,
+    floor_height: float,
+    joints: list[int] | None = None,
 ) -> torch.Tensor:
     """The per-frame features of a motion (see the module's docstring).
 
@@ -74,16 +122,19 @@ def motion_features(
         root_translation: (T, 3) root positions, metres.
         fps: frames per second.
         floor_height: the root's height when the avatar stands.
+        joints: indices of the non-root joints whose rotations are features
+            (:func:`feature_joints`); by default every joint but the root.
 
     Returns:
-        (T, 6 (J - 1) + 11) float32 features.
+        (T, 6 K + 11) float32 features, K the number of those joints (J - 1 by default).
     """
     rotations = rotations.double()
     root = root_translation.double()
     T = rotations.shape[0]
     yaw = heading_yaw(rotations[:, 0])
     H = yaw_matrix(yaw)
-    joints = _six_d(rotations[:, 1:]).reshape(T, -1)
+    local = rotations[:, 1:] if joints is None else rotations[:, joints]
+    local = _six_d(local).reshape(T, -1)
     tilt = _six_d(H.transpose(-1, -2) @ rotations[:, 0])
     step = torch.zeros_like(root)
     step[1:] = root[1:] - root[:-1]
@@ -91,4 +142,4 @@ def motion_features(
     turn = torch.zeros_like(yaw)
     turn[1:] = torch.remainder(yaw[1:] - yaw[:-1] + math.pi, 2 * math.pi) - math.pi
     height = root[:, 2:] - floor_height
-    return torch.cat([joints, tilt, velocity, (turn * fps)[:, None], height], -1).float()
+    return torch.cat([local, tilt, velocity, (turn * fps)[:, None], height], -1).float()

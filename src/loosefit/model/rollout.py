@@ -21,7 +21,7 @@ import torch
 from loosefit.model.frames import from_root_frame, to_root_frame
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder
-from loosefit.model.motion_features import motion_features, root_frames
+from loosefit.model.motion_features import feature_joints, motion_features, root_frames
 from loosefit.types import Motion
 
 
@@ -158,7 +158,8 @@ def rollout(
     encoder.eval()
     device = rest_state.device
     rot, root, P = timeline(motion, floor_height, config)
-    feats = motion_features(rot, root, motion.fps, floor_height).to(device)
+    joints = feature_joints(motion.joint_names, encoder.config.joints)
+    feats = motion_features(rot, root, motion.fps, floor_height, joints).to(device)
     H, p = (a.float().to(device) for a in root_frames(rot.double(), root.double()))
     total = len(feats)
     out = torch.empty(motion.num_frames, encoder.num_vertices, 3)

@@ -29,7 +29,7 @@ import hashlib
 import os
 import resource
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +43,12 @@ from loosefit.geometry.laplacian import Laplacian
 from loosefit.model.frames import avatar_for, garment_fingerprint, to_root_frame
 from loosefit.model.generative import GarmentGenerativeModel, squared_error
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
-from loosefit.model.motion_features import motion_features, num_features, root_frames
+from loosefit.model.motion_features import (
+    feature_joints,
+    motion_features,
+    num_features,
+    root_frames,
+)
 from loosefit.model.rollout import (
     RolloutConfig,
     carried_drape,
@@ -138,6 +143,7 @@ class TrainMotionConfig:
         rate (1e-3) for 60 epochs; the encoder, the loss and the windows are the paper's.
         """
         prev = overrides.pop("previous_state", None)
+        joints = overrides.pop("joints", None)
         if name == "full":
             cfg = cls()
         elif name == "cpu":
@@ -146,6 +152,8 @@ class TrainMotionConfig:
             raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
         if prev is not None:
             cfg.model.previous_state = bool(prev)
+        if joints is not None:
+            cfg.model = replace(cfg.model, joints=joints)  # validated
         apply_overrides(cfg, overrides).__post_init__()
         return cfg
 
@@ -211,6 +219,7 @@ def prepare_clips(
     config: RolloutConfig,
     max_frames: int | None = None,
     mirror: bool = False,
+    joints: str = "all",
 ) -> list[Clip]:
     """Every clip of a split on the rollout timeline, with its targets.
 
@@ -219,6 +228,7 @@ def prepare_clips(
     about X = 0 onto its twin vertices (:func:`~loosefit.body.mirror.vertex_twins`;
     the garment must be mirror-symmetric). Physics has no handedness, so that is
     the simulation of the mirrored motion, up to the body's own asymmetry (mm).
+    ``joints`` names the joint set of the features (``MotionEncoderConfig.joints``).
     """
     names = reader.split(split)
     if not names:
@@ -238,7 +248,9 @@ def prepare_clips(
             H, p = (a.float() for a in root_frames(rot.double(), root.double()))
             target = to_root_frame(torch.from_numpy(np.ascontiguousarray(v, np.float32)),
                                    H[P:], p[P:])  # fmt: skip
-            clips.append(Clip(label, m, motion_features(rot, root, m.fps, floor_height),
+            feats = motion_features(rot, root, m.fps, floor_height,
+                                    feature_joints(m.joint_names, joints))  # fmt: skip
+            clips.append(Clip(label, m, feats,
                               H, p, target, latent_codes(generative, target), P))  # fmt: skip
     return clips
 
@@ -676,7 +688,7 @@ def train_motion(
     floor = float(reader.body["floor_height"])
     t0 = time.perf_counter()
     train = prepare_clips(reader, "train", gmodel, floor, config.rollout, config.max_frames,
-                          config.mirror)  # fmt: skip
+                          config.mirror, config.model.joints)  # fmt: skip
     fps = train[0].motion.fps
     rest_path = out / "rest_state.npy"
     if rest_state is not None:
@@ -691,8 +703,9 @@ def train_motion(
     all_feats = torch.cat([c.features for c in train])
     F = all_feats.shape[1]
     joint_names = train[0].motion.joint_names
-    if F != num_features(len(joint_names)):
-        raise LoosefitInputError(reader.root, "features", num_features(len(joint_names)), F)
+    expected = num_features(len(feature_joints(joint_names, config.model.joints)) + 1)
+    if F != expected:
+        raise LoosefitInputError(reader.root, "features", expected, F)
     encoder = DynamicMotionEncoder(gmodel, F, config.model, all_feats.mean(0), all_feats.std(0))
     encoder.to(config.device)
     lap = Laplacian(template.faces, template.num_vertices).to(config.device)
