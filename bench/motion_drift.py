@@ -10,11 +10,16 @@ GRU's state depends on the motion alone, so it runs on unchanged through a resta
 
     python bench/motion_drift.py --data datasets/salsa --runs runs/salsa/motion \
         --table docs/MOTION_DRIFT.md
+
+Each run's errors are kept in its folder (``drift.json``, tied to its ``model.pt`` by a
+hash), so a table of many runs recomputes only the runs that are new or retrained.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import platform
 from pathlib import Path
 
@@ -25,6 +30,25 @@ from loosefit.data.format import DatasetReader
 from loosefit.train.motion import evaluate_rollouts, load_animation_model
 
 EVERY = (1, 100, 500, 1200, None)
+
+
+def _drift(path: Path, reader: DatasetReader) -> tuple[dict, int]:
+    """RMSE (cm) per restart interval of the model at ``path``, and the frames scored."""
+    cache = path.parent / "drift.json"
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    tests = reader.split("test")
+    if cache.is_file():
+        saved = json.loads(cache.read_text())
+        if saved["model_sha256"] == digest and saved["test"] == tests:
+            return {e: saved["rmse_cm"][str(e)] for e in EVERY}, saved["frames"]
+    model = load_animation_model(path)
+    errors, frames = {}, 0
+    for every in EVERY:
+        result = evaluate_rollouts(model, reader, "test", surface=False, restart_every=every)
+        errors[every], frames = result["rmse_cm"], result["frames"]
+    cache.write_text(json.dumps({"model_sha256": digest, "test": tests, "frames": frames,
+                                 "rmse_cm": {str(e): v for e, v in errors.items()}}))  # fmt: skip
+    return errors, frames
 
 
 def main() -> None:
@@ -45,11 +69,8 @@ def main() -> None:
         if not path.is_file():
             print(f"skipping {key}: no {path}")
             continue
-        model = load_animation_model(path)
-        errors = {}
+        errors, frames = _drift(path, reader)
         for every in EVERY:
-            result = evaluate_rollouts(model, reader, "test", surface=False, restart_every=every)
-            errors[every], frames = result["rmse_cm"], result["frames"]
             print(f"{key}: N = {every}: {errors[every]:.3f} cm", flush=True)
         cells = [f"{errors[e]:.3f}" for e in EVERY]
         cells += [f"{100 * (errors[e] / errors[100] - 1):+.1f}%" for e in (1200, None)]
