@@ -66,6 +66,15 @@ RUNS = {
         "w/o ps, mirrored clips too, spine and leg joints only",
         dict(previous_state=False, mirror=True, joints="lower"),
     ),
+    # The same two ps configurations from another seed: how far a run moves by chance alone
+    "ps-mirror-s1": (
+        "with ps (scheduled sampling), mirrored clips too, seed 1",
+        dict(mirror=True, seed=1),
+    ),
+    "ps-mirror-lower-s1": (
+        "with ps (scheduled sampling), mirrored clips too, spine and leg joints only, seed 1",
+        dict(mirror=True, joints="lower", seed=1),
+    ),
 }
 
 

@@ -3,7 +3,8 @@
 On the held-out clips: the RMSE over successive 100-frame blocks of the rollout, of the
 reference (the rest drape carried by the root: how hard each stretch of motion is) and of
 the oracle (the generative model's own code of the simulation, decoded: the floor), and the
-edge strain of the rollout against the simulation's. On the procedural spin (first 40
+edge strain and the share of vertices inside the body of the rollout against the
+simulation's. On the procedural spin (first 40
 frames, as in tests/test_checkpoints.py): the largest share of vertices inside the body::
 
     python bench/motion_quality.py --checkpoint checkpoints/salsa/motion.pt --data datasets/salsa
@@ -31,6 +32,8 @@ def main() -> None:
     args = p.parse_args()
     model = load_animation_model(args.checkpoint)
     reader = DatasetReader(args.data)
+    avatar = Avatar(AvatarConfig(shape=dict(model.body.get("shape", {}))))
+    collider = avatar.collider_faces(arms=False)
     for name in reader.split("test"):
         seq = reader.read(name)
         truth = seq.garment_vertices
@@ -46,11 +49,15 @@ def main() -> None:
             strain, _ = edge_strain(v, model.template)
             q = np.percentile(strain, [50, 99])
             print(f"  edge strain, {label}: median {q[0]:.3f}, p99 {q[1]:.3f}")
-    avatar = Avatar(AvatarConfig(shape=dict(model.body.get("shape", {}))))
+        body = avatar.pose_motion(seq.motion).vertices
+        for label, v in (("simulation", truth), ("rollout", pred)):
+            inside = 100 * inside_fraction(v, body, collider)
+            print(f"  vertices inside the body, {label}: mean {inside.mean():.2f} %, "
+                  f"p99 {np.percentile(inside, 99):.1f} %, max {inside.max():.1f} % "
+                  f"per frame")  # fmt: skip
     motion = load_motion("spin", avatar, fps=model.fps).slice(0, 40)
     body = avatar.pose_motion(motion)
-    inside = inside_fraction(model.animate(motion).vertices, body.vertices,
-                             avatar.collider_faces(arms=False))  # fmt: skip
+    inside = inside_fraction(model.animate(motion).vertices, body.vertices, collider)
     print(
         f"procedural spin, 40 frames: at most {100 * inside.max():.1f} % of the vertices "
         "inside the body"

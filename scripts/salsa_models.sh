@@ -22,14 +22,15 @@ MOTION_EPOCHS=${MOTION_EPOCHS:-40}
 mkdir -p "$RUNS/motion"
 # 3. The motion encoder with and without the previous state, and the runs that test how the
 #    previous state is trained (teacher forcing only, with noise, unrolled, a floor under
-#    scheduled sampling, mirrored clips, twice the epochs, the spine and leg joints only):
-#    bench/motion_ablation.py's RUNS, one thread each, three side by side; then Table 1 (paper 3.3, 4.3) from all of them,
-#    with the rest drape carried by the root (no dynamics) and the generative model's own
-#    code of the simulation (the floor) as reference rows.
+#    scheduled sampling, mirrored clips, twice the epochs, the spine and leg joints only,
+#    a second seed): bench/motion_ablation.py's RUNS, one thread each, three side by side;
+#    then Table 1 (paper 3.3, 4.3) from all of them, with the rest drape carried by the
+#    root (no dynamics) and the generative model's own code of the simulation (the floor)
+#    as reference rows.
 ABL=("$BIN/python" bench/motion_ablation.py --data "$DATA" --preset cpu
      --generative "$RUNS/generative/checkpoint.pt" --epochs "$MOTION_EPOCHS" --out "$RUNS/motion")
 ALL=ps,nops,ps-teacher,ps-teacher-noise,ps-unroll,ps-floor,ps-mirror,nops-mirror,nops-80,ps-floor-80
-ALL=$ALL,ps-mirror-lower,nops-mirror-lower
+ALL=$ALL,ps-mirror-lower,nops-mirror-lower,ps-mirror-s1,ps-mirror-lower-s1
 IFS=, read -ra runs <<< "$ALL"
 for ((i = 0; i < ${#runs[@]}; i += 3)); do
   pids=()
@@ -43,9 +44,9 @@ done
 #    one unbroken rollout (Table 1's iter-N also changes which frames are scored).
 "$BIN/python" bench/motion_drift.py --data "$DATA" --runs "$RUNS/motion" --only "$ALL" \
     --table docs/MOTION_DRIFT.md
-# 4. The shared pair, the ps run on mirrored clips and the spine and leg joints: half
-#    precision, the motion stage pointing at the generative one beside it.
-"$BIN/loosefit" package "$RUNS/motion/ps-mirror-lower/model.pt" --out checkpoints/salsa
+# 4. The shared pair (the ps run on mirrored clips): half precision, the motion stage
+#    pointing at the generative one beside it.
+"$BIN/loosefit" package "$RUNS/motion/ps-mirror/model.pt" --out checkpoints/salsa
 # 5. The committed pair on the held-out takes, chained (never seen in training), 1,957 frames,
 #    rendered to look at.
 "$BIN/loosefit" animate checkpoints/salsa/motion.pt \
