@@ -64,6 +64,9 @@ def test_animate_without_a_checkpoint_takes_the_pretrained_pair(tmp_path):
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["source"]["checkpoint"] == str((PAIR / "motion.pt").resolve())
     assert manifest["sequences"]["sway"]["frames"] == 12
+    # a chain is named after all of its parts, not its last file
+    assert main(["animate", "sway+mirror:spin", "--frames", "6", "--out", str(out)]) == 0
+    assert (out / "sequences" / "sway_mirror_spin.npz").is_file()
     # three positional arguments: an error that says what is expected, and nothing written
     assert main(["animate", "a.pt", "sway", "extra", "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x").exists()

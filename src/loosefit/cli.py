@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -395,7 +396,8 @@ def cmd_animate(args: argparse.Namespace) -> int:
                                      f"a dataset of preset {old.get('preset')}")  # fmt: skip
     (out / "sequences").mkdir(parents=True, exist_ok=True)
     (out / "manifest.json").unlink(missing_ok=True)
-    name = Path(str(args.motion)).stem.replace(":", "_").replace("+", "_")
+    # the motion's own name (a chain's names all of its parts), safe as a file name
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", motion.name).strip("._") or "motion"
     _log(f"animating {motion.num_frames} frames of '{motion.name}'")
     from tqdm import tqdm
 
