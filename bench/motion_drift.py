@@ -12,7 +12,8 @@ GRU's state depends on the motion alone, so it runs on unchanged through a resta
         --table docs/MOTION_DRIFT.md
 
 Each run's errors are kept in its folder (``drift.json``, tied to its ``model.pt`` by a
-hash), so a table of many runs recomputes only the runs that are new or retrained.
+hash and to the data set's folder and held-out clips), so a table of many runs recomputes
+only the runs that are new or retrained.
 """
 
 from __future__ import annotations
@@ -36,17 +37,18 @@ def _drift(path: Path, reader: DatasetReader) -> tuple[dict, int]:
     """RMSE (cm) per restart interval of the model at ``path``, and the frames scored."""
     cache = path.parent / "drift.json"
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    tests = reader.split("test")
+    key = {"model_sha256": digest, "data": str(reader.root.resolve()),
+           "test": reader.split("test")}  # fmt: skip
     if cache.is_file():
         saved = json.loads(cache.read_text())
-        if saved["model_sha256"] == digest and saved["test"] == tests:
+        if all(saved.get(k) == v for k, v in key.items()):
             return {e: saved["rmse_cm"][str(e)] for e in EVERY}, saved["frames"]
     model = load_animation_model(path)
     errors, frames = {}, 0
     for every in EVERY:
         result = evaluate_rollouts(model, reader, "test", surface=False, restart_every=every)
         errors[every], frames = result["rmse_cm"], result["frames"]
-    cache.write_text(json.dumps({"model_sha256": digest, "test": tests, "frames": frames,
+    cache.write_text(json.dumps({**key, "frames": frames,
                                  "rmse_cm": {str(e): v for e, v in errors.items()}}))  # fmt: skip
     return errors, frames
 

@@ -25,7 +25,7 @@ from torch import nn
 
 from loosefit.errors import LoosefitInputError
 from loosefit.model.generative import GarmentGenerativeModel, UVEncoder
-from loosefit.model.motion_features import JOINT_SETS
+from loosefit.model.motion_features import joint_set
 
 
 @dataclass
@@ -41,9 +41,7 @@ class MotionEncoderConfig:
     joints: str = "all"
 
     def __post_init__(self) -> None:
-        if self.joints not in JOINT_SETS:
-            raise LoosefitInputError("MotionEncoderConfig", "joints", f"one of {list(JOINT_SETS)}",
-                                     repr(self.joints))  # fmt: skip
+        joint_set(self.joints)  # a known set, or a clear error
         for name in ("motion_fc", "gru"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v > 0):

@@ -44,6 +44,18 @@ LOWER_BODY_JOINTS: tuple[str, ...] = (
 JOINT_SETS: dict[str, tuple[str, ...] | None] = {"all": None, "lower": LOWER_BODY_JOINTS}
 
 
+def joint_set(wanted: str) -> tuple[str, ...] | None:
+    """The joints of a key of :data:`JOINT_SETS` (None: every joint).
+
+    Raises:
+        LoosefitInputError: an unknown set.
+    """
+    if wanted not in JOINT_SETS:
+        raise LoosefitInputError("MotionEncoderConfig", "joints", f"one of {list(JOINT_SETS)}",
+                                 repr(wanted))  # fmt: skip
+    return JOINT_SETS[wanted]
+
+
 def feature_joints(joint_names: tuple[str, ...] | list[str], wanted: str) -> list[int]:
     """Indices into ``joint_names`` of the non-root joints whose rotations are features.
 
@@ -57,17 +69,15 @@ def feature_joints(joint_names: tuple[str, ...] | list[str], wanted: str) -> lis
     Raises:
         LoosefitInputError: an unknown set, or a skeleton without one of its joints.
     """
-    if wanted not in JOINT_SETS:
-        raise LoosefitInputError("MotionEncoderConfig", "joints", f"one of {list(JOINT_SETS)}",
-                                 repr(wanted))  # fmt: skip
-    names = JOINT_SETS[wanted]
+    names = joint_set(wanted)
     if names is None:
         return list(range(1, len(joint_names)))
-    missing = [n for n in names if n not in joint_names]
+    index = {n: i for i, n in enumerate(joint_names)}
+    missing = [n for n in names if n not in index]
     if missing:
         raise LoosefitInputError("motion", "joint_names", f"the joints of the '{wanted}' set",
                                  f"a skeleton without {missing}")  # fmt: skip
-    return sorted(joint_names.index(n) for n in names if joint_names.index(n) != 0)
+    return sorted(index[n] for n in names if index[n] != 0)
 
 
 def num_features(num_joints: int) -> int:
