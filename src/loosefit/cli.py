@@ -298,7 +298,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         config.cloth.device = args.device
     if args.max_frames is not None:
         config.motions.max_frames = args.max_frames
-    manifest = generate(config, args.out, workers=args.workers, progress=True)
+    manifest = generate(config, args.out, workers=args.workers, progress=True, reuse=args.reuse)
     print(format_report(manifest))
     _log(f"dataset in {args.out}")
     return 0
@@ -588,12 +588,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("simulate", help="simulate a garment dataset with Newton (resumable)")
-    p.add_argument("--preset", default="demo", help="tiny, demo, salsa or paper")
+    p.add_argument("--preset", default="demo", help="tiny, demo, salsa, salsa-speed or paper")
     p.add_argument("--out", default=None, help="dataset folder (default datasets/PRESET)")
     p.add_argument("--bvh", default=None, help="salsa/paper: a folder of BVH clips")
     p.add_argument("--workers", type=int, default=2, help="parallel simulations")
     p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
     p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
+    p.add_argument("--reuse", default=None, metavar="FOLDER",
+                   help="take the clips this dataset shares with the one in FOLDER (simulated "
+                   "alike) instead of simulating them again")  # fmt: skip
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("train", help="train a learned stage (resumable)")

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from loosefit.body.motions import load_motion
 from loosefit.body.resample import (
     detect_rotation_glitches,
     filter_rotation_glitches,
@@ -14,6 +15,7 @@ from loosefit.body.resample import (
     resample_motion,
     resample_rotations,
     resample_times,
+    retime_motion,
 )
 from loosefit.body.rotations import euler_to_matrix, rotation_angle
 from loosefit.errors import LoosefitInputError
@@ -57,6 +59,36 @@ def test_resample_motion_frame_count_and_fps():
     # 120 -> 30 is every fourth frame exactly.
     np.testing.assert_allclose(out.rotations, motion.rotations[::4], atol=1e-6)
     np.testing.assert_allclose(out.root_translation, motion.root_translation[::4], atol=1e-6)
+
+
+def test_retimed_motion_plays_faster_at_the_same_rate():
+    motion = spinning_motion(121, 30.0, 60.0)
+    fast = retime_motion(motion, 2.0)
+    assert fast.fps == 30.0 and fast.num_frames == 61 and fast.name == "speed:2:spin"
+    # twice as fast is every other frame; the root covers its path in half the time
+    np.testing.assert_allclose(fast.rotations, motion.rotations[::2], atol=1e-6)
+    np.testing.assert_allclose(fast.root_translation, motion.root_translation[::2], atol=1e-6)
+    velocity = np.diff(fast.root_translation, axis=0) * fast.fps
+    np.testing.assert_allclose(velocity[:, :2], [[1.0, -0.5]] * 60, atol=1e-4)
+    angle = rotation_angle(fast.rotations[0, 1], fast.rotations[1, 1]) * 180 / math.pi
+    assert angle == pytest.approx(4.0, abs=1e-3)  # 120 deg/s at 30 fps
+    slow = retime_motion(motion, 0.5)
+    assert slow.num_frames == 241 and retime_motion(slow, 2.0).meta["speed"] == 1.0
+    np.testing.assert_allclose(slow.rotations[::2], motion.rotations, atol=1e-6)
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(LoosefitInputError, match="speed"):
+            retime_motion(motion, bad)
+
+
+def test_speed_spec(avatar):
+    a = load_motion("speed:1.5:spin", avatar, max_frames=10)
+    b = retime_motion(load_motion("spin", avatar), 1.5).slice(0, 10)
+    np.testing.assert_array_equal(a.rotations, b.rotations)
+    np.testing.assert_array_equal(a.root_translation, b.root_translation)
+    assert a.name == "speed:1.5:spin" and a.fps == 30.0
+    for bad in ("speed:fast:spin", "speed:0:spin", "speed:2", "speed:-1:spin"):
+        with pytest.raises(LoosefitInputError, match="speed:FACTOR:MOTION"):
+            load_motion(bad, avatar)
 
 
 def test_identity_stays_identity():

@@ -85,7 +85,7 @@ def test_non_dataset_folder_is_rejected(tmp_path):
 
 
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
-    with pytest.raises(LoosefitInputError, match="one of tiny, demo, salsa, paper"):
+    with pytest.raises(LoosefitInputError, match="one of tiny, demo, salsa, salsa-speed, paper"):
         gen.preset("huge")
     with pytest.raises(LoosefitInputError, match=r"\*\.bvh.*no \.bvh files"):
         gen.plan_jobs(gen.preset("salsa", bvh_folder=str(tmp_path)))
@@ -100,6 +100,73 @@ def test_salsa_holds_out_its_test_clips_as_one_long_sequence(tmp_path):
         ("60_01", False), ("60_02", False), ("chain_60_03_61_03", True),
     ]  # fmt: skip
     assert jobs[-1].spec == f"{tmp_path / '60_03.bvh'}+{tmp_path / '61_03.bvh'}"
+
+
+def test_salsa_speed_adds_faster_training_clips_only(tmp_path):
+    for name in ("60_01", "60_03", "61_03", "60_02"):
+        (tmp_path / f"{name}.bvh").write_text("")
+    plain = gen.plan_jobs(gen.preset("salsa", bvh_folder=str(tmp_path)))
+    jobs = gen.plan_jobs(gen.preset("salsa-speed", bvh_folder=str(tmp_path)))
+    assert jobs[: len(plain)] == plain  # the salsa clips, unchanged
+    extra = jobs[len(plain) :]
+    assert [(j.name, j.test) for j in extra] == [("60_01_x1.25", False), ("60_02_x1.25", False)]
+    assert extra[0].spec == f"speed:1.25:{tmp_path / '60_01.bvh'}"
+    assert gen.short_spec(extra[0].spec) == "speed:1.25:60_01.bvh"
+    assert len({j.seed for j in jobs}) == len(jobs)
+    cfg = gen.preset("salsa", bvh_folder=str(tmp_path))
+    cfg.motions.speeds = (1.0,)
+    with pytest.raises(LoosefitInputError, match="speeds"):
+        gen.plan_jobs(cfg)
+
+
+def test_a_dataset_made_before_a_field_existed_still_resumes(tiny_dataset, monkeypatch):
+    out, _ = tiny_dataset
+    manifest = json.loads((out / "manifest.json").read_text())
+    del manifest["config"]["motions"]["speeds"]  # as written before speeds existed
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    calls = []
+    monkeypatch.setattr(gen, "_run_job", lambda *a: calls.append(a) or {})
+    gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
+    assert calls == []
+    changed = gen.preset("tiny")
+    changed.motions.speeds = (2.0,)  # a value other than the default is another dataset
+    with pytest.raises(LoosefitInputError, match=r"another dataset.*motions"):
+        gen.generate(changed, out, workers=1, progress=False)
+
+
+def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_path, monkeypatch):
+    source, _ = tiny_dataset
+    cfg = gen.preset("tiny")
+    cfg.motions.moves = ("kick", "spin", "sway")  # kick_000 and spin_001 as in the source
+    real, simulated = gen._run_job, []
+    monkeypatch.setattr(gen, "_run_job", lambda c, j, o: simulated.append(j.name) or real(c, j, o))
+    manifest = gen.generate(cfg, tmp_path / "grown", workers=1, progress=False, reuse=source)
+    assert simulated == ["sway_002"]
+    assert manifest["split"] == {"train": ["kick_000", "sway_002"], "test": ["spin_001"]}
+    assert manifest["sequences"]["kick_000"]["reused_from"] == str(source)
+    a, b = source / "sequences" / "kick_000.npz", tmp_path / "grown" / "sequences" / "kick_000.npz"
+    assert a.read_bytes() == b.read_bytes()
+    DatasetReader(tmp_path / "grown").read("sway_002")
+
+    # a clip flagged there is taken as flagged, not simulated again
+    flagged = tmp_path / "flagged"
+    flagged.mkdir()
+    manifest = json.loads((source / "manifest.json").read_text())
+    manifest["sequences"]["spin_001"].update(status="flagged", reason="NaN")
+    (flagged / "manifest.json").write_text(json.dumps(manifest))
+    (flagged / "sequences").mkdir()
+    mine = {"sequences": {}}
+    (tmp_path / "mine" / "sequences").mkdir(parents=True)
+    taken = gen.adopt_clips(gen.preset("tiny"), gen.plan_jobs(gen.preset("tiny")), mine,
+                            tmp_path / "mine", flagged)  # fmt: skip
+    assert taken == ["spin_001"] and mine["sequences"]["spin_001"]["status"] == "flagged"
+
+    other = gen.preset("tiny")
+    other.cloth.iterations = 9
+    with pytest.raises(LoosefitInputError, match=r"differs in \['cloth'\]"):
+        gen.generate(other, tmp_path / "other", workers=1, progress=False, reuse=source)
+    with pytest.raises(LoosefitInputError, match="no manifest.json"):
+        gen.generate(cfg, tmp_path / "x", workers=1, progress=False, reuse=tmp_path / "none")
 
 
 def test_summary_quality_covers_the_kept_clips_only():

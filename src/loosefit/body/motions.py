@@ -12,7 +12,7 @@ from loosefit.body.bvh import read_bvh
 from loosefit.body.chain import chain_motions
 from loosefit.body.mirror import mirror_motion
 from loosefit.body.procedural import MOVES, named_motion, random_dance
-from loosefit.body.resample import resample_motion
+from loosefit.body.resample import resample_motion, retime_motion
 from loosefit.body.retarget import RetargetConfig, retarget_bvh
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
@@ -36,7 +36,9 @@ def load_motion(
             :meth:`Motion.save`, a procedural move name (``spin``, ``walk``, ...),
             ``dance`` (a random dance of 12 s), ``dance:SECONDS``; any of these
             behind ``mirror:``, danced left-right mirrored
-            (:func:`~loosefit.body.mirror.mirror_motion`); or several of these
+            (:func:`~loosefit.body.mirror.mirror_motion`), or behind
+            ``speed:FACTOR:``, played FACTOR times as fast at the same frame rate
+            (:func:`~loosefit.body.resample.retime_motion`); or several of these
             joined by ``+``: played one after another as one motion
             (:func:`~loosefit.body.chain.chain_motions`, 0.5 s transitions).
         avatar: the avatar that the motion must fit.
@@ -61,6 +63,18 @@ def load_motion(
         return motion if max_frames is None else motion.slice(0, max_frames)
     if text.startswith("mirror:") and not path.exists():
         motion = mirror_motion(load_motion(text[len("mirror:") :], avatar, fps, seed, retarget))
+    elif text.startswith("speed:") and not path.exists():
+        factor, _, inner = text[len("speed:") :].partition(":")
+        try:
+            speed = float(factor)
+        except ValueError:
+            speed = float("nan")
+        if not (inner and speed > 0 and speed < float("inf")):
+            raise LoosefitInputError(
+                "motion", "speed:FACTOR:MOTION", "a positive factor and a motion",
+                repr(text),
+            )  # fmt: skip
+        motion = retime_motion(load_motion(inner, avatar, fps, seed, retarget), speed)
     elif path.suffix.lower() == ".bvh":
         if not path.is_file():
             raise LoosefitInputError(path, "<file>", "an existing BVH file", "no such file")

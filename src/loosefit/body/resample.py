@@ -1,4 +1,4 @@
-"""Change a motion's frame rate, and remove single-frame rotation pops.
+"""Change a motion's frame rate or playing speed, and remove single-frame rotation pops.
 
 Resampling keeps the clip's time span: new frames sit at ``k / dst_fps`` for
 ``k = 0 .. floor(duration * dst_fps)``, with ``duration = (T - 1) / src_fps``, so the
@@ -114,6 +114,38 @@ def resample_motion(motion: Motion, fps: float) -> Motion:
         resample_linear(motion.root_translation, motion.fps, fps),
         float(fps),
         motion.name,
+        meta,
+    )
+
+
+def retime_motion(motion: Motion, speed: float) -> Motion:
+    """The motion played ``speed`` times as fast, at its own frame rate.
+
+    New frame ``k`` shows the pose at ``k * speed / fps`` seconds of the source
+    (rotations slerped, the root translation interpolated linearly, as in
+    :func:`resample_motion`), so ``speed = 1.25`` gives a clip 20 % shorter whose
+    root moves and turns 25 % faster.
+
+    Args:
+        motion: the source motion, T frames at ``motion.fps``.
+        speed: how many times as fast; positive and finite.
+
+    Returns:
+        A new :class:`Motion` of ``floor((T - 1) / speed) + 1`` frames at
+        ``motion.fps``, named ``speed:SPEED:NAME``.
+    """
+    if not (np.isfinite(speed) and speed > 0):
+        raise LoosefitInputError(
+            f"motion '{motion.name}'", "speed", "a positive finite factor", repr(speed)
+        )
+    fps = motion.fps
+    meta = {**motion.meta, "speed": float(motion.meta.get("speed", 1.0)) * float(speed)}
+    return Motion(
+        motion.joint_names,
+        resample_rotations(motion.rotations, fps, fps / speed),
+        resample_linear(motion.root_translation, fps, fps / speed),
+        float(fps),
+        f"speed:{speed:g}:{motion.name}",
         meta,
     )
 

@@ -18,6 +18,8 @@ import multiprocessing as mp
 import os
 import platform
 import queue
+import re
+import shutil
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -46,6 +48,9 @@ class MotionSource:
     test: tuple[str, ...] = ()  # bvh: clip names held out for testing
     chain_test: bool = False  # bvh: the test clips play one after another as one long sequence
     test_every: int = 4  # procedural: every n-th dance is held out for testing
+    # bvh: each training clip is also simulated played at these speeds (``NAME_xSPEED``,
+    # ``speed:SPEED:FILE``): new dynamics from the same captures; held-out clips never are
+    speeds: tuple[float, ...] = ()
 
 
 @dataclass
@@ -80,6 +85,9 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
     * ``demo``: the built-in default: procedural dances on the CPU skirt; about
       15 minutes on two CPU cores.
     * ``salsa``: the CMU salsa clips (or any BVH folder), 30 fps, split by clip.
+    * ``salsa-speed``: ``salsa``, and its training clips also played 1.25 times as
+      fast (the same held-out chain); ``--reuse`` a ``salsa`` folder to simulate
+      only the new clips (about an hour on two CPU cores).
     * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
       salsa plus procedural dances; meant for a GPU.
     """
@@ -112,14 +120,19 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
             cloth=ClothConfig(settle_seconds=0.6, blend_seconds=0.4),
             motions=MotionSource(kind="procedural", count=4, seconds=4.0, test_every=4),
         )
-    if name == "salsa":
+    if name in ("salsa", "salsa-speed"):
         return DatasetConfig(
             preset=name,
             garment=SkirtConfig.preset("cpu", "flared"),
             # from a third of a second in: the captures open with the arms swinging into place
             motions=MotionSource(
-                kind="bvh", folder=salsa, test=salsa_test, start_frame=10, chain_test=True
-            ),
+                kind="bvh",
+                folder=salsa,
+                test=salsa_test,
+                start_frame=10,
+                chain_test=True,
+                speeds=(1.25,) if name == "salsa-speed" else (),
+            ),  # fmt: skip
         )
     if name == "paper":
         return DatasetConfig(
@@ -130,7 +143,9 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
                 kind="bvh", folder=salsa, test=salsa_test, count=6, seconds=60.0, start_frame=10
             ),
         )
-    raise LoosefitInputError("--preset", "preset", "one of tiny, demo, salsa, paper", repr(name))
+    raise LoosefitInputError(
+        "--preset", "preset", "one of tiny, demo, salsa, salsa-speed, paper", repr(name)
+    )
 
 
 @dataclass
@@ -165,6 +180,16 @@ def plan_jobs(config: DatasetConfig) -> list[Job]:
             # One long held-out sequence, so that rollouts can be judged over 1,200+ frames.
             name = "chain_" + "_".join(f.stem for f in held_out)
             jobs.append(Job(name, "+".join(str(f) for f in held_out), config.seed + 500, True))
+        for k, speed in enumerate(m.speeds):
+            if not (np.isfinite(speed) and speed > 0 and speed != 1.0):
+                raise LoosefitInputError(
+                    "MotionSource", "speeds", "positive factors other than 1", m.speeds
+                )
+            jobs += [
+                Job(f"{f.stem}_x{speed:g}", f"speed:{speed:g}:{f}", config.seed + 100 * (k + 1) + i,
+                    False)
+                for i, f in enumerate(files) if f.stem not in m.test
+            ]  # fmt: skip
     if m.kind == "procedural" and m.moves:
         for i, move in enumerate(m.moves):
             test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
@@ -177,6 +202,11 @@ def plan_jobs(config: DatasetConfig) -> list[Job]:
     if m.kind not in ("bvh", "procedural"):
         raise LoosefitInputError("MotionSource", "kind", "bvh or procedural", repr(m.kind))
     return jobs
+
+
+def short_spec(spec: str) -> str:
+    """A job's motion spec without folders: ``speed:1.25:/x/a.bvh`` -> ``speed:1.25:a.bvh``."""
+    return "+".join(re.sub(r"[^:+]*/", "", part) for part in spec.split("+"))
 
 
 def job_motion(config: DatasetConfig, job: Job, avatar):
@@ -260,7 +290,7 @@ def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
             q.put((job.name, done, total))
 
     entry = {
-        "spec": "+".join(Path(p).name if p.endswith(".bvh") else p for p in job.spec.split("+")),
+        "spec": short_spec(job.spec),
         "seed": job.seed,
         "frames": motion.num_frames,
         "test": job.test,
@@ -318,17 +348,38 @@ class _Direct:
         self.put = lambda item: callback(*item)
 
 
+def _normalized(d: dict) -> dict:
+    return json.loads(json.dumps(d, default=str))
+
+
+def _stored_config(manifest: dict, config: DatasetConfig) -> dict:
+    """A manifest's configuration, with the fields added since it was written at their defaults.
+
+    A dataset made before a field existed is the one made with its default value.
+    """
+
+    def fill(old: dict, default: dict) -> dict:
+        out = dict(old)
+        for key, value in default.items():
+            if key not in out:
+                out[key] = value
+            elif isinstance(value, dict) and isinstance(out[key], dict):
+                out[key] = fill(out[key], value)
+        return out
+
+    defaults = _normalized(_config_dict(DatasetConfig(preset=config.preset)))
+    return fill(manifest.get("config", {}), defaults)
+
+
 def _open_manifest(config: DatasetConfig, out: Path) -> dict:
     """A new manifest, or the existing one of the same configuration (resume)."""
     mpath = out / "manifest.json"
     cfg = _config_dict(config)
     if mpath.is_file():
         manifest = json.loads(mpath.read_text())
-        if manifest.get("format") != FORMAT or manifest.get("config") != json.loads(
-            json.dumps(cfg, default=str)
-        ):
-            old = manifest.get("config", {})
-            diff = sorted(k for k in set(old) | set(cfg) if old.get(k) != cfg.get(k))
+        old = _stored_config(manifest, config)
+        if manifest.get("format") != FORMAT or old != _normalized(cfg):
+            diff = sorted(k for k in set(old) | set(cfg) if old.get(k) != _normalized(cfg).get(k))
             raise LoosefitInputError(
                 out,
                 "manifest.json",
@@ -336,6 +387,7 @@ def _open_manifest(config: DatasetConfig, out: Path) -> dict:
                 f"another dataset (preset {manifest.get('preset')}; differs in {diff})",
                 hint="choose another --out folder",
             )
+        manifest["config"] = _normalized(cfg)
         return manifest
     if out.exists() and any(out.iterdir()):
         raise LoosefitInputError(
@@ -358,8 +410,79 @@ def _open_manifest(config: DatasetConfig, out: Path) -> dict:
     }
 
 
+def adopt_clips(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Path,
+                source: Path) -> list[str]:  # fmt: skip
+    """Take the clips ``jobs`` share with another dataset from it instead of simulating them.
+
+    A clip is taken when the other dataset simulated it with the same garment,
+    cloth, body, frame rate and seed, from the same motion (spec, seed and frame
+    range): its sequence is hard-linked (copied across file systems) and its
+    manifest entry copied, marked with where it came from. A clip flagged there
+    is taken as flagged (the simulation is deterministic).
+
+    Args:
+        config: this dataset's configuration.
+        jobs: this dataset's clips.
+        manifest: this dataset's manifest (updated in place).
+        out: this dataset's folder.
+        source: the other dataset's folder.
+
+    Returns:
+        The names of the clips taken.
+    """
+    mpath = source / "manifest.json"
+    if not mpath.is_file():
+        raise LoosefitInputError(source, "manifest.json", "a dataset folder to reuse clips from",
+                                 "no manifest.json")  # fmt: skip
+    other = json.loads(mpath.read_text())
+    theirs = _stored_config(other, config)
+    ours = _normalized(_config_dict(config))
+    same = ("garment", "cloth", "limits", "fps", "seed", "shape")
+    clip = ("kind", "folder", "max_frames", "start_frame")
+    differs = [k for k in same if theirs.get(k) != ours.get(k)]
+    differs += [f"motions.{k}" for k in clip if theirs["motions"].get(k) != ours["motions"][k]]
+    if other.get("format") != FORMAT or differs:
+        raise LoosefitInputError(
+            source, "manifest.json",
+            "a dataset simulated like this one (garment, cloth, body, rate, seed, clip range)",
+            f"one that differs in {differs or ['format']}",
+        )  # fmt: skip
+    taken = []
+    for job in jobs:
+        entry = other["sequences"].get(job.name)
+        if job.name in manifest["sequences"] or entry is None:
+            continue
+        if (
+            entry.get("spec") != short_spec(job.spec)
+            or entry.get("seed") != job.seed
+            or entry.get("test") != job.test
+        ):
+            continue  # fmt: skip
+        src = source / "sequences" / f"{job.name}.npz"
+        if entry.get("status") == "done" and src.is_file():
+            dst = out / "sequences" / f"{job.name}.npz"
+            partial = dst.with_suffix(".partial.npz")
+            partial.unlink(missing_ok=True)
+            try:
+                os.link(src, partial)
+            except OSError:
+                shutil.copyfile(src, partial)
+            os.replace(partial, dst)
+        elif entry.get("status") != "flagged":
+            continue  # neither finished nor flagged there: simulate it here
+        # a flagged clip is taken as flagged: the simulation is deterministic
+        manifest["sequences"][job.name] = {**entry, "reused_from": str(source)}
+        write_json_atomic(out / "manifest.json", manifest)
+        taken.append(job.name)
+    return taken
+
+
 def generate(
-    config: DatasetConfig, out_dir: str | Path, workers: int = 1, progress: bool = True
+    config: DatasetConfig,
+    out_dir: str | Path,
+    workers: int = 1,
+    progress: bool = True,
+    reuse: str | Path | None = None,
 ) -> dict:
     """Simulate a dataset into ``out_dir`` (resuming a run of the same configuration).
 
@@ -368,6 +491,8 @@ def generate(
         out_dir: the dataset folder (new, empty, or holding the same configuration).
         workers: parallel simulations (one CPU core each on the CPU).
         progress: show a progress bar over frames with rate and ETA.
+        reuse: another dataset folder whose clips of the same simulation are
+            taken rather than simulated again (:func:`adopt_clips`).
 
     Returns:
         The final manifest (also written to ``out_dir/manifest.json``).
@@ -393,6 +518,10 @@ def generate(
     }
     manifest["garment"] = {"name": template.name, "num_vertices": template.num_vertices}
     write_json_atomic(out / "manifest.json", manifest)
+    if reuse is not None:
+        taken = adopt_clips(config, jobs, manifest, out, Path(reuse))
+        if progress and taken:
+            tqdm.write(f"reused {len(taken)} clips from {reuse}: {', '.join(taken)}")
 
     done = {
         n for n, e in manifest["sequences"].items()
