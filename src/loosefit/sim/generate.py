@@ -352,7 +352,7 @@ def _normalized(d: dict) -> dict:
     return json.loads(json.dumps(d, default=str))
 
 
-def _stored_config(manifest: dict, config: DatasetConfig) -> dict:
+def _stored_config(manifest: dict) -> dict:
     """A manifest's configuration, with the fields added since it was written at their defaults.
 
     A dataset made before a field existed is the one made with its default value.
@@ -367,19 +367,18 @@ def _stored_config(manifest: dict, config: DatasetConfig) -> dict:
                 out[key] = fill(out[key], value)
         return out
 
-    defaults = _normalized(_config_dict(DatasetConfig(preset=config.preset)))
-    return fill(manifest.get("config", {}), defaults)
+    return fill(manifest.get("config", {}), _normalized(_config_dict(DatasetConfig())))
 
 
 def _open_manifest(config: DatasetConfig, out: Path) -> dict:
     """A new manifest, or the existing one of the same configuration (resume)."""
     mpath = out / "manifest.json"
-    cfg = _config_dict(config)
+    cfg = _normalized(_config_dict(config))
     if mpath.is_file():
         manifest = json.loads(mpath.read_text())
-        old = _stored_config(manifest, config)
-        if manifest.get("format") != FORMAT or old != _normalized(cfg):
-            diff = sorted(k for k in set(old) | set(cfg) if old.get(k) != _normalized(cfg).get(k))
+        old = _stored_config(manifest)
+        if manifest.get("format") != FORMAT or old != cfg:
+            diff = sorted(k for k in set(old) | set(cfg) if old.get(k) != cfg.get(k))
             raise LoosefitInputError(
                 out,
                 "manifest.json",
@@ -387,7 +386,7 @@ def _open_manifest(config: DatasetConfig, out: Path) -> dict:
                 f"another dataset (preset {manifest.get('preset')}; differs in {diff})",
                 hint="choose another --out folder",
             )
-        manifest["config"] = _normalized(cfg)
+        manifest["config"] = cfg
         return manifest
     if out.exists() and any(out.iterdir()):
         raise LoosefitInputError(
@@ -435,7 +434,7 @@ def adopt_clips(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Pat
         raise LoosefitInputError(source, "manifest.json", "a dataset folder to reuse clips from",
                                  "no manifest.json")  # fmt: skip
     other = json.loads(mpath.read_text())
-    theirs = _stored_config(other, config)
+    theirs = _stored_config(other)
     ours = _normalized(_config_dict(config))
     same = ("garment", "cloth", "limits", "fps", "seed", "shape")
     clip = ("kind", "folder", "max_frames", "start_frame")
