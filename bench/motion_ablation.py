@@ -76,10 +76,15 @@ RUNS = {
         dict(mirror=True, joints="lower", seed=1),
     ),
     # More simulated data: the training clips also played 1.25 times as fast and simulated
-    # (the salsa-speed data set, --data-speed; the same held-out chain)
+    # (the salsa-speed data set, in --datasets; the same held-out chain)
     "ps-mirror-speed": (
         "with ps (scheduled sampling), mirrored clips too, and the training clips at 1.25x",
-        dict(mirror=True, dataset="speed"),
+        dict(mirror=True, dataset="salsa-speed"),
+    ),
+    # ... and also at 1.5x (the salsa-speeds data set): how the error scales with the data
+    "ps-mirror-speeds": (
+        "with ps (scheduled sampling), mirrored clips too, and the training clips at 1.25x, 1.5x",
+        dict(mirror=True, dataset="salsa-speeds"),
     ),
 }
 
@@ -87,8 +92,8 @@ RUNS = {
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", default="datasets/salsa")
-    p.add_argument("--data-speed", default=None, help="the salsa-speed data set, for the runs "
-                   "that train on it (default: salsa-speed beside --data)")  # fmt: skip
+    p.add_argument("--datasets", default=None, help="the folder of the other data sets some runs "
+                   "train on (salsa-speed, salsa-speeds; default: --data's folder)")  # fmt: skip
     p.add_argument("--generative", required=True, help="the generative checkpoint")
     p.add_argument("--preset", default="cpu", help="cpu or full")
     p.add_argument("--epochs", type=int, default=None)
@@ -108,8 +113,8 @@ def main() -> None:
         label, overrides = RUNS[key]
         overrides = dict(overrides)
         data = args.data  # every run is scored on --data's held-out clips
-        if overrides.pop("dataset", None) == "speed":
-            data = args.data_speed or str(Path(args.data).parent / "salsa-speed")
+        if "dataset" in overrides:  # trained on another data set with the same held-out chain
+            data = str(Path(args.datasets or Path(args.data).parent) / overrides.pop("dataset"))
         run = Path(args.out) / key
         if not (run / "report.json").is_file():
             kw = {"epochs": args.epochs, **overrides}  # a run may fix its own epochs

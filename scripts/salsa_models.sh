@@ -9,7 +9,6 @@ cd "$(dirname "$0")/.."
 BIN=${BIN:-.venv/bin}
 BVH=${BVH:-../shared/mocap/cmu-salsa}
 DATA=${DATA:-datasets/salsa}
-DATA_SPEED=${DATA_SPEED:-datasets/salsa-speed}
 RUNS=${RUNS:-runs/salsa}
 GEN_EPOCHS=${GEN_EPOCHS:-40}
 MOTION_EPOCHS=${MOTION_EPOCHS:-40}
@@ -18,8 +17,12 @@ MOTION_EPOCHS=${MOTION_EPOCHS:-40}
 "$BIN/loosefit" simulate --preset salsa --bvh "$BVH" --out "$DATA" --workers 2
 #    More simulated data for one row of Table 1: the training clips also played 1.25 times as
 #    fast; the clips salsa already has are taken from it, not simulated again (about 70 min).
-"$BIN/loosefit" simulate --preset salsa-speed --bvh "$BVH" --out "$DATA_SPEED" --workers 2 \
-    --reuse "$DATA"
+#    And at 1.5 times as fast too (about 45 min more).
+DATASETS=$(dirname "$DATA")
+"$BIN/loosefit" simulate --preset salsa-speed --bvh "$BVH" --out "$DATASETS/salsa-speed" \
+    --workers 2 --reuse "$DATA"
+"$BIN/loosefit" simulate --preset salsa-speeds --bvh "$BVH" --out "$DATASETS/salsa-speeds" \
+    --workers 2 --reuse "$DATASETS/salsa-speed"
 # 2. The generative model (paper 3.2), CPU configuration; salsa has 13x the frames of demo,
 #    so fewer epochs give the same number of steps.
 "$BIN/loosefit" train generative --data "$DATA" --preset cpu --epochs "$GEN_EPOCHS" \
@@ -32,10 +35,11 @@ mkdir -p "$RUNS/motion"
 #    then Table 1 (paper 3.3, 4.3) from all of them, with the rest drape carried by the
 #    root (no dynamics) and the generative model's own code of the simulation (the floor)
 #    as reference rows.
-ABL=("$BIN/python" bench/motion_ablation.py --data "$DATA" --data-speed "$DATA_SPEED" --preset cpu
+ABL=("$BIN/python" bench/motion_ablation.py --data "$DATA" --datasets "$DATASETS" --preset cpu
      --generative "$RUNS/generative/checkpoint.pt" --epochs "$MOTION_EPOCHS" --out "$RUNS/motion")
 ALL=ps,nops,ps-teacher,ps-teacher-noise,ps-unroll,ps-floor,ps-mirror,nops-mirror,nops-80,ps-floor-80
 ALL=$ALL,ps-mirror-lower,nops-mirror-lower,ps-mirror-s1,ps-mirror-lower-s1,ps-mirror-speed
+ALL=$ALL,ps-mirror-speeds
 IFS=, read -ra runs <<< "$ALL"
 for ((i = 0; i < ${#runs[@]}; i += 3)); do
   pids=()

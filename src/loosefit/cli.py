@@ -588,7 +588,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("simulate", help="simulate a garment dataset with Newton (resumable)")
-    p.add_argument("--preset", default="demo", help="tiny, demo, salsa, salsa-speed or paper")
+    p.add_argument(
+        "--preset", default="demo", help="tiny, demo, salsa, salsa-speed, salsa-speeds or paper"
+    )
     p.add_argument("--out", default=None, help="dataset folder (default datasets/PRESET)")
     p.add_argument("--bvh", default=None, help="salsa/paper: a folder of BVH clips")
     p.add_argument("--workers", type=int, default=2, help="parallel simulations")

@@ -85,7 +85,7 @@ def test_non_dataset_folder_is_rejected(tmp_path):
 
 
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
-    with pytest.raises(LoosefitInputError, match="one of tiny, demo, salsa, salsa-speed, paper"):
+    with pytest.raises(LoosefitInputError, match=r"one of tiny, demo, salsa, salsa-speed\(s\), "):
         gen.preset("huge")
     with pytest.raises(LoosefitInputError, match=r"\*\.bvh.*no \.bvh files"):
         gen.plan_jobs(gen.preset("salsa", bvh_folder=str(tmp_path)))
@@ -113,6 +113,10 @@ def test_salsa_speed_adds_faster_training_clips_only(tmp_path):
     assert extra[0].spec == f"speed:1.25:{tmp_path / '60_01.bvh'}"
     assert gen.short_spec(extra[0].spec) == "speed:1.25:60_01.bvh"
     assert len({j.seed for j in jobs}) == len(jobs)
+    both = gen.plan_jobs(gen.preset("salsa-speeds", bvh_folder=str(tmp_path)))
+    assert both[: len(jobs)] == jobs  # salsa-speed's clips, same seeds: --reuse takes them
+    assert [j.name for j in both[len(jobs) :]] == ["60_01_x1.5", "60_02_x1.5"]
+    assert len({j.seed for j in both}) == len(both)
     cfg = gen.preset("salsa", bvh_folder=str(tmp_path))
     cfg.motions.speeds = (1.0,)
     with pytest.raises(LoosefitInputError, match="speeds"):

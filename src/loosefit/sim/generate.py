@@ -88,6 +88,8 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
     * ``salsa-speed``: ``salsa``, and its training clips also played 1.25 times as
       fast (the same held-out chain); ``--reuse`` a ``salsa`` folder to simulate
       only the new clips (about an hour on two CPU cores).
+    * ``salsa-speeds``: ``salsa-speed``, and the training clips also played 1.5 times as
+      fast; ``--reuse`` a ``salsa-speed`` folder to simulate only the 1.5x clips.
     * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
       salsa plus procedural dances; meant for a GPU.
     """
@@ -120,7 +122,8 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
             cloth=ClothConfig(settle_seconds=0.6, blend_seconds=0.4),
             motions=MotionSource(kind="procedural", count=4, seconds=4.0, test_every=4),
         )
-    if name in ("salsa", "salsa-speed"):
+    salsa_speeds = {"salsa": (), "salsa-speed": (1.25,), "salsa-speeds": (1.25, 1.5)}
+    if name in salsa_speeds:
         return DatasetConfig(
             preset=name,
             garment=SkirtConfig.preset("cpu", "flared"),
@@ -131,7 +134,7 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
                 test=salsa_test,
                 start_frame=10,
                 chain_test=True,
-                speeds=(1.25,) if name == "salsa-speed" else (),
+                speeds=salsa_speeds[name],
             ),  # fmt: skip
         )
     if name == "paper":
@@ -144,7 +147,7 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
             ),
         )
     raise LoosefitInputError(
-        "--preset", "preset", "one of tiny, demo, salsa, salsa-speed, paper", repr(name)
+        "--preset", "preset", "one of tiny, demo, salsa, salsa-speed(s), paper", repr(name)
     )
 
 
