@@ -164,14 +164,22 @@ def main() -> None:
         + " | 1200 vs 100 | RMSE, all frames | Hausdorff (cm) | STED | s/epoch |",
         "|---|" + "---:|" * len(hs) + "---:|---:|---:|---:|---:|",
     ]
+    # Runs may have trained on other machines or thread counts: s/epoch names its own.
+    machines = list(dict.fromkeys(rep["machine"] for _, _, rep in rows if rep))
     for label, r, rep in rows:
         h = r["horizons"]
         cells = [f"{h[k]:.3f}" if k in h else "-" for k in hs]
         growth = f"{100 * (h['1200'] / h['100'] - 1):+.1f}%" if "1200" in h and "100" in h else "-"
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {growth} | {r['rmse_cm']:.3f} | "
                      f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} | "
-                     + (f"{rep['seconds_per_epoch']:.1f} |" if rep else "- |"))  # fmt: skip
-    lines += ["", f"Machine: {rows[0][2]['machine']}.", ""]
+                     + (f"{rep['seconds_per_epoch']:.1f}" if rep else "-")
+                     + (f" [{machines.index(rep['machine']) + 1}] |"
+                        if rep and len(machines) > 1 else " |"))  # fmt: skip
+    if len(machines) == 1:
+        lines += ["", f"Machine: {machines[0]}.", ""]
+    else:
+        listed = "; ".join(f"[{i + 1}] {m}" for i, m in enumerate(machines))
+        lines += ["", f"Machines (s/epoch): {listed}.", ""]
     text = "\n".join(lines)
     print(text)
     if args.table:

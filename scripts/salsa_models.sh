@@ -15,9 +15,9 @@ MOTION_EPOCHS=${MOTION_EPOCHS:-40}
 
 # 1. Ground truth (issue 3): 10 training clips and the chained held-out sequence.
 "$BIN/loosefit" simulate --preset salsa --bvh "$BVH" --out "$DATA" --workers 2
-#    More simulated data for one row of Table 1: the training clips also played 1.25 times as
+#    More simulated data for two rows of Table 1: the training clips also played 1.25 times as
 #    fast; the clips salsa already has are taken from it, not simulated again (about 70 min).
-#    And at 1.5 times as fast too (about 45 min more).
+#    And at 1.5 times as fast too (about 70 min more).
 DATASETS=$(dirname "$DATA")
 "$BIN/loosefit" simulate --preset salsa-speed --bvh "$BVH" --out "$DATASETS/salsa-speed" \
     --workers 2 --reuse "$DATA"

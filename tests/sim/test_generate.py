@@ -85,7 +85,8 @@ def test_non_dataset_folder_is_rejected(tmp_path):
 
 
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
-    with pytest.raises(LoosefitInputError, match=r"one of tiny, demo, salsa, salsa-speed\(s\), "):
+    expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, paper"
+    with pytest.raises(LoosefitInputError, match=expected):
         gen.preset("huge")
     with pytest.raises(LoosefitInputError, match=r"\*\.bvh.*no \.bvh files"):
         gen.plan_jobs(gen.preset("salsa", bvh_folder=str(tmp_path)))

@@ -78,6 +78,9 @@ class DatasetConfig:
     shape: dict = field(default_factory=dict)  # avatar phenotype overrides
 
 
+PRESETS = ("tiny", "demo", "salsa", "salsa-speed", "salsa-speeds", "paper")
+
+
 def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
     """A named dataset configuration.
 
@@ -146,9 +149,7 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
                 kind="bvh", folder=salsa, test=salsa_test, count=6, seconds=60.0, start_frame=10
             ),
         )
-    raise LoosefitInputError(
-        "--preset", "preset", "one of tiny, demo, salsa, salsa-speed(s), paper", repr(name)
-    )
+    raise LoosefitInputError("--preset", "preset", "one of " + ", ".join(PRESETS), repr(name))
 
 
 @dataclass
