@@ -23,6 +23,7 @@ import torch
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.report import write_rollout_report
+from loosefit.model.rollout import MOTION_ONLY
 from loosefit.train.motion import (
     HORIZONS,
     TrainMotionConfig,
@@ -125,7 +126,7 @@ def main() -> None:
             result = json.loads(evaluation.read_text())
         else:
             model = load_animation_model(run / "model.pt", args.generative)
-            result = evaluate_rollouts(model, reader, "test")
+            result = evaluate_rollouts(model, reader, "test", stages=MOTION_ONLY)
             write_rollout_report(result, run / "evaluation", f"Rollouts, {label}")
         report = json.loads((run / "report.json").read_text())
         rows.append((label, result, report))
@@ -149,7 +150,7 @@ def main() -> None:
             model = model or load_animation_model(
                 Path(args.out) / args.runs.split(",")[0] / "model.pt", args.generative
             )
-            result = evaluate_rollouts(model, reader, "test", **kw)
+            result = evaluate_rollouts(model, reader, "test", stages=MOTION_ONLY, **kw)
             write_rollout_report(result, ref.parent, label[0].upper() + label[1:])
         rows.append((label, result, None))
     hs = [str(h) for h in HORIZONS]

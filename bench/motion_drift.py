@@ -28,6 +28,7 @@ import torch
 from motion_ablation import RUNS  # the Table 1 runs (bench/ is on the path of a script)
 
 from loosefit.data.format import DatasetReader
+from loosefit.model.rollout import MOTION_ONLY
 from loosefit.train.motion import evaluate_rollouts, load_animation_model
 
 EVERY = (1, 100, 500, 1200, None)
@@ -46,7 +47,9 @@ def _drift(path: Path, reader: DatasetReader) -> tuple[dict, int]:
     model = load_animation_model(path)
     errors, frames = {}, 0
     for every in EVERY:
-        result = evaluate_rollouts(model, reader, "test", surface=False, restart_every=every)
+        result = evaluate_rollouts(
+            model, reader, "test", surface=False, restart_every=every, stages=MOTION_ONLY
+        )
         errors[every], frames = result["rmse_cm"], result["frames"]
     cache.write_text(json.dumps({**key, "frames": frames,
                                  "rmse_cm": {str(e): v for e, v in errors.items()}}))  # fmt: skip

@@ -33,6 +33,29 @@ class ClosestPoints:
 
 
 @wp.kernel
+def _closest_normal_kernel(
+    mesh: wp.uint64,
+    queries: wp.array(dtype=wp.vec3),
+    max_dist: float,
+    out_points: wp.array(dtype=wp.vec3),
+    out_faces: wp.array(dtype=wp.int32),
+    out_bary: wp.array(dtype=wp.vec3),
+    out_sign: wp.array(dtype=float),
+):
+    tid = wp.tid()
+    q = wp.mesh_query_point_sign_normal(mesh, queries[tid], max_dist)
+    if q.result:
+        p = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
+        out_points[tid] = p
+        out_faces[tid] = q.face
+        out_bary[tid] = wp.vec3(q.u, q.v, 1.0 - q.u - q.v)
+        out_sign[tid] = q.sign
+    else:
+        out_faces[tid] = -1
+        out_sign[tid] = 1.0
+
+
+@wp.kernel
 def _closest_kernel(
     mesh: wp.uint64,
     queries: wp.array(dtype=wp.vec3),
@@ -55,6 +78,72 @@ def _closest_kernel(
         out_sign[tid] = 1.0
 
 
+class Surface:
+    """A triangle mesh held in one warp BVH, for many closest-point queries.
+
+    Build it once per mesh topology and :meth:`refit` it to each new pose (a
+    posed body frame after frame): refitting moves the BVH's boxes instead of
+    building it again.
+
+    Args:
+        vertices: (Vb, 3) mesh vertices.
+        faces: (F, 3) triangles.
+        device: warp device ("cpu" or "cuda:0").
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, device: str = "cpu") -> None:
+        self.device = device
+        self.num_vertices = len(vertices)
+        self._points = wp.array(
+            np.ascontiguousarray(vertices, np.float32), dtype=wp.vec3, device=device
+        )
+        self._indices = wp.array(
+            np.ascontiguousarray(faces, np.int32).ravel(), dtype=wp.int32, device=device
+        )
+        self.mesh = wp.Mesh(points=self._points, indices=self._indices)
+
+    def refit(self, vertices: np.ndarray) -> None:
+        """Move the mesh to new vertex positions (Vb, 3), the same topology."""
+        if vertices.shape != (self.num_vertices, 3):
+            raise ValueError(f"vertices: expected ({self.num_vertices}, 3), found {vertices.shape}")
+        self._points.assign(np.ascontiguousarray(vertices, np.float32))
+        self.mesh.refit()
+
+    def query(
+        self, queries: np.ndarray, max_distance: float = 1.0e3, sign: str = "winding"
+    ) -> ClosestPoints:
+        """Closest surface points of queries (N, 3) and an inside test; see :func:`closest_points`.
+
+        ``sign="winding"`` decides inside by the winding number (robust to small holes);
+        ``"normal"`` by the side of the closest face's normal: several times faster,
+        and the same on a closed mesh away from its creases.
+        """
+        if sign not in ("winding", "normal"):
+            raise ValueError(f"sign: expected 'winding' or 'normal', found {sign!r}")
+        device = self.device
+        n = len(queries)
+        q = wp.array(np.ascontiguousarray(queries, np.float32), dtype=wp.vec3, device=device)
+        pts = wp.zeros(n, dtype=wp.vec3, device=device)
+        fcs = wp.zeros(n, dtype=wp.int32, device=device)
+        bary = wp.zeros(n, dtype=wp.vec3, device=device)
+        sign = wp.zeros(n, dtype=float, device=device)
+        wp.launch(
+            _closest_kernel if sign == "winding" else _closest_normal_kernel,
+            dim=n,
+            inputs=[self.mesh.id, q, float(max_distance)],
+            outputs=[pts, fcs, bary, sign],
+            device=device,
+        )
+        points = pts.numpy()
+        return ClosestPoints(
+            points=points,
+            faces=fcs.numpy().astype(np.int64),
+            barycentric=bary.numpy(),
+            inside=sign.numpy() < 0,
+            distance=np.linalg.norm(points - np.asarray(queries, np.float32), axis=-1),
+        )
+
+
 def closest_points(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -74,30 +163,4 @@ def closest_points(
     Returns:
         :class:`ClosestPoints`; ``barycentric`` weights the face's (v0, v1, v2).
     """
-    mesh = wp.Mesh(
-        points=wp.array(np.ascontiguousarray(vertices, np.float32), dtype=wp.vec3, device=device),
-        indices=wp.array(
-            np.ascontiguousarray(faces, np.int32).ravel(), dtype=wp.int32, device=device
-        ),
-    )
-    n = len(queries)
-    q = wp.array(np.ascontiguousarray(queries, np.float32), dtype=wp.vec3, device=device)
-    pts = wp.zeros(n, dtype=wp.vec3, device=device)
-    fcs = wp.zeros(n, dtype=wp.int32, device=device)
-    bary = wp.zeros(n, dtype=wp.vec3, device=device)
-    sign = wp.zeros(n, dtype=float, device=device)
-    wp.launch(
-        _closest_kernel,
-        dim=n,
-        inputs=[mesh.id, q, float(max_distance)],
-        outputs=[pts, fcs, bary, sign],
-        device=device,
-    )
-    points = pts.numpy()
-    return ClosestPoints(
-        points=points,
-        faces=fcs.numpy().astype(np.int64),
-        barycentric=bary.numpy(),
-        inside=sign.numpy() < 0,
-        distance=np.linalg.norm(points - np.asarray(queries, np.float32), axis=-1),
-    )
+    return Surface(vertices, faces, device).query(queries, max_distance)

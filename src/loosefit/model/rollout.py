@@ -25,6 +25,18 @@ from loosefit.model.motion_features import feature_joints, motion_features, root
 from loosefit.types import Motion
 
 
+@dataclass(frozen=True)
+class Stages:
+    """Which stages run after the decoders (each can be switched off)."""
+
+    detail: bool = True  # paper 3.4, when the model carries a detail stage
+    collision: bool = True  # paper 3.5
+    feedback: bool = False  # the garment after them is the next frame's previous state
+
+
+MOTION_ONLY = Stages(detail=False, collision=False)  # the motion stage alone (Table 1)
+
+
 class RolloutError(RuntimeError):
     """A rollout produced NaN or a garment far from the body; the message names the frame."""
 
@@ -107,11 +119,22 @@ class RolloutResult:
         vertices: (T, V, 3) float32 world positions, frame ``t`` on motion frame ``t``.
         seconds: wall-clock seconds of the network work (all P + T frames).
         frames: P + T, the frames computed.
+        codes: (T, latent) float32 the motion encoder's Z_t of each motion frame, or None.
+        decoded: (T, V, 3) float32 world positions straight from the decoders (before
+            detail and collision), or None when no later stage ran.
+        collisions: per motion frame, the collision handling's figures (without the
+            vertices), or None when it did not run.
+        stage_seconds: wall-clock seconds per stage ("motion", "detail", "collision"),
+            where measured.
     """
 
     vertices: np.ndarray
     seconds: float
     frames: int
+    codes: np.ndarray | None = None
+    decoded: np.ndarray | None = None
+    collisions: list | None = None
+    stage_seconds: dict | None = None
 
     @property
     def frames_per_second(self) -> float:
@@ -129,6 +152,9 @@ def rollout(
     progress: Callable[[int, int], None] | None = None,
     truth: np.ndarray | None = None,
     restart_every: int | None = None,
+    detail: torch.nn.Module | None = None,
+    collide: Callable[[int, torch.Tensor], object] | None = None,
+    feedback: bool = False,
 ) -> RolloutResult:
     """Animate the garment through ``motion``.
 
@@ -146,6 +172,13 @@ def rollout(
             previous frame, so that every frame is predicted at most that many frames
             after a true state (the GRU's state depends on the motion alone and runs on).
         restart_every: frames between restarts (needs ``truth``).
+        detail: the detail generator (paper 3.4), ``(V_t, Z_t) -> I_de`` on garments in
+            their root frames; None skips it.
+        collide: collision handling (paper 3.5), ``collide(motion_frame, garment (V, 3)
+            world) -> CollisionResult``; None skips it.
+        feedback: feed the garment after detail and collision back as the next frame's
+            previous state (else the decoders' own output, what the encoder was trained
+            on, is fed back and the later stages run over all frames at once).
 
     Returns:
         :class:`RolloutResult`.
@@ -172,6 +205,11 @@ def rollout(
             raise ValueError(f"truth: expected {(motion.num_frames, encoder.num_vertices, 3)}, "
                              f"found {truth.shape}")  # fmt: skip
         truth_t = torch.as_tensor(truth, dtype=torch.float32, device=device)
+    refine = detail is not None or collide is not None
+    codes = torch.empty(motion.num_frames, encoder.latent) if refine else None
+    decoded = torch.empty(motion.num_frames, encoder.num_vertices, 3) if refine else None
+    collisions: list | None = [] if collide is not None else None
+    stage = {"motion": 0.0, "detail": 0.0, "collision": 0.0}
     t0 = time.perf_counter()
     for t in range(total):
         m = t - P
@@ -184,10 +222,72 @@ def rollout(
         where = f"motion frame {t - P}" if t >= P else f"preroll frame {t}"
         check_garment(prev, config.max_distance, where)
         if t >= P:
-            out[t - P] = from_root_frame(prev, H[t : t + 1], p[t : t + 1])[0].cpu()
+            world = from_root_frame(prev, H[t : t + 1], p[t : t + 1])
+            if refine:
+                codes[m], decoded[m] = z[0].cpu(), world[0].cpu()
+            if refine and feedback:
+                t1 = time.perf_counter()
+                stage["motion"] += t1 - t0
+                world, record = _refine_frame(prev, z, H[t : t + 1], p[t : t + 1], m, detail,
+                                              collide, stage)  # fmt: skip
+                if record is not None:
+                    collisions.append(record)
+                prev = to_root_frame(world, H[t : t + 1], p[t : t + 1])
+                t0 = time.perf_counter()
+            out[m] = world[0].cpu()
         if progress is not None:
             progress(t + 1, total)
-    return RolloutResult(out.numpy(), time.perf_counter() - t0, total)
+    stage["motion"] += time.perf_counter() - t0
+    if refine and not feedback:
+        out = _refine_all(decoded, codes, H[P:].cpu(), p[P:].cpu(), detail, collide, stage,
+                          collisions, device)  # fmt: skip
+    seconds = sum(stage.values())
+    if not refine:
+        return RolloutResult(out.numpy(), seconds, total)
+    return RolloutResult(out.numpy(), seconds, total, codes.numpy(), decoded.numpy(), collisions,
+                         {k: v for k, v in stage.items() if v > 0})  # fmt: skip
+
+
+def _collision_record(result) -> dict:
+    """A collision result's figures, without its vertices."""
+    return {k: v for k, v in vars(result).items() if k != "vertices"}
+
+
+def _refine_frame(local, z, H, p, m, detail, collide, stage) -> tuple[torch.Tensor, dict | None]:
+    """One frame (1, V, 3) in its root frame through detail and collision: world (1, V, 3)."""
+    t0 = time.perf_counter()
+    if detail is not None:
+        local = local + detail(local, z)
+    world = from_root_frame(local, H, p)
+    t1 = time.perf_counter()
+    stage["detail"] += t1 - t0
+    if collide is None:
+        return world, None
+    result = collide(m, world[0])
+    stage["collision"] += time.perf_counter() - t1
+    return result.vertices[None].to(world.dtype), _collision_record(result)
+
+
+def _refine_all(decoded, codes, H, p, detail, collide, stage, collisions, device,
+                chunk: int = 64) -> torch.Tensor:  # fmt: skip
+    """Every frame (T, V, 3) world through detail (in chunks) and then collision (per frame)."""
+    out = decoded.clone()
+    t0 = time.perf_counter()
+    if detail is not None:
+        for s in range(0, len(out), chunk):
+            h, q = H[s : s + chunk].to(device), p[s : s + chunk].to(device)
+            local = to_root_frame(decoded[s : s + chunk].to(device), h, q)
+            local = local + detail(local, codes[s : s + chunk].to(device))
+            out[s : s + chunk] = from_root_frame(local, h, q).cpu()
+    t1 = time.perf_counter()
+    stage["detail"] += t1 - t0
+    if collide is not None:
+        for m in range(len(out)):
+            result = collide(m, out[m].to(device))
+            out[m] = result.vertices.cpu()
+            collisions.append(_collision_record(result))
+        stage["collision"] += time.perf_counter() - t1
+    return out
 
 
 @torch.no_grad()

@@ -39,6 +39,7 @@ from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
+from loosefit.geometry.collision import BodyCollider, CollisionConfig, CollisionHandler
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.model.frames import avatar_for, garment_fingerprint, to_root_frame
 from loosefit.model.generative import GarmentGenerativeModel, squared_error
@@ -50,7 +51,9 @@ from loosefit.model.motion_features import (
     root_frames,
 )
 from loosefit.model.rollout import (
+    MOTION_ONLY,
     RolloutConfig,
+    Stages,
     carried_drape,
     change_frame,
     latent_codes,
@@ -313,6 +316,41 @@ class AnimationModel:
     body: dict
     config: TrainMotionConfig
     path: Path
+    detail: torch.nn.Module | None = None  # paper 3.4 (a DetailGenerator), if trained
+    collision: CollisionConfig = field(default_factory=CollisionConfig)  # paper 3.5
+    arm_collision: bool = False  # the arms in the collider (as in the simulation of the data)
+    stages: Stages = field(default_factory=Stages)  # what animate() runs by default
+    _avatar: object = None
+    _handler: CollisionHandler | None = None
+
+    @property
+    def device(self) -> torch.device:
+        return self.rest_state.device
+
+    def avatar(self):
+        """The body the garment was simulated on (built once)."""
+        if self._avatar is None:
+            from loosefit.body.avatar import Avatar, AvatarConfig
+
+            self._avatar = Avatar(AvatarConfig(shape=dict(self.body.get("shape", {}))))
+        return self._avatar
+
+    def collider(self, motion: Motion) -> BodyCollider:
+        """Collision handling (paper 3.5) along ``motion``'s frames (the simulation's collider)."""
+        if self._handler is None:
+            t = self.template
+            self._handler = CollisionHandler(t.faces, t.num_vertices, self.collision)
+            self._handler.to(self.device)
+        avatar = self.avatar()
+        rot = torch.from_numpy(motion.rotations)
+        root = torch.from_numpy(motion.root_translation)
+
+        def pose(start: int, stop: int) -> np.ndarray:
+            return avatar.pose(rot[start:stop], root[start:stop]).vertices.cpu().numpy()
+
+        faces = avatar.collider_faces(arms=self.arm_collision).cpu().numpy()
+        warp_device = "cpu" if self.device.type == "cpu" else f"cuda:{self.device.index or 0}"
+        return BodyCollider(self._handler, faces, pose, motion.num_frames, device=warp_device)
 
     def check_motion(self, motion: Motion) -> None:
         """A clear error for a motion on other joints or at another frame rate."""
@@ -332,12 +370,18 @@ class AnimationModel:
             raise LoosefitInputError(f"motion '{motion.name}'", "rotations/root_translation",
                                      "finite numbers", "NaN or infinity")  # fmt: skip
 
-    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None):
-        """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first)."""
+    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
+                stages: Stages | None = None):  # fmt: skip
+        """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first) through the
+        motion stage, then the detail stage (if the model has one) and collision handling,
+        as ``stages`` (default ``self.stages``) says."""
         self.check_motion(motion)
+        stages = stages or self.stages
+        detail = self.detail if stages.detail else None
+        collide = self.collider(motion) if stages.collision else None
         return rollout(self.generative, self.encoder, motion, self.rest_state,
                        self.floor_height, self.config.rollout, progress, truth,
-                       restart_every)  # fmt: skip
+                       restart_every, detail, collide, stages.feedback)  # fmt: skip
 
     def carry_drape(self, motion: Motion, progress=None):
         """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""
@@ -409,6 +453,7 @@ def load_animation_model(
         torch.as_tensor(data["rest_state"]).float().to(device),
         tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
         dict(data["body"]), config, path,
+        arm_collision=bool((data.get("cloth") or {}).get("arm_collision", False)),
     )  # fmt: skip
 
 
@@ -467,6 +512,7 @@ def evaluate_rollouts(
     reference: bool = False,
     restart_every: int | None = None,
     oracle: bool = False,
+    stages: Stages | None = None,
 ) -> dict:
     """Roll every clip of a split out from its first frame and compare with the simulation.
 
@@ -486,6 +532,7 @@ def evaluate_rollouts(
         oracle: score the generative model's reconstruction of the simulated
             garment (:meth:`AnimationModel.reconstruct`) instead: the floor under
             the motion encoder's error.
+        stages: the stages after the decoders (default: the model's, all of them).
 
     Returns:
         Per clip: frames, RMSE (cm) over the clip and per horizon, the RMSE of
@@ -503,9 +550,10 @@ def evaluate_rollouts(
         elif oracle:
             result = model.reconstruct(motion, true)
         elif restart_every is not None:
-            result = model.animate(motion, truth=true, restart_every=restart_every)
+            result = model.animate(motion, truth=true, restart_every=restart_every,
+                                   stages=stages)  # fmt: skip
         else:
-            result = model.animate(motion)
+            result = model.animate(motion, stages=stages)
         pred = result.vertices
         per_frame = 100 * rmse_per_frame(pred, true)  # (T,) cm
         entry = {
@@ -785,7 +833,7 @@ def train_motion(
             current = AnimationModel(gmodel, encoder, template, rest.to(config.device),
                                      tuple(joint_names), floor, fps, dict(reader.body), config,
                                      ckpt_path)  # fmt: skip
-            err = evaluate_rollouts(current, reader, "test", surface=False)
+            err = evaluate_rollouts(current, reader, "test", surface=False, stages=MOTION_ONLY)
             writer.add_scalar("test/rollout_rmse_cm", err["rmse_cm"], epoch)
             history[-1]["test_rollout_rmse_cm"] = err["rmse_cm"]
             bar.write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
@@ -805,7 +853,7 @@ def train_motion(
         "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "machine": machine(config.device),
         "final_loss": history[-1] if history else None,
-        "test": evaluate_rollouts(model, reader, "test"),
+        "test": evaluate_rollouts(model, reader, "test", stages=MOTION_ONLY),
     }
     write_json_atomic(out / "report.json", report)
     (out / "report.md").write_text(format_report(report))
