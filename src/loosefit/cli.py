@@ -311,6 +311,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     if args.stage == "motion":
         return _train_motion(args)
+    if args.stage == "detail":
+        return _train_detail(args)
     from loosefit.train.generative import TrainGenerativeConfig, train_generative
 
     cfg = TrainGenerativeConfig.preset(
@@ -346,6 +348,45 @@ def _train_motion(args: argparse.Namespace) -> int:
     return 0 if report else 1
 
 
+def _train_detail(args: argparse.Namespace) -> int:
+    from loosefit.train.detail import TrainDetailConfig, train_detail
+
+    if not args.motion:
+        raise LoosefitInputError("loosefit train detail", "--motion",
+                                 "the trained motion stage's model.pt", "none")  # fmt: skip
+    cfg = TrainDetailConfig.preset(
+        args.preset, epochs=args.epochs, device=args.device, max_frames=args.max_frames,
+        batch_size=args.batch_size, lr=args.lr,
+        discriminator=False if args.no_discriminator else None,
+    )  # fmt: skip
+    kind = "full" if cfg.discriminator else "nodisc"
+    out = args.out or f"runs/detail-{args.preset}-{kind}"
+    report = train_detail(args.data, args.motion, out, cfg, args.generative, log=_log)
+    print(Path(out, "report.md").read_text())
+    _log(f"run in {out}; model {Path(out, 'model.pt')}")
+    return 0 if report else 1
+
+
+def _stages(args: argparse.Namespace):
+    from loosefit.model.rollout import Stages
+
+    return Stages(detail=not args.no_detail, collision=not args.no_collision,
+                  feedback=args.feedback)  # fmt: skip
+
+
+def _add_stage_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--detail",
+        default=None,
+        help="a detail stage's model.pt (default: detail.pt beside a packaged motion.pt)",
+    )
+    p.add_argument("--no-detail", action="store_true", help="skip detail enhancement (3.4)")
+    p.add_argument("--no-collision", action="store_true", help="skip collision handling (3.5)")
+    p.add_argument("--feedback", action="store_true",
+                   help="feed the garment after detail and collision back as the next frame's "
+                   "previous state (default: the decoders' output, as in training)")  # fmt: skip
+
+
 def pretrained_checkpoint() -> Path:
     """The committed pretrained pair's motion stage (``checkpoints/salsa``, trained on salsa)."""
     return Path(__file__).resolve().parents[2] / "checkpoints" / "salsa" / "motion.pt"
@@ -375,9 +416,10 @@ def cmd_animate(args: argparse.Namespace) -> int:
     from loosefit.body.chain import chain_motions
     from loosefit.body.motions import load_motion
     from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
-    from loosefit.train.motion import load_animation_model
+    from loosefit.train.detail import load_pipeline
 
-    model = load_animation_model(args.checkpoint, args.generative)
+    model = load_pipeline(args.checkpoint, args.generative, args.detail)
+    stages = _stages(args)
     avatar = Avatar(AvatarConfig(shape=dict(model.body.get("shape", {}))))
     motion = load_motion(args.motion, avatar, fps=model.fps, seed=args.seed,
                          start_frame=args.start_frame)  # fmt: skip
@@ -407,13 +449,16 @@ def cmd_animate(args: argparse.Namespace) -> int:
         bar.total = total
         bar.update(done - bar.n)
 
-    result = model.animate(motion, progress)
+    result = model.animate(motion, progress, stages=stages)
     bar.close()
+    _log(_stage_line(model, stages, result))
     model.template.save(out / "template.npz")
     write_sequence(out / "sequences" / f"{name}.npz", Sequence(name, motion, result.vertices))
     manifest = {
         "format": FORMAT, "preset": "animate", "complete": True,
         "source": {"checkpoint": str(Path(args.checkpoint).resolve()), "motion": str(args.motion),
+                   "stages": {"detail": stages.detail and model.detail is not None,
+                              "collision": stages.collision, "feedback": stages.feedback},
                    "frames": motion.num_frames, "frames_per_second": result.frames_per_second},
         "body": {**model.body, "floor_height": model.floor_height},
         "garment": {"name": model.template.name, "num_vertices": model.template.num_vertices},
@@ -431,12 +476,36 @@ def cmd_animate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _stage_line(model, stages, result) -> str:
+    """What ran after the decoders, and what collision handling did."""
+    ran = ["motion"]
+    if stages.detail and model.detail is not None:
+        ran.append("detail")
+    elif stages.detail:
+        ran.append("(no detail stage in this checkpoint)")
+    if stages.collision:
+        ran.append("collision")
+    line = "stages: " + " -> ".join(ran)
+    if result.collisions:
+        before = sum(c["inside_before"] > 0 for c in result.collisions)
+        after = [c for c in result.collisions if c["inside_after"] > 0]
+        line += (f"; collision handling: {before} of {len(result.collisions)} frames had cloth "
+                 f"inside the body, {len(after)} still do")  # fmt: skip
+        if after:
+            worst = max(range(len(result.collisions)),
+                        key=lambda k: result.collisions[k]["depth_after"])  # fmt: skip
+            line += (f" (deepest: frame {worst}, "
+                     f"{100 * result.collisions[worst]['depth_after']:.2f} cm)")  # fmt: skip
+    return line
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from loosefit.data.format import DatasetReader
     from loosefit.eval.report import write_rollout_report
-    from loosefit.train.motion import evaluate_rollouts, load_animation_model
+    from loosefit.train.detail import load_pipeline
+    from loosefit.train.motion import evaluate_rollouts
 
-    model = load_animation_model(args.checkpoint, args.generative)
+    model = load_pipeline(args.checkpoint, args.generative, args.detail)
     reader = DatasetReader(args.data)
     try:
         horizons = tuple(int(h) for h in args.horizons.split(","))
@@ -444,7 +513,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         raise LoosefitInputError("--horizons", "horizons", "comma-separated frame counts",
                                  repr(args.horizons)) from None  # fmt: skip
     result = evaluate_rollouts(model, reader, args.split, horizons, surface=not args.rmse_only,
-                               max_frames=args.max_frames)  # fmt: skip
+                               max_frames=args.max_frames, stages=_stages(args))  # fmt: skip
     result["checkpoint"] = str(Path(args.checkpoint).resolve())
     result["dataset"] = str(Path(args.data).resolve())
     write_rollout_report(result, args.out, f"Rollouts of {Path(args.checkpoint).parent.name}")
@@ -456,8 +525,12 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def cmd_package(args: argparse.Namespace) -> int:
     from loosefit.train.motion import package_model
 
-    gout, mout = package_model(args.checkpoint, args.out, args.generative)
-    for f in (gout, mout):
+    files = list(package_model(args.checkpoint, args.out, args.generative))
+    if args.detail:
+        from loosefit.train.detail import package_detail
+
+        files.append(package_detail(args.detail, args.out))
+    for f in files:
         _log(f"wrote {f} ({f.stat().st_size / 1e6:.1f} MB)")
     return 0
 
@@ -604,10 +677,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("train", help="train a learned stage (resumable)")
     p.add_argument(
         "stage",
-        choices=("generative", "motion"),
-        help="generative: the garment VAE (3.2); motion: the motion encoder (3.3)",
+        choices=("generative", "motion", "detail"),
+        help="generative: the garment VAE (3.2); motion: the motion encoder (3.3); detail: "
+        "the detail enhancement module (3.4) on a trained motion stage's rollouts",
     )
     p.add_argument("--generative", default=None, help="motion: the generative checkpoint")
+    p.add_argument("--motion", default=None, help="detail: the motion stage's model.pt")
+    p.add_argument(
+        "--no-discriminator",
+        action="store_true",
+        help="detail: the ablation without the multi-scale discriminator (Table 2's middle row)",
+    )
     p.add_argument(
         "--no-previous-state",
         action="store_true",
@@ -662,6 +742,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="out/animate", help="output folder (dataset format)")
     p.add_argument("--render", action="store_true", help="also render a video and PNGs")
     p.add_argument("--seed", type=int, default=0)
+    _add_stage_args(p)
     _add_render_args(p, views="front,side")
     p.set_defaults(func=cmd_animate)
 
@@ -674,14 +755,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-frames", type=int, default=None, help="roll out at most this many")
     p.add_argument("--rmse-only", action="store_true", help="skip Hausdorff and STED (faster)")
     p.add_argument("--out", default="out/evaluate")
+    _add_stage_args(p)
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser(
-        "package", help="both stages of a trained model in one folder, half precision, to share"
+        "package", help="a trained model's stages in one folder, half precision, to share"
     )
     p.add_argument("checkpoint", help="a motion run's model.pt or checkpoint.pt")
     _add_generative_arg(p)
-    p.add_argument("--out", required=True, help="folder for generative.pt and motion.pt")
+    p.add_argument("--detail", default=None, help="also this detail stage's model.pt")
+    p.add_argument("--out", required=True,
+                   help="folder for generative.pt, motion.pt (and detail.pt)")  # fmt: skip
     p.set_defaults(func=cmd_package)
 
     p = sub.add_parser("reconstruct", help="encode and decode a clip with a generative model")

@@ -13,24 +13,10 @@ from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.laplacian import Laplacian
-from loosefit.model.generative import GenerativeConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import feature_joints, num_features
 from loosefit.model.rollout import RolloutConfig
-from loosefit.train.generative import TrainGenerativeConfig, train_generative
 from loosefit.types import Motion
-
-SMALL = dict(uv_size=32, channels=(4, 8, 8, 8), rec_hidden=(16, 16, 16))
-
-
-@pytest.fixture(scope="module")
-def generative(toy_dataset, tmp_path_factory):
-    """A small generative model, trained a little on the toy data."""
-    out = tmp_path_factory.mktemp("gen")
-    cfg = TrainGenerativeConfig(model=GenerativeConfig(**SMALL), epochs=15, batch_size=8,
-                                lr=2e-3, eval_every=1000, checkpoint_every=5)  # fmt: skip
-    train_generative(toy_dataset, out, cfg, log=lambda *_: None, progress=False)
-    return out / "checkpoint.pt"
 
 
 def _config(**kw) -> tm.TrainMotionConfig:

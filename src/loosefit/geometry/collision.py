@@ -269,20 +269,23 @@ def _signed_distances(
     reach: float,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Closest body points b (V, 3), normals n (V, 3), ``ds = n.(x - b)`` (V,) and a mask (V,)
-    of the vertices within ``reach`` of the body; a vertex the closest face's normal finds inside
-    has ``ds <= -|x - b|`` whatever the interpolated normal says (creases of the body)."""
+    of the vertices within ``reach`` of the body. ``n`` is the distance's gradient, so
+    ``ds = +-|x - b|`` (minus inside, by the closest face's side)."""
     dev = x.device
     hit = body.query(x.detach().cpu().numpy(), reach, sign="normal")
     valid = hit.faces >= 0
     corners = body_faces[np.where(valid, hit.faces, 0)]  # (V, 3) body vertex indices
-    nrm = (body_normals[corners] * hit.barycentric[:, :, None]).sum(1)  # (V, 3)
-    nrm /= np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-12)
+    smooth = (body_normals[corners] * hit.barycentric[:, :, None]).sum(1)  # (V, 3)
+    smooth /= np.maximum(np.linalg.norm(smooth, axis=-1, keepdims=True), 1e-12)
+    # the distance's gradient (x - b)/|x - b|, turned outward for a point inside: exact at
+    # the body's edges and corners; on the surface itself the interpolated normal
+    side = np.where(hit.inside, -1.0, 1.0)[:, None]
+    away = (np.asarray(x.detach().cpu().numpy(), np.float64) - hit.points) * side
+    dist = hit.distance[:, None]
+    nrm = np.where(dist > 1e-5, away / np.maximum(dist, 1e-12), smooth)
     b = torch.from_numpy(hit.points).to(dev)
     n = torch.from_numpy(nrm.astype(np.float32)).to(dev)
     ds = (n * (x - b)).sum(-1)
-    inside = torch.from_numpy(hit.inside).to(dev)
-    dist = torch.from_numpy(hit.distance).to(dev)
-    ds = torch.where(inside, torch.minimum(ds, -dist), ds)
     v = torch.from_numpy(valid).to(dev)
     ds = torch.where(v, ds, torch.full_like(ds, float("inf")))
     return b, n, ds, v

@@ -119,7 +119,7 @@ class RolloutResult:
         vertices: (T, V, 3) float32 world positions, frame ``t`` on motion frame ``t``.
         seconds: wall-clock seconds of the network work (all P + T frames).
         frames: P + T, the frames computed.
-        codes: (T, latent) float32 the motion encoder's Z_t of each motion frame, or None.
+        codes: (T, latent) float32 the motion encoder's Z_t of each motion frame.
         decoded: (T, V, 3) float32 world positions straight from the decoders (before
             detail and collision), or None when no later stage ran.
         collisions: per motion frame, the collision handling's figures (without the
@@ -206,7 +206,7 @@ def rollout(
                              f"found {truth.shape}")  # fmt: skip
         truth_t = torch.as_tensor(truth, dtype=torch.float32, device=device)
     refine = detail is not None or collide is not None
-    codes = torch.empty(motion.num_frames, encoder.latent) if refine else None
+    codes = torch.empty(motion.num_frames, encoder.latent)
     decoded = torch.empty(motion.num_frames, encoder.num_vertices, 3) if refine else None
     collisions: list | None = [] if collide is not None else None
     stage = {"motion": 0.0, "detail": 0.0, "collision": 0.0}
@@ -223,8 +223,9 @@ def rollout(
         check_garment(prev, config.max_distance, where)
         if t >= P:
             world = from_root_frame(prev, H[t : t + 1], p[t : t + 1])
+            codes[m] = z[0].cpu()
             if refine:
-                codes[m], decoded[m] = z[0].cpu(), world[0].cpu()
+                decoded[m] = world[0].cpu()
             if refine and feedback:
                 t1 = time.perf_counter()
                 stage["motion"] += t1 - t0
@@ -242,9 +243,8 @@ def rollout(
         out = _refine_all(decoded, codes, H[P:].cpu(), p[P:].cpu(), detail, collide, stage,
                           collisions, device)  # fmt: skip
     seconds = sum(stage.values())
-    if not refine:
-        return RolloutResult(out.numpy(), seconds, total)
-    return RolloutResult(out.numpy(), seconds, total, codes.numpy(), decoded.numpy(), collisions,
+    return RolloutResult(out.numpy(), seconds, total, codes.numpy(),
+                         decoded.numpy() if refine else None, collisions,
                          {k: v for k, v in stage.items() if v > 0})  # fmt: skip
 
 
