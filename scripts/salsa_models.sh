@@ -64,3 +64,20 @@ done
 # 6. The figures docs/MOTION.md cites for the committed pair: error by stretch of motion, edge
 #    strain, vertices inside the body.
 "$BIN/python" bench/motion_quality.py --checkpoint checkpoints/salsa/motion.pt --data "$DATA"
+# 7. The detail module (paper 3.4) on the committed motion stage's own rollouts of the
+#    training clips, with and without the multi-scale discriminator (Table 2's rows), one core
+#    each; the full one joins the committed set, and Table 2 with collision handling is written.
+mkdir -p "$RUNS/detail"
+pids=()
+for kind in full nodisc; do
+  flag=()
+  [ "$kind" = nodisc ] && flag=(--no-discriminator)
+  "$BIN/loosefit" train detail --data "$DATA" --preset cpu --motion checkpoints/salsa/motion.pt \
+      --threads 1 "${flag[@]}" --out "$RUNS/detail/$kind" > "$RUNS/detail/$kind.log" 2>&1 &
+  pids+=($!)
+done
+for pid in "${pids[@]}"; do wait "$pid"; done
+"$BIN/loosefit" package checkpoints/salsa/motion.pt --detail "$RUNS/detail/full/model.pt" \
+    --out checkpoints/salsa
+"$BIN/python" bench/detail_collision.py --data "$DATA" --detail "$RUNS/detail/full/model.pt" \
+    --detail-nodisc "$RUNS/detail/nodisc/model.pt" --out docs/DETAIL_TABLE.md
