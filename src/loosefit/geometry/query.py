@@ -33,29 +33,6 @@ class ClosestPoints:
 
 
 @wp.kernel
-def _closest_normal_kernel(
-    mesh: wp.uint64,
-    queries: wp.array(dtype=wp.vec3),
-    max_dist: float,
-    out_points: wp.array(dtype=wp.vec3),
-    out_faces: wp.array(dtype=wp.int32),
-    out_bary: wp.array(dtype=wp.vec3),
-    out_sign: wp.array(dtype=float),
-):
-    tid = wp.tid()
-    q = wp.mesh_query_point_sign_normal(mesh, queries[tid], max_dist)
-    if q.result:
-        p = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
-        out_points[tid] = p
-        out_faces[tid] = q.face
-        out_bary[tid] = wp.vec3(q.u, q.v, 1.0 - q.u - q.v)
-        out_sign[tid] = q.sign
-    else:
-        out_faces[tid] = -1
-        out_sign[tid] = 1.0
-
-
-@wp.kernel
 def _closest_kernel(
     mesh: wp.uint64,
     queries: wp.array(dtype=wp.vec3),
@@ -64,9 +41,13 @@ def _closest_kernel(
     out_faces: wp.array(dtype=wp.int32),
     out_bary: wp.array(dtype=wp.vec3),
     out_sign: wp.array(dtype=float),
+    winding: int,
 ):
     tid = wp.tid()
-    q = wp.mesh_query_point_sign_winding_number(mesh, queries[tid], max_dist)
+    # inside by the winding number (robust to small holes) or by the closest face's side
+    q = wp.mesh_query_point_sign_normal(mesh, queries[tid], max_dist)
+    if winding != 0:
+        q = wp.mesh_query_point_sign_winding_number(mesh, queries[tid], max_dist)
     if q.result:
         p = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
         out_points[tid] = p
@@ -126,12 +107,20 @@ class Surface:
         pts = wp.zeros(n, dtype=wp.vec3, device=device)
         fcs = wp.zeros(n, dtype=wp.int32, device=device)
         bary = wp.zeros(n, dtype=wp.vec3, device=device)
-        sign = wp.zeros(n, dtype=float, device=device)
+        signs = wp.zeros(n, dtype=float, device=device)
         wp.launch(
-            _closest_kernel if sign == "winding" else _closest_normal_kernel,
+            _closest_kernel,
             dim=n,
-            inputs=[self.mesh.id, q, float(max_distance)],
-            outputs=[pts, fcs, bary, sign],
+            inputs=[
+                self.mesh.id,
+                q,
+                float(max_distance),
+                pts,
+                fcs,
+                bary,
+                signs,
+                int(sign == "winding"),
+            ],
             device=device,
         )
         points = pts.numpy()
@@ -139,7 +128,7 @@ class Surface:
             points=points,
             faces=fcs.numpy().astype(np.int64),
             barycentric=bary.numpy(),
-            inside=sign.numpy() < 0,
+            inside=signs.numpy() < 0,
             distance=np.linalg.norm(points - np.asarray(queries, np.float32), axis=-1),
         )
 
