@@ -19,19 +19,12 @@ from loosefit.model.detail import (
     lsgan_generator_loss,
     mesh_edge_index,
 )
+from tests.meshes import grid
 
 
 def _grid(n: int = 4) -> tuple[np.ndarray, np.ndarray]:
     """An n x n vertex grid in the plane z = 0 and its 2 (n-1)^2 triangles."""
-    u = np.linspace(0.0, 0.3, n)
-    X, Y = np.meshgrid(u, u)
-    v = np.stack([X.ravel(), Y.ravel(), np.zeros(n * n)], 1).astype(np.float32)
-    i = np.arange(n * n).reshape(n, n)
-    f = np.concatenate([
-        np.stack([i[:-1, :-1].ravel(), i[1:, :-1].ravel(), i[:-1, 1:].ravel()], 1),
-        np.stack([i[1:, :-1].ravel(), i[1:, 1:].ravel(), i[:-1, 1:].ravel()], 1),
-    ])  # fmt: skip
-    return v, f
+    return grid(n, 0.0, 0.3)
 
 
 def _edge_conv_loop(x: torch.Tensor, edge_index: torch.Tensor, mlp: nn.Module) -> torch.Tensor:

@@ -9,32 +9,34 @@ every vertex at least ``eps`` outside::
 
 Here ``V~ = V + D`` and the hinge is taken to its hard limit: every vertex of the
 active set (each one that has had ``ds < eps``) is moved along its normal to ``eps``
-outside (``n_k . D_k = c_k = eps - n_k . (V_k - b_k)``, no tangential motion), and the
-other vertices within ``rings`` edges of one minimise the Laplacian change::
+outside (by ``(eps - ds_k) n_k``, no tangential motion; if it then finds another part
+of the body closer and is still short of ``eps``, it is pushed on from there along
+the new normal), and the other vertices within ``rings`` edges of one minimise the
+Laplacian change::
 
-    min_D  || L D ||^2 + mu || D ||^2   subject to  D_k = c_k n_k  (k active)
+    min_D  || L D ||^2 + mu || D ||^2   subject to  D_k = P_k  (k active, P_k its push)
 
-by Jacobi-preconditioned conjugate gradients (all in torch: one code path on CPU
-and CUDA, no loop over vertices; the coordinates decouple). The small anchor ``mu``
+by a direct sparse factorisation of that sub-system (one code path on CPU and CUDA:
+the garment comes to the host once a frame, where the closest points are; no loop
+over vertices; the coordinates decouple). The small anchor ``mu``
 pins what the Laplacian cannot see (a translation of the whole garment is free in
-Eq. 16 alone) and, with ``rings``, keeps a push local. The closest points are
-queried again after each solve (warp's BVH,
+Eq. 16 alone) and, with ``rings``, keeps a push local. The closest points of the
+moved vertices are queried again after each solve (warp's BVH,
 :class:`~loosefit.geometry.query.Surface`), since pushed vertices meet other parts
 of the body, and the active set grows until no vertex is inside ``eps``.
 """
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 import torch
 
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.laplacian import laplacian_matrix
-from loosefit.geometry.normals import vertex_normals
 from loosefit.geometry.query import Surface
 
 
@@ -44,18 +46,17 @@ class CollisionConfig:
 
     epsilon: float = 1.0e-3  # m: every vertex ends at least this far outside the body (eps)
     anchor: float = 1.0e-3  # mu: weight of ||D||^2 (the Laplacian's null space; locality)
-    rings: int = 6  # a solve moves only vertices within this many edges of an active one
+    rings: int = 4  # a solve moves only vertices within this many edges of an active one
     iterations: int = 6  # closest-point queries and solves per frame, at most
-    cg_iterations: int = 40  # conjugate-gradient steps per solve, at most
-    cg_tolerance: float = 1.0e-3  # stop a solve at this preconditioned residual (relative)
-    reach: float = 0.05  # m: vertices farther than this from the body are never touched
+    reach: float = 0.1  # m: vertices farther than this from the body are never touched (and
+    #   deeper inside it never seen): the spin sinks vertices 6.5 cm into the hips
 
     def __post_init__(self) -> None:
         for name in ("epsilon", "anchor", "reach"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise LoosefitInputError("CollisionConfig", name, "a positive number", value)
-        for name in ("rings", "iterations", "cg_iterations"):
+        for name in ("rings", "iterations"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise LoosefitInputError("CollisionConfig", name, "an integer >= 1", value)
@@ -87,8 +88,13 @@ class CollisionResult:
     laplacian_change: float
 
 
-class CollisionHandler(torch.nn.Module):
-    """The garment's operators for Eq. 16 (``L^T L`` and the edge adjacency) as buffers.
+class CollisionHandler:
+    """The garment's operators for Eq. 16 (``L``, ``L^T L + mu I``, the edge adjacency).
+
+    They are scipy sparse matrices on the host: every solve is a small sub-system (the
+    vertices near a penetration), factorised directly (SuperLU), and the closest-point
+    queries that feed it come back to the host anyway, so the garment goes there once
+    per frame and comes back on its own device.
 
     Args:
         faces: (F, 3) the garment's triangles.
@@ -97,204 +103,133 @@ class CollisionHandler(torch.nn.Module):
     """
 
     def __init__(self, faces: np.ndarray, num_vertices: int, config: CollisionConfig | None = None):
-        super().__init__()
         self.config = config or CollisionConfig()
         self.num_vertices = V = num_vertices
         L = laplacian_matrix(faces, V, "uniform", dtype=torch.float64)
         (li, lj), lv = L.indices().numpy(), L.values().numpy()
-        Ls = sp.csr_matrix((lv, (li, lj)), shape=(V, V))
-        LtL = (Ls.T @ Ls).tocsr()
-        LtL.sort_indices()
-        for name, m in (("ltl", LtL), ("lap", Ls)):  # CSR: ~16x faster products than COO on CPU
-            self.register_buffer(f"{name}_crow", torch.from_numpy(m.indptr.astype(np.int64)),
-                                 persistent=False)  # fmt: skip
-            self.register_buffer(f"{name}_col", torch.from_numpy(m.indices.astype(np.int64)),
-                                 persistent=False)  # fmt: skip
-            self.register_buffer(f"{name}_values", torch.from_numpy(m.data.astype(np.float32)),
-                                 persistent=False)  # fmt: skip
-        self.register_buffer("ltl_diagonal", torch.from_numpy(LtL.diagonal().astype(np.float32)),
-                             persistent=False)  # fmt: skip
-        f = torch.as_tensor(np.asarray(faces), dtype=torch.long)
-        e = torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])  # (3F, 2)
-        e = torch.cat([e, e.flip(1)]).unique(dim=0).t()  # (2, 2E) both directions
-        self.register_buffer("adjacency", e, persistent=False)
-
-    def _matrix(self, name: str) -> torch.Tensor:
-        V = self.num_vertices
-        with warnings.catch_warnings():  # "sparse CSR support is in beta": products are all we use
-            warnings.simplefilter("ignore", UserWarning)
-            return torch.sparse_csr_tensor(
-                getattr(self, f"{name}_crow"), getattr(self, f"{name}_col"),
-                getattr(self, f"{name}_values"), (V, V),
-            )  # fmt: skip
+        self.lap = sp.csr_matrix((lv, (li, lj)), shape=(V, V))
+        self.ltl = (self.lap.T @ self.lap).tocsr()
+        self.system = (self.ltl + self.config.anchor * sp.identity(V, format="csr")).tocsr()
+        f = np.asarray(faces, np.int64)
+        e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        adj = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(V, V))
+        self.adjacency = ((adj + adj.T) > 0).astype(np.float32).tocsr()
 
     def laplacian(self, x: torch.Tensor) -> torch.Tensor:
         """(V, 3) -> (V, 3): the uniform Laplacian ``Delta`` of Eq. 16."""
-        return self._matrix("lap") @ x
+        out = self.lap @ x.detach().cpu().double().numpy()
+        return torch.from_numpy(out).to(x.device, x.dtype)
 
-    def dilate(self, mask: torch.Tensor, rings: int) -> torch.Tensor:
+    def dilate(self, mask: np.ndarray, rings: int) -> np.ndarray:
         """(V,) bool grown by ``rings`` edges over the garment mesh."""
-        out = mask.clone()
-        src, dst = self.adjacency
+        out = mask.astype(np.float32)
         for _ in range(rings):
-            grown = out.clone()
-            grown[dst[out[src]]] = True
-            out = grown
-        return out
+            out = np.maximum(out, (self.adjacency @ out > 0).astype(np.float32))
+        return out > 0
 
-    def resolve(
-        self,
-        garment: torch.Tensor,
-        body: Surface,
-        body_normals: np.ndarray,
-        body_faces: np.ndarray,
-    ) -> CollisionResult:
+    def resolve(self, garment: torch.Tensor, body: Surface) -> CollisionResult:
         """One frame: the garment pushed out of the body (Eq. 16).
 
+        Only the vertices within ``reach`` of the body are ever moved, and after each
+        solve only the vertices it moved are queried again (the others' closest points
+        have not changed).
+
         Args:
-            garment: (V, 3) the predicted garment, world positions (m), on this module's device.
+            garment: (V, 3) the predicted garment, world positions (m), on any device.
             body: the posed body's surface (refitted to this frame).
-            body_normals: (Vb, 3) unit vertex normals of the posed body.
-            body_faces: (F, 3) the body surface's triangles (the faces ``body`` holds).
 
         Returns:
-            :class:`CollisionResult`.
+            :class:`CollisionResult`, its vertices on the garment's device.
         """
         cfg = self.config
         V = self.num_vertices
         if garment.shape != (V, 3):
             raise LoosefitInputError("CollisionHandler.resolve", "garment", f"({V}, 3)",
                                      f"{tuple(garment.shape)}")  # fmt: skip
-        x0 = garment.detach().float()
-        dev = x0.device
-        d = torch.zeros_like(x0)
-        active = torch.zeros(V, dtype=torch.bool, device=dev)
-        region = torch.zeros(V, dtype=torch.bool, device=dev)
-        depth_before, inside_before = 0.0, 0
-        iterations = 0
-        for it in range(cfg.iterations + 1):
-            # 1. closest body points, normals and signed distances of the current garment
-            b, n, ds, valid = _signed_distances(x0 + d, body, body_normals, body_faces, cfg.reach)
+        x0 = garment.detach().cpu().double().numpy()
+        d = np.zeros_like(x0)
+        active = np.zeros(V, dtype=bool)
+        region = np.zeros(V, dtype=bool)
+        n, ds = _signed_distances(x0, body, cfg.reach)
+        iterations = 1
+        depth_before = float(np.clip(cfg.epsilon - ds, 0, None).max())
+        inside_before = int((ds < 0).sum())
+        for _ in range(cfg.iterations):
+            if not (ds < cfg.epsilon - 0.25 * cfg.epsilon).any():
+                break
+            # the active set grows; a vertex once pushed stays held, and one still short
+            # of eps (its closest point moved: another body part) is pushed on from where
+            # it is along its new normal: the pushes add up (out of a crease of the body)
+            active |= ds < cfg.epsilon
+            push = np.clip(cfg.epsilon - ds, 0.0, None)[:, None] * n  # (V, 3), 0 beyond reach
+            region |= self.dilate(active, cfg.rings)
+            d = self._solve(d + push, active, region)
+            # the moved vertices' closest points again: pushed ones meet other body parts
+            moved = np.flatnonzero(region)
+            n[moved], ds[moved] = _signed_distances(x0[moved] + d[moved], body, cfg.reach)
             iterations += 1
-            if it == 0:
-                depth_before = float((cfg.epsilon - ds[valid]).clamp_min(0).max()) if valid.any() \
-                    else 0.0  # fmt: skip
-                inside_before = int((ds < 0).sum())
-            violated = valid & (ds < cfg.epsilon - 0.25 * cfg.epsilon)
-            if not violated.any() or it == cfg.iterations:
-                break  # (b, n, ds, valid) are those of x0 + d
-            # 2. the active set grows; a vertex once pushed stays held at eps
-            active |= valid & (ds < cfg.epsilon)
-            use = active & valid
-            c = cfg.epsilon - (n * (x0 - b)).sum(-1)  # (V,) n . D_k must reach this
-            region |= self.dilate(use, cfg.rings)
-            # 3. the displacement: PCG on the region, the rest held where it is
-            d = self._solve(d, n, c, use, region)
         x = x0 + d
-        if not torch.isfinite(x).all():  # cannot happen with SPD systems; never write NaN
-            x, d = x0, torch.zeros_like(x0)
-            b, n, ds, valid = _signed_distances(x, body, body_normals, body_faces, cfg.reach)
-        depth_after = float((-ds[valid]).clamp_min(0).max()) if valid.any() else 0.0
-        lap = self.laplacian(d)
+        if not np.isfinite(x).all():  # cannot happen with SPD systems; never write NaN
+            x, d = x0, np.zeros_like(x0)
+            n, ds = _signed_distances(x, body, cfg.reach)
+        lap = self.lap @ d
         return CollisionResult(
-            vertices=x,
+            vertices=torch.from_numpy(x).to(garment.device, torch.float32),
             depth_before=depth_before,
-            depth_after=depth_after,
+            depth_after=float(np.clip(-ds, 0, None).max()),
             inside_before=inside_before,
             inside_after=int((ds < 0).sum()),
-            moved=int((d.norm(dim=-1) > 1e-7).sum()),
+            moved=int((np.linalg.norm(d, axis=-1) > 1e-7).sum()),
             iterations=iterations,
-            laplacian_change=float(lap.pow(2).sum(-1).mean().sqrt()),
+            laplacian_change=float(np.sqrt((lap**2).sum(-1).mean())),
         )
 
-    def _solve(
-        self,
-        d0: torch.Tensor,
-        n: torch.Tensor,
-        c: torch.Tensor,
-        active: torch.Tensor,
-        region: torch.Tensor,
-    ) -> torch.Tensor:
-        """Minimise ``|L D|^2 + mu |D|^2`` with ``D_k = c_k n_k`` on the active vertices.
+    def _solve(self, pinned: np.ndarray, active: np.ndarray, region: np.ndarray) -> np.ndarray:
+        """Minimise ``|L D|^2 + mu |D|^2`` with ``D_k`` given on the active vertices.
 
         The free unknowns are the region's other vertices (the rest keep ``D = 0``); the
-        three coordinates decouple, so this is one symmetric positive definite system
-        with three right-hand sides, solved by Jacobi-preconditioned conjugate gradients
-        from ``d0``.
+        three coordinates decouple, so this is one sparse symmetric positive definite
+        system ``(L^T L + mu I)_FF D_F = -(L^T L)_FA D_A`` with three right-hand sides,
+        factorised once.
 
         Args:
-            d0: (V, 3) the start (the last solve's displacement).
-            n: (V, 3) unit normals; c: (V,) how far each active vertex must move along n.
+            pinned: (V, 3) the displacements of the active vertices (others ignored).
             active: (V,) bool, the pinned vertices; region: (V,) bool, active ones included.
 
         Returns:
             (V, 3) the displacement.
         """
-        cfg = self.config
-        mu = cfg.anchor
-        ltl = self._matrix("ltl")
-        pinned = c[:, None] * n * active[:, None]  # (V, 3)
-        free = (region & ~active)[:, None].to(d0.dtype)  # (V, 1)
-
-        def A(x: torch.Tensor) -> torch.Tensor:  # (V, 3) on the free vertices
-            return free * (ltl @ x + mu * x)
-
-        rhs = -A(pinned)
-        inv_diag = free / (self.ltl_diagonal + mu)[:, None]
-        x = d0 * free
-        r = rhs - A(x)
-        z = inv_diag * r
-        p = z
-        rz = (r * z).sum(0)  # (3,) one system per coordinate
-        base = rz.abs().max() + 1e-30
-        for _ in range(cfg.cg_iterations):
-            if float(rz.abs().max()) < cfg.cg_tolerance**2 * base:
-                break
-            Ap = A(p)
-            alpha = rz / (p * Ap).sum(0).clamp_min(1e-30)
-            x = x + alpha * p
-            r = r - alpha * Ap
-            z = inv_diag * r
-            rz_new = (r * z).sum(0)
-            p = z + (rz_new / rz.clamp_min(1e-30)) * p
-            rz = rz_new
-        return pinned + x
+        d = np.zeros((self.num_vertices, 3))
+        a = np.flatnonzero(active)
+        d[a] = pinned[a]
+        f = np.flatnonzero(region & ~active)
+        if len(f):
+            rhs = -(self.ltl[f][:, a] @ d[a])
+            lu = spla.splu(self.system[f][:, f].tocsc(), permc_spec="MMD_AT_PLUS_A")
+            d[f] = lu.solve(rhs)
+        return d
 
 
-def _signed_distances(
-    x: torch.Tensor,
-    body: Surface,
-    body_normals: np.ndarray,
-    body_faces: np.ndarray,
-    reach: float,
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Closest body points b (V, 3), normals n (V, 3), ``ds = n.(x - b)`` (V,) and a mask (V,)
-    of the vertices within ``reach`` of the body. ``n`` is the distance's gradient, so
-    ``ds = +-|x - b|`` (minus inside, by the closest face's side)."""
-    dev = x.device
-    hit = body.query(x.detach().cpu().numpy(), reach, sign="normal")
+def _signed_distances(x: np.ndarray, body: Surface, reach: float
+                      ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Normals n (N, 3) and signed distances ``ds = n.(x - b)`` (N,) of points x (N, 3),
+    b their closest body points; ``ds`` is +inf (and n 0) beyond ``reach`` of the body. ``n`` is the
+    distance's gradient, so ``ds = +-|x - b|`` (minus inside, by the closest face's
+    side); for a point on the surface itself, the face's normal."""
+    hit = body.query(x, reach, sign="normal")
     valid = hit.faces >= 0
-    corners = body_faces[np.where(valid, hit.faces, 0)]  # (V, 3) body vertex indices
-    smooth = (body_normals[corners] * hit.barycentric[:, :, None]).sum(1)  # (V, 3)
-    smooth /= np.maximum(np.linalg.norm(smooth, axis=-1, keepdims=True), 1e-12)
-    # the distance's gradient (x - b)/|x - b|, turned outward for a point inside: exact at
-    # the body's edges and corners; on the surface itself the interpolated normal
     side = np.where(hit.inside, -1.0, 1.0)[:, None]
-    away = (np.asarray(x.detach().cpu().numpy(), np.float64) - hit.points) * side
+    away = (x - hit.points) * side
     dist = hit.distance[:, None]
-    nrm = np.where(dist > 1e-5, away / np.maximum(dist, 1e-12), smooth)
-    b = torch.from_numpy(hit.points).to(dev)
-    n = torch.from_numpy(nrm.astype(np.float32)).to(dev)
-    ds = (n * (x - b)).sum(-1)
-    v = torch.from_numpy(valid).to(dev)
-    ds = torch.where(v, ds, torch.full_like(ds, float("inf")))
-    return b, n, ds, v
-
-
-def body_vertex_normals(vertices: np.ndarray | torch.Tensor, faces: np.ndarray) -> np.ndarray:
-    """(..., Vb, 3) unit vertex normals of posed bodies (Vb, 3) or (T, Vb, 3), float32 numpy."""
-    v = torch.as_tensor(np.asarray(vertices, np.float32))
-    return vertex_normals(v, torch.as_tensor(np.asarray(faces), dtype=torch.long)).numpy()
+    n = away / np.maximum(dist, 1e-12)
+    flat = valid & (hit.distance <= 1e-5)
+    if flat.any():  # on the surface: the closest face's normal
+        tri = body.vertices[body.faces[hit.faces[flat]]].astype(np.float64)  # (k, 3, 3)
+        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n[flat] = fn / np.maximum(np.linalg.norm(fn, axis=-1, keepdims=True), 1e-30)
+    ds = np.where(valid, (n * (x - hit.points)).sum(-1), np.inf)
+    n[~valid] = 0.0
+    return n, ds
 
 
 class BodyCollider:
@@ -324,26 +259,23 @@ class BodyCollider:
         self.device = device
         self._start = -1
         self._body: np.ndarray | None = None
-        self._normals: np.ndarray | None = None
         self._surface: Surface | None = None
 
-    def body(self, frame: int) -> tuple[np.ndarray, np.ndarray]:
-        """(Vb, 3) vertices and unit normals of the posed body at a motion frame."""
+    def body(self, frame: int) -> np.ndarray:
+        """(Vb, 3) vertices of the posed body at a motion frame."""
         if not 0 <= frame < self.num_frames:
             raise IndexError(f"motion frame {frame} outside [0, {self.num_frames})")
         if self._body is None or not self._start <= frame < self._start + len(self._body):
             self._start = frame
             stop = min(frame + self.chunk, self.num_frames)
             self._body = np.asarray(self.pose(frame, stop), np.float32)
-            self._normals = body_vertex_normals(self._body, self.faces)
-        k = frame - self._start
-        return self._body[k], self._normals[k]
+        return self._body[frame - self._start]
 
     def __call__(self, frame: int, garment: torch.Tensor) -> CollisionResult:
         """The garment (V, 3) at a motion frame, pushed out of the body there."""
-        vertices, normals = self.body(frame)
+        vertices = self.body(frame)
         if self._surface is None:
             self._surface = Surface(vertices, self.faces, self.device)
         else:
             self._surface.refit(vertices)
-        return self.handler.resolve(garment, self._surface, normals, self.faces)
+        return self.handler.resolve(garment, self._surface)

@@ -32,6 +32,26 @@ class ClosestPoints:
     distance: np.ndarray
 
 
+@wp.func
+def _store(
+    mesh: wp.uint64,
+    q: wp.MeshQueryPoint,
+    tid: int,
+    out_points: wp.array(dtype=wp.vec3),
+    out_faces: wp.array(dtype=wp.int32),
+    out_bary: wp.array(dtype=wp.vec3),
+    out_sign: wp.array(dtype=float),
+):
+    if q.result:
+        out_points[tid] = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
+        out_faces[tid] = q.face
+        out_bary[tid] = wp.vec3(q.u, q.v, 1.0 - q.u - q.v)
+        out_sign[tid] = q.sign
+    else:
+        out_faces[tid] = -1
+        out_sign[tid] = 1.0
+
+
 @wp.kernel
 def _closest_kernel(
     mesh: wp.uint64,
@@ -45,18 +65,12 @@ def _closest_kernel(
 ):
     tid = wp.tid()
     # inside by the winding number (robust to small holes) or by the closest face's side
-    q = wp.mesh_query_point_sign_normal(mesh, queries[tid], max_dist)
     if winding != 0:
         q = wp.mesh_query_point_sign_winding_number(mesh, queries[tid], max_dist)
-    if q.result:
-        p = wp.mesh_eval_position(mesh, q.face, q.u, q.v)
-        out_points[tid] = p
-        out_faces[tid] = q.face
-        out_bary[tid] = wp.vec3(q.u, q.v, 1.0 - q.u - q.v)
-        out_sign[tid] = q.sign
+        _store(mesh, q, tid, out_points, out_faces, out_bary, out_sign)
     else:
-        out_faces[tid] = -1
-        out_sign[tid] = 1.0
+        q = wp.mesh_query_point_sign_normal(mesh, queries[tid], max_dist)
+        _store(mesh, q, tid, out_points, out_faces, out_bary, out_sign)
 
 
 class Surface:
@@ -70,11 +84,17 @@ class Surface:
         vertices: (Vb, 3) mesh vertices.
         faces: (F, 3) triangles.
         device: warp device ("cpu" or "cuda:0").
+
+    Attributes:
+        vertices: (Vb, 3) float32, the current positions (host copy).
+        faces: (F, 3) int64.
     """
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, device: str = "cpu") -> None:
         self.device = device
         self.num_vertices = len(vertices)
+        self.vertices = np.array(vertices, np.float32)
+        self.faces = np.asarray(faces, np.int64)
         self._points = wp.array(
             np.ascontiguousarray(vertices, np.float32), dtype=wp.vec3, device=device
         )
@@ -87,7 +107,8 @@ class Surface:
         """Move the mesh to new vertex positions (Vb, 3), the same topology."""
         if vertices.shape != (self.num_vertices, 3):
             raise ValueError(f"vertices: expected ({self.num_vertices}, 3), found {vertices.shape}")
-        self._points.assign(np.ascontiguousarray(vertices, np.float32))
+        self.vertices = np.array(vertices, np.float32)
+        self._points.assign(self.vertices)
         self.mesh.refit()
 
     def query(

@@ -340,7 +340,6 @@ class AnimationModel:
         if self._handler is None:
             t = self.template
             self._handler = CollisionHandler(t.faces, t.num_vertices, self.collision)
-            self._handler.to(self.device)
         avatar = self.avatar()
         rot = torch.from_numpy(motion.rotations)
         root = torch.from_numpy(motion.root_translation)
