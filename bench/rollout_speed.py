@@ -3,8 +3,10 @@
 Times, in one run, on the same garment and the same motion:
 
 * the rollout of a trained model (``loosefit animate``'s work: motion features,
-  the encoder, the frozen decoders, one frame after another) with 1 CPU thread
-  and with all of them, and on the GPU when there is one;
+  the encoder, the frozen decoders, one frame after another), then with the detail
+  stage (paper 3.4, when the checkpoint has one packaged beside it) and with
+  collision handling (3.5): the whole pipeline, each stage's milliseconds per frame
+  apart, with 1 CPU thread and with all of them, and on the GPU when there is one;
 * Newton's VBD simulation of that garment on that motion, with the cloth
   configuration of the model's training data (one CPU core, or the GPU).
 
@@ -27,15 +29,24 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.body.motions import load_motion
-from loosefit.train.motion import load_animation_model
+from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.train.detail import load_pipeline
 
 
-def time_rollout(model, motion, threads: int, repeats: int) -> dict:
+def pipelines(model) -> dict[str, Stages]:
+    """The stages timed: the motion stage alone, + detail (if any), + collision handling."""
+    rows = {"motion stage": MOTION_ONLY}
+    if model.detail is not None:
+        rows["+ detail"] = Stages(collision=False)
+    rows["+ detail + collision" if model.detail is not None else "+ collision"] = Stages()
+    return rows
+
+
+def time_rollout(model, motion, threads: int, repeats: int, stages: Stages) -> dict:
     torch.set_num_threads(threads)
-    model.animate(motion.slice(0, min(20, motion.num_frames)))  # warm-up
-    per_frame = []
+    model.animate(motion.slice(0, min(20, motion.num_frames)), stages=stages)  # warm-up
+    per_frame, per_stage = [], []
     for _ in range(repeats):
         marks = {}
 
@@ -43,10 +54,16 @@ def time_rollout(model, motion, threads: int, repeats: int) -> dict:
             if done == total - motion.num_frames:  # the preroll is over
                 marks["start"] = time.perf_counter()
 
-        model.animate(motion, progress)
+        result = model.animate(motion, progress, stages=stages)
         per_frame.append((time.perf_counter() - marks["start"]) / motion.num_frames)
+        per_stage.append(
+            {k: v for k, v in (result.stage_seconds or {}).items() if k != "motion"}
+        )  # fmt: skip (motion's includes the preroll)
     s = float(np.median(per_frame))
-    return {"threads": threads, "seconds_per_frame": s, "frames_per_second": 1.0 / s}
+    ms = {k: 1e3 * float(np.median([d[k] for d in per_stage])) / motion.num_frames
+          for k in per_stage[0]}  # fmt: skip
+    return {"threads": threads, "seconds_per_frame": s, "frames_per_second": 1.0 / s,
+            "ms_per_frame_of": ms}  # fmt: skip
 
 
 def time_simulation(model, avatar, motion, device: str, cloth: dict) -> dict:
@@ -77,7 +94,11 @@ def model_cloth(model, dataset: str | None) -> dict:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--checkpoint", required=True, help="a motion run's model.pt")
+    p.add_argument(
+        "--checkpoint",
+        default="checkpoints/salsa/motion.pt",
+        help="a motion run's model.pt or a packaged motion.pt (its detail.pt too)",
+    )
     p.add_argument("--motion", default="../shared/mocap/cmu-salsa/60_01.bvh")
     p.add_argument("--start-frame", type=int, default=10)
     p.add_argument("--frames", type=int, default=300, help="rollout frames")
@@ -92,8 +113,8 @@ def main() -> None:
     p.add_argument("--out", default=None, help="also write the figures here (JSON)")
     args = p.parse_args()
 
-    model = load_animation_model(args.checkpoint)
-    avatar = Avatar(AvatarConfig(shape=dict(model.body.get("shape", {}))))
+    model = load_pipeline(args.checkpoint)
+    avatar = model.avatar()
     motion = load_motion(args.motion, avatar, fps=model.fps, start_frame=args.start_frame,
                          max_frames=args.frames)  # fmt: skip
     cores = os.cpu_count() or 1
@@ -102,26 +123,38 @@ def main() -> None:
         f"torch {torch.__version__}",
         "garment_vertices": model.template.num_vertices,
         "motion": f"{Path(args.motion).name} from frame {args.start_frame}",
-        "rollout": [time_rollout(model, motion, t, args.repeats) for t in sorted({1, cores})],
+        "rollout": [
+            dict(time_rollout(model, motion, t, args.repeats, stages), stages=label)
+            for label, stages in pipelines(model).items()
+            for t in sorted({1, cores})
+        ],  # fmt: skip
     }
     if torch.cuda.is_available():
-        gpu = load_animation_model(args.checkpoint, device="cuda")
-        r = time_rollout(gpu, motion, cores, args.repeats)
-        r["device"] = torch.cuda.get_device_name()
-        result["rollout_gpu"] = r
+        gpu = load_pipeline(args.checkpoint, device="cuda")
+        result["rollout_gpu"] = []
+        for label, stages in pipelines(gpu).items():
+            r = time_rollout(gpu, motion, cores, args.repeats, stages)
+            r.update(stages=label, device=torch.cuda.get_device_name())
+            result["rollout_gpu"].append(r)
     sim_motion = motion.slice(0, args.sim_frames)
     cloth = model_cloth(model, args.cloth_from)
     result["simulation"] = [time_simulation(model, avatar, sim_motion, "cpu", cloth)]
     if torch.cuda.is_available():
         result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0", cloth))
     sim = result["simulation"][0]["seconds_per_frame"]
-    best_cpu = min(r["seconds_per_frame"] for r in result["rollout"])
-    result["speedup_cpu"] = sim / best_cpu
+    for r in result["rollout"]:
+        r["speedup_cpu"] = sim / r["seconds_per_frame"]
+    full = [r for r in result["rollout"] if r["stages"] == list(pipelines(model))[-1]]
+    best = min(r["seconds_per_frame"] for r in full)
+    result["speedup_cpu"] = sim / best
     print(json.dumps(result, indent=2))
-    print(
-        f"\nrollout {1 / best_cpu:.0f} frames/s on the CPU; simulation {sim:.2f} s/frame; "
-        f"the rollout is {sim / best_cpu:.0f}x faster per frame"
-    )
+    for r in result["rollout"]:
+        print(
+            f"{r['stages']:>22}, {r['threads']} thread(s): {1e3 * r['seconds_per_frame']:6.1f} "
+            f"ms/frame {json.dumps({k: round(v, 2) for k, v in r['ms_per_frame_of'].items()})}"
+            f", {r['speedup_cpu']:.0f}x faster than the simulation"
+        )
+    print(f"simulation {sim:.2f} s/frame; the whole pipeline is {sim / best:.0f}x faster per frame")
     if args.out:
         Path(args.out).write_text(json.dumps(result, indent=2))
 

@@ -359,7 +359,9 @@ def _train_detail(args: argparse.Namespace) -> int:
         batch_size=args.batch_size, lr=args.lr,
         discriminator=False if args.no_discriminator else None,
     )  # fmt: skip
-    kind = "full" if cfg.discriminator else "nodisc"
+    if args.edge_weight is not None:
+        cfg.loss.edge = args.edge_weight
+    kind = ("full" if cfg.discriminator else "nodisc") + ("-edge" if cfg.loss.edge else "")
     out = args.out or f"runs/detail-{args.preset}-{kind}"
     report = train_detail(args.data, args.motion, out, cfg, args.generative, log=_log)
     print(Path(out, "report.md").read_text())
@@ -687,6 +689,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-discriminator",
         action="store_true",
         help="detail: the ablation without the multi-scale discriminator (Table 2's middle row)",
+    )
+    p.add_argument(
+        "--edge-weight",
+        type=float,
+        default=None,
+        help="detail: weight of an L1 edge-length term added to Eq. 13 (default 0, the paper's)",
     )
     p.add_argument(
         "--no-previous-state",

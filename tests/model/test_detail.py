@@ -15,6 +15,7 @@ from loosefit.model.detail import (
     MultiScaleDiscriminator,
     cut_patches,
     detail_geometry_loss,
+    edge_length_loss,
     lsgan_discriminator_loss,
     lsgan_generator_loss,
     mesh_edge_index,
@@ -132,3 +133,18 @@ def test_config_checks():
         DetailConfig(patches=(64, 24))
     with pytest.raises(LoosefitInputError, match="global_hidden"):
         DetailConfig(global_hidden=(8,))
+
+
+def test_edge_length_loss_sees_stretch_but_not_rigid_motion():
+    v, f = _grid(4)
+    e = mesh_edge_index(f)
+    e = e[:, e[0] < e[1]]
+    x = torch.from_numpy(v)[None]
+    turned = x @ torch.tensor([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]) + 0.5
+    assert float(edge_length_loss(turned, x, e)) == pytest.approx(0.0, abs=1e-5)
+    stretched = x * torch.tensor([1.1, 1.0, 1.0])
+    lengths = (x[0, e[0]] - x[0, e[1]]).norm(dim=-1)
+    grown = (stretched[0, e[0]] - stretched[0, e[1]]).norm(dim=-1)
+    expected = 100 * float((grown - lengths).abs().mean())
+    assert float(edge_length_loss(stretched, x, e)) == pytest.approx(expected, rel=1e-5)
+    assert expected > 0.5  # cm: a 10 % stretch of 10 cm edges along x

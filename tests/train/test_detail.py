@@ -74,6 +74,16 @@ def test_without_discriminator_has_no_adversarial_terms(toy_dataset, motion, tmp
                              log=lambda *_: None, progress=False)  # fmt: skip
     assert "discriminator" not in report["history"][0]
     assert not report["discriminator"]
+    assert "edge" not in report["history"][0]  # the paper's Eq. 13 unless asked
+
+
+def test_the_edge_length_term_is_trained_when_weighted(toy_dataset, motion, tmp_path):
+    cfg = _config(epochs=2, discriminator=False)
+    cfg.loss.edge = 1.0
+    report = td.train_detail(toy_dataset, motion, tmp_path, cfg, log=lambda *_: None,
+                             progress=False)  # fmt: skip
+    assert report["history"][0]["edge"] > 0
+    assert report["history"][-1]["total"] < report["history"][0]["total"]
 
 
 def test_resume_continues_where_it_stopped(toy_dataset, motion, tmp_path):

@@ -39,8 +39,10 @@ from loosefit.model.detail import (
     DetailGenerator,
     MultiScaleDiscriminator,
     detail_geometry_loss,
+    edge_length_loss,
     lsgan_discriminator_loss,
     lsgan_generator_loss,
+    mesh_edge_index,
 )
 from loosefit.model.frames import garment_fingerprint, to_root_frame
 from loosefit.model.rollout import MOTION_ONLY, Stages, motion_root_frames
@@ -63,6 +65,7 @@ class DetailLossConfig:
     laplacian: float = 1.0  # Eq. 13's Laplacian term (1 in the paper)
     adversarial: float = 0.1  # the generator's side of Eq. 14 against Eq. 13 (in cm)
     length_scale: float = 100.0  # metres to centimetres, as in the other stages' losses
+    edge: float = 0.0  # L1 of edge lengths (not in Eq. 13; 0: the paper's loss)
 
 
 @dataclass
@@ -309,6 +312,8 @@ def train_detail(
     D = MultiScaleDiscriminator(model.generative.config.uv_size, config.model).to(dev)
     uv = model.generative.uv
     lap = Laplacian(t.faces, t.num_vertices).to(dev)
+    edges = mesh_edge_index(t.faces)
+    edges = edges[:, edges[0] < edges[1]].to(dev)  # (2, E) each edge once
     opt_g = torch.optim.Adam(G.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     opt_d = torch.optim.Adam(D.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     ckpt_path = out / "checkpoint.pt"
@@ -354,6 +359,9 @@ def train_detail(
                                                        cl.laplacian)  # fmt: skip
             terms = {"position": position, "laplacian": laplacian}
             loss = position + laplacian
+            if cl.edge > 0:
+                terms["edge"] = cl.edge * edge_length_loss(final, target, edges, cl.length_scale)
+                loss = loss + terms["edge"]
             if config.discriminator:
                 fake, real = uv.encode(final), uv.encode(target)  # (B, 3, H, W)
                 d_loss = lsgan_discriminator_loss(D(real), D(fake.detach()))
