@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 import torch
 from torch import nn
+from torch_geometric.nn import EdgeConv
 
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.laplacian import Laplacian
@@ -19,6 +22,7 @@ from loosefit.model.detail import (
     lsgan_discriminator_loss,
     lsgan_generator_loss,
     mesh_edge_index,
+    neighbour_table,
 )
 from tests.meshes import grid
 
@@ -56,9 +60,24 @@ def test_edge_conv_layers_match_a_plain_loop():
     x = torch.from_numpy(v) * g.config.scale + 0.1 * torch.randn(len(v), 3)
     for conv in g.convs:
         want = _edge_conv_loop(x, g.edge_index, conv.nn)
-        got = conv(x, g.edge_index)
+        got = conv(x[None])[0]
         torch.testing.assert_close(got, want)
+        # and torch_geometric's own layer with the same MLP (its constructor re-initialises
+        # the MLP it is given: a copy, with the weights put back)
+        reference = EdgeConv(copy.deepcopy(conv.nn), aggr="max")
+        reference.nn.load_state_dict(conv.nn.state_dict())
+        torch.testing.assert_close(got, reference(x, g.edge_index))
         x = got
+
+
+def test_the_neighbour_table_lists_each_vertex_neighbours():
+    v, f = _grid(4)
+    e = mesh_edge_index(f)
+    table = neighbour_table(e, len(v))
+    for i in range(len(v)):
+        assert set(table[i].tolist()) == set(e[0, e[1] == i].tolist())
+    with pytest.raises(LoosefitInputError, match="vertex 16 in none"):
+        neighbour_table(e, len(v) + 1)
 
 
 def test_generator_starts_at_zero_and_batches_like_single_frames():

@@ -1,8 +1,10 @@
 """Detail enhancement (paper 3.4): an EdgeConv generator and a multi-scale patch discriminator.
 
 The generator ``G_de`` reads the decoded garment ``V_t`` (root frame) through three
-EdgeConv layers (Wang et al. 2019, ``torch_geometric.nn.EdgeConv``: per vertex
-``max_j h(x_i || x_j - x_i)`` over its mesh neighbours) and the latent code ``Z_t``
+EdgeConv layers (Wang et al. 2019: per vertex ``max_j h(x_i || x_j - x_i)`` over its
+mesh neighbours; :class:`MeshEdgeConv` computes ``torch_geometric.nn.EdgeConv`` with
+``aggr="max"`` on a fixed mesh from a padded neighbour table, 5-6 times faster on
+the CPU than its scatter, with the same parameters) and the latent code ``Z_t``
 through two fully connected layers, concatenates the two per vertex and maps them
 by one fully connected layer to an offset ``I_de``: ``V_f = V_t + I_de``. Its last
 layer starts at zero, so an untrained module changes nothing.
@@ -24,7 +26,6 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from torch import nn
-from torch_geometric.nn import EdgeConv
 
 from loosefit.errors import LoosefitInputError
 
@@ -66,6 +67,55 @@ def mesh_edge_index(faces: np.ndarray | torch.Tensor) -> torch.Tensor:
     return torch.cat([e, e.flip(1)]).unique(dim=0).t().contiguous()
 
 
+def neighbour_table(edge_index: torch.Tensor, num_vertices: int) -> torch.Tensor:
+    """(V, K) int64: each vertex's neighbours (sources j of edges j -> i), K the largest
+    valence; shorter rows repeat their first neighbour (a max does not see repeats).
+
+    Raises:
+        LoosefitInputError: a vertex without any edge.
+    """
+    src, dst = edge_index
+    order = torch.argsort(dst, stable=True)
+    src, dst = src[order], dst[order]
+    count = torch.bincount(dst, minlength=num_vertices)  # (V,)
+    if int(count.min()) == 0:
+        lonely = int(torch.nonzero(count == 0)[0])
+        raise LoosefitInputError("garment mesh", "faces", "every vertex in a triangle",
+                                 f"vertex {lonely} in none")  # fmt: skip
+    K = int(count.max())
+    start = torch.cumsum(count, 0) - count  # (V,)
+    slot = torch.arange(len(dst)) - start[dst]  # position of each edge in its row
+    table = src[start][:, None].repeat(1, K)  # (V, K): the first neighbour everywhere
+    table[dst, slot] = src
+    return table
+
+
+class MeshEdgeConv(nn.Module):
+    """``torch_geometric.nn.EdgeConv(nn, aggr="max")`` on one fixed mesh, dense.
+
+    ``x'_i = max_j nn(x_i || x_j - x_i)`` over the mesh neighbours j of i, gathered
+    from a (V, K) neighbour table instead of scattered over edges; the parameters
+    (``nn``) and the result are those of torch_geometric's layer.
+
+    Args:
+        nn: the edge MLP, (..., 2 C_in) -> (..., C_out).
+        table: (V, K) from :func:`neighbour_table`.
+    """
+
+    def __init__(self, nn: nn.Module, table: torch.Tensor) -> None:
+        super().__init__()
+        self.nn = nn
+        self.register_buffer("table", table, persistent=False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, V, C_in) -> (B, V, C_out)."""
+        B, V, C = x.shape
+        K = self.table.shape[1]
+        xj = x[:, self.table.reshape(-1)].reshape(B, V, K, C)  # (B, V, K, C)
+        xi = x[:, :, None].expand(-1, -1, K, -1)
+        return self.nn(torch.cat([xi, xj - xi], -1)).amax(dim=2)
+
+
 class DetailGenerator(nn.Module):
     """``G_de``: (V_t, Z_t) to the offset ``I_de``.
 
@@ -83,10 +133,11 @@ class DetailGenerator(nn.Module):
         self.num_vertices = num_vertices
         self.latent = latent
         self.register_buffer("edge_index", mesh_edge_index(faces), persistent=False)
+        table = neighbour_table(self.edge_index, num_vertices)
         convs, cin = [], 3
         for cout in cfg.edge_channels:
             mlp = nn.Sequential(nn.Linear(2 * cin, cout), nn.LeakyReLU(cfg.slope))
-            convs.append(EdgeConv(mlp, aggr="max"))
+            convs.append(MeshEdgeConv(mlp, table))
             cin = cout
         self.convs = nn.ModuleList(convs)
         h1, h2 = cfg.global_hidden
@@ -107,7 +158,7 @@ class DetailGenerator(nn.Module):
                                      f"{tuple(z.shape)}")  # fmt: skip
         h = vertices * self.config.scale  # (B, V, 3)
         for conv in self.convs:
-            h = conv(h, self.edge_index)  # (B, V, C): EdgeConv works along dim -2
+            h = conv(h)  # (B, V, C)
         g = self.globals(z)[:, None].expand(-1, V, -1)  # (B, V, h2)
         return self.out(torch.cat([h, g], -1)) / self.config.scale  # (B, V, 3)
 
