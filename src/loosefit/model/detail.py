@@ -3,8 +3,8 @@
 The generator ``G_de`` reads the decoded garment ``V_t`` (root frame) through three
 EdgeConv layers (Wang et al. 2019: per vertex ``max_j h(x_i || x_j - x_i)`` over its
 mesh neighbours; :class:`MeshEdgeConv` computes ``torch_geometric.nn.EdgeConv`` with
-``aggr="max"`` on a fixed mesh from a padded neighbour table, 5-6 times faster on
-the CPU than its scatter, with the same parameters) and the latent code ``Z_t``
+``aggr="max"`` and a one-layer edge MLP exactly, from per-vertex products and a
+padded neighbour table, with the same parameters) and the latent code ``Z_t``
 through two fully connected layers, concatenates the two per vertex and maps them
 by one fully connected layer to an offset ``I_de``: ``V_f = V_t + I_de``. Its last
 layer starts at zero, so an untrained module changes nothing.
@@ -91,29 +91,35 @@ def neighbour_table(edge_index: torch.Tensor, num_vertices: int) -> torch.Tensor
 
 
 class MeshEdgeConv(nn.Module):
-    """``torch_geometric.nn.EdgeConv(nn, aggr="max")`` on one fixed mesh, dense.
+    """``torch_geometric.nn.EdgeConv(nn, aggr="max")`` on one fixed mesh, for an edge
+    MLP of one linear layer and a leaky ReLU (the generator's).
 
-    ``x'_i = max_j nn(x_i || x_j - x_i)`` over the mesh neighbours j of i, gathered
-    from a (V, K) neighbour table instead of scattered over edges; the parameters
-    (``nn``) and the result are those of torch_geometric's layer.
+    ``x'_i = max_j act(W [x_i || x_j - x_i] + b)`` over the mesh neighbours j of i.
+    With ``W = [W1 W2]`` the argument is ``(W1 - W2) x_i + b + W2 x_j``, and a leaky
+    ReLU is increasing, so ``x'_i = act((W1 - W2) x_i + b + max_j W2 x_j)``: two
+    per-vertex products and a max over a (V, K) neighbour table, instead of the MLP on
+    every edge. Same parameters (``nn``) and result as torch_geometric's layer.
 
     Args:
-        nn: the edge MLP, (..., 2 C_in) -> (..., C_out).
+        nn: ``Sequential(Linear(2 C_in, C_out), LeakyReLU)``.
         table: (V, K) from :func:`neighbour_table`.
     """
 
-    def __init__(self, nn: nn.Module, table: torch.Tensor) -> None:
+    def __init__(self, nn: nn.Sequential, table: torch.Tensor) -> None:
         super().__init__()
         self.nn = nn
         self.register_buffer("table", table, persistent=False)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """(B, V, C_in) -> (B, V, C_out)."""
+        linear, act = self.nn
         B, V, C = x.shape
+        w1, w2 = linear.weight[:, :C], linear.weight[:, C:]
+        own = x @ (w1 - w2).t() + linear.bias  # (B, V, C_out)
+        other = x @ w2.t()  # (B, V, C_out)
         K = self.table.shape[1]
-        xj = x[:, self.table.reshape(-1)].reshape(B, V, K, C)  # (B, V, K, C)
-        xi = x[:, :, None].expand(-1, -1, K, -1)
-        return self.nn(torch.cat([xi, xj - xi], -1)).amax(dim=2)
+        best = other[:, self.table.reshape(-1)].reshape(B, V, K, -1).max(dim=2).values
+        return act(own + best)
 
 
 class DetailGenerator(nn.Module):
