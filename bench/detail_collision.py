@@ -12,7 +12,8 @@ module without ``D_ms`` and the full module, each through collision handling::
     python bench/detail_collision.py --out docs/DETAIL_TABLE.md            # part A
     python bench/detail_collision.py --data datasets/salsa \\
         --detail runs/salsa/detail/full/model.pt \\
-        --detail-nodisc runs/salsa/detail/nodisc/model.pt --out docs/DETAIL_TABLE.md
+        --detail-nodisc runs/salsa/detail/nodisc/model.pt \\
+        [--detail-edge runs/salsa/detail/full-edge/model.pt] --out docs/DETAIL_TABLE.md
 """
 
 from __future__ import annotations
@@ -34,6 +35,11 @@ ROWS = {  # label: stages
     "motion stage alone": MOTION_ONLY,
     "+ collision": Stages(detail=False),
     "+ collision, fed back": Stages(detail=False, feedback=True),
+}
+DETAIL_ROWS = {  # with a detail stage packaged beside the checkpoint
+    "+ detail": Stages(collision=False),
+    "+ detail + collision": Stages(),
+    "+ detail + collision, fed back": Stages(feedback=True),
 }
 
 
@@ -73,6 +79,11 @@ def main() -> None:
     p.add_argument("--data", default=None, help="the salsa dataset (part B)")
     p.add_argument("--detail", default=None, help="the full detail module's model.pt (part B)")
     p.add_argument("--detail-nodisc", default=None, help="the module w/o D_ms (part B)")
+    p.add_argument(
+        "--detail-edge",
+        default=None,
+        help="the full module trained with the edge-length term (part B)",
+    )
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--out", default="docs/DETAIL_TABLE.md")
     args = p.parse_args()
@@ -81,8 +92,8 @@ def main() -> None:
     from loosefit.body.motions import load_motion
     from loosefit.sim.generate import job_motion, plan_jobs, preset
 
-    model = load_pipeline(args.checkpoint, detail=None)
-    model.detail = None  # part A: the motion stage and collision handling
+    model = load_pipeline(args.checkpoint)  # with the detail stage packaged beside it, if any
+    rows = dict(ROWS, **(DETAIL_ROWS if model.detail is not None else {}))
     avatar = model.avatar()
     collider = avatar.collider_faces(arms=model.arm_collision).cpu().numpy()
     config = preset("salsa", args.bvh)
@@ -96,7 +107,7 @@ def main() -> None:
     for name, motion in motions.items():
         body = avatar.pose_motion(motion).vertices.cpu().numpy()
         results["part_a"][name] = {}
-        for label, stages in ROWS.items():
+        for label, stages in rows.items():
             row, _ = run(model, motion, stages, body, collider)
             results["part_a"][name][label] = row
             print(name, label, json.dumps(row))
@@ -115,7 +126,8 @@ def table2(args, model, collider) -> dict:
 
     reader = DatasetReader(args.data)
     variants = {"no module": None, "module w/o D_ms": args.detail_nodisc,
-                "full module": args.detail}  # fmt: skip
+                "full module": args.detail,
+                "full module + edge-length term": args.detail_edge}  # fmt: skip
     rows = {}
     avatar = model.avatar()
     for label, path in variants.items():
@@ -138,6 +150,9 @@ def table2(args, model, collider) -> dict:
                     "sted": sted(v, truth, model.template.faces, seq.motion.fps)["sted"],
                     **score(model, seq.motion, v, body, collider),
                 }
+                if result.collisions:
+                    row["laplacian_change_mm"] = 1e3 * float(np.mean(
+                        [x["laplacian_change"] for x in result.collisions]))  # fmt: skip
                 rows[f"{label}{' + collision' if collision else ''}"] = row
                 print(label, collision, json.dumps(row))
         sim = score(model, seq.motion, truth, body, collider)
@@ -150,7 +165,7 @@ def markdown(results: dict) -> str:
              f"Machine: {results['machine']} (`bench/detail_collision.py`).", ""]  # fmt: skip
     lines += ["## Without ground truth: the committed pair, collision handling on and off", "",
               "| motion | stages | inside mean % | inside p99 % | inside max % | strain p50 | "
-              "strain p99 | Laplacian change (mm) | ms/frame (motion / collision) |",
+              "strain p99 | Laplacian change (mm) | ms/frame (motion / detail / collision) |",
               "|---|---|---:|---:|---:|---:|---:|---:|---|"]  # fmt: skip
     for name, rows in results["part_a"].items():
         for label, r in rows.items():
@@ -159,18 +174,20 @@ def markdown(results: dict) -> str:
                 f"| {name} | {label} | {r['inside_mean_pct']:.2f} | {r['inside_p99_pct']:.2f} | "
                 f"{r['inside_max_pct']:.2f} | {r['strain_p50']:.3f} | {r['strain_p99']:.3f} | "
                 f"{r.get('laplacian_change_mm', 0.0):.2f} | {ms.get('motion', 0):.1f} / "
-                f"{ms.get('collision', 0):.1f} |"
+                f"{ms.get('detail', 0):.1f} / {ms.get('collision', 0):.1f} |"
             )
     if "part_b" in results:
         lines += ["", "## Table 2: against the simulation (held-out chain)", "",
                   "| row | RMSE (cm) | Hausdorff (cm) | STED | inside mean % | inside p99 % | "
-                  "strain p50 | strain p99 |",
-                  "|---|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+                  "strain p50 | strain p99 | Laplacian change (mm) |",
+                  "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
         for label, r in results["part_b"].items():
             cells = [f"{r[k]:.3f}" if k in r else "-" for k in ("rmse_cm", "hausdorff_cm", "sted")]
             lines.append(f"| {label} | " + " | ".join(cells) + f" | {r['inside_mean_pct']:.2f} | "
                          f"{r['inside_p99_pct']:.2f} | {r['strain_p50']:.3f} | "
-                         f"{r['strain_p99']:.3f} |")  # fmt: skip
+                         f"{r['strain_p99']:.3f} | "
+                         + (f"{r['laplacian_change_mm']:.2f} |" if "laplacian_change_mm" in r
+                            else "- |"))  # fmt: skip
     return "\n".join(lines) + "\n"
 
 

@@ -65,13 +65,16 @@ done
 #    strain, vertices inside the body.
 "$BIN/python" bench/motion_quality.py --checkpoint checkpoints/salsa/motion.pt --data "$DATA"
 # 7. The detail module (paper 3.4) on the committed motion stage's own rollouts of the
-#    training clips, with and without the multi-scale discriminator (Table 2's rows), one core
-#    each; the full one joins the committed set, and Table 2 with collision handling is written.
+#    training clips: with and without the multi-scale discriminator (Table 2's rows) and
+#    with an edge-length term added to Eq. 13 (for the edge-strain target), one core
+#    each; the full one joins the committed set; Table 2 with collision handling, the
+#    renders of the held-out spin and the pipeline's speed against the simulation.
 mkdir -p "$RUNS/detail"
 pids=()
-for kind in full nodisc; do
+for kind in full nodisc full-edge; do
   flag=()
   [ "$kind" = nodisc ] && flag=(--no-discriminator)
+  [ "$kind" = full-edge ] && flag=(--edge-weight 10)
   "$BIN/loosefit" train detail --data "$DATA" --preset cpu --motion checkpoints/salsa/motion.pt \
       --threads 1 "${flag[@]}" --out "$RUNS/detail/$kind" > "$RUNS/detail/$kind.log" 2>&1 &
   pids+=($!)
@@ -80,4 +83,8 @@ for pid in "${pids[@]}"; do wait "$pid"; done
 "$BIN/loosefit" package checkpoints/salsa/motion.pt --detail "$RUNS/detail/full/model.pt" \
     --out checkpoints/salsa
 "$BIN/python" bench/detail_collision.py --data "$DATA" --detail "$RUNS/detail/full/model.pt" \
-    --detail-nodisc "$RUNS/detail/nodisc/model.pt" --out docs/DETAIL_TABLE.md
+    --detail-nodisc "$RUNS/detail/nodisc/model.pt" --detail-edge "$RUNS/detail/full-edge/model.pt" \
+    --out docs/DETAIL_TABLE.md
+"$BIN/python" bench/detail_renders.py --data "$DATA" --out docs/img/detail_spin.jpg
+"$BIN/python" bench/detail_renders.py --data "$DATA" --close --out docs/img/detail_spin_hips.jpg
+"$BIN/python" bench/rollout_speed.py --cloth-from "$DATA" --out out/bench-pipeline-salsa.json
