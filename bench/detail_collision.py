@@ -171,7 +171,7 @@ def markdown(results: dict) -> str:
         for label, r in rows.items():
             ms = r["ms_per_frame"]
             lines.append(
-                f"| {name} | {label} | {r['inside_mean_pct']:.2f} | {r['inside_p99_pct']:.2f} | "
+                f"| {name} | {label} | {r['inside_mean_pct']:.4f} | {r['inside_p99_pct']:.2f} | "
                 f"{r['inside_max_pct']:.2f} | {r['strain_p50']:.3f} | {r['strain_p99']:.3f} | "
                 f"{r.get('laplacian_change_mm', 0.0):.2f} | {ms.get('motion', 0):.1f} / "
                 f"{ms.get('detail', 0):.1f} / {ms.get('collision', 0):.1f} |"
@@ -183,7 +183,7 @@ def markdown(results: dict) -> str:
                   "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
         for label, r in results["part_b"].items():
             cells = [f"{r[k]:.3f}" if k in r else "-" for k in ("rmse_cm", "hausdorff_cm", "sted")]
-            lines.append(f"| {label} | " + " | ".join(cells) + f" | {r['inside_mean_pct']:.2f} | "
+            lines.append(f"| {label} | " + " | ".join(cells) + f" | {r['inside_mean_pct']:.4f} | "
                          f"{r['inside_p99_pct']:.2f} | {r['strain_p50']:.3f} | "
                          f"{r['strain_p99']:.3f} | "
                          + (f"{r['laplacian_change_mm']:.2f} |" if "laplacian_change_mm" in r

@@ -20,6 +20,7 @@ not), after a warm-up. The figures go in docs/BENCHMARKS.md::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -45,6 +46,9 @@ def pipelines(model) -> dict[str, Stages]:
 
 def time_rollout(model, motion, threads: int, repeats: int, stages: Stages) -> dict:
     torch.set_num_threads(threads)
+    # one thread: the stages one after another; more: detail and collision on a second
+    # thread beside the motion stage
+    stages = dataclasses.replace(stages, overlap=threads > 1)
     model.animate(motion.slice(0, min(20, motion.num_frames)), stages=stages)  # warm-up
     per_frame, per_stage = [], []
     for _ in range(repeats):
@@ -156,6 +160,7 @@ def main() -> None:
         )
     print(f"simulation {sim:.2f} s/frame; the whole pipeline is {sim / best:.0f}x faster per frame")
     if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(json.dumps(result, indent=2))
 
 

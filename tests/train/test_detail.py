@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+import loosefit.model.rollout as rollout_module
 import loosefit.train.detail as td
 import loosefit.train.motion as tm
 from loosefit.cli import main
@@ -115,6 +116,20 @@ def test_detail_runs_in_animate_and_can_be_switched_off(trained, motion, toy_dat
     fed = model.animate(m, stages=Stages(collision=False, feedback=True))
     assert np.isfinite(fed.vertices).all()
     np.testing.assert_allclose(fed.vertices[0], detailed.vertices[0], atol=1e-6)  # same first frame
+
+
+def test_the_later_stages_beside_the_motion_stage_change_nothing(trained, toy_dataset,
+                                                                 monkeypatch):  # fmt: skip
+    out, _ = trained
+    model = td.load_pipeline(out / "model.pt")
+    m = DatasetReader(toy_dataset).read("c").motion
+    monkeypatch.setattr(rollout_module._Later, "chunk", 3)  # several chunks, and a remainder
+    assert m.num_frames > 6 and m.num_frames % 3
+    apart = model.animate(m, stages=Stages(overlap=False))
+    beside = model.animate(m, stages=Stages(overlap=True))
+    np.testing.assert_array_equal(beside.vertices, apart.vertices)
+    assert beside.collisions == apart.collisions and len(beside.collisions) == m.num_frames
+    assert set(beside.stage_seconds) == {"motion", "detail", "collision"}
 
 
 def test_a_detail_stage_of_another_motion_stage_is_refused(trained, motion, tmp_path):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,7 @@ class Stages:
     detail: bool = True  # paper 3.4, when the model carries a detail stage
     collision: bool = True  # paper 3.5
     feedback: bool = False  # the garment after them is the next frame's previous state
+    overlap: bool = True  # without feedback: they run on a second thread beside the motion stage
 
 
 MOTION_ONLY = Stages(detail=False, collision=False)  # the motion stage alone (Table 1)
@@ -155,6 +157,7 @@ def rollout(
     detail: torch.nn.Module | None = None,
     collide: Callable[[int, torch.Tensor], object] | None = None,
     feedback: bool = False,
+    overlap: bool = True,
 ) -> RolloutResult:
     """Animate the garment through ``motion``.
 
@@ -179,6 +182,10 @@ def rollout(
         feedback: feed the garment after detail and collision back as the next frame's
             previous state (else the decoders' own output, what the encoder was trained
             on, is fed back and the later stages run over all frames at once).
+        overlap: without feedback, run detail and collision handling on a second
+            thread, ``chunk`` frames at a time, while the motion stage goes on with the
+            next frames: the same results; with two cores a frame costs about the
+            slower of the two instead of their sum.
 
     Returns:
         :class:`RolloutResult`.
@@ -210,7 +217,11 @@ def rollout(
     decoded = torch.empty(motion.num_frames, encoder.num_vertices, 3) if refine else None
     collisions: list | None = [] if collide is not None else None
     stage = {"motion": 0.0, "detail": 0.0, "collision": 0.0}
-    t0 = time.perf_counter()
+    later = _Later(detail, collide, H[P:].cpu(), p[P:].cpu(), device) \
+        if refine and not feedback else None  # fmt: skip
+    pool = ThreadPoolExecutor(1) if later is not None and overlap else None
+    jobs: list = []
+    start = t0 = time.perf_counter()
     for t in range(total):
         m = t - P
         if restart_every is not None and m > 0 and m % restart_every == 0:
@@ -236,13 +247,28 @@ def rollout(
                 prev = to_root_frame(world, H[t : t + 1], p[t : t + 1])
                 t0 = time.perf_counter()
             out[m] = world[0].cpu()
+            if pool is not None and (m + 1) % later.chunk == 0:  # a chunk to refine
+                jobs.append(pool.submit(later, decoded, codes, m + 1 - later.chunk, m + 1))
         if progress is not None:
             progress(t + 1, total)
     stage["motion"] += time.perf_counter() - t0
-    if refine and not feedback:
-        out = _refine_all(decoded, codes, H[P:].cpu(), p[P:].cpu(), detail, collide, stage,
-                          collisions, device)  # fmt: skip
-    seconds = sum(stage.values())
+    if later is not None:
+        T = motion.num_frames
+        done = len(jobs) * later.chunk
+        try:
+            parts = [job.result() for job in jobs]
+        finally:
+            if pool is not None:
+                pool.shutdown(cancel_futures=True)
+        parts += [later(decoded, codes, s, min(s + later.chunk, T))
+                  for s in range(done, T, later.chunk)]  # fmt: skip
+        for s, (part, records) in zip(range(0, T, later.chunk), parts, strict=True):
+            out[s : s + len(part)] = part
+            if collisions is not None:
+                collisions.extend(records)
+        for k in ("detail", "collision"):
+            stage[k] += later.seconds[k]
+    seconds = time.perf_counter() - start if pool is not None else sum(stage.values())
     return RolloutResult(out.numpy(), seconds, total, codes.numpy(),
                          decoded.numpy() if refine else None, collisions,
                          {k: v for k, v in stage.items() if v > 0})  # fmt: skip
@@ -268,26 +294,39 @@ def _refine_frame(local, z, H, p, m, detail, collide, stage) -> tuple[torch.Tens
     return result.vertices[None].to(world.dtype), _collision_record(result)
 
 
-def _refine_all(decoded, codes, H, p, detail, collide, stage, collisions, device,
-                chunk: int = 64) -> torch.Tensor:  # fmt: skip
-    """Every frame (T, V, 3) world through detail (in chunks) and then collision (per frame)."""
-    out = decoded.clone()
-    t0 = time.perf_counter()
-    if detail is not None:
-        for s in range(0, len(out), chunk):
-            h, q = H[s : s + chunk].to(device), p[s : s + chunk].to(device)
-            local = to_root_frame(decoded[s : s + chunk].to(device), h, q)
-            local = local + detail(local, codes[s : s + chunk].to(device))
-            out[s : s + chunk] = from_root_frame(local, h, q).cpu()
-    t1 = time.perf_counter()
-    stage["detail"] += t1 - t0
-    if collide is not None:
-        for m in range(len(out)):
-            result = collide(m, out[m].to(device))
-            out[m] = result.vertices.cpu()
-            collisions.append(_collision_record(result))
-        stage["collision"] += time.perf_counter() - t1
-    return out
+class _Later:
+    """Detail enhancement and collision handling of decoded frames, a chunk at a time
+    (after the motion stage, or beside it on a second thread); busy seconds per stage
+    in ``seconds``."""
+
+    chunk = 64
+
+    def __init__(self, detail, collide, H, p, device) -> None:
+        self.detail, self.collide, self.H, self.p, self.device = detail, collide, H, p, device
+        self.seconds = {"detail": 0.0, "collision": 0.0}
+
+    def __call__(self, decoded: torch.Tensor, codes: torch.Tensor, s: int, e: int
+                 ) -> tuple[torch.Tensor, list[dict]]:  # fmt: skip
+        """Motion frames [s, e) of decoded (T, V, 3) world garments and their codes
+        (T, latent): the refined garments (e - s, V, 3) and collision records."""
+        with torch.no_grad():  # grad mode is per thread
+            out = decoded[s:e].clone()
+            t0 = time.perf_counter()
+            if self.detail is not None:
+                h, q = self.H[s:e].to(self.device), self.p[s:e].to(self.device)
+                local = to_root_frame(out.to(self.device), h, q)
+                local = local + self.detail(local, codes[s:e].to(self.device))
+                out = from_root_frame(local, h, q).cpu()
+            t1 = time.perf_counter()
+            self.seconds["detail"] += t1 - t0
+            records = []
+            if self.collide is not None:
+                for i in range(len(out)):
+                    result = self.collide(s + i, out[i].to(self.device))
+                    out[i] = result.vertices.cpu()
+                    records.append(_collision_record(result))
+                self.seconds["collision"] += time.perf_counter() - t1
+        return out, records
 
 
 @torch.no_grad()

@@ -380,7 +380,8 @@ class AnimationModel:
         collide = self.collider(motion) if stages.collision else None
         return rollout(self.generative, self.encoder, motion, self.rest_state,
                        self.floor_height, self.config.rollout, progress, truth,
-                       restart_every, detail, collide, stages.feedback)  # fmt: skip
+                       restart_every, detail, collide, stages.feedback,
+                       stages.overlap)  # fmt: skip
 
     def carry_drape(self, motion: Motion, progress=None):
         """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""
