@@ -24,6 +24,7 @@ from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.inverse_skinning import InverseSkinningConfig, seed_weights, unskin
+from loosefit.types import GarmentTemplate
 
 
 def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -144,6 +145,19 @@ def prepare_split(
         origin=torch.cat(out["p"]),
         fps=float(fps),
     )
+
+
+def same_garment(a: GarmentTemplate, b: GarmentTemplate, tolerance: float = 1.0e-4) -> bool:
+    """The same triangles and rest shapes within ``tolerance`` (m).
+
+    What data and checkpoints are matched by: the fingerprint hashes rounded positions,
+    and the same garment built on two machines can differ by a float's last bit, which
+    rounding can turn into another digit.
+    """
+    va, vb = np.asarray(a.vertices), np.asarray(b.vertices)
+    fa, fb = np.asarray(a.faces), np.asarray(b.faces)
+    return (va.shape == vb.shape and fa.shape == fb.shape and bool(np.array_equal(fa, fb))
+            and float(np.abs(va - vb).max(initial=0.0)) <= tolerance)  # fmt: skip
 
 
 def garment_fingerprint(vertices: np.ndarray, faces: np.ndarray) -> str:

@@ -44,7 +44,7 @@ from loosefit.model.detail import (
     lsgan_generator_loss,
     mesh_edge_index,
 )
-from loosefit.model.frames import garment_fingerprint, to_root_frame
+from loosefit.model.frames import garment_fingerprint, same_garment, to_root_frame
 from loosefit.model.rollout import MOTION_ONLY, Stages, motion_root_frames
 from loosefit.train.common import (
     apply_overrides,
@@ -287,8 +287,7 @@ def train_detail(
     mpath = Path(motion).resolve()
     model = load_animation_model(mpath, generative, config.device)
     fingerprints = stage_fingerprints(model)
-    if fingerprints["garment"] != garment_fingerprint(reader.template.vertices,
-                                                      reader.template.faces):  # fmt: skip
+    if not same_garment(model.template, reader.template):
         raise LoosefitInputError(reader.root, "template", f"the garment {mpath.name} was "
                                  "trained on", "another garment")  # fmt: skip
     mirror = model.config.mirror if config.mirror is None else config.mirror

@@ -33,6 +33,7 @@ from loosefit.model.frames import (
     avatar_for,
     garment_fingerprint,
     prepare_split,
+    same_garment,
 )
 from loosefit.model.generative import (
     GarmentGenerativeModel,
@@ -146,7 +147,7 @@ def read_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
     stored = template_from_dict(data["garment"]["template"])
     if template is not None:
         want = garment_fingerprint(template.vertices, template.faces)
-        if want != data["garment"]["fingerprint"]:
+        if not same_garment(template, stored):
             raise LoosefitInputError(
                 path, "garment", f"the garment '{template.name}' ({template.num_vertices} "
                 f"vertices, fingerprint {want})",
