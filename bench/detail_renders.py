@@ -27,12 +27,17 @@ from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.render.camera import CameraView
 from loosefit.render.renderer import RenderConfig, Renderer, RenderMesh
 from loosefit.render.video import contact_sheet
-from loosefit.train.detail import load_pipeline
+from loosefit.train.detail import attach_detail, load_pipeline
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
+    p.add_argument(
+        "--detail",
+        default=None,
+        help="a detail run's model.pt (default: the detail.pt packaged beside)",
+    )
     p.add_argument("--data", default="datasets/salsa")
     p.add_argument("--frames", default="1188:1209:4", help="start:stop:step of the chain")
     p.add_argument("--size", type=int, default=360, help="pixels per view")
@@ -44,6 +49,8 @@ def main() -> None:
     name = next(n for n in reader.split("test") if n.startswith("chain_"))
     seq = reader.read(name)
     model = load_pipeline(args.checkpoint)
+    if args.detail:
+        attach_detail(model, args.detail)
     if model.detail is None:
         raise SystemExit(f"{args.checkpoint}: no detail stage packaged beside it")
     start, stop, step = (int(x) for x in args.frames.split(":"))
