@@ -110,6 +110,26 @@ def test_a_sheet_in_a_crease_of_the_body_comes_out():
     assert not np.isnan(r.vertices.numpy()).any()
 
 
+def test_a_body_poking_through_a_face_between_outside_vertices_is_pushed_out():
+    # a sheet of 11 cm cells over a sphere's top: every vertex is outside, but the middle
+    # of the cell over the top is 4 mm inside (the body shows through the cloth)
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
+    v, f = _sheet(8, 0.4, 0.296)
+    bv, bf = np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces)
+    surface = Surface(bv, bf)
+    assert not surface.query(v, 1.0, sign="winding").inside.any()
+    a, b = np.meshgrid(np.linspace(0, 1, 9), np.linspace(0, 1, 9))
+    keep = a + b <= 1
+    bary = np.stack([a[keep], b[keep], 1 - a[keep] - b[keep]], 1)  # (K, 3)
+
+    def face_points(x: np.ndarray) -> np.ndarray:
+        return np.einsum("kc,fcd->fkd", bary, x[f]).reshape(-1, 3)
+
+    assert surface.query(face_points(v), 1.0, sign="winding").inside.any()
+    _, r = _resolve(sphere, v, f)
+    assert not surface.query(face_points(r.vertices.numpy()), 1.0, sign="winding").inside.any()
+
+
 def test_body_collider_poses_lazily_and_resolves_each_frame():
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.3)
     bv, bf = np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces)

@@ -48,11 +48,12 @@ class CollisionConfig:
     anchor: float = 1.0e-3  # mu: weight of ||D||^2 (the Laplacian's null space; locality)
     rings: int = 4  # a solve moves only vertices within this many edges of an active one
     iterations: int = 6  # closest-point queries and solves per frame, at most
+    face_reach: float = 0.01  # m: the faces with a vertex this near the body are checked too
     reach: float = 0.1  # m: vertices farther than this from the body are never touched (and
     #   deeper inside it never seen): the spin sinks vertices 6.5 cm into the hips
 
     def __post_init__(self) -> None:
-        for name in ("epsilon", "anchor", "reach"):
+        for name in ("epsilon", "anchor", "reach", "face_reach"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise LoosefitInputError("CollisionConfig", name, "a positive number", value)
@@ -114,6 +115,11 @@ class CollisionHandler:
         e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
         adj = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(V, V))
         self.adjacency = ((adj + adj.T) > 0).astype(np.float32).tocsr()
+        # points inside each face that must stay out too (a body edge between three
+        # vertices that are outside pokes through the cloth): centroid and edge midpoints
+        self.faces = f
+        w = np.array([[1, 1, 1], [1, 1, 0], [0, 1, 1], [1, 0, 1]], np.float64)
+        self.sample_weights = w / w.sum(1, keepdims=True)  # (4, 3)
 
     def laplacian(self, x: torch.Tensor) -> torch.Tensor:
         """(V, 3) -> (V, 3): the uniform Laplacian ``Delta`` of Eq. 16."""
@@ -155,13 +161,16 @@ class CollisionHandler:
         depth_before = float(np.clip(cfg.epsilon - ds, 0, None).max())
         inside_before = int((ds < 0).sum())
         for _ in range(cfg.iterations):
-            if not (ds < cfg.epsilon - 0.25 * cfg.epsilon).any():
-                break
             # the active set grows; a vertex once pushed stays held, and one still short
             # of eps (its closest point moved: another body part) is pushed on from where
             # it is along its new normal: the pushes add up (out of a crease of the body)
-            active |= ds < cfg.epsilon
-            push = np.clip(cfg.epsilon - ds, 0.0, None)[:, None] * n  # (V, 3), 0 beyond reach
+            short = np.clip(cfg.epsilon - ds, 0.0, None)  # (V,), 0 beyond reach
+            push = short[:, None] * n  # (V, 3)
+            # a point inside a face short of eps: its face's vertices take its push
+            face_short = self._face_pushes(x0 + d, ds, body, short, push)
+            if not (ds < 0.75 * cfg.epsilon).any() and not face_short:
+                break
+            active |= short > 0
             region |= self.dilate(active, cfg.rings)
             d = self._solve(d + push, active, region)
             # the moved vertices' closest points again: pushed ones meet other body parts
@@ -183,6 +192,36 @@ class CollisionHandler:
             iterations=iterations,
             laplacian_change=float(np.sqrt((lap**2).sum(-1).mean())),
         )
+
+    def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,
+                     push: np.ndarray) -> bool:  # fmt: skip
+        """Check points inside the faces near the body (centroid, edge midpoints); where
+        one is closer than ``0.75 eps``, the face's vertices that span it take its push
+        (moving them all by it moves the point by it) when it is larger than their own.
+        Updates ``short`` (V,) and ``push`` (V, 3) in place; True if any point was short.
+        """
+        cfg = self.config
+        near = np.flatnonzero((ds[self.faces] < cfg.face_reach).any(1))  # (Fn,)
+        if not len(near):
+            return False
+        corners = x[self.faces[near]]  # (Fn, 3, 3)
+        pts = np.einsum("sk,fkd->fsd", self.sample_weights, corners).reshape(-1, 3)
+        n, dp = _signed_distances(pts, body, cfg.reach)
+        bad = np.flatnonzero(dp < 0.75 * cfg.epsilon)
+        if not len(bad):
+            return False
+        face, sample = np.divmod(bad, len(self.sample_weights))
+        deficit = cfg.epsilon - dp[bad]  # (B,)
+        spans = self.sample_weights[sample] > 0  # (B, 3) the vertices a point depends on
+        v = self.faces[near[face]][spans]  # (B * k,)
+        dv = np.repeat(deficit, spans.sum(1))
+        nv = np.repeat(n[bad], spans.sum(1), axis=0)
+        order = np.argsort(dv)  # ascending: the largest push of a vertex is written last
+        v, dv, nv = v[order], dv[order], nv[order]
+        take = dv > short[v]
+        short[v[take]] = dv[take]
+        push[v[take]] = dv[take, None] * nv[take]
+        return True
 
     def _solve(self, pinned: np.ndarray, active: np.ndarray, region: np.ndarray) -> np.ndarray:
         """Minimise ``|L D|^2 + mu |D|^2`` with ``D_k`` given on the active vertices.
