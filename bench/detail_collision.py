@@ -181,7 +181,9 @@ def markdown(results: dict) -> str:
                   "| row | RMSE (cm) | Hausdorff (cm) | STED | inside mean % | inside p99 % | "
                   "strain p50 | strain p99 | Laplacian change (mm) |",
                   "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
-        for label, r in results["part_b"].items():
+        rows = results["part_b"]
+        for label in sorted(rows, key=lambda k: k == "simulation"):  # the simulation last
+            r = rows[label]
             cells = [f"{r[k]:.3f}" if k in r else "-" for k in ("rmse_cm", "hausdorff_cm", "sted")]
             lines.append(f"| {label} | " + " | ".join(cells) + f" | {r['inside_mean_pct']:.4f} | "
                          f"{r['inside_p99_pct']:.2f} | {r['strain_p50']:.3f} | "

@@ -48,7 +48,7 @@ class CollisionConfig:
     anchor: float = 1.0e-3  # mu: weight of ||D||^2 (the Laplacian's null space; locality)
     rings: int = 4  # a solve moves only vertices within this many edges of an active one
     iterations: int = 6  # closest-point queries and solves per frame, at most
-    face_reach: float = 0.01  # m: the faces with a vertex this near the body are checked too
+    face_reach: float = 0.005  # m: the faces with a vertex this near the body are checked too
     reach: float = 0.1  # m: vertices farther than this from the body are never touched (and
     #   deeper inside it never seen): the spin sinks vertices 6.5 cm into the hips
 
