@@ -36,6 +36,7 @@ import scipy.sparse.linalg as spla
 import torch
 
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.laplacian import laplacian_matrix
 from loosefit.geometry.query import Surface
 
@@ -114,9 +115,9 @@ class CollisionHandler:
         self.ltl = (self.lap.T @ self.lap).tocsr()
         self.system = (self.ltl + self.config.anchor * sp.identity(V, format="csr")).tocsr()
         f = np.asarray(faces, np.int64)
-        e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-        adj = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(V, V))
-        self.adjacency = ((adj + adj.T) > 0).astype(np.float32).tocsr()
+        e, _ = unique_edges(f)
+        adj = sp.coo_matrix((np.ones(len(e), np.float32), (e[:, 0], e[:, 1])), shape=(V, V))
+        self.adjacency = (adj + adj.T).tocsr()
         # points inside each face that must stay out too (a body edge between three
         # vertices that are outside pokes through the cloth): centroid and edge midpoints
         self.faces = f
@@ -281,7 +282,7 @@ class BodyCollider:
     held in one BVH refitted to each frame.
 
     Args:
-        handler: the garment's Eq. 16 operators (on the device the garments come on).
+        handler: the garment's Eq. 16 operators.
         body_faces: (F, 3) the collider's triangles (the simulation's collider).
         pose: ``pose(start, stop) -> (stop - start, Vb, 3)`` body vertices (m) of those
             motion frames.

@@ -28,6 +28,7 @@ import torch
 from torch import nn
 
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.mesh_checks import unique_edges
 
 
 @dataclass
@@ -62,9 +63,8 @@ class DetailConfig:
 
 def mesh_edge_index(faces: np.ndarray | torch.Tensor) -> torch.Tensor:
     """(2, 2E) int64 directed edges (both directions) of a triangle mesh (F, 3), each once."""
-    f = torch.as_tensor(np.asarray(faces), dtype=torch.long)
-    e = torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])  # (3F, 2)
-    return torch.cat([e, e.flip(1)]).unique(dim=0).t().contiguous()
+    e = torch.from_numpy(unique_edges(np.asarray(faces))[0])  # (E, 2)
+    return torch.cat([e, e.flip(1)]).t().contiguous()
 
 
 def neighbour_table(edge_index: torch.Tensor, num_vertices: int) -> torch.Tensor:

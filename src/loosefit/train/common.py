@@ -36,6 +36,19 @@ def template_from_dict(g: dict) -> GarmentTemplate:
                            g["name"])  # fmt: skip
 
 
+def restore_training(saved: dict, states: dict, sampling: torch.Generator | None = None
+                     ) -> tuple[int, list]:  # fmt: skip
+    """Resume from a training checkpoint: ``states`` maps its keys to the modules and
+    optimisers to load; torch's RNG (and ``sampling``'s) are put back. Returns the
+    epoch reached and the loss history."""
+    for key, obj in states.items():
+        obj.load_state_dict(saved[key])
+    torch.set_rng_state(saved["rng"])
+    if sampling is not None:
+        sampling.set_state(saved["sampling_rng"])
+    return saved["epoch"], saved["history"]
+
+
 def save_atomic(data: dict, path: Path) -> None:
     """``torch.save`` to a temporary file, then a rename: never a half-written checkpoint."""
     tmp = path.with_name(path.name + ".partial")

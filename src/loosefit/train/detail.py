@@ -33,6 +33,7 @@ import torch
 from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.model.detail import (
     DetailConfig,
@@ -42,7 +43,6 @@ from loosefit.model.detail import (
     edge_length_loss,
     lsgan_discriminator_loss,
     lsgan_generator_loss,
-    mesh_edge_index,
 )
 from loosefit.model.frames import garment_fingerprint, same_garment, to_root_frame
 from loosefit.model.rollout import MOTION_ONLY, Stages, motion_root_frames
@@ -51,6 +51,7 @@ from loosefit.train.common import (
     machine,
     open_run,
     read_checkpoint_file,
+    restore_training,
     save_atomic,
 )
 from loosefit.train.motion import AnimationModel, load_animation_model, model_fingerprint
@@ -314,8 +315,7 @@ def train_detail(
     D = MultiScaleDiscriminator(model.generative.config.uv_size, config.model).to(dev)
     uv = model.generative.uv
     lap = Laplacian(t.faces, t.num_vertices).to(dev)
-    edges = mesh_edge_index(t.faces)
-    edges = edges[:, edges[0] < edges[1]].to(dev)  # (2, E) each edge once
+    edges = torch.from_numpy(unique_edges(t.faces)[0]).t().to(dev)  # (2, E) each edge once
     opt_g = torch.optim.Adam(G.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     opt_d = torch.optim.Adam(D.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     ckpt_path = out / "checkpoint.pt"
@@ -330,14 +330,11 @@ def train_detail(
     }
     epoch, history = 0, []
     if ckpt_path.is_file():
-        saved = _read(ckpt_path, dev)
-        G.load_state_dict(saved["model"])
-        D.load_state_dict(saved["discriminator"])
-        opt_g.load_state_dict(saved["optimizer"])
-        opt_d.load_state_dict(saved["optimizer_discriminator"])
-        epoch, history = saved["epoch"], saved["history"]
-        torch.set_rng_state(saved["rng"])
-        gen.set_state(saved["sampling_rng"])
+        epoch, history = restore_training(
+            _read(ckpt_path, dev),
+            {"model": G, "discriminator": D, "optimizer": opt_g, "optimizer_discriminator": opt_d},
+            gen,
+        )  # fmt: skip
         log(f"resumed {ckpt_path} at epoch {epoch}")
 
     # 3. the loop

@@ -46,6 +46,7 @@ from loosefit.train.common import (
     machine,
     open_run,
     read_checkpoint_file,
+    restore_training,
     save_atomic,
     template_dict,
     template_from_dict,
@@ -302,10 +303,7 @@ def train_generative(
     epoch, history = 0, []
     if ckpt_path.is_file():
         data_, _ = read_checkpoint(ckpt_path, template, device)
-        model.load_state_dict(data_["model"])
-        optim.load_state_dict(data_["optimizer"])
-        epoch, history = data_["epoch"], data_["history"]
-        torch.set_rng_state(data_["rng"])
+        epoch, history = restore_training(data_, {"model": model, "optimizer": optim})
         log(f"resumed {ckpt_path} at epoch {epoch}")
 
     posed, unposed = train.posed.to(device), train.unposed.to(device)

@@ -66,6 +66,7 @@ from loosefit.train.common import (
     machine,
     open_run,
     read_checkpoint_file,
+    restore_training,
     save_atomic,
     template_dict,
     template_from_dict,
@@ -776,12 +777,9 @@ def train_motion(
     }
     epoch, history = 0, []
     if ckpt_path.is_file():
-        saved = _read(ckpt_path, config.device)
-        encoder.load_state_dict(saved["model"])
-        optim.load_state_dict(saved["optimizer"])
-        epoch, history = saved["epoch"], saved["history"]
-        torch.set_rng_state(saved["rng"])
-        gen.set_state(saved["sampling_rng"])
+        epoch, history = restore_training(
+            _read(ckpt_path, config.device), {"model": encoder, "optimizer": optim}, gen
+        )
         log(f"resumed {ckpt_path} at epoch {epoch}")
 
     writer = SummaryWriter(str(out))
