@@ -217,9 +217,8 @@ def rollout(
     decoded = torch.empty(motion.num_frames, encoder.num_vertices, 3) if refine else None
     collisions: list | None = [] if collide is not None else None
     stage = {"motion": 0.0, "detail": 0.0, "collision": 0.0}
-    later = _Later(detail, collide, H[P:].cpu(), p[P:].cpu(), device) \
-        if refine and not feedback else None  # fmt: skip
-    pool = ThreadPoolExecutor(1) if later is not None and overlap else None
+    later = _Later(detail, collide, H[P:].cpu(), p[P:].cpu(), device) if refine else None
+    pool = ThreadPoolExecutor(1) if refine and overlap and not feedback else None
     jobs: list = []
     start = t0 = time.perf_counter()
     for t in range(total):
@@ -237,13 +236,12 @@ def rollout(
             codes[m] = z[0].cpu()
             if refine:
                 decoded[m] = world[0].cpu()
-            if refine and feedback:
-                t1 = time.perf_counter()
-                stage["motion"] += t1 - t0
-                world, record = _refine_frame(prev, z, H[t : t + 1], p[t : t + 1], m, detail,
-                                              collide, stage)  # fmt: skip
-                if record is not None:
-                    collisions.append(record)
+            if refine and feedback:  # this frame through the later stages, then fed back
+                stage["motion"] += time.perf_counter() - t0
+                part, records = later(decoded, codes, m, m + 1)
+                world = part.to(device)
+                if collisions is not None:
+                    collisions.extend(records)
                 prev = to_root_frame(world, H[t : t + 1], p[t : t + 1])
                 t0 = time.perf_counter()
             out[m] = world[0].cpu()
@@ -252,7 +250,7 @@ def rollout(
         if progress is not None:
             progress(t + 1, total)
     stage["motion"] += time.perf_counter() - t0
-    if later is not None:
+    if later is not None and not feedback:
         T = motion.num_frames
         done = len(jobs) * later.chunk
         try:
@@ -266,6 +264,7 @@ def rollout(
             out[s : s + len(part)] = part
             if collisions is not None:
                 collisions.extend(records)
+    if later is not None:
         for k in ("detail", "collision"):
             stage[k] += later.seconds[k]
     seconds = time.perf_counter() - start if pool is not None else sum(stage.values())
@@ -279,25 +278,10 @@ def _collision_record(result) -> dict:
     return {k: v for k, v in vars(result).items() if k != "vertices"}
 
 
-def _refine_frame(local, z, H, p, m, detail, collide, stage) -> tuple[torch.Tensor, dict | None]:
-    """One frame (1, V, 3) in its root frame through detail and collision: world (1, V, 3)."""
-    t0 = time.perf_counter()
-    if detail is not None:
-        local = local + detail(local, z)
-    world = from_root_frame(local, H, p)
-    t1 = time.perf_counter()
-    stage["detail"] += t1 - t0
-    if collide is None:
-        return world, None
-    result = collide(m, world[0])
-    stage["collision"] += time.perf_counter() - t1
-    return result.vertices[None].to(world.dtype), _collision_record(result)
-
-
 class _Later:
     """Detail enhancement and collision handling of decoded frames, a chunk at a time
-    (after the motion stage, or beside it on a second thread); busy seconds per stage
-    in ``seconds``."""
+    (after the motion stage or beside it on a second thread), or one frame at a time
+    when fed back; busy seconds per stage in ``seconds``."""
 
     chunk = 64
 
