@@ -49,6 +49,26 @@ def restore_training(saved: dict, states: dict, sampling: torch.Generator | None
     return saved["epoch"], saved["history"]
 
 
+def recorded_checkpoint(path: Path, recorded: dict, given: str | Path | None, field: str,
+                        what: str, hint: str | None = None) -> Path:  # fmt: skip
+    """The checkpoint a checkpoint was trained on: ``given``, or the one it records
+    (``recorded["relative"]`` to ``path``'s folder first, then ``recorded["absolute"]``).
+
+    Raises:
+        LoosefitInputError: naming ``path``, ``field`` and every candidate, when none exists.
+    """
+    if given is not None:
+        candidates = [Path(given)]
+    else:
+        candidates = [path.parent / recorded["relative"]]
+        candidates += [Path(recorded["absolute"])] if recorded.get("absolute") else []
+    found = next((c for c in candidates if c.is_file()), None)
+    if found is None:
+        found_text = f"none of {[str(c) for c in candidates]} exists"
+        raise LoosefitInputError(path, field, what, found_text, hint=hint)
+    return found
+
+
 def save_atomic(data: dict, path: Path) -> None:
     """``torch.save`` to a temporary file, then a rename: never a half-written checkpoint."""
     tmp = path.with_name(path.name + ".partial")

@@ -51,6 +51,7 @@ from loosefit.train.common import (
     machine,
     open_run,
     read_checkpoint_file,
+    recorded_checkpoint,
     restore_training,
     save_atomic,
 )
@@ -226,20 +227,6 @@ def attach_detail(model: AnimationModel, path: str | Path) -> AnimationModel:
     return model
 
 
-def _motion_path(path: Path, recorded: dict, motion: str | Path | None) -> Path:
-    """The motion checkpoint of a detail checkpoint: given, or the one it records."""
-    if motion is not None:
-        candidates = [Path(motion)]
-    else:
-        candidates = [path.parent / recorded["relative"]]
-        candidates += [Path(recorded["absolute"])] if recorded.get("absolute") else []
-    found = next((c for c in candidates if c.is_file()), None)
-    if found is None:
-        raise LoosefitInputError(path, "motion", "the motion checkpoint it was trained on",
-                                 f"none of {[str(c) for c in candidates]} exists")  # fmt: skip
-    return found
-
-
 def load_detail_model(
     path: str | Path,
     motion: str | Path | None = None,
@@ -249,8 +236,9 @@ def load_detail_model(
     """All three learned stages from a detail checkpoint (and the motion stage it records)."""
     path = Path(path)
     data = _read(path, "cpu")
-    model = load_animation_model(_motion_path(path, data["motion_checkpoint"], motion),
-                                 generative, device)  # fmt: skip
+    mpath = recorded_checkpoint(path, data["motion_checkpoint"], motion, "motion",
+                                "the motion checkpoint it was trained on")  # fmt: skip
+    model = load_animation_model(mpath, generative, device)
     return attach_detail(model, path)
 
 

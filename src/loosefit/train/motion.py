@@ -66,6 +66,7 @@ from loosefit.train.common import (
     machine,
     open_run,
     read_checkpoint_file,
+    recorded_checkpoint,
     restore_training,
     save_atomic,
     template_dict,
@@ -396,22 +397,6 @@ class AnimationModel:
                               self.config.rollout)  # fmt: skip
 
 
-def _generative_path(path: Path, recorded: dict, generative: str | Path | None) -> Path:
-    """The generative checkpoint of a motion checkpoint: given, or the one it records."""
-    if generative is not None:
-        candidates = [Path(generative)]
-    else:  # relative to the motion checkpoint's folder first, then where it was trained
-        candidates = [path.parent / recorded["relative"]]
-        candidates += [Path(recorded["absolute"])] if recorded.get("absolute") else []
-    found = next((c for c in candidates if c.is_file()), None)
-    if found is None:
-        raise LoosefitInputError(
-            path, "generative", "the generative checkpoint it was trained on",
-            f"none of {[str(c) for c in candidates]} exists", hint="pass --generative FILE",
-        )  # fmt: skip
-    return found
-
-
 def load_animation_model(
     path: str | Path, generative: str | Path | None = None, device="cpu"
 ) -> AnimationModel:
@@ -430,7 +415,14 @@ def load_animation_model(
     path = Path(path)
     data = _read(path, device)
     g = data["generative"]
-    gpath = _generative_path(path, g, generative)
+    gpath = recorded_checkpoint(
+        path,
+        g,
+        generative,
+        "generative",
+        "the generative checkpoint it was trained on",
+        "pass --generative FILE",
+    )
     gmodel, _, _ = load_generative(gpath, device=device)
     found = model_fingerprint(gmodel)
     if found != g["fingerprint"]:
@@ -485,7 +477,14 @@ def package_model(
     path, out = Path(path), Path(out)
     load_animation_model(path, generative)  # checks the pair belongs together
     data = _read(path, "cpu")
-    gpath = _generative_path(path, data["generative"], generative)
+    gpath = recorded_checkpoint(
+        path,
+        data["generative"],
+        generative,
+        "generative",
+        "the generative checkpoint it was trained on",
+        "pass --generative FILE",
+    )
     gdata, _ = read_generative(gpath)
     out.mkdir(parents=True, exist_ok=True)
     gout, mout = out / "generative.pt", out / "motion.pt"
