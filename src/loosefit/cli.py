@@ -313,6 +313,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         return _train_motion(args)
     if args.stage == "detail":
         return _train_detail(args)
+    if args.stage == "baseline":
+        return _train_baseline(args)
     from loosefit.train.generative import TrainGenerativeConfig, train_generative
 
     cfg = TrainGenerativeConfig.preset(
@@ -364,6 +366,24 @@ def _train_detail(args: argparse.Namespace) -> int:
     kind = ("full" if cfg.discriminator else "nodisc") + ("-edge" if cfg.loss.edge else "")
     out = args.out or f"runs/detail-{args.preset}-{kind}"
     report = train_detail(args.data, args.motion, out, cfg, args.generative, log=_log)
+    print(Path(out, "report.md").read_text())
+    _log(f"run in {out}; model {Path(out, 'model.pt')}")
+    return 0 if report else 1
+
+
+def _train_baseline(args: argparse.Namespace) -> int:
+    from loosefit.train.baseline import TrainBaselineConfig, train_baseline
+
+    if not args.method:
+        raise LoosefitInputError("loosefit train baseline", "--method",
+                                 "santesteban or virtual-bones", "none")  # fmt: skip
+    cfg = TrainBaselineConfig.preset(
+        args.preset, method=args.method, epochs=args.epochs, device=args.device,
+        max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr,
+        mirror=True if args.mirror else None, joints=args.joints, bones=args.bones,
+    )  # fmt: skip
+    out = args.out or f"runs/baseline-{args.preset}-{args.method}"
+    report = train_baseline(args.data, out, cfg, log=_log)
     print(Path(out, "report.md").read_text())
     _log(f"run in {out}; model {Path(out, 'model.pt')}")
     return 0 if report else 1
@@ -679,10 +699,19 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("train", help="train a learned stage (resumable)")
     p.add_argument(
         "stage",
-        choices=("generative", "motion", "detail"),
+        choices=("generative", "motion", "detail", "baseline"),
         help="generative: the garment VAE (3.2); motion: the motion encoder (3.3); detail: "
-        "the detail enhancement module (3.4) on a trained motion stage's rollouts",
+        "the detail enhancement module (3.4) on a trained motion stage's rollouts; baseline: "
+        "one of the paper's baselines (--method)",
     )
+    p.add_argument(
+        "--method",
+        default=None,
+        choices=("santesteban", "virtual-bones"),
+        help="baseline: Santesteban et al. 2019 (skinned to the body, GRU displacements, "
+        "push-out) or Pan et al. 2022 (virtual bones from a skinning decomposition)",
+    )
+    p.add_argument("--bones", type=int, default=None, help="baseline virtual-bones: bones")
     p.add_argument("--generative", default=None, help="motion: the generative checkpoint")
     p.add_argument("--motion", default=None, help="detail: the motion stage's model.pt")
     p.add_argument(
@@ -710,14 +739,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--mirror",
         action="store_true",
-        help="motion: also train on every clip mirrored left-right (twice the data, no "
+        help="motion, baseline: also train on every clip mirrored left-right (twice the data, no "
         "simulation; the garment must be mirror-symmetric)",
     )
     p.add_argument(
         "--joints",
         default=None,
         choices=("all", "lower"),
-        help="motion: the joints whose rotations the encoder sees: all (default) or lower "
+        help="motion, baseline: the joints whose rotations the network sees: all (default) or "
+        "lower "
         "(spine and legs, what moves the skin a skirt touches)",
     )
     p.add_argument("--data", default="datasets/demo", help="a dataset folder")

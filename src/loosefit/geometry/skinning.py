@@ -64,3 +64,48 @@ def rigid_point_frames(
     rotations = nearest_rotation(blended[..., :3, :3])
     translations = posed - (rotations @ rest_points[None, :, :, None])[..., 0]
     return rotations, translations
+
+
+def linear_blend_skinning(
+    points: torch.Tensor, weights: torch.Tensor, transforms: torch.Tensor
+) -> torch.Tensor:
+    """Linear blend skinning ``x_i = sum_k w_ik A_k [p_i; 1]``, batched.
+
+    Args:
+        points: (..., V, 3) points in the rest space (a (V, 3) rest shape broadcasts).
+        weights: (V, K) skinning weights, rows summing to 1 (dense).
+        transforms: (..., K, 3, 4) rest -> posed affine transforms of the K influences.
+
+    Returns:
+        (..., V, 3) posed points; differentiable w.r.t. all three.
+    """
+    blended = torch.einsum("vk,...kij->...vij", weights, transforms)  # (..., V, 3, 4)
+    return (blended[..., :3] @ points[..., None])[..., 0] + blended[..., 3]
+
+
+def dense_weights(weights: torch.Tensor, indices: torch.Tensor, count: int) -> torch.Tensor:
+    """Sparse skinning weights (N, K) on joint ``indices`` (N, K) as a dense (N, count) matrix."""
+    out = torch.zeros(weights.shape[0], count, dtype=weights.dtype, device=weights.device)
+    return out.scatter_add_(1, indices.long(), weights)
+
+
+def root_frame_transforms(
+    joint_transforms: torch.Tensor, heading: torch.Tensor, origin: torch.Tensor
+) -> torch.Tensor:
+    """World skinning transforms expressed in the root frame of each frame.
+
+    With ``x_root = H^T (x_world - p)`` (:mod:`loosefit.model.frames`), a joint's
+    transform rest -> root frame is ``[H^T | -H^T p] T``.
+
+    Args:
+        joint_transforms: (T, J, 4, 4) rest -> world skinning transforms.
+        heading: (T, 3, 3) H and ``origin`` (T, 3) p of the root frames.
+
+    Returns:
+        (T, J, 3, 4) rest -> root-frame transforms.
+    """
+    Ht = heading.transpose(-1, -2).to(joint_transforms)  # (T, 3, 3)
+    rot = Ht[:, None] @ joint_transforms[..., :3, :]  # (T, J, 3, 4)
+    shift = (Ht @ origin.to(joint_transforms)[..., None])[..., 0]  # (T, 3)
+    rot[..., 3] = rot[..., 3] - shift[:, None]
+    return rot

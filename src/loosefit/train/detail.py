@@ -443,17 +443,23 @@ def load_pipeline(path: str | Path, generative: str | Path | None = None,
 
     ``path`` is a motion-stage checkpoint (a packaged set's ``motion.pt`` takes the
     ``detail.pt`` beside it, if there is one) or a detail checkpoint (with the motion
-    stage it records); ``detail`` names a detail checkpoint explicitly.
+    stage it records); ``detail`` names a detail checkpoint explicitly. A baseline's
+    checkpoint (:mod:`loosefit.train.baseline`) gives that baseline, which animates alike.
     """
     path = Path(path)
     fmt = None
     if path.is_file():
         try:
-            fmt = torch.load(path, map_location="cpu", weights_only=True).get("format")
+            fmt = torch.load(path, map_location="cpu", weights_only=False).get("format")
         except Exception:  # noqa: BLE001 - the loaders below give the clear error
             fmt = None
     if fmt == CHECKPOINT_FORMAT:
         return load_detail_model(path, None, generative, device)
+    from loosefit.train.baseline import CHECKPOINT_FORMAT as BASELINE_FORMAT
+    from loosefit.train.baseline import load_baseline
+
+    if fmt == BASELINE_FORMAT:
+        return load_baseline(path, device)
     model = load_animation_model(path, generative, device)
     beside = path.parent / "detail.pt"
     if detail is None and path.name == "motion.pt" and beside.is_file():

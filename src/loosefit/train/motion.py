@@ -197,7 +197,8 @@ class Clip:
         features: (P + T, F) motion features.
         heading: (P + T, 3, 3) and ``origin`` (P + T, 3): the root frames.
         target: (T, V, 3) simulated garment, root frame.
-        latent: (T, latent) the generative encoder's code of ``target`` (Z*).
+        latent: (T, latent) the generative encoder's code of ``target`` (Z*), or None
+            when prepared without a generative model (the baselines').
         preroll: P.
     """
 
@@ -207,7 +208,7 @@ class Clip:
     heading: torch.Tensor
     origin: torch.Tensor
     target: torch.Tensor
-    latent: torch.Tensor
+    latent: torch.Tensor | None
     preroll: int
 
     @property
@@ -219,14 +220,15 @@ class Clip:
 def prepare_clips(
     reader: DatasetReader,
     split: str,
-    generative: GarmentGenerativeModel,
+    generative: GarmentGenerativeModel | None,
     floor_height: float,
     config: RolloutConfig,
     max_frames: int | None = None,
     mirror: bool = False,
     joints: str = "all",
 ) -> list[Clip]:
-    """Every clip of a split on the rollout timeline, with its targets.
+    """Every clip of a split on the rollout timeline, with its targets (and, given a
+    generative model, their latent codes).
 
     ``mirror`` adds each clip mirrored left-right (``NAME~mirror``): the motion by
     :func:`~loosefit.body.mirror.mirror_motion`, the simulated garment reflected
@@ -256,7 +258,9 @@ def prepare_clips(
             feats = motion_features(rot, root, m.fps, floor_height,
                                     feature_joints(m.joint_names, joints))  # fmt: skip
             clips.append(Clip(label, m, feats,
-                              H, p, target, latent_codes(generative, target), P))  # fmt: skip
+                              H, p, target,
+                              None if generative is None else latent_codes(generative, target),
+                              P))  # fmt: skip
     return clips
 
 
@@ -304,6 +308,44 @@ def _read(path: Path, device) -> dict:
     })  # fmt: skip
 
 
+def check_motion_joints(motion: Motion, joint_names: tuple[str, ...], path: Path) -> None:
+    """A clear error for a motion on other joints than a checkpoint's, or not finite."""
+    if tuple(motion.joint_names) != tuple(joint_names):
+        missing = [j for j in joint_names if j not in motion.joint_names]
+        raise LoosefitInputError(
+            f"motion '{motion.name}'", "joint_names",
+            f"the {len(joint_names)} joints the checkpoint {Path(path).name} was "
+            "trained on, in its order",
+            f"{len(motion.joint_names)} joints" + (f", missing {missing[:5]}" if missing
+                                                   else ", in another order"),
+        )  # fmt: skip
+    if not np.isfinite(motion.rotations).all() or not np.isfinite(motion.root_translation).all():
+        raise LoosefitInputError(f"motion '{motion.name}'", "rotations/root_translation",
+                                 "finite numbers", "NaN or infinity")  # fmt: skip
+
+
+def body_collider(avatar, handler, motion: Motion, arm_collision: bool, device: torch.device
+                  ) -> BodyCollider:  # fmt: skip
+    """``handler`` (Eq. 16's, or a baseline's push-out) along ``motion``'s posed body, the
+    simulation's collider (the arms in it only with ``arm_collision``)."""
+    rot = torch.from_numpy(motion.rotations)
+    root = torch.from_numpy(motion.root_translation)
+
+    def pose(start: int, stop: int) -> np.ndarray:
+        return avatar.pose(rot[start:stop], root[start:stop]).vertices.cpu().numpy()
+
+    faces = avatar.collider_faces(arms=arm_collision).cpu().numpy()
+    warp_device = "cpu" if device.type == "cpu" else f"cuda:{device.index or 0}"
+    return BodyCollider(handler, faces, pose, motion.num_frames, device=warp_device)
+
+
+def avatar_of(body: dict):
+    """The avatar of a checkpoint's ``body`` record (its shape)."""
+    from loosefit.body.avatar import Avatar, AvatarConfig
+
+    return Avatar(AvatarConfig(shape=dict(body.get("shape", {}))))
+
+
 @dataclass
 class AnimationModel:
     """Everything a rollout needs, loaded from a motion-stage checkpoint."""
@@ -332,9 +374,7 @@ class AnimationModel:
     def avatar(self):
         """The body the garment was simulated on (built once)."""
         if self._avatar is None:
-            from loosefit.body.avatar import Avatar, AvatarConfig
-
-            self._avatar = Avatar(AvatarConfig(shape=dict(self.body.get("shape", {}))))
+            self._avatar = avatar_of(self.body)
         return self._avatar
 
     def collider(self, motion: Motion) -> BodyCollider:
@@ -342,34 +382,12 @@ class AnimationModel:
         if self._handler is None:
             t = self.template
             self._handler = CollisionHandler(t.faces, t.num_vertices, self.collision)
-        avatar = self.avatar()
-        rot = torch.from_numpy(motion.rotations)
-        root = torch.from_numpy(motion.root_translation)
-
-        def pose(start: int, stop: int) -> np.ndarray:
-            return avatar.pose(rot[start:stop], root[start:stop]).vertices.cpu().numpy()
-
-        faces = avatar.collider_faces(arms=self.arm_collision).cpu().numpy()
-        warp_device = "cpu" if self.device.type == "cpu" else f"cuda:{self.device.index or 0}"
-        return BodyCollider(self._handler, faces, pose, motion.num_frames, device=warp_device)
+        return body_collider(self.avatar(), self._handler, motion, self.arm_collision,
+                             self.device)  # fmt: skip
 
     def check_motion(self, motion: Motion) -> None:
         """A clear error for a motion on other joints or at another frame rate."""
-        if tuple(motion.joint_names) != self.joint_names:
-            missing = [j for j in self.joint_names if j not in motion.joint_names]
-            raise LoosefitInputError(
-                f"motion '{motion.name}'", "joint_names",
-                f"the {len(self.joint_names)} joints the checkpoint {self.path.name} was "
-                "trained on, in its order",
-                f"{len(motion.joint_names)} joints" + (f", missing {missing[:5]}" if missing
-                                                       else ", in another order"),
-            )  # fmt: skip
-        if (
-            not np.isfinite(motion.rotations).all()
-            or not np.isfinite(motion.root_translation).all()
-        ):
-            raise LoosefitInputError(f"motion '{motion.name}'", "rotations/root_translation",
-                                     "finite numbers", "NaN or infinity")  # fmt: skip
+        check_motion_joints(motion, self.joint_names, self.path)
 
     def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
                 stages: Stages | None = None):  # fmt: skip

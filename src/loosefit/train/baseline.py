@@ -1,0 +1,491 @@
+"""Training the baselines (Santesteban et al. 2019; Pan et al. 2022, virtual bones), resumable.
+
+One training loop for both (:mod:`loosefit.model.baselines`): the same data as
+the motion encoder (the clips on the rollout timeline, the same frames, mirrored
+clips with ``mirror``), truncated backpropagation through time in windows of
+``window`` frames with the GRU's state carried over, and the same held-out
+evaluation (:func:`~loosefit.train.motion.evaluate_rollouts`). A run is a
+folder like the other stages' (``config.json``, ``checkpoint.pt`` written
+atomically, TensorBoard events, ``report.json/.md``, ``model.pt`` without the
+optimizer); a virtual-bones run also keeps its skinning decomposition
+(``ssdr.npz``), computed once. ``loosefit animate`` and ``loosefit evaluate``
+take a ``model.pt``/``checkpoint.pt`` of either.
+"""
+
+from __future__ import annotations
+
+import resource
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from loosefit.data.format import DatasetReader, write_json_atomic
+from loosefit.errors import LoosefitInputError
+from loosefit.geometry.collision import CollisionConfig, PushOutHandler
+from loosefit.geometry.skinning import root_frame_transforms
+from loosefit.model.baselines import (
+    BaselineConfig,
+    BaselineLossConfig,
+    BaselineNetwork,
+    baseline_loss,
+    baseline_rollout,
+    body_joint_weights,
+)
+from loosefit.model.frames import avatar_for, garment_fingerprint
+from loosefit.model.motion_features import feature_joints, num_features
+from loosefit.model.rollout import RolloutConfig, Stages
+from loosefit.train.common import (
+    apply_overrides,
+    machine,
+    open_run,
+    read_checkpoint_file,
+    restore_training,
+    save_atomic,
+    template_dict,
+    template_from_dict,
+)
+from loosefit.train.motion import (
+    Clip,
+    avatar_of,
+    body_collider,
+    check_motion_joints,
+    evaluate_rollouts,
+    prepare_clips,
+)
+from loosefit.types import GarmentTemplate, Motion
+
+CHECKPOINT_FORMAT = "loosefit.baseline/1"
+
+
+@dataclass
+class TrainBaselineConfig:
+    """One training run of a baseline."""
+
+    model: BaselineConfig = field(default_factory=BaselineConfig)
+    loss: BaselineLossConfig = field(default_factory=BaselineLossConfig)
+    rollout: RolloutConfig = field(default_factory=RolloutConfig)
+    epochs: int = 300
+    batch_size: int = 1  # clips side by side
+    window: int = 50  # frames of truncated backpropagation through time
+    lr: float = 1.0e-4
+    weight_decay: float = 1.0e-3
+    grad_clip: float = 10.0
+    mirror: bool = False  # also the training clips mirrored (as the motion encoder's option)
+    near: float = 0.02  # santesteban: m; vertices farther from the body get diffused weights
+    ssdr_iterations: int = 30  # virtual-bones: Dem Bones' global iterations
+    checkpoint_every: int = 5  # epochs
+    eval_every: int = 10  # epochs; held-out rollout RMSE into TensorBoard
+    max_frames: int | None = None  # per clip, for quick runs
+    seed: int = 0
+    device: str = "cpu"
+
+    @classmethod
+    def preset(cls, name: str, **overrides) -> TrainBaselineConfig:
+        """``full`` (the motion encoder's: 300 epochs, batch 1, lr 1e-4) or ``cpu`` (40
+        epochs, 16 clips side by side, lr 1e-3: the motion encoder's ``cpu`` preset with
+        the 40 epochs the committed motion stage was trained for)."""
+        model = {k: overrides.pop(k) for k in ("method", "bones", "joints") if k in overrides}
+        model = {k: v for k, v in model.items() if v is not None}
+        if name == "full":
+            cfg = cls(model=BaselineConfig(**model))
+        elif name == "cpu":
+            cfg = cls(model=BaselineConfig(**model), epochs=40, batch_size=16, lr=1.0e-3,
+                      checkpoint_every=2, eval_every=10)  # fmt: skip
+        else:
+            raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
+        return apply_overrides(cfg, overrides)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TrainBaselineConfig:
+        d = dict(d)
+        d["model"] = BaselineConfig(**d["model"])
+        d["loss"] = BaselineLossConfig(**d["loss"])
+        d["rollout"] = RolloutConfig(**d["rollout"])
+        return cls(**d)
+
+
+# -- the rollout interface ---------------------------------------------------------------
+
+
+@dataclass
+class BaselineModel:
+    """A trained baseline with the animate() of :class:`~loosefit.train.motion.AnimationModel`,
+    so that ``loosefit animate``/``evaluate`` and the benchmarks run it alike.
+
+    ``stages.collision`` runs Santesteban et al.'s post-process (every vertex closer
+    to the body than ``collision.epsilon`` pushed out along the body's normal);
+    virtual bones have none (Pan et al. have none). There is no detail stage.
+    """
+
+    network: BaselineNetwork
+    template: GarmentTemplate
+    joint_names: tuple[str, ...]
+    floor_height: float
+    fps: float
+    body: dict
+    config: TrainBaselineConfig
+    path: Path
+    arm_collision: bool = False
+    collision: CollisionConfig = field(default_factory=CollisionConfig)
+    stages: Stages = field(default_factory=Stages)
+    detail: None = None  # no detail stage (what the CLI asks of every model)
+    _avatar: object = None
+
+    @property
+    def method(self) -> str:
+        return self.network.method
+
+    @property
+    def device(self) -> torch.device:
+        return self.network.rest.device
+
+    @property
+    def post_process(self) -> bool:
+        """Whether the method has a collision post-process (Santesteban's push-out)."""
+        return self.method == "santesteban"
+
+    def avatar(self):
+        if self._avatar is None:
+            self._avatar = avatar_of(self.body)
+        return self._avatar
+
+    def check_motion(self, motion: Motion) -> None:
+        check_motion_joints(motion, self.joint_names, self.path)
+
+    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
+                stages: Stages | None = None):  # fmt: skip
+        """The garment through ``motion`` (T, V, 3) world positions, a
+        :class:`~loosefit.model.rollout.RolloutResult`; then the post-process where the
+        method has one and ``stages.collision``. ``truth``/``restart_every`` do not
+        apply (no previous garment is fed back) and are refused."""
+        if restart_every is not None:
+            raise LoosefitInputError("BaselineModel.animate", "restart_every",
+                                     "None (a baseline never sees the previous garment)",
+                                     restart_every)  # fmt: skip
+        self.check_motion(motion)
+        stages = stages or self.stages
+        pose = None
+        if self.method == "santesteban":
+            avatar = self.avatar()
+            rot = torch.from_numpy(motion.rotations)
+            root = torch.from_numpy(motion.root_translation)
+
+            def pose(s: int, e: int) -> torch.Tensor:
+                return avatar.pose(rot[s:e], root[s:e]).joint_transforms
+
+        result = baseline_rollout(self.network, motion, self.floor_height, self.config.rollout,
+                                  pose, progress)  # fmt: skip
+        result.stage_seconds = {"motion": result.seconds}
+        if stages.collision and self.post_process:
+            t0 = time.perf_counter()
+            handler = PushOutHandler(self.template.faces, self.template.num_vertices,
+                                     self.collision.epsilon, self.collision.reach)  # fmt: skip
+            collide = body_collider(self.avatar(), handler, motion, self.arm_collision,
+                                    self.device)  # fmt: skip
+            result.decoded = result.vertices.copy()
+            result.collisions = []
+            for t in range(motion.num_frames):
+                r = collide(t, torch.from_numpy(result.decoded[t]))
+                result.vertices[t] = r.vertices.numpy()
+                result.collisions.append({k: v for k, v in vars(r).items() if k != "vertices"})
+            result.stage_seconds["collision"] = time.perf_counter() - t0
+            result.seconds += result.stage_seconds["collision"]
+        return result
+
+
+# -- checkpoints ----------------------------------------------------------------------------
+
+
+def save_checkpoint(path: Path, network: BaselineNetwork, meta: dict, **state) -> None:
+    """Write a checkpoint atomically."""
+    save_atomic({"format": CHECKPOINT_FORMAT, **meta, "model": network.state_dict(), **state},
+                path)  # fmt: skip
+
+
+def _read(path: Path, device) -> dict:
+    return read_checkpoint_file(path, CHECKPOINT_FORMAT, device, {
+        "loosefit.motion/1": "this is our motion stage; load it with load_pipeline",
+        "loosefit.generative/1": "this is a generative stage, not a baseline",
+    })  # fmt: skip
+
+
+def load_baseline(path: str | Path, device="cpu") -> BaselineModel:
+    """A trained baseline from a run's ``model.pt`` or ``checkpoint.pt``.
+
+    Raises:
+        LoosefitInputError: not a baseline checkpoint, or weights that do not fit the
+            configuration it records.
+    """
+    path = Path(path)
+    data = _read(path, device)
+    config = TrainBaselineConfig.from_dict(data["config"])
+    template = template_from_dict(data["garment"]["template"])
+    V, K = template.num_vertices, int(data["influences"])
+    network = BaselineNetwork(config.model, int(data["num_features"]), torch.zeros(V, 3),
+                              torch.zeros(V, K))  # fmt: skip
+    try:
+        network.load_state_dict({k: v.float() if v.is_floating_point() else v
+                                 for k, v in data["model"].items()})  # fmt: skip
+    except RuntimeError as exc:
+        raise LoosefitInputError(path, "model", "weights of this baseline's configuration",
+                                 str(exc).splitlines()[0]) from exc  # fmt: skip
+    return BaselineModel(
+        network.to(device).eval(), template, tuple(data["joint_names"]),
+        float(data["floor_height"]), float(data["fps"]), dict(data["body"]), config, path,
+        arm_collision=bool((data.get("cloth") or {}).get("arm_collision", False)),
+    )  # fmt: skip
+
+
+# -- the data ---------------------------------------------------------------------------------
+
+
+def clip_joints(avatar, clip: Clip) -> torch.Tensor:
+    """(T, J, 3, 4) the avatar's rest -> root-frame joint transforms of a clip's motion frames."""
+    world = avatar.pose_motion(clip.motion).joint_transforms.float().cpu()
+    P = clip.preroll
+    return root_frame_transforms(world, clip.heading[P:], clip.origin[P:])
+
+
+def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip],
+                   config: TrainBaselineConfig, cache: Path, log=print):  # fmt: skip
+    """The rest shape, weights (and mean bone transforms) a baseline skins with.
+
+    Santesteban: the template on the avatar's joints
+    (:func:`~loosefit.geometry.skin_transfer.garment_skin_weights`). Virtual bones:
+    a Dem Bones decomposition of every training frame in the root frame, cached in
+    ``cache``; its rigid per-frame bone transforms are the bone network's targets.
+
+    Returns:
+        rest (V, 3), weights (V, K), bone_mean (K, 3, 4) or None, and per clip the extra
+        per-frame tensor (joint transforms, or the fitted bone transforms).
+    """
+    template = reader.template
+    if method == "santesteban":
+        from loosefit.geometry.skin_transfer import garment_skin_weights
+
+        faces = avatar.collider_faces(arms=False).cpu().numpy()
+        weights = garment_skin_weights(template.vertices, template.faces,
+                                       avatar.rest_vertices.double().cpu().numpy(), faces,
+                                       body_joint_weights(avatar), config.near)  # fmt: skip
+        extra = [clip_joints(avatar, c) for c in clips]
+        return torch.from_numpy(template.vertices), torch.from_numpy(weights), None, extra
+    from loosefit.model.ssdr import SkinningDecomposition, SSDRConfig, decompose
+
+    frames = torch.cat([c.target for c in clips]).numpy()
+    decomp = SkinningDecomposition.load(cache) if cache.is_file() else None
+    if decomp is None or len(decomp.frame_index) != len(frames):
+        t0 = time.perf_counter()
+        decomp = decompose(frames, template.vertices, SSDRConfig(
+            bones=config.model.bones, iterations=config.ssdr_iterations, max_frames=None,
+            seed=config.seed), faces=template.faces)  # fmt: skip
+        decomp.save(cache)
+        log(f"skinning decomposition of {len(frames)} frames: {decomp.bones} bones, RMSE "
+            f"{100 * decomp.rmse:.2f} cm in {time.perf_counter() - t0:.0f} s")  # fmt: skip
+    ends = np.cumsum([0] + [len(c.target) for c in clips])
+    bones = torch.from_numpy(decomp.transforms)  # (N, B, 3, 4) rigid, every frame in order
+    extra = [bones[a:b] for a, b in zip(ends[:-1], ends[1:], strict=True)]
+    mean = bones.mean(0)
+    return torch.from_numpy(decomp.rest), torch.from_numpy(decomp.weights), mean, extra
+
+
+def _pad(x: torch.Tensor, n: int) -> torch.Tensor:
+    """x padded to n rows by repeating its last."""
+    return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
+
+
+def stack_clips(clips: list[Clip], extra: list[torch.Tensor]) -> dict[str, torch.Tensor]:
+    """Clips side by side, padded to the longest (their last frame repeated)."""
+    L = max(c.length for c in clips)
+    T = max(c.target.shape[0] for c in clips)
+    return {
+        "features": torch.stack([_pad(c.features, L) for c in clips]),  # (B, L, F)
+        "target": torch.stack([_pad(c.target, T) for c in clips]),  # (B, T, V, 3)
+        "extra": torch.stack([_pad(x, T) for x in extra]),  # (B, T, K, 3, 4)
+        "preroll": torch.tensor([c.preroll for c in clips]),
+        "length": torch.tensor([c.length for c in clips]),
+    }
+
+
+def run_window(network: BaselineNetwork, batch: dict, start: int, stop: int,
+               hidden: torch.Tensor, loss) -> tuple[dict | None, torch.Tensor]:  # fmt: skip
+    """Timeline frames ``start:stop`` of stacked clips: the loss over their motion frames
+    (None if the window holds none) and the GRU state after them (detached)."""
+    h, hidden = network.encode(batch["features"][:, start:stop], hidden.detach())
+    t = torch.arange(start, stop)
+    m = t[None] - batch["preroll"][:, None]  # (B, w) motion frame
+    valid = (m >= 0) & (t[None] < batch["length"][:, None])
+    if not valid.any():
+        return None, hidden.detach()
+    bi, ti = valid.nonzero(as_tuple=True)
+    k = m[bi, ti]
+    extra = batch["extra"][bi, k]
+    santesteban = network.method == "santesteban"
+    out = network.decode(h[bi, ti], extra if santesteban else None)
+    terms = baseline_loss(out, batch["target"][bi, k], None if santesteban else extra, loss)
+    return terms, hidden.detach()
+
+
+# -- training ---------------------------------------------------------------------------------
+
+
+def train_baseline(
+    data: str | Path, out: str | Path, config: TrainBaselineConfig, log=print,
+    progress: bool = True,
+) -> dict:  # fmt: skip
+    """Train (or resume) a baseline on a dataset and report its held-out rollout errors.
+
+    Args:
+        data: a dataset folder.
+        out: the run folder; an existing run with the same configuration resumes.
+        config: the run (``config.model.method`` picks the baseline).
+        log: where progress lines go.
+        progress: show a tqdm bar.
+
+    Returns:
+        The report (also ``out/report.json`` and ``out/report.md``).
+    """
+    from torch.utils.tensorboard import SummaryWriter
+    from tqdm import tqdm
+
+    out = Path(out)
+    reader = DatasetReader(data)
+    template = reader.template
+    method = config.model.method
+    ckpt_path = out / "checkpoint.pt"
+    open_run(out, {"dataset": str(Path(data).resolve()), "train": config.to_dict()})
+    torch.manual_seed(config.seed)
+    gen = torch.Generator().manual_seed(config.seed)
+    floor = float(reader.body["floor_height"])
+    avatar = avatar_for(reader)
+    t0 = time.perf_counter()
+    clips = prepare_clips(reader, "train", None, floor, config.rollout, config.max_frames,
+                          config.mirror, config.model.joints)  # fmt: skip
+    rest, weights, bone_mean, extra = skinning_setup(method, reader, avatar, clips, config,
+                                                     out / "ssdr.npz", log)  # fmt: skip
+    log(f"prepared {len(clips)} train clips ({sum(c.length for c in clips)} frames) "
+        f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
+    feats = torch.cat([c.features for c in clips])
+    joint_names = clips[0].motion.joint_names
+    F = feats.shape[1]
+    expected = num_features(len(feature_joints(joint_names, config.model.joints)) + 1)
+    if F != expected:
+        raise LoosefitInputError(reader.root, "features", expected, F)
+    network = BaselineNetwork(config.model, F, rest, weights, feats.mean(0), feats.std(0),
+                              bone_mean).to(config.device)  # fmt: skip
+    optim = torch.optim.Adam(network.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    meta = {
+        "config": config.to_dict(),
+        "garment": {
+            "fingerprint": garment_fingerprint(template.vertices, template.faces),
+            "template": template_dict(template),
+        },  # fmt: skip
+        "num_features": F,
+        "influences": int(weights.shape[1]),
+        "joint_names": list(joint_names),
+        "floor_height": floor,
+        "fps": clips[0].motion.fps,
+        "body": dict(reader.body),
+        "cloth": reader.manifest.get("config", {}).get("cloth"),
+        "dataset": str(Path(data).resolve()),
+    }
+    epoch, history = 0, []
+    if ckpt_path.is_file():
+        epoch, history = restore_training(_read(ckpt_path, config.device),
+                                          {"model": network, "optimizer": optim}, gen)  # fmt: skip
+        log(f"resumed {ckpt_path} at epoch {epoch}")
+
+    arms = bool((meta["cloth"] or {}).get("arm_collision", False))
+
+    def current() -> BaselineModel:
+        return BaselineModel(network, template, tuple(joint_names), floor, meta["fps"],
+                             dict(reader.body), config, ckpt_path, arm_collision=arms)  # fmt: skip
+
+    writer = SummaryWriter(str(out))
+    bar = tqdm(total=config.epochs, initial=epoch, desc=f"train {method}", unit="epoch",
+               disable=not progress)  # fmt: skip
+    t_start, epochs_run = time.perf_counter(), 0
+    while epoch < config.epochs:
+        network.train()
+        order = torch.randperm(len(clips), generator=gen).tolist()
+        sums: dict[str, float] = {}
+        steps = 0
+        for b in range(0, len(order), config.batch_size):
+            pick = order[b : b + config.batch_size]
+            batch = {k: v.to(config.device) if k in ("features", "target", "extra") else v
+                     for k, v in stack_clips([clips[i] for i in pick],
+                                             [extra[i] for i in pick]).items()}  # fmt: skip
+            hidden = network.initial_hidden(len(pick), config.device)
+            L = int(batch["length"].max())
+            for start in range(0, L, config.window):
+                terms, hidden = run_window(network, batch, start, min(start + config.window, L),
+                                           hidden, config.loss)  # fmt: skip
+                if terms is None:
+                    continue
+                optim.zero_grad(set_to_none=True)
+                terms["total"].backward()
+                torch.nn.utils.clip_grad_norm_(network.parameters(), config.grad_clip)
+                optim.step()
+                steps += 1
+                for k, v in terms.items():
+                    sums[k] = sums.get(k, 0.0) + float(v.detach())
+        sums = {k: v / max(steps, 1) for k, v in sums.items()}
+        if not np.isfinite(sums.get("total", 0.0)):
+            raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {sums['total']}")
+        epoch += 1
+        epochs_run += 1
+        history.append({"epoch": epoch, **sums})
+        for k, v in sums.items():
+            writer.add_scalar(f"loss/{k}", v, epoch)
+        bar.set_postfix(loss=f"{sums.get('total', float('nan')):.3g}")
+        bar.update(1)
+        if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
+            save_checkpoint(ckpt_path, network, meta, optimizer=optim.state_dict(), epoch=epoch,
+                            history=history, rng=torch.get_rng_state(),
+                            sampling_rng=gen.get_state())  # fmt: skip
+        if epoch % config.eval_every == 0 or epoch == config.epochs:
+            err = evaluate_rollouts(current(), reader, "test", surface=False,
+                                    stages=Stages(detail=False, collision=False))  # fmt: skip
+            writer.add_scalar("test/rollout_rmse_cm", err["rmse_cm"], epoch)
+            history[-1]["test_rollout_rmse_cm"] = err["rmse_cm"]
+            bar.write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
+    bar.close()
+    seconds = time.perf_counter() - t_start
+    save_checkpoint(out / "model.pt", network, meta, epoch=epoch)
+    model = load_baseline(out / "model.pt", config.device)
+    report = {
+        "method": method,
+        "dataset": str(Path(data).resolve()),
+        "epochs": config.epochs,
+        "parameters": sum(p.numel() for p in network.parameters()),
+        "seconds_per_epoch": seconds / epochs_run if epochs_run else None,
+        "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "machine": machine(config.device),
+        "final_loss": history[-1] if history else None,
+        "test": evaluate_rollouts(
+            model, reader, "test", stages=Stages(detail=False, collision=False)
+        ),  # fmt: skip
+    }
+    write_json_atomic(out / "report.json", report)
+    (out / "report.md").write_text(format_report(report))
+    writer.close()
+    return report
+
+
+def format_report(report: dict) -> str:
+    """A Markdown summary of a baseline run's report."""
+    t = report["test"]
+    spe = report.get("seconds_per_epoch")
+    return "\n".join([
+        f"# Baseline `{report['method']}`, {report['epochs']} epochs", "",
+        "Held-out rollouts (no post-process):", "",
+        "| frames | RMSE (cm) | Hausdorff (cm) | STED |", "|---:|---:|---:|---:|",
+        f"| {t['frames']} | {t['rmse_cm']:.3f} | {t['hausdorff_cm']:.3f} | {t['sted']:.4f} |", "",
+        f"{report['parameters']:,} parameters; " + (f"{spe:.2f} s per epoch; " if spe else "")
+        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.", "",
+    ])  # fmt: skip

@@ -1,0 +1,148 @@
+"""The baselines' shared training loop, rollout interface and evaluation, on the toy data."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from loosefit.data.format import DatasetReader
+from loosefit.errors import LoosefitInputError
+from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
+from loosefit.model.baselines import BaselineConfig
+from loosefit.model.rollout import Stages
+from loosefit.train import baseline as tb
+from loosefit.train.motion import evaluate_rollouts
+
+RAW = Stages(detail=False, collision=False)
+
+
+def _config(method: str, epochs: int = 6) -> tb.TrainBaselineConfig:
+    return tb.TrainBaselineConfig(
+        model=BaselineConfig(method=method, motion_fc=16, gru=24, head_hidden=32, bones=4),
+        epochs=epochs, batch_size=2, window=8, lr=3e-3, eval_every=1000, checkpoint_every=2,
+        ssdr_iterations=5,
+    )  # fmt: skip
+
+
+@pytest.fixture(scope="module", params=["santesteban", "virtual-bones"])
+def trained(request, toy_dataset, tmp_path_factory):
+    out = tmp_path_factory.mktemp(request.param)
+    report = tb.train_baseline(toy_dataset, out, _config(request.param), log=lambda *_: None,
+                               progress=False)  # fmt: skip
+    return out, report, tb.load_baseline(out / "model.pt")
+
+
+def test_training_lowers_the_loss(trained):
+    out, report, model = trained
+    history = torch.load(out / "checkpoint.pt", weights_only=False)["history"]
+    assert history[-1]["total"] < 0.7 * history[0]["total"]
+    assert np.isfinite(report["test"]["rmse_cm"]) and report["test"]["frames"] == 16
+    assert model.method == report["method"]
+    if model.method == "virtual-bones":
+        assert (out / "ssdr.npz").is_file() and model.network.influences == 4
+    else:
+        assert model.network.influences == len(model.joint_names)
+
+
+def test_evaluation_scores_the_rollout_as_the_same_vertices_given_directly(trained, toy_dataset):
+    _, _, model = trained
+    reader = DatasetReader(toy_dataset)
+    ev = evaluate_rollouts(model, reader, "test", horizons=(4,), stages=RAW)
+    (name,) = reader.split("test")
+    seq = reader.read(name)
+    pred = model.animate(seq.motion, stages=RAW).vertices
+    true, faces = seq.garment_vertices, reader.template.faces
+    per = 100 * rmse_per_frame(pred, true)
+    clip = ev["clips"][name]
+    np.testing.assert_allclose(clip["rmse_per_frame_cm"], per, rtol=1e-6)
+    assert ev["rmse_cm"] == pytest.approx(float(np.sqrt(np.mean(per**2))), rel=1e-6)
+    assert ev["horizons"]["4"] == pytest.approx(float(np.sqrt(np.mean(per[:4] ** 2))), rel=1e-6)
+    assert ev["hausdorff_cm"] == pytest.approx(100 * float(hausdorff(pred, true, faces).mean()),
+                                               rel=1e-6)  # fmt: skip
+    assert ev["sted"] == pytest.approx(sted(pred, true, faces, seq.motion.fps)["sted"], rel=1e-6)
+
+
+def test_rollouts_are_deterministic_on_the_motion_and_load_through_the_pipeline(
+    trained, toy_dataset
+):
+    from loosefit.train.detail import load_pipeline
+
+    out, _, model = trained
+    reader = DatasetReader(toy_dataset)
+    motion = reader.read("c").motion
+    a = model.animate(motion, stages=RAW)
+    b = load_pipeline(out / "checkpoint.pt").animate(motion, stages=RAW)
+    assert a.vertices.shape == (16, reader.template.num_vertices, 3)
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    # the garment is carried by the motion: its centre follows the root
+    centre = a.vertices.mean(1)
+    root = motion.root_translation
+    assert np.abs(centre[:, :2] - root[:, :2]).max() < 0.15
+
+
+def test_santesteban_post_process_pushes_cloth_out_of_the_body(trained, toy_dataset):
+    _, _, model = trained
+    if model.method != "santesteban":
+        reader = DatasetReader(toy_dataset)
+        r = model.animate(reader.read("c").motion)  # no post-process: collision is a no-op
+        assert r.collisions is None
+        return
+    reader = DatasetReader(toy_dataset)
+    motion = reader.read("c").motion
+    # sink the garment toward the root: vertices end inside the body, then come out
+    net = model.network
+    with torch.no_grad():
+        rest = net.rest.clone()
+        net.rest.mul_(0.6)
+    try:
+        r = model.animate(motion)
+    finally:
+        with torch.no_grad():
+            net.rest.copy_(rest)
+    before = sum(c["inside_before"] for c in r.collisions)
+    after = sum(c["inside_after"] for c in r.collisions)
+    assert before > 0 and after < 0.05 * before
+    assert r.decoded is not None and not np.array_equal(r.decoded, r.vertices)
+
+
+def test_bad_inputs_are_clear_errors(trained, toy_dataset, tmp_path):
+    out, _, model = trained
+    reader = DatasetReader(toy_dataset)
+    motion = reader.read("c").motion
+    with pytest.raises(LoosefitInputError, match="restart_every"):
+        model.animate(motion, truth=reader.read("c").garment_vertices, restart_every=4)
+    bad = motion.slice(0, 4)
+    bad.rotations[2, 3] = np.nan
+    with pytest.raises(LoosefitInputError, match="finite"):
+        model.animate(bad)
+    with pytest.raises(LoosefitInputError):
+        tb.load_baseline(toy_dataset / "template.npz")
+    data = torch.load(out / "model.pt", weights_only=False)
+    data["model"]["skin_weights"] = data["model"]["skin_weights"][:, :2]
+    torch.save(data, tmp_path / "broken.pt")
+    with pytest.raises(LoosefitInputError, match="weights of this baseline"):
+        tb.load_baseline(tmp_path / "broken.pt")
+
+
+def test_train_baseline_evaluate_and_animate_commands(toy_dataset, tmp_path):
+    from loosefit.cli import main
+
+    run = tmp_path / "sb"
+    assert main(["train", "baseline", "--method", "santesteban", "--data", str(toy_dataset),
+                 "--preset", "cpu", "--epochs", "1", "--max-frames", "8", "--mirror",
+                 "--out", str(run)]) == 0  # fmt: skip
+    assert torch.load(run / "model.pt", weights_only=False)["config"]["mirror"] is True
+    ev = tmp_path / "eval"
+    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
+                 "--horizons", "4", "--out", str(ev)]) == 0  # fmt: skip
+    assert "iter-4" in (ev / "evaluation.md").read_text()
+    out = tmp_path / "anim"
+    assert main(["animate", str(run / "model.pt"), "sway", "--frames", "20",
+                 "--out", str(out)]) == 0  # fmt: skip
+    reader = DatasetReader(out)
+    seq = reader.read(reader.split("test")[0])
+    assert seq.garment_vertices.shape == (20, reader.template.num_vertices, 3)
+    assert (
+        main(["train", "baseline", "--data", str(toy_dataset), "--out", str(tmp_path / "x")]) == 2
+    )
