@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# docs/RESULTS.md (issue 21): the paper's baselines and the generative ablation on salsa, trained
+# and compared with the committed model on the held-out chain, on the CPU. Needs the salsa data
+# (scripts/salsa_models.sh step 1) and checkpoints/salsa. Every step resumes where a killed run
+# stopped (finished runs are reused); rerun the script to go on.
+#
+#   bash scripts/results.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BIN=${BIN:-.venv/bin}
+DATA=${DATA:-datasets/salsa}
+RUNS=${RUNS:-runs/salsa}
+EPOCHS=${EPOCHS:-40}   # the committed generative and motion stages' epochs
+mkdir -p "$RUNS/baselines" "$RUNS/ablation"
+
+# 1. The generative model's ablation (paper 4.2, Fig. 4) on salsa: the decomposed model, the
+#    single vertex decoder and the linear decoder on a skinning decomposition, cpu preset, two
+#    seeds each (the run-to-run noise); one thread per process, the two seeds side by side.
+#    About 75 min per seed on one core of dev-cpu (decomposed 15 min, vertex 20, ssdr 40).
+ABL=("$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$EPOCHS"
+     --out "$RUNS/ablation" --threads 1 --train-only)
+"${ABL[@]}" --seeds 0 > "$RUNS/ablation/seed0.log" 2>&1 &
+seed0=$!
+"${ABL[@]}" --seeds 1 > "$RUNS/ablation/seed1.log" 2>&1 &
+seed1=$!
+# 2. The baselines, on the committed motion stage's data (the training clips and their mirror
+#    images) for its 40 epochs, cpu preset: Santesteban et al. 2019 (about 5 min) and Pan et al.
+#    2022's virtual bones (a Dem Bones decomposition of the 8,798 training frames, about 5 min,
+#    then about 5 min of training), after the ablation's seeds.
+wait "$seed0" "$seed1"
+for method in santesteban virtual-bones; do
+  "$BIN/loosefit" train baseline --method "$method" --data "$DATA" --preset cpu --mirror \
+      --epochs "$EPOCHS" --threads 1 --out "$RUNS/baselines/$method" \
+      > "$RUNS/baselines/$method.log" 2>&1
+done
+# 3. Every method rolled out on the held-out chain and scored, the ablation's table, the plot
+#    and the renders: docs/RESULTS.md (about 15 min).
+"$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$EPOCHS" \
+    --seeds 0,1 --out "$RUNS/ablation" --table docs/GENERATIVE_SALSA_TABLE.md
+"$BIN/python" bench/results.py --data "$DATA" --baselines "$RUNS/baselines" \
+    --ablation "$RUNS/ablation" --cache "$RUNS/results" --out docs/RESULTS.md
