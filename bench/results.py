@@ -341,7 +341,15 @@ def markdown(name, frames, scores, simulation, spin, reports, ablation, started)
     for key, r in reports.items():
         lines.append(f"| {key} | {r['epochs']} | {r['parameters']:,} | "
                      f"{r['seconds_per_epoch']:.1f} | {r['machine']} |")  # fmt: skip
-    lines += ["", "## The generative model's ablation on salsa (Fig. 4)", "", *ablation, ""]
+    minutes = sum(r["epochs"] * r["seconds_per_epoch"] for r in reports.values()) / 60
+    lines += ["", f"Their training loops took {minutes:.0f} min in all (one core each; the "
+              "virtual-bones run's skinning decomposition and the evaluations come on "
+              "top)."]  # fmt: skip
+    lines += ["", "## The generative model's ablation on salsa (Fig. 4)", "",
+              "Reconstruction (encode, decode the posterior mean) of the held-out chain by "
+              "each decoder, trained on the salsa training clips (`bench/generative_ablation.py"
+              "`, cpu preset, 40 epochs, the committed generative stage's), two seeds each:",
+              "", *ablation, ""]  # fmt: skip
     return "\n".join(lines)
 
 
