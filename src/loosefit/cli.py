@@ -319,7 +319,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     cfg = TrainGenerativeConfig.preset(
         args.preset, decoder=args.decoder, epochs=args.epochs, device=args.device,
-        max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr,
+        max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
     )  # fmt: skip
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
     report = train_generative(args.data, out, cfg, log=_log)
@@ -340,7 +340,7 @@ def _train_motion(args: argparse.Namespace) -> int:
         args.preset, epochs=args.epochs, device=args.device, max_frames=args.max_frames,
         batch_size=args.batch_size, lr=args.lr, previous=args.previous,
         previous_state=False if args.no_previous_state else None,
-        mirror=True if args.mirror else None, joints=args.joints,
+        mirror=True if args.mirror else None, joints=args.joints, seed=args.seed,
     )  # fmt: skip
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
@@ -359,7 +359,7 @@ def _train_detail(args: argparse.Namespace) -> int:
     cfg = TrainDetailConfig.preset(
         args.preset, epochs=args.epochs, device=args.device, max_frames=args.max_frames,
         batch_size=args.batch_size, lr=args.lr,
-        discriminator=False if args.no_discriminator else None,
+        discriminator=False if args.no_discriminator else None, seed=args.seed,
     )  # fmt: skip
     if args.edge_weight is not None:
         cfg.loss.edge = args.edge_weight
@@ -381,6 +381,7 @@ def _train_baseline(args: argparse.Namespace) -> int:
         args.preset, method=args.method, epochs=args.epochs, device=args.device,
         max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr,
         mirror=True if args.mirror else None, joints=args.joints, bones=args.bones,
+        seed=args.seed,
     )  # fmt: skip
     out = args.out or f"runs/baseline-{args.preset}-{args.method}"
     report = train_baseline(args.data, out, cfg, log=_log)
@@ -759,6 +760,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lr", type=float, default=None)
     p.add_argument("--max-frames", type=int, default=None, help="frames per clip")
     p.add_argument("--device", default="cpu", help="torch device")
+    p.add_argument("--seed", type=int, default=None, help="training seed (default 0)")
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
     p.set_defaults(func=cmd_train)
 
