@@ -493,9 +493,37 @@ def cmd_animate(args: argparse.Namespace) -> int:
         f"wrote {out / 'sequences' / (name + '.npz')}: {motion.num_frames} frames at "
         f"{result.frames_per_second:.0f} frames per second ({result.frames} with the preroll)"
     )
+    if args.export:
+        _export(args.export, model.template, result.vertices, avatar, motion, model.fps)
     if args.render:
         _render(args, avatar, motion, model.template, result.vertices, out / "render",
                 f"{motion.name} (loosefit rollout)")  # fmt: skip
+    return 0
+
+
+def _export(path: str, template, garment_vertices, avatar, motion, fps: float) -> None:
+    """The garment (and, with an avatar, the posed body) in the format ``path``'s suffix names."""
+    from loosefit.export import export_animation, garment_and_body
+
+    body = None if avatar is None else avatar.pose_motion(motion).vertices.cpu().numpy()
+    faces = None if avatar is None else avatar.faces.cpu().numpy()
+    files = export_animation(path, garment_and_body(template, garment_vertices, body, faces), fps)
+    _log(f"exported {len(files)} file(s): {files[0]}" + (" ..." if len(files) > 1 else ""))
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from loosefit.body.avatar import Avatar, AvatarConfig
+    from loosefit.data.format import DatasetReader, read_sequence
+
+    path = Path(args.sequence)
+    if path.suffix != ".npz" or path.parent.name != "sequences":
+        raise LoosefitInputError(path, "<file>", "a sequence in a dataset or `animate` folder "
+                                 "(FOLDER/sequences/NAME.npz)", "another path")  # fmt: skip
+    reader = DatasetReader(path.parent.parent)
+    seq = read_sequence(path, reader.template)
+    shape = dict(reader.body.get("shape", {}))
+    avatar = None if args.no_body else Avatar(AvatarConfig(shape=shape))
+    _export(args.out, reader.template, seq.garment_vertices, avatar, seq.motion, seq.motion.fps)
     return 0
 
 
@@ -782,9 +810,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="out/animate", help="output folder (dataset format)")
     p.add_argument("--render", action="store_true", help="also render a video and PNGs")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--export", default=None, metavar="PATH",
+                   help="also export garment and body: .usd/.usdc/.usda (USD), .pc2 (point "
+                   "caches + OBJ), or a folder (OBJ per frame)")  # fmt: skip
     _add_stage_args(p)
     _add_render_args(p, views="front,side")
     p.set_defaults(func=cmd_animate)
+
+    p = sub.add_parser("export", help="a sequence to USD, PC2 point caches or an OBJ sequence")
+    p.add_argument("sequence", help="FOLDER/sequences/NAME.npz (from animate or simulate)")
+    p.add_argument("out", help=".usd, .usdc, .usda, .pc2, or a folder for an OBJ sequence")
+    p.add_argument("--no-body", action="store_true", help="the garment only")
+    p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("evaluate", help="roll out held-out clips and compare with the simulation")
     p.add_argument("--checkpoint", required=True, help="a motion run's model.pt or checkpoint.pt")

@@ -139,10 +139,16 @@ def test_train_baseline_evaluate_and_animate_commands(toy_dataset, tmp_path):
     assert "iter-4" in (ev / "evaluation.md").read_text()
     out = tmp_path / "anim"
     assert main(["animate", str(run / "model.pt"), "sway", "--frames", "20",
-                 "--out", str(out)]) == 0  # fmt: skip
+                 "--out", str(out), "--export", str(tmp_path / "sway.usdc")]) == 0  # fmt: skip
     reader = DatasetReader(out)
     seq = reader.read(reader.split("test")[0])
     assert seq.garment_vertices.shape == (20, reader.template.num_vertices, 3)
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(tmp_path / "sway.usdc"))
+    points = UsdGeom.Mesh(stage.GetPrimAtPath("/loosefit/garment")).GetPointsAttr()
+    np.testing.assert_array_equal(np.asarray(points.Get(Usd.TimeCode(19))),
+                                  seq.garment_vertices[19])  # fmt: skip
     assert (
         main(["train", "baseline", "--data", str(toy_dataset), "--out", str(tmp_path / "x")]) == 2
     )
