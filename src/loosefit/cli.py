@@ -127,25 +127,44 @@ def _render(args, avatar, motion, template, garment_vertices, out: Path, title: 
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    """The main job: the pretrained model animating its skirt on a dance (``--physics``: the
+    simulator instead; ``--no-physics``: the skirt carried rigidly)."""
     from loosefit.body.motions import load_motion
     from loosefit.dress import carry_rigidly
     from loosefit.sequence import DressedSequence
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    avatar = _avatar(args)
-    motion = load_motion(
-        args.motion,
-        avatar,
-        fps=args.fps,
-        seed=args.seed,
-        max_frames=args.max_frames,
-        start_frame=args.start_frame,
-    )
+    learned = not (args.physics or args.no_physics)
+    if learned and args.garment is not None:
+        raise LoosefitInputError("--garment", "garment", "no --garment: the pretrained model "
+                                 "animates the skirt it was trained on (use --physics to "
+                                 "simulate another)", repr(args.garment))  # fmt: skip
+    spec = args.motion or ("dance:20" if learned else "spin")
+    max_frames = args.max_frames if args.max_frames or learned else 90
+    model = None
+    if learned:
+        from loosefit.train.detail import load_pipeline
+
+        path = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
+        model = load_pipeline(path)
+        avatar, template = model.avatar(), model.template
+    else:
+        avatar = _avatar(args)
+        template = _garment(args.garment or "flared", avatar, args.resolution)
+    motion = load_motion(spec, avatar, fps=model.fps if model else args.fps, seed=args.seed,
+                         max_frames=max_frames, start_frame=args.start_frame)  # fmt: skip
     _log(f"motion '{motion.name}': {motion.num_frames} frames at {motion.fps:g} fps")
-    template = _garment(args.garment, avatar, args.resolution)
     body = avatar.pose_motion(motion)
-    if args.no_physics:
+    if model is not None:
+        bar = tqdm_bar("animate", unit="frame")
+        result = model.animate(motion, progress=bar.progress)
+        bar.close()
+        garment, source = result.vertices, f"loosefit model {path.parent.name}"
+        _log(f"animated {motion.num_frames} frames ({motion.num_frames / motion.fps:.0f} s of "
+             f"motion) in {result.seconds:.1f} s: {result.frames_per_second:.0f} frames per "
+             "second; " + _stage_line(model, model.stages, result))  # fmt: skip
+    elif args.no_physics:
         garment = carry_rigidly(template, body, avatar).cpu().numpy()
         source = "rigid"
     else:
@@ -166,7 +185,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     seq.save(out / "sequence.npz")
     _log(f"wrote {out / 'sequence.npz'} ({source})")
-    title = f"loosefit demo: {motion.name}"
+    if learned:
+        for suffix in (".usdc", ".pc2"):
+            _export(str(out / f"demo{suffix}"), template, garment, avatar, motion, motion.fps)
+    title = f"loosefit demo: {motion.name}" + (" (learned)" if learned else f" ({source})")
     _render(args, avatar, motion, template, garment, out, title, body=body)
     return 0
 
@@ -678,14 +700,32 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="loosefit", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("demo", help="the built-in default: a dance, a skirt, a video")
+    p = sub.add_parser("demo", help="the main job: the pretrained model animates its skirt on "
+                       "a 20 s dance (video, USD, PC2); --physics simulates instead")  # fmt: skip
     p.add_argument("--out", default="out/demo", help="output folder")
-    p.add_argument("--motion", default="spin", help="procedural move, dance:SECONDS, or a file")
-    p.add_argument("--max-frames", type=int, default=90, help="frames of the motion to use")
+    p.add_argument("--motion", default=None,
+                   help="procedural move, dance:SECONDS, or a file (default: dance:20; with "
+                   "--physics: spin)")  # fmt: skip
+    p.add_argument(
+        "--max-frames",
+        type=int,
+        default=None,
+        help="frames of the motion to use (default: all; with --physics: 90)",
+    )
     p.add_argument("--start-frame", type=int, default=0, help="first frame of the motion to use")
-    p.add_argument("--no-physics", action="store_true", help="carry the skirt rigidly instead")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument(
+        "--physics",
+        action="store_true",
+        help="simulate the skirt with Newton's VBD solver (minutes) instead",
+    )
+    mode.add_argument("--no-physics", action="store_true", help="carry the skirt rigidly instead")
+    p.add_argument("--checkpoint", default=None,
+                   help="a model to animate with (default: the pretrained set)")  # fmt: skip
     p.add_argument("--sim-device", default="cpu", help="warp device for the simulation")
-    p.add_argument("--garment", default="flared", help="skirt style (aline, flared, circle)")
+    p.add_argument("--garment", default=None,
+                   help="--physics/--no-physics: skirt style (aline, flared, circle) or an OBJ "
+                   "(default flared)")  # fmt: skip
     p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"))
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--fps", type=float, default=30.0)

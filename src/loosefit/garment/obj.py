@@ -296,6 +296,9 @@ def write_obj(
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write("".join(parts))
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's file is private; a written OBJ is not
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
