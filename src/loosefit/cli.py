@@ -76,29 +76,14 @@ def _avatar(args: argparse.Namespace):
     return avatar
 
 
-def _skirt_config(style: str, resolution: str, length: float | None):
-    from loosefit.garment.skirt import SkirtConfig
-
-    extra = {} if length is None else {"length": length}
-    return SkirtConfig.preset(resolution, style, **extra)
-
-
 def _garment(spec: str, avatar, resolution: str = "cpu", length: float | None = None):
     """A garment template in the avatar's rest frame from a style name or an OBJ file."""
-    from loosefit.dress import fit_skirt
-    from loosefit.garment.skirt import STYLES
+    from loosefit.dress import garment_for
 
-    if spec == "none":
-        return None
-    if spec in STYLES:
-        return fit_skirt(avatar, _skirt_config(spec, resolution, length))
-    if spec.lower().endswith(".obj"):
-        from loosefit.garment.obj import load_garment_obj
-
-        return load_garment_obj(spec)
-    raise LoosefitInputError(
-        "--garment", "value", f"one of {STYLES}, 'none' or an .obj", repr(spec)
-    )
+    try:
+        return garment_for(spec, avatar, resolution, length)
+    except LoosefitInputError as exc:
+        raise LoosefitInputError("--garment", exc.field, exc.expected, exc.found) from exc
 
 
 def _render(args, avatar, motion, template, garment_vertices, out: Path, title: str, body=None):
@@ -144,6 +129,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     max_frames = args.max_frames if args.max_frames or learned else 90
     model = None
     if learned:
+        from loosefit.api import pretrained_checkpoint
         from loosefit.train.detail import load_pipeline
 
         path = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
@@ -432,13 +418,10 @@ def _add_stage_args(p: argparse.ArgumentParser) -> None:
                    "previous state (default: the decoders' output, as in training)")  # fmt: skip
 
 
-def pretrained_checkpoint() -> Path:
-    """The committed pretrained pair's motion stage (``checkpoints/salsa``, trained on salsa)."""
-    return Path(__file__).resolve().parents[2] / "checkpoints" / "salsa" / "motion.pt"
-
-
 def _animate_inputs(args: argparse.Namespace) -> None:
     """``animate [CHECKPOINT] MOTION``: without a checkpoint, the pretrained default."""
+    from loosefit.api import pretrained_checkpoint
+
     if len(args.inputs) not in (1, 2):
         raise LoosefitInputError("animate", "arguments", "[CHECKPOINT] MOTION",
                                  f"{len(args.inputs)} arguments: {args.inputs}")  # fmt: skip
@@ -457,24 +440,16 @@ def _animate_inputs(args: argparse.Namespace) -> None:
 def cmd_animate(args: argparse.Namespace) -> int:
 
     _animate_inputs(args)
-    from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.body.chain import chain_motions
-    from loosefit.body.motions import load_motion
+    from loosefit.api import motion_for
     from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
     from loosefit.train.detail import load_pipeline
 
     model = load_pipeline(args.checkpoint, args.generative, args.detail)
     stages = _stages(args)
-    avatar = Avatar(AvatarConfig(shape=dict(model.body.get("shape", {}))))
-    motion = load_motion(args.motion, avatar, fps=model.fps, seed=args.seed,
-                         start_frame=args.start_frame)  # fmt: skip
-    if args.frames is not None:
-        if args.frames < 1:
-            raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
-        if args.frames > motion.num_frames:  # play it again, from where it ended
-            repeats = -(-args.frames // motion.num_frames)
-            motion = chain_motions([motion] * repeats, name=motion.name)
-        motion = motion.slice(0, args.frames)
+    avatar = model.avatar()
+    if args.frames is not None and args.frames < 1:
+        raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
+    motion = motion_for(args.motion, avatar, model.fps, args.frames, args.start_frame, args.seed)
     out = Path(args.out)
     if (out / "manifest.json").is_file():
         old = json.loads((out / "manifest.json").read_text())

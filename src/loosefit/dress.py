@@ -84,3 +84,33 @@ def carry_rigidly(
     M = body.joint_transforms[:, j]  # (T, 4, 4)
     v = torch.from_numpy(template.vertices).to(M)
     return (M[:, None, :3, :3] @ v[None, :, :, None])[..., 0] + M[:, None, :3, 3]
+
+
+def garment_for(spec: str, avatar: Avatar, resolution: str = "cpu",
+                length: float | None = None) -> GarmentTemplate | None:  # fmt: skip
+    """A garment on the avatar's rest pose from a skirt style name or an OBJ file.
+
+    Args:
+        spec: ``aline``, ``flared``, ``circle`` (fitted to the avatar), an ``.obj`` path
+            (imported as it is), or ``none`` (no garment: None).
+        avatar: the body.
+        resolution: the skirt's mesh preset (``cpu`` 2,352 vertices, ``paper``).
+        length: the skirt's length in metres (default: the style's).
+
+    Raises:
+        LoosefitInputError: another spec.
+    """
+    from loosefit.errors import LoosefitInputError
+    from loosefit.garment.skirt import STYLES
+
+    if spec == "none":
+        return None
+    if spec in STYLES:
+        extra = {} if length is None else {"length": length}
+        return fit_skirt(avatar, SkirtConfig.preset(resolution, spec, **extra))
+    if str(spec).lower().endswith(".obj"):
+        from loosefit.garment.obj import load_garment_obj
+
+        return load_garment_obj(spec)
+    raise LoosefitInputError("garment", "value", f"one of {STYLES}, 'none' or an .obj",
+                             repr(spec))  # fmt: skip

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -24,15 +24,16 @@ FORMAT = "loosefit.sequence/1"
 
 
 @dataclass
-class DressedSequence:
-    """A garment animated on a moving avatar.
+class AnimatedGarment:
+    """A garment animated on a moving avatar: what ``loosefit.load().animate()`` and
+    ``loosefit.simulate()`` return, and what ``.npz`` sequences hold.
 
     Attributes:
         motion: the body's motion (T frames).
         garment: the garment template (V vertices).
         garment_vertices: (T, V, 3) float32 garment vertices, metres, world frame.
         avatar: how to rebuild the avatar: ``{"rig": ..., "shape": {...}}``.
-        source: what made the garment motion (e.g. "rigid", "newton-vbd").
+        source: what made the garment motion (e.g. "rigid", "newton-vbd", a model).
     """
 
     motion: Motion
@@ -40,6 +41,60 @@ class DressedSequence:
     garment_vertices: np.ndarray
     avatar: dict
     source: str = "unknown"
+    _body: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
+    _body_faces: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
+
+    @property
+    def template(self) -> GarmentTemplate:
+        """The garment template (``garment``)."""
+        return self.garment
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """(T, V, 3) the garment's positions (``garment_vertices``)."""
+        return self.garment_vertices
+
+    @property
+    def fps(self) -> float:
+        return float(self.motion.fps)
+
+    @property
+    def num_frames(self) -> int:
+        return self.motion.num_frames
+
+    def _pose_body(self) -> None:
+        from loosefit.body.avatar import Avatar, AvatarConfig
+
+        config = AvatarConfig(rig=self.avatar.get("rig", "cmu_mb"),
+                              shape=dict(self.avatar.get("shape", {})))  # fmt: skip
+        avatar = Avatar(config)
+        self._body = avatar.pose_motion(self.motion).vertices.cpu().numpy()
+        self._body_faces = avatar.faces.cpu().numpy()
+
+    @property
+    def body_vertices(self) -> np.ndarray:
+        """(T, Vb, 3) the posed avatar (rebuilt from ``avatar`` and the motion, once)."""
+        if self._body is None:
+            self._pose_body()
+        return self._body
+
+    @property
+    def body_faces(self) -> np.ndarray:
+        """(Fb, 3) the avatar's triangles."""
+        if self._body_faces is None:
+            self._pose_body()
+        return self._body_faces
+
+    def export(self, path: str | Path, body: bool = True) -> list[Path]:
+        """Write the garment (and the body) in the format ``path``'s suffix names:
+        ``.usd``/``.usdc``/``.usda``, ``.pc2`` (+ OBJ), or a folder of OBJs
+        (:func:`loosefit.export.export_animation`)."""
+        from loosefit.export import export_animation, garment_and_body
+
+        meshes = garment_and_body(self.garment, self.garment_vertices,
+                                  self.body_vertices if body else None,
+                                  self.body_faces if body else None)  # fmt: skip
+        return export_animation(path, meshes, self.fps)
 
     def __post_init__(self) -> None:
         self.garment_vertices = np.asarray(self.garment_vertices, dtype=np.float32)
@@ -47,13 +102,13 @@ class DressedSequence:
         gv = self.garment_vertices
         if gv.shape != (T, V, 3):
             raise LoosefitInputError(
-                "DressedSequence", "garment_vertices", f"shape ({T}, {V}, 3)", f"{gv.shape}"
+                "AnimatedGarment", "garment_vertices", f"shape ({T}, {V}, 3)", f"{gv.shape}"
             )
         bad = ~np.isfinite(gv)
         if bad.any():
             t = int(np.argwhere(bad)[0][0])
             raise LoosefitInputError(
-                "DressedSequence", "garment_vertices", "finite values", f"NaN/inf from frame {t}"
+                "AnimatedGarment", "garment_vertices", "finite values", f"NaN/inf from frame {t}"
             )
 
     def save(self, path: str | Path) -> Path:
@@ -82,7 +137,7 @@ class DressedSequence:
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> DressedSequence:
+    def load(cls, path: str | Path) -> AnimatedGarment:
         """Read and validate a file written by :meth:`save`."""
         path = Path(path)
         if not path.is_file():
@@ -122,3 +177,6 @@ class DressedSequence:
             )
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found, exc.hint) from exc
+
+
+DressedSequence = AnimatedGarment  # the earlier name

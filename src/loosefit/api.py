@@ -1,0 +1,153 @@
+"""The Python API: a trained model animating a garment, and the simulator for ground truth.
+
+::
+
+    import loosefit
+
+    model = loosefit.load()                      # the pretrained set (or a checkpoint path)
+    result = model.animate("dance:20")           # a .bvh/.npz file, a move, or a Motion
+    result.export("dance.usdc")                  # USD; .pc2 (+ OBJ); a folder of OBJs
+    result.save("dance.npz")                     # loosefit.AnimatedGarment.load() reads it
+
+Every call checks its inputs and raises :class:`~loosefit.errors.LoosefitInputError`
+naming the file or field, what was expected and what was found.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from loosefit.errors import LoosefitInputError
+from loosefit.sequence import AnimatedGarment
+from loosefit.types import GarmentTemplate, Motion
+
+
+def pretrained_checkpoint() -> Path:
+    """The committed pretrained set's motion stage (``checkpoints/salsa``, trained on salsa)."""
+    return Path(__file__).resolve().parents[2] / "checkpoints" / "salsa" / "motion.pt"
+
+
+def motion_for(spec: str | Path | Motion, avatar, fps: float, frames: int | None = None,
+               start_frame: int = 0, seed: int = 0) -> Motion:  # fmt: skip
+    """A motion on the avatar's skeleton at ``fps``, ``frames`` long (played again if longer).
+
+    Args:
+        spec: a :class:`~loosefit.types.Motion`, or what
+            :func:`~loosefit.body.motions.load_motion` reads (a ``.bvh``/``.npz`` file, a
+            procedural move, ``dance:SECONDS``, ``mirror:...``, ``A+B``).
+        avatar: the avatar it must fit.
+        fps: the frame rate the model runs at.
+        frames: frames to keep (more than the motion has: it plays again); None: all.
+        start_frame: drop the frames before this one.
+        seed: seeds procedural motions.
+    """
+    from loosefit.body.chain import chain_motions
+    from loosefit.body.motions import load_motion
+
+    if isinstance(spec, Motion):
+        avatar.check_motion(spec)
+        if abs(spec.fps - fps) > 1e-6:
+            raise LoosefitInputError(f"motion '{spec.name}'", "fps", f"{fps:g} (the model's)",
+                                     f"{spec.fps:g}", hint="resample it")  # fmt: skip
+        motion = spec.slice(start_frame, spec.num_frames)
+    else:
+        motion = load_motion(spec, avatar, fps=fps, seed=seed, start_frame=start_frame)
+    if frames is not None:
+        if frames < 1:
+            raise LoosefitInputError("frames", "frames", "at least 1", frames)
+        if frames > motion.num_frames:  # play it again, from where it ended
+            motion = chain_motions([motion] * -(-frames // motion.num_frames), name=motion.name)
+        motion = motion.slice(0, frames)
+    return motion
+
+
+class Animator:
+    """A trained model (ours, or a baseline) ready to animate its garment.
+
+    Attributes:
+        model: the loaded stages (:class:`~loosefit.train.motion.AnimationModel` or a
+            :class:`~loosefit.train.baseline.BaselineModel`).
+        path: the checkpoint it came from.
+    """
+
+    def __init__(self, model, path: Path) -> None:
+        self.model, self.path = model, Path(path)
+
+    @property
+    def template(self) -> GarmentTemplate:
+        """The garment the model animates."""
+        return self.model.template
+
+    @property
+    def fps(self) -> float:
+        return float(self.model.fps)
+
+    def animate(self, motion: str | Path | Motion, frames: int | None = None,
+                start_frame: int = 0, seed: int = 0, stages=None,
+                progress: Callable[[int, int], None] | None = None) -> AnimatedGarment:  # fmt: skip
+        """The garment through a motion.
+
+        Args:
+            motion: a file, a procedural move or a :class:`~loosefit.types.Motion`
+                (see :func:`motion_for`).
+            frames: how many frames (None: the motion's).
+            start_frame: the motion's first frame to use.
+            seed: seeds procedural motions.
+            stages: which stages run after the decoders
+                (:class:`~loosefit.model.rollout.Stages`; default all).
+            progress: called as ``progress(done, total)``.
+
+        Returns:
+            :class:`~loosefit.sequence.AnimatedGarment`, world positions.
+        """
+        avatar = self.model.avatar()
+        m = motion_for(motion, avatar, self.fps, frames, start_frame, seed)
+        result = self.model.animate(m, progress, stages=stages)
+        shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
+        return AnimatedGarment(m, self.template, result.vertices, shape,
+                               f"loosefit model {self.path}")  # fmt: skip
+
+
+def load(path: str | Path | None = None, device: str = "cpu") -> Animator:
+    """A trained model: the pretrained set by default, or any checkpoint ``loosefit animate``
+    takes (a run's ``model.pt``, a packaged ``motion.pt``, a detail or baseline checkpoint).
+
+    Raises:
+        LoosefitInputError: a missing or unreadable checkpoint, or one of another kind.
+    """
+    from loosefit.train.detail import load_pipeline
+
+    path = Path(path) if path is not None else pretrained_checkpoint()
+    if not path.is_file():
+        raise LoosefitInputError(path, "checkpoint", "a trained model's checkpoint",
+                                 "no such file")  # fmt: skip
+    return Animator(load_pipeline(path, device=device), path)
+
+
+def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flared",
+             frames: int | None = None, start_frame: int = 0, seed: int = 0, config=None,
+             shape: dict | None = None, progress=None) -> AnimatedGarment:  # fmt: skip
+    """Ground truth: the garment simulated on the avatar (Newton VBD; minutes per second of
+    motion on a CPU).
+
+    Args:
+        motion: as for :meth:`Animator.animate` (at 30 fps).
+        garment: a skirt style (``aline``, ``flared``, ``circle``), an ``.obj`` path, or a
+            :class:`~loosefit.types.GarmentTemplate` on the avatar's rest pose.
+        frames, start_frame, seed: as for :meth:`Animator.animate`.
+        config: the physics (:class:`~loosefit.sim.cloth.ClothConfig`; default settings).
+        shape: the avatar's phenotype (anny's names); default the project's avatar.
+        progress: called as ``progress(done, total)``.
+    """
+    from loosefit.body.avatar import Avatar, AvatarConfig
+    from loosefit.dress import garment_for
+    from loosefit.sim.cloth import simulate as run
+
+    avatar = Avatar(AvatarConfig(shape=dict(shape or {})) if shape else None)
+    template = garment if isinstance(garment, GarmentTemplate) else garment_for(garment, avatar)
+    m = motion_for(motion, avatar, 30.0, frames, start_frame, seed)
+    result = run(avatar, template, m, config, progress=progress)
+    return AnimatedGarment(m, template, result.garment_vertices,
+                           {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
+                           "newton-vbd")  # fmt: skip
