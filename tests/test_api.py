@@ -59,3 +59,19 @@ def test_simulate_gives_ground_truth_of_one_motion(skirt):
     assert np.isfinite(result.vertices).all()
     with pytest.raises(LoosefitInputError, match="garment"):
         loosefit.simulate("sway", "ballgown", frames=3)
+
+
+def test_the_runtime_model_imports_neither_the_simulator_nor_the_datasets():
+    """``loosefit.model``'s networks and rollouts load without newton, warp, sim/, data/ or
+    train/ (only ``model.frames``, the training data's preparation, needs the avatar)."""
+    import subprocess
+    import sys
+
+    modules = ("rollout", "generative", "motion_encoder", "motion_features", "detail",
+               "baselines", "uvmap", "ssdr")  # fmt: skip
+    code = ("import sys\n" + "".join(f"import loosefit.model.{m}\n" for m in modules) +
+            "bad = [m for m in sys.modules if m.split('.')[0] in ('newton', 'warp') or "
+            "m.startswith(('loosefit.sim', 'loosefit.data', 'loosefit.train'))]\n"
+            "print(bad)\nsys.exit(1 if bad else 0)\n")  # fmt: skip
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout + run.stderr

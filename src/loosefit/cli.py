@@ -639,8 +639,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
 
     from loosefit.data.format import DatasetReader
     from loosefit.eval.metrics import rmse
-    from loosefit.model.frames import from_root_frame, to_root_frame
-    from loosefit.model.motion_features import root_frames
+    from loosefit.model.motion_features import from_root_frame, root_frames, to_root_frame
     from loosefit.train.generative import load_checkpoint
 
     reader = DatasetReader(args.data)

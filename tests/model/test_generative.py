@@ -15,7 +15,6 @@ import torch
 from loosefit.dress import fit_skirt
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.skirt import SkirtConfig
-from loosefit.model.frames import from_root_frame, heading_frames, to_root_frame
 from loosefit.model.generative import (
     GarmentGenerativeModel,
     GenerativeConfig,
@@ -23,6 +22,7 @@ from loosefit.model.generative import (
     generative_loss,
     kl_divergence,
 )
+from loosefit.model.motion_features import from_root_frame, heading_frames, to_root_frame
 from loosefit.train.generative import TrainGenerativeConfig, load_checkpoint, train_generative
 
 SMALL = dict(uv_size=32, channels=(4, 8, 8, 8), rec_hidden=(16, 16, 16))

@@ -10,11 +10,11 @@ import torch
 
 from loosefit.body.motions import load_motion
 from loosefit.errors import LoosefitInputError
-from loosefit.model.frames import heading_frames
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import (
     LOWER_BODY_JOINTS,
     feature_joints,
+    heading_frames,
     motion_features,
     num_features,
     root_frames,

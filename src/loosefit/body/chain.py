@@ -57,6 +57,69 @@ def place_motion(motion: Motion, yaw: float, xy: np.ndarray) -> Motion:
     return Motion(motion.joint_names, rotations, root, motion.fps, motion.name, dict(motion.meta))
 
 
+def blend_frames(rot0: np.ndarray, root0: np.ndarray, rot1: np.ndarray, root1: np.ndarray,
+                 n: int) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The ``n`` frames strictly between two poses: local rotations slerped, the root lerped,
+    smoothstep timing (the transitions of a chain and the blend before a rollout).
+
+    Args:
+        rot0, rot1: (J, 3, 3) local rotations of the poses; root0, root1: (3,) their roots.
+        n: frames between them.
+
+    Returns:
+        rotations (n, J, 3, 3) and roots (n, 3), in the inputs' float type.
+    """
+    w = np.arange(1, n + 1) / (n + 1.0)
+    w = w * w * (3.0 - 2.0 * w)  # (n,) smoothstep
+    q0, q1 = matrix_to_quat(rot0), matrix_to_quat(rot1)  # (J, 4) each
+    rotations = quat_to_matrix(quat_slerp(q0[None], q1[None], w[:, None]))  # (n, J, 3, 3)
+    return rotations, root0 + w[:, None] * (root1 - root0)
+
+
+def preroll(
+    motion: Motion,
+    floor_height: float,
+    settle_seconds: float,
+    blend_seconds: float,
+    settle_at_start: bool = True,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The settle and blend frames that come before a motion (a simulation's and a rollout's).
+
+    Settle: the rest pose standing on the floor, for ``settle_seconds`` (one frame
+    more, so that the cloth settles for exactly that long). With
+    ``settle_at_start`` (the simulator's and the rollout's choice) it stands where
+    the motion starts, turned to its heading (the root's yaw); otherwise at the
+    origin facing -Y. Blend: :func:`blend_frames` into the motion's first frame
+    over ``blend_seconds``.
+
+    Args:
+        motion: the motion that follows (T, J joints).
+        floor_height: the avatar's root height when standing.
+        settle_seconds, blend_seconds: the two durations (``ClothConfig``'s fields of
+            those names in a simulation).
+        settle_at_start: stand where the motion starts rather than at the origin.
+
+    Returns:
+        rotations (P, J, 3, 3) float32, root translations (P, 3) float32, and the
+        number of settle frames (the first frames of the P).
+    """
+    J = motion.num_joints
+    n_settle = int(round(settle_seconds * motion.fps)) + 1
+    n_blend = int(round(blend_seconds * motion.fps))
+    rest_rot = np.broadcast_to(np.eye(3, dtype=np.float32), (J, 3, 3)).copy()
+    rest_root = np.array([0.0, 0.0, floor_height], np.float32)
+    if settle_at_start:
+        forward = motion.rotations[0, 0] @ np.array([0.0, -1.0, 0.0], np.float32)
+        if np.hypot(forward[0], forward[1]) > 1e-6:  # else the root looks straight up/down
+            rest_rot[0] = _rot_z(math.atan2(forward[0], -forward[1]))
+        rest_root[:2] = motion.root_translation[0, :2]
+    blend_rot, blend_root = blend_frames(rest_rot, rest_root, motion.rotations[0],
+                                         motion.root_translation[0], n_blend)  # fmt: skip
+    rotations = np.concatenate([np.broadcast_to(rest_rot, (n_settle, J, 3, 3)), blend_rot])
+    root = np.concatenate([np.broadcast_to(rest_root, (n_settle, 3)), blend_root])
+    return rotations.astype(np.float32), root.astype(np.float32), n_settle
+
+
 def chain_motions(motions: list[Motion], blend_seconds: float = 0.5, name: str = "") -> Motion:
     """Play ``motions`` one after another as one continuous motion.
 
@@ -96,13 +159,11 @@ def chain_motions(motions: list[Motion], blend_seconds: float = 0.5, name: str =
         yaw = heading_yaw(last_rot[0]) - heading_yaw(m.rotations[0, 0].astype(np.float64))
         placed = place_motion(m, yaw, last_root[:2])
         if n_blend:
-            w = np.arange(1, n_blend + 1) / (n_blend + 1.0)
-            w = w * w * (3.0 - 2.0 * w)  # (B,)
-            q0 = matrix_to_quat(last_rot)  # (J, 4)
-            q1 = matrix_to_quat(placed.rotations[0].astype(np.float64))
-            rotations.append(quat_to_matrix(quat_slerp(q0[None], q1[None], w[:, None])))
+            start_rot = placed.rotations[0].astype(np.float64)
             start = placed.root_translation[0].astype(np.float64)
-            roots.append(last_root + w[:, None] * (start - last_root))
+            rot, root = blend_frames(last_rot, last_root, start_rot, start, n_blend)
+            rotations.append(rot)
+            roots.append(root)
             frame += n_blend
         rotations.append(placed.rotations.astype(np.float64))
         roots.append(placed.root_translation.astype(np.float64))

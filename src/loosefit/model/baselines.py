@@ -219,8 +219,12 @@ def baseline_rollout(
     import time
 
     from loosefit.geometry.skinning import root_frame_transforms
-    from loosefit.model.frames import from_root_frame
-    from loosefit.model.motion_features import feature_joints, motion_features, root_frames
+    from loosefit.model.motion_features import (
+        feature_joints,
+        from_root_frame,
+        motion_features,
+        root_frames,
+    )
     from loosefit.model.rollout import RolloutConfig, RolloutResult, check_garment, timeline
 
     config = config or RolloutConfig()

@@ -24,31 +24,8 @@ from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.inverse_skinning import InverseSkinningConfig, seed_weights, unskin
+from loosefit.model.motion_features import from_root_frame, heading_frames, to_root_frame
 from loosefit.types import GarmentTemplate
-
-
-def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """The heading rotation and origin of the root frame.
-
-    Args:
-        root_transforms: (T, 4, 4) the root joint's skinning transform (rest to world).
-
-    Returns:
-        H (T, 3, 3), rotations about +Z by the heading, and p (T, 3), the root's position.
-    """
-    from loosefit.model.motion_features import heading_yaw, yaw_matrix
-
-    return yaw_matrix(heading_yaw(root_transforms[:, :3, :3])), root_transforms[:, :3, 3]
-
-
-def to_root_frame(x: torch.Tensor, H: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
-    """World points (T, N, 3) into the root frame of :func:`heading_frames`."""
-    return (x - p[:, None]) @ H
-
-
-def from_root_frame(x: torch.Tensor, H: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
-    """Root-frame points (T, N, 3) back into the world."""
-    return x @ H.transpose(1, 2) + p[:, None]
 
 
 @dataclass

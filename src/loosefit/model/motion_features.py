@@ -153,3 +153,25 @@ def motion_features(
     turn[1:] = torch.remainder(yaw[1:] - yaw[:-1] + math.pi, 2 * math.pi) - math.pi
     height = root[:, 2:] - floor_height
     return torch.cat([local, tilt, velocity, (turn * fps)[:, None], height], -1).float()
+
+
+def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The heading rotation and origin of the root frame.
+
+    Args:
+        root_transforms: (T, 4, 4) the root joint's skinning transform (rest to world).
+
+    Returns:
+        H (T, 3, 3), rotations about +Z by the heading, and p (T, 3), the root's position.
+    """
+    return yaw_matrix(heading_yaw(root_transforms[:, :3, :3])), root_transforms[:, :3, 3]
+
+
+def to_root_frame(x: torch.Tensor, H: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
+    """World points (T, N, 3) into the root frame of :func:`heading_frames`."""
+    return (x - p[:, None]) @ H
+
+
+def from_root_frame(x: torch.Tensor, H: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
+    """Root-frame points (T, N, 3) back into the world."""
+    return x @ H.transpose(1, 2) + p[:, None]

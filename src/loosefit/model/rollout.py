@@ -19,10 +19,16 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from loosefit.model.frames import from_root_frame, to_root_frame
+from loosefit.body.chain import preroll
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder
-from loosefit.model.motion_features import feature_joints, motion_features, root_frames
+from loosefit.model.motion_features import (
+    feature_joints,
+    from_root_frame,
+    motion_features,
+    root_frames,
+    to_root_frame,
+)
 from loosefit.types import Motion
 
 
@@ -61,8 +67,6 @@ def timeline(
         rotations (P + T, J, 3, 3) float32, root translations (P + T, 3) float32,
         and P, the number of frames before the motion's first.
     """
-    from loosefit.sim.cloth import preroll
-
     settle = max(config.warm_frames - 1, 0) / motion.fps
     rot, root, _ = preroll(motion, floor_height, settle, config.blend_seconds)
     rotations = torch.from_numpy(np.concatenate([rot, motion.rotations]))

@@ -43,7 +43,7 @@ import numpy as np
 import torch
 import warp as wp
 
-from loosefit.body.rotations import matrix_to_quat, quat_slerp, quat_to_matrix
+from loosefit.body.chain import preroll
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.query import closest_points
 from loosefit.types import GarmentTemplate, Motion
@@ -646,59 +646,6 @@ class ClothSimulator:
 
 
 # -- driving it with a motion -----------------------------------------------------
-
-
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    return x * x * (3.0 - 2.0 * x)
-
-
-def preroll(
-    motion: Motion,
-    floor_height: float,
-    settle_seconds: float,
-    blend_seconds: float,
-    settle_at_start: bool = True,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """The settle and blend frames that come before a motion.
-
-    Settle: the rest pose standing on the floor, for ``settle_seconds`` (one frame
-    more, so that the cloth settles for exactly that long). With
-    ``settle_at_start`` (the simulator's and the rollout's choice) it stands where
-    the motion starts, turned to its heading (the root's yaw); otherwise at the
-    origin facing -Y. Blend: local rotations slerp and the root translation lerps
-    into the motion's first frame, with smoothstep timing, over ``blend_seconds``.
-
-    Args:
-        motion: the motion that follows (T, J joints).
-        floor_height: the avatar's root height when standing.
-        settle_seconds, blend_seconds: the two durations (``ClothConfig``'s fields of
-            those names in a simulation).
-        settle_at_start: stand where the motion starts rather than at the origin.
-
-    Returns:
-        rotations (P, J, 3, 3) float32, root translations (P, 3) float32, and the
-        number of settle frames (the first frames of the P).
-    """
-    J = motion.num_joints
-    n_settle = int(round(settle_seconds * motion.fps)) + 1
-    n_blend = int(round(blend_seconds * motion.fps))
-    rest_rot = np.broadcast_to(np.eye(3, dtype=np.float32), (J, 3, 3)).copy()
-    rest_root = np.array([0.0, 0.0, floor_height], np.float32)
-    if settle_at_start:
-        forward = motion.rotations[0, 0] @ np.array([0.0, -1.0, 0.0], np.float32)
-        if np.hypot(forward[0], forward[1]) > 1e-6:  # else the root looks straight up/down
-            yaw = math.atan2(forward[0], -forward[1])  # Rz(yaw) takes -Y to forward's heading
-            c, s = math.cos(yaw), math.sin(yaw)
-            rest_rot[0] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], np.float32)
-        rest_root[:2] = motion.root_translation[0, :2]
-    w = _smoothstep(np.arange(1, n_blend + 1) / (n_blend + 1.0))  # (B,)
-    q0 = matrix_to_quat(rest_rot)  # (J, 4)
-    q1 = matrix_to_quat(motion.rotations[0])  # (J, 4)
-    blend_rot = quat_to_matrix(quat_slerp(q0[None], q1[None], w[:, None]))  # (B, J, 3, 3)
-    blend_root = rest_root + w[:, None] * (motion.root_translation[0] - rest_root)  # (B, 3)
-    rotations = np.concatenate([np.broadcast_to(rest_rot, (n_settle, J, 3, 3)), blend_rot])
-    root = np.concatenate([np.broadcast_to(rest_root, (n_settle, 3)), blend_root])
-    return rotations.astype(np.float32), root.astype(np.float32), n_settle
 
 
 def _check_template(template: GarmentTemplate) -> None:
