@@ -24,8 +24,11 @@ from loosefit.types import GarmentTemplate, Motion
 
 
 def pretrained_checkpoint() -> Path:
-    """The committed pretrained set's motion stage (``checkpoints/salsa``, trained on salsa)."""
-    return Path(__file__).resolve().parents[2] / "checkpoints" / "salsa" / "motion.pt"
+    """The pretrained set's motion stage, shipped inside the package (``loosefit/pretrained/
+    salsa``, trained on salsa; ``checkpoints/salsa`` in a checkout)."""
+    from importlib.resources import files
+
+    return Path(str(files("loosefit") / "pretrained" / "salsa" / "motion.pt"))
 
 
 def motion_for(spec: str | Path | Motion, avatar, fps: float, frames: int | None = None,
