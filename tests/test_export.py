@@ -133,5 +133,13 @@ def test_export_command_writes_a_dataset_sequence_with_the_posed_body(toy_datase
                  "--no-body"]) == 0  # fmt: skip
     assert "body" not in (tmp_path / "g.usda").read_text()
     assert main(["export", str(toy_dataset / "template.npz"), str(tmp_path / "t.usd")]) == 2
+    assert main(["export", str(toy_dataset / "manifest.json"), str(tmp_path / "t.usd")]) == 2
+    # an AnimatedGarment's own file (what the API's save() and the demo write)
+    from loosefit.sequence import AnimatedGarment
+
+    own = AnimatedGarment(seq.motion, DatasetReader(toy_dataset).template, seq.garment_vertices,
+                          {"rig": "cmu_mb", "shape": {}}).save(tmp_path / "own.npz")  # fmt: skip
+    assert main(["export", str(own), str(tmp_path / "own.pc2"), "--no-body"]) == 0
+    np.testing.assert_array_equal(read_pc2(tmp_path / "own.pc2")[0], seq.garment_vertices)
     assert main(["export", str(toy_dataset / "sequences" / "c.npz"), str(tmp_path / "c.fbx")]) == 2
     assert not list(tmp_path.glob("c.fbx*")) and not (tmp_path / "t.usd").exists()

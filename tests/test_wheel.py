@@ -39,7 +39,9 @@ def test_the_wheel_runs_the_api_and_the_demo_without_a_checkout(tmp_path):
     (site,) = venv.glob("lib/python*/site-packages")
     deps = [p for p in sys.path if p.endswith("site-packages")]
     (site / "_deps.pth").write_text("\n".join(deps) + "\n")
-    _run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--prefix", venv, wheel])
+    # --ignore-installed: never touch the loosefit installed beside this interpreter
+    _run([sys.executable, "-m", "pip", "install", "--no-deps", "--ignore-installed", "-q",
+          "--prefix", venv, wheel])  # fmt: skip
     # 3. in an empty folder: the README's API example, then the main job
     empty = tmp_path / "elsewhere"
     empty.mkdir()

@@ -513,9 +513,16 @@ def cmd_export(args: argparse.Namespace) -> int:
     from loosefit.data.format import DatasetReader, read_sequence
 
     path = Path(args.sequence)
-    if path.suffix != ".npz" or path.parent.name != "sequences":
-        raise LoosefitInputError(path, "<file>", "a sequence in a dataset or `animate` folder "
-                                 "(FOLDER/sequences/NAME.npz)", "another path")  # fmt: skip
+    if path.suffix == ".npz" and path.parent.name != "sequences":  # an AnimatedGarment's file
+        from loosefit.sequence import AnimatedGarment
+
+        files = AnimatedGarment.load(path).export(args.out, body=not args.no_body)
+        _log(f"exported {len(files)} file(s): {files[0]}" + (" ..." if len(files) > 1 else ""))
+        return 0
+    if path.suffix != ".npz":
+        raise LoosefitInputError(path, "<file>", "a sequence .npz (from the API or `demo`, or "
+                                 "FOLDER/sequences/NAME.npz from animate or simulate)",
+                                 "another file")  # fmt: skip
     reader = DatasetReader(path.parent.parent)
     seq = read_sequence(path, reader.template)
     shape = dict(reader.body.get("shape", {}))
@@ -832,7 +839,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_animate)
 
     p = sub.add_parser("export", help="a sequence to USD, PC2 point caches or an OBJ sequence")
-    p.add_argument("sequence", help="FOLDER/sequences/NAME.npz (from animate or simulate)")
+    p.add_argument(
+        "sequence",
+        help="a sequence .npz (the API's save(), demo's sequence.npz) or "
+        "FOLDER/sequences/NAME.npz (from animate or simulate)",
+    )
     p.add_argument("out", help=".usd, .usdc, .usda, .pc2, or a folder for an OBJ sequence")
     p.add_argument("--no-body", action="store_true", help="the garment only")
     p.set_defaults(func=cmd_export)
