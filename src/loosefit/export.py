@@ -25,15 +25,14 @@ sample)::
 
 from __future__ import annotations
 
-import os
 import struct
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
 
 PC2_MAGIC = b"POINTCACHE2\0"
@@ -85,27 +84,6 @@ class AnimatedMesh:
     @property
     def num_frames(self) -> int:
         return int(self.vertices.shape[0])
-
-
-@contextmanager
-def atomic_path(path: Path) -> Iterator[Path]:
-    """A temporary path beside ``path`` (same suffix) that replaces it on success.
-
-    Raises:
-        LoosefitInputError: ``path``'s folder does not exist or is not writable.
-    """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir() or not os.access(folder, os.W_OK):
-        found = "no such folder" if not folder.is_dir() else "a folder that is not writable"
-        raise LoosefitInputError(path, "<file>", "a path in a writable folder", found)
-    tmp = folder / f".{path.stem}.partial{path.suffix}"
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def _check_meshes(meshes: list[AnimatedMesh], fps: float, where) -> int:

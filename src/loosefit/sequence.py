@@ -11,12 +11,12 @@ is validated when read.
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
 from loosefit.types import GarmentTemplate, Motion
 
@@ -114,26 +114,25 @@ class AnimatedGarment:
     def save(self, path: str | Path) -> Path:
         """Write atomically to ``path`` (``.npz``)."""
         path = Path(path)
-        tmp = path.with_name(path.name + ".partial.npz")
-        np.savez(
-            tmp,
-            format=np.array(FORMAT),
-            joint_names=np.array(self.motion.joint_names),
-            rotations=self.motion.rotations,
-            root_translation=self.motion.root_translation,
-            fps=np.float64(self.motion.fps),
-            motion_name=np.array(self.motion.name),
-            vertices=self.garment.vertices,
-            faces=self.garment.faces,
-            uvs=self.garment.uvs,
-            face_uvs=self.garment.face_uvs,
-            waist=self.garment.waist,
-            garment_name=np.array(self.garment.name),
-            garment_vertices=self.garment_vertices,
-            avatar=np.array(json.dumps(self.avatar)),
-            source=np.array(self.source),
-        )
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            np.savez(
+                tmp,
+                format=np.array(FORMAT),
+                joint_names=np.array(self.motion.joint_names),
+                rotations=self.motion.rotations,
+                root_translation=self.motion.root_translation,
+                fps=np.float64(self.motion.fps),
+                motion_name=np.array(self.motion.name),
+                vertices=self.garment.vertices,
+                faces=self.garment.faces,
+                uvs=self.garment.uvs,
+                face_uvs=self.garment.face_uvs,
+                waist=self.garment.waist,
+                garment_name=np.array(self.garment.name),
+                garment_vertices=self.garment_vertices,
+                avatar=np.array(json.dumps(self.avatar)),
+                source=np.array(self.source),
+            )
         return path
 
     @classmethod

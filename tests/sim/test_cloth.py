@@ -15,6 +15,7 @@ import pytest
 from loosefit.body.motions import load_motion
 from loosefit.dress import fit_skirt
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.mesh_checks import unique_edges
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.geometry.query import closest_points
 from loosefit.sim.cloth import (
@@ -27,7 +28,6 @@ from loosefit.sim.cloth import (
     quality,
     simulate,
     substep_schedule,
-    unique_edges,
 )
 from loosefit.types import GarmentTemplate, Motion
 
@@ -198,7 +198,7 @@ def test_quality_on_known_cases():
     np.testing.assert_allclose(q["inside_fraction"], [0.0, 1.0 / 8.0])
     assert q["penetration_max"] == 0.0
     assert q["inside_depth_max"] == pytest.approx(0.004, abs=1e-5)
-    edges = unique_edges(f)
+    edges, _ = unique_edges(f)
     assert len(edges) == 18  # a cube's 12 sides and 6 face diagonals
     with pytest.raises(LoosefitInputError):
         quality(g[:, :5], garment, b, body_faces)

@@ -21,12 +21,12 @@ so a half-written file is never taken for a whole one.
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
 from loosefit.types import GarmentTemplate, Motion, _check_array, load_npz
 
@@ -55,9 +55,8 @@ class Sequence:
 
 def write_json_atomic(path: Path, data: dict) -> None:
     """Write JSON to ``path`` through a temporary file and a rename."""
-    tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(json.dumps(data, indent=2, sort_keys=False, default=_jsonable))
-    os.replace(tmp, path)
+    with atomic_path(Path(path)) as tmp:
+        tmp.write_text(json.dumps(data, indent=2, sort_keys=False, default=_jsonable))
 
 
 def _jsonable(x):
@@ -71,19 +70,18 @@ def _jsonable(x):
 
 
 def write_sequence(path: Path, seq: Sequence) -> Path:
-    """Write one clip atomically (``.partial.npz`` then rename)."""
+    """Write one clip atomically (:func:`~loosefit.atomic.atomic_path`)."""
     path = Path(path)
-    tmp = path.with_name(path.stem + ".partial.npz")
-    np.savez(
-        tmp,
-        joint_names=np.array(seq.motion.joint_names),
-        rotations=seq.motion.rotations.astype(np.float32),
-        root_translation=seq.motion.root_translation.astype(np.float32),
-        fps=np.float64(seq.motion.fps),
-        garment_vertices=np.asarray(seq.garment_vertices, np.float32),
-        name=np.array(seq.name),
-    )
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        np.savez(
+            tmp,
+            joint_names=np.array(seq.motion.joint_names),
+            rotations=seq.motion.rotations.astype(np.float32),
+            root_translation=seq.motion.root_translation.astype(np.float32),
+            fps=np.float64(seq.motion.fps),
+            garment_vertices=np.asarray(seq.garment_vertices, np.float32),
+            name=np.array(seq.name),
+        )
     return path
 
 

@@ -25,6 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.query import closest_points
 
 # ---------------------------------------------------------------------------
@@ -114,12 +115,6 @@ def _positive(x: Any, source: str, field: str) -> float:
 
 # ---------------------------------------------------------------------------
 # topology helpers
-
-
-def _edges(faces: np.ndarray) -> np.ndarray:
-    """(E, 2) unique undirected edges of the triangles, each as (low index, high index)."""
-    e = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    return np.unique(np.sort(e, axis=1), axis=0)
 
 
 def _ring_edges(edges: np.ndarray, num_vertices: int) -> sp.csr_matrix:
@@ -276,7 +271,7 @@ def sted(
     c = _positive(speed_scale, "sted", "speed_scale")
     T, V, _ = p.shape
 
-    edges = _edges(f)
+    edges, _ = unique_edges(f)
     used = np.zeros(V, bool)
     used[edges.ravel()] = True
     hood = _ring_edges(edges, V)[used]  # (V_used, E)

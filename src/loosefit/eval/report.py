@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 from pathlib import Path
 
+from loosefit.atomic import atomic_path
 from loosefit.data.format import write_json_atomic
 
 
@@ -67,10 +67,9 @@ def plot_rollout_error(result: dict, path: Path, title: str = "") -> Path:
     ax.set_title(title or f"rollout error, split {result['split']}")
     ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
-    tmp = path.with_name(path.stem + ".partial.png")
-    fig.savefig(tmp)
+    with atomic_path(Path(path)) as tmp:
+        fig.savefig(tmp)
     plt.close(fig)
-    os.replace(tmp, path)
     return path
 
 

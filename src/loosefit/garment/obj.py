@@ -12,12 +12,12 @@ field (with its line number where there is one), what was expected and found.
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.mesh_checks import (
     boundary_loops,
@@ -291,19 +291,8 @@ def write_obj(
     else:
         parts += [f"f {a} {b} {c}\n" for a, b, c in (faces + 1).tolist()]
 
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write("".join(parts))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's file is private; a written OBJ is not
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(Path(path)) as tmp:
+        tmp.write_text("".join(parts), encoding="utf-8")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 import time
 import zipfile
 from collections.abc import Callable
@@ -43,8 +42,10 @@ import numpy as np
 import torch
 import warp as wp
 
+from loosefit.atomic import atomic_path
 from loosefit.body.chain import preroll
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.query import closest_points
 from loosefit.types import GarmentTemplate, Motion
 
@@ -690,9 +691,8 @@ def _run_key(body: np.ndarray, template: GarmentTemplate, config: ClothConfig) -
 
 
 def _write_resume(path: Path, **arrays) -> None:
-    tmp = path.with_name(path.name + ".tmp.npz")
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        np.savez(tmp, **arrays)
 
 
 def _read_resume(path: Path, key: str, total: int) -> dict | None:
@@ -879,12 +879,6 @@ def settle(
 PENETRATION_TOLERANCE = 0.005
 
 
-def unique_edges(faces: np.ndarray) -> np.ndarray:
-    """(E, 2) int64 undirected edges of a triangle mesh, each once, sorted."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    return np.unique(np.sort(e, axis=1), axis=0)
-
-
 def edge_strain(
     garment_vertices: np.ndarray, template: GarmentTemplate
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -899,7 +893,7 @@ def edge_strain(
         strain (T, E) and the edges (E, 2) it measures.
     """
     g = np.asarray(garment_vertices, np.float32)
-    edges = unique_edges(template.faces)
+    edges, _ = unique_edges(template.faces)
     edges = edges[~np.isin(edges, template.waist).all(1)]
     rest = np.linalg.norm(template.vertices[edges[:, 0]] - template.vertices[edges[:, 1]], axis=-1)
     length = np.linalg.norm(g[:, edges[:, 0]] - g[:, edges[:, 1]], axis=-1)  # (T, E)

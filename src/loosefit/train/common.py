@@ -9,6 +9,7 @@ from pathlib import Path
 
 import torch
 
+from loosefit.atomic import atomic_path
 from loosefit.data.format import write_json_atomic
 from loosefit.errors import LoosefitInputError
 from loosefit.types import GarmentTemplate
@@ -71,9 +72,8 @@ def recorded_checkpoint(path: Path, recorded: dict, given: str | Path | None, fi
 
 def save_atomic(data: dict, path: Path) -> None:
     """``torch.save`` to a temporary file, then a rename: never a half-written checkpoint."""
-    tmp = path.with_name(path.name + ".partial")
-    torch.save(data, tmp)
-    os.replace(tmp, path)
+    with atomic_path(Path(path)) as tmp:
+        torch.save(data, tmp)
 
 
 def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict | None = None):
