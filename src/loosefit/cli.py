@@ -664,8 +664,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     )
     with torch.no_grad():
         x = to_root_frame(torch.from_numpy(garment), H, p)
-        rec = torch.cat([model(x[s : s + 64], sample=False).vertices
-                         for s in range(0, len(x), 64)])  # fmt: skip
+        rec = model.reconstruct_all(x, 64)
         world = from_root_frame(rec, H, p).numpy()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

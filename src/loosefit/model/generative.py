@@ -217,6 +217,25 @@ class GarmentGenerativeModel(nn.Module):
         posed = torch.einsum("bkij,vj->bvki", A[..., :3], self.ssdr_rest) + A[:, None, :, :, 3]
         return {"vertices": (self.ssdr_weights[None, :, :, None] * posed).sum(2)}
 
+    @torch.no_grad()
+    def encode_all(self, vertices: torch.Tensor, chunk: int = 128) -> torch.Tensor:
+        """The posterior means (N, latent) of many garments (N, V, 3), ``chunk`` per call,
+        on the model's device; returned on the CPU."""
+        dev = next(self.parameters()).device
+        return torch.cat([self.encode(vertices[s : s + chunk].to(dev))[0].cpu()
+                          for s in range(0, len(vertices), chunk)])  # fmt: skip
+
+    @torch.no_grad()
+    def decode_all(self, z: torch.Tensor, chunk: int = 128) -> torch.Tensor:
+        """The garments (N, V, 3) of many codes (N, latent), ``chunk`` per call; on the CPU."""
+        dev = next(self.parameters()).device
+        return torch.cat([self.decode(z[s : s + chunk].to(dev))["vertices"].cpu()
+                          for s in range(0, len(z), chunk)])  # fmt: skip
+
+    def reconstruct_all(self, vertices: torch.Tensor, chunk: int = 128) -> torch.Tensor:
+        """Encode and decode (the posterior mean) many garments (N, V, 3); on the CPU."""
+        return self.decode_all(self.encode_all(vertices, chunk), chunk)
+
     def forward(self, vertices: torch.Tensor, sample: bool | None = None) -> GenerativeOutput:
         """Encode and decode garments (B, V, 3); ``sample`` defaults to ``self.training``."""
         mu, logvar = self.encode(vertices)

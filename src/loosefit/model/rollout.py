@@ -93,9 +93,7 @@ def latent_codes(
 ) -> torch.Tensor:
     """(T, latent) the generative encoder's means (Z*) of garments (T, V, 3) in their root
     frames, ``chunk`` frames per network call; on the CPU."""
-    dev = next(generative.parameters()).device
-    return torch.cat([generative.encode(vertices[s : s + chunk].to(dev))[0].cpu()
-                      for s in range(0, len(vertices), chunk)])  # fmt: skip
+    return generative.encode_all(vertices, chunk)
 
 
 def change_frame(
@@ -373,10 +371,6 @@ def reconstruction(
     """
     t0 = time.perf_counter()
     H, p, _ = motion_root_frames(motion, floor_height, config)
-    dev = next(generative.parameters()).device
     local = to_root_frame(torch.as_tensor(truth, dtype=torch.float32), H, p)
-    mu = latent_codes(generative, local, chunk)
-    out = [generative.decode(mu[s : s + chunk].to(dev))["vertices"].cpu()
-           for s in range(0, len(mu), chunk)]  # fmt: skip
-    world = from_root_frame(torch.cat(out), H, p)
+    world = from_root_frame(generative.reconstruct_all(local, chunk), H, p)
     return RolloutResult(world.numpy(), time.perf_counter() - t0, int(len(local)))

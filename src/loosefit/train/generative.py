@@ -197,12 +197,7 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
 def reconstruct(model: GarmentGenerativeModel, frames: PreparedFrames, batch: int = 64):
     """Encode and decode (the posterior mean) every frame: (N, V, 3) root frame."""
     model.eval()
-    device = next(model.parameters()).device
-    out = [
-        model(frames.posed[s : s + batch].to(device), sample=False).vertices.cpu()
-        for s in range(0, len(frames), batch)
-    ]
-    return torch.cat(out)
+    return model.reconstruct_all(frames.posed, batch)
 
 
 def evaluate(model: GarmentGenerativeModel, frames: PreparedFrames, faces: np.ndarray) -> dict:
