@@ -330,9 +330,13 @@ def cmd_train(args: argparse.Namespace) -> int:
         max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
     )  # fmt: skip
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
-    report = train_generative(args.data, out, cfg, log=_log)
+    return _finish_run(out, train_generative(args.data, out, cfg, log=_log), "checkpoint")
+
+
+def _finish_run(out, report: dict, kept: str = "model") -> int:
+    """A finished training run: its report, and where the run and its ``kept``.pt are."""
     print(Path(out, "report.md").read_text())
-    _log(f"run in {out}; checkpoint {Path(out, 'checkpoint.pt')}")
+    _log(f"run in {out}; {kept} {Path(out, kept + '.pt')}")
     return 0 if report else 1
 
 
@@ -353,9 +357,7 @@ def _train_motion(args: argparse.Namespace) -> int:
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
     report = train_motion(args.data, args.generative, out, cfg, log=_log)
-    print(Path(out, "report.md").read_text())
-    _log(f"run in {out}; model {Path(out, 'model.pt')}")
-    return 0 if report else 1
+    return _finish_run(out, report)
 
 
 def _train_detail(args: argparse.Namespace) -> int:
@@ -374,9 +376,7 @@ def _train_detail(args: argparse.Namespace) -> int:
     kind = ("full" if cfg.discriminator else "nodisc") + ("-edge" if cfg.loss.edge else "")
     out = args.out or f"runs/detail-{args.preset}-{kind}"
     report = train_detail(args.data, args.motion, out, cfg, args.generative, log=_log)
-    print(Path(out, "report.md").read_text())
-    _log(f"run in {out}; model {Path(out, 'model.pt')}")
-    return 0 if report else 1
+    return _finish_run(out, report)
 
 
 def _train_baseline(args: argparse.Namespace) -> int:
@@ -392,10 +392,7 @@ def _train_baseline(args: argparse.Namespace) -> int:
         seed=args.seed,
     )  # fmt: skip
     out = args.out or f"runs/baseline-{args.preset}-{args.method}"
-    report = train_baseline(args.data, out, cfg, log=_log)
-    print(Path(out, "report.md").read_text())
-    _log(f"run in {out}; model {Path(out, 'model.pt')}")
-    return 0 if report else 1
+    return _finish_run(out, train_baseline(args.data, out, cfg, log=_log))
 
 
 def _stages(args: argparse.Namespace):
@@ -504,7 +501,11 @@ def _export(path: str, template, garment_vertices, avatar, motion, fps: float) -
 
     body = None if avatar is None else avatar.pose_motion(motion).vertices.cpu().numpy()
     faces = None if avatar is None else avatar.faces.cpu().numpy()
-    files = export_animation(path, garment_and_body(template, garment_vertices, body, faces), fps)
+    _log_exported(export_animation(path, garment_and_body(template, garment_vertices, body,
+                                                          faces), fps))  # fmt: skip
+
+
+def _log_exported(files: list) -> None:
     _log(f"exported {len(files)} file(s): {files[0]}" + (" ..." if len(files) > 1 else ""))
 
 
@@ -516,8 +517,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     if path.suffix == ".npz" and path.parent.name != "sequences":  # an AnimatedGarment's file
         from loosefit.sequence import AnimatedGarment
 
-        files = AnimatedGarment.load(path).export(args.out, body=not args.no_body)
-        _log(f"exported {len(files)} file(s): {files[0]}" + (" ..." if len(files) > 1 else ""))
+        _log_exported(AnimatedGarment.load(path).export(args.out, body=not args.no_body))
         return 0
     if path.suffix != ".npz":
         raise LoosefitInputError(path, "<file>", "a sequence .npz (from the API or `demo`, or "

@@ -275,7 +275,7 @@ def rollout(
                          {k: v for k, v in stage.items() if v > 0})  # fmt: skip
 
 
-def _collision_record(result) -> dict:
+def collision_record(result) -> dict:
     """A collision result's figures, without its vertices."""
     return {k: v for k, v in vars(result).items() if k != "vertices"}
 
@@ -310,7 +310,7 @@ class _Later:
                 for i in range(len(out)):
                     result = self.collide(s + i, out[i].to(self.device))
                     out[i] = result.vertices.cpu()
-                    records.append(_collision_record(result))
+                    records.append(collision_record(result))
                 self.seconds["collision"] += time.perf_counter() - t1
         return out, records
 

@@ -36,11 +36,13 @@ from loosefit.model.baselines import (
 )
 from loosefit.model.frames import avatar_for, garment_fingerprint
 from loosefit.model.motion_features import feature_joints, num_features
-from loosefit.model.rollout import RolloutConfig, Stages
+from loosefit.model.rollout import RolloutConfig, Stages, collision_record
 from loosefit.train.common import (
     apply_overrides,
+    epoch_means,
     machine,
     open_run,
+    optimizer_step,
     read_checkpoint_file,
     restore_training,
     save_atomic,
@@ -53,6 +55,7 @@ from loosefit.train.motion import (
     body_collider,
     check_motion_joints,
     evaluate_rollouts,
+    pad_frames,
     prepare_clips,
 )
 from loosefit.types import GarmentTemplate, Motion
@@ -193,7 +196,7 @@ class BaselineModel:
             for t in range(motion.num_frames):
                 r = collide(t, torch.from_numpy(result.decoded[t]))
                 result.vertices[t] = r.vertices.numpy()
-                result.collisions.append({k: v for k, v in vars(r).items() if k != "vertices"})
+                result.collisions.append(collision_record(r))
             result.stage_seconds["collision"] = time.perf_counter() - t0
             result.seconds += result.stage_seconds["collision"]
         return result
@@ -294,19 +297,14 @@ def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip]
     return torch.from_numpy(decomp.rest), torch.from_numpy(decomp.weights), mean, extra
 
 
-def _pad(x: torch.Tensor, n: int) -> torch.Tensor:
-    """x padded to n rows by repeating its last."""
-    return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
-
-
 def stack_clips(clips: list[Clip], extra: list[torch.Tensor]) -> dict[str, torch.Tensor]:
     """Clips side by side, padded to the longest (their last frame repeated)."""
     L = max(c.length for c in clips)
     T = max(c.target.shape[0] for c in clips)
     return {
-        "features": torch.stack([_pad(c.features, L) for c in clips]),  # (B, L, F)
-        "target": torch.stack([_pad(c.target, T) for c in clips]),  # (B, T, V, 3)
-        "extra": torch.stack([_pad(x, T) for x in extra]),  # (B, T, K, 3, 4)
+        "features": torch.stack([pad_frames(c.features, L) for c in clips]),  # (B, L, F)
+        "target": torch.stack([pad_frames(c.target, T) for c in clips]),  # (B, T, V, 3)
+        "extra": torch.stack([pad_frames(x, T) for x in extra]),  # (B, T, K, 3, 4)
         "preroll": torch.tensor([c.preroll for c in clips]),
         "length": torch.tensor([c.length for c in clips]),
     }
@@ -427,16 +425,9 @@ def train_baseline(
                                            hidden, config.loss)  # fmt: skip
                 if terms is None:
                     continue
-                optim.zero_grad(set_to_none=True)
-                terms["total"].backward()
-                torch.nn.utils.clip_grad_norm_(network.parameters(), config.grad_clip)
-                optim.step()
+                optimizer_step(optim, network.parameters(), terms, config.grad_clip, sums)
                 steps += 1
-                for k, v in terms.items():
-                    sums[k] = sums.get(k, 0.0) + float(v.detach())
-        sums = {k: v / max(steps, 1) for k, v in sums.items()}
-        if not np.isfinite(sums.get("total", 0.0)):
-            raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {sums['total']}")
+        sums = epoch_means(sums, steps, epoch)
         epoch += 1
         epochs_run += 1
         history.append({"epoch": epoch, **sums})

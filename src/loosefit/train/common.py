@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 from pathlib import Path
@@ -13,6 +14,30 @@ from loosefit.atomic import atomic_path
 from loosefit.data.format import write_json_atomic
 from loosefit.errors import LoosefitInputError
 from loosefit.types import GarmentTemplate
+
+
+def optimizer_step(optim: torch.optim.Optimizer, parameters, terms: dict, grad_clip: float,
+                   sums: dict[str, float]) -> None:  # fmt: skip
+    """Backpropagate ``terms["total"]``, clip the gradient norm to ``grad_clip``, step, and
+    add every term's value into ``sums`` (the epoch's running totals)."""
+    optim.zero_grad(set_to_none=True)
+    terms["total"].backward()
+    torch.nn.utils.clip_grad_norm_(parameters, grad_clip)
+    optim.step()
+    for k, v in terms.items():
+        sums[k] = sums.get(k, 0.0) + float(v.detach())
+
+
+def epoch_means(sums: dict[str, float], steps: int, epoch: int) -> dict[str, float]:
+    """The epoch's mean terms per step.
+
+    Raises:
+        RuntimeError: the total loss is not finite (training diverged at ``epoch + 1``).
+    """
+    means = {k: v / max(steps, 1) for k, v in sums.items()}
+    if not math.isfinite(means.get("total", 0.0)):
+        raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {means['total']}")
+    return means
 
 
 def apply_overrides(config, overrides: dict):

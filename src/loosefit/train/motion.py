@@ -63,8 +63,10 @@ from loosefit.model.rollout import (
 )
 from loosefit.train.common import (
     apply_overrides,
+    epoch_means,
     machine,
     open_run,
+    optimizer_step,
     read_checkpoint_file,
     recorded_checkpoint,
     restore_training,
@@ -609,20 +611,22 @@ def evaluate_rollouts(
 # -- training --------------------------------------------------------------------------
 
 
+def pad_frames(x: torch.Tensor, n: int) -> torch.Tensor:
+    """Frames (T, ...) padded to ``n`` by repeating the last (clips stacked side by side)."""
+    return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
+
+
 def _stack(clips: list[Clip]) -> dict[str, torch.Tensor]:
     """Clips side by side, padded to the longest by repeating their last frame."""
     L = max(c.length for c in clips)
     T = max(c.target.shape[0] for c in clips)
 
-    def pad(x: torch.Tensor, n: int) -> torch.Tensor:
-        return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
-
     return {
-        "features": torch.stack([pad(c.features, L) for c in clips]),  # (B, L, F)
-        "heading": torch.stack([pad(c.heading, L) for c in clips]),
-        "origin": torch.stack([pad(c.origin, L) for c in clips]),
-        "target": torch.stack([pad(c.target, T) for c in clips]),  # (B, T, V, 3)
-        "latent": torch.stack([pad(c.latent, T) for c in clips]),
+        "features": torch.stack([pad_frames(c.features, L) for c in clips]),  # (B, L, F)
+        "heading": torch.stack([pad_frames(c.heading, L) for c in clips]),
+        "origin": torch.stack([pad_frames(c.origin, L) for c in clips]),
+        "target": torch.stack([pad_frames(c.target, T) for c in clips]),  # (B, T, V, 3)
+        "latent": torch.stack([pad_frames(c.latent, T) for c in clips]),
         "preroll": torch.tensor([c.preroll for c in clips]),
         "length": torch.tensor([c.length for c in clips]),
     }
@@ -822,16 +826,9 @@ def train_motion(
                 )  # fmt: skip
                 if not terms["total"].requires_grad:
                     continue  # a window with no motion frame (all preroll)
-                optim.zero_grad(set_to_none=True)
-                terms["total"].backward()
-                torch.nn.utils.clip_grad_norm_(encoder.parameters(), config.grad_clip)
-                optim.step()
+                optimizer_step(optim, encoder.parameters(), terms, config.grad_clip, sums)
                 steps += 1
-                for k, v in terms.items():
-                    sums[k] = sums.get(k, 0.0) + float(v.detach())
-        sums = {k: v / max(steps, 1) for k, v in sums.items()}
-        if not np.isfinite(sums.get("total", 0.0)):
-            raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {sums['total']}")
+        sums = epoch_means(sums, steps, epoch)
         epoch += 1
         epochs_run += 1
         history.append({"epoch": epoch, "teacher": teacher, **sums})
