@@ -26,10 +26,10 @@ import numpy as np
 import torch
 
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
+from loosefit.inference.animator import attach_detail, load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.sim.cloth import edge_strain
 from loosefit.train.common import machine
-from loosefit.train.detail import attach_detail, load_pipeline
 
 ROWS = {  # label: stages
     "motion stage alone": MOTION_ONLY,

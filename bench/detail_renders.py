@@ -23,11 +23,11 @@ import numpy as np
 from PIL import Image
 
 from loosefit.data.format import DatasetReader
+from loosefit.inference.animator import attach_detail, load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.render.camera import CameraView
 from loosefit.render.renderer import RenderConfig, Renderer, RenderMesh
 from loosefit.render.video import contact_sheet
-from loosefit.train.detail import attach_detail, load_pipeline
 
 
 def main() -> None:

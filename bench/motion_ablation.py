@@ -23,14 +23,10 @@ import torch
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.report import write_rollout_report
+from loosefit.eval.rollouts import HORIZONS, evaluate_rollouts
+from loosefit.inference.animator import load_animation_model
 from loosefit.model.rollout import MOTION_ONLY
-from loosefit.train.motion import (
-    HORIZONS,
-    TrainMotionConfig,
-    evaluate_rollouts,
-    load_animation_model,
-    train_motion,
-)
+from loosefit.train.motion import TrainMotionConfig, train_motion
 
 RUNS = {
     "nops": ("w/o ps", dict(previous_state=False)),

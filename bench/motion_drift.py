@@ -28,8 +28,9 @@ import torch
 from motion_ablation import RUNS  # the Table 1 runs (bench/ is on the path of a script)
 
 from loosefit.data.format import DatasetReader
+from loosefit.eval.rollouts import evaluate_rollouts
+from loosefit.inference.animator import load_animation_model
 from loosefit.model.rollout import MOTION_ONLY
-from loosefit.train.motion import evaluate_rollouts, load_animation_model
 
 EVERY = (1, 100, 500, 1200, None)
 

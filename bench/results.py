@@ -28,11 +28,11 @@ import torch
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
+from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import heading_yaw
 from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.sim.cloth import edge_strain
 from loosefit.train.common import machine
-from loosefit.train.detail import load_pipeline
 
 RAW = Stages(detail=False, collision=False)
 # key: (label, checkpoint kind, stages)
@@ -187,8 +187,8 @@ def ablation_figures(ablation: Path, cache: Path, reader, seq, body, body_faces,
     sys.path.insert(0, str(Path(__file__).parent))
     from generative_ablation import DECODERS
 
+    from loosefit.inference.checkpoints import load_generative
     from loosefit.model.rollout import reconstruction
-    from loosefit.train.generative import load_checkpoint
 
     truth = seq.garment_vertices
     recon = {}
@@ -197,7 +197,7 @@ def ablation_figures(ablation: Path, cache: Path, reader, seq, body, body_faces,
         if not ckpt.is_file():
             continue
         if not path.is_file():
-            model, _, _ = load_checkpoint(ckpt)
+            model, _ = load_generative(ckpt)
             with torch.no_grad():
                 r = reconstruction(model, seq.motion, truth, float(reader.body["floor_height"]))
             np.save(path, r.vertices.astype(np.float32))

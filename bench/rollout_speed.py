@@ -31,8 +31,8 @@ import numpy as np
 import torch
 
 from loosefit.body.motions import load_motion
+from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
-from loosefit.train.detail import load_pipeline
 
 
 def pipelines(model) -> dict[str, Stages]:

@@ -20,9 +20,9 @@ import torch
 from loosefit.data.format import DatasetReader
 from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.laplacian import laplacian_matrix
+from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import MOTION_ONLY
 from loosefit.train.common import machine
-from loosefit.train.detail import load_pipeline
 
 
 def main() -> None:

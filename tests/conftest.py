@@ -39,8 +39,9 @@ def toy_dataset(avatar, skirt, tmp_path_factory):
     import numpy as np
 
     from loosefit.body.motions import load_motion
-    from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
+    from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
     from loosefit.dress import carry_rigidly
+    from loosefit.sequence import AnimatedGarment
 
     root = tmp_path_factory.mktemp("toy") / "ds"
     (root / "sequences").mkdir(parents=True)
@@ -52,7 +53,10 @@ def toy_dataset(avatar, skirt, tmp_path_factory):
         depth = skirt.vertices[:, 2].max() - skirt.vertices[:, 2]  # 0 at the waist
         phase = np.sin(np.arange(len(g)) / 3.0)[:, None]
         g[..., 0] += 0.3 * depth[None] * phase  # the hem swings, the waist stays
-        write_sequence(root / "sequences" / f"{name}.npz", Sequence(name, motion, g))
+        shape = {"rig": "cmu_mb", "shape": dict(avatar.shape)}
+        write_sequence(
+            root / "sequences" / f"{name}.npz", AnimatedGarment(motion, skirt, g, shape, "toy")
+        )
     from dataclasses import asdict
 
     from loosefit.sim.cloth import ClothConfig

@@ -24,7 +24,7 @@ def test_the_pair_is_committed_whole_and_small():
 
 @pytest.fixture(scope="module")
 def model():
-    from loosefit.train.detail import load_pipeline
+    from loosefit.inference.animator import load_pipeline
 
     model = load_pipeline(PAIR / "motion.pt")  # finds generative.pt and detail.pt beside it
     assert model.detail is not None
@@ -60,18 +60,26 @@ def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
 
 
 def test_animate_without_a_checkpoint_takes_the_pretrained_pair(tmp_path):
-    import json
-
     from loosefit.cli import main
+    from loosefit.sequence import AnimatedGarment
 
     out = tmp_path / "anim"
     assert main(["animate", "sway", "--frames", "12", "--out", str(out)]) == 0
-    manifest = json.loads((out / "manifest.json").read_text())
-    assert manifest["source"]["checkpoint"] == str((PAIR / "motion.pt").resolve())
-    assert manifest["sequences"]["sway"]["frames"] == 12
+    seq = AnimatedGarment.load(out / "sway.npz")  # the one sequence format
+    assert seq.source == f"loosefit model {(PAIR / 'motion.pt').resolve()}"
+    assert seq.num_frames == 12 and seq.garment_vertices.shape == (12, 2352, 3)
     # a chain is named after all of its parts, not its last file
     assert main(["animate", "sway+mirror:spin", "--frames", "6", "--out", str(out)]) == 0
-    assert (out / "sequences" / "sway_mirror_spin.npz").is_file()
+    assert (out / "sway_mirror_spin.npz").is_file()
+    # or a file of the user's choice; any other suffix is refused before anything runs
+    assert main(["animate", "sway", "--frames", "3", "--out", str(tmp_path / "s.npz")]) == 0
+    assert AnimatedGarment.load(tmp_path / "s.npz").num_frames == 3
+    assert main(["animate", "sway", "--frames", "3", "--out", str(tmp_path / "s.txt")]) == 2
+    assert not (tmp_path / "s.txt").exists()
+    # an export suffix nobody writes is refused before the rollout, and nothing is written
+    bad = ["animate", "sway", "--out", str(tmp_path / "t.npz"), "--export", str(tmp_path / "t.fbx")]
+    assert main(bad) == 2
+    assert not (tmp_path / "t.npz").exists() and not (tmp_path / "t.fbx").exists()
     # three positional arguments: an error that says what is expected, and nothing written
     assert main(["animate", "a.pt", "sway", "extra", "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x").exists()

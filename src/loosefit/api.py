@@ -69,8 +69,8 @@ class Animator:
     """A trained model (ours, or a baseline) ready to animate its garment.
 
     Attributes:
-        model: the loaded stages (:class:`~loosefit.train.motion.AnimationModel` or a
-            :class:`~loosefit.train.baseline.BaselineModel`).
+        model: the loaded stages (:class:`~loosefit.inference.animator.AnimationModel` or a
+            :class:`~loosefit.inference.animator.BaselineModel`).
         path: the checkpoint it came from.
     """
 
@@ -119,7 +119,7 @@ def load(path: str | Path | None = None, device: str = "cpu") -> Animator:
     Raises:
         LoosefitInputError: a missing or unreadable checkpoint, or one of another kind.
     """
-    from loosefit.train.detail import load_pipeline
+    from loosefit.inference.animator import load_pipeline
 
     path = Path(path) if path is not None else pretrained_checkpoint()
     if not path.is_file():

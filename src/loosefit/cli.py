@@ -11,7 +11,6 @@ Subcommands:
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import sys
 import time
@@ -116,7 +115,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     simulator instead; ``--no-physics``: the skirt carried rigidly)."""
     from loosefit.body.motions import load_motion
     from loosefit.dress import carry_rigidly
-    from loosefit.sequence import DressedSequence
+    from loosefit.sequence import AnimatedGarment
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -130,7 +129,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     model = None
     if learned:
         from loosefit.api import pretrained_checkpoint
-        from loosefit.train.detail import load_pipeline
+        from loosefit.inference.animator import load_pipeline
 
         path = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
         model = load_pipeline(path)
@@ -166,7 +165,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             f"simulated at {result.seconds_per_frame:.2f} s/frame; garment inside the body: "
             f"{q['inside_max']:.4f} (worst frame), edge strain p99 {q['strain_p99']:.3f}"
         )
-    seq = DressedSequence(
+    seq = AnimatedGarment(
         motion, template, garment, {"rig": avatar.config.rig, "shape": avatar.shape}, source
     )
     seq.save(out / "sequence.npz")
@@ -215,32 +214,42 @@ def _stored_clip(args, shape: dict, motion, garment):
     return avatar, motion, garment
 
 
+def read_any_sequence(path: str | Path, reader=None):
+    """A sequence ``.npz``: an animated garment's file, or a data set's clip (a clip of an
+    earlier data set, without the sequence format, is read through its data set)."""
+    from loosefit.data.format import DatasetReader
+    from loosefit.sequence import AnimatedGarment
+
+    path = Path(path)
+    root = path.parent.parent
+    if reader is None and path.parent.name == "sequences" and (root / "manifest.json").is_file():
+        reader = DatasetReader(root, allow_incomplete=True)
+    if reader is not None:
+        return reader.read(path.stem)
+    return AnimatedGarment.load(path)
+
+
 def cmd_render(args: argparse.Namespace) -> int:
     from loosefit.body.motions import load_motion
     from loosefit.dress import carry_rigidly
-    from loosefit.sequence import DressedSequence
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     body = None
-    if args.sequence:
-        seq = DressedSequence.load(args.sequence)
-        avatar, motion, garment = _stored_clip(
-            args, seq.avatar.get("shape", {}), seq.motion, seq.garment_vertices
-        )
-        template = seq.garment
-        title = f"{Path(args.sequence).stem} ({seq.source})"
-    elif args.dataset:
-        from loosefit.data.format import DatasetReader
+    if args.sequence or args.dataset:
+        if args.sequence:
+            seq = read_any_sequence(args.sequence)
+            title = f"{Path(args.sequence).stem} ({seq.source})"
+        else:
+            from loosefit.data.format import DatasetReader
 
-        reader = DatasetReader(args.dataset, allow_incomplete=True)
-        name = args.clip or reader.split("all")[0]
-        seq = reader.read(name)
-        avatar, motion, garment = _stored_clip(
-            args, reader.body.get("shape", {}), seq.motion, seq.garment_vertices
-        )
-        template = reader.template
-        title = f"{Path(args.dataset).name}/{name} (simulated)"
+            reader = DatasetReader(args.dataset, allow_incomplete=True)
+            name = args.clip or reader.split("all")[0]
+            seq = reader.read(name)
+            title = f"{Path(args.dataset).name}/{name} ({seq.source})"
+        avatar, motion, garment = _stored_clip(args, seq.avatar.get("shape", {}), seq.motion,
+                                               seq.garment_vertices)  # fmt: skip
+        template = seq.garment
     elif args.motion:
         avatar = _avatar(args)
         motion = load_motion(args.motion, avatar, fps=args.fps, seed=args.seed)
@@ -438,8 +447,8 @@ def cmd_animate(args: argparse.Namespace) -> int:
 
     _animate_inputs(args)
     from loosefit.api import motion_for
-    from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
-    from loosefit.train.detail import load_pipeline
+    from loosefit.inference.animator import load_pipeline
+    from loosefit.sequence import AnimatedGarment
 
     model = load_pipeline(args.checkpoint, args.generative, args.detail)
     stages = _stages(args)
@@ -447,50 +456,35 @@ def cmd_animate(args: argparse.Namespace) -> int:
     if args.frames is not None and args.frames < 1:
         raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
     motion = motion_for(args.motion, avatar, model.fps, args.frames, args.start_frame, args.seed)
-    out = Path(args.out)
-    if (out / "manifest.json").is_file():
-        old = json.loads((out / "manifest.json").read_text())
-        if old.get("preset") != "animate":
-            raise LoosefitInputError(out, "manifest.json", "a new folder or an earlier animation",
-                                     f"a dataset of preset {old.get('preset')}")  # fmt: skip
-    (out / "sequences").mkdir(parents=True, exist_ok=True)
-    (out / "manifest.json").unlink(missing_ok=True)
     # the motion's own name (a chain's names all of its parts), safe as a file name
     name = re.sub(r"[^A-Za-z0-9_.-]+", "_", motion.name).strip("._") or "motion"
+    out = Path(args.out)
+    if out.suffix not in ("", ".npz") and not out.is_dir():
+        raise LoosefitInputError("--out", "out", "a .npz file or a folder", str(out))
+    path = out if out.suffix == ".npz" else out / f"{name}.npz"
+    if args.export:
+        from loosefit.export import check_export_path
+
+        check_export_path(args.export)  # before the work, not after
     _log(f"animating {motion.num_frames} frames of '{motion.name}'")
-    from tqdm import tqdm
-
-    bar = tqdm(total=None, unit="frame", desc="rollout")
-
-    def progress(done: int, total: int) -> None:
-        bar.total = total
-        bar.update(done - bar.n)
-
-    result = model.animate(motion, progress, stages=stages)
+    bar = tqdm_bar("rollout", unit="frame")
+    result = model.animate(motion, bar.progress, stages=stages)
     bar.close()
     _log(_stage_line(model, stages, result))
-    model.template.save(out / "template.npz")
-    write_sequence(out / "sequences" / f"{name}.npz", Sequence(name, motion, result.vertices))
-    manifest = {
-        "format": FORMAT, "preset": "animate", "complete": True,
-        "source": {"checkpoint": str(Path(args.checkpoint).resolve()), "motion": str(args.motion),
-                   "stages": {"detail": stages.detail and model.detail is not None,
-                              "collision": stages.collision, "feedback": stages.feedback},
-                   "frames": motion.num_frames, "frames_per_second": result.frames_per_second},
-        "body": {**model.body, "floor_height": model.floor_height},
-        "garment": {"name": model.template.name, "num_vertices": model.template.num_vertices},
-        "sequences": {name: {"status": "done", "frames": motion.num_frames}},
-        "split": {"train": [], "test": [name]},
-    }  # fmt: skip
-    write_json_atomic(out / "manifest.json", manifest)
+    shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
+    seq = AnimatedGarment(motion, model.template, result.vertices, shape,
+                          f"loosefit model {Path(args.checkpoint).resolve()}")  # fmt: skip
+    path.parent.mkdir(parents=True, exist_ok=True)
+    seq.save(path)
     _log(
-        f"wrote {out / 'sequences' / (name + '.npz')}: {motion.num_frames} frames at "
+        f"wrote {path}: {motion.num_frames} frames at "
         f"{result.frames_per_second:.0f} frames per second ({result.frames} with the preroll)"
     )
     if args.export:
-        _export(args.export, model.template, result.vertices, avatar, motion, model.fps)
+        _log_exported(seq.export(args.export))
     if args.render:
-        _render(args, avatar, motion, model.template, result.vertices, out / "render",
+        _render(args, avatar, motion, model.template, result.vertices,
+                path.with_name(path.stem + "_render"),
                 f"{motion.name} (loosefit rollout)")  # fmt: skip
     return 0
 
@@ -510,24 +504,11 @@ def _log_exported(files: list) -> None:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.data.format import DatasetReader, read_sequence
-
     path = Path(args.sequence)
-    if path.suffix == ".npz" and path.parent.name != "sequences":  # an AnimatedGarment's file
-        from loosefit.sequence import AnimatedGarment
-
-        _log_exported(AnimatedGarment.load(path).export(args.out, body=not args.no_body))
-        return 0
     if path.suffix != ".npz":
-        raise LoosefitInputError(path, "<file>", "a sequence .npz (from the API or `demo`, or "
-                                 "FOLDER/sequences/NAME.npz from animate or simulate)",
-                                 "another file")  # fmt: skip
-    reader = DatasetReader(path.parent.parent)
-    seq = read_sequence(path, reader.template)
-    shape = dict(reader.body.get("shape", {}))
-    avatar = None if args.no_body else Avatar(AvatarConfig(shape=shape))
-    _export(args.out, reader.template, seq.garment_vertices, avatar, seq.motion, seq.motion.fps)
+        raise LoosefitInputError(path, "<file>", "a sequence .npz (from animate, the API, demo "
+                                 "or a data set's sequences/)", "another file")  # fmt: skip
+    _log_exported(read_any_sequence(path).export(args.out, body=not args.no_body))
     return 0
 
 
@@ -557,11 +538,16 @@ def _stage_line(model, stages, result) -> str:
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from loosefit.data.format import DatasetReader
     from loosefit.eval.report import write_rollout_report
-    from loosefit.train.detail import load_pipeline
-    from loosefit.train.motion import evaluate_rollouts
+    from loosefit.eval.rollouts import evaluate_rollouts
+    from loosefit.inference.animator import load_pipeline
 
     model = load_pipeline(args.checkpoint, args.generative, args.detail)
-    reader = DatasetReader(args.data)
+    if len(args.data) == 1 and Path(args.data[0]).is_dir():
+        reader = DatasetReader(args.data[0])
+        where = str(Path(args.data[0]).resolve())
+    else:  # sequences: the ground truth of each motion
+        reader = {Path(f).stem: read_any_sequence(f) for f in args.data}
+        where = [str(Path(f).resolve()) for f in args.data]
     try:
         horizons = tuple(int(h) for h in args.horizons.split(","))
     except ValueError:
@@ -570,7 +556,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     result = evaluate_rollouts(model, reader, args.split, horizons, surface=not args.rmse_only,
                                max_frames=args.max_frames, stages=_stages(args))  # fmt: skip
     result["checkpoint"] = str(Path(args.checkpoint).resolve())
-    result["dataset"] = str(Path(args.data).resolve())
+    result["dataset"] = where
     write_rollout_report(result, args.out, f"Rollouts of {Path(args.checkpoint).parent.name}")
     print(Path(args.out, "evaluation.md").read_text())
     _log(f"wrote {args.out}/evaluation.{{md,csv,json}} and rmse_per_frame.png")
@@ -578,12 +564,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_package(args: argparse.Namespace) -> int:
-    from loosefit.train.motion import package_model
+    from loosefit.inference.package import package_detail, package_model
 
     files = list(package_model(args.checkpoint, args.out, args.generative))
     if args.detail:
-        from loosefit.train.detail import package_detail
-
         files.append(package_detail(args.detail, args.out))
     for f in files:
         _log(f"wrote {f} ({f.stat().st_size / 1e6:.1f} MB)")
@@ -604,24 +588,25 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
     import torch
 
     from loosefit.data.format import DatasetReader
-    from loosefit.model.frames import avatar_for, prepare_split
+    from loosefit.inference.checkpoints import load_generative
     from loosefit.render.clip import render_clip
     from loosefit.render.renderer import RenderConfig, RenderMesh
-    from loosefit.train.generative import load_checkpoint
 
     reader = DatasetReader(args.data)
-    model, cfg, _ = load_checkpoint(args.checkpoint, reader.template)
-    frames = prepare_split(reader, "all", avatar_for(reader), cfg.skinning)
-    picks = []
+    model, _ = load_generative(args.checkpoint, reader.template)
+    posed = []
     for which, text in (("--a", args.a), ("--b", args.b)):
-        name, f = _frame_ref(text, frames.names, which)
-        sel = torch.nonzero((frames.clip == frames.names.index(name)) & (frames.frame == f))
-        if len(sel) == 0:
-            n = int((frames.clip == frames.names.index(name)).sum())
-            raise LoosefitInputError(which, "frame", f"a frame of '{name}' (0..{n - 1})", f)
-        picks.append(int(sel[0, 0]))
+        name, f = _frame_ref(text, reader.split("all"), which)
+        seq = reader.read(name)
+        if not 0 <= f < seq.num_frames:
+            raise LoosefitInputError(
+                which, "frame", f"a frame of '{name}' (0..{seq.num_frames - 1})", f
+            )
+        posed.append(
+            _root_frame_garment(seq.motion.slice(f, f + 1), seq.garment_vertices[f : f + 1])
+        )
     with torch.no_grad():
-        mu, _ = model.encode(frames.posed[picks])
+        mu, _ = model.encode(torch.cat(posed))
         alpha = torch.linspace(0, 1, args.steps)[:, None]
         garments = model.decode((1 - alpha) * mu[0] + alpha * mu[1])["vertices"].numpy()
     out = Path(args.out)
@@ -640,17 +625,34 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _root_frame_garment(motion, garment):
+    """(T, V, 3) world garments of ``motion``'s frames in their root frames (as the models
+    see them)."""
+    import torch
+
+    from loosefit.model.motion_features import root_frames, to_root_frame
+
+    H, p = (
+        a.float()
+        for a in root_frames(
+            torch.from_numpy(motion.rotations).double(),
+            torch.from_numpy(motion.root_translation).double(),
+        )
+    )
+    return to_root_frame(torch.from_numpy(garment), H, p)
+
+
 def cmd_reconstruct(args: argparse.Namespace) -> int:
-    import numpy as np
     import torch
 
     from loosefit.data.format import DatasetReader
     from loosefit.eval.metrics import rmse
-    from loosefit.model.motion_features import from_root_frame, root_frames, to_root_frame
-    from loosefit.train.generative import load_checkpoint
+    from loosefit.inference.checkpoints import load_generative
+    from loosefit.model.motion_features import from_root_frame, root_frames
+    from loosefit.sequence import AnimatedGarment
 
     reader = DatasetReader(args.data)
-    model, _, _ = load_checkpoint(args.checkpoint, reader.template)
+    model, _ = load_generative(args.checkpoint, reader.template)
     name = args.clip or reader.split("test")[0]
     seq = reader.read(name)
     avatar, motion, garment = _stored_clip(args, reader.body.get("shape", {}), seq.motion,
@@ -663,14 +665,15 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
         )
     )
     with torch.no_grad():
-        x = to_root_frame(torch.from_numpy(garment), H, p)
-        rec = model.reconstruct_all(x, 64)
+        rec = model.reconstruct_all(_root_frame_garment(motion, garment), 64)
         world = from_root_frame(rec, H, p).numpy()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    np.savez(out / "reconstruction.npz", vertices=world, faces=reader.template.faces)
+    AnimatedGarment(motion, reader.template, world, reader.avatar,
+                    f"generative reconstruction {Path(args.checkpoint).resolve()}"
+                    ).save(out / "reconstruction.npz")  # fmt: skip
     _log(f"{name}: {len(world)} frames, RMSE {100 * rmse(world, garment):.2f} cm; wrote "
-         f"{out / 'reconstruction.npz'}")  # fmt: skip
+         f"{out / 'reconstruction.npz'} (a sequence, as render --sequence reads)")  # fmt: skip
     _render(args, avatar, motion, reader.template, world, out,
             f"{name}: generative reconstruction")  # fmt: skip
     return 0
@@ -716,7 +719,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a motion or a saved sequence to MP4 and PNG")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--motion", help="a .bvh or .npz motion, or a procedural move name")
-    src.add_argument("--sequence", help="a sequence .npz written by loosefit")
+    src.add_argument("--sequence", help="a sequence .npz (animate, the API, demo, a dataset)")
     src.add_argument("--dataset", help="a dataset folder written by loosefit simulate")
     p.add_argument("--clip", default=None, help="with --dataset: the clip (default: the first)")
     p.add_argument(
@@ -827,7 +830,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="frames to animate (longer than the motion: it plays again)",
     )
     p.add_argument("--start-frame", type=int, default=0)
-    p.add_argument("--out", default="out/animate", help="output folder (dataset format)")
+    p.add_argument("--out", default="out/animate",
+                   help="the sequence .npz to write, or a folder for MOTION.npz")  # fmt: skip
     p.add_argument("--render", action="store_true", help="also render a video and PNGs")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--export", default=None, metavar="PATH",
@@ -840,8 +844,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("export", help="a sequence to USD, PC2 point caches or an OBJ sequence")
     p.add_argument(
         "sequence",
-        help="a sequence .npz (the API's save(), demo's sequence.npz) or "
-        "FOLDER/sequences/NAME.npz (from animate or simulate)",
+        help="a sequence .npz (from animate, the API's save(), demo's sequence.npz, or a "
+        "dataset's sequences/NAME.npz)",
     )
     p.add_argument("out", help=".usd, .usdc, .usda, .pc2, or a folder for an OBJ sequence")
     p.add_argument("--no-body", action="store_true", help="the garment only")
@@ -850,8 +854,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="roll out held-out clips and compare with the simulation")
     p.add_argument("--checkpoint", required=True, help="a motion run's model.pt or checkpoint.pt")
     _add_generative_arg(p)
-    p.add_argument("--data", default="datasets/salsa", help="a dataset folder")
-    p.add_argument("--split", default="test", help="train, test or all")
+    p.add_argument("--data", nargs="+", default=["datasets/salsa"],
+                   help="a dataset folder, or sequence .npz files (the ground truth of their "
+                   "motions, e.g. from loosefit.simulate)")  # fmt: skip
+    p.add_argument("--split", default="test", help="with a dataset: train, test or all")
     p.add_argument("--horizons", default="100,500,1200", help="frames for iter-N errors")
     p.add_argument("--max-frames", type=int, default=None, help="roll out at most this many")
     p.add_argument("--rmse-only", action="store_true", help="skip Hausdorff and STED (faster)")

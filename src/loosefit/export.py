@@ -235,12 +235,21 @@ def export_animation(path: str | Path, meshes: list[AnimatedMesh], fps: float) -
     Raises:
         LoosefitInputError: an unknown suffix, an unwritable folder or bad meshes.
     """
+    path = check_export_path(path)
+    return EXPORTERS[path.suffix.lower()](path, meshes, fps)
+
+
+def check_export_path(path: str | Path) -> Path:
+    """``path`` as a :func:`export_animation` target, checked before any work is done.
+
+    Raises:
+        LoosefitInputError: a suffix no exporter writes.
+    """
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in EXPORTERS:
+    if path.suffix.lower() not in EXPORTERS:
         known = ", ".join(s or "a folder (OBJ sequence)" for s in EXPORTERS)
         raise LoosefitInputError(path, "suffix", known, repr(path.suffix))
-    return EXPORTERS[suffix](path, meshes, fps)
+    return path
 
 
 def garment_and_body(template, garment_vertices: np.ndarray, body_vertices=None,

@@ -1,11 +1,30 @@
-"""A dressed animation on disk.
+"""An animated garment, in memory and on disk: the one format every command reads.
 
-It holds the motion, the avatar's shape, the garment template and its vertices.
+What ``loosefit.load().animate()``, ``loosefit.simulate()``, ``loosefit animate`` and
+``loosefit simulate`` (each clip of a data set) write, and what ``render``, ``evaluate``,
+``export`` and :meth:`AnimatedGarment.load` read. A file is a plain ``.npz`` (numpy alone
+reads it; no pickle), written atomically, with the fields::
 
-The body is not stored: it is reproduced exactly by posing the avatar (same
-rig and shape) with the motion, which keeps a file ~20x smaller than storing
-body meshes. Files are plain ``.npz`` (readable with numpy alone); every field
-is validated when read.
+    format            "loosefit.sequence/1"
+    joint_names       (J,) str           the motion, on the avatar's skeleton
+    rotations         (T, J, 3, 3) f32   local joint rotations (Motion's convention)
+    root_translation  (T, 3) f32         the root joint, metres
+    fps               f64
+    motion_name       str
+    vertices          (V, 3) f32         the garment at rest (GarmentTemplate) ...
+    faces             (F, 3) i64
+    uvs               (U, 2) f32
+    face_uvs          (F, 3) i64
+    waist             (W,) i64
+    garment_name      str
+    garment_meta      str (JSON)         ... and what made it (optional)
+    garment_vertices  (T, V, 3) f32      the animated garment, world frame
+    avatar            str (JSON)         {"rig": ..., "shape": {...}}: the body
+    source            str                what moved the garment (a model, "newton-vbd")
+
+Conventions as everywhere in loosefit: metres, Z up, the avatar faces -Y. The body is
+not stored: posing the avatar (same rig and shape) with the motion reproduces it exactly
+and keeps a file ~20x smaller. Every field is validated when read.
 """
 
 from __future__ import annotations
@@ -18,7 +37,7 @@ import numpy as np
 
 from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
-from loosefit.types import GarmentTemplate, Motion
+from loosefit.types import GarmentTemplate, Motion, _check_array, _plain, load_npz
 
 FORMAT = "loosefit.sequence/1"
 
@@ -97,38 +116,38 @@ class AnimatedGarment:
         return export_animation(path, meshes, self.fps)
 
     def __post_init__(self) -> None:
-        self.garment_vertices = np.asarray(self.garment_vertices, dtype=np.float32)
+        gv = np.asarray(self.garment_vertices)
+        if np.issubdtype(gv.dtype, np.floating):
+            gv = gv.astype(np.float32, copy=False)
         T, V = self.motion.num_frames, self.garment.num_vertices
-        gv = self.garment_vertices
-        if gv.shape != (T, V, 3):
-            raise LoosefitInputError(
-                "AnimatedGarment", "garment_vertices", f"shape ({T}, {V}, 3)", f"{gv.shape}"
-            )
-        bad = ~np.isfinite(gv)
-        if bad.any():
-            t = int(np.argwhere(bad)[0][0])
-            raise LoosefitInputError(
-                "AnimatedGarment", "garment_vertices", "finite values", f"NaN/inf from frame {t}"
-            )
+        _check_array("AnimatedGarment", "garment_vertices", gv, (T, V, 3))
+        self.garment_vertices = gv
+
+    @property
+    def name(self) -> str:
+        """The motion's name (a data set's clip name)."""
+        return self.motion.name
 
     def save(self, path: str | Path) -> Path:
-        """Write atomically to ``path`` (``.npz``)."""
+        """Write atomically to ``path`` (``.npz``; nothing is left there if it fails)."""
         path = Path(path)
+        g = self.garment
         with atomic_path(path) as tmp:
             np.savez(
                 tmp,
                 format=np.array(FORMAT),
                 joint_names=np.array(self.motion.joint_names),
-                rotations=self.motion.rotations,
-                root_translation=self.motion.root_translation,
+                rotations=self.motion.rotations.astype(np.float32),
+                root_translation=self.motion.root_translation.astype(np.float32),
                 fps=np.float64(self.motion.fps),
                 motion_name=np.array(self.motion.name),
-                vertices=self.garment.vertices,
-                faces=self.garment.faces,
-                uvs=self.garment.uvs,
-                face_uvs=self.garment.face_uvs,
-                waist=self.garment.waist,
-                garment_name=np.array(self.garment.name),
+                vertices=g.vertices,
+                faces=g.faces,
+                uvs=g.uvs,
+                face_uvs=g.face_uvs,
+                waist=g.waist,
+                garment_name=np.array(g.name),
+                garment_meta=np.array(json.dumps(g.meta or {}, default=_plain)),
                 garment_vertices=self.garment_vertices,
                 avatar=np.array(json.dumps(self.avatar)),
                 source=np.array(self.source),
@@ -137,24 +156,41 @@ class AnimatedGarment:
 
     @classmethod
     def load(cls, path: str | Path) -> AnimatedGarment:
-        """Read and validate a file written by :meth:`save`."""
+        """Read and validate a file written by :meth:`save`.
+
+        Raises:
+            LoosefitInputError: naming the file and the field: not a ``.npz``, another
+                format (or version), a missing field, a wrong shape or dtype, NaN.
+        """
         path = Path(path)
         if not path.is_file():
             raise LoosefitInputError(path, "<file>", "an existing .npz sequence", "no such file")
-        try:
-            d = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise LoosefitInputError(path, "<file>", "a .npz sequence", str(exc)) from exc
-        fmt = str(d["format"]) if "format" in d.files else "none"
+        d = load_npz(path, "a .npz sequence", ())
+        fmt = str(d["format"]) if "format" in d.files else None
         if fmt != FORMAT:
-            raise LoosefitInputError(path, "format", repr(FORMAT), repr(fmt))
-        need = (
-            "joint_names rotations root_translation fps vertices faces uvs face_uvs waist "
-            "garment_vertices avatar"
-        ).split()
-        missing = [k for k in need if k not in d.files]
+            hint = None
+            if fmt is None and "garment_vertices" in d.files:
+                hint = (
+                    "a clip of a data set written before loosefit.sequence/1; read it "
+                    "through its data set (DatasetReader, or loosefit render --dataset)"
+                )
+            raise LoosefitInputError(path, "format", repr(FORMAT),
+                                     "none" if fmt is None else repr(fmt), hint=hint)  # fmt: skip
+        missing = [k for k in _FIELDS if k not in d.files]
         if missing:
             raise LoosefitInputError(path, ", ".join(missing), "present", "missing")
+        gv = d["garment_vertices"]
+        for key in ("rotations", "root_translation", "garment_vertices", "vertices", "uvs"):
+            if d[key].dtype != np.float32:
+                raise LoosefitInputError(path, key, "dtype float32", f"dtype {d[key].dtype}")
+        try:
+            avatar = json.loads(str(d["avatar"]))
+            meta = json.loads(str(d["garment_meta"])) if "garment_meta" in d.files else {}
+        except json.JSONDecodeError as exc:
+            raise LoosefitInputError(path, "avatar/garment_meta", "JSON", str(exc)) from exc
+        if not isinstance(avatar, dict):
+            raise LoosefitInputError(path, "avatar", '{"rig": ..., "shape": {...}}',
+                                     type(avatar).__name__)  # fmt: skip
         try:
             motion = Motion(
                 tuple(str(n) for n in d["joint_names"]),
@@ -166,16 +202,19 @@ class AnimatedGarment:
             garment = GarmentTemplate(
                 d["vertices"], d["faces"], d["uvs"], d["face_uvs"], d["waist"],
                 name=str(d["garment_name"]) if "garment_name" in d.files else "garment",
+                meta=meta if isinstance(meta, dict) else {},
             )  # fmt: skip
-            return cls(
-                motion,
-                garment,
-                d["garment_vertices"],
-                json.loads(str(d["avatar"])),
-                str(d["source"]) if "source" in d.files else "unknown",
-            )
+            return cls(motion, garment, gv, avatar,
+                       str(d["source"]) if "source" in d.files else "unknown")  # fmt: skip
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found, exc.hint) from exc
+        except (TypeError, ValueError) as exc:
+            raise LoosefitInputError(path, "<fields>", "a loosefit sequence", str(exc)) from exc
 
+
+_FIELDS = (
+    "joint_names rotations root_translation fps vertices faces uvs face_uvs waist "
+    "garment_vertices avatar"
+).split()
 
 DressedSequence = AnimatedGarment  # the earlier name

@@ -8,12 +8,12 @@ from loosefit.data.dataset import FrameDataset, WindowDataset, collate_samples
 from loosefit.data.format import (
     FORMAT,
     DatasetReader,
-    Sequence,
     read_sequence,
     write_json_atomic,
     write_sequence,
 )
 from loosefit.errors import LoosefitInputError
+from loosefit.sequence import AnimatedGarment
 from loosefit.types import GarmentTemplate, Motion
 
 J, V = 3, 6
@@ -26,12 +26,12 @@ def _template() -> GarmentTemplate:
     return GarmentTemplate(v, f, uv, f, np.array([0, 1]), name="toy")
 
 
-def _sequence(name: str, T: int, offset: float = 0.0) -> Sequence:
+def _sequence(name: str, T: int, offset: float = 0.0) -> AnimatedGarment:
     rot = np.tile(np.eye(3, dtype=np.float32), (T, J, 1, 1))
     root = np.zeros((T, 3), np.float32) + offset
     motion = Motion(("a", "b", "c"), rot, root, 30.0, name)
     g = np.arange(T * V * 3, dtype=np.float32).reshape(T, V, 3) + offset
-    return Sequence(name, motion, g)
+    return AnimatedGarment(motion, _template(), g, {"rig": "cmu_mb", "shape": {}}, "test")
 
 
 @pytest.fixture
@@ -59,10 +59,39 @@ def test_round_trip(dataset):
     assert np.array_equal(seq.motion.rotations, ref.motion.rotations)
     assert seq.motion.joint_names == ("a", "b", "c") and seq.motion.fps == 30.0
     assert reader.split("all") == ["s0", "s1", "s2"]
-    # Plain numpy reads it too.
+    assert seq.template.name == "toy" and seq.avatar == reader.avatar
+    # Plain numpy reads it too, and the API: a clip is an animated garment's file
     d = np.load(dataset / "sequences" / "s1.npz")
-    assert d["garment_vertices"].shape == (7, V, 3)
-    assert not list(dataset.rglob("*partial*"))
+    assert d["garment_vertices"].shape == (7, V, 3) and str(d["format"]) == "loosefit.sequence/1"
+    same = AnimatedGarment.load(dataset / "sequences" / "s1.npz")
+    assert np.array_equal(same.garment_vertices, seq.garment_vertices)
+    assert not list(dataset.rglob("*partial*")) and not list(dataset.rglob("*.tmp*"))
+
+
+def test_a_clip_written_before_the_sequence_format_is_still_read(dataset):
+    """Data sets simulated before the clips became sequences (the motion's fields and the
+    garment alone) read with the data set's template and body."""
+    path = dataset / "sequences" / "s1.npz"
+    ref = _sequence("s1", 7, 1.0)
+    m = ref.motion
+    np.savez(path, joint_names=np.array(m.joint_names), rotations=m.rotations,
+             root_translation=m.root_translation, fps=np.float64(30.0),
+             garment_vertices=ref.garment_vertices, name=np.array("s1"))  # fmt: skip
+    seq = DatasetReader(dataset).read("s1")
+    assert np.array_equal(seq.garment_vertices, ref.garment_vertices)
+    assert seq.template.name == "toy" and seq.name == "s1"
+    with pytest.raises(LoosefitInputError, match=r"s1\.npz.*format.*through its data set"):
+        AnimatedGarment.load(path)  # alone, it has no template: the error says where to go
+
+
+def test_a_clip_of_another_garment_is_refused(dataset):
+    other = _template()
+    other.vertices = other.vertices + 0.01
+    path = dataset / "sequences" / "s0.npz"
+    AnimatedGarment(_sequence("s0", 10).motion, other, _sequence("s0", 10).garment_vertices,
+                    {}, "test").save(path)  # fmt: skip
+    with pytest.raises(LoosefitInputError, match=r"s0\.npz.*another garment"):
+        DatasetReader(dataset).read("s0")
 
 
 def test_frame_and_window_datasets(dataset):
@@ -93,7 +122,7 @@ def _rewrite(path, **changes):
 def test_wrong_vertex_count_names_file_and_field(dataset):
     path = dataset / "sequences" / "s0.npz"
     _rewrite(path, garment_vertices=np.zeros((10, V + 1, 3), np.float32))
-    with pytest.raises(LoosefitInputError, match=rf"s0\.npz.*garment_vertices.*\(\*, {V}, 3\)"):
+    with pytest.raises(LoosefitInputError, match=rf"s0\.npz.*garment_vertices.*\(10, {V}, 3\)"):
         DatasetReader(dataset).read("s0")
 
 

@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import torch
 
+import loosefit.inference.animator as inf
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
+from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.model.baselines import BaselineConfig
 from loosefit.model.rollout import Stages
+from loosefit.sequence import AnimatedGarment
 from loosefit.train import baseline as tb
-from loosefit.train.motion import evaluate_rollouts
 
 RAW = Stages(detail=False, collision=False)
 
@@ -30,7 +34,7 @@ def trained(request, toy_dataset, tmp_path_factory):
     out = tmp_path_factory.mktemp(request.param)
     report = tb.train_baseline(toy_dataset, out, _config(request.param), log=lambda *_: None,
                                progress=False)  # fmt: skip
-    return out, report, tb.load_baseline(out / "model.pt")
+    return out, report, inf.load_baseline(out / "model.pt")
 
 
 def test_training_lowers_the_loss(trained):
@@ -66,7 +70,7 @@ def test_evaluation_scores_the_rollout_as_the_same_vertices_given_directly(train
 def test_rollouts_are_deterministic_on_the_motion_and_load_through_the_pipeline(
     trained, toy_dataset
 ):
-    from loosefit.train.detail import load_pipeline
+    from loosefit.inference.animator import load_pipeline
 
     out, _, model = trained
     reader = DatasetReader(toy_dataset)
@@ -117,12 +121,12 @@ def test_bad_inputs_are_clear_errors(trained, toy_dataset, tmp_path):
     with pytest.raises(LoosefitInputError, match="finite"):
         model.animate(bad)
     with pytest.raises(LoosefitInputError):
-        tb.load_baseline(toy_dataset / "template.npz")
+        inf.load_baseline(toy_dataset / "template.npz")
     data = torch.load(out / "model.pt", weights_only=False)
     data["model"]["skin_weights"] = data["model"]["skin_weights"][:, :2]
     torch.save(data, tmp_path / "broken.pt")
     with pytest.raises(LoosefitInputError, match="weights of this baseline"):
-        tb.load_baseline(tmp_path / "broken.pt")
+        inf.load_baseline(tmp_path / "broken.pt")
 
 
 def test_train_baseline_evaluate_and_animate_commands(toy_dataset, tmp_path):
@@ -137,12 +141,18 @@ def test_train_baseline_evaluate_and_animate_commands(toy_dataset, tmp_path):
     assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
                  "--horizons", "4", "--out", str(ev)]) == 0  # fmt: skip
     assert "iter-4" in (ev / "evaluation.md").read_text()
+    # the ground truth as sequence files (a simulate()'s save(), or a data set's clips)
+    ev2 = tmp_path / "eval2"
+    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data",
+                 str(toy_dataset / "sequences" / "c.npz"), "--horizons", "4",
+                 "--out", str(ev2)]) == 0  # fmt: skip
+    a, b = (json.loads((e / "evaluation.json").read_text()) for e in (ev, ev2))
+    assert a["clips"]["c"]["rmse_cm"] == pytest.approx(b["clips"]["c"]["rmse_cm"], rel=1e-6)
     out = tmp_path / "anim"
     assert main(["animate", str(run / "model.pt"), "sway", "--frames", "20",
                  "--out", str(out), "--export", str(tmp_path / "sway.usdc")]) == 0  # fmt: skip
-    reader = DatasetReader(out)
-    seq = reader.read(reader.split("test")[0])
-    assert seq.garment_vertices.shape == (20, reader.template.num_vertices, 3)
+    seq = AnimatedGarment.load(out / "sway.npz")
+    assert seq.garment_vertices.shape == (20, DatasetReader(toy_dataset).template.num_vertices, 3)
     from pxr import Usd, UsdGeom
 
     stage = Usd.Stage.Open(str(tmp_path / "sway.usdc"))

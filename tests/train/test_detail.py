@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 import torch
 
+import loosefit.inference.animator as inf
 import loosefit.model.rollout as rollout_module
 import loosefit.train.detail as td
 import loosefit.train.motion as tm
 from loosefit.cli import main
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
+from loosefit.inference.checkpoints import model_fingerprint
 from loosefit.model.detail import DetailConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.rollout import MOTION_ONLY, RolloutConfig, Stages, rollout
@@ -62,7 +64,7 @@ def test_adversarial_training_lowers_the_l1_loss(trained):
 
 def test_the_pairs_are_the_motion_stages_own_rollouts(trained, motion, toy_dataset):
     out, _ = trained
-    model = tm.load_animation_model(motion)
+    model = inf.load_animation_model(motion)
     reader = DatasetReader(toy_dataset)
     first = reader.read("a").motion
     pairs = torch.load(out / "pairs.pt", weights_only=True)
@@ -106,7 +108,7 @@ def test_resume_continues_where_it_stopped(toy_dataset, motion, tmp_path):
 
 def test_detail_runs_in_animate_and_can_be_switched_off(trained, motion, toy_dataset):
     out, _ = trained
-    model = td.load_pipeline(out / "model.pt")
+    model = inf.load_pipeline(out / "model.pt")
     assert model.detail is not None
     m = DatasetReader(toy_dataset).read("c").motion
     plain = model.animate(m, stages=MOTION_ONLY)
@@ -121,7 +123,7 @@ def test_detail_runs_in_animate_and_can_be_switched_off(trained, motion, toy_dat
 def test_the_later_stages_beside_the_motion_stage_change_nothing(trained, toy_dataset,
                                                                  monkeypatch):  # fmt: skip
     out, _ = trained
-    model = td.load_pipeline(out / "model.pt")
+    model = inf.load_pipeline(out / "model.pt")
     m = DatasetReader(toy_dataset).read("c").motion
     monkeypatch.setattr(rollout_module._Later, "chunk", 3)  # several chunks, and a remainder
     assert m.num_frames > 6 and m.num_frames % 3
@@ -134,14 +136,14 @@ def test_the_later_stages_beside_the_motion_stage_change_nothing(trained, toy_da
 
 def test_a_detail_stage_of_another_motion_stage_is_refused(trained, motion, tmp_path):
     out, _ = trained
-    model = tm.load_animation_model(motion)
+    model = inf.load_animation_model(motion)
     with torch.no_grad():
         model.encoder.fc.bias.add_(0.5)  # another motion stage
     with pytest.raises(LoosefitInputError, match="fingerprint") as err:
-        td.attach_detail(model, out / "model.pt")
+        inf.attach_detail(model, out / "model.pt")
     data = torch.load(out / "model.pt", weights_only=False)
     assert data["fingerprints"]["motion"] in str(err.value)
-    assert tm.model_fingerprint(model.encoder) in str(err.value)
+    assert model_fingerprint(model.encoder) in str(err.value)
 
 
 def test_package_carries_the_detail_stage(trained, motion, tmp_path, toy_dataset):
@@ -151,11 +153,11 @@ def test_package_carries_the_detail_stage(trained, motion, tmp_path, toy_dataset
         main(["package", str(motion), "--detail", str(out / "model.pt"), "--out", str(pack)]) == 0
     )
     assert sorted(p.name for p in pack.iterdir()) == ["detail.pt", "generative.pt", "motion.pt"]
-    model = td.load_pipeline(pack / "motion.pt")
+    model = inf.load_pipeline(pack / "motion.pt")
     assert model.detail is not None
     m = DatasetReader(toy_dataset).read("c").motion
     a = model.animate(m, stages=Stages(collision=False)).vertices
-    b = td.load_pipeline(out / "model.pt").animate(m, stages=Stages(collision=False)).vertices
+    b = inf.load_pipeline(out / "model.pt").animate(m, stages=Stages(collision=False)).vertices
     np.testing.assert_allclose(a, b, atol=5e-4)  # the packaged generative stage is half precision
 
 
@@ -170,8 +172,8 @@ def test_animate_without_detail_and_collision_is_the_motion_stage_rollout(
     args = ["animate", str(out / "model.pt"), str(motion_file), "--out", str(dest),
             "--no-detail", "--no-collision"]  # fmt: skip
     assert main(args) == 0
-    got = np.load(next((dest / "sequences").glob("*.npz")))["garment_vertices"]
-    model = tm.load_animation_model(motion)
+    got = np.load(next(dest.glob("*.npz")))["garment_vertices"]
+    model = inf.load_animation_model(motion)
     want = rollout(model.generative, model.encoder, seq.motion, model.rest_state,
-                   model.floor_height, model.config.rollout).vertices  # fmt: skip
+                   model.floor_height, model.rollout_config).vertices  # fmt: skip
     np.testing.assert_array_equal(got, want)

@@ -8,14 +8,18 @@ import numpy as np
 import pytest
 import torch
 
+import loosefit.inference.animator as inf
 import loosefit.train.motion as tm
 from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
+from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.geometry.laplacian import Laplacian
+from loosefit.inference.package import package_model
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import feature_joints, num_features
 from loosefit.model.rollout import RolloutConfig
+from loosefit.sequence import AnimatedGarment
 from loosefit.types import Motion
 
 
@@ -55,7 +59,7 @@ def test_training_lowers_the_loss_and_reports_rollouts(trained):
 
 def test_rollout_is_deterministic_and_on_the_motion(trained, toy_dataset):
     out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
+    model = inf.load_animation_model(out / "model.pt")
     motion = DatasetReader(toy_dataset).read("c").motion
     a, b = model.animate(motion), model.animate(motion)
     assert a.vertices.shape == (16, model.template.num_vertices, 3)
@@ -68,10 +72,10 @@ def test_rollout_is_deterministic_and_on_the_motion(trained, toy_dataset):
 
 def _windows(trained, toy_dataset, skirt):
     """The trained toy model, its training clips stacked (features differentiable), a Laplacian."""
-    model = tm.load_animation_model(trained[0] / "model.pt")
+    model = inf.load_animation_model(trained[0] / "model.pt")
     reader = DatasetReader(toy_dataset)
     clips = tm.prepare_clips(reader, "train", model.generative, model.floor_height,
-                             model.config.rollout)  # fmt: skip
+                             model.rollout_config)  # fmt: skip
     batch = tm._stack(clips)
     batch["features"] = batch["features"].clone().requires_grad_(True)
     model.encoder.train()
@@ -83,7 +87,7 @@ def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, ski
     enc = model.encoder
     hidden = enc.initial_hidden(2)
     prev = model.rest_state[None].expand(2, -1, -1)
-    loss = model.config.loss
+    loss = tm.MotionLossConfig()
     first, hidden, prev = tm.run_window(enc, model.generative, lap, batch, 0, 10, hidden, prev,
                                         0.0, loss)  # fmt: skip
     second, _, _ = tm.run_window(enc, model.generative, lap, batch, 10, 20, hidden, prev, 0.0, loss)
@@ -128,7 +132,7 @@ def test_ablation_without_previous_state_trains(toy_dataset, generative, skirt, 
         model=MotionEncoderConfig(motion_fc=16, gru=24, previous_state=False),
     )
     assert report["previous_state"] is False and np.isfinite(report["test"]["rmse_cm"])
-    model = tm.load_animation_model(tmp_path / "nops" / "model.pt")
+    model = inf.load_animation_model(tmp_path / "nops" / "model.pt")
     assert not hasattr(model.encoder, "state_encoder")
 
 
@@ -136,8 +140,8 @@ def test_encoder_on_the_lower_body_joints(toy_dataset, generative, skirt, tmp_pa
     report = _train(toy_dataset, generative, skirt, tmp_path / "lower", epochs=2,
                     model=MotionEncoderConfig(motion_fc=16, gru=24, joints="lower"))  # fmt: skip
     assert np.isfinite(report["test"]["rmse_cm"])
-    model = tm.load_animation_model(tmp_path / "lower" / "model.pt")
-    assert model.config.model.joints == "lower"
+    model = inf.load_animation_model(tmp_path / "lower" / "model.pt")
+    assert model.encoder.config.joints == "lower"
     lower = feature_joints(model.joint_names, "lower")
     assert (
         model.encoder.num_features
@@ -158,7 +162,7 @@ def test_encoder_on_the_lower_body_joints(toy_dataset, generative, skirt, tmp_pa
 
 def test_bad_inputs_are_clear_errors(trained, toy_dataset, generative, avatar, tmp_path):
     out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
+    model = inf.load_animation_model(out / "model.pt")
     motion = DatasetReader(toy_dataset).read("c").motion
     fewer = Motion(motion.joint_names[:-1], motion.rotations[:, :-1], motion.root_translation,
                    motion.fps, "fewer")  # fmt: skip
@@ -166,19 +170,19 @@ def test_bad_inputs_are_clear_errors(trained, toy_dataset, generative, avatar, t
         model.animate(fewer)
     # A generative checkpoint where the motion stage's is expected.
     with pytest.raises(LoosefitInputError, match="generative stage"):
-        tm.load_animation_model(generative)
+        inf.load_animation_model(generative)
     # Another generative model than the encoder was trained on.
     other = torch.load(generative, weights_only=False)
     other["model"] = {k: v + 0.01 if v.is_floating_point() else v
                       for k, v in other["model"].items()}  # fmt: skip
     torch.save(other, tmp_path / "other.pt")
     with pytest.raises(LoosefitInputError, match="fingerprint"):
-        tm.load_animation_model(out / "model.pt", generative=tmp_path / "other.pt")
+        inf.load_animation_model(out / "model.pt", generative=tmp_path / "other.pt")
 
 
 def test_a_diverging_rollout_names_the_frame(trained, toy_dataset):
     out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
+    model = inf.load_animation_model(out / "model.pt")
     motion = DatasetReader(toy_dataset).read("c").motion
     with torch.no_grad():
         model.encoder.fc.bias.fill_(1e6)  # a broken network
@@ -203,9 +207,8 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     out = tmp_path / "anim"
     args = ["animate", str(run / "model.pt"), "mirror:sway", "--frames", "150", "--out", str(out)]
     assert main(args) == 0
-    reader = DatasetReader(out)
-    seq = reader.read(reader.split("test")[0])
-    assert seq.garment_vertices.shape == (150, reader.template.num_vertices, 3)
+    seq = AnimatedGarment.load(next(out.glob("*.npz")))
+    assert seq.garment_vertices.shape == (150, DatasetReader(toy_dataset).template.num_vertices, 3)
     assert np.isfinite(seq.garment_vertices).all()
 
     ev = tmp_path / "eval"
@@ -216,25 +219,30 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     assert "iter-8" in (ev / "evaluation.md").read_text()
     # The generative checkpoint where the motion one belongs: a clear error, exit 2.
     assert main(["animate", gen, "sway", "--out", str(tmp_path / "x")]) == 2
-    assert not (tmp_path / "x" / "manifest.json").exists()
+    assert not (tmp_path / "x").exists()
 
 
 def test_package_writes_a_pair_that_loads_and_animates_alike(trained, toy_dataset, generative,
                                                               tmp_path):  # fmt: skip
     out, _ = trained
-    gout, mout = tm.package_model(out / "model.pt", tmp_path / "shared")
+    gout, mout = package_model(out / "model.pt", tmp_path / "shared")
     assert {p.name for p in (tmp_path / "shared").iterdir()} == {"generative.pt", "motion.pt"}
     gdata = torch.load(gout, weights_only=False)
     assert (
         "optimizer" not in gdata
         and gdata["model"]["encoder.convs.0.0.weight"].dtype == torch.float16
     )
+    # a packaged set holds the networks' configurations, not the training's
+    mdata = torch.load(mout, weights_only=False)
+    assert "config" not in gdata and "config" not in mdata and "optimizer" not in mdata
+    assert set(mdata["model_config"]) == {"encoder", "rollout"}
+    assert gdata["model_config"] == torch.load(generative, weights_only=False)["config"]["model"]
     assert torch.load(mout, weights_only=False)["generative"]["absolute"] is None
     # Moved anywhere, the pair still loads (relative path) and animates like the original.
     moved = tmp_path / "elsewhere"
     (tmp_path / "shared").rename(moved)
-    original = tm.load_animation_model(out / "model.pt")
-    shared = tm.load_animation_model(moved / "motion.pt")
+    original = inf.load_animation_model(out / "model.pt")
+    shared = inf.load_animation_model(moved / "motion.pt")
     motion = DatasetReader(toy_dataset).read(DatasetReader(toy_dataset).split("test")[0]).motion
     a = original.animate(motion).vertices
     b = shared.animate(motion).vertices
@@ -242,12 +250,12 @@ def test_package_writes_a_pair_that_loads_and_animates_alike(trained, toy_datase
     # A motion file without its generative partner is a clear error.
     (moved / "generative.pt").unlink()
     with pytest.raises(LoosefitInputError, match="generative"):
-        tm.load_animation_model(moved / "motion.pt")
+        inf.load_animation_model(moved / "motion.pt")
 
 
 def test_reference_carries_the_rest_drape_with_the_root(trained, toy_dataset):
     out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
+    model = inf.load_animation_model(out / "model.pt")
     reader = DatasetReader(toy_dataset)
     motion = reader.read("c").motion
     moved = model.carry_drape(motion).vertices  # (T, V, 3)
@@ -262,33 +270,33 @@ def test_reference_carries_the_rest_drape_with_the_root(trained, toy_dataset):
     np.testing.assert_allclose(np.linalg.norm(offset, axis=-1),
                                np.linalg.norm(rest.mean(0)), atol=1e-4)  # fmt: skip
     # Scored like a rollout, and not the rollout's score.
-    ref = tm.evaluate_rollouts(model, reader, "test", surface=False, reference=True)
-    learned = tm.evaluate_rollouts(model, reader, "test", surface=False)
+    ref = evaluate_rollouts(model, reader, "test", surface=False, reference=True)
+    learned = evaluate_rollouts(model, reader, "test", surface=False)
     assert ref["clips"]["c"]["frames"] == 16 and np.isfinite(ref["rmse_cm"])
     assert ref["rmse_cm"] != learned["rmse_cm"]
 
 
 def test_oracle_scores_the_generative_models_own_code_of_the_truth(trained, toy_dataset):
     out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
+    model = inf.load_animation_model(out / "model.pt")
     reader = DatasetReader(toy_dataset)
-    oracle = tm.evaluate_rollouts(model, reader, "test", surface=False, oracle=True)
+    oracle = evaluate_rollouts(model, reader, "test", surface=False, oracle=True)
     # The same thing in the root frame, from the training targets (Z* decoded): RMSE is
     # rigid-invariant, so the world-frame score must match.
     (clip,) = tm.prepare_clips(reader, "test", model.generative, model.floor_height,
-                               model.config.rollout)  # fmt: skip
+                               model.rollout_config)  # fmt: skip
     with torch.no_grad():
         decoded = model.generative.decode(clip.latent)["vertices"]
     expected = 100 * (decoded - clip.target).pow(2).sum(-1).mean(-1).sqrt()
     np.testing.assert_allclose(oracle["clips"][clip.name]["rmse_per_frame_cm"], expected.numpy(),
                                rtol=1e-4, atol=1e-4)  # fmt: skip
-    learned = tm.evaluate_rollouts(model, reader, "test", surface=False)
+    learned = evaluate_rollouts(model, reader, "test", surface=False)
     assert oracle["rmse_cm"] != learned["rmse_cm"]
 
 
 def test_restarts_reset_the_previous_state_to_the_truth(trained, toy_dataset):
     out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
+    model = inf.load_animation_model(out / "model.pt")
     seq = DatasetReader(toy_dataset).read("c")
     truth = seq.garment_vertices.astype(np.float32)
     plain = model.animate(seq.motion).vertices
@@ -310,7 +318,7 @@ def test_restarts_reset_the_previous_state_to_the_truth(trained, toy_dataset):
         model.animate(seq.motion, truth=truth[:3], restart_every=k)
     # Scored like a rollout: no restart within the clip is the plain rollout's score.
     reader = DatasetReader(toy_dataset)
-    score = {n: tm.evaluate_rollouts(model, reader, "test", surface=False, restart_every=n)
+    score = {n: evaluate_rollouts(model, reader, "test", surface=False, restart_every=n)
              for n in (None, 16, k)}  # fmt: skip
     assert score[16]["rmse_cm"] == score[None]["rmse_cm"] != score[k]["rmse_cm"]
 
@@ -347,7 +355,7 @@ def test_unrolled_training_differentiates_through_its_own_predictions(trained, t
     def grads(teacher: float, unroll: bool, start: int = 0, stop: int = 20):
         hidden = enc.initial_hidden(2)
         terms, _, carried = tm.run_window(enc, model.generative, lap, batch, start, stop,
-                                          hidden, prev, teacher, model.config.loss,
+                                          hidden, prev, teacher, tm.MotionLossConfig(),
                                           unroll=unroll)  # fmt: skip
         assert not carried.requires_grad  # the next window starts detached either way
         return terms["total"], torch.autograd.grad(terms["total"], batch["features"])[0]
@@ -367,9 +375,9 @@ def test_mirrored_clips_are_the_clips_mirrored(trained, toy_dataset):
     from loosefit.body.mirror import REFLECT, mirror_garment, vertex_twins
 
     out, _ = trained
-    model = tm.load_animation_model(out / "model.pt")
+    model = inf.load_animation_model(out / "model.pt")
     reader = DatasetReader(toy_dataset)
-    args = (reader, "train", model.generative, model.floor_height, model.config.rollout)
+    args = (reader, "train", model.generative, model.floor_height, model.rollout_config)
     plain, both = tm.prepare_clips(*args), tm.prepare_clips(*args, mirror=True)
     assert [c.name for c in both] == [n for c in plain for n in (c.name, f"{c.name}~mirror")]
     twins = vertex_twins(reader.template.vertices)

@@ -8,7 +8,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from loosefit.data.format import DatasetReader, Sequence
+from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 
 
@@ -50,7 +50,7 @@ class _SplitData:
         self.names = reader.split(split)
         if not self.names:
             raise LoosefitInputError(reader.root, f"split '{split}'", "sequences", "none")
-        self.sequences: list[Sequence] = [reader.read(n) for n in self.names]
+        self.sequences = [reader.read(n) for n in self.names]
         self.lengths = np.array([s.num_frames for s in self.sequences])
 
     def sample(self, s: int, start: int, stop: int) -> FrameSample:

@@ -7,50 +7,37 @@ A dataset is a folder, readable with plain numpy and json::
     template.npz            the garment at rest: vertices (V, 3) float32, faces
                             (F, 3) int64, uvs (U, 2) float32, face_uvs (F, 3)
                             int64, waist (W,) int64, name
-    sequences/NAME.npz      one clip: joint_names (J,) str, rotations (T, J, 3, 3)
-                            float32, root_translation (T, 3) float32, fps float64,
-                            garment_vertices (T, V, 3) float32, name str
+    sequences/NAME.npz      one clip: an animated garment in the one sequence format
+                            (:mod:`loosefit.sequence`), the motion and the simulated
+                            garment (T, V, 3) float32, with the template and the body
 
 The body is described in the manifest (``body``: model, rig, shape,
 floor_height) and reproduced by posing the avatar with each clip's motion.
+A clip written before the sequence format (no ``format`` field: the motion's
+fields and ``garment_vertices`` alone) is still read, with the data set's
+template and body.
 Conventions as everywhere in loosefit: metres, Z up, the avatar faces -Y.
-A sequence file is written to ``NAME.partial.npz`` and renamed when complete,
-so a half-written file is never taken for a whole one.
+A sequence file is written to a temporary name and renamed when complete
+(:func:`~loosefit.atomic.atomic_path`), so a half-written file is never taken
+for a whole one.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.fingerprint import same_garment
+from loosefit.sequence import AnimatedGarment
 from loosefit.types import GarmentTemplate, Motion, _check_array, load_npz
 
 FORMAT = "loosefit.dataset/1"
-SEQUENCE_FIELDS = ("joint_names", "rotations", "root_translation", "fps", "garment_vertices")
-
-
-@dataclass
-class Sequence:
-    """One simulated clip.
-
-    Attributes:
-        name: the clip's name (its file stem).
-        motion: the body's motion, T frames.
-        garment_vertices: (T, V, 3) float32 simulated garment, world frame.
-    """
-
-    name: str
-    motion: Motion
-    garment_vertices: np.ndarray
-
-    @property
-    def num_frames(self) -> int:
-        return self.motion.num_frames
+LEGACY_FIELDS = ("joint_names", "rotations", "root_translation", "fps", "garment_vertices")
 
 
 def write_json_atomic(path: Path, data: dict) -> None:
@@ -69,43 +56,51 @@ def _jsonable(x):
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
-def write_sequence(path: Path, seq: Sequence) -> Path:
-    """Write one clip atomically (:func:`~loosefit.atomic.atomic_path`)."""
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        np.savez(
-            tmp,
-            joint_names=np.array(seq.motion.joint_names),
-            rotations=seq.motion.rotations.astype(np.float32),
-            root_translation=seq.motion.root_translation.astype(np.float32),
-            fps=np.float64(seq.motion.fps),
-            garment_vertices=np.asarray(seq.garment_vertices, np.float32),
-            name=np.array(seq.name),
-        )
-    return path
+def write_sequence(path: Path, seq: AnimatedGarment) -> Path:
+    """Write one clip atomically (:meth:`~loosefit.sequence.AnimatedGarment.save`)."""
+    return seq.save(path)
 
 
-def read_sequence(path: Path, template: GarmentTemplate | None = None) -> Sequence:
-    """Read and validate one clip; with ``template``, check its vertex count too.
+def read_sequence(path: Path, template: GarmentTemplate | None = None,
+                  avatar: dict | None = None) -> AnimatedGarment:  # fmt: skip
+    """Read and validate one clip, named after its file; with ``template``, check that it
+    is of that garment.
+
+    A clip in the sequence format is read whole; an earlier data set's clip (no
+    ``format`` field) takes ``template`` and ``avatar`` (the data set's), which it needs.
 
     Raises:
         LoosefitInputError: naming the file and field for a missing field, a
-            wrong shape or dtype, NaN, or a vertex count that is not the template's.
+            wrong shape or dtype, NaN, or another garment than ``template``.
     """
     path = Path(path)
-    d = load_npz(path, "a sequence .npz", SEQUENCE_FIELDS)
+    d = load_npz(path, "a sequence .npz", ())
+    if "format" not in d.files and "garment_vertices" in d.files and template is not None:
+        seq = _read_legacy(path, d, template, avatar or {})
+    else:
+        seq = AnimatedGarment.load(path)
+    if template is not None and not same_garment(seq.garment, template):
+        raise LoosefitInputError(
+            path, "vertices, faces", f"the data set's garment ({template.num_vertices} "
+            "vertices)", f"another garment ({seq.garment.num_vertices} vertices)",
+        )  # fmt: skip
+    seq.motion = replace(seq.motion, name=path.stem)
+    return seq
+
+
+def _read_legacy(path: Path, d, template: GarmentTemplate, avatar: dict) -> AnimatedGarment:
+    missing = sorted(set(LEGACY_FIELDS) - set(d.files))
+    if missing:
+        raise LoosefitInputError(path, ", ".join(missing), "present", "missing")
     gv = d["garment_vertices"]
     T = gv.shape[0] if gv.ndim == 3 else -1
-    V = template.num_vertices if template is not None else None
-    _check_array(str(path), "garment_vertices", gv, (None, V, 3))
-    if gv.dtype != np.float32:
-        raise LoosefitInputError(path, "garment_vertices", "dtype float32", f"dtype {gv.dtype}")
-    for key in ("rotations", "root_translation"):
+    _check_array(str(path), "garment_vertices", gv, (None, template.num_vertices, 3))
+    for key in ("rotations", "root_translation", "garment_vertices"):
         if d[key].dtype != np.float32:
             raise LoosefitInputError(path, key, "dtype float32", f"dtype {d[key].dtype}")
     names = tuple(str(n) for n in d["joint_names"])
     _check_array(str(path), "rotations", d["rotations"], (T, len(names), 3, 3))
-    return Sequence(name=path.stem, motion=Motion.from_npz(d, path), garment_vertices=gv)
+    return AnimatedGarment(Motion.from_npz(d, path), template, gv, avatar, "simulation")
 
 
 class DatasetReader:
@@ -158,9 +153,14 @@ class DatasetReader:
     def sequence_path(self, name: str) -> Path:
         return self.root / "sequences" / f"{name}.npz"
 
-    def read(self, name: str) -> Sequence:
+    @property
+    def avatar(self) -> dict:
+        """The body as a sequence records it: ``{"rig": ..., "shape": {...}}``."""
+        return {"rig": self.body.get("rig", "cmu_mb"), "shape": dict(self.body.get("shape", {}))}
+
+    def read(self, name: str) -> AnimatedGarment:
         """One validated sequence by name."""
         path = self.sequence_path(name)
         if not path.is_file():
             raise LoosefitInputError(self.root, f"sequences/{name}.npz", "present", "missing")
-        return read_sequence(path, self.template)
+        return read_sequence(path, self.template, self.avatar)

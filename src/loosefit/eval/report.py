@@ -11,7 +11,7 @@ from loosefit.data.format import write_json_atomic
 
 
 def rollout_markdown(result: dict, title: str = "Rollout evaluation") -> str:
-    """A table of :func:`loosefit.train.motion.evaluate_rollouts`' result (lengths in cm)."""
+    """A table of :func:`loosefit.eval.rollouts.evaluate_rollouts`' result (lengths in cm)."""
     hs = sorted({h for c in result["clips"].values() for h in c["horizons"]}, key=int)
     surface = "hausdorff_cm" in result
     head = "| clip | frames | RMSE | " + " | ".join(f"iter-{h}" for h in hs)

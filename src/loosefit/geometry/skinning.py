@@ -94,7 +94,7 @@ def root_frame_transforms(
 ) -> torch.Tensor:
     """World skinning transforms expressed in the root frame of each frame.
 
-    With ``x_root = H^T (x_world - p)`` (:mod:`loosefit.model.frames`), a joint's
+    With ``x_root = H^T (x_world - p)`` (:mod:`loosefit.model.motion_features`), a joint's
     transform rest -> root frame is ``[H^T | -H^T p] T``.
 
     Args:

@@ -9,7 +9,7 @@ A conv VAE on the UV map of the garment's vertex positions::
     I_t = uv.sample(D_dyn(z_d))               per-vertex offset from a UV offset map (Eq. 5)
     V_t = T~_t + I_t                          the posed garment                      (Eq. 2)
 
-Garments live in the body's root frame (see :mod:`loosefit.model.frames`), so
+Garments live in the body's root frame (see :mod:`loosefit.model.motion_features`), so
 the latent space holds the deformation, not where the dancer stands or faces.
 ``D_rec`` predicts the displacement of the unposed garment from the template
 ``T`` rather than absolute positions (the same function, easier to start).

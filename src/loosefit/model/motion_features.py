@@ -17,8 +17,15 @@ Velocities at frame 0 are 0: motions start standing still (the rollout's and
 the simulator's preroll blend from the rest pose). None of the features
 change when the whole motion is moved on the floor or turned about the
 vertical, so the encoder generalises over where the dancer stands and which
-way they face; the garment is predicted in the same root frame
-(:mod:`loosefit.model.frames`).
+way they face; the garment is predicted in the same root frame.
+
+**Root frame.** A garment enters the models in the body's root frame with the
+dancer's global translation and heading taken out: ``x_root = H^T (x_world - p)``
+where ``p`` is the root joint's world position and ``H`` the rotation about +Z
+by the heading (the yaw of the pelvis's forward direction, -Y at rest). The
+pelvis's tilt and roll stay in, so the garment still sees the hips bend. The
+latent space then spends nothing on where the dancer stands or which way they
+face; decoded garments go back with :func:`from_root_frame`.
 """
 
 from __future__ import annotations
@@ -103,7 +110,7 @@ def root_frames(
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """The root frame of every frame: heading H (T, 3, 3) and origin p (T, 3).
 
-    The same frames as :func:`loosefit.model.frames.heading_frames` of the root's
+    The same frames as :func:`heading_frames` of the root's
     skinning transform, computed from the motion alone.
 
     Args:

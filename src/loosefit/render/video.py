@@ -1,9 +1,9 @@
 """Write rendered frames to disk: H.264 MP4, numbered PNGs, and contact sheets.
 
-Writers are atomic: an MP4 is encoded into ``<name>.partial.mp4`` and renamed
-over ``<name>.mp4`` only once every frame is in, and each PNG is written to a
-temporary name first, so an interrupted or failed run never leaves a file that
-looks complete. On an exception the partial file is deleted.
+Writers are atomic (:func:`~loosefit.atomic.atomic_path`): an MP4 is encoded into a
+temporary file and renamed over ``<name>.mp4`` only once every frame is in, and each PNG
+is written to a temporary name first, so an interrupted or failed run never leaves a
+file that looks complete. On an exception the temporary file is deleted.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 from tqdm.auto import tqdm
 
+from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
 
 
@@ -90,52 +91,51 @@ def write_video(
     if not 0 <= crf <= 51:
         raise LoosefitInputError(path, "crf", "an integer in [0, 51]", repr(crf))
     path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_suffix(".partial.mp4")
     writer = None
     count = 0
     bar = tqdm(total=_total(frames, total), disable=not progress, unit="frame", desc=path.name)
     try:
-        size = None
-        for frame in frames:
-            frame = _check_frame(frame, count, size)
-            if writer is None:
-                size = frame.shape[:2]
-                h, w = _pad_even(frame).shape[:2]
-                writer = imageio_ffmpeg.write_frames(
-                    str(partial),
-                    (w, h),
-                    fps=fps,
-                    codec="libx264",
-                    quality=None,  # rate control is by -crf below
-                    pix_fmt_in="rgb24",
-                    pix_fmt_out="yuv420p",
-                    macro_block_size=1,  # we pad to even sizes ourselves; never rescale
-                    output_params=[
-                        "-crf",
-                        str(int(crf)),
-                        "-preset",
-                        preset,
-                        "-movflags",
-                        "+faststart",
-                    ],
-                )
-                writer.send(None)  # start ffmpeg
-            writer.send(_pad_even(frame))
-            count += 1
-            bar.update(1)
-        if writer is None:
-            raise LoosefitInputError(path, "frames", "at least one frame", "none")
-        writer.close()
-        writer = None
-        os.replace(partial, path)
-    except BaseException:
-        if writer is not None:
+        with atomic_path(path) as partial:
             try:
+                size = None
+                for frame in frames:
+                    frame = _check_frame(frame, count, size)
+                    if writer is None:
+                        size = frame.shape[:2]
+                        h, w = _pad_even(frame).shape[:2]
+                        writer = imageio_ffmpeg.write_frames(
+                            str(partial),
+                            (w, h),
+                            fps=fps,
+                            codec="libx264",
+                            quality=None,  # rate control is by -crf below
+                            pix_fmt_in="rgb24",
+                            pix_fmt_out="yuv420p",
+                            macro_block_size=1,  # we pad to even sizes ourselves; never rescale
+                            output_params=[
+                                "-crf",
+                                str(int(crf)),
+                                "-preset",
+                                preset,
+                                "-movflags",
+                                "+faststart",
+                            ],  # fmt: skip
+                        )
+                        writer.send(None)  # start ffmpeg
+                    writer.send(_pad_even(frame))
+                    count += 1
+                    bar.update(1)
+                if writer is None:
+                    raise LoosefitInputError(path, "frames", "at least one frame", "none")
                 writer.close()
-            except Exception:  # noqa: BLE001 - already failing; the original error matters
-                pass
-        partial.unlink(missing_ok=True)
-        raise
+                writer = None
+            except BaseException:
+                if writer is not None:
+                    try:
+                        writer.close()
+                    except Exception:  # noqa: BLE001 - already failing; the original error matters
+                        pass
+                raise
     finally:
         bar.close()
     return path
@@ -174,13 +174,8 @@ def write_frames_png(
         for i, frame in enumerate(frames):
             frame = _check_frame(frame, i, None)
             path = folder / pattern.format(start + i)
-            tmp = path.with_name(path.name + ".partial")
-            try:
+            with atomic_path(path) as tmp:
                 Image.fromarray(frame).save(tmp, format="PNG")
-                os.replace(tmp, path)
-            except BaseException:
-                tmp.unlink(missing_ok=True)
-                raise
             paths.append(path)
             bar.update(1)
     return paths

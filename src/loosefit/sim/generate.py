@@ -28,9 +28,11 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from loosefit.data.format import FORMAT, Sequence, write_json_atomic, write_sequence
+from loosefit.atomic import atomic_path
+from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.skirt import SkirtConfig
+from loosefit.sequence import AnimatedGarment
 from loosefit.sim.cloth import PENETRATION_TOLERANCE, ClothConfig, SimulationError, simulate
 
 
@@ -311,8 +313,10 @@ def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
         return entry
     write_sequence(
         Path(out_dir) / "sequences" / f"{job.name}.npz",
-        Sequence(job.name, motion, result.garment_vertices),
-    )
+        AnimatedGarment(dataclasses.replace(motion, name=job.name), template,
+                        result.garment_vertices,
+                        {"rig": avatar.config.rig, "shape": dict(avatar.shape)}, "newton-vbd"),
+    )  # fmt: skip
     qual = {k: v for k, v in result.quality.items() if np.isscalar(v)}
     lim = config.limits
     problems = []
@@ -463,14 +467,11 @@ def adopt_clips(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Pat
             continue  # fmt: skip
         src = source / "sequences" / f"{job.name}.npz"
         if entry.get("status") == "done" and src.is_file():
-            dst = out / "sequences" / f"{job.name}.npz"
-            partial = dst.with_suffix(".partial.npz")
-            partial.unlink(missing_ok=True)
-            try:
-                os.link(src, partial)
-            except OSError:
-                shutil.copyfile(src, partial)
-            os.replace(partial, dst)
+            with atomic_path(out / "sequences" / f"{job.name}.npz") as tmp:
+                try:
+                    os.link(src, tmp)
+                except OSError:
+                    shutil.copyfile(src, tmp)
         elif entry.get("status") != "flagged":
             continue  # neither finished nor flagged there: simulate it here
         # a flagged clip is taken as flagged: the simulation is deterministic

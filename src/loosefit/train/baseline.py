@@ -24,43 +24,36 @@ import torch
 
 from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
-from loosefit.geometry.collision import CollisionConfig, PushOutHandler
+from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.geometry.skinning import root_frame_transforms
+from loosefit.inference.animator import BaselineModel, load_baseline
+from loosefit.inference.checkpoints import (
+    BASELINE_FORMAT,
+    garment_record,
+    read_checkpoint_file,
+    save_atomic,
+)
 from loosefit.model.baselines import (
     BaselineConfig,
     BaselineLossConfig,
     BaselineNetwork,
     baseline_loss,
-    baseline_rollout,
     body_joint_weights,
 )
-from loosefit.model.frames import avatar_for, garment_fingerprint
 from loosefit.model.motion_features import feature_joints, num_features
-from loosefit.model.rollout import RolloutConfig, Stages, collision_record
+from loosefit.model.rollout import RolloutConfig, Stages
 from loosefit.train.common import (
     apply_overrides,
     epoch_means,
     machine,
     open_run,
     optimizer_step,
-    read_checkpoint_file,
     restore_training,
-    save_atomic,
-    template_dict,
-    template_from_dict,
 )
-from loosefit.train.motion import (
-    Clip,
-    avatar_of,
-    body_collider,
-    check_motion_joints,
-    evaluate_rollouts,
-    pad_frames,
-    prepare_clips,
-)
-from loosefit.types import GarmentTemplate, Motion
+from loosefit.train.frames import avatar_for
+from loosefit.train.motion import Clip, pad_frames, prepare_clips
 
-CHECKPOINT_FORMAT = "loosefit.baseline/1"
+CHECKPOINT_FORMAT = BASELINE_FORMAT
 
 
 @dataclass
@@ -113,136 +106,13 @@ class TrainBaselineConfig:
         return cls(**d)
 
 
-# -- the rollout interface ---------------------------------------------------------------
-
-
-@dataclass
-class BaselineModel:
-    """A trained baseline with the animate() of :class:`~loosefit.train.motion.AnimationModel`,
-    so that ``loosefit animate``/``evaluate`` and the benchmarks run it alike.
-
-    ``stages.collision`` runs Santesteban et al.'s post-process (every vertex closer
-    to the body than ``collision.epsilon`` pushed out along the body's normal);
-    virtual bones have none (Pan et al. have none). There is no detail stage.
-    """
-
-    network: BaselineNetwork
-    template: GarmentTemplate
-    joint_names: tuple[str, ...]
-    floor_height: float
-    fps: float
-    body: dict
-    config: TrainBaselineConfig
-    path: Path
-    arm_collision: bool = False
-    collision: CollisionConfig = field(default_factory=CollisionConfig)
-    stages: Stages = field(default_factory=Stages)
-    detail: None = None  # no detail stage (what the CLI asks of every model)
-    _avatar: object = None
-
-    @property
-    def method(self) -> str:
-        return self.network.method
-
-    @property
-    def device(self) -> torch.device:
-        return self.network.rest.device
-
-    @property
-    def post_process(self) -> bool:
-        """Whether the method has a collision post-process (Santesteban's push-out)."""
-        return self.method == "santesteban"
-
-    def avatar(self):
-        if self._avatar is None:
-            self._avatar = avatar_of(self.body)
-        return self._avatar
-
-    def check_motion(self, motion: Motion) -> None:
-        check_motion_joints(motion, self.joint_names, self.path)
-
-    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
-                stages: Stages | None = None):  # fmt: skip
-        """The garment through ``motion`` (T, V, 3) world positions, a
-        :class:`~loosefit.model.rollout.RolloutResult`; then the post-process where the
-        method has one and ``stages.collision``. ``truth``/``restart_every`` do not
-        apply (no previous garment is fed back) and are refused."""
-        if restart_every is not None:
-            raise LoosefitInputError("BaselineModel.animate", "restart_every",
-                                     "None (a baseline never sees the previous garment)",
-                                     restart_every)  # fmt: skip
-        self.check_motion(motion)
-        stages = stages or self.stages
-        pose = None
-        if self.method == "santesteban":
-            avatar = self.avatar()
-            rot = torch.from_numpy(motion.rotations)
-            root = torch.from_numpy(motion.root_translation)
-
-            def pose(s: int, e: int) -> torch.Tensor:
-                return avatar.pose(rot[s:e], root[s:e]).joint_transforms
-
-        result = baseline_rollout(self.network, motion, self.floor_height, self.config.rollout,
-                                  pose, progress)  # fmt: skip
-        result.stage_seconds = {"motion": result.seconds}
-        if stages.collision and self.post_process:
-            t0 = time.perf_counter()
-            handler = PushOutHandler(self.template.faces, self.template.num_vertices,
-                                     self.collision.epsilon, self.collision.reach)  # fmt: skip
-            collide = body_collider(self.avatar(), handler, motion, self.arm_collision,
-                                    self.device)  # fmt: skip
-            result.decoded = result.vertices.copy()
-            result.collisions = []
-            for t in range(motion.num_frames):
-                r = collide(t, torch.from_numpy(result.decoded[t]))
-                result.vertices[t] = r.vertices.numpy()
-                result.collisions.append(collision_record(r))
-            result.stage_seconds["collision"] = time.perf_counter() - t0
-            result.seconds += result.stage_seconds["collision"]
-        return result
-
-
 # -- checkpoints ----------------------------------------------------------------------------
 
 
 def save_checkpoint(path: Path, network: BaselineNetwork, meta: dict, **state) -> None:
     """Write a checkpoint atomically."""
-    save_atomic({"format": CHECKPOINT_FORMAT, **meta, "model": network.state_dict(), **state},
+    save_atomic({"format": BASELINE_FORMAT, **meta, "model": network.state_dict(), **state},
                 path)  # fmt: skip
-
-
-def _read(path: Path, device) -> dict:
-    return read_checkpoint_file(path, CHECKPOINT_FORMAT, device, {
-        "loosefit.motion/1": "this is our motion stage; load it with load_pipeline",
-        "loosefit.generative/1": "this is a generative stage, not a baseline",
-    })  # fmt: skip
-
-
-def load_baseline(path: str | Path, device="cpu") -> BaselineModel:
-    """A trained baseline from a run's ``model.pt`` or ``checkpoint.pt``.
-
-    Raises:
-        LoosefitInputError: not a baseline checkpoint, or weights that do not fit the
-            configuration it records.
-    """
-    path = Path(path)
-    data = _read(path, device)
-    config = TrainBaselineConfig.from_dict(data["config"])
-    template = template_from_dict(data["garment"]["template"])
-    V, K = template.num_vertices, int(data["influences"])
-    network = BaselineNetwork(config.model, int(data["num_features"]), torch.zeros(V, 3),
-                              torch.zeros(V, K))  # fmt: skip
-    try:
-        network.load_state_dict({k: v.float() if v.is_floating_point() else v
-                                 for k, v in data["model"].items()})  # fmt: skip
-    except RuntimeError as exc:
-        raise LoosefitInputError(path, "model", "weights of this baseline's configuration",
-                                 str(exc).splitlines()[0]) from exc  # fmt: skip
-    return BaselineModel(
-        network.to(device).eval(), template, tuple(data["joint_names"]),
-        float(data["floor_height"]), float(data["fps"]), dict(data["body"]), config, path,
-        arm_collision=bool((data.get("cloth") or {}).get("arm_collision", False)),
-    )  # fmt: skip
 
 
 # -- the data ---------------------------------------------------------------------------------
@@ -378,11 +248,9 @@ def train_baseline(
                               bone_mean).to(config.device)  # fmt: skip
     optim = torch.optim.Adam(network.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     meta = {
+        "model_config": {"network": asdict(config.model), "rollout": asdict(config.rollout)},
         "config": config.to_dict(),
-        "garment": {
-            "fingerprint": garment_fingerprint(template.vertices, template.faces),
-            "template": template_dict(template),
-        },  # fmt: skip
+        "garment": garment_record(template),
         "num_features": F,
         "influences": int(weights.shape[1]),
         "joint_names": list(joint_names),
@@ -394,15 +262,16 @@ def train_baseline(
     }
     epoch, history = 0, []
     if ckpt_path.is_file():
-        epoch, history = restore_training(_read(ckpt_path, config.device),
-                                          {"model": network, "optimizer": optim}, gen)  # fmt: skip
+        saved = read_checkpoint_file(ckpt_path, BASELINE_FORMAT, config.device)
+        epoch, history = restore_training(saved, {"model": network, "optimizer": optim}, gen)
         log(f"resumed {ckpt_path} at epoch {epoch}")
 
     arms = bool((meta["cloth"] or {}).get("arm_collision", False))
 
     def current() -> BaselineModel:
         return BaselineModel(network, template, tuple(joint_names), floor, meta["fps"],
-                             dict(reader.body), config, ckpt_path, arm_collision=arms)  # fmt: skip
+                             dict(reader.body), config.rollout, ckpt_path,
+                             arm_collision=arms)  # fmt: skip
 
     writer = SummaryWriter(str(out))
     bar = tqdm(total=config.epochs, initial=epoch, desc=f"train {method}", unit="epoch",

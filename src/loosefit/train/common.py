@@ -1,4 +1,7 @@
-"""What the training stages share: run folders, atomic checkpoints, garment templates."""
+"""What the training stages share: run folders, the optimiser step, resuming.
+
+Checkpoint files are :mod:`loosefit.inference.checkpoints`'s.
+"""
 
 from __future__ import annotations
 
@@ -10,10 +13,8 @@ from pathlib import Path
 
 import torch
 
-from loosefit.atomic import atomic_path
 from loosefit.data.format import write_json_atomic
 from loosefit.errors import LoosefitInputError
-from loosefit.types import GarmentTemplate
 
 
 def optimizer_step(optim: torch.optim.Optimizer, parameters, terms: dict, grad_clip: float,
@@ -48,20 +49,6 @@ def apply_overrides(config, overrides: dict):
     return config
 
 
-def template_dict(t: GarmentTemplate) -> dict:
-    """A garment template as plain arrays, for a checkpoint."""
-    return {
-        "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
-        "waist": t.waist, "name": t.name,
-    }  # fmt: skip
-
-
-def template_from_dict(g: dict) -> GarmentTemplate:
-    """The inverse of :func:`template_dict`."""
-    return GarmentTemplate(g["vertices"], g["faces"], g["uvs"], g["face_uvs"], g["waist"],
-                           g["name"])  # fmt: skip
-
-
 def restore_training(saved: dict, states: dict, sampling: torch.Generator | None = None
                      ) -> tuple[int, list]:  # fmt: skip
     """Resume from a training checkpoint: ``states`` maps its keys to the modules and
@@ -73,58 +60,6 @@ def restore_training(saved: dict, states: dict, sampling: torch.Generator | None
     if sampling is not None:
         sampling.set_state(saved["sampling_rng"])
     return saved["epoch"], saved["history"]
-
-
-def recorded_checkpoint(path: Path, recorded: dict, given: str | Path | None, field: str,
-                        what: str, hint: str | None = None) -> Path:  # fmt: skip
-    """The checkpoint a checkpoint was trained on: ``given``, or the one it records
-    (``recorded["relative"]`` to ``path``'s folder first, then ``recorded["absolute"]``).
-
-    Raises:
-        LoosefitInputError: naming ``path``, ``field`` and every candidate, when none exists.
-    """
-    if given is not None:
-        candidates = [Path(given)]
-    else:
-        candidates = [path.parent / recorded["relative"]]
-        candidates += [Path(recorded["absolute"])] if recorded.get("absolute") else []
-    found = next((c for c in candidates if c.is_file()), None)
-    if found is None:
-        found_text = f"none of {[str(c) for c in candidates]} exists"
-        raise LoosefitInputError(path, field, what, found_text, hint=hint)
-    return found
-
-
-def save_atomic(data: dict, path: Path) -> None:
-    """``torch.save`` to a temporary file, then a rename: never a half-written checkpoint."""
-    with atomic_path(Path(path)) as tmp:
-        torch.save(data, tmp)
-
-
-def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict | None = None):
-    """A checkpoint's dict, checked to carry ``format == fmt``.
-
-    Args:
-        path: the file.
-        fmt: the expected format string.
-        device: ``map_location``.
-        hints: a hint to show per format found instead (another stage's checkpoint).
-
-    Raises:
-        LoosefitInputError: a missing or unreadable file, or another format.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
-    try:
-        data = torch.load(path, map_location=device, weights_only=False)
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
-        raise LoosefitInputError(path, "<file>", "a torch checkpoint", str(exc)) from exc
-    found = data.get("format") if isinstance(data, dict) else None
-    if found != fmt:
-        raise LoosefitInputError(path, "format", repr(fmt), repr(found),
-                                 hint=(hints or {}).get(found))  # fmt: skip
-    return data
 
 
 def open_run(out: Path, stored: dict) -> None:

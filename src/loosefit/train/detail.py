@@ -33,8 +33,16 @@ import torch
 from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.fingerprint import same_garment
 from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.laplacian import Laplacian
+from loosefit.inference.animator import (
+    AnimationModel,
+    load_animation_model,
+    load_detail_model,
+    stage_fingerprints,
+)
+from loosefit.inference.checkpoints import DETAIL_FORMAT, read_checkpoint_file, save_atomic
 from loosefit.model.detail import (
     DetailConfig,
     DetailGenerator,
@@ -44,20 +52,12 @@ from loosefit.model.detail import (
     lsgan_discriminator_loss,
     lsgan_generator_loss,
 )
-from loosefit.model.frames import garment_fingerprint, same_garment, to_root_frame
+from loosefit.model.motion_features import to_root_frame
 from loosefit.model.rollout import MOTION_ONLY, Stages, motion_root_frames
-from loosefit.train.common import (
-    apply_overrides,
-    machine,
-    open_run,
-    read_checkpoint_file,
-    recorded_checkpoint,
-    restore_training,
-    save_atomic,
-)
-from loosefit.train.motion import AnimationModel, load_animation_model, model_fingerprint
+from loosefit.train.common import apply_overrides, machine, open_run, restore_training
+from loosefit.train.motion import training_config
 
-CHECKPOINT_FORMAT = "loosefit.detail/1"
+CHECKPOINT_FORMAT = DETAIL_FORMAT
 
 
 @dataclass
@@ -169,77 +169,13 @@ def rollout_pairs(
         for label, m, v in versions:
             t0 = time.perf_counter()
             result = model.animate(m, stages=MOTION_ONLY)
-            H, p, _ = motion_root_frames(m, model.floor_height, model.config.rollout)
+            H, p, _ = motion_root_frames(m, model.floor_height, model.rollout_config)
             decoded.append(to_root_frame(torch.from_numpy(result.vertices), H, p))
             target.append(to_root_frame(torch.as_tensor(np.asarray(v, np.float32)), H, p))
             codes.append(torch.from_numpy(result.codes))
             clips.append(label)
             log(f"rolled out {label}: {m.num_frames} frames in {time.perf_counter() - t0:.1f} s")
     return DetailPairs(torch.cat(decoded), torch.cat(codes), torch.cat(target), clips)
-
-
-# -- checkpoints -----------------------------------------------------------------------------
-
-
-def _read(path: Path, device) -> dict:
-    return read_checkpoint_file(path, CHECKPOINT_FORMAT, device, {
-        "loosefit.motion/1": "this is the motion stage; pass the detail stage's checkpoint",
-        "loosefit.generative/1": "this is the generative stage; pass the detail stage's checkpoint",
-    })  # fmt: skip
-
-
-def stage_fingerprints(model: AnimationModel) -> dict:
-    """What a detail stage is tied to: the motion stage's weights and the garment."""
-    t = model.template
-    return {"motion": model_fingerprint(model.encoder),
-            "garment": garment_fingerprint(t.vertices, t.faces)}  # fmt: skip
-
-
-def attach_detail(model: AnimationModel, path: str | Path) -> AnimationModel:
-    """Load a detail checkpoint into ``model`` (``model.detail``), checked to belong to it.
-
-    Raises:
-        LoosefitInputError: not a detail checkpoint, or one trained on another garment or
-            another motion stage (the message names both fingerprints).
-    """
-    path = Path(path)
-    data = _read(path, model.device)
-    have = stage_fingerprints(model)
-    for key, what in (("garment", "garment"), ("motion", "motion stage")):
-        if data["fingerprints"][key] != have[key]:
-            raise LoosefitInputError(
-                path, f"fingerprints.{key}", f"the {what} of {model.path.name} "
-                f"(fingerprint {have[key]})",
-                f"a detail stage trained on another {what} "
-                f"(fingerprint {data['fingerprints'][key]})",
-            )  # fmt: skip
-    cfg = DetailConfig(**data["config"]["model"])
-    g = DetailGenerator(model.template.faces, model.template.num_vertices,
-                        model.encoder.latent, cfg).to(model.device)  # fmt: skip
-    try:
-        g.load_state_dict({k: v.float() for k, v in data["model"].items()})
-    except RuntimeError as exc:
-        raise LoosefitInputError(path, "model", "weights of this detail configuration",
-                                 str(exc).splitlines()[0]) from exc  # fmt: skip
-    model.detail = g.eval()
-    for prm in g.parameters():
-        prm.requires_grad_(False)
-    return model
-
-
-def load_detail_model(
-    path: str | Path,
-    motion: str | Path | None = None,
-    generative: str | Path | None = None,
-    device="cpu",
-) -> AnimationModel:
-    """All three learned stages from a detail checkpoint (and the motion stage it records)."""
-    path = Path(path)
-    data = _read(path, "cpu")
-    mpath = recorded_checkpoint(path, data["motion_checkpoint"], motion, "motion",
-                                "the motion checkpoint it was trained on")  # fmt: skip
-    model = load_animation_model(mpath, generative, device)
-    return attach_detail(model, path)
 
 
 # -- training --------------------------------------------------------------------------------
@@ -279,7 +215,10 @@ def train_detail(
     if not same_garment(model.template, reader.template):
         raise LoosefitInputError(reader.root, "template", f"the garment {mpath.name} was "
                                  "trained on", "another garment")  # fmt: skip
-    mirror = model.config.mirror if config.mirror is None else config.mirror
+    mirror = config.mirror
+    if mirror is None:  # as the motion stage was trained (a packaged one: not mirrored)
+        trained = training_config(mpath)
+        mirror = bool(trained is not None and trained.mirror)
     open_run(out, {"dataset": str(Path(data).resolve()), "motion": fingerprints["motion"],
                    "train": config.to_dict()})  # fmt: skip
     torch.manual_seed(config.seed)
@@ -308,6 +247,7 @@ def train_detail(
     opt_d = torch.optim.Adam(D.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     ckpt_path = out / "checkpoint.pt"
     meta = {
+        "model_config": asdict(config.model),
         "config": config.to_dict(),
         "fingerprints": fingerprints,
         "motion_checkpoint": {
@@ -319,7 +259,7 @@ def train_detail(
     epoch, history = 0, []
     if ckpt_path.is_file():
         epoch, history = restore_training(
-            _read(ckpt_path, dev),
+            read_checkpoint_file(ckpt_path, DETAIL_FORMAT, dev),
             {"model": G, "discriminator": D, "optimizer": opt_g, "optimizer_discriminator": opt_d},
             gen,
         )  # fmt: skip
@@ -435,50 +375,3 @@ def format_report(report: dict) -> str:
         + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
         "",
     ])  # fmt: skip
-
-
-def load_pipeline(path: str | Path, generative: str | Path | None = None,
-                  detail: str | Path | None = None, device="cpu") -> AnimationModel:  # fmt: skip
-    """Every learned stage for ``loosefit animate`` / ``evaluate`` from one checkpoint.
-
-    ``path`` is a motion-stage checkpoint (a packaged set's ``motion.pt`` takes the
-    ``detail.pt`` beside it, if there is one) or a detail checkpoint (with the motion
-    stage it records); ``detail`` names a detail checkpoint explicitly. A baseline's
-    checkpoint (:mod:`loosefit.train.baseline`) gives that baseline, which animates alike.
-    """
-    path = Path(path)
-    fmt = None
-    if path.is_file():
-        try:
-            fmt = torch.load(path, map_location="cpu", weights_only=False).get("format")
-        except Exception:  # noqa: BLE001 - the loaders below give the clear error
-            fmt = None
-    if fmt == CHECKPOINT_FORMAT:
-        return load_detail_model(path, None, generative, device)
-    from loosefit.train.baseline import CHECKPOINT_FORMAT as BASELINE_FORMAT
-    from loosefit.train.baseline import load_baseline
-
-    if fmt == BASELINE_FORMAT:
-        return load_baseline(path, device)
-    model = load_animation_model(path, generative, device)
-    beside = path.parent / "detail.pt"
-    if detail is None and path.name == "motion.pt" and beside.is_file():
-        detail = beside
-    return attach_detail(model, detail) if detail is not None else model
-
-
-def package_detail(path: str | Path, out: str | Path) -> Path:
-    """A detail stage into a packaged set (``out/detail.pt``, beside the ``motion.pt`` that
-    :func:`~loosefit.train.motion.package_model` wrote): the generator, half precision,
-    pointing at ``motion.pt`` by a relative path."""
-    path, out = Path(path), Path(out)
-    data = _read(path, "cpu")
-    model = load_animation_model(out / "motion.pt")
-    attach_detail(model, path)  # checks that it belongs to the packaged motion stage
-    keep = ("format", "config", "fingerprints", "epoch")
-    packed = {k: data[k] for k in keep if k in data}
-    packed["model"] = {k: v.half() for k, v in data["model"].items()}
-    packed["motion_checkpoint"] = {"relative": "motion.pt", "absolute": None}
-    dout = out / "detail.pt"
-    save_atomic(packed, dout)
-    return dout

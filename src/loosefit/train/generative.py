@@ -28,12 +28,12 @@ from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import hausdorff, rmse, sted
 from loosefit.geometry.inverse_skinning import InverseSkinningConfig
 from loosefit.geometry.laplacian import Laplacian
-from loosefit.model.frames import (
-    PreparedFrames,
-    avatar_for,
-    garment_fingerprint,
-    prepare_split,
-    same_garment,
+from loosefit.inference.checkpoints import (
+    GENERATIVE_FORMAT,
+    garment_record,
+    load_generative,
+    read_generative,
+    save_atomic,
 )
 from loosefit.model.generative import (
     GarmentGenerativeModel,
@@ -41,19 +41,11 @@ from loosefit.model.generative import (
     GenerativeLossConfig,
     generative_loss,
 )
-from loosefit.train.common import (
-    apply_overrides,
-    machine,
-    open_run,
-    read_checkpoint_file,
-    restore_training,
-    save_atomic,
-    template_dict,
-    template_from_dict,
-)
+from loosefit.train.common import apply_overrides, machine, open_run, restore_training
+from loosefit.train.frames import PreparedFrames, avatar_for, prepare_split
 from loosefit.types import GarmentTemplate
 
-CHECKPOINT_FORMAT = "loosefit.generative/1"
+CHECKPOINT_FORMAT = GENERATIVE_FORMAT
 
 
 @dataclass
@@ -118,49 +110,21 @@ class TrainGenerativeConfig:
 
 def save_checkpoint(path: Path, model: GarmentGenerativeModel, template: GarmentTemplate,
                     config: TrainGenerativeConfig, **state) -> None:  # fmt: skip
-    """Write a checkpoint atomically (a temporary file, then a rename)."""
+    """Write a checkpoint atomically (a temporary file, then a rename): the model's
+    configuration and weights, the garment, and the training configuration (to resume)."""
     data = {
-        "format": CHECKPOINT_FORMAT,
+        "format": GENERATIVE_FORMAT,
+        "model_config": asdict(config.model),
         "config": config.to_dict(),
-        "garment": {
-            "fingerprint": garment_fingerprint(template.vertices, template.faces),
-            "template": template_dict(template),
-        },
+        "garment": garment_record(template),
         "model": model.state_dict(),
         **state,
     }
     save_atomic(data, path)
 
 
-def read_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
-    """A checkpoint's contents, checked to be a generative model's (of ``template``'s garment).
-
-    Returns:
-        The checkpoint dict and the garment template it holds.
-
-    Raises:
-        LoosefitInputError: not a generative-model checkpoint, or another garment.
-    """
-    path = Path(path)
-    data = read_checkpoint_file(path, CHECKPOINT_FORMAT, device, {
-        "loosefit.motion/1": "this is the motion stage; pass the generative stage's checkpoint"
-    })  # fmt: skip
-    stored = template_from_dict(data["garment"]["template"])
-    if template is not None:
-        want = garment_fingerprint(template.vertices, template.faces)
-        if not same_garment(template, stored):
-            raise LoosefitInputError(
-                path, "garment", f"the garment '{template.name}' ({template.num_vertices} "
-                f"vertices, fingerprint {want})",
-                f"'{stored.name}' ({stored.num_vertices} vertices, fingerprint "
-                f"{data['garment']['fingerprint']})",
-                hint="train a model on this garment's dataset",
-            )  # fmt: skip
-    return data, stored
-
-
 def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
-    """A trained generative model from a checkpoint.
+    """A generative run's checkpoint: the model and its training configuration.
 
     Args:
         path: the ``checkpoint.pt`` of a run.
@@ -171,23 +135,17 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
         (model in eval mode, its :class:`TrainGenerativeConfig`, the raw checkpoint dict).
 
     Raises:
-        LoosefitInputError: not a generative-model checkpoint, another garment, or
-            weights that do not fit the configuration it records.
+        LoosefitInputError: not a generative-model checkpoint, another garment, weights
+            that do not fit, or no training configuration (a packaged ``generative.pt``:
+            :func:`~loosefit.inference.checkpoints.load_generative` reads those).
     """
-    data, stored = read_checkpoint(path, template, device)
-    config = TrainGenerativeConfig.from_dict(data["config"])
-    ssdr = None
-    if config.model.decoder == "ssdr":
-        m = data["model"]
-        B = m["ssdr_weights"].shape[1]
-        ssdr = (m["ssdr_rest"].float().cpu(), m["ssdr_weights"].float().cpu(), torch.zeros(B, 3, 4))
-    model = GarmentGenerativeModel(stored, config.model, ssdr=ssdr).to(device)
-    try:
-        model.load_state_dict(data["model"])
-    except RuntimeError as exc:
-        raise LoosefitInputError(path, "model", "weights of this model's configuration",
-                                 str(exc).splitlines()[0]) from exc  # fmt: skip
-    return model.eval(), config, data
+    model, data = load_generative(path, template, device)
+    if "config" not in data:
+        raise LoosefitInputError(path, "config", "a training run's configuration",
+                                 "none (a packaged model)",
+                                 hint="load it with loosefit.inference.checkpoints."
+                                 "load_generative")  # fmt: skip
+    return model, TrainGenerativeConfig.from_dict(data["config"]), data
 
 
 # -- evaluation ---------------------------------------------------------------------
@@ -297,7 +255,7 @@ def train_generative(
     optim = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     epoch, history = 0, []
     if ckpt_path.is_file():
-        data_, _ = read_checkpoint(ckpt_path, template, device)
+        data_, _ = read_generative(ckpt_path, template, device)
         epoch, history = restore_training(data_, {"model": model, "optimizer": optim})
         log(f"resumed {ckpt_path} at epoch {epoch}")
 

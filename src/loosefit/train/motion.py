@@ -25,7 +25,6 @@ learned simulators).
 
 from __future__ import annotations
 
-import hashlib
 import os
 import resource
 import time
@@ -38,10 +37,18 @@ import torch
 from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
-from loosefit.geometry.collision import BodyCollider, CollisionConfig, CollisionHandler
+from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.geometry.laplacian import Laplacian
-from loosefit.model.frames import avatar_for, garment_fingerprint, to_root_frame
+from loosefit.inference.animator import AnimationModel, load_animation_model
+from loosefit.inference.checkpoints import (
+    MOTION_FORMAT,
+    garment_record,
+    half_weights,
+    load_generative,
+    model_fingerprint,
+    read_checkpoint_file,
+    save_atomic,
+)
 from loosefit.model.generative import GarmentGenerativeModel, squared_error
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
 from loosefit.model.motion_features import (
@@ -49,16 +56,13 @@ from loosefit.model.motion_features import (
     motion_features,
     num_features,
     root_frames,
+    to_root_frame,
 )
 from loosefit.model.rollout import (
     MOTION_ONLY,
     RolloutConfig,
-    Stages,
-    carried_drape,
     change_frame,
     latent_codes,
-    reconstruction,
-    rollout,
     timeline,
 )
 from loosefit.train.common import (
@@ -67,18 +71,12 @@ from loosefit.train.common import (
     machine,
     open_run,
     optimizer_step,
-    read_checkpoint_file,
-    recorded_checkpoint,
     restore_training,
-    save_atomic,
-    template_dict,
-    template_from_dict,
 )
-from loosefit.train.generative import load_checkpoint as load_generative
-from loosefit.types import GarmentTemplate, Motion
+from loosefit.train.frames import avatar_for
+from loosefit.types import Motion
 
-CHECKPOINT_FORMAT = "loosefit.motion/1"
-HORIZONS = (100, 500, 1200)  # the paper's Table 1: iter-100, iter-500, iter-1200
+CHECKPOINT_FORMAT = MOTION_FORMAT
 
 
 @dataclass
@@ -281,331 +279,20 @@ def rest_state_for(reader: DatasetReader, fps: float) -> torch.Tensor:
     return torch.from_numpy(settle(avatar_for(reader), reader.template, ClothConfig(**cloth), fps))
 
 
-# -- fingerprints and checkpoints ----------------------------------------------------
-
-
-def model_fingerprint(model: torch.nn.Module) -> str:
-    """A short hash of a model's weights, rounded to half precision (as shared checkpoints are)."""
-    h = hashlib.sha256()
-    for k, v in sorted(model.state_dict().items()):
-        h.update(k.encode())
-        h.update(v.detach().cpu().half().numpy().tobytes() if v.is_floating_point()
-                 else v.detach().cpu().numpy().tobytes())  # fmt: skip
-    return h.hexdigest()[:16]
+# -- checkpoints -----------------------------------------------------------------------
 
 
 def save_checkpoint(path: Path, encoder: DynamicMotionEncoder, meta: dict, half: bool = False,
                     **state) -> None:  # fmt: skip
     """Write a checkpoint atomically; ``half`` stores floating weights in half precision."""
-    weights = {
-        k: (v.half() if half and v.is_floating_point() else v)
-        for k, v in encoder.state_dict().items()
-    }
-    save_atomic({"format": CHECKPOINT_FORMAT, **meta, "model": weights, **state}, path)
+    weights = half_weights(encoder.state_dict()) if half else encoder.state_dict()
+    save_atomic({"format": MOTION_FORMAT, **meta, "model": weights, **state}, path)
 
 
-def _read(path: Path, device) -> dict:
-    return read_checkpoint_file(path, CHECKPOINT_FORMAT, device, {
-        "loosefit.generative/1": "this is the generative stage; pass the motion stage's checkpoint"
-    })  # fmt: skip
-
-
-def check_motion_joints(motion: Motion, joint_names: tuple[str, ...], path: Path) -> None:
-    """A clear error for a motion on other joints than a checkpoint's, or not finite."""
-    if tuple(motion.joint_names) != tuple(joint_names):
-        missing = [j for j in joint_names if j not in motion.joint_names]
-        raise LoosefitInputError(
-            f"motion '{motion.name}'", "joint_names",
-            f"the {len(joint_names)} joints the checkpoint {Path(path).name} was "
-            "trained on, in its order",
-            f"{len(motion.joint_names)} joints" + (f", missing {missing[:5]}" if missing
-                                                   else ", in another order"),
-        )  # fmt: skip
-    if not np.isfinite(motion.rotations).all() or not np.isfinite(motion.root_translation).all():
-        raise LoosefitInputError(f"motion '{motion.name}'", "rotations/root_translation",
-                                 "finite numbers", "NaN or infinity")  # fmt: skip
-
-
-def body_collider(avatar, handler, motion: Motion, arm_collision: bool, device: torch.device
-                  ) -> BodyCollider:  # fmt: skip
-    """``handler`` (Eq. 16's, or a baseline's push-out) along ``motion``'s posed body, the
-    simulation's collider (the arms in it only with ``arm_collision``)."""
-    rot = torch.from_numpy(motion.rotations)
-    root = torch.from_numpy(motion.root_translation)
-
-    def pose(start: int, stop: int) -> np.ndarray:
-        return avatar.pose(rot[start:stop], root[start:stop]).vertices.cpu().numpy()
-
-    faces = avatar.collider_faces(arms=arm_collision).cpu().numpy()
-    warp_device = "cpu" if device.type == "cpu" else f"cuda:{device.index or 0}"
-    return BodyCollider(handler, faces, pose, motion.num_frames, device=warp_device)
-
-
-def avatar_of(body: dict):
-    """The avatar of a checkpoint's ``body`` record (its shape)."""
-    from loosefit.body.avatar import Avatar, AvatarConfig
-
-    return Avatar(AvatarConfig(shape=dict(body.get("shape", {}))))
-
-
-@dataclass
-class AnimationModel:
-    """Everything a rollout needs, loaded from a motion-stage checkpoint."""
-
-    generative: GarmentGenerativeModel
-    encoder: DynamicMotionEncoder
-    template: GarmentTemplate
-    rest_state: torch.Tensor  # (V, 3)
-    joint_names: tuple[str, ...]
-    floor_height: float
-    fps: float
-    body: dict
-    config: TrainMotionConfig
-    path: Path
-    detail: torch.nn.Module | None = None  # paper 3.4 (a DetailGenerator), if trained
-    collision: CollisionConfig = field(default_factory=CollisionConfig)  # paper 3.5
-    arm_collision: bool = False  # the arms in the collider (as in the simulation of the data)
-    stages: Stages = field(default_factory=Stages)  # what animate() runs by default
-    _avatar: object = None
-    _handler: CollisionHandler | None = None
-
-    @property
-    def device(self) -> torch.device:
-        return self.rest_state.device
-
-    def avatar(self):
-        """The body the garment was simulated on (built once)."""
-        if self._avatar is None:
-            self._avatar = avatar_of(self.body)
-        return self._avatar
-
-    def collider(self, motion: Motion) -> BodyCollider:
-        """Collision handling (paper 3.5) along ``motion``'s frames (the simulation's collider)."""
-        if self._handler is None:
-            t = self.template
-            self._handler = CollisionHandler(t.faces, t.num_vertices, self.collision)
-        return body_collider(self.avatar(), self._handler, motion, self.arm_collision,
-                             self.device)  # fmt: skip
-
-    def check_motion(self, motion: Motion) -> None:
-        """A clear error for a motion on other joints or at another frame rate."""
-        check_motion_joints(motion, self.joint_names, self.path)
-
-    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
-                stages: Stages | None = None):  # fmt: skip
-        """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first) through the
-        motion stage, then the detail stage (if the model has one) and collision handling,
-        as ``stages`` (default ``self.stages``) says."""
-        self.check_motion(motion)
-        stages = stages or self.stages
-        detail = self.detail if stages.detail else None
-        collide = self.collider(motion) if stages.collision else None
-        return rollout(self.generative, self.encoder, motion, self.rest_state,
-                       self.floor_height, self.config.rollout, progress, truth,
-                       restart_every, detail, collide, stages.feedback,
-                       stages.overlap)  # fmt: skip
-
-    def carry_drape(self, motion: Motion, progress=None):
-        """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""
-        self.check_motion(motion)
-        return carried_drape(motion, self.rest_state, self.floor_height, self.config.rollout)
-
-    def reconstruct(self, motion: Motion, truth: np.ndarray):
-        """:func:`~loosefit.model.rollout.reconstruction`: the floor under the encoder's error."""
-        self.check_motion(motion)
-        return reconstruction(self.generative, motion, truth, self.floor_height,
-                              self.config.rollout)  # fmt: skip
-
-
-def load_animation_model(
-    path: str | Path, generative: str | Path | None = None, device="cpu"
-) -> AnimationModel:
-    """The generative and motion stages of a trained model.
-
-    Args:
-        path: a motion-stage checkpoint (``checkpoint.pt`` or ``model.pt`` of a run).
-        generative: the generative-stage checkpoint it was trained on; by default
-            the one it records (relative to ``path``'s folder, then absolute).
-        device: where to put the networks.
-
-    Raises:
-        LoosefitInputError: not a motion-stage checkpoint, a missing generative
-            checkpoint, or one other than the encoder was trained on.
-    """
-    path = Path(path)
-    data = _read(path, device)
-    g = data["generative"]
-    gpath = recorded_checkpoint(
-        path,
-        g,
-        generative,
-        "generative",
-        "the generative checkpoint it was trained on",
-        "pass --generative FILE",
-    )
-    gmodel, _, _ = load_generative(gpath, device=device)
-    found = model_fingerprint(gmodel)
-    if found != g["fingerprint"]:
-        raise LoosefitInputError(
-            gpath, "model", f"the generative model {path.name} was trained on "
-            f"(fingerprint {g['fingerprint']})", f"another one (fingerprint {found})",
-        )  # fmt: skip
-    template = template_from_dict(data["garment"]["template"])
-    config = TrainMotionConfig.from_dict(data["config"])
-    encoder = DynamicMotionEncoder(gmodel, data["num_features"], config.model).to(device)
-    try:
-        encoder.load_state_dict({k: v.float() if v.is_floating_point() else v
-                                 for k, v in data["model"].items()})  # fmt: skip
-    except RuntimeError as exc:
-        raise LoosefitInputError(path, "model", "weights of this model's configuration",
-                                 str(exc).splitlines()[0]) from exc  # fmt: skip
-    for p in gmodel.parameters():
-        p.requires_grad_(False)
-    return AnimationModel(
-        gmodel.eval(), encoder.eval(), template,
-        torch.as_tensor(data["rest_state"]).float().to(device),
-        tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
-        dict(data["body"]), config, path,
-        arm_collision=bool((data.get("cloth") or {}).get("arm_collision", False)),
-    )  # fmt: skip
-
-
-def _half(weights: dict) -> dict:
-    return {k: (v.half() if v.is_floating_point() else v) for k, v in weights.items()}
-
-
-def package_model(
-    path: str | Path, out: str | Path, generative: str | Path | None = None
-) -> tuple[Path, Path]:
-    """Both stages of a trained model in one folder, for sharing: weights only, half precision.
-
-    Writes ``out/generative.pt`` (the generative stage without its optimizer state)
-    and ``out/motion.pt`` (the motion stage, pointing at ``generative.pt`` beside it
-    by a relative path, and at no path of this machine). The fingerprint that ties
-    them is of half-precision weights, so the pair loads as the original did.
-
-    Args:
-        path: a motion-stage checkpoint (``model.pt`` or ``checkpoint.pt`` of a run).
-        out: the folder to write.
-        generative: its generative checkpoint, if not the one it records.
-
-    Returns:
-        The paths of the generative and the motion files.
-    """
-    from loosefit.train.generative import read_checkpoint as read_generative
-
-    path, out = Path(path), Path(out)
-    load_animation_model(path, generative)  # checks the pair belongs together
-    data = _read(path, "cpu")
-    gpath = recorded_checkpoint(
-        path,
-        data["generative"],
-        generative,
-        "generative",
-        "the generative checkpoint it was trained on",
-        "pass --generative FILE",
-    )
-    gdata, _ = read_generative(gpath)
-    out.mkdir(parents=True, exist_ok=True)
-    gout, mout = out / "generative.pt", out / "motion.pt"
-    keep = ("format", "config", "garment", "epoch")
-    save_atomic({**{k: gdata[k] for k in keep if k in gdata}, "model": _half(gdata["model"])},
-                gout)  # fmt: skip
-    drop = ("optimizer", "rng", "sampling_rng", "history", "dataset")
-    motion = {k: v for k, v in data.items() if k not in drop}
-    motion["model"] = _half(data["model"])
-    motion["generative"] = {**data["generative"], "relative": gout.name, "absolute": None}
-    save_atomic(motion, mout)
-    return gout, mout
-
-
-# -- evaluation ------------------------------------------------------------------------
-
-
-def evaluate_rollouts(
-    model: AnimationModel,
-    reader: DatasetReader,
-    split: str = "test",
-    horizons: tuple[int, ...] = HORIZONS,
-    surface: bool = True,
-    max_frames: int | None = None,
-    reference: bool = False,
-    restart_every: int | None = None,
-    oracle: bool = False,
-    stages: Stages | None = None,
-) -> dict:
-    """Roll every clip of a split out from its first frame and compare with the simulation.
-
-    Args:
-        model: the trained stages.
-        reader: the dataset.
-        split: "train", "test" or "all".
-        horizons: report the RMSE over the first h frames for each h (the paper's
-            iter-100/500/1200); a clip shorter than h gives none for it.
-        surface: also Hausdorff and STED (slower).
-        max_frames: roll out at most this many frames per clip.
-        reference: score the settled drape carried by the root
-            (:meth:`AnimationModel.carry_drape`) instead of the model's rollout.
-        restart_every: reset the rollout's previous state to the simulated garment
-            every this many frames (:func:`~loosefit.model.rollout.rollout`'s
-            ``truth``), to measure drift on the same frames.
-        oracle: score the generative model's reconstruction of the simulated
-            garment (:meth:`AnimationModel.reconstruct`) instead: the floor under
-            the motion encoder's error.
-        stages: the stages after the decoders (default: the model's, all of them).
-
-    Returns:
-        Per clip: frames, RMSE (cm) over the clip and per horizon, the RMSE of
-        every frame (cm), Hausdorff (cm, mean over frames), STED, frames per
-        second; and frame-weighted means over the clips.
-    """
-    faces = reader.template.faces
-    clips = {}
-    for name in reader.split(split):
-        seq = reader.read(name)
-        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        true = seq.garment_vertices[: motion.num_frames]
-        if reference:
-            result = model.carry_drape(motion)
-        elif oracle:
-            result = model.reconstruct(motion, true)
-        elif restart_every is not None:
-            result = model.animate(motion, truth=true, restart_every=restart_every,
-                                   stages=stages)  # fmt: skip
-        else:
-            result = model.animate(motion, stages=stages)
-        pred = result.vertices
-        per_frame = 100 * rmse_per_frame(pred, true)  # (T,) cm
-        entry = {
-            "frames": int(len(pred)),
-            "rmse_cm": float(np.sqrt(np.mean(per_frame**2))),
-            "horizons": {
-                str(h): float(np.sqrt(np.mean(per_frame[:h] ** 2)))
-                for h in horizons if len(pred) >= h
-            },
-            "rmse_per_frame_cm": per_frame.tolist(),
-            "frames_per_second": result.frames_per_second,
-        }  # fmt: skip
-        if surface:
-            entry["hausdorff_cm"] = 100 * float(hausdorff(pred, true, faces).mean())
-            entry["sted"] = sted(pred, true, faces, motion.fps)["sted"] if len(pred) > 1 else 0.0
-        clips[name] = entry
-    n = np.array([c["frames"] for c in clips.values()], float)
-
-    def mean(key: str) -> float:
-        return float((np.array([c[key] for c in clips.values()]) * n).sum() / n.sum())
-
-    summary = {"frames": int(n.sum()), "rmse_cm": float(np.sqrt(
-        sum(c["rmse_cm"] ** 2 * c["frames"] for c in clips.values()) / n.sum()))}  # fmt: skip
-    if surface:
-        summary.update(hausdorff_cm=mean("hausdorff_cm"), sted=mean("sted"))
-    summary["horizons"] = {}
-    for h in horizons:
-        have = [c for c in clips.values() if str(h) in c["horizons"]]
-        if have:
-            summary["horizons"][str(h)] = float(np.sqrt(np.mean([c["horizons"][str(h)] ** 2
-                                                                 for c in have])))  # fmt: skip
-    return {"split": split, "clips": clips, **summary}
+def training_config(path: str | Path) -> TrainMotionConfig | None:
+    """The training configuration a motion-stage checkpoint records (None: a packaged one)."""
+    data = read_checkpoint_file(path, MOTION_FORMAT)
+    return TrainMotionConfig.from_dict(data["config"]) if "config" in data else None
 
 
 # -- training --------------------------------------------------------------------------
@@ -741,7 +428,7 @@ def train_motion(
     reader = DatasetReader(data)
     template = reader.template
     gpath = Path(generative).resolve()
-    gmodel, _, _ = load_generative(gpath, template, config.device)
+    gmodel, _ = load_generative(gpath, template, config.device)
     for prm in gmodel.parameters():
         prm.requires_grad_(False)
     gmeta = {
@@ -781,12 +468,10 @@ def train_motion(
     lap = Laplacian(template.faces, template.num_vertices).to(config.device)
     optim = torch.optim.Adam(encoder.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     meta = {
+        "model_config": {"encoder": asdict(config.model), "rollout": asdict(config.rollout)},
         "config": config.to_dict(),
         "generative": gmeta,
-        "garment": {
-            "fingerprint": garment_fingerprint(template.vertices, template.faces),
-            "template": template_dict(template),
-        },  # fmt: skip
+        "garment": garment_record(template),
         "num_features": F,
         "joint_names": list(joint_names),
         "floor_height": floor,
@@ -798,9 +483,8 @@ def train_motion(
     }
     epoch, history = 0, []
     if ckpt_path.is_file():
-        epoch, history = restore_training(
-            _read(ckpt_path, config.device), {"model": encoder, "optimizer": optim}, gen
-        )
+        saved = read_checkpoint_file(ckpt_path, MOTION_FORMAT, config.device)
+        epoch, history = restore_training(saved, {"model": encoder, "optimizer": optim}, gen)
         log(f"resumed {ckpt_path} at epoch {epoch}")
 
     writer = SummaryWriter(str(out))
@@ -843,8 +527,8 @@ def train_motion(
                             sampling_rng=gen.get_state())  # fmt: skip
         if epoch % config.eval_every == 0 or epoch == config.epochs:
             current = AnimationModel(gmodel, encoder, template, rest.to(config.device),
-                                     tuple(joint_names), floor, fps, dict(reader.body), config,
-                                     ckpt_path)  # fmt: skip
+                                     tuple(joint_names), floor, fps, dict(reader.body),
+                                     config.rollout, ckpt_path)  # fmt: skip
             err = evaluate_rollouts(current, reader, "test", surface=False, stages=MOTION_ONLY)
             writer.add_scalar("test/rollout_rmse_cm", err["rmse_cm"], epoch)
             history[-1]["test_rollout_rmse_cm"] = err["rmse_cm"]

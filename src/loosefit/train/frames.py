@@ -1,12 +1,5 @@
-"""The frame the learned models see garments in, and the arrays they train on.
-
-**Root frame.** A garment enters the models in the body's root frame with the
-dancer's global translation and heading taken out: ``x_root = H^T (x_world - p)``
-where ``p`` is the root joint's world position and ``H`` the rotation about +Z
-by the heading (the yaw of the pelvis's forward direction, -Y at rest). The
-pelvis's tilt and roll stay in, so the garment still sees the hips bend. The
-latent space then spends nothing on where the dancer stands or which way they
-face; decoded garments go back with :func:`from_root_frame`.
+"""The arrays the generative model trains on: a data set's frames in the root frame
+(:mod:`loosefit.model.motion_features`), with their unposed targets.
 
 **Unposed targets.** The unposed decoder is supervised by the inverse skinning
 of each simulated frame (paper Eq. 4) with seed points on the body, computed
@@ -17,7 +10,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import torch
 
 from loosefit.body.avatar import Avatar, AvatarConfig
@@ -25,7 +17,6 @@ from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.inverse_skinning import InverseSkinningConfig, seed_weights, unskin
 from loosefit.model.motion_features import from_root_frame, heading_frames, to_root_frame
-from loosefit.types import GarmentTemplate
 
 
 @dataclass
@@ -122,26 +113,3 @@ def prepare_split(
         origin=torch.cat(out["p"]),
         fps=float(fps),
     )
-
-
-def same_garment(a: GarmentTemplate, b: GarmentTemplate, tolerance: float = 1.0e-4) -> bool:
-    """The same triangles and rest shapes within ``tolerance`` (m).
-
-    What data and checkpoints are matched by: the fingerprint hashes rounded positions,
-    and the same garment built on two machines can differ by a float's last bit, which
-    rounding can turn into another digit.
-    """
-    va, vb = np.asarray(a.vertices), np.asarray(b.vertices)
-    fa, fb = np.asarray(a.faces), np.asarray(b.faces)
-    return (va.shape == vb.shape and fa.shape == fb.shape and bool(np.array_equal(fa, fb))
-            and float(np.abs(va - vb).max(initial=0.0)) <= tolerance)  # fmt: skip
-
-
-def garment_fingerprint(vertices: np.ndarray, faces: np.ndarray) -> str:
-    """A short hash of a garment's rest shape and triangles, to match checkpoints to data."""
-    import hashlib
-
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(np.round(vertices, 5), np.float32).tobytes())
-    h.update(np.ascontiguousarray(faces, np.int64).tobytes())
-    return h.hexdigest()[:16]

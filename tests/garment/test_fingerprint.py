@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from loosefit.model.frames import garment_fingerprint, same_garment
+from loosefit.garment.fingerprint import garment_fingerprint, same_garment
 from loosefit.types import GarmentTemplate
 from tests.meshes import grid
 

@@ -1,0 +1,31 @@
+"""Which garment a data set or a checkpoint belongs to."""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+from loosefit.types import GarmentTemplate
+
+
+def same_garment(a: GarmentTemplate, b: GarmentTemplate, tolerance: float = 1.0e-4) -> bool:
+    """The same triangles and rest shapes within ``tolerance`` (m).
+
+    What data and checkpoints are matched by: the fingerprint hashes rounded positions,
+    and the same garment built on two machines can differ by a float's last bit, which
+    rounding can turn into another digit.
+    """
+    va, vb = np.asarray(a.vertices), np.asarray(b.vertices)
+    fa, fb = np.asarray(a.faces), np.asarray(b.faces)
+    return (va.shape == vb.shape and fa.shape == fb.shape and bool(np.array_equal(fa, fb))
+            and float(np.abs(va - vb).max(initial=0.0)) <= tolerance)  # fmt: skip
+
+
+def garment_fingerprint(vertices: np.ndarray, faces: np.ndarray) -> str:
+    """A short hash of a garment's rest shape (V, 3) and triangles (F, 3), to match
+    checkpoints to data."""
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(np.round(vertices, 5), np.float32).tobytes())
+    h.update(np.ascontiguousarray(faces, np.int64).tobytes())
+    return h.hexdigest()[:16]

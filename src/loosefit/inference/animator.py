@@ -1,0 +1,401 @@
+"""Trained models that animate a garment: the paper's stages and the baselines.
+
+:func:`load_pipeline` takes any checkpoint ``loosefit animate`` takes and gives a model
+with ``animate(motion)``: :class:`AnimationModel` (paper 3.2-3.5) or :class:`BaselineModel`.
+Models are rebuilt from the checkpoints' ``model_config``
+(:mod:`loosefit.inference.checkpoints`); nothing here reads a training configuration.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from loosefit.errors import LoosefitInputError
+from loosefit.garment.fingerprint import garment_fingerprint
+from loosefit.geometry.collision import (
+    BodyCollider,
+    CollisionConfig,
+    CollisionHandler,
+    PushOutHandler,
+)
+from loosefit.inference.checkpoints import (
+    BASELINE_FORMAT,
+    DETAIL_FORMAT,
+    MOTION_FORMAT,
+    checkpoint_format,
+    load_generative,
+    load_weights,
+    model_config,
+    model_fingerprint,
+    read_checkpoint_file,
+    recorded_checkpoint,
+    template_from_dict,
+)
+from loosefit.model.baselines import BaselineConfig, BaselineNetwork, baseline_rollout
+from loosefit.model.detail import DetailConfig, DetailGenerator
+from loosefit.model.generative import GarmentGenerativeModel
+from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
+from loosefit.model.rollout import (
+    RolloutConfig,
+    Stages,
+    carried_drape,
+    collision_record,
+    reconstruction,
+    rollout,
+)
+from loosefit.types import GarmentTemplate, Motion
+
+
+def check_motion_joints(motion: Motion, joint_names: tuple[str, ...], path: Path) -> None:
+    """A clear error for a motion on other joints than a checkpoint's, or not finite."""
+    if tuple(motion.joint_names) != tuple(joint_names):
+        missing = [j for j in joint_names if j not in motion.joint_names]
+        raise LoosefitInputError(
+            f"motion '{motion.name}'", "joint_names",
+            f"the {len(joint_names)} joints the checkpoint {Path(path).name} was "
+            "trained on, in its order",
+            f"{len(motion.joint_names)} joints" + (f", missing {missing[:5]}" if missing
+                                                   else ", in another order"),
+        )  # fmt: skip
+    if not np.isfinite(motion.rotations).all() or not np.isfinite(motion.root_translation).all():
+        raise LoosefitInputError(f"motion '{motion.name}'", "rotations/root_translation",
+                                 "finite numbers", "NaN or infinity")  # fmt: skip
+
+
+def body_collider(avatar, handler, motion: Motion, arm_collision: bool, device: torch.device
+                  ) -> BodyCollider:  # fmt: skip
+    """``handler`` (Eq. 16's, or a baseline's push-out) along ``motion``'s posed body, the
+    simulation's collider (the arms in it only with ``arm_collision``)."""
+    rot = torch.from_numpy(motion.rotations)
+    root = torch.from_numpy(motion.root_translation)
+
+    def pose(start: int, stop: int) -> np.ndarray:
+        return avatar.pose(rot[start:stop], root[start:stop]).vertices.cpu().numpy()
+
+    faces = avatar.collider_faces(arms=arm_collision).cpu().numpy()
+    warp_device = "cpu" if device.type == "cpu" else f"cuda:{device.index or 0}"
+    return BodyCollider(handler, faces, pose, motion.num_frames, device=warp_device)
+
+
+def avatar_of(body: dict):
+    """The avatar of a checkpoint's ``body`` record (its shape)."""
+    from loosefit.body.avatar import Avatar, AvatarConfig
+
+    return Avatar(AvatarConfig(shape=dict(body.get("shape", {}))))
+
+
+def _arm_collision(data: dict) -> bool:
+    return bool((data.get("cloth") or {}).get("arm_collision", False))
+
+
+# -- the paper's model ------------------------------------------------------------------------
+
+
+@dataclass
+class AnimationModel:
+    """Everything a rollout needs, loaded from a motion-stage checkpoint."""
+
+    generative: GarmentGenerativeModel
+    encoder: DynamicMotionEncoder
+    template: GarmentTemplate
+    rest_state: torch.Tensor  # (V, 3)
+    joint_names: tuple[str, ...]
+    floor_height: float
+    fps: float
+    body: dict
+    rollout_config: RolloutConfig
+    path: Path
+    detail: torch.nn.Module | None = None  # paper 3.4 (a DetailGenerator), if trained
+    collision: CollisionConfig = field(default_factory=CollisionConfig)  # paper 3.5
+    arm_collision: bool = False  # the arms in the collider (as in the simulation of the data)
+    stages: Stages = field(default_factory=Stages)  # what animate() runs by default
+    _avatar: object = None
+    _handler: CollisionHandler | None = None
+
+    @property
+    def device(self) -> torch.device:
+        return self.rest_state.device
+
+    def avatar(self):
+        """The body the garment was simulated on (built once)."""
+        if self._avatar is None:
+            self._avatar = avatar_of(self.body)
+        return self._avatar
+
+    def collider(self, motion: Motion) -> BodyCollider:
+        """Collision handling (paper 3.5) along ``motion``'s frames (the simulation's collider)."""
+        if self._handler is None:
+            t = self.template
+            self._handler = CollisionHandler(t.faces, t.num_vertices, self.collision)
+        return body_collider(self.avatar(), self._handler, motion, self.arm_collision,
+                             self.device)  # fmt: skip
+
+    def check_motion(self, motion: Motion) -> None:
+        """A clear error for a motion on other joints or at another frame rate."""
+        check_motion_joints(motion, self.joint_names, self.path)
+
+    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
+                stages: Stages | None = None):  # fmt: skip
+        """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first) through the
+        motion stage, then the detail stage (if the model has one) and collision handling,
+        as ``stages`` (default ``self.stages``) says."""
+        self.check_motion(motion)
+        stages = stages or self.stages
+        detail = self.detail if stages.detail else None
+        collide = self.collider(motion) if stages.collision else None
+        return rollout(self.generative, self.encoder, motion, self.rest_state,
+                       self.floor_height, self.rollout_config, progress, truth,
+                       restart_every, detail, collide, stages.feedback,
+                       stages.overlap)  # fmt: skip
+
+    def carry_drape(self, motion: Motion, progress=None):
+        """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""
+        self.check_motion(motion)
+        return carried_drape(motion, self.rest_state, self.floor_height, self.rollout_config)
+
+    def reconstruct(self, motion: Motion, truth: np.ndarray):
+        """:func:`~loosefit.model.rollout.reconstruction`: the floor under the encoder's error."""
+        self.check_motion(motion)
+        return reconstruction(self.generative, motion, truth, self.floor_height,
+                              self.rollout_config)  # fmt: skip
+
+
+def load_animation_model(
+    path: str | Path, generative: str | Path | None = None, device="cpu"
+) -> AnimationModel:
+    """The generative and motion stages of a trained model.
+
+    Args:
+        path: a motion-stage checkpoint (``checkpoint.pt`` or ``model.pt`` of a run, or a
+            packaged ``motion.pt``).
+        generative: the generative-stage checkpoint it was trained on; by default
+            the one it records (relative to ``path``'s folder, then absolute).
+        device: where to put the networks.
+
+    Raises:
+        LoosefitInputError: not a motion-stage checkpoint, a missing generative
+            checkpoint, or one other than the encoder was trained on.
+    """
+    path = Path(path)
+    data = read_checkpoint_file(path, MOTION_FORMAT, device)
+    g = data["generative"]
+    gpath = recorded_checkpoint(path, g, generative, "generative",
+                                "the generative checkpoint it was trained on",
+                                "pass --generative FILE")  # fmt: skip
+    gmodel, _ = load_generative(gpath, device=device)
+    found = model_fingerprint(gmodel)
+    if found != g["fingerprint"]:
+        raise LoosefitInputError(
+            gpath, "model", f"the generative model {path.name} was trained on "
+            f"(fingerprint {g['fingerprint']})", f"another one (fingerprint {found})",
+        )  # fmt: skip
+    config = model_config(data)
+    template = template_from_dict(data["garment"]["template"])
+    encoder = DynamicMotionEncoder(gmodel, data["num_features"],
+                                   MotionEncoderConfig(**config["encoder"])).to(device)  # fmt: skip
+    load_weights(encoder, data["model"], path, "this motion encoder's configuration")
+    for p in gmodel.parameters():
+        p.requires_grad_(False)
+    return AnimationModel(
+        gmodel.eval(), encoder.eval(), template,
+        torch.as_tensor(data["rest_state"]).float().to(device),
+        tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
+        dict(data["body"]), RolloutConfig(**config["rollout"]), path,
+        arm_collision=_arm_collision(data),
+    )  # fmt: skip
+
+
+def stage_fingerprints(model: AnimationModel) -> dict:
+    """What a detail stage is tied to: the motion stage's weights and the garment."""
+    t = model.template
+    return {"motion": model_fingerprint(model.encoder),
+            "garment": garment_fingerprint(t.vertices, t.faces)}  # fmt: skip
+
+
+def attach_detail(model: AnimationModel, path: str | Path) -> AnimationModel:
+    """Load a detail checkpoint into ``model`` (``model.detail``), checked to belong to it.
+
+    Raises:
+        LoosefitInputError: not a detail checkpoint, or one trained on another garment or
+            another motion stage (the message names both fingerprints).
+    """
+    path = Path(path)
+    data = read_checkpoint_file(path, DETAIL_FORMAT, model.device)
+    have = stage_fingerprints(model)
+    for key, what in (("garment", "garment"), ("motion", "motion stage")):
+        if data["fingerprints"][key] != have[key]:
+            raise LoosefitInputError(
+                path, f"fingerprints.{key}", f"the {what} of {model.path.name} "
+                f"(fingerprint {have[key]})",
+                f"a detail stage trained on another {what} "
+                f"(fingerprint {data['fingerprints'][key]})",
+            )  # fmt: skip
+    g = DetailGenerator(model.template.faces, model.template.num_vertices,
+                        model.encoder.latent, DetailConfig(**model_config(data)))  # fmt: skip
+    g = g.to(model.device)
+    load_weights(g, data["model"], path, "this detail configuration")
+    model.detail = g.eval()
+    for prm in g.parameters():
+        prm.requires_grad_(False)
+    return model
+
+
+def load_detail_model(
+    path: str | Path,
+    motion: str | Path | None = None,
+    generative: str | Path | None = None,
+    device="cpu",
+) -> AnimationModel:
+    """All three learned stages from a detail checkpoint (and the motion stage it records)."""
+    path = Path(path)
+    data = read_checkpoint_file(path, DETAIL_FORMAT, "cpu")
+    mpath = recorded_checkpoint(path, data["motion_checkpoint"], motion, "motion",
+                                "the motion checkpoint it was trained on")  # fmt: skip
+    model = load_animation_model(mpath, generative, device)
+    return attach_detail(model, path)
+
+
+# -- the baselines ----------------------------------------------------------------------------
+
+
+@dataclass
+class BaselineModel:
+    """A trained baseline with the animate() of :class:`AnimationModel`, so that ``loosefit
+    animate``/``evaluate`` and the benchmarks run it alike.
+
+    ``stages.collision`` runs Santesteban et al.'s post-process (every vertex closer
+    to the body than ``collision.epsilon`` pushed out along the body's normal);
+    virtual bones have none (Pan et al. have none). There is no detail stage.
+    """
+
+    network: BaselineNetwork
+    template: GarmentTemplate
+    joint_names: tuple[str, ...]
+    floor_height: float
+    fps: float
+    body: dict
+    rollout_config: RolloutConfig
+    path: Path
+    arm_collision: bool = False
+    collision: CollisionConfig = field(default_factory=CollisionConfig)
+    stages: Stages = field(default_factory=Stages)
+    detail: None = None  # no detail stage (what the CLI asks of every model)
+    _avatar: object = None
+
+    @property
+    def method(self) -> str:
+        return self.network.method
+
+    @property
+    def device(self) -> torch.device:
+        return self.network.rest.device
+
+    @property
+    def post_process(self) -> bool:
+        """Whether the method has a collision post-process (Santesteban's push-out)."""
+        return self.method == "santesteban"
+
+    def avatar(self):
+        if self._avatar is None:
+            self._avatar = avatar_of(self.body)
+        return self._avatar
+
+    def check_motion(self, motion: Motion) -> None:
+        check_motion_joints(motion, self.joint_names, self.path)
+
+    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
+                stages: Stages | None = None):  # fmt: skip
+        """The garment through ``motion`` (T, V, 3) world positions, a
+        :class:`~loosefit.model.rollout.RolloutResult`; then the post-process where the
+        method has one and ``stages.collision``. ``truth``/``restart_every`` do not
+        apply (no previous garment is fed back) and are refused."""
+        if restart_every is not None:
+            raise LoosefitInputError("BaselineModel.animate", "restart_every",
+                                     "None (a baseline never sees the previous garment)",
+                                     restart_every)  # fmt: skip
+        self.check_motion(motion)
+        stages = stages or self.stages
+        pose = None
+        if self.method == "santesteban":
+            avatar = self.avatar()
+            rot = torch.from_numpy(motion.rotations)
+            root = torch.from_numpy(motion.root_translation)
+
+            def pose(s: int, e: int) -> torch.Tensor:
+                return avatar.pose(rot[s:e], root[s:e]).joint_transforms
+
+        result = baseline_rollout(self.network, motion, self.floor_height, self.rollout_config,
+                                  pose, progress)  # fmt: skip
+        result.stage_seconds = {"motion": result.seconds}
+        if stages.collision and self.post_process:
+            t0 = time.perf_counter()
+            handler = PushOutHandler(self.template.faces, self.template.num_vertices,
+                                     self.collision.epsilon, self.collision.reach)  # fmt: skip
+            collide = body_collider(self.avatar(), handler, motion, self.arm_collision,
+                                    self.device)  # fmt: skip
+            result.decoded = result.vertices.copy()
+            result.collisions = []
+            for t in range(motion.num_frames):
+                r = collide(t, torch.from_numpy(result.decoded[t]))
+                result.vertices[t] = r.vertices.numpy()
+                result.collisions.append(collision_record(r))
+            result.stage_seconds["collision"] = time.perf_counter() - t0
+            result.seconds += result.stage_seconds["collision"]
+        return result
+
+
+def load_baseline(path: str | Path, device="cpu") -> BaselineModel:
+    """A trained baseline from a run's ``model.pt`` or ``checkpoint.pt``.
+
+    Raises:
+        LoosefitInputError: not a baseline checkpoint, or weights that do not fit the
+            configuration it records.
+    """
+    path = Path(path)
+    data = read_checkpoint_file(path, BASELINE_FORMAT, device, {
+        MOTION_FORMAT: "this is our motion stage; load it with load_pipeline",
+    })  # fmt: skip
+    config = model_config(data)
+    template = template_from_dict(data["garment"]["template"])
+    V, K = template.num_vertices, int(data["influences"])
+    network = BaselineNetwork(BaselineConfig(**config["network"]), int(data["num_features"]),
+                              torch.zeros(V, 3), torch.zeros(V, K))  # fmt: skip
+    load_weights(network, data["model"], path, "this baseline's configuration")
+    return BaselineModel(
+        network.to(device).eval(), template, tuple(data["joint_names"]),
+        float(data["floor_height"]), float(data["fps"]), dict(data["body"]),
+        RolloutConfig(**config["rollout"]), path, arm_collision=_arm_collision(data),
+    )  # fmt: skip
+
+
+# -- any checkpoint ---------------------------------------------------------------------------
+
+
+def load_pipeline(path: str | Path, generative: str | Path | None = None,
+                  detail: str | Path | None = None, device="cpu"):  # fmt: skip
+    """Every learned stage for ``loosefit animate`` / ``evaluate`` from one checkpoint.
+
+    ``path`` is a motion-stage checkpoint (a packaged set's ``motion.pt`` takes the
+    ``detail.pt`` beside it, if there is one) or a detail checkpoint (with the motion
+    stage it records); ``detail`` names a detail checkpoint explicitly. A baseline's
+    checkpoint gives that baseline (:class:`BaselineModel`), which animates alike.
+
+    Returns:
+        :class:`AnimationModel` or :class:`BaselineModel`.
+    """
+    path = Path(path)
+    fmt = checkpoint_format(path)
+    if fmt == DETAIL_FORMAT:
+        return load_detail_model(path, None, generative, device)
+    if fmt == BASELINE_FORMAT:
+        return load_baseline(path, device)
+    model = load_animation_model(path, generative, device)
+    beside = path.parent / "detail.pt"
+    if detail is None and path.name == "motion.pt" and beside.is_file():
+        detail = beside
+    return attach_detail(model, detail) if detail is not None else model

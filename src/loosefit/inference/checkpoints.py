@@ -1,0 +1,228 @@
+"""Checkpoint files: what every stage's checkpoint holds, and the generative stage's loader.
+
+A checkpoint is a ``torch.save``'d dict with
+
+* ``format``: ``loosefit.generative/1``, ``loosefit.motion/1``, ``loosefit.detail/1`` or
+  ``loosefit.baseline/1`` (:data:`FORMATS`);
+* ``model_config``: the configuration of the networks (and, for the animating stages, of
+  the rollout) that the weights fit: all the runtime reads to rebuild the model;
+* ``model``: the weights (half precision in a packaged set);
+* what ties the stages together: the garment (``garment``: its template and
+  fingerprint), the previous stage's fingerprint and path, the body, the frame rate.
+
+A training run's checkpoints also hold ``config``, the training configuration (to resume
+and for the record), and the optimiser and RNG states; a packaged set has neither. A
+checkpoint written before ``model_config`` existed is read from the model part of its
+training configuration (:func:`model_config`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import torch
+
+from loosefit.atomic import atomic_path
+from loosefit.errors import LoosefitInputError
+from loosefit.garment.fingerprint import garment_fingerprint, same_garment
+from loosefit.model.generative import GarmentGenerativeModel, GenerativeConfig
+from loosefit.types import GarmentTemplate
+
+GENERATIVE_FORMAT = "loosefit.generative/1"
+MOTION_FORMAT = "loosefit.motion/1"
+DETAIL_FORMAT = "loosefit.detail/1"
+BASELINE_FORMAT = "loosefit.baseline/1"
+FORMATS = (GENERATIVE_FORMAT, MOTION_FORMAT, DETAIL_FORMAT, BASELINE_FORMAT)
+
+# what a wrong stage's checkpoint is, said when one is passed for another
+_WHAT = {
+    GENERATIVE_FORMAT: "the generative stage",
+    MOTION_FORMAT: "the motion stage",
+    DETAIL_FORMAT: "the detail stage",
+    BASELINE_FORMAT: "a baseline",
+}
+
+
+def save_atomic(data: dict, path: Path) -> None:
+    """``torch.save`` to a temporary file, then a rename: never a half-written checkpoint."""
+    with atomic_path(Path(path)) as tmp:
+        torch.save(data, tmp)
+
+
+def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict | None = None):
+    """A checkpoint's dict, checked to carry ``format == fmt``.
+
+    Args:
+        path: the file.
+        fmt: the expected format string.
+        device: ``map_location``.
+        hints: a hint to show per format found instead (by default: which stage it is).
+
+    Raises:
+        LoosefitInputError: a missing or unreadable file, or another format.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
+    try:
+        data = torch.load(path, map_location=device, weights_only=False)
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
+        raise LoosefitInputError(path, "<file>", "a torch checkpoint", str(exc)) from exc
+    found = data.get("format") if isinstance(data, dict) else None
+    if found != fmt:
+        hint = (hints or {}).get(found)
+        if hint is None and found in _WHAT:
+            hint = f"this is {_WHAT[found]}'s checkpoint; pass {_WHAT[fmt]}'s"
+        raise LoosefitInputError(path, "format", repr(fmt), repr(found), hint=hint)
+    return data
+
+
+def checkpoint_format(path: str | Path) -> str | None:
+    """The ``format`` a checkpoint file records (None: not a readable checkpoint)."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception:  # noqa: BLE001 - the loaders give the clear error
+        return None
+    return data.get("format") if isinstance(data, dict) else None
+
+
+def model_config(data: dict) -> dict:
+    """The ``model_config`` of a checkpoint's dict (plain dicts, per format):
+
+    * generative: the :class:`~loosefit.model.generative.GenerativeConfig`;
+    * motion: ``{"encoder": MotionEncoderConfig, "rollout": RolloutConfig}``;
+    * detail: the :class:`~loosefit.model.detail.DetailConfig`;
+    * baseline: ``{"network": BaselineConfig, "rollout": RolloutConfig}``.
+
+    A checkpoint written before the field existed gives the same from its training
+    configuration's ``model`` (and ``rollout``) entries.
+    """
+    if "model_config" in data:
+        return data["model_config"]
+    config, fmt = data.get("config") or {}, data.get("format")
+    if fmt in (MOTION_FORMAT, BASELINE_FORMAT):
+        key = "encoder" if fmt == MOTION_FORMAT else "network"
+        return {key: config.get("model", {}), "rollout": config.get("rollout", {})}
+    return config.get("model", {})
+
+
+def template_dict(t: GarmentTemplate) -> dict:
+    """A garment template as plain arrays, for a checkpoint."""
+    return {
+        "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
+        "waist": t.waist, "name": t.name,
+    }  # fmt: skip
+
+
+def template_from_dict(g: dict) -> GarmentTemplate:
+    """The inverse of :func:`template_dict`."""
+    return GarmentTemplate(g["vertices"], g["faces"], g["uvs"], g["face_uvs"], g["waist"],
+                           g["name"])  # fmt: skip
+
+
+def garment_record(t: GarmentTemplate) -> dict:
+    """A checkpoint's ``garment`` entry: the template and its fingerprint."""
+    return {"fingerprint": garment_fingerprint(t.vertices, t.faces), "template": template_dict(t)}
+
+
+def recorded_checkpoint(path: Path, recorded: dict, given: str | Path | None, field: str,
+                        what: str, hint: str | None = None) -> Path:  # fmt: skip
+    """The checkpoint a checkpoint was trained on: ``given``, or the one it records
+    (``recorded["relative"]`` to ``path``'s folder first, then ``recorded["absolute"]``).
+
+    Raises:
+        LoosefitInputError: naming ``path``, ``field`` and every candidate, when none exists.
+    """
+    if given is not None:
+        candidates = [Path(given)]
+    else:
+        candidates = [path.parent / recorded["relative"]]
+        candidates += [Path(recorded["absolute"])] if recorded.get("absolute") else []
+    found = next((c for c in candidates if c.is_file()), None)
+    if found is None:
+        found_text = f"none of {[str(c) for c in candidates]} exists"
+        raise LoosefitInputError(path, field, what, found_text, hint=hint)
+    return found
+
+
+def model_fingerprint(model: torch.nn.Module) -> str:
+    """A short hash of a model's weights, rounded to half precision (as shared checkpoints are)."""
+    h = hashlib.sha256()
+    for k, v in sorted(model.state_dict().items()):
+        h.update(k.encode())
+        h.update(v.detach().cpu().half().numpy().tobytes() if v.is_floating_point()
+                 else v.detach().cpu().numpy().tobytes())  # fmt: skip
+    return h.hexdigest()[:16]
+
+
+def half_weights(weights: dict) -> dict:
+    """Floating weights in half precision (a packaged set's)."""
+    return {k: (v.half() if v.is_floating_point() else v) for k, v in weights.items()}
+
+
+def float_weights(weights: dict) -> dict:
+    """Floating weights back in single precision."""
+    return {k: (v.float() if v.is_floating_point() else v) for k, v in weights.items()}
+
+
+def load_weights(module: torch.nn.Module, weights: dict, path: Path, what: str) -> None:
+    """``module.load_state_dict(weights)`` (as floats), a clear error when they do not fit.
+
+    Raises:
+        LoosefitInputError: naming ``path`` and the first mismatch.
+    """
+    try:
+        module.load_state_dict(float_weights(weights))
+    except RuntimeError as exc:
+        raise LoosefitInputError(path, "model", f"weights of {what}",
+                                 str(exc).splitlines()[0]) from exc  # fmt: skip
+
+
+# -- the generative stage (paper 3.2) ---------------------------------------------------------
+
+
+def read_generative(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
+    """A generative checkpoint's dict and the garment it holds, checked to be of
+    ``template``'s garment when given.
+
+    Raises:
+        LoosefitInputError: not a generative checkpoint, or another garment.
+    """
+    path = Path(path)
+    data = read_checkpoint_file(path, GENERATIVE_FORMAT, device)
+    stored = template_from_dict(data["garment"]["template"])
+    if template is not None and not same_garment(template, stored):
+        want = garment_fingerprint(template.vertices, template.faces)
+        raise LoosefitInputError(
+            path, "garment", f"the garment '{template.name}' ({template.num_vertices} "
+            f"vertices, fingerprint {want})",
+            f"'{stored.name}' ({stored.num_vertices} vertices, fingerprint "
+            f"{data['garment']['fingerprint']})",
+            hint="train a model on this garment's dataset",
+        )  # fmt: skip
+    return data, stored
+
+
+def load_generative(path: str | Path, template: GarmentTemplate | None = None, device="cpu"
+                    ) -> tuple[GarmentGenerativeModel, dict]:  # fmt: skip
+    """A trained generative model (eval mode) and its checkpoint's dict.
+
+    Raises:
+        LoosefitInputError: not a generative checkpoint, another garment than
+            ``template``'s, or weights that do not fit the configuration it records.
+    """
+    path = Path(path)
+    data, stored = read_generative(path, template, device)
+    config = GenerativeConfig(**model_config(data))
+    ssdr = None
+    if config.decoder == "ssdr":
+        m = data["model"]
+        B = m["ssdr_weights"].shape[1]
+        ssdr = (m["ssdr_rest"].float().cpu(), m["ssdr_weights"].float().cpu(), torch.zeros(B, 3, 4))
+    model = GarmentGenerativeModel(stored, config, ssdr=ssdr).to(device)
+    load_weights(model, data["model"], path, "this generative configuration")
+    return model.eval(), data
