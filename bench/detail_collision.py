@@ -26,9 +26,9 @@ import numpy as np
 import torch
 
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
+from loosefit.eval.quality import edge_strain
 from loosefit.inference.animator import attach_detail, load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
-from loosefit.sim.cloth import edge_strain
 from loosefit.train.common import machine
 
 ROWS = {  # label: stages

@@ -20,8 +20,8 @@ from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import inside_fraction, rmse_per_frame
+from loosefit.eval.quality import edge_strain
 from loosefit.inference.animator import load_animation_model
-from loosefit.sim.cloth import edge_strain
 
 
 def main() -> None:

@@ -28,10 +28,10 @@ import torch
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
+from loosefit.eval.quality import edge_strain
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import heading_yaw
 from loosefit.model.rollout import MOTION_ONLY, Stages
-from loosefit.sim.cloth import edge_strain
 from loosefit.train.common import machine
 
 RAW = Stages(detail=False, collision=False)

@@ -29,8 +29,9 @@ import torch
 
 from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.dress import fit_skirt
+from loosefit.eval.quality import edge_strain
 from loosefit.sequence import DressedSequence
-from loosefit.sim.cloth import edge_strain, simulate
+from loosefit.sim.cloth import simulate
 from loosefit.sim.generate import job_motion, plan_jobs, preset
 
 

@@ -34,7 +34,7 @@ def model():
 def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
     from loosefit.body.motions import load_motion
     from loosefit.eval.metrics import inside_fraction
-    from loosefit.sim.cloth import edge_strain
+    from loosefit.eval.quality import edge_strain
 
     motion = load_motion("spin", avatar, fps=model.fps).slice(0, 40)
     result = model.animate(motion)  # every stage: motion, detail, collision handling

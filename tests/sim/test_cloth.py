@@ -15,7 +15,6 @@ import pytest
 from loosefit.body.motions import load_motion
 from loosefit.dress import fit_skirt
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.mesh_checks import unique_edges
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.geometry.query import closest_points
 from loosefit.sim.cloth import (
@@ -25,11 +24,11 @@ from loosefit.sim.cloth import (
     glue_waist,
     glued_points,
     preroll,
-    quality,
     simulate,
     substep_schedule,
 )
 from loosefit.types import GarmentTemplate, Motion
+from tests.meshes import cube
 
 TINY_SKIRT = SkirtConfig(style="aline", rings=8, segments=24)
 
@@ -44,16 +43,6 @@ def tiny(avatar):
         avatar, skirt, motion, ClothConfig.tiny(), progress=lambda d, t: done.append((d, t))
     )
     return skirt, motion, result, done
-
-
-def _cube(size: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """A closed cube centred at the origin, faces counter-clockwise seen from outside."""
-    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float32)
-    f = np.array(
-        [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-         [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
-    )  # fmt: skip
-    return 0.5 * size * v, f
 
 
 # -- the tiny simulation ------------------------------------------------------------
@@ -160,7 +149,7 @@ def test_substep_schedule_follows_the_fastest_waistband_point():
 
 
 def test_glue_holds_points_on_a_moving_body():
-    v, f = _cube(0.4)
+    v, f = cube(0.4)
     ring = np.array([[0.25 * math.cos(a), 0.25 * math.sin(a), 0.05] for a in np.linspace(0, 6, 12)])
     exact = glue_waist(ring, v, f, None)
     np.testing.assert_allclose(glued_points(exact, v, f), ring, atol=1e-5)
@@ -175,33 +164,6 @@ def test_glue_holds_points_on_a_moving_body():
     np.testing.assert_allclose(
         glued_points(exact, moved, f), ring @ rot.T + [1.0, 2.0, 3.0], atol=1e-5
     )
-
-
-def test_quality_on_known_cases():
-    body, body_faces = _cube(0.2)
-    v, f = _cube(1.0)  # a "garment": a unit cube around a small body cube
-    garment = GarmentTemplate(v, f, np.zeros((1, 2)), np.zeros_like(f), np.zeros(0, np.int64))
-    g = np.stack([v, v + [0.0, 0.0, 0.1]]).astype(np.float32)  # (2, 8, 3): lifted by 10 cm
-    b = np.stack([body, body + [0.0, 0.0, 0.1]])
-    q = quality(g, garment, b, body_faces, fps=30.0)
-    assert q["inside_max"] == 0.0 and q["inside_depth_max"] == 0.0 and q["nan_count"] == 0
-    assert q["strain_max"] < 1e-6
-    assert q["max_speed"] == pytest.approx(3.0, rel=1e-5)  # 0.1 m in 1/30 s
-    g[1, 0] = [0.0, 0.0, 0.1]  # one vertex at the body's centre
-    g[0, 1] = np.nan
-    q = quality(g, garment, b, body_faces, fps=30.0)
-    np.testing.assert_allclose(q["inside_fraction"], [0.0, 1.0 / 8.0])
-    np.testing.assert_allclose(q["penetration_fraction"], [0.0, 1.0 / 8.0])  # 10 cm deep
-    assert q["nan_count"] == 1 and q["inside_depth_max"] == pytest.approx(0.1, abs=1e-5)
-    g[1, 0] = [0.0, 0.0, 0.2 - 0.004]  # 4 mm inside the top: touching, not penetrating
-    q = quality(g, garment, b, body_faces, fps=30.0)
-    np.testing.assert_allclose(q["inside_fraction"], [0.0, 1.0 / 8.0])
-    assert q["penetration_max"] == 0.0
-    assert q["inside_depth_max"] == pytest.approx(0.004, abs=1e-5)
-    edges, _ = unique_edges(f)
-    assert len(edges) == 18  # a cube's 12 sides and 6 face diagonals
-    with pytest.raises(LoosefitInputError):
-        quality(g[:, :5], garment, b, body_faces)
 
 
 def test_guard_names_the_frame():

@@ -3,5 +3,5 @@
 * :mod:`loosefit.sim.cloth`: a garment template on an avatar driven by a
   :class:`~loosefit.types.Motion`, with Newton's Vertex Block Descent cloth
   solver (:func:`~loosefit.sim.cloth.simulate`), and per-frame quality numbers
-  for any garment sequence (:func:`~loosefit.sim.cloth.quality`).
+  for any garment sequence (:func:`~loosefit.eval.quality.quality`).
 """

@@ -31,9 +31,10 @@ from tqdm import tqdm
 from loosefit.atomic import atomic_path
 from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
 from loosefit.errors import LoosefitInputError
+from loosefit.eval.quality import PENETRATION_TOLERANCE
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.sequence import AnimatedGarment
-from loosefit.sim.cloth import PENETRATION_TOLERANCE, ClothConfig, SimulationError, simulate
+from loosefit.sim.cloth import ClothConfig, SimulationError, simulate
 
 
 @dataclass
