@@ -136,10 +136,12 @@ def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flar
 
     Args:
         motion: as for :meth:`Animator.animate` (at 30 fps).
-        garment: a skirt style (``aline``, ``flared``, ``circle``), an ``.obj`` path, or a
-            :class:`~loosefit.types.GarmentTemplate` on the avatar's rest pose.
+        garment: a skirt style (``aline``, ``flared``, ``circle``), ``dress`` or
+            ``dress-strapless``, a garment file (``.obj``, ``.gltf``, ``.glb``: imported
+            onto the avatar), or a :class:`~loosefit.types.GarmentTemplate` on its rest pose.
         frames, start_frame, seed: as for :meth:`Animator.animate`.
-        config: the physics (:class:`~loosefit.sim.cloth.ClothConfig`; default settings).
+        config: the physics (:class:`~loosefit.sim.cloth.ClothConfig`; default settings,
+            the upper arms in the collider for a dress).
         shape: the avatar's phenotype (anny's names); default the project's avatar.
         progress: called as ``progress(done, total)``.
     """
@@ -150,6 +152,11 @@ def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flar
     avatar = Avatar(AvatarConfig(shape=dict(shape or {})) if shape else None)
     template = garment if isinstance(garment, GarmentTemplate) else garment_for(garment, avatar)
     m = motion_for(motion, avatar, 30.0, frames, start_frame, seed)
+    if config is None:  # a dress's bodice reaches the upper arms: they collide
+        from loosefit.dress import collider_arms
+        from loosefit.sim.cloth import ClothConfig
+
+        config = ClothConfig(arm_collision=collider_arms(template))
     result = run(avatar, template, m, config, progress=progress)
     return AnimatedGarment(m, template, result.garment_vertices,
                            {"rig": avatar.config.rig, "shape": dict(avatar.shape)},

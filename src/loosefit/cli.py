@@ -153,9 +153,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
         garment = carry_rigidly(template, body, avatar).cpu().numpy()
         source = "rigid"
     else:
+        from loosefit.dress import collider_arms
         from loosefit.sim.cloth import ClothConfig, simulate
 
-        config = ClothConfig(device=args.sim_device, seed=args.seed)
+        config = ClothConfig(device=args.sim_device, seed=args.seed,
+                             arm_collision=collider_arms(template))  # fmt: skip
         bar = tqdm_bar("simulate", unit="frame")
         result = simulate(avatar, template, motion, config, progress=bar.progress)
         bar.close()
@@ -286,13 +288,47 @@ def cmd_motion(args: argparse.Namespace) -> int:
     return 0
 
 
+def _offset(text: str | None) -> tuple[float, float, float]:
+    if not text:
+        return (0.0, 0.0, 0.0)
+    try:
+        x, y, z = (float(t) for t in text.split(","))
+    except ValueError:
+        raise LoosefitInputError("--offset", "offset", "X,Y,Z in metres, e.g. 0,0,0.02",
+                                 repr(text)) from None  # fmt: skip
+    return (x, y, z)
+
+
 def cmd_garment(args: argparse.Namespace) -> int:
     from loosefit.garment.obj import write_obj
 
     avatar = _avatar(args)
-    template = _garment(args.source, avatar, args.resolution, args.length)
-    if template is None:
-        raise LoosefitInputError("loosefit garment", "source", "a style or an .obj", "'none'")
+    suffix = Path(args.source).suffix.lower()
+    if suffix in (".obj", ".gltf", ".glb"):
+        from loosefit.dress import import_garment
+        from loosefit.sim.generate import _read_indices
+
+        attach = args.attach
+        if attach not in ("auto", "top", "none"):
+            attach = _read_indices(Path(attach))
+        template, report = import_garment(args.source, avatar, args.units, args.up, args.kind,
+                                          _offset(args.offset), attach)  # fmt: skip
+        for key in ("units", "up", "kind"):
+            r = report[key]
+            how = "guessed" if r["guessed"] else "given"
+            extra = (f" (it is then {r['height_m']:.2f} m high, {r['width_m']:.2f} m wide)"
+                     if key == "units" and r["guessed"] else "")  # fmt: skip
+            _log(f"{key}: {r['value']} ({how}){extra}"
+                 + (f"; say --{key} to change it" if r["guessed"] else ""))  # fmt: skip
+        shift = report["placement"]["translation_m"]
+        _log(f"placed: {report['placement']['rule']} (moved by "
+             f"{', '.join(f'{100 * t:.1f}' for t in shift)} cm); held by "
+             f"{report['attachment']['vertices']} vertices ({report['attachment']['as']}); "
+             f"UVs: {report['uv_source']}")  # fmt: skip
+    else:
+        template = _garment(args.source, avatar, args.resolution, args.length)
+        if template is None:
+            raise LoosefitInputError("loosefit garment", "source", "a style or a file", "'none'")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     name = Path(args.source).stem
@@ -302,19 +338,70 @@ def cmd_garment(args: argparse.Namespace) -> int:
     template.save(out / f"{name}.npz")
     _log(
         f"wrote {out / (name + '.obj')} and {out / (name + '.npz')}: {template.num_vertices} "
-        f"vertices, {len(template.faces)} faces, {len(template.waist)} waistband vertices"
+        f"vertices, {len(template.faces)} faces, {len(template.waist)} attached vertices "
+        f"(metres, Z up, on the avatar's rest pose)"
     )
     return 0
 
 
-def cmd_simulate(args: argparse.Namespace) -> int:
-    from loosefit.sim.generate import format_report, generate, preset
+def dataset_config(args: argparse.Namespace):
+    """The data set ``simulate`` makes: ``--config FILE`` or ``--preset``, then
+    ``--garment``, ``--motions``, ``--test``, ``--device``, ``--max-frames`` over it."""
+    from loosefit.sim.generate import (
+        GarmentFile,
+        MotionSource,
+        preset,
+        read_config_file,
+    )
 
-    config = preset(args.preset, bvh_folder=args.bvh)
+    config = read_config_file(args.config) if args.config else preset(args.preset, args.bvh)
+    if args.garment:
+        from loosefit.garment.dress import DRESS_STYLES, DressConfig
+        from loosefit.garment.skirt import STYLES, SkirtConfig
+
+        g = args.garment
+        dresses = {"dress": "straps", **{f"dress-{s}": s for s in DRESS_STYLES}}
+        if g in STYLES:
+            config.garment = SkirtConfig.preset(args.resolution, g)
+        elif g in dresses:
+            config.garment = DressConfig.preset(args.resolution, dresses[g])
+        else:
+            config.garment = GarmentFile(str(Path(g).resolve()), args.units, args.up, args.kind,
+                                         _offset(args.offset), args.attach)  # fmt: skip
+        config.preset = "custom"
+        if g in dresses or args.kind == "dress" or (g not in STYLES and args.kind is None):
+            config.cloth.arm_collision = (
+                "upper" if config.cloth.arm_collision is False else (config.cloth.arm_collision)
+            )  # a dress's bodice reaches the upper arms
+    if args.motions:
+        folder = Path(args.motions)
+        if folder.is_dir():
+            config.motions = MotionSource(kind="bvh", folder=str(folder.resolve()),
+                                          test=tuple(args.test or ()))  # fmt: skip
+        else:
+            specs = tuple(t for t in args.motions.split(",") if t)
+            config.motions = MotionSource(kind="specs", specs=specs, test=tuple(args.test or ()))
+        config.preset = "custom"
+    elif args.test:
+        config.motions.test = tuple(args.test)
     if args.device:
         config.cloth.device = args.device
     if args.max_frames is not None:
         config.motions.max_frames = args.max_frames
+    return config
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from loosefit.sim.generate import format_report, generate, write_config_file
+
+    config = dataset_config(args)
+    if args.write_config:
+        write_config_file(config, args.write_config)
+        _log(f"wrote {args.write_config}: `loosefit simulate --config {args.write_config}` "
+             "makes this data set")  # fmt: skip
+        return 0
+    if args.out is None:
+        args.out = f"datasets/{config.preset}"
     manifest = generate(config, args.out, workers=args.workers, progress=True, reuse=args.reuse)
     print(format_report(manifest))
     _log(f"dataset in {args.out}")
@@ -735,9 +822,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("simulate", help="simulate a garment dataset with Newton (resumable)")
+    p.add_argument("--preset", default="demo",
+                   help="tiny, demo, salsa, salsa-speed, salsa-speeds, paper, dress-tiny or "
+                   "dress")  # fmt: skip
+    p.add_argument("--config", default=None, metavar="FILE",
+                   help="a data set configuration (.yaml, .yml or .toml) instead of a preset; "
+                   "--write-config writes one to start from")  # fmt: skip
     p.add_argument(
-        "--preset", default="demo", help="tiny, demo, salsa, salsa-speed, salsa-speeds or paper"
+        "--write-config",
+        default=None,
+        metavar="FILE",
+        help="write the configuration (a preset's, with the options below) and stop",
     )
+    p.add_argument("--garment", default=None,
+                   help="aline, flared, circle, dress, dress-strapless, or a garment file "
+                   "(.obj, .gltf, .glb; see loosefit garment) instead of the preset's")  # fmt: skip
+    p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"),
+                   help="with a parametric --garment")  # fmt: skip
+    p.add_argument("--motions", default=None, metavar="FOLDER_OR_SPECS",
+                   help="a folder of BVH files, or comma-separated motions (files, moves, "
+                   "dance:SECONDS, mirror:..., speed:F:..., A+B), one clip each")  # fmt: skip
+    p.add_argument(
+        "--test",
+        nargs="+",
+        default=None,
+        metavar="NAME",
+        help="the clips held out (their names: file stems, or the specs' names)",
+    )
+    _add_import_args(p)
     p.add_argument("--out", default=None, help="dataset folder (default datasets/PRESET)")
     p.add_argument("--bvh", default=None, help="salsa/paper: a folder of BVH clips")
     p.add_argument("--workers", type=int, default=2, help="parallel simulations")
@@ -904,20 +1016,46 @@ def build_parser() -> argparse.ArgumentParser:
     _add_avatar_args(p)
     p.set_defaults(func=cmd_motion)
 
-    p = sub.add_parser("garment", help="make a skirt or import an OBJ garment")
-    p.add_argument("source", help="skirt style (aline, flared, circle) or an .obj file")
+    p = sub.add_parser("garment", help="make a skirt or a dress, or import a garment file onto "
+                       "the avatar")  # fmt: skip
+    p.add_argument("source", help="aline, flared, circle, dress, dress-strapless, or a garment "
+                   "file (.obj, .gltf, .glb) in any units and axes")  # fmt: skip
     p.add_argument("--out", default="out/garment", help="output folder")
     p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"))
-    p.add_argument("--length", type=float, default=None, help="skirt length, metres")
+    p.add_argument("--length", type=float, default=None, help="skirt or dress length, metres")
+    _add_import_args(p)
     _add_avatar_args(p)
     p.set_defaults(func=cmd_garment)
     return parser
 
 
+def _add_import_args(p: argparse.ArgumentParser) -> None:
+    """How a garment file is read and placed (loosefit.dress.import_garment)."""
+    p.add_argument("--units", default=None, choices=("m", "dm", "cm", "mm", "in"),
+                   help="a garment file's unit (default: guessed from its size)")  # fmt: skip
+    p.add_argument(
+        "--up",
+        default=None,
+        choices=("z", "y", "-z", "-y"),
+        help="a garment file's up axis (default: guessed from its openings)",
+    )
+    p.add_argument("--kind", default=None, choices=("skirt", "dress"),
+                   help="skirt (waistband at the natural waist) or dress (on the shoulders, or "
+                   "its top band at the chest); default: a dress if it has straps")  # fmt: skip
+    p.add_argument(
+        "--offset",
+        default=None,
+        metavar="X,Y,Z",
+        help="metres to move a garment file by after placement",
+    )
+    p.add_argument("--attach", default="auto",
+                   help="what the simulation holds: auto (the waistband, a strapless top band, "
+                   "or straps over the shoulders), top (the top opening), or a text file of "
+                   "vertex indices")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if args.command == "simulate" and args.out is None:
-        args.out = f"datasets/{args.preset}"
     try:
         return args.func(args)
     except LoosefitInputError as exc:

@@ -36,6 +36,14 @@ ARM_BONES: tuple[str, ...] = tuple(
     for bone in ("Arm", "ForeArm", "Hand", "FingerBase", "HandFinger1")
 ) + ("LThumb", "RThumb")
 
+# The arm from the elbow down: what a dress's collider leaves out (arms="upper").
+FOREARM_BONES: tuple[str, ...] = tuple(
+    f"{side}{bone}"
+    for side in ("Left", "Right")
+    for bone in ("ForeArm", "Hand", "FingerBase", "HandFinger1")
+) + ("LThumb", "RThumb")
+ARM_COLLISION = (False, True, "upper")  # what ClothConfig.arm_collision may say
+
 # anny phenotype parameters, each in [0, 1]. In anny, gender 0 is male and 1 female.
 DEFAULT_SHAPE: dict[str, float] = {
     "gender": 0.9,
@@ -187,7 +195,7 @@ class Avatar(torch.nn.Module):
         if list(self.proxy_model.bone_labels) != list(self.model.bone_labels):
             raise RuntimeError("anny proxy topology has a different skeleton")  # invariant
         self.shape = shape
-        self._armless_faces: torch.Tensor | None = None
+        self._cut_faces: dict = {}  # arms (False or "upper") -> the collider's faces
         self._phenotype = {k: float(v) for k, v in shape.items()}
 
         # Our rest pose: identity rotations with the root joint at the origin.
@@ -366,21 +374,27 @@ class Avatar(torch.nn.Module):
         allowed = torch.tensor([self.joint_names.index(b) for b in bones], device=dominant.device)
         return torch.nonzero(torch.isin(dominant, allowed))[:, 0]
 
-    def collider_faces(self, arms: bool = True) -> torch.Tensor:
+    def collider_faces(self, arms: bool | str = True) -> torch.Tensor:
         """(F', 3) faces of the closed mesh the cloth collides with, on the full body's vertices.
 
-        With ``arms`` it is the body's own faces; without, the faces of the arms
-        (skinned mostly to :data:`ARM_BONES`) are cut away and the two holes at
-        the shoulders closed (see :func:`~loosefit.geometry.cap.cut_and_cap`).
+        With ``arms`` True it is the body's own faces; False cuts away the arms (the faces
+        skinned mostly to :data:`ARM_BONES`) and closes the two holes at the shoulders;
+        ``"upper"`` keeps the upper arms and cuts from the elbows down
+        (:data:`FOREARM_BONES`), what a dress's bodice needs
+        (see :func:`~loosefit.geometry.cap.cut_and_cap`).
         """
-        if arms:
+        if arms not in ARM_COLLISION:
+            raise LoosefitInputError("Avatar.collider_faces", "arms", f"one of {ARM_COLLISION}",
+                                     repr(arms))  # fmt: skip
+        if arms is True:
             return self.faces
-        if self._armless_faces is None:
+        if arms not in self._cut_faces:
             removed = np.zeros(self.rest_vertices.shape[0], bool)
-            removed[self.vertices_of_bones(ARM_BONES).cpu().numpy()] = True
+            bones = ARM_BONES if arms is False else FOREARM_BONES
+            removed[self.vertices_of_bones(bones).cpu().numpy()] = True
             faces = cut_and_cap(self.faces.cpu().numpy(), removed)
-            self._armless_faces = torch.from_numpy(faces).to(self.faces.device)
-        return self._armless_faces
+            self._cut_faces[arms] = torch.from_numpy(faces).to(self.faces.device)
+        return self._cut_faces[arms]
 
     def seed_points(
         self, count: int = 256, bones: tuple[str, ...] = LOWER_BODY_BONES

@@ -376,6 +376,24 @@ def _first_face(mesh: ObjMesh, f: int) -> str:
     return f"triangle {f}{line} with vertices {corners} (1-based, as in the file)"
 
 
+def garment_uvs(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None,
+                face_uvs: np.ndarray | None, margin: float = 0.02
+                ) -> tuple[np.ndarray, np.ndarray, str]:  # fmt: skip
+    """A garment's UVs in the unit square: the file's (``uvs`` (U, 2), ``face_uvs`` (F, 3)),
+    scaled into it (aspect kept) when they leave it, or an xatlas atlas when it has none.
+
+    Returns:
+        uvs, face_uvs, and where they came from: ``"file"``, ``"file, rescaled"`` or
+        ``"xatlas"``.
+    """
+    if uvs is None or face_uvs is None:
+        atlas, face_atlas = compute_uv_atlas(vertices, faces)
+        return normalize_uvs(atlas, margin, keep_aspect=False), face_atlas, "xatlas"
+    if (uvs < 0).any() or (uvs > 1).any():
+        return normalize_uvs(uvs, margin), face_uvs, "file, rescaled"
+    return uvs, face_uvs, "file"
+
+
 def load_garment_obj(
     path: str | os.PathLike,
     *,
@@ -423,14 +441,8 @@ def load_garment_obj(
             "(1-based, as in the file)",
         )  # fmt: skip
 
-    if mesh.uvs is None or mesh.face_uvs is None:
-        uvs, face_uvs = compute_uv_atlas(mesh.vertices, mesh.faces)
-        uvs, uv_source = normalize_uvs(uvs, uv_margin, keep_aspect=False), "xatlas"
-    elif (mesh.uvs < 0).any() or (mesh.uvs > 1).any():
-        uvs, face_uvs = normalize_uvs(mesh.uvs, uv_margin), mesh.face_uvs
-        uv_source = "file, rescaled"
-    else:
-        uvs, face_uvs, uv_source = mesh.uvs, mesh.face_uvs, "file"
+    uvs, face_uvs, uv_source = garment_uvs(mesh.vertices, mesh.faces, mesh.uvs, mesh.face_uvs,
+                                           uv_margin)  # fmt: skip
 
     V = len(mesh.vertices)
     if isinstance(waist, str):

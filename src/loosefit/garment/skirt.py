@@ -453,7 +453,7 @@ def _clearance_deficit(ring: np.ndarray, profile: HipProfile | None, ease: float
     return float(((1.0 - scale) * np.linalg.norm(xy, axis=1)).max())
 
 
-def _rest_shape(config: SkirtConfig, waist: WaistFit) -> tuple[np.ndarray, dict]:
+def rest_rings(config: SkirtConfig, waist: WaistFit) -> tuple[np.ndarray, dict]:
     """Ring positions relative to the skirt's axis, built from the waist down.
 
     Returns:
@@ -602,7 +602,7 @@ def make_skirt(config: SkirtConfig, waist: WaistFit) -> GarmentTemplate:
         waistband = ring 0 (vertices 0..segments-1), ``meta`` holding the
         config, the waist fit and the rest-shape diagnostics.
     """
-    rings, info = _rest_shape(config, waist)  # (R, S, 3)
+    rings, info = rest_rings(config, waist)  # (R, S, 3)
     rings[..., :2] += waist.center[:2]
     faces, face_uvs, uvs = skirt_grid(config.rings, config.segments, config.uv_margin)
     meta = {

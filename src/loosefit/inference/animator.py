@@ -67,7 +67,7 @@ def check_motion_joints(motion: Motion, joint_names: tuple[str, ...], path: Path
                                  "finite numbers", "NaN or infinity")  # fmt: skip
 
 
-def body_collider(avatar, handler, motion: Motion, arm_collision: bool, device: torch.device
+def body_collider(avatar, handler, motion: Motion, arm_collision: bool | str, device: torch.device
                   ) -> BodyCollider:  # fmt: skip
     """``handler`` (Eq. 16's, or a baseline's push-out) along ``motion``'s posed body, the
     simulation's collider (the arms in it only with ``arm_collision``)."""
@@ -89,8 +89,10 @@ def avatar_of(body: dict):
     return Avatar(AvatarConfig(shape=dict(body.get("shape", {}))))
 
 
-def _arm_collision(data: dict) -> bool:
-    return bool((data.get("cloth") or {}).get("arm_collision", False))
+def arm_collision_of(data: dict) -> bool | str:
+    """The arms in the collider as the data was simulated: False, True or "upper"."""
+    arms = (data.get("cloth") or {}).get("arm_collision", False)
+    return arms if arms == "upper" else bool(arms)
 
 
 # -- the paper's model ------------------------------------------------------------------------
@@ -112,7 +114,7 @@ class AnimationModel:
     path: Path
     detail: torch.nn.Module | None = None  # paper 3.4 (a DetailGenerator), if trained
     collision: CollisionConfig = field(default_factory=CollisionConfig)  # paper 3.5
-    arm_collision: bool = False  # the arms in the collider (as in the simulation of the data)
+    arm_collision: bool | str = False  # the arms in the collider, as the data's simulation
     stages: Stages = field(default_factory=Stages)  # what animate() runs by default
     _avatar: object = None
     _handler: CollisionHandler | None = None
@@ -206,7 +208,7 @@ def load_animation_model(
         torch.as_tensor(data["rest_state"]).float().to(device),
         tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
         dict(data["body"]), RolloutConfig(**config["rollout"]), path,
-        arm_collision=_arm_collision(data),
+        arm_collision=arm_collision_of(data),
     )  # fmt: skip
 
 
@@ -281,7 +283,7 @@ class BaselineModel:
     body: dict
     rollout_config: RolloutConfig
     path: Path
-    arm_collision: bool = False
+    arm_collision: bool | str = False
     collision: CollisionConfig = field(default_factory=CollisionConfig)
     stages: Stages = field(default_factory=Stages)
     detail: None = None  # no detail stage (what the CLI asks of every model)
@@ -369,7 +371,7 @@ def load_baseline(path: str | Path, device="cpu") -> BaselineModel:
     return BaselineModel(
         network.to(device).eval(), template, tuple(data["joint_names"]),
         float(data["floor_height"]), float(data["fps"]), dict(data["body"]),
-        RolloutConfig(**config["rollout"]), path, arm_collision=_arm_collision(data),
+        RolloutConfig(**config["rollout"]), path, arm_collision=arm_collision_of(data),
     )  # fmt: skip
 
 

@@ -99,8 +99,9 @@ class ClothConfig:
     # or hand resting on the hip pinches the cloth against the torso, and contact against
     # one body mesh (an inside/outside test) cannot free cloth caught between two of its
     # parts: it stretched salsa skirts by 7x. Without the arms the collider is the body
-    # with its shoulders capped; a hand passing the skirt goes through it.
-    arm_collision: bool = False
+    # with its shoulders capped; a hand passing the skirt goes through it. "upper": the
+    # upper arms collide, the arms from the elbows down do not (a dress's bodice).
+    arm_collision: bool | str = False
     self_friction: float = 0.2  # Coulomb friction between two layers of cloth
     # contact of the cloth with itself (costs ~3x; without it ~10% of triangles cross in a spin)
     self_contact: bool = True  # resolve cloth-cloth contact
@@ -135,6 +136,9 @@ class ClothConfig:
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise LoosefitInputError(src, name, "an integer >= 1", repr(value))
+        if self.arm_collision not in (False, True, "upper"):
+            raise LoosefitInputError(src, "arm_collision", "false, true or 'upper'",
+                                     repr(self.arm_collision))  # fmt: skip
         if self.max_substeps < self.substeps:
             raise LoosefitInputError(
                 src, "max_substeps", f">= substeps ({self.substeps})", repr(self.max_substeps)
@@ -314,6 +318,7 @@ def glue_waist(
     body_vertices: np.ndarray,
     body_faces: np.ndarray,
     offset: float | None,
+    loop: bool = True,
 ) -> WaistGlue:
     """Glue a waistband (a closed loop of points, in order) to the body surface.
 
@@ -329,13 +334,15 @@ def glue_waist(
         body_vertices: (Vb, 3) the body as the waistband is placed on it.
         body_faces: (Fb, 3) triangles of the closed body mesh.
         offset: metres outside the surface; None keeps each point's own offset.
+        loop: the points are a closed band in order (respaced along it); False: separate
+            points (a dress's straps), each projected alone.
 
     Returns:
         The :class:`WaistGlue`; :func:`glued_points` evaluates it on a posed body.
     """
     placed = np.asarray(waist_points, np.float64)
     points = placed
-    if offset is not None and len(points) >= 3:
+    if offset is not None and loop and len(points) >= 3:
         for _ in range(4):  # projecting moves the respaced points a little: repeat
             surface = closest_points(body_vertices, body_faces, points).points.astype(np.float64)
             points = _resample_like(surface, placed)
@@ -413,6 +420,9 @@ class ClothSimulator:
             substeps, or as many as it is given.
         bounds: (lower (3,), upper (3,)) a box that holds the body over the whole motion;
             contacts are culled outside it. Default: the starting body's box grown by 2 m.
+        loop: ``waist`` is a closed band in order (a waistband, a dress's top band),
+            respaced as it is pulled onto the body; False: separate points (a dress's
+            straps), each held where it is closest (see :func:`glue_waist`).
     """
 
     def __init__(
@@ -425,6 +435,7 @@ class ClothSimulator:
         config: ClothConfig,
         frame_dt: float,
         bounds: tuple[np.ndarray, np.ndarray] | None = None,
+        loop: bool = True,
     ) -> None:
         import newton  # imported here: importing it takes seconds
 
@@ -439,7 +450,8 @@ class ClothSimulator:
         self.num_body_vertices = len(body_vertices)
 
         # 1. Glue the waistband to the body, once.
-        self.glue = glue_waist(garment_vertices[waist], body_vertices, body_faces, cfg.waist_offset)
+        self.glue = glue_waist(garment_vertices[waist], body_vertices, body_faces,
+                               cfg.waist_offset, loop)  # fmt: skip
 
         # 2. The cloth, with a seeded jitter that breaks the template's exact symmetry.
         rng = np.random.default_rng(cfg.seed)
@@ -649,6 +661,12 @@ class ClothSimulator:
 # -- driving it with a motion -----------------------------------------------------
 
 
+def attached_loop(template: GarmentTemplate) -> bool:
+    """Whether a garment is held by a closed band (a waistband: ``meta["attachment"]``
+    "loop", the default) or by separate points ("points": a dress's straps)."""
+    return (template.meta or {}).get("attachment", "loop") == "loop"
+
+
 def _check_template(template: GarmentTemplate) -> None:
     src = f"garment '{template.name}'"
     if len(template.waist) == 0:
@@ -762,7 +780,7 @@ def simulate(
     bounds = (body.min((0, 1)) - 2.0, body.max((0, 1)) + 2.0)
     sim = ClothSimulator(
         garment, template.faces, template.waist, body[0], body_faces, config,
-        frame_dt=1.0 / motion.fps, bounds=bounds,
+        frame_dt=1.0 / motion.fps, bounds=bounds, loop=attached_loop(template),
     )  # fmt: skip
     t_build = time.perf_counter() - t0
     total = len(body) - 1
@@ -864,6 +882,7 @@ def settle(
         garment, template.faces, template.waist, body,
         avatar.collider_faces(arms=config.arm_collision).cpu().numpy(), config,
         frame_dt=1.0 / fps, bounds=(body.min(0) - 2.0, body.max(0) + 2.0),
+        loop=attached_loop(template),
     )  # fmt: skip
     n_settle = int(round(config.settle_seconds * fps)) + 1
     for k in range(n_settle - 1):

@@ -32,6 +32,7 @@ from loosefit.atomic import atomic_path
 from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.quality import PENETRATION_TOLERANCE
+from loosefit.garment.dress import DressConfig
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.sequence import AnimatedGarment
 from loosefit.sim.cloth import ClothConfig, SimulationError, simulate
@@ -41,14 +42,17 @@ from loosefit.sim.cloth import ClothConfig, SimulationError, simulate
 class MotionSource:
     """Where a dataset's motions come from."""
 
-    kind: str = "procedural"  # "procedural" (random dances) or "bvh" (a folder of BVH files)
+    # "procedural" (random dances), "bvh" (a folder of BVH files) or "specs" (any motions
+    # load_motion reads: files, moves, dance:SECONDS, mirror:..., speed:..., A+B)
+    kind: str = "procedural"
     count: int = 8  # procedural: number of dances
     moves: tuple[str, ...] = ()  # procedural: one clip per named move instead of random dances
     seconds: float = 6.0  # procedural: length of each dance
     folder: str = ""  # bvh: the folder of .bvh files
     max_frames: int | None = None  # keep at most this many frames of each clip (None: all)
     start_frame: int = 0  # drop the frames of each clip before this one
-    test: tuple[str, ...] = ()  # bvh: clip names held out for testing
+    test: tuple[str, ...] = ()  # bvh, specs: clip names held out for testing
+    specs: tuple[str, ...] = ()  # specs: the motions, one clip each
     chain_test: bool = False  # bvh: the test clips play one after another as one long sequence
     test_every: int = 4  # procedural: every n-th dance is held out for testing
     # bvh: each training clip is also simulated played at these speeds (``NAME_xSPEED``,
@@ -68,11 +72,68 @@ class QualityLimits:
 
 
 @dataclass
+class GarmentFile:
+    """A user's garment file, imported onto the avatar (:func:`loosefit.dress.import_garment`)."""
+
+    path: str = ""  # .obj, .gltf, .glb, or a loosefit template .npz (used as it is)
+    units: str | None = None  # None: guessed from its size
+    up: str | None = None  # None: guessed from its openings
+    kind: str | None = None  # "skirt" or "dress"; None: guessed
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)  # m, after placement
+    attach: str = "auto"  # "auto", "top", or a text file of vertex indices
+
+
+GARMENT_TYPES = {"skirt": SkirtConfig, "dress": DressConfig, "file": GarmentFile}
+
+
+def garment_type(garment) -> str:
+    """``skirt``, ``dress`` or ``file``: which of :data:`GARMENT_TYPES` a garment config is."""
+    for name, cls in GARMENT_TYPES.items():
+        if isinstance(garment, cls):
+            return name
+    raise LoosefitInputError("DatasetConfig", "garment", f"one of {list(GARMENT_TYPES)}",
+                             type(garment).__name__)  # fmt: skip
+
+
+def make_garment(garment, avatar):
+    """The template of a dataset's garment config on ``avatar`` (its rest pose)."""
+    from loosefit.dress import fit_dress, fit_skirt, import_garment
+    from loosefit.types import GarmentTemplate
+
+    kind = garment_type(garment)
+    if kind == "skirt":
+        return fit_skirt(avatar, garment)
+    if kind == "dress":
+        return fit_dress(avatar, garment)
+    path = Path(garment.path)
+    if path.suffix.lower() == ".npz":
+        return GarmentTemplate.load(path)
+    attach = garment.attach
+    if attach not in ("auto", "top", "none"):
+        attach = _read_indices(Path(attach))
+    return import_garment(path, avatar, garment.units, garment.up, garment.kind,
+                          garment.offset, attach)[0]  # fmt: skip
+
+
+def _read_indices(path: Path) -> np.ndarray:
+    """Vertex indices from a text file (whitespace or comma separated)."""
+    if not path.is_file():
+        raise LoosefitInputError(path, "attach", "a text file of vertex indices", "no such file")
+    try:
+        return np.array([int(t) for t in path.read_text().replace(",", " ").split()], np.int64)
+    except ValueError as exc:
+        raise LoosefitInputError(path, "attach", "integers", str(exc)) from exc
+
+
+@dataclass
 class DatasetConfig:
     """Everything that decides a dataset's content."""
 
     preset: str = "custom"  # name of the preset it came from
-    garment: SkirtConfig = field(default_factory=lambda: SkirtConfig.preset("cpu", "flared"))
+    # the garment: a parametric skirt or dress, or a user's file
+    garment: SkirtConfig | DressConfig | GarmentFile = field(
+        default_factory=lambda: SkirtConfig.preset("cpu", "flared")
+    )
     cloth: ClothConfig = field(default_factory=ClothConfig)
     motions: MotionSource = field(default_factory=MotionSource)
     limits: QualityLimits = field(default_factory=QualityLimits)
@@ -81,7 +142,7 @@ class DatasetConfig:
     shape: dict = field(default_factory=dict)  # avatar phenotype overrides
 
 
-PRESETS = ("tiny", "demo", "salsa", "salsa-speed", "salsa-speeds", "paper")
+PRESETS = ("tiny", "demo", "salsa", "salsa-speed", "salsa-speeds", "paper", "dress-tiny", "dress")
 
 
 def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
@@ -98,6 +159,9 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
       fast; ``--reuse`` a ``salsa-speed`` folder to simulate only the 1.5x clips.
     * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
       salsa plus procedural dances; meant for a GPU.
+    * ``dress-tiny``: ``tiny`` with a coarse strapless dress, for tests.
+    * ``dress``: the parametric dress with straps on procedural moves (6 clips of 4 s,
+      one held out): a small data set to train a dress on a CPU in about an hour.
     """
     salsa = bvh_folder or str(Path(__file__).resolve().parents[3].parent / "shared/mocap/cmu-salsa")
     salsa_test = ("60_03", "61_03", "60_07", "61_07")
@@ -151,6 +215,19 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
             motions=MotionSource(
                 kind="bvh", folder=salsa, test=salsa_test, count=6, seconds=60.0, start_frame=10
             ),
+        )
+    if name == "dress-tiny":
+        config = preset("tiny")
+        config.preset = name
+        config.garment = DressConfig(style="strapless", rings=10, segments=24, length=0.5)
+        config.cloth.arm_collision = "upper"
+        return config
+    if name == "dress":
+        return DatasetConfig(
+            preset=name,
+            garment=DressConfig.preset("cpu", "straps"),
+            cloth=ClothConfig(settle_seconds=0.6, blend_seconds=0.4, arm_collision="upper"),
+            motions=MotionSource(kind="procedural", count=6, seconds=4.0, test_every=6),
         )
     raise LoosefitInputError("--preset", "preset", "one of " + ", ".join(PRESETS), repr(name))
 
@@ -206,9 +283,86 @@ def plan_jobs(config: DatasetConfig) -> list[Job]:
             seed = config.seed + 1000 + i
             test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
             jobs.append(Job(f"dance_{i:03d}", f"dance:{m.seconds}", seed, test))
-    if m.kind not in ("bvh", "procedural"):
-        raise LoosefitInputError("MotionSource", "kind", "bvh or procedural", repr(m.kind))
+    if m.kind == "specs":
+        if not m.specs:
+            raise LoosefitInputError("MotionSource", "specs", "at least one motion", "none")
+        names = [spec_name(spec) for spec in m.specs]
+        if len(set(names)) != len(names):
+            dup = next(n for n in names if names.count(n) > 1)
+            raise LoosefitInputError("MotionSource", "specs", "motions with distinct names",
+                                     f"two named '{dup}'")  # fmt: skip
+        unknown = sorted(set(m.test) - set(names))
+        if unknown:
+            raise LoosefitInputError("MotionSource", "test", f"names of the motions {names}",
+                                     repr(unknown))  # fmt: skip
+        jobs += [Job(n, spec, config.seed + 2000 + i, n in m.test)
+                 for i, (n, spec) in enumerate(zip(names, m.specs, strict=True))]  # fmt: skip
+    if m.kind not in ("bvh", "procedural", "specs"):
+        raise LoosefitInputError("MotionSource", "kind", "bvh, procedural or specs",
+                                 repr(m.kind))  # fmt: skip
     return jobs
+
+
+def read_config_file(path: str | Path) -> DatasetConfig:
+    """A data set configuration from a YAML (``.yaml``, ``.yml``) or TOML (``.toml``) file:
+    the fields of :class:`DatasetConfig`, with ``garment.type`` (``skirt``, ``dress`` or
+    ``file``) and, for a parametric garment, an optional ``garment.resolution`` preset
+    (``cpu``, ``paper``) that the other garment fields override. What
+    ``loosefit simulate --write-config`` writes for any preset reads back as that preset.
+
+    Raises:
+        LoosefitInputError: naming the file and the field: an unreadable file, another
+            suffix, an unknown field, a bad value.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise LoosefitInputError(path, "<file>", "a data set configuration", "no such file")
+    text = path.read_text()
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".yaml", ".yml"):
+            import yaml
+
+            data = yaml.safe_load(text)
+        elif suffix == ".toml":
+            try:
+                import tomllib
+            except ImportError:  # Python 3.10
+                raise LoosefitInputError(path, "suffix", ".yaml (TOML needs Python 3.11+)",
+                                         ".toml") from None  # fmt: skip
+            data = tomllib.loads(text)
+        else:
+            raise LoosefitInputError(path, "suffix", ".yaml, .yml or .toml", repr(path.suffix))
+    except LoosefitInputError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - yaml/toml parse errors of every kind
+        raise LoosefitInputError(path, "<file>", f"valid {suffix[1:].upper()}", str(exc)) from exc
+    if not isinstance(data, dict):
+        raise LoosefitInputError(path, "<file>", "a table of settings", type(data).__name__)
+    return config_from_dict(data, path)
+
+
+def write_config_file(config: DatasetConfig, path: str | Path) -> Path:
+    """Write ``config`` as YAML (atomically), for :func:`read_config_file`."""
+    import yaml
+
+    path = Path(path)
+    if path.suffix.lower() not in (".yaml", ".yml"):
+        raise LoosefitInputError(path, "suffix", ".yaml or .yml", repr(path.suffix))
+    text = yaml.safe_dump(_normalized(_config_dict(config)), sort_keys=False)
+    header = ("# a loosefit data set: `loosefit simulate --config THIS_FILE --out FOLDER`\n"
+              "# (fields: loosefit.sim.generate.DatasetConfig; garment.type: skirt, dress or "
+              "file)\n")  # fmt: skip
+    with atomic_path(path) as tmp:
+        tmp.write_text(header + text)
+    return path
+
+
+def spec_name(spec: str) -> str:
+    """A clip's name for a motion spec: its file stems and words, safe as a file name
+    (``mirror:../a/61_01.bvh`` -> ``mirror_61_01``)."""
+    parts = [re.sub(r"\.(bvh|npz)$", "", re.sub(r"[^:+]*/", "", p)) for p in spec.split("+")]
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", "+".join(parts)).strip("._") or "motion"
 
 
 def short_spec(spec: str) -> str:
@@ -243,7 +397,47 @@ def package_versions() -> dict[str, str]:
 
 
 def _config_dict(config: DatasetConfig) -> dict:
-    return asdict(config)
+    d = asdict(config)
+    d["garment"] = {"type": garment_type(config.garment), **d["garment"]}
+    return d
+
+
+def config_from_dict(d: dict, source: str | Path = "dataset config") -> DatasetConfig:
+    """A :class:`DatasetConfig` from plain data (a config file, a manifest's ``config``);
+    missing fields take their defaults, unknown ones are an error naming them."""
+
+    def build(cls, data, where: str):
+        if not isinstance(data, dict):
+            raise LoosefitInputError(source, where, "a table of settings", type(data).__name__)
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise LoosefitInputError(source, f"{where}.{unknown[0]}" if where else unknown[0],
+                                     f"one of {sorted(names)}", repr(unknown[0]))  # fmt: skip
+        kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        try:
+            return cls(**kwargs)
+        except LoosefitInputError as exc:
+            raise LoosefitInputError(source, f"{where}.{exc.field}", exc.expected, exc.found,
+                                     exc.hint) from exc  # fmt: skip
+        except TypeError as exc:
+            raise LoosefitInputError(source, where, "valid settings", str(exc)) from exc
+
+    d = dict(d)
+    g = dict(d.pop("garment", {"type": "skirt", **asdict(SkirtConfig.preset("cpu", "flared"))}))
+    kind = g.pop("type", "skirt")
+    if kind not in GARMENT_TYPES:
+        raise LoosefitInputError(source, "garment.type", f"one of {list(GARMENT_TYPES)}",
+                                 repr(kind))  # fmt: skip
+    resolution = g.pop("resolution", None)
+    if resolution is not None and kind != "file":
+        style = g.pop("style", "flared" if kind == "skirt" else "straps")
+        base = (SkirtConfig if kind == "skirt" else DressConfig).preset(resolution, style)
+        g = {**asdict(base), **g}
+    sub = {"cloth": ClothConfig, "motions": MotionSource, "limits": QualityLimits}
+    parts = {k: build(cls, d.pop(k, {}), k) for k, cls in sub.items()}
+    garment = build(GARMENT_TYPES[kind], g, "garment")
+    return build(DatasetConfig, {**d, **parts, "garment": garment}, "")
 
 
 # -- workers -------------------------------------------------------------------------
@@ -271,11 +465,11 @@ def _worker_init(config: DatasetConfig, progress_queue) -> None:
     import torch
 
     from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.dress import fit_skirt
 
     torch.set_num_threads(1)
     avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
-    _WORKER.update(avatar=avatar, template=fit_skirt(avatar, config.garment), queue=progress_queue)
+    _WORKER.update(avatar=avatar, template=make_garment(config.garment, avatar),
+                   queue=progress_queue)  # fmt: skip
 
 
 def _pool_worker_init(config: DatasetConfig, progress_queue) -> None:
@@ -376,7 +570,12 @@ def _stored_config(manifest: dict) -> dict:
                 out[key] = fill(out[key], value)
         return out
 
-    return fill(manifest.get("config", {}), _normalized(_config_dict(DatasetConfig())))
+    stored = manifest.get("config", {})
+    default = _normalized(_config_dict(DatasetConfig()))
+    kind = stored.get("garment", {}).get("type", "skirt")
+    if kind != "skirt" and kind in GARMENT_TYPES:  # fill a dress's fields from a dress's
+        default["garment"] = _normalized({"type": kind, **asdict(GARMENT_TYPES[kind]())})
+    return fill(stored, default)
 
 
 def _open_manifest(config: DatasetConfig, out: Path) -> dict:
@@ -503,7 +702,6 @@ def generate(
         The final manifest (also written to ``out_dir/manifest.json``).
     """
     from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.dress import fit_skirt
 
     out = Path(out_dir)
     jobs = plan_jobs(config)
@@ -513,7 +711,12 @@ def generate(
         stale.unlink()  # left by a killed run: never a whole sequence
 
     avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
-    template = fit_skirt(avatar, config.garment)
+    template = make_garment(config.garment, avatar)
+    if (template.meta or {}).get("kind") == "dress" and config.cloth.arm_collision is False:
+        raise LoosefitInputError(
+            "DatasetConfig", "cloth.arm_collision", "'upper' (or true) for a dress: its bodice "
+            "reaches the arms", "false", hint="set cloth.arm_collision = 'upper'",
+        )  # fmt: skip
     template.save(out / "template.npz")
     manifest["body"] = {
         "model": "anny",

@@ -26,7 +26,7 @@ from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.geometry.skinning import root_frame_transforms
-from loosefit.inference.animator import BaselineModel, load_baseline
+from loosefit.inference.animator import BaselineModel, arm_collision_of, load_baseline
 from loosefit.inference.checkpoints import (
     BASELINE_FORMAT,
     garment_record,
@@ -266,7 +266,7 @@ def train_baseline(
         epoch, history = restore_training(saved, {"model": network, "optimizer": optim}, gen)
         log(f"resumed {ckpt_path} at epoch {epoch}")
 
-    arms = bool((meta["cloth"] or {}).get("arm_collision", False))
+    arms = arm_collision_of(meta)
 
     def current() -> BaselineModel:
         return BaselineModel(network, template, tuple(joint_names), floor, meta["fps"],
