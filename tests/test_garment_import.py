@@ -194,3 +194,23 @@ def test_bad_options_are_named(dresses, tmp_path, avatar):
                           (dict(attach=np.array([0, 99999])), "--attach")):  # fmt: skip
         with pytest.raises(LoosefitInputError, match=field):
             import_garment(path, avatar, **kwargs)
+
+
+def test_the_garment_command_says_what_it_guessed(dresses, tmp_path, capsys):
+    from loosefit.cli import main
+    from loosefit.types import GarmentTemplate
+
+    path = _export(dresses["straps"], tmp_path / "mine.obj", "mm", "y")
+    assert main(["garment", str(path), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "units: mm (guessed)" in err and "say --units to change it" in err
+    assert "up: y (guessed)" in err and "kind: dress (guessed)" in err
+    assert "placed: top over the shoulders" in err
+    back = GarmentTemplate.load(tmp_path / "out" / "mine.npz")
+    assert np.abs(back.vertices - dresses["straps"].vertices).max() < 1e-3
+    # a bad option value: exit 2, a message naming it, nothing written
+    assert main(["garment", str(path), "--offset", "1,2", "--out", str(tmp_path / "x")]) == 2
+    assert "--offset" in capsys.readouterr().err and not (tmp_path / "x").exists()
+    # the parametric ones by name
+    assert main(["garment", "dress-strapless", "--out", str(tmp_path / "p")]) == 0
+    assert GarmentTemplate.load(tmp_path / "p" / "dress-strapless.npz").meta["kind"] == "dress"

@@ -1,4 +1,5 @@
 import json
+import re
 
 import numpy as np
 import pytest
@@ -186,3 +187,120 @@ def test_summary_quality_covers_the_kept_clips_only():
     assert s["clips"] == 3 and s["clips_ok"] == 1 and s["frames"] == 100
     assert s["inside_max"] == 0.01  # not the flagged clip's 0.40
     assert s["seconds_per_frame_mean"] == 3.0  # the cost counts every simulated clip
+
+
+# -- any garment, any motions, a configuration file ------------------------------------------
+
+
+def test_a_tiny_dress_dataset_simulates_held_by_its_top_band(tmp_path, avatar):
+    out = tmp_path / "dress"
+    manifest = gen.generate(gen.preset("dress-tiny"), out, workers=1, progress=False)
+    assert manifest["complete"] and manifest["summary"]["clips_ok"] == 2
+    reader = DatasetReader(out)
+    assert reader.template.meta["kind"] == "dress" and reader.template.name == "dress_strapless"
+    assert manifest["config"]["garment"]["type"] == "dress"
+    assert manifest["config"]["cloth"]["arm_collision"] == "upper"
+    seq = reader.read("spin_001")
+    g = seq.garment_vertices
+    assert np.isfinite(g).all() and g.shape[1] == reader.template.num_vertices
+    # the top band stays at the chest as the body spins; the hem hangs below the hips
+    top = g[:, reader.template.waist, 2].mean(1) + 0  # world heights
+    assert np.ptp(top) < 0.05 and (g[:, :, 2].min(1) < top - 0.3).all()
+    q = manifest["sequences"]["spin_001"]["quality"]
+    assert q["penetration_max"] <= 0.01 and q["nan_count"] == 0
+
+
+def test_a_dress_needs_the_upper_arms_in_its_collider(tmp_path):
+    config = gen.preset("dress-tiny")
+    config.cloth.arm_collision = False
+    with pytest.raises(LoosefitInputError, match="arm_collision.*upper"):
+        gen.generate(config, tmp_path / "x", workers=1, progress=False)
+
+
+def test_motions_as_specs_are_named_and_held_out_by_name(tmp_path):
+    config = gen.preset("tiny")
+    config.motions = gen.MotionSource(kind="specs", specs=("spin", "mirror:kick", "dance:2"),
+                                      test=("mirror_kick",))  # fmt: skip
+    jobs = gen.plan_jobs(config)
+    assert [(j.name, j.spec, j.test) for j in jobs] == [
+        ("spin", "spin", False), ("mirror_kick", "mirror:kick", True),
+        ("dance_2", "dance:2", False)]  # fmt: skip
+    assert gen.spec_name("speed:1.25:/data/mocap/61_01.bvh") == "speed_1.25_61_01"
+    config.motions.test = ("nope",)
+    with pytest.raises(LoosefitInputError, match="test.*names of the motions"):
+        gen.plan_jobs(config)
+    config.motions = gen.MotionSource(kind="specs", specs=("spin", "spin"))
+    with pytest.raises(LoosefitInputError, match="distinct names"):
+        gen.plan_jobs(config)
+
+
+@pytest.mark.parametrize("name", gen.PRESETS)
+def test_every_preset_is_a_configuration_file(name, tmp_path):
+    config = gen.preset(name, bvh_folder=str(tmp_path))
+    path = gen.write_config_file(config, tmp_path / f"{name}.yaml")
+    assert gen.read_config_file(path) == config
+
+
+def test_a_configuration_file_in_toml_with_a_garment_file(tmp_path, avatar):
+    import sys
+
+    if sys.version_info < (3, 11):
+        pytest.skip("TOML needs Python 3.11's tomllib")
+    (tmp_path / "d.toml").write_text(
+        'preset = "mine"\n[garment]\ntype = "file"\npath = "my.obj"\nunits = "cm"\n'
+        '[motions]\nkind = "specs"\nspecs = ["spin", "kick"]\ntest = ["kick"]\n'
+        '[cloth]\narm_collision = "upper"\n'
+    )
+    config = gen.read_config_file(tmp_path / "d.toml")
+    assert isinstance(config.garment, gen.GarmentFile) and config.garment.units == "cm"
+    assert config.motions.specs == ("spin", "kick") and config.motions.test == ("kick",)
+    assert config.cloth.arm_collision == "upper"
+    # a parametric garment from a resolution preset, overridden field by field
+    (tmp_path / "s.yaml").write_text("garment: {type: dress, resolution: paper, length: 1.0}\n")
+    g = gen.read_config_file(tmp_path / "s.yaml").garment
+    assert (g.rings, g.length, g.style) == (68, 1.0, "straps")
+
+
+@pytest.mark.parametrize("text, field", [
+    ("garment: {type: coat}\n", "garment.type"),
+    ("garment: {type: skirt, colour: red}\n", "garment.colour"),
+    ("cloth: {substeps: -1}\n", "cloth.substeps"),
+    ("motions: [1, 2]\n", "motions"),
+    ("- just a list\n", "<file>"),
+    ("garment: {type: skirt\n", "<file>"),
+])  # fmt: skip
+def test_a_bad_configuration_file_names_the_field(tmp_path, text, field):
+    (tmp_path / "bad.yaml").write_text(text)
+    with pytest.raises(LoosefitInputError, match=rf"bad\.yaml.*field '{re.escape(field)}"):
+        gen.read_config_file(tmp_path / "bad.yaml")
+    with pytest.raises(LoosefitInputError, match=r"suffix"):
+        gen.read_config_file(_touch(tmp_path / "c.json"))
+
+
+def _touch(path):
+    path.write_text("{}")
+    return path
+
+
+def test_simulate_a_garment_file_on_named_motions_from_the_command_line(tmp_path, avatar):
+    from loosefit.cli import main
+    from loosefit.dress import fit_dress
+    from loosefit.garment.dress import DressConfig
+    from loosefit.garment.obj import write_obj
+
+    dress = fit_dress(avatar, DressConfig(style="strapless", rings=10, segments=24, length=0.5))
+    v = dress.vertices * 100.0  # centimetres, Y up: as a garment tool writes it
+    write_obj(tmp_path / "my_dress.obj", np.stack([v[:, 0], v[:, 2], -v[:, 1]], 1), dress.faces,
+              dress.uvs, dress.face_uvs)  # fmt: skip
+    out = tmp_path / "ds"
+    cfg = tmp_path / "mine.yaml"
+    args = ["simulate", "--preset", "tiny", "--garment", str(tmp_path / "my_dress.obj"),
+            "--kind", "dress", "--motions", "spin,kick", "--test", "kick"]  # fmt: skip
+    assert main([*args, "--write-config", str(cfg)]) == 0  # a file to start from
+    assert main(["simulate", "--config", str(cfg), "--out", str(out), "--workers", "1"]) == 0
+    reader = DatasetReader(out)
+    assert reader.split("train") == ["spin"] and reader.split("test") == ["kick"]
+    assert np.abs(reader.template.vertices - dress.vertices).max() < 1e-3
+    stored = json.loads((out / "manifest.json").read_text())["config"]
+    assert stored["garment"]["type"] == "file" and stored["garment"]["kind"] == "dress"
+    assert stored["cloth"]["arm_collision"] == "upper"

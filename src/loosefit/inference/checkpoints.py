@@ -19,6 +19,7 @@ training configuration (:func:`model_config`).
 from __future__ import annotations
 
 import hashlib
+import json
 from pathlib import Path
 
 import torch
@@ -27,7 +28,7 @@ from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import garment_fingerprint, same_garment
 from loosefit.model.generative import GarmentGenerativeModel, GenerativeConfig
-from loosefit.types import GarmentTemplate
+from loosefit.types import GarmentTemplate, _plain
 
 GENERATIVE_FORMAT = "loosefit.generative/1"
 MOTION_FORMAT = "loosefit.motion/1"
@@ -111,17 +112,17 @@ def model_config(data: dict) -> dict:
 
 
 def template_dict(t: GarmentTemplate) -> dict:
-    """A garment template as plain arrays, for a checkpoint."""
+    """A garment template as plain arrays (its ``meta`` as JSON), for a checkpoint."""
     return {
         "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
-        "waist": t.waist, "name": t.name,
+        "waist": t.waist, "name": t.name, "meta": json.dumps(t.meta or {}, default=_plain),
     }  # fmt: skip
 
 
 def template_from_dict(g: dict) -> GarmentTemplate:
-    """The inverse of :func:`template_dict`."""
+    """The inverse of :func:`template_dict` (a checkpoint from before ``meta``: none)."""
     return GarmentTemplate(g["vertices"], g["faces"], g["uvs"], g["face_uvs"], g["waist"],
-                           g["name"])  # fmt: skip
+                           g["name"], meta=json.loads(g.get("meta") or "{}"))  # fmt: skip
 
 
 def garment_record(t: GarmentTemplate) -> dict:
