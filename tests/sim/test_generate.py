@@ -304,3 +304,16 @@ def test_simulate_a_garment_file_on_named_motions_from_the_command_line(tmp_path
     stored = json.loads((out / "manifest.json").read_text())["config"]
     assert stored["garment"]["type"] == "file" and stored["garment"]["kind"] == "dress"
     assert stored["cloth"]["arm_collision"] == "upper"
+
+
+def test_the_example_configuration_reads_with_its_paths_beside_it():
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "configs" / "my_garment.yaml"
+    config = gen.read_config_file(path)
+    assert config.garment.path == str(path.parent / "my_dress.obj")
+    assert config.motions.specs[-1] == str(path.parent / "../shared/mocap/cmu-salsa/61_01.bvh")
+    assert config.motions.specs[3] == "mirror:kick"
+    names = [j.name for j in gen.plan_jobs(config)]
+    assert names == ["dance_8", "spin", "twirl", "mirror_kick", "61_01"]
+    assert [j.name for j in gen.plan_jobs(config) if j.test] == ["twirl"]

@@ -339,7 +339,29 @@ def read_config_file(path: str | Path) -> DatasetConfig:
         raise LoosefitInputError(path, "<file>", f"valid {suffix[1:].upper()}", str(exc)) from exc
     if not isinstance(data, dict):
         raise LoosefitInputError(path, "<file>", "a table of settings", type(data).__name__)
-    return config_from_dict(data, path)
+    config = config_from_dict(data, path)
+    # files named in it are relative to the file itself
+    base = path.resolve().parent
+    if isinstance(config.garment, GarmentFile) and config.garment.path:
+        config.garment.path = str(base / config.garment.path)
+        if config.garment.attach not in ("auto", "top", "none"):
+            config.garment.attach = str(base / config.garment.attach)
+    if config.motions.folder:
+        config.motions.folder = str(base / config.motions.folder)
+    config.motions.specs = tuple(_resolve_spec(spec, base) for spec in config.motions.specs)
+    return config
+
+
+def _resolve_spec(spec: str, base: Path) -> str:
+    """A motion spec with its relative file paths made relative to ``base``
+    (``mirror:a/b.bvh+spin`` -> ``mirror:/base/a/b.bvh+spin``)."""
+    parts = []
+    for part in spec.split("+"):
+        head, _, tail = part.rpartition(":")
+        if tail.lower().endswith((".bvh", ".npz")) and not Path(tail).is_absolute():
+            tail = str(base / tail)
+        parts.append(f"{head}:{tail}" if head else tail)
+    return "+".join(parts)
 
 
 def write_config_file(config: DatasetConfig, path: str | Path) -> Path:
