@@ -369,10 +369,13 @@ def dataset_config(args: argparse.Namespace):
             config.garment = GarmentFile(str(Path(g).resolve()), args.units, args.up, args.kind,
                                          _offset(args.offset), args.attach)  # fmt: skip
         config.preset = "custom"
-        if g in dresses or args.kind == "dress" or (g not in STYLES and args.kind is None):
-            config.cloth.arm_collision = (
-                "upper" if config.cloth.arm_collision is False else (config.cloth.arm_collision)
-            )  # a dress's bodice reaches the upper arms
+        kind = "dress" if g in dresses else "skirt" if g in STYLES else args.kind
+        if kind is None:  # a file: a dress if it has straps (as the import will guess)
+            from loosefit.garment.importer import detect_kind, read_garment_mesh
+
+            kind = detect_kind(read_garment_mesh(g).faces)
+        if kind == "dress" and config.cloth.arm_collision is False:
+            config.cloth.arm_collision = "upper"  # a dress's bodice reaches the upper arms
     if args.motions:
         folder = Path(args.motions)
         if folder.is_dir():

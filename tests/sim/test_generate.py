@@ -317,3 +317,20 @@ def test_the_example_configuration_reads_with_its_paths_beside_it():
     names = [j.name for j in gen.plan_jobs(config)]
     assert names == ["dance_8", "spin", "twirl", "mirror_kick", "61_01"]
     assert [j.name for j in gen.plan_jobs(config) if j.test] == ["twirl"]
+
+
+def test_the_collider_follows_the_garment_file_s_kind(tmp_path, avatar):
+    import yaml
+
+    from loosefit.cli import main
+    from loosefit.dress import fit_dress, fit_skirt
+    from loosefit.garment.dress import DressConfig
+    from loosefit.garment.obj import write_obj
+
+    for name, template, arms in (("skirt", fit_skirt(avatar), False),
+                                 ("dress", fit_dress(avatar, DressConfig()), "upper")):  # fmt: skip
+        write_obj(tmp_path / f"{name}.obj", template.vertices, template.faces)
+        cfg = tmp_path / f"{name}.yaml"
+        assert main(["simulate", "--garment", str(tmp_path / f"{name}.obj"),
+                     "--write-config", str(cfg)]) == 0  # fmt: skip
+        assert yaml.safe_load(cfg.read_text())["cloth"]["arm_collision"] == arms, name
