@@ -61,23 +61,46 @@ def _plain(x):
     return x.tolist() if hasattr(x, "tolist") else str(x)
 
 
-def load_npz(path: str | Path, what: str, required: tuple[str, ...]):
-    """Open an ``.npz`` file and check that it has the ``required`` fields.
+class NpzData(dict):
+    """The arrays of an ``.npz`` file, all read (name -> array), with ``files`` as numpy's."""
+
+    @property
+    def files(self) -> list[str]:
+        return list(self)
+
+
+def load_npz(path: str | Path, what: str, required: tuple[str, ...]) -> NpzData:
+    """Read every array of an ``.npz`` file (no pickle: an object array is refused) and check
+    that it has the ``required`` fields.
 
     Args:
         path: the file.
         what: what the file should be, for messages (e.g. "a .npz motion file").
         required: field names that must be present.
 
-    Returns:
-        The opened ``np.lib.npyio.NpzFile``.
+    Raises:
+        LoosefitInputError: naming the file (and the field): unreadable, not an ``.npz``,
+            truncated, a pickled object in a field, or a field missing.
     """
+    import zipfile
+
     path = Path(path)
+    data = NpzData()
+    field = "<file>"
     try:
-        data = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise LoosefitInputError(path, "<file>", what, str(exc)) from exc
-    missing = sorted(set(required) - set(data.files))
+        with np.load(path, allow_pickle=False) as z:
+            if not hasattr(z, "files"):
+                raise LoosefitInputError(path, "<file>", what, "a single array, not an .npz")
+            for field in z.files:
+                data[field] = z[field]
+    except LoosefitInputError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        found = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if "allow_pickle" in found:
+            found = "a pickled object (refused: loading it could run code)"
+        raise LoosefitInputError(path, field, what, found) from exc
+    missing = sorted(set(required) - set(data))
     if missing:
         raise LoosefitInputError(path, ", ".join(missing), "present", "missing")
     return data

@@ -22,6 +22,7 @@ import hashlib
 import json
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from loosefit.atomic import atomic_path
@@ -45,8 +46,42 @@ _WHAT = {
 }
 
 
+def _numpy_globals() -> list:
+    """What a numpy array in a checkpoint unpickles through (arrays of plain numbers only:
+    an object array needs more and is refused)."""
+    core = getattr(np, "_core", None) or np.core  # numpy 2 / numpy 1
+    dtypes = [getattr(np.dtypes, n) for n in dir(np.dtypes) if n.endswith("DType")
+              and n != "ObjectDType"]  # fmt: skip
+    return [core.multiarray._reconstruct, np.ndarray, np.dtype, *dtypes]
+
+
+def load_torch(path: str | Path, device="cpu"):
+    """``torch.load`` of a file that runs no code: weights-only unpickling (tensors, numbers,
+    strings, containers, and arrays of numbers); anything else in the file is refused.
+
+    Raises:
+        LoosefitInputError: unreadable, or holding anything else (a pickled object).
+    """
+    path = Path(path)
+    try:
+        with torch.serialization.safe_globals(_numpy_globals()):
+            return torch.load(path, map_location=device, weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
+        text = str(exc).strip().splitlines()
+        unsafe = next((t for t in text if "Unsupported global" in t or "GLOBAL" in t), None)
+        found = (f"a file that would run code to load ({unsafe.strip()})" if unsafe
+                 else (text[0] if text else type(exc).__name__))  # fmt: skip
+        raise LoosefitInputError(path, "<file>", "a torch checkpoint of tensors and plain "
+                                 "data (loaded weights-only: no code runs)", found) from exc
+
+
 def save_atomic(data: dict, path: Path) -> None:
-    """``torch.save`` to a temporary file, then a rename: never a half-written checkpoint."""
+    """``torch.save`` to a temporary file, then a rename: never a half-written checkpoint.
+    A checkpoint (a dict with a loosefit ``format``) records the version that wrote it."""
+    from loosefit import __version__
+
+    if str(data.get("format", "")).startswith("loosefit."):
+        data = {**data, "loosefit_version": __version__}
     with atomic_path(Path(path)) as tmp:
         torch.save(data, tmp)
 
@@ -66,11 +101,20 @@ def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict |
     path = Path(path)
     if not path.is_file():
         raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
-    try:
-        data = torch.load(path, map_location=device, weights_only=False)
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
-        raise LoosefitInputError(path, "<file>", "a torch checkpoint", str(exc)) from exc
+    data = load_torch(path, device)
     found = data.get("format") if isinstance(data, dict) else None
+    kind, _, version = fmt.rpartition("/")
+    if isinstance(found, str) and found.startswith(kind + "/") and found != fmt:
+        theirs = found.rpartition("/")[2]
+        newer = theirs.isdigit() and version.isdigit() and int(theirs) > int(version)
+        from loosefit import __version__
+
+        raise LoosefitInputError(
+            path, "format", f"{fmt!r} (what loosefit {__version__} reads)",
+            f"{found!r}, written by loosefit {data.get('loosefit_version', 'of another version')}",
+            hint="upgrade loosefit to read it" if newer else "retrain or repackage it with "
+            "this version",
+        )  # fmt: skip
     if found != fmt:
         hint = (hints or {}).get(found)
         if hint is None and found in _WHAT:
@@ -85,8 +129,8 @@ def checkpoint_format(path: str | Path) -> str | None:
     if not path.is_file():
         return None
     try:
-        data = torch.load(path, map_location="cpu", weights_only=False)
-    except Exception:  # noqa: BLE001 - the loaders give the clear error
+        data = load_torch(path)
+    except LoosefitInputError:  # the loaders give the clear error
         return None
     return data.get("format") if isinstance(data, dict) else None
 

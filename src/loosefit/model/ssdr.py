@@ -113,17 +113,16 @@ class SkinningDecomposition:
     @classmethod
     def load(cls, path: str | PathLike) -> SkinningDecomposition:
         """Read a decomposition written by :meth:`save`."""
-        with np.load(path) as z:
-            missing = [k for k in cls.__dataclass_fields__ if k not in z]
-            if missing:
-                raise LoosefitInputError(path, missing[0], "an array", "no such key")
-            return cls(
-                rest=z["rest"].astype(np.float32),
-                weights=z["weights"].astype(np.float32),
-                transforms=z["transforms"].astype(np.float32),
-                rmse=float(z["rmse"]),
-                frame_index=z["frame_index"].astype(np.int64),
-            )
+        from loosefit.types import load_npz
+
+        z = load_npz(path, "a skinning decomposition .npz", tuple(cls.__dataclass_fields__))
+        return cls(
+            rest=z["rest"].astype(np.float32),
+            weights=z["weights"].astype(np.float32),
+            transforms=z["transforms"].astype(np.float32),
+            rmse=float(z["rmse"]),
+            frame_index=z["frame_index"].astype(np.int64),
+        )
 
 
 def _stack(transforms):

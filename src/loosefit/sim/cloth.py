@@ -716,7 +716,7 @@ def _write_resume(path: Path, **arrays) -> None:
 def _read_resume(path: Path, key: str, total: int) -> dict | None:
     """The saved state of the same run, or None (a missing, other or unreadable file)."""
     try:
-        with np.load(path) as data:
+        with np.load(path, allow_pickle=False) as data:
             if str(data["key"]) != key or not 0 < int(data["frame"]) <= total:
                 return None
             return {k: data[k] for k in data.files}

@@ -451,7 +451,7 @@ def train_motion(
     if rest_state is not None:
         rest = torch.as_tensor(rest_state).float()
     elif rest_path.is_file():
-        rest = torch.from_numpy(np.load(rest_path))
+        rest = torch.from_numpy(np.load(rest_path, allow_pickle=False))
     else:
         rest = rest_state_for(reader, fps)
         np.save(rest_path, rest.numpy())

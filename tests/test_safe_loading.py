@@ -1,0 +1,117 @@
+"""No file a user gives loosefit can run code when read: every reader refuses a pickle.
+
+Each test plants a payload (an object whose unpickling would create a marker file) in one
+kind of file and reads it through loosefit's own reader: a clear error, and no marker.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+import pytest
+import torch
+
+from loosefit.errors import LoosefitInputError
+
+
+class Payload:
+    """Unpickling this creates ``marker``: what an attacker's file would run instead."""
+
+    def __init__(self, marker: pathlib.Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (pathlib.Path.touch, (self.marker,))
+
+
+@pytest.fixture
+def marker(tmp_path):
+    path = tmp_path / "ran"
+    yield path
+    assert not path.exists(), "the payload ran"
+
+
+def _checkpoint(path, fmt: str, marker) -> pathlib.Path:
+    torch.save({"format": fmt, "model": {"w": torch.zeros(2)}, "garment": Payload(marker)}, path)
+    return path
+
+
+@pytest.mark.parametrize("fmt", ["loosefit.generative/1", "loosefit.motion/1",
+                                 "loosefit.detail/1", "loosefit.baseline/1"])  # fmt: skip
+def test_a_checkpoint_with_a_pickled_object_is_refused(tmp_path, marker, fmt):
+    from loosefit.inference.animator import load_baseline, load_pipeline
+    from loosefit.inference.checkpoints import load_generative
+
+    path = _checkpoint(tmp_path / "evil.pt", fmt, marker)
+    for load in (load_pipeline, load_baseline, load_generative):
+        with pytest.raises(LoosefitInputError, match=r"evil\.pt.*run code"):
+            load(path)
+
+
+def test_the_cli_refuses_it_too(tmp_path, marker, capsys):
+    from loosefit.cli import main
+
+    path = _checkpoint(tmp_path / "evil.pt", "loosefit.motion/1", marker)
+    assert main(["animate", str(path), "sway", "--frames", "2", "--out", str(tmp_path)]) == 2
+    assert "run code" in capsys.readouterr().err
+
+
+def _npz_with_payload(path, marker, **arrays) -> pathlib.Path:
+    evil = np.empty(1, dtype=object)
+    evil[0] = Payload(marker)
+    np.savez(path, **arrays, vertices=evil)
+    return path
+
+
+def test_npz_files_with_a_pickled_object_are_refused(tmp_path, marker, skirt):
+    from loosefit.data.format import read_sequence
+    from loosefit.model.ssdr import SkinningDecomposition
+    from loosefit.sequence import AnimatedGarment
+    from loosefit.types import GarmentTemplate, Motion
+
+    readers = {
+        "template": GarmentTemplate.load,
+        "sequence": AnimatedGarment.load,
+        "motion": Motion.load,
+        "clip": lambda p: read_sequence(p, skirt),
+        "decomposition": SkinningDecomposition.load,
+    }
+    for name, read in readers.items():
+        path = _npz_with_payload(tmp_path / f"{name}.npz", marker,
+                                 format=np.array("loosefit.sequence/1"))  # fmt: skip
+        with pytest.raises(LoosefitInputError, match=rf"{name}\.npz.*pickled object"):
+            read(path)
+
+
+def test_the_simulation_s_resume_file_is_never_unpickled(tmp_path, marker):
+    from loosefit.sim.cloth import _read_resume
+
+    path = _npz_with_payload(tmp_path / "resume.npz", marker, key=np.array("k"),
+                             frame=np.array(1))  # fmt: skip
+    assert _read_resume(path, "k", 10) is None  # an unreadable state: the run starts over
+
+
+def test_a_newer_format_version_asks_for_an_upgrade(tmp_path, skirt):
+    from loosefit.inference.checkpoints import read_checkpoint_file
+
+    torch.save({"format": "loosefit.motion/2", "loosefit_version": "9.0"}, tmp_path / "new.pt")
+    with pytest.raises(LoosefitInputError,
+                       match=r"new\.pt.*'loosefit.motion/1'.*'loosefit.motion/2', written by "
+                       r"loosefit 9\.0.*upgrade loosefit"):  # fmt: skip
+        read_checkpoint_file(tmp_path / "new.pt", "loosefit.motion/1")
+
+
+def test_every_checkpoint_says_what_it_is():
+    """The packaged set: its format, the version that wrote it, the garment's fingerprint,
+    and the networks' configuration."""
+    from loosefit.api import pretrained_checkpoint
+    from loosefit.inference.checkpoints import load_torch
+
+    root = pretrained_checkpoint().parent
+    for name in ("generative", "motion", "detail"):
+        data = load_torch(root / f"{name}.pt")
+        assert data["format"] == f"loosefit.{name}/1" and data["loosefit_version"]
+        assert data["model_config"]
+        fingerprint = data["fingerprints"] if name == "detail" else data["garment"]
+        assert len(fingerprint["garment"] if name == "detail" else fingerprint["fingerprint"]) == 16
