@@ -120,7 +120,10 @@ def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
         LoosefitInputError: not a PC2 file, or its size disagrees with its header.
     """
     path = Path(path)
-    data = path.read_bytes()
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise LoosefitInputError(path, "<file>", "a readable .pc2 file", str(exc)) from exc
     if len(data) < PC2_HEADER.size:
         raise LoosefitInputError(path, "header", f"{PC2_HEADER.size} bytes", f"{len(data)} bytes")
     magic, version, V, start, rate, T = PC2_HEADER.unpack_from(data)
@@ -131,6 +134,14 @@ def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
         raise LoosefitInputError(path, "size", f"{want} bytes for {T} samples of {V} points",
                                  f"{len(data)} bytes")  # fmt: skip
     v = np.frombuffer(data, "<f4", offset=PC2_HEADER.size).reshape(T, V, 3)
+    for name, value in (("start frame", start), ("sample rate", rate)):
+        if not np.isfinite(value):
+            raise LoosefitInputError(path, name, "a finite number", repr(value))
+    bad = ~np.isfinite(v)
+    if bad.any():
+        raise LoosefitInputError(path, "points", "finite positions",
+                                 f"{int(bad.sum())} NaN/inf values, first at "
+                                 f"{tuple(int(i) for i in np.argwhere(bad)[0])}")  # fmt: skip
     return v.astype(np.float32), float(start), float(rate)
 
 

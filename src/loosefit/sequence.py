@@ -37,7 +37,17 @@ import numpy as np
 
 from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
-from loosefit.types import GarmentTemplate, Motion, _check_array, _plain, load_npz
+from loosefit.types import (
+    GarmentTemplate,
+    Motion,
+    _check_array,
+    _numeric,
+    _plain,
+    load_npz,
+    npz_names,
+    npz_number,
+    npz_text,
+)
 
 FORMAT = "loosefit.sequence/1"
 
@@ -166,7 +176,9 @@ class AnimatedGarment:
         if not path.is_file():
             raise LoosefitInputError(path, "<file>", "an existing .npz sequence", "no such file")
         d = load_npz(path, "a .npz sequence", ())
-        fmt = str(d["format"]) if "format" in d.files else None
+        fmt = (
+            str(d["format"]) if "format" in d.files and np.asarray(d["format"]).ndim == 0 else None
+        )
         if fmt != FORMAT:
             hint = None
             if fmt is None and "garment_vertices" in d.files:
@@ -184,8 +196,8 @@ class AnimatedGarment:
             if d[key].dtype != np.float32:
                 raise LoosefitInputError(path, key, "dtype float32", f"dtype {d[key].dtype}")
         try:
-            avatar = json.loads(str(d["avatar"]))
-            meta = json.loads(str(d["garment_meta"])) if "garment_meta" in d.files else {}
+            avatar = json.loads(npz_text(d, path, "avatar"))
+            meta = json.loads(npz_text(d, path, "garment_meta", "{}"))
         except json.JSONDecodeError as exc:
             raise LoosefitInputError(path, "avatar/garment_meta", "JSON", str(exc)) from exc
         if not isinstance(avatar, dict):
@@ -193,19 +205,18 @@ class AnimatedGarment:
                                      type(avatar).__name__)  # fmt: skip
         try:
             motion = Motion(
-                tuple(str(n) for n in d["joint_names"]),
-                d["rotations"],
-                d["root_translation"],
-                float(d["fps"]),
-                str(d["motion_name"]) if "motion_name" in d.files else path.stem,
+                npz_names(d, path, "joint_names"),
+                _numeric(d, path, "rotations"),
+                _numeric(d, path, "root_translation"),
+                npz_number(d, path, "fps"),
+                npz_text(d, path, "motion_name", path.stem),
             )
             garment = GarmentTemplate(
-                d["vertices"], d["faces"], d["uvs"], d["face_uvs"], d["waist"],
-                name=str(d["garment_name"]) if "garment_name" in d.files else "garment",
+                *(_numeric(d, path, k) for k in ("vertices", "faces", "uvs", "face_uvs", "waist")),
+                name=npz_text(d, path, "garment_name", "garment"),
                 meta=meta if isinstance(meta, dict) else {},
             )  # fmt: skip
-            return cls(motion, garment, gv, avatar,
-                       str(d["source"]) if "source" in d.files else "unknown")  # fmt: skip
+            return cls(motion, garment, gv, avatar, npz_text(d, path, "source", "unknown"))
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found, exc.hint) from exc
         except (TypeError, ValueError) as exc:

@@ -61,6 +61,43 @@ def _plain(x):
     return x.tolist() if hasattr(x, "tolist") else str(x)
 
 
+def npz_names(data, path, field: str) -> tuple[str, ...]:
+    """A field of names (a 1-D string array) of an ``.npz`` as a tuple of str."""
+    a = np.asarray(data[field])
+    if a.ndim != 1 or a.dtype.kind not in "US":
+        raise LoosefitInputError(path, field, "a 1-D array of names",
+                                 f"shape {a.shape}, dtype {a.dtype}")  # fmt: skip
+    return tuple(str(n) for n in a)
+
+
+def npz_number(data, path, field: str) -> float:
+    """A scalar number field of an ``.npz`` as a float (finite)."""
+    a = np.asarray(data[field])
+    if a.size != 1 or a.dtype.kind not in "fiu" or not np.isfinite(a).all():
+        raise LoosefitInputError(path, field, "one finite number",
+                                 f"shape {a.shape}, dtype {a.dtype}" if a.size != 1
+                                 or a.dtype.kind not in "fiu" else repr(a.item()))  # fmt: skip
+    return float(a.reshape(()))
+
+
+def npz_text(data, path, field: str, default: str | None = None) -> str:
+    """A text field (a 0-d string array) of an ``.npz``; ``default`` when absent."""
+    if field not in data and default is not None:
+        return default
+    a = np.asarray(data[field])
+    if a.ndim != 0 or a.dtype.kind not in "US":
+        raise LoosefitInputError(path, field, "a text", f"shape {a.shape}, dtype {a.dtype}")
+    return str(a)
+
+
+def _numeric(data, path, field: str) -> np.ndarray:
+    """A numeric array field of an ``.npz`` (numbers, not text or complex)."""
+    a = np.asarray(data[field])
+    if a.dtype.kind not in "fiub":
+        raise LoosefitInputError(path, field, "an array of numbers", f"dtype {a.dtype}")
+    return a
+
+
 class NpzData(dict):
     """The arrays of an ``.npz`` file, all read (name -> array), with ``files`` as numpy's."""
 
@@ -215,11 +252,11 @@ class Motion:
         """A motion from an opened ``.npz`` holding its fields; errors name ``path``."""
         try:
             return cls(
-                tuple(str(n) for n in data["joint_names"]),
-                data["rotations"],
-                data["root_translation"],
-                float(data["fps"]),
-                str(data["name"]) if "name" in data.files else Path(path).stem,
+                npz_names(data, path, "joint_names"),
+                _numeric(data, path, "rotations"),
+                _numeric(data, path, "root_translation"),
+                npz_number(data, path, "fps"),
+                npz_text(data, path, "name", Path(path).stem),
             )
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found) from exc
@@ -312,12 +349,15 @@ class GarmentTemplate:
         path = Path(path)
         need = ("vertices", "faces", "uvs", "face_uvs", "waist")
         data = load_npz(path, "a .npz garment template", need)
-        meta = json.loads(str(data["meta"])) if "meta" in data.files else {}
+        try:
+            meta = json.loads(npz_text(data, path, "meta", "{}"))
+        except json.JSONDecodeError as exc:
+            raise LoosefitInputError(path, "meta", "JSON", str(exc)) from exc
         try:
             return cls(
-                **{k: data[k] for k in need},
-                name=str(data["name"]) if "name" in data.files else path.stem,
-                meta=meta,
+                **{k: _numeric(data, path, k) for k in need},
+                name=npz_text(data, path, "name", path.stem),
+                meta=meta if isinstance(meta, dict) else {},
             )
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found) from exc

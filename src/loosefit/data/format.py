@@ -25,6 +25,7 @@ for a whole one.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -103,6 +104,34 @@ def _read_legacy(path: Path, d, template: GarmentTemplate, avatar: dict) -> Anim
     return AnimatedGarment(Motion.from_npz(d, path), template, gv, avatar, "simulation")
 
 
+def _check_manifest(path: Path, m: dict) -> None:
+    """The manifest's fields the readers rely on, with the types they need."""
+    split = m.get("split")
+    if not isinstance(split, dict):
+        raise LoosefitInputError(path, "split", "{train: [...], test: [...]}", repr(split))
+    for key in ("train", "test"):
+        names = split.get(key)
+        if not isinstance(names, list) or not all(isinstance(n, str) and n for n in names):
+            raise LoosefitInputError(path, f"split.{key}", "a list of clip names", repr(names))
+        bad = [n for n in names if "/" in n or "\\" in n or n.startswith(".")]
+        if bad:
+            raise LoosefitInputError(path, f"split.{key}", "clip names (no paths)", repr(bad[0]))
+    body = m.get("body")
+    if not isinstance(body, dict):
+        raise LoosefitInputError(path, "body", "the avatar's description", repr(body))
+    shape = body.get("shape", {})
+    if not isinstance(shape, dict) or not all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+        for v in shape.values()
+    ):
+        raise LoosefitInputError(path, "body.shape", "anny phenotype numbers", repr(shape))
+    floor = body.get("floor_height", 0.0)
+    if not isinstance(floor, int | float) or isinstance(floor, bool) or not math.isfinite(floor):
+        raise LoosefitInputError(path, "body.floor_height", "a number (m)", repr(floor))
+    if not isinstance(m.get("complete", False), bool):
+        raise LoosefitInputError(path, "complete", "true or false", repr(m.get("complete")))
+
+
 class DatasetReader:
     """A dataset folder: its manifest, template, and validated sequences.
 
@@ -122,9 +151,13 @@ class DatasetReader:
             self.manifest = json.loads(mpath.read_text())
         except json.JSONDecodeError as exc:
             raise LoosefitInputError(mpath, "<file>", "valid JSON", str(exc)) from exc
+        if not isinstance(self.manifest, dict):
+            raise LoosefitInputError(mpath, "<file>", "a JSON object",
+                                     type(self.manifest).__name__)  # fmt: skip
         fmt = self.manifest.get("format")
         if fmt != FORMAT:
             raise LoosefitInputError(mpath, "format", repr(FORMAT), repr(fmt))
+        _check_manifest(mpath, self.manifest)
         if not self.manifest.get("complete") and not allow_incomplete:
             raise LoosefitInputError(
                 mpath,

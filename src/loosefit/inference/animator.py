@@ -27,6 +27,7 @@ from loosefit.inference.checkpoints import (
     BASELINE_FORMAT,
     DETAIL_FORMAT,
     MOTION_FORMAT,
+    checkpoint_fields,
     checkpoint_format,
     load_generative,
     load_weights,
@@ -185,6 +186,11 @@ def load_animation_model(
     """
     path = Path(path)
     data = read_checkpoint_file(path, MOTION_FORMAT, device)
+    with checkpoint_fields(path, "motion-stage checkpoint"):
+        return _animation_model(path, data, generative, device)
+
+
+def _animation_model(path: Path, data: dict, generative, device) -> AnimationModel:
     g = data["generative"]
     gpath = recorded_checkpoint(path, g, generative, "generative",
                                 "the generative checkpoint it was trained on",
@@ -228,6 +234,11 @@ def attach_detail(model: AnimationModel, path: str | Path) -> AnimationModel:
     """
     path = Path(path)
     data = read_checkpoint_file(path, DETAIL_FORMAT, model.device)
+    with checkpoint_fields(path, "detail checkpoint"):
+        return _attach(model, path, data)
+
+
+def _attach(model: AnimationModel, path: Path, data: dict) -> AnimationModel:
     have = stage_fingerprints(model)
     for key, what in (("garment", "garment"), ("motion", "motion stage")):
         if data["fingerprints"][key] != have[key]:
@@ -256,8 +267,9 @@ def load_detail_model(
     """All three learned stages from a detail checkpoint (and the motion stage it records)."""
     path = Path(path)
     data = read_checkpoint_file(path, DETAIL_FORMAT, "cpu")
-    mpath = recorded_checkpoint(path, data["motion_checkpoint"], motion, "motion",
-                                "the motion checkpoint it was trained on")  # fmt: skip
+    with checkpoint_fields(path, "detail checkpoint"):
+        mpath = recorded_checkpoint(path, data["motion_checkpoint"], motion, "motion",
+                                    "the motion checkpoint it was trained on")  # fmt: skip
     model = load_animation_model(mpath, generative, device)
     return attach_detail(model, path)
 
@@ -362,6 +374,11 @@ def load_baseline(path: str | Path, device="cpu") -> BaselineModel:
     data = read_checkpoint_file(path, BASELINE_FORMAT, device, {
         MOTION_FORMAT: "this is our motion stage; load it with load_pipeline",
     })  # fmt: skip
+    with checkpoint_fields(path, "baseline checkpoint"):
+        return _baseline(path, data, device)
+
+
+def _baseline(path: Path, data: dict, device) -> BaselineModel:
     config = model_config(data)
     template = template_from_dict(data["garment"]["template"])
     V, K = template.num_vertices, int(data["influences"])

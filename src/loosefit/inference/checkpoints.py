@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -71,8 +72,12 @@ def load_torch(path: str | Path, device="cpu"):
         unsafe = next((t for t in text if "Unsupported global" in t or "GLOBAL" in t), None)
         found = (f"a file that would run code to load ({unsafe.strip()})" if unsafe
                  else (text[0] if text else type(exc).__name__))  # fmt: skip
-        raise LoosefitInputError(path, "<file>", "a torch checkpoint of tensors and plain "
-                                 "data (loaded weights-only: no code runs)", found) from exc
+        raise LoosefitInputError(
+            path,
+            "<file>",
+            "a torch checkpoint of tensors and plain data (loaded weights-only: no code runs)",
+            found,
+        ) from exc
 
 
 def save_atomic(data: dict, path: Path) -> None:
@@ -121,6 +126,23 @@ def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict |
             hint = f"this is {_WHAT[found]}'s checkpoint; pass {_WHAT[fmt]}'s"
         raise LoosefitInputError(path, "format", repr(fmt), repr(found), hint=hint)
     return data
+
+
+@contextmanager
+def checkpoint_fields(path: str | Path, what: str):
+    """Turn a malformed checkpoint's failures (a field missing, or of another type or shape)
+    into the :class:`~loosefit.errors.LoosefitInputError` of the file and the field."""
+    try:
+        yield
+    except LoosefitInputError:
+        raise
+    except KeyError as exc:
+        raise LoosefitInputError(path, str(exc.args[0]) if exc.args else "<field>", "present",
+                                 "missing", hint=f"not a whole {what}") from exc  # fmt: skip
+    except (TypeError, ValueError, IndexError, AttributeError, RuntimeError) as exc:
+        detail = str(exc).splitlines()[0] if str(exc) else ""
+        raise LoosefitInputError(path, "<fields>", f"a {what}",
+                                 f"{type(exc).__name__}: {detail}") from exc  # fmt: skip
 
 
 def checkpoint_format(path: str | Path) -> str | None:
@@ -239,7 +261,8 @@ def read_generative(path: str | Path, template: GarmentTemplate | None = None, d
     """
     path = Path(path)
     data = read_checkpoint_file(path, GENERATIVE_FORMAT, device)
-    stored = template_from_dict(data["garment"]["template"])
+    with checkpoint_fields(path, "generative checkpoint"):
+        stored = template_from_dict(data["garment"]["template"])
     if template is not None and not same_garment(template, stored):
         want = garment_fingerprint(template.vertices, template.faces)
         raise LoosefitInputError(
@@ -262,12 +285,14 @@ def load_generative(path: str | Path, template: GarmentTemplate | None = None, d
     """
     path = Path(path)
     data, stored = read_generative(path, template, device)
-    config = GenerativeConfig(**model_config(data))
-    ssdr = None
-    if config.decoder == "ssdr":
-        m = data["model"]
-        B = m["ssdr_weights"].shape[1]
-        ssdr = (m["ssdr_rest"].float().cpu(), m["ssdr_weights"].float().cpu(), torch.zeros(B, 3, 4))
-    model = GarmentGenerativeModel(stored, config, ssdr=ssdr).to(device)
-    load_weights(model, data["model"], path, "this generative configuration")
+    with checkpoint_fields(path, "generative checkpoint"):
+        config = GenerativeConfig(**model_config(data))
+        ssdr = None
+        if config.decoder == "ssdr":
+            m = data["model"]
+            B = m["ssdr_weights"].shape[1]
+            ssdr = (m["ssdr_rest"].float().cpu(), m["ssdr_weights"].float().cpu(),
+                    torch.zeros(B, 3, 4))  # fmt: skip
+        model = GarmentGenerativeModel(stored, config, ssdr=ssdr).to(device)
+        load_weights(model, data["model"], path, "this generative configuration")
     return model.eval(), data
