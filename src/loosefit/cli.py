@@ -679,6 +679,7 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
 
     from loosefit.data.format import DatasetReader
     from loosefit.inference.checkpoints import load_generative
+    from loosefit.model.motion_features import garment_in_root_frame
     from loosefit.render.clip import render_clip
     from loosefit.render.renderer import RenderConfig, RenderMesh
 
@@ -693,7 +694,7 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
                 which, "frame", f"a frame of '{name}' (0..{seq.num_frames - 1})", f
             )
         posed.append(
-            _root_frame_garment(seq.motion.slice(f, f + 1), seq.garment_vertices[f : f + 1])
+            garment_in_root_frame(seq.motion.slice(f, f + 1), seq.garment_vertices[f : f + 1])
         )
     with torch.no_grad():
         mu, _ = model.encode(torch.cat(posed))
@@ -715,30 +716,17 @@ def cmd_interpolate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _root_frame_garment(motion, garment):
-    """(T, V, 3) world garments of ``motion``'s frames in their root frames (as the models
-    see them)."""
-    import torch
-
-    from loosefit.model.motion_features import root_frames, to_root_frame
-
-    H, p = (
-        a.float()
-        for a in root_frames(
-            torch.from_numpy(motion.rotations).double(),
-            torch.from_numpy(motion.root_translation).double(),
-        )
-    )
-    return to_root_frame(torch.from_numpy(garment), H, p)
-
-
 def cmd_reconstruct(args: argparse.Namespace) -> int:
     import torch
 
     from loosefit.data.format import DatasetReader
     from loosefit.eval.metrics import rmse
     from loosefit.inference.checkpoints import load_generative
-    from loosefit.model.motion_features import from_root_frame, root_frames
+    from loosefit.model.motion_features import (
+        from_root_frame,
+        garment_in_root_frame,
+        motion_root_frames_of,
+    )
     from loosefit.sequence import AnimatedGarment
 
     reader = DatasetReader(args.data)
@@ -747,15 +735,9 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     seq = reader.read(name)
     avatar, motion, garment = _stored_clip(args, reader.body.get("shape", {}), seq.motion,
                                            seq.garment_vertices)  # fmt: skip
-    H, p = (
-        a.float()
-        for a in root_frames(
-            torch.from_numpy(motion.rotations).double(),
-            torch.from_numpy(motion.root_translation).double(),
-        )
-    )
+    H, p = motion_root_frames_of(motion)
     with torch.no_grad():
-        rec = model.reconstruct_all(_root_frame_garment(motion, garment), 64)
+        rec = model.reconstruct_all(garment_in_root_frame(motion, garment), 64)
         world = from_root_frame(rec, H, p).numpy()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

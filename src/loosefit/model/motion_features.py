@@ -174,6 +174,20 @@ def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.T
     return yaw_matrix(heading_yaw(root_transforms[:, :3, :3])), root_transforms[:, :3, 3]
 
 
+def motion_root_frames_of(motion) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`root_frames` of a :class:`~loosefit.types.Motion`'s frames: float32 H (T, 3, 3)
+    and p (T, 3), computed in double precision."""
+    H, p = root_frames(torch.from_numpy(motion.rotations).double(),
+                       torch.from_numpy(motion.root_translation).double())  # fmt: skip
+    return H.float(), p.float()
+
+
+def garment_in_root_frame(motion, garment) -> torch.Tensor:
+    """World garments (T, V, 3) of ``motion``'s frames in their root frames (T, V, 3)."""
+    H, p = motion_root_frames_of(motion)
+    return to_root_frame(torch.as_tensor(garment, dtype=torch.float32), H, p)
+
+
 def to_root_frame(x: torch.Tensor, H: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
     """World points (T, N, 3) into the root frame of :func:`heading_frames`."""
     return (x - p[:, None]) @ H
