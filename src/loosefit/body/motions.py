@@ -20,6 +20,11 @@ from loosefit.types import Motion
 PROCEDURAL_NAMES = ("dance", *MOVES)
 
 
+# what a spec may ask for: an hour of dance; from ten times slower to ten times faster
+MAX_DANCE_SECONDS = 3600.0
+MIN_SPEED, MAX_SPEED = 0.1, 10.0
+
+
 def load_motion(
     spec: str | Path,
     avatar: Avatar,
@@ -69,10 +74,10 @@ def load_motion(
             speed = float(factor)
         except ValueError:
             speed = float("nan")
-        if not (inner and speed > 0 and speed < float("inf")):
+        if not (inner and MIN_SPEED <= speed <= MAX_SPEED):
             raise LoosefitInputError(
-                "motion", "speed:FACTOR:MOTION", "a positive factor and a motion",
-                repr(text),
+                "motion", "speed:FACTOR:MOTION",
+                f"a factor from {MIN_SPEED:g} to {MAX_SPEED:g} and a motion", repr(text),
             )  # fmt: skip
         motion = retime_motion(load_motion(inner, avatar, fps, seed, retarget), speed)
     elif path.suffix.lower() == ".bvh":
@@ -92,9 +97,11 @@ def load_motion(
             try:
                 seconds = float(arg)
             except ValueError:
-                raise LoosefitInputError(
-                    "motion", "dance:SECONDS", "a number of seconds", repr(arg)
-                ) from None
+                seconds = float("nan")
+            if not 0 < seconds <= MAX_DANCE_SECONDS:
+                raise LoosefitInputError("motion", "dance:SECONDS",
+                                         f"seconds in (0, {MAX_DANCE_SECONDS:g}]",
+                                         repr(arg))  # fmt: skip
             motion = random_dance(avatar.joint_names, avatar.floor_height, seconds, seed, fps)
         else:
             motion = named_motion(name, avatar.joint_names, avatar.floor_height, seed, fps)

@@ -165,7 +165,8 @@ def read_obj(path: str | os.PathLike, *, compute_uvs_if_missing: bool = True) ->
         raise LoosefitInputError(path, "f", "at least one face", "none")
     V, U = len(vertices), len(uvs)
     verts = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    bad = ~np.isfinite(verts).all(axis=1)
+    with np.errstate(over="ignore"):  # beyond float32 is as unusable as NaN
+        bad = ~np.isfinite(verts.astype(np.float32)).all(axis=1)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
         raise LoosefitInputError(
@@ -201,7 +202,8 @@ def read_obj(path: str | os.PathLike, *, compute_uvs_if_missing: bool = True) ->
                 f"index {int(mesh_face_uvs[f][out[f]][0]) + 1}",
             )  # fmt: skip
         mesh_uvs = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
-        bad = ~np.isfinite(mesh_uvs).all(axis=1)
+        with np.errstate(over="ignore"):
+            bad = ~np.isfinite(mesh_uvs.astype(np.float32)).all(axis=1)
         if bad.any():
             first = int(np.flatnonzero(bad)[0])
             raise LoosefitInputError(

@@ -424,6 +424,34 @@ def _config_dict(config: DatasetConfig) -> dict:
     return d
 
 
+def _check_type(source, where: str, value, default) -> None:
+    """A configuration value of the kind its field's default is (a number for a number, a
+    list of those for a tuple, ...); None where the default is None takes anything plain."""
+
+    def plain(v) -> bool:
+        return isinstance(v, bool | int | float | str) or v is None
+
+    if isinstance(default, bool):
+        ok = isinstance(value, bool) or (where.endswith("arm_collision") and value == "upper")
+    elif isinstance(default, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif isinstance(default, float):
+        ok = isinstance(value, int | float) and not isinstance(value, bool)
+    elif isinstance(default, str):
+        ok = isinstance(value, str)
+    elif isinstance(default, tuple):
+        ok = isinstance(value, list | tuple) and all(plain(v) for v in value)
+    elif isinstance(default, dict):
+        ok = isinstance(value, dict) and all(isinstance(k, str) and plain(v)
+                                             for k, v in value.items())  # fmt: skip
+    else:  # None or a nested configuration (checked where it is built)
+        ok = plain(value) or dataclasses.is_dataclass(default) or isinstance(value, dict)
+    if not ok:
+        want = type(default).__name__ if default is not None else "a number or a text"
+        raise LoosefitInputError(source, where, f"a value like the default ({want})",
+                                 repr(value))  # fmt: skip
+
+
 def config_from_dict(d: dict, source: str | Path = "dataset config") -> DatasetConfig:
     """A :class:`DatasetConfig` from plain data (a config file, a manifest's ``config``);
     missing fields take their defaults, unknown ones are an error naming them."""
@@ -436,6 +464,9 @@ def config_from_dict(d: dict, source: str | Path = "dataset config") -> DatasetC
         if unknown:
             raise LoosefitInputError(source, f"{where}.{unknown[0]}" if where else unknown[0],
                                      f"one of {sorted(names)}", repr(unknown[0]))  # fmt: skip
+        defaults = cls()
+        for k, v in data.items():
+            _check_type(source, f"{where}.{k}" if where else k, v, getattr(defaults, k))
         kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
         try:
             return cls(**kwargs)
@@ -446,7 +477,10 @@ def config_from_dict(d: dict, source: str | Path = "dataset config") -> DatasetC
             raise LoosefitInputError(source, where, "valid settings", str(exc)) from exc
 
     d = dict(d)
-    g = dict(d.pop("garment", {"type": "skirt", **asdict(SkirtConfig.preset("cpu", "flared"))}))
+    g = d.pop("garment", {"type": "skirt", **asdict(SkirtConfig.preset("cpu", "flared"))})
+    if not isinstance(g, dict):
+        raise LoosefitInputError(source, "garment", "a table of settings", repr(g))
+    g = dict(g)
     kind = g.pop("type", "skirt")
     if kind not in GARMENT_TYPES:
         raise LoosefitInputError(source, "garment.type", f"one of {list(GARMENT_TYPES)}",
