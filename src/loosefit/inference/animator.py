@@ -209,9 +209,13 @@ def _animation_model(path: Path, data: dict, generative, device) -> AnimationMod
     load_weights(encoder, data["model"], path, "this motion encoder's configuration")
     for p in gmodel.parameters():
         p.requires_grad_(False)
+    rest = torch.as_tensor(data["rest_state"]).float()
+    if rest.shape != (template.num_vertices, 3) or not torch.isfinite(rest).all():
+        raise LoosefitInputError(path, "rest_state", f"({template.num_vertices}, 3) finite "
+                                 "positions", f"shape {tuple(rest.shape)}")  # fmt: skip
     return AnimationModel(
         gmodel.eval(), encoder.eval(), template,
-        torch.as_tensor(data["rest_state"]).float().to(device),
+        rest.to(device),
         tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
         dict(data["body"]), RolloutConfig(**config["rollout"]), path,
         arm_collision=arm_collision_of(data),

@@ -121,6 +121,7 @@ def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict |
             "this version",
         )  # fmt: skip
     if found != fmt:
+        found = found if isinstance(found, str) else None if found is None else repr(found)
         hint = (hints or {}).get(found)
         if hint is None and found in _WHAT:
             hint = f"this is {_WHAT[found]}'s checkpoint; pass {_WHAT[fmt]}'s"
