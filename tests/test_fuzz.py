@@ -306,3 +306,23 @@ def test_checkpoints(tmp_path, data):
     if model is not None:
         for p in model.encoder.parameters():
             finite(p.detach().numpy())
+
+
+@given(data=st.data())
+def test_glb(tmp_path, data):
+    """A GLB (through trimesh) cut or with bytes changed."""
+    import trimesh
+
+    from loosefit.garment.importer import read_garment_mesh
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float64)
+    good = trimesh.Trimesh(v, [[0, 1, 2], [1, 3, 2]], process=False).export(file_type="glb")
+    raw = bytearray(good)
+    if data.draw(st.booleans()):
+        raw = raw[: data.draw(st.integers(0, len(raw) - 1))]
+    else:
+        for _ in range(data.draw(st.integers(1, 4))):
+            raw[data.draw(st.integers(0, len(raw) - 1))] = data.draw(st.integers(0, 255))
+    mesh = accepts(lambda: read_garment_mesh(_write(tmp_path, "g.glb", bytes(raw))))
+    if mesh is not None:
+        finite(mesh.vertices)

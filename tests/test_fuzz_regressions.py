@@ -119,3 +119,17 @@ def test_checkpoint_fields_of_another_type(tmp_path, stage, key, value):
     torch.save(data, tmp_path / f"{stage}.pt")
     with pytest.raises(LoosefitInputError, match=rf"{stage}\.pt"):
         load_pipeline(tmp_path / "motion.pt")
+
+
+def test_a_glb_whose_triangles_name_missing_vertices(tmp_path):
+    import trimesh
+
+    from loosefit.garment.importer import read_garment_mesh
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float64)
+    raw = bytearray(trimesh.Trimesh(v, [[0, 1, 2], [1, 3, 2]], process=False).export(
+        file_type="glb"))  # fmt: skip
+    raw[645] = 1  # what the fuzzing changed: an index byte, now 256 of 4 vertices
+    (tmp_path / "g.glb").write_bytes(bytes(raw))
+    with pytest.raises(LoosefitInputError, match=r"g\.glb.*faces.*vertex indices below 4"):
+        read_garment_mesh(tmp_path / "g.glb")

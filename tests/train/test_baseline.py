@@ -162,3 +162,40 @@ def test_train_baseline_evaluate_and_animate_commands(toy_dataset, tmp_path):
     assert (
         main(["train", "baseline", "--data", str(toy_dataset), "--out", str(tmp_path / "x")]) == 2
     )
+
+
+def test_a_broken_baseline_checkpoint_is_a_clear_error(trained, tmp_path):
+    """Fuzzed like every reader (tests/test_fuzz.py): a key deleted or replaced, the file cut."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    from loosefit.inference.checkpoints import load_torch
+    from tests.test_fuzz import accepts, finite
+
+    out, _, _ = trained
+    saved = load_torch(out / "model.pt")
+
+    @settings(max_examples=30, deadline=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])  # fmt: skip
+    @given(key=st.sampled_from(sorted(saved)), how=st.sampled_from(["delete", "value", "cut"]),
+           value=st.one_of(st.none(), st.integers(), st.text(max_size=3), st.just([1, 2]),
+                           st.just({"x": 1}), st.just(torch.full((2, 2), float("nan")))),
+           cut=st.floats(0.0, 0.99))  # fmt: skip
+    def check(key, how, value, cut):
+        path = tmp_path / "broken.pt"
+        if how == "cut":
+            raw = (out / "model.pt").read_bytes()
+            path.write_bytes(raw[: int(cut * len(raw))])
+        else:
+            data = dict(saved)
+            if how == "delete":
+                del data[key]
+            else:
+                data[key] = value
+            torch.save(data, path)
+        model = accepts(lambda: inf.load_pipeline(path))
+        if model is not None:
+            for p in model.network.parameters():
+                finite(p.detach().numpy())
+
+    check()

@@ -45,6 +45,16 @@ train_motion(sys.argv[1], sys.argv[3], sys.argv[2], cfg, log=print, progress=Fal
 """
 
 
+TRAIN_DETAIL = """
+import sys
+from loosefit.model.detail import DetailConfig
+from loosefit.train.detail import TrainDetailConfig, train_detail
+cfg = TrainDetailConfig(model=DetailConfig(disc_channels=(4, 8, 8), patches=(32, 16)),
+                        epochs=8, batch_size=4, lr=3e-3, checkpoint_every=1)
+train_detail(sys.argv[1], sys.argv[3], sys.argv[2], cfg, log=print, progress=False)
+"""
+
+
 def _run(code: str, *args) -> subprocess.CompletedProcess:
     run = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True,
                          text=True, timeout=600)  # fmt: skip
@@ -73,10 +83,21 @@ def _weights(path: Path) -> dict:
     return torch.load(path, weights_only=False)["model"]
 
 
-@pytest.mark.parametrize("stage", ["generative", "motion"])
-def test_a_killed_training_resumes_to_the_same_weights(stage, toy_dataset, generative, tmp_path):
-    code = TRAIN_GENERATIVE if stage == "generative" else TRAIN_MOTION
-    extra = [] if stage == "generative" else [generative]
+@pytest.fixture(scope="module")
+def motion_stage(toy_dataset, generative, tmp_path_factory):
+    """A motion stage for the detail stage to train on: its model.pt."""
+    out = tmp_path_factory.mktemp("motion")
+    _run(TRAIN_MOTION, toy_dataset, out, generative)
+    return out / "model.pt"
+
+
+@pytest.mark.parametrize("stage", ["generative", "motion", "detail"])
+def test_a_killed_training_resumes_to_the_same_weights(stage, toy_dataset, generative, tmp_path,
+                                                       request):  # fmt: skip
+    code = {"generative": TRAIN_GENERATIVE, "motion": TRAIN_MOTION, "detail": TRAIN_DETAIL}[stage]
+    extra = {"generative": [], "motion": [generative],
+             "detail": [request.getfixturevalue("motion_stage")] if stage == "detail" else []
+             }[stage]  # fmt: skip
     whole, killed = tmp_path / "whole", tmp_path / "killed"
     _run(code, toy_dataset, whole, *extra)
     _kill_when(code, [toy_dataset, killed, *extra], killed / "checkpoint.pt", seed=len(stage))

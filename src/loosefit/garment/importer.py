@@ -66,7 +66,10 @@ def _read_trimesh(path: Path) -> GarmentMesh:
         scene = trimesh.load(str(path), force="scene", process=False)
     except Exception as exc:  # noqa: BLE001 - trimesh raises many types for a bad file
         raise LoosefitInputError(path, "<file>", "a mesh trimesh can read", str(exc)) from exc
-    meshes = [g for g in scene.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)]
+    try:
+        meshes = [g for g in scene.dump(concatenate=False) if isinstance(g, trimesh.Trimesh)]
+    except Exception as exc:  # noqa: BLE001 - a malformed scene fails in many ways
+        raise LoosefitInputError(path, "scene", "meshes trimesh can read", str(exc)) from exc
     if not meshes:
         raise LoosefitInputError(path, "meshes", "at least one triangle mesh", "none")
     vertices, faces, uvs, offset = [], [], [], 0
@@ -110,6 +113,17 @@ def read_garment_mesh(path: str | Path) -> GarmentMesh:
         raise LoosefitInputError(path, "suffix", ".obj, .gltf or .glb", repr(path.suffix))
     if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
         raise LoosefitInputError(path, "faces", "a garment's triangles", "an empty mesh")
+    if mesh.faces.ndim != 2 or mesh.faces.shape[1] != 3:
+        raise LoosefitInputError(path, "faces", "triangles (F, 3)", f"shape {mesh.faces.shape}")
+    out = (mesh.faces < 0) | (mesh.faces >= len(mesh.vertices))
+    if out.any():
+        f = int(np.flatnonzero(out.any(1))[0])
+        raise LoosefitInputError(path, "faces", f"vertex indices below {len(mesh.vertices)}",
+                                 f"triangle {f} with {mesh.faces[f].tolist()}")  # fmt: skip
+    if mesh.face_uvs is not None and mesh.uvs is not None and (
+        (mesh.face_uvs < 0) | (mesh.face_uvs >= len(mesh.uvs))
+    ).any():
+        mesh.uvs = mesh.face_uvs = None  # UVs that do not fit: made again by xatlas
     if not np.isfinite(mesh.vertices).all():
         bad = np.flatnonzero(~np.isfinite(mesh.vertices).all(1))
         raise LoosefitInputError(
