@@ -120,9 +120,11 @@ def read_garment_mesh(path: str | Path) -> GarmentMesh:
         f = int(np.flatnonzero(out.any(1))[0])
         raise LoosefitInputError(path, "faces", f"vertex indices below {len(mesh.vertices)}",
                                  f"triangle {f} with {mesh.faces[f].tolist()}")  # fmt: skip
-    if mesh.face_uvs is not None and mesh.uvs is not None and (
-        (mesh.face_uvs < 0) | (mesh.face_uvs >= len(mesh.uvs))
-    ).any():
+    if (
+        mesh.face_uvs is not None
+        and mesh.uvs is not None
+        and ((mesh.face_uvs < 0) | (mesh.face_uvs >= len(mesh.uvs))).any()
+    ):
         mesh.uvs = mesh.face_uvs = None  # UVs that do not fit: made again by xatlas
     if not np.isfinite(mesh.vertices).all():
         bad = np.flatnonzero(~np.isfinite(mesh.vertices).all(1))
