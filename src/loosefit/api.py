@@ -111,6 +111,28 @@ class Animator:
         return AnimatedGarment(m, self.template, result.vertices, shape,
                                f"loosefit model {self.path}")  # fmt: skip
 
+    def animate_batch(self, motions: list, frames: int | None = None, seed: int = 0, stages=None,
+                       progress=None) -> list[AnimatedGarment]:  # fmt: skip
+        """N motions (files, moves or :class:`~loosefit.types.Motion`) at once, N characters:
+        the motion stage runs batched (one network call per frame for all of them). ``seed``
+        seeds procedural motions (the i-th gets ``seed + i``).
+
+        Returns:
+            One :class:`~loosefit.sequence.AnimatedGarment` per motion.
+
+        Raises:
+            LoosefitInputError: a motion on other joints, at another rate, or unreadable.
+        """
+        if not hasattr(self.model, "animate_batch"):
+            raise LoosefitInputError(self.path, "model", "our model (a baseline animates one "
+                                     "motion at a time)", type(self.model).__name__)  # fmt: skip
+        avatar = self.model.avatar()
+        ms = [motion_for(m, avatar, self.fps, frames, 0, seed + i) for i, m in enumerate(motions)]
+        results = self.model.animate_batch(ms, progress, stages=stages)
+        shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
+        return [AnimatedGarment(m, self.template, r.vertices, shape, f"loosefit model {self.path}")
+                for m, r in zip(ms, results, strict=True)]  # fmt: skip
+
 
 def load(path: str | Path | None = None, device: str = "cpu") -> Animator:
     """A trained model: the pretrained set by default, or any checkpoint ``loosefit animate``

@@ -47,7 +47,9 @@ from loosefit.model.rollout import (
     carried_drape,
     collision_record,
     reconstruction,
+    refine,
     rollout,
+    rollout_batch,
 )
 from loosefit.types import GarmentTemplate, Motion
 
@@ -155,6 +157,26 @@ class AnimationModel:
                        self.floor_height, self.rollout_config, progress, truth,
                        restart_every, detail, collide, stages.feedback,
                        stages.overlap)  # fmt: skip
+
+    def animate_batch(self, motions: list[Motion], progress=None, stages: Stages | None = None):
+        """N motions (N characters) at once: the motion stage batched
+        (:func:`~loosefit.model.rollout.rollout_batch`, one network call per frame for all),
+        then each motion's detail and collision handling (:func:`~loosefit.model.rollout.
+        refine`). The same garments as :meth:`animate` of each, within float rounding.
+
+        Returns:
+            One :class:`~loosefit.model.rollout.RolloutResult` per motion.
+        """
+        for m in motions:
+            self.check_motion(m)
+        stages = stages or self.stages
+        results = rollout_batch(self.generative, self.encoder, motions, self.rest_state,
+                                self.floor_height, self.rollout_config, progress)  # fmt: skip
+        detail = self.detail if stages.detail else None
+        for m, r in zip(motions, results, strict=True):
+            collide = self.collider(m) if stages.collision else None
+            refine(r, m, self.floor_height, self.rollout_config, detail, collide, self.device)
+        return results
 
     def carry_drape(self, motion: Motion, progress=None):
         """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""

@@ -275,6 +275,82 @@ def rollout(
                          {k: v for k, v in stage.items() if v > 0})  # fmt: skip
 
 
+@torch.no_grad()
+def rollout_batch(
+    generative: GarmentGenerativeModel,
+    encoder: DynamicMotionEncoder,
+    motions: list[Motion],
+    rest_state: torch.Tensor,
+    floor_height: float,
+    config: RolloutConfig | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[RolloutResult]:
+    """The motion stage of :func:`rollout` for N motions at once (N characters): one network
+    call per frame for all of them. Shorter motions are padded by holding their last frame
+    (those frames are dropped from their results).
+
+    Args:
+        motions: N motions on the encoder's skeleton, at one frame rate.
+        rest_state, floor_height, config, progress: as for :func:`rollout`.
+
+    Returns:
+        One :class:`RolloutResult` per motion (its ``seconds`` the batch's, shared).
+
+    Raises:
+        RolloutError: NaN, or a vertex farther than ``config.max_distance`` from the root,
+            naming the motion.
+    """
+    config = config or RolloutConfig()
+    generative.eval()
+    encoder.eval()
+    device = rest_state.device
+    if not motions or len({round(m.fps, 6) for m in motions}) != 1:
+        raise ValueError("rollout_batch needs at least one motion, all at one frame rate")
+    lines = [timeline(m, floor_height, config) for m in motions]
+    P = lines[0][2]
+    total = max(len(rot) for rot, _, _ in lines)
+
+    def padded(x: torch.Tensor) -> torch.Tensor:
+        return torch.cat([x, x[-1:].expand(total - len(x), *x.shape[1:])]) if len(x) < total else x
+
+    joints = feature_joints(motions[0].joint_names, encoder.config.joints)
+    feats = torch.stack([padded(motion_features(rot, root, m.fps, floor_height, joints))
+                         for (rot, root, _), m in zip(lines, motions, strict=True)])  # fmt: skip
+    frames = [root_frames(rot.double(), root.double()) for rot, root, _ in lines]
+    H = torch.stack([padded(h) for h, _ in frames]).float().to(device)  # (N, total, 3, 3)
+    p = torch.stack([padded(q) for _, q in frames]).float().to(device)  # (N, total, 3)
+    feats = feats.to(device)
+    N, T = len(motions), total - P
+    out = torch.empty(N, T, encoder.num_vertices, 3)
+    codes = torch.empty(N, T, encoder.latent)
+    hidden = encoder.initial_hidden(N, device)
+    prev = rest_state[None].float().expand(N, -1, -1)
+    start = time.perf_counter()
+    for t in range(total):
+        if t > 0:
+            prev = change_frame(prev, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
+        z, hidden = encoder(feats[:, t], prev, hidden)
+        prev = generative.decode(z)["vertices"]
+        if not torch.isfinite(prev).all() or prev.norm(dim=-1).max() > config.max_distance:
+            bad = int(
+                (
+                    ~torch.isfinite(prev).all(-1).all(-1)
+                    | (prev.norm(dim=-1).amax(-1) > config.max_distance)
+                ).nonzero()[0, 0]
+            )
+            check_garment(prev[bad : bad + 1], config.max_distance,
+                          f"frame {t - P} of motion {bad} ('{motions[bad].name}')")  # fmt: skip
+        if t >= P:
+            out[:, t - P] = from_root_frame(prev, H[:, t], p[:, t]).cpu()
+            codes[:, t - P] = z.cpu()
+        if progress is not None:
+            progress(t + 1, total)
+    seconds = time.perf_counter() - start
+    return [RolloutResult(out[i, : m.num_frames].numpy(), seconds, P + m.num_frames,
+                          codes[i, : m.num_frames].numpy(), None, None, {"motion": seconds})
+            for i, m in enumerate(motions)]  # fmt: skip
+
+
 def collision_record(result) -> dict:
     """A collision result's figures, without its vertices."""
     return {k: v for k, v in vars(result).items() if k != "vertices"}
@@ -313,6 +389,29 @@ class _Later:
                     records.append(collision_record(result))
                 self.seconds["collision"] += time.perf_counter() - t1
         return out, records
+
+
+def refine(result: RolloutResult, motion: Motion, floor_height: float, config: RolloutConfig,
+           detail=None, collide=None, device="cpu") -> RolloutResult:  # fmt: skip
+    """Detail enhancement and collision handling (as :func:`rollout` runs them after the
+    motion stage) of a motion-stage result, e.g. one of :func:`rollout_batch`'s, in place:
+    ``decoded`` keeps the decoders' garments, ``vertices`` gets the refined ones."""
+    if detail is None and collide is None:
+        return result
+    H, p, _ = motion_root_frames(motion, floor_height, config)
+    later = _Later(detail, collide, H, p, device)
+    decoded = torch.from_numpy(result.vertices)
+    codes = torch.from_numpy(result.codes)
+    parts, records = [], []
+    for s in range(0, motion.num_frames, later.chunk):
+        part, rec = later(decoded, codes, s, min(s + later.chunk, motion.num_frames))
+        parts.append(part)
+        records.extend(rec)
+    result.decoded, result.vertices = result.vertices, torch.cat(parts).numpy()
+    result.collisions = records if collide is not None else None
+    result.stage_seconds = {**(result.stage_seconds or {}),
+                            **{k: v for k, v in later.seconds.items() if v > 0}}  # fmt: skip
+    return result
 
 
 @torch.no_grad()
