@@ -11,6 +11,7 @@ Subcommands:
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import time
@@ -416,6 +417,17 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     if args.threads:
         torch.set_num_threads(args.threads)
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world > 1:  # launched by torchrun: one process of several
+        if args.stage != "generative":
+            raise LoosefitInputError("torchrun", "stage", "generative (the stage that trains on "
+                                     "several processes so far)", args.stage)  # fmt: skip
+        import torch.distributed as dist
+
+        if not dist.is_initialized():
+            dist.init_process_group("nccl" if args.device.startswith("cuda") else "gloo")
+        if args.device.startswith("cuda"):
+            args.device = f"cuda:{int(os.environ.get('LOCAL_RANK', '0'))}"
     if args.stage == "motion":
         return _train_motion(args)
     if args.stage == "detail":
@@ -429,7 +441,12 @@ def cmd_train(args: argparse.Namespace) -> int:
         max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
     )  # fmt: skip
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
-    return _finish_run(out, train_generative(args.data, out, cfg, log=_log), "checkpoint")
+    report = train_generative(args.data, out, cfg, log=_log)
+    from loosefit.train.common import distributed
+
+    if distributed()[0] > 0:
+        return 0  # the first process reports
+    return _finish_run(out, report, "checkpoint")
 
 
 def _finish_run(out, report: dict, kept: str = "model") -> int:

@@ -236,11 +236,15 @@ class GarmentGenerativeModel(nn.Module):
         """Encode and decode (the posterior mean) many garments (N, V, 3); on the CPU."""
         return self.decode_all(self.encode_all(vertices, chunk), chunk)
 
-    def forward(self, vertices: torch.Tensor, sample: bool | None = None) -> GenerativeOutput:
-        """Encode and decode garments (B, V, 3); ``sample`` defaults to ``self.training``."""
+    def forward(self, vertices: torch.Tensor, sample: bool | None = None,
+                noise: torch.Tensor | None = None) -> GenerativeOutput:  # fmt: skip
+        """Encode and decode garments (B, V, 3); ``sample`` defaults to ``self.training``;
+        ``noise`` (B, latent) is the standard normal draw of the sampling (default: drawn
+        here), so that a batch split across processes samples as it would whole."""
         mu, logvar = self.encode(vertices)
         sample = self.training if sample is None else sample
-        z = mu + torch.randn_like(mu) * torch.exp(0.5 * logvar) if sample else mu
+        eps = torch.randn_like(mu) if noise is None else noise.to(mu)
+        z = mu + eps * torch.exp(0.5 * logvar) if sample else mu
         out = self.decode(z)
         return GenerativeOutput(
             vertices=out["vertices"],

@@ -85,3 +85,45 @@ def machine(device: str) -> str:
     """The machine a run ran on, for reports."""
     return (f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
             f"{torch.get_num_threads()} threads, {device}")  # fmt: skip
+
+
+# -- several processes (torchrun) -------------------------------------------------------------
+
+
+def distributed() -> tuple[int, int]:
+    """(rank, world size) of a ``torch.distributed`` run (``torchrun``), (0, 1) otherwise."""
+    import torch.distributed as dist
+
+    if dist.is_available() and dist.is_initialized():
+        return dist.get_rank(), dist.get_world_size()
+    return 0, 1
+
+
+def barrier() -> None:
+    """Wait for every process of a distributed run (nothing alone)."""
+    import torch.distributed as dist
+
+    if distributed()[1] > 1:
+        dist.barrier()
+
+
+def shard(batch: int, rank: int, world: int) -> tuple[torch.Tensor, float]:
+    """This process's items of a batch of ``batch`` (every ``world``-th from ``rank``) and
+    their share of it. A process left without an item takes item 0 with share 0, so that
+    every process still runs the step (DDP needs them all)."""
+    mine = torch.arange(rank, batch, world)
+    if len(mine) == 0:
+        return torch.zeros(1, dtype=torch.long), 0.0
+    return mine, len(mine) / batch
+
+
+def all_mean(values: dict[str, torch.Tensor]) -> dict[str, float]:
+    """Sum of ``values`` (each a process's weighted share) over the processes, as floats."""
+    import torch.distributed as dist
+
+    if distributed()[1] == 1:
+        return {k: float(v) for k, v in values.items()}
+    keys = sorted(values)
+    t = torch.stack([values[k].float().reshape(()) for k in keys])
+    dist.all_reduce(t)
+    return dict(zip(keys, t.tolist(), strict=True))

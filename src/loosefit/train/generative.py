@@ -41,7 +41,16 @@ from loosefit.model.generative import (
     GenerativeLossConfig,
     generative_loss,
 )
-from loosefit.train.common import apply_overrides, machine, open_run, restore_training
+from loosefit.train.common import (
+    all_mean,
+    apply_overrides,
+    barrier,
+    distributed,
+    machine,
+    open_run,
+    restore_training,
+    shard,
+)
 from loosefit.train.frames import PreparedFrames, avatar_for, prepare_split
 from loosefit.types import GarmentTemplate
 
@@ -232,7 +241,13 @@ def train_generative(
     reader = DatasetReader(data)
     template = reader.template
     ckpt_path = out / "checkpoint.pt"
-    open_run(out, {"dataset": str(Path(data).resolve()), "train": config.to_dict()})
+    rank, world = distributed()
+    main = rank == 0
+    if main:
+        open_run(out, {"dataset": str(Path(data).resolve()), "train": config.to_dict()})
+    else:
+        log, progress = (lambda *_: None), False
+    barrier()
 
     torch.manual_seed(config.seed)
     device = torch.device(config.device)
@@ -260,7 +275,10 @@ def train_generative(
         log(f"resumed {ckpt_path} at epoch {epoch}")
 
     posed, unposed = train.posed.to(device), train.unposed.to(device)
-    writer = SummaryWriter(str(out))
+    net = model
+    if world > 1:  # torchrun: each process a share of every batch, gradients averaged
+        net = torch.nn.parallel.DistributedDataParallel(model)
+    writer = SummaryWriter(str(out)) if main else None
     n = len(train)
     steps = max(1, (n + config.batch_size - 1) // config.batch_size)
     bar = tqdm(total=config.epochs, initial=epoch, desc=f"train {config.model.decoder}",
@@ -273,23 +291,27 @@ def train_generative(
         sums: dict[str, float] = {}
         for s in range(steps):
             idx = order[s * config.batch_size : (s + 1) * config.batch_size].to(device)
-            out_ = model(posed[idx])
-            terms = generative_loss(out_, posed[idx], unposed[idx], model.template, lap,
-                                    config.loss)  # fmt: skip
+            noise = torch.randn(len(idx), model.config.latent, device=device)  # the whole batch's
+            mine, share = shard(len(idx), rank, world)  # this process's part, its weight
+            out_ = net(posed[idx[mine]], noise=noise[mine])
+            terms = generative_loss(out_, posed[idx[mine]], unposed[idx[mine]], model.template,
+                                    lap, config.loss)  # fmt: skip
             optim.zero_grad(set_to_none=True)
-            terms["total"].backward()
+            (terms["total"] * share * world).backward()  # DDP averages: the batch's mean
             optim.step()
-            for k, v in terms.items():
-                sums[k] = sums.get(k, 0.0) + v.item() / steps
+            for k, v in all_mean({k: v.detach() * share for k, v in terms.items()}).items():
+                sums[k] = sums.get(k, 0.0) + v / steps
         if not np.isfinite(sums["total"]):
             raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {sums['total']}")
         epoch += 1
         epochs_run += 1
         history.append({"epoch": epoch, **sums})
-        for k, v in sums.items():
-            writer.add_scalar(f"loss/{k}", v, epoch)
         bar.set_postfix(loss=f"{sums['total']:.3g}")
         bar.update(1)
+        if not main:
+            continue
+        for k, v in sums.items():
+            writer.add_scalar(f"loss/{k}", v, epoch)
         if epoch % config.eval_every == 0 or epoch == config.epochs:
             err = evaluate(model, test, template.faces)
             writer.add_scalar("test/rmse_cm", err["rmse_cm"], epoch)
@@ -299,6 +321,9 @@ def train_generative(
                             epoch=epoch, history=history, rng=torch.get_rng_state())  # fmt: skip
     bar.close()
     seconds = time.perf_counter() - t_start
+    barrier()
+    if not main:  # the report is the first process's
+        return {"history": history}
     writer.flush()
 
     report = {
