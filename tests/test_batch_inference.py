@@ -39,3 +39,15 @@ def test_the_api_animates_a_list(model, avatar):
     other.fps = 60.0
     with pytest.raises(LoosefitInputError, match="fps"):
         model.animate_batch([other])
+
+
+def test_a_diverging_batch_names_the_motion(model):
+    import dataclasses
+
+    from loosefit.model.rollout import RolloutError, rollout_batch
+
+    m = model.model
+    motions = [loosefit.api.motion_for(s, m.avatar(), model.fps, 5) for s in ("sway", "spin")]
+    tight = dataclasses.replace(m.rollout_config, max_distance=0.3)  # the skirt's hem is further
+    with pytest.raises(RolloutError, match=r"preroll frame 0 of motion 0 \('sway'\).*0\.3 m"):
+        rollout_batch(m.generative, m.encoder, motions, m.rest_state, m.floor_height, tight)

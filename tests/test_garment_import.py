@@ -214,3 +214,15 @@ def test_the_garment_command_says_what_it_guessed(dresses, tmp_path, capsys):
     # the parametric ones by name
     assert main(["garment", "dress-strapless", "--out", str(tmp_path / "p")]) == 0
     assert GarmentTemplate.load(tmp_path / "p" / "dress-strapless.npz").meta["kind"] == "dress"
+
+
+def test_the_attachment_can_be_a_file_of_vertex_indices(dresses, tmp_path, avatar):
+    path = _export(dresses["strapless"], tmp_path / "d.obj", "cm", "y")
+    (tmp_path / "hold.txt").write_text("0, 1 2\n3")
+    placed, report = import_garment(path, avatar, kind="dress", attach=str(tmp_path / "hold.txt"))
+    assert placed.waist.tolist() == [0, 1, 2, 3] and report["attachment"]["as"] == "points"
+    (tmp_path / "bad.txt").write_text("0 one")
+    with pytest.raises(LoosefitInputError, match=r"bad\.txt.*attach.*integers"):
+        import_garment(path, avatar, kind="dress", attach=str(tmp_path / "bad.txt"))
+    with pytest.raises(LoosefitInputError, match=r"missing\.txt.*attach.*no such file"):
+        import_garment(path, avatar, kind="dress", attach=str(tmp_path / "missing.txt"))

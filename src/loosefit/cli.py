@@ -173,9 +173,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     )
     seq.save(out / "sequence.npz")
     _log(f"wrote {out / 'sequence.npz'} ({source})")
-    if learned:
+    if learned:  # the body posed above, once for both files
+        from loosefit.export import export_animation, garment_and_body
+
+        meshes = garment_and_body(template, garment, body.vertices.cpu().numpy(),
+                                  avatar.faces.cpu().numpy())  # fmt: skip
         for suffix in (".usdc", ".pc2"):
-            _export(str(out / f"demo{suffix}"), template, garment, avatar, motion, motion.fps)
+            _log_exported(export_animation(out / f"demo{suffix}", meshes, motion.fps))
     title = f"loosefit demo: {motion.name}" + (" (learned)" if learned else f" ({source})")
     _render(args, avatar, motion, template, garment, out, title, body=body)
     return 0
@@ -307,13 +311,9 @@ def cmd_garment(args: argparse.Namespace) -> int:
     suffix = Path(args.source).suffix.lower()
     if suffix in (".obj", ".gltf", ".glb"):
         from loosefit.dress import import_garment
-        from loosefit.sim.generate import _read_indices
 
-        attach = args.attach
-        if attach not in ("auto", "top", "none"):
-            attach = _read_indices(Path(attach))
         template, report = import_garment(args.source, avatar, args.units, args.up, args.kind,
-                                          _offset(args.offset), attach)  # fmt: skip
+                                          _offset(args.offset), args.attach)  # fmt: skip
         for key in ("units", "up", "kind"):
             r = report[key]
             how = "guessed" if r["guessed"] else "given"
@@ -357,20 +357,19 @@ def dataset_config(args: argparse.Namespace):
 
     config = read_config_file(args.config) if args.config else preset(args.preset, args.bvh)
     if args.garment:
-        from loosefit.garment.dress import DRESS_STYLES, DressConfig
+        from loosefit.garment.dress import DRESS_SPECS, DressConfig
         from loosefit.garment.skirt import STYLES, SkirtConfig
 
         g = args.garment
-        dresses = {"dress": "straps", **{f"dress-{s}": s for s in DRESS_STYLES}}
         if g in STYLES:
             config.garment = SkirtConfig.preset(args.resolution, g)
-        elif g in dresses:
-            config.garment = DressConfig.preset(args.resolution, dresses[g])
+        elif g in DRESS_SPECS:
+            config.garment = DressConfig.preset(args.resolution, DRESS_SPECS[g])
         else:
             config.garment = GarmentFile(str(Path(g).resolve()), args.units, args.up, args.kind,
                                          _offset(args.offset), args.attach)  # fmt: skip
         config.preset = "custom"
-        kind = "dress" if g in dresses else "skirt" if g in STYLES else args.kind
+        kind = "dress" if g in DRESS_SPECS else "skirt" if g in STYLES else args.kind
         if kind is None:  # a file: a dress if it has straps (as the import will guess)
             from loosefit.garment.importer import detect_kind, read_garment_mesh
 
@@ -594,16 +593,6 @@ def cmd_animate(args: argparse.Namespace) -> int:
                 path.with_name(path.stem + "_render"),
                 f"{motion.name} (loosefit rollout)")  # fmt: skip
     return 0
-
-
-def _export(path: str, template, garment_vertices, avatar, motion, fps: float) -> None:
-    """The garment (and, with an avatar, the posed body) in the format ``path``'s suffix names."""
-    from loosefit.export import export_animation, garment_and_body
-
-    body = None if avatar is None else avatar.pose_motion(motion).vertices.cpu().numpy()
-    faces = None if avatar is None else avatar.faces.cpu().numpy()
-    _log_exported(export_animation(path, garment_and_body(template, garment_vertices, body,
-                                                          faces), fps))  # fmt: skip
 
 
 def _log_exported(files: list) -> None:

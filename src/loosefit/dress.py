@@ -27,7 +27,7 @@ import torch
 
 from loosefit.body.avatar import Avatar, BodySequence
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.dress import DRESS_STYLES, DressConfig, DressFit, make_dress
+from loosefit.garment.dress import DRESS_SPECS, DressConfig, DressFit, make_dress
 from loosefit.garment.skirt import SkirtConfig, make_skirt, waist_fit_from_points
 from loosefit.types import GarmentTemplate
 
@@ -49,7 +49,7 @@ def natural_waist_height(avatar: Avatar, step: float = 0.005, band: float = 0.01
         band: half-thickness of each horizontal slab, metres.
     """
     pts = avatar.rest_vertices[avatar.vertices_of_bones(TORSO_BONES)].double().cpu().numpy()
-    heads = dict(zip(avatar.joint_names, avatar.skeleton.heads, strict=True))
+    heads = _joint_heads(avatar)
     lo, hi = heads["LowerBack"][2], 0.5 * (heads["Spine"][2] + heads["Spine1"][2])
     best, best_w = lo, np.inf
     for z in np.arange(lo, hi, step):
@@ -132,15 +132,14 @@ def garment_for(spec: str, avatar: Avatar, resolution: str = "cpu",
         return None
     if spec in STYLES:
         return fit_skirt(avatar, SkirtConfig.preset(resolution, spec, **extra))
-    dresses = {"dress": "straps", **{f"dress-{s}": s for s in DRESS_STYLES}}
-    if spec in dresses:
-        return fit_dress(avatar, DressConfig.preset(resolution, dresses[spec], **extra))
+    if spec in DRESS_SPECS:
+        return fit_dress(avatar, DressConfig.preset(resolution, DRESS_SPECS[spec], **extra))
     suffix = str(spec).lower().rsplit(".", 1)[-1]
     if suffix in ("obj", "gltf", "glb"):
         return import_garment(spec, avatar)[0]
     if suffix == "npz":
         return GarmentTemplate.load(spec)
-    raise LoosefitInputError("garment", "value", f"one of {STYLES + tuple(dresses)}, 'none', "
+    raise LoosefitInputError("garment", "value", f"one of {STYLES + tuple(DRESS_SPECS)}, 'none', "
                              "or a .obj/.gltf/.glb/.npz file", repr(spec))  # fmt: skip
 
 
@@ -153,13 +152,14 @@ def chest_height(avatar: Avatar, step: float = 0.005) -> float:
     v = avatar.rest_vertices.double().cpu().numpy()
     torso = v[avatar.vertices_of_bones(("Spine1", "Spine", "LeftShoulder", "RightShoulder",
                                         "LowerBack")).cpu().numpy()]  # fmt: skip
-    heads = dict(zip(avatar.joint_names, avatar.skeleton.heads, strict=True))
+    heads = _joint_heads(avatar)
     top, bottom = float(heads["LeftArm"][2]), float(heads["Spine"][2])
+    arms = [(v[avatar.vertices_of_bones((arm,)).cpu().numpy()], sign)
+            for arm, sign in (("LeftArm", 1.0), ("RightArm", -1.0))]  # fmt: skip
     for z in np.arange(top, bottom, -step):
         gaps = []
-        for arm, sign in (("LeftArm", 1.0), ("RightArm", -1.0)):
-            a = v[avatar.vertices_of_bones((arm,)).cpu().numpy()]
-            a, t = a[np.abs(a[:, 2] - z) <= 0.01], torso[np.abs(torso[:, 2] - z) <= 0.01]
+        for arm, sign in arms:
+            a, t = arm[np.abs(arm[:, 2] - z) <= 0.01], torso[np.abs(torso[:, 2] - z) <= 0.01]
             if len(a) == 0 or len(t) == 0:
                 gaps.append(np.inf)
                 continue
@@ -176,9 +176,14 @@ def _torso_centre(avatar: Avatar, height: float, band: float = 0.015) -> np.ndar
     return 0.5 * (slab.min(0) + slab.max(0))
 
 
+def _joint_heads(avatar: Avatar) -> dict:
+    """Joint name -> (3,) its head at the rest pose."""
+    return dict(zip(avatar.joint_names, avatar.skeleton.heads, strict=True))
+
+
 def _shoulders(avatar: Avatar) -> tuple[float, float]:
     """Where straps go: their distance from the body's axis, and the shoulders' top there."""
-    heads = dict(zip(avatar.joint_names, avatar.skeleton.heads, strict=True))
+    heads = _joint_heads(avatar)
     x = 0.6 * 0.5 * (float(heads["LeftArm"][0]) - float(heads["RightArm"][0]))
     bones = ("LeftShoulder", "RightShoulder", "Spine1", "Neck")
     v = avatar.rest_vertices[avatar.vertices_of_bones(bones)].double().cpu().numpy()
@@ -265,7 +270,8 @@ def attachment_of(vertices: np.ndarray, faces: np.ndarray, kind: str,
 
     ``auto``: a skirt's or a strapless dress's top opening (the waistband, the top band);
     a dress with straps: its vertices within :data:`ATTACH_DEPTH` of its top (the straps
-    over the shoulders). ``top``: the top opening whatever the kind. An index array: those.
+    over the shoulders). ``top``: the top opening whatever the kind. An index array, or a
+    text file of them (:func:`read_indices`): those.
 
     Raises:
         LoosefitInputError: bad indices, or ``"none"`` (the simulation needs a hold).
@@ -282,8 +288,7 @@ def attachment_of(vertices: np.ndarray, faces: np.ndarray, kind: str,
                 "hangs on the body is not supported yet",
             )  # fmt: skip
         if attach not in ("auto", "top"):
-            raise LoosefitInputError("--attach", "attach", "auto, top, or a file of vertex "
-                                     "indices", repr(attach))  # fmt: skip
+            return attachment_of(vertices, faces, kind, read_indices(attach))
         straps = kind == "dress" and len(boundary_loops(faces)) > 2
         if attach == "auto" and straps:
             return np.flatnonzero(v[:, 2] >= v[:, 2].max() - ATTACH_DEPTH), "points"
@@ -300,6 +305,19 @@ def attachment_of(vertices: np.ndarray, faces: np.ndarray, kind: str,
         raise LoosefitInputError("--attach", "attach", f"vertex indices in [0, {len(v)})",
                                  f"range [{idx.min()}, {idx.max()}]")  # fmt: skip
     return idx.astype(np.int64), "points"
+
+
+def read_indices(path) -> np.ndarray:
+    """Vertex indices from a text file (whitespace or comma separated)."""
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        raise LoosefitInputError(path, "attach", "a text file of vertex indices", "no such file")
+    try:
+        return np.array([int(t) for t in path.read_text().replace(",", " ").split()], np.int64)
+    except ValueError as exc:
+        raise LoosefitInputError(path, "attach", "integers", str(exc)) from exc
 
 
 def collider_arms(template: GarmentTemplate) -> bool | str:

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -85,7 +84,7 @@ def read_sequence(path: Path, template: GarmentTemplate | None = None,
             path, "vertices, faces", f"the data set's garment ({template.num_vertices} "
             "vertices)", f"another garment ({seq.garment.num_vertices} vertices)",
         )  # fmt: skip
-    seq.motion = replace(seq.motion, name=path.stem)
+    seq.motion.name = path.stem  # its clip's name (validated already)
     return seq
 
 

@@ -35,6 +35,8 @@ from loosefit.garment.skirt import SkirtConfig, WaistFit, rest_rings, skirt_grid
 from loosefit.types import GarmentTemplate
 
 DRESS_STYLES = ("strapless", "straps")
+# the names the commands take for the parametric dress: its style
+DRESS_SPECS = {"dress": "straps", **{f"dress-{s}": s for s in DRESS_STYLES}}
 
 # (rings, segments, strap rows, strap columns) per resolution: cpu 2,312 + 60 strap
 # vertices = 2,372, paper 9,248 + 220 = 9,468 (the paper's skirt has 9,352)

@@ -331,15 +331,13 @@ def rollout_batch(
             prev = change_frame(prev, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
         z, hidden = encoder(feats[:, t], prev, hidden)
         prev = generative.decode(z)["vertices"]
-        if not torch.isfinite(prev).all() or prev.norm(dim=-1).max() > config.max_distance:
-            bad = int(
-                (
-                    ~torch.isfinite(prev).all(-1).all(-1)
-                    | (prev.norm(dim=-1).amax(-1) > config.max_distance)
-                ).nonzero()[0, 0]
-            )
-            check_garment(prev[bad : bad + 1], config.max_distance,
-                          f"frame {t - P} of motion {bad} ('{motions[bad].name}')")  # fmt: skip
+        far = prev.norm(dim=-1).amax(-1)  # (N,) m from the root, NaN where NaN
+        bad = (~(far <= config.max_distance)).nonzero()
+        if len(bad):  # the first character that diverged, said as rollout() says it
+            i = int(bad[0, 0])
+            where = f"motion frame {t - P}" if t >= P else f"preroll frame {t}"
+            check_garment(prev[i : i + 1], config.max_distance,
+                          f"{where} of motion {i} ('{motions[i].name}')")  # fmt: skip
         if t >= P:
             out[:, t - P] = from_root_frame(prev, H[:, t], p[:, t]).cpu()
             codes[:, t - P] = z.cpu()

@@ -108,21 +108,8 @@ def make_garment(garment, avatar):
     path = Path(garment.path)
     if path.suffix.lower() == ".npz":
         return GarmentTemplate.load(path)
-    attach = garment.attach
-    if attach not in ("auto", "top", "none"):
-        attach = _read_indices(Path(attach))
     return import_garment(path, avatar, garment.units, garment.up, garment.kind,
-                          garment.offset, attach)[0]  # fmt: skip
-
-
-def _read_indices(path: Path) -> np.ndarray:
-    """Vertex indices from a text file (whitespace or comma separated)."""
-    if not path.is_file():
-        raise LoosefitInputError(path, "attach", "a text file of vertex indices", "no such file")
-    try:
-        return np.array([int(t) for t in path.read_text().replace(",", " ").split()], np.int64)
-    except ValueError as exc:
-        raise LoosefitInputError(path, "attach", "integers", str(exc)) from exc
+                          garment.offset, garment.attach)[0]  # fmt: skip
 
 
 @dataclass
@@ -758,6 +745,7 @@ def generate(
         The final manifest (also written to ``out_dir/manifest.json``).
     """
     from loosefit.body.avatar import Avatar, AvatarConfig
+    from loosefit.dress import collider_arms
 
     out = Path(out_dir)
     jobs = plan_jobs(config)
@@ -768,7 +756,7 @@ def generate(
 
     avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
     template = make_garment(config.garment, avatar)
-    if (template.meta or {}).get("kind") == "dress" and config.cloth.arm_collision is False:
+    if collider_arms(template) == "upper" and config.cloth.arm_collision is False:
         raise LoosefitInputError(
             "DatasetConfig", "cloth.arm_collision", "'upper' (or true) for a dress: its bodice "
             "reaches the arms", "false", hint="set cloth.arm_collision = 'upper'",
