@@ -13,6 +13,10 @@ mkdir -p "$RUNS" "$OUT"
 
 step() { local t0=$SECONDS; "$@"; echo "[dress_model] $(( SECONDS - t0 )) s: $*" | tee -a "$RUNS/times.txt"; }
 
+# 0. A garment tool's export, imported: the parametric dress as an OBJ (metres, Z up), read
+#    back with its units, axes and placement guessed
+step "$BIN/loosefit" garment dress --out "$OUT/garment"
+step "$BIN/loosefit" garment "$OUT/garment/dress.obj" --out "$OUT/imported"
 # 1. Ground truth: the parametric dress with straps on 6 procedural dances of 4 s (one held out)
 step "$BIN/loosefit" simulate --preset dress --out "$DATA" --workers 2
 # 2. The garment generative model (paper 3.2), CPU configuration
@@ -28,3 +32,6 @@ step "$BIN/loosefit" animate "$RUNS/package/motion.pt" dance:10 --seed 7 --out "
 # 5. Its held-out clip against the simulation
 step "$BIN/loosefit" evaluate --checkpoint "$RUNS/package/motion.pt" --data "$DATA" \
     --out "$RUNS/evaluate" --horizons 30,60,120
+#    ... beside the drape carried rigidly and the generative model's floor
+step "$BIN/python" bench/rollout_references.py --checkpoint "$RUNS/package/motion.pt" \
+    --data "$DATA" --out "$RUNS/references.json"
