@@ -2,11 +2,15 @@
 
 Usage:
     .venv/bin/python bench/sim_speed.py [--motion spin] [--frames 60] [--style flared]
-        [--resolution cpu] [--device cpu] [--no-self-contact]
+        [--resolution cpu] [--device cpu] [--no-self-contact] [--batch 1,16,64]
 
 Prints the machine, the configuration, seconds per 30-fps frame (settle and
 blend-in included, warp kernels already compiled) and the quality numbers that
 a dataset records per clip. docs/BENCHMARKS.md quotes its output.
+
+``--batch K1,K2,...`` also times K copies of the clip (each its own jitter seed)
+simulated at once as worlds of one model (``loosefit simulate --batch K``): the
+seconds per frame per clip (the batch's shared out) and clips of this length per hour.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from loosefit.body.avatar import Avatar
 from loosefit.body.motions import load_motion
 from loosefit.dress import fit_skirt
 from loosefit.garment.skirt import SkirtConfig
-from loosefit.sim.cloth import ClothConfig, simulate
+from loosefit.sim.cloth import ClothConfig, simulate, simulate_batch
 
 
 def main() -> None:
@@ -33,6 +37,7 @@ def main() -> None:
     p.add_argument("--resolution", default="cpu")
     p.add_argument("--device", default="cpu")
     p.add_argument("--no-self-contact", action="store_true")
+    p.add_argument("--batch", default="", help="comma-separated clip counts simulated at once")
     args = p.parse_args()
 
     torch.set_num_threads(1)
@@ -65,6 +70,18 @@ def main() -> None:
         f"strain p50 {q['strain_p50']:.3f} p95 {q['strain_p95']:.3f} p99 {q['strain_p99']:.3f} "
         f"max {q['strain_max']:.3f}; max speed {q['max_speed']:.2f} m/s; NaN {q['nan_count']}"
     )
+    per_clip = wall  # seconds per clip of this length, build and quality figures included
+    print(f"batch 1: {per_clip:.1f} s per clip, {3600 / per_clip:.1f} clips per hour")
+    for k in [int(x) for x in args.batch.split(",") if x]:
+        t0 = time.perf_counter()
+        results = simulate_batch(avatar, template, [motion] * k, config, seeds=list(range(k)))
+        wall = time.perf_counter() - t0
+        worst = max(r.quality["strain_p99"] for r in results)
+        print(
+            f"batch {k}: {results[0].seconds_per_frame:.4f} s per frame per clip, "
+            f"{wall / k:.2f} s per clip, {3600 * k / wall:.1f} clips per hour "
+            f"(wall {wall:.1f} s; worst strain p99 {worst:.3f})"
+        )
 
 
 if __name__ == "__main__":

@@ -405,7 +405,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         return 0
     if args.out is None:
         args.out = f"datasets/{config.preset}"
-    manifest = generate(config, args.out, workers=args.workers, progress=True, reuse=args.reuse)
+    manifest = generate(
+        config, args.out, workers=args.workers, progress=True, reuse=args.reuse, batch=args.batch
+    )
     print(format_report(manifest))
     _log(f"dataset in {args.out}")
     return 0
@@ -418,15 +420,19 @@ def cmd_train(args: argparse.Namespace) -> int:
         torch.set_num_threads(args.threads)
     world = int(os.environ.get("WORLD_SIZE", "1"))
     if world > 1:  # launched by torchrun: one process of several
-        if args.stage != "generative":
-            raise LoosefitInputError("torchrun", "stage", "generative (the stage that trains on "
-                                     "several processes so far)", args.stage)  # fmt: skip
+        if args.stage not in ("generative", "motion"):
+            raise LoosefitInputError("torchrun", "stage", "generative or motion (the stages that "
+                                     "train on several processes so far)", args.stage)  # fmt: skip
         import torch.distributed as dist
 
         if not dist.is_initialized():
             dist.init_process_group("nccl" if args.device.startswith("cuda") else "gloo")
         if args.device.startswith("cuda"):
             args.device = f"cuda:{int(os.environ.get('LOCAL_RANK', '0'))}"
+    if args.stage in ("detail", "baseline") and args.precision not in (None, "fp32"):
+        raise LoosefitInputError("loosefit train", "--precision", "fp32 for the detail and "
+                                 "baseline stages (bf16: generative and motion)",
+                                 args.precision)  # fmt: skip
     if args.stage == "motion":
         return _train_motion(args)
     if args.stage == "detail":
@@ -438,18 +444,20 @@ def cmd_train(args: argparse.Namespace) -> int:
     cfg = TrainGenerativeConfig.preset(
         args.preset, decoder=args.decoder, epochs=args.epochs, device=args.device,
         max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
+        precision=args.precision,
     )  # fmt: skip
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
     report = train_generative(args.data, out, cfg, log=_log)
+    return _train_finish(out, report, "checkpoint")
+
+
+def _train_finish(out, report: dict, kept: str = "model") -> int:
+    """A finished training run: its report, and where the run and its ``kept``.pt are
+    (under torchrun, the first process's to say: the others return 0 quietly)."""
     from loosefit.train.common import distributed
 
     if distributed()[0] > 0:
-        return 0  # the first process reports
-    return _finish_run(out, report, "checkpoint")
-
-
-def _finish_run(out, report: dict, kept: str = "model") -> int:
-    """A finished training run: its report, and where the run and its ``kept``.pt are."""
+        return 0
     print(Path(out, "report.md").read_text())
     _log(f"run in {out}; {kept} {Path(out, kept + '.pt')}")
     return 0 if report else 1
@@ -468,11 +476,12 @@ def _train_motion(args: argparse.Namespace) -> int:
         batch_size=args.batch_size, lr=args.lr, previous=args.previous,
         previous_state=False if args.no_previous_state else None,
         mirror=True if args.mirror else None, joints=args.joints, seed=args.seed,
+        precision=args.precision,
     )  # fmt: skip
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
     report = train_motion(args.data, args.generative, out, cfg, log=_log)
-    return _finish_run(out, report)
+    return _train_finish(out, report)
 
 
 def _train_detail(args: argparse.Namespace) -> int:
@@ -491,7 +500,7 @@ def _train_detail(args: argparse.Namespace) -> int:
     kind = ("full" if cfg.discriminator else "nodisc") + ("-edge" if cfg.loss.edge else "")
     out = args.out or f"runs/detail-{args.preset}-{kind}"
     report = train_detail(args.data, args.motion, out, cfg, args.generative, log=_log)
-    return _finish_run(out, report)
+    return _train_finish(out, report)
 
 
 def _train_baseline(args: argparse.Namespace) -> int:
@@ -507,7 +516,7 @@ def _train_baseline(args: argparse.Namespace) -> int:
         seed=args.seed,
     )  # fmt: skip
     out = args.out or f"runs/baseline-{args.preset}-{args.method}"
-    return _finish_run(out, train_baseline(args.data, out, cfg, log=_log))
+    return _train_finish(out, train_baseline(args.data, out, cfg, log=_log))
 
 
 def _stages(args: argparse.Namespace):
@@ -606,6 +615,93 @@ def cmd_export(args: argparse.Namespace) -> int:
                                  "or a data set's sequences/)", "another file")  # fmt: skip
     _log_exported(read_any_sequence(path).export(args.out, body=not args.no_body))
     return 0
+
+
+def cmd_diagnose(args: argparse.Namespace) -> int:
+    """Where and why a clip's cloth goes deeper into the body than the tolerance: a table of
+    events, diagnosis.json and renders of the worst frames (loosefit.eval.penetration)."""
+    import json
+
+    import torch
+
+    from loosefit.data.format import DatasetReader, write_json_atomic
+    from loosefit.dress import collider_arms
+    from loosefit.eval.body_regions import body_parts
+    from loosefit.eval.penetration import diagnose_clip, format_events
+    from loosefit.eval.quality import PENETRATION_TOLERANCE
+
+    source = Path(args.source)
+    tolerance = PENETRATION_TOLERANCE if args.tolerance is None else args.tolerance
+    if not 0.0 < tolerance < 1.0 or args.top < 0 or args.merge_gap < 0:
+        raise LoosefitInputError("loosefit diagnose", "--tolerance, --top, --merge-gap",
+                                 "0 < tolerance < 1 m, top >= 0, merge gap >= 0",
+                                 f"{tolerance}, {args.top}, {args.merge_gap}")  # fmt: skip
+    if source.is_dir():
+        if not args.clip:
+            raise LoosefitInputError(source, "CLIP", "a clip of the data set after it",
+                                     "none", hint="its clips: sequences/*.npz")  # fmt: skip
+        seq, name = DatasetReader(source, allow_incomplete=True).read(args.clip), args.clip
+        manifest = source / "manifest.json"
+    else:
+        if args.clip:
+            raise LoosefitInputError(source, "CLIP", "no clip after a sequence file", args.clip)
+        seq, name = read_any_sequence(source), source.stem
+        manifest = source.parent.parent / "manifest.json"  # a data set's sequences/NAME.npz
+    arms = {"none": False, "upper": "upper", "all": True}.get(args.arms)
+    if args.arms == "auto":  # the simulation's collider: the data set's, else the garment's
+        config = json.loads(manifest.read_text()).get("config", {}) if manifest.is_file() else {}
+        arms = config.get("cloth", {}).get("arm_collision", collider_arms(seq.garment))
+    args.shape = ",".join(f"{k}={v}" for k, v in seq.avatar.get("shape", {}).items())
+    avatar = _avatar(args)
+    avatar.check_motion(seq.motion)
+    with torch.no_grad():
+        body = avatar.pose_motion(seq.motion).vertices.float().cpu().numpy()  # (T, Vb, 3)
+    parts = body_parts(avatar, arms)
+    bar = tqdm_bar("diagnose", unit="frame")
+    diag = diagnose_clip(seq.garment_vertices, body, seq.motion.rotations[:, 0], seq.fps, parts,
+                         tolerance, args.merge_gap, progress=bar.progress)  # fmt: skip
+    bar.close()
+    print(f"{name}: {diag.summary()}; arms collide: {arms}")
+    print(format_events(diag.events, tolerance))
+    out = Path(args.out or f"out/diagnose/{name}")
+    out.mkdir(parents=True, exist_ok=True)
+    frames = diag.worst_frames(args.top)
+    renders = _render_worst(args, diag, parts, seq, body, avatar.faces.cpu().numpy(), name, out,
+                            frames) if frames else []  # fmt: skip
+    report = {"clip": name, "source": str(source), "arm_collision": arms, **diag.to_json(),
+              "renders": [str(p) for p in renders]}  # fmt: skip
+    write_json_atomic(out / "diagnosis.json", report)
+    _log(f"wrote {out / 'diagnosis.json'}")
+    return 0
+
+
+def _render_worst(args, diag, parts, seq, body, body_faces, name: str, out: Path,
+                  frames: list[int]) -> list[Path]:  # fmt: skip
+    """``diagnose``'s PNGs: each of ``frames`` whole and close up (loosefit.render.closeup)."""
+    from PIL import Image
+
+    from loosefit.eval.penetration import closeup
+    from loosefit.render.closeup import render_penetration
+    from loosefit.render.renderer import RenderConfig, Renderer
+
+    pen, paths = diag.penetrations, []
+    config = RenderConfig(width=args.size, height=args.size, labels=False, frame_counter=False)
+    with Renderer(config) as renderer:
+        for rank, t in enumerate(frames, 1):
+            root = seq.motion.root_translation[t]
+            view = closeup(pen, parts, t, seq.garment.num_vertices, root)
+            title = (f"{name} frame {t} ({t / seq.fps:.2f} s): {int(view.deep.sum())} vertices "
+                     f"deeper than {1000 * pen.tolerance:.0f} mm, deepest "
+                     f"{100 * pen.max_depth[t]:.1f} cm, in the {view.regions[0]}")  # fmt: skip
+            image = render_penetration(
+                body[t], body_faces, seq.garment_vertices[t], seq.garment.faces, view.deep,
+                view.target, view.direction, view.hidden, ~parts.colliding, size=args.size,
+                title=title, hidden_label=", ".join(view.regions), renderer=renderer,
+            )  # fmt: skip
+            paths.append(out / f"worst{rank}_frame{t:05d}.png")
+            Image.fromarray(image).save(paths[-1], optimize=True)
+            _log(f"wrote {paths[-1]}")
+    return paths
 
 
 def _stage_line(model, stages, result) -> str:
@@ -844,6 +940,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="dataset folder (default datasets/PRESET)")
     p.add_argument("--bvh", default=None, help="salsa/paper: a folder of BVH clips")
     p.add_argument("--workers", type=int, default=2, help="parallel simulations")
+    p.add_argument(
+        "--batch",
+        type=int,
+        default=1,
+        metavar="K",
+        help="clips simulated at once as worlds of one model (a GPU: 16-64)",
+    )
     p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
     p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
     p.add_argument("--reuse", default=None, metavar="FOLDER",
@@ -914,6 +1017,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lr", type=float, default=None)
     p.add_argument("--max-frames", type=int, default=None, help="frames per clip")
     p.add_argument("--device", default="cpu", help="torch device")
+    p.add_argument(
+        "--precision",
+        default=None,
+        choices=("fp32", "bf16"),
+        help="generative, motion: the networks' forward pass in fp32 (default) or bf16 "
+        "(autocast; losses and optimiser stay fp32)",
+    )
     p.add_argument("--seed", type=int, default=None, help="training seed (default 0)")
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
     p.set_defaults(func=cmd_train)
@@ -953,6 +1063,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("out", help=".usd, .usdc, .usda, .pc2, or a folder for an OBJ sequence")
     p.add_argument("--no-body", action="store_true", help="the garment only")
     p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("diagnose", help="where and why a clip's cloth goes deep inside the body")
+    p.add_argument("source", help="a data set folder (then CLIP), or a sequence .npz")
+    p.add_argument("clip", nargs="?", default=None, help="with a data set: the clip's name")
+    p.add_argument("--out", default=None, help="folder (default out/diagnose/CLIP)")
+    p.add_argument("--top", type=int, default=3, help="render this many worst frames")
+    p.add_argument("--tolerance", type=float, default=None, metavar="M",
+                   help="metres of depth that count (default 0.005, as simulate's)")  # fmt: skip
+    p.add_argument("--merge-gap", type=int, default=0,
+                   help="frames without penetration that still join two events")  # fmt: skip
+    p.add_argument("--arms", default="auto", choices=("auto", "none", "upper", "all"),
+                   help="the collider's arms (default: the data set's cloth config, else "
+                   "the garment's)")  # fmt: skip
+    p.add_argument("--size", type=int, default=360, help="pixels per rendered view")
+    p.add_argument("--device", default="cpu", help="torch device for posing")
+    p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("evaluate", help="roll out held-out clips and compare with the simulation")
     p.add_argument("--checkpoint", required=True, help="a motion run's model.pt or checkpoint.pt")

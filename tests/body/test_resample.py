@@ -177,3 +177,19 @@ def test_glitch_filter_keeps_real_motion():
     np.testing.assert_allclose(filter_rotation_glitches(rot, 120.0), rot, atol=0)
     steps = rotation_angle(rot[:-1], rot[1:])
     assert np.rad2deg(steps[:, 0]).min() == pytest.approx(12.0, abs=1e-3)
+
+
+def test_frames_spec(avatar):
+    """``frames:START:STOP:MOTION``: a stretch of any motion, also inside speed: and mirror:."""
+    spin = load_motion("spin", avatar)
+    part = load_motion("frames:20:50:spin", avatar)
+    assert part.num_frames == 30
+    np.testing.assert_array_equal(part.rotations, spin.rotations[20:50])
+    np.testing.assert_array_equal(part.root_translation, spin.root_translation[20:50])
+    fast = load_motion("speed:1.5:frames:20:50:spin", avatar)
+    np.testing.assert_array_equal(fast.rotations, retime_motion(part, 1.5).rotations)
+    for bad in ("frames:50:20:spin", "frames:a:b:spin", "frames:0:10", "frames:-1:5:spin"):
+        with pytest.raises(LoosefitInputError, match="frames:START:STOP"):
+            load_motion(bad, avatar)
+    with pytest.raises(LoosefitInputError, match="STOP <="):
+        load_motion(f"frames:0:{spin.num_frames + 1}:spin", avatar)

@@ -25,6 +25,7 @@ from loosefit.sim.cloth import (
     glued_points,
     preroll,
     simulate,
+    simulate_batch,
     substep_schedule,
 )
 from loosefit.types import GarmentTemplate, Motion
@@ -254,3 +255,70 @@ def test_settle_alone_gives_the_drape_every_clip_starts_from(avatar, tiny):
     gap = np.linalg.norm(in_root[0].numpy() - alone, axis=-1)
     assert gap.mean() < 0.01 and gap.max() < 0.03
     assert alone[:, 2].min() < -0.2  # hangs below the root, not at the template's rest
+
+
+# -- several clips at once ------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def batch(avatar, tiny):
+    """The tiny clip and a shorter sway, simulated side by side as two worlds."""
+    skirt, motion, _, _ = tiny
+    sway = load_motion("sway", avatar).slice(0, 4)
+    done = []
+    results = simulate_batch(avatar, skirt, [motion, sway], ClothConfig.tiny(), seeds=[0, 0],
+                             progress=lambda d, t: done.append((d, t)))  # fmt: skip
+    return sway, results, done
+
+
+def test_batched_clips_match_their_own_simulations(avatar, tiny, batch):
+    skirt, motion, alone, _ = tiny
+    sway, (a, b), done = batch
+    sway_alone = simulate(avatar, skirt, sway, ClothConfig.tiny())
+    assert a.garment_vertices.shape == alone.garment_vertices.shape
+    assert b.garment_vertices.shape == (sway.num_frames, skirt.num_vertices, 3)
+    # The first clip's world sits where the clip would alone: the very same numbers, so the
+    # other world changes nothing.
+    np.testing.assert_array_equal(a.garment_vertices, alone.garment_vertices)
+    np.testing.assert_array_equal(a.settled_vertices, alone.settled_vertices)
+    # The second is moved metres away (Newton's self-contact ignores worlds): the same
+    # physics up to float rounding there, which a swaying drape amplifies, but by less than
+    # a 0.1 mm jitter of its start does (the seed).
+    gap = np.linalg.norm(b.garment_vertices - sway_alone.garment_vertices, axis=-1).max()
+    reseeded = simulate(avatar, skirt, sway, ClothConfig.tiny(seed=1))
+    spread = np.linalg.norm(reseeded.garment_vertices - sway_alone.garment_vertices, axis=-1)
+    assert gap < 0.5 * spread.max(), f"{gap * 1000:.1f} mm (seeds: {spread.max() * 1000:.1f})"
+    assert b.quality["inside_max"] < 0.005
+    assert abs(b.quality["strain_p99"] - sway_alone.quality["strain_p99"]) < 0.01
+    # the batch steps the longer clip's timeline; the shorter one holds its last pose
+    assert done[-1][1] == alone.preroll_frames + motion.num_frames - 1
+    assert a.stats["batch"] == b.stats["batch"] == 2
+    assert b.stats["frames_simulated"] == alone.preroll_frames + sway.num_frames - 1
+
+
+def test_batched_run_resumes_and_checks_its_motions(avatar, tiny, batch, tmp_path):
+    skirt, motion, _, _ = tiny
+    sway, results, done = batch
+    path = tmp_path / "batch.npz"
+    stop = done[-1][1] - 2
+
+    def kill(d, t):
+        if d == stop:
+            raise _Kill
+
+    with pytest.raises(_Kill):
+        simulate_batch(avatar, skirt, [motion, sway], ClothConfig.tiny(), progress=kill,
+                       resume=path, resume_every=4, seeds=[0, 0])  # fmt: skip
+    seen = []
+    again = simulate_batch(
+        avatar, skirt, [motion, sway], ClothConfig.tiny(), resume=path, resume_every=4,
+        seeds=[0, 0], progress=lambda d, t: seen.append(d),
+    )  # fmt: skip
+    assert seen[0] > 1
+    for got, want in zip(again, results, strict=True):
+        np.testing.assert_array_equal(got.garment_vertices, want.garment_vertices)
+    slow = dataclasses.replace(sway, fps=sway.fps / 2)
+    with pytest.raises(LoosefitInputError, match="fps"):
+        simulate_batch(avatar, skirt, [motion, slow], ClothConfig.tiny())
+    with pytest.raises(LoosefitInputError, match="at least one motion"):
+        simulate_batch(avatar, skirt, [], ClothConfig.tiny())

@@ -34,7 +34,7 @@ def test_tiny_dataset_is_complete_and_readable(tiny_dataset):
 def test_rerun_with_same_config_does_nothing(tiny_dataset, monkeypatch):
     out, _ = tiny_dataset
     calls = []
-    monkeypatch.setattr(gen, "_run_job", lambda *a: calls.append(a) or {})
+    monkeypatch.setattr(gen, "_run_group", lambda *a: calls.append(a) or [])
     before = (out / "sequences" / "kick_000.npz").stat().st_mtime_ns
     gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
     assert calls == []
@@ -44,18 +44,19 @@ def test_rerun_with_same_config_does_nothing(tiny_dataset, monkeypatch):
 def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
     """A run killed after its first clip keeps it; the rerun only simulates the rest."""
     out = tmp_path / "ds"
-    real = gen._run_job
+    real = gen._run_group
     done = []
 
-    def first_then_die(config, job, out_dir):
+    def first_then_die(config, jobs, out_dir):
+        (job,) = jobs
         if done:
             # A half-written file from the kill must never count as a sequence.
             (out / "sequences" / f"{job.name}.partial.npz").write_bytes(b"half")
             raise KeyboardInterrupt
         done.append(job.name)
-        return real(config, job, out_dir)
+        return real(config, jobs, out_dir)
 
-    monkeypatch.setattr(gen, "_run_job", first_then_die)
+    monkeypatch.setattr(gen, "_run_group", first_then_die)
     with pytest.raises(KeyboardInterrupt):
         gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
     manifest = json.loads((out / "manifest.json").read_text())
@@ -64,11 +65,54 @@ def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
         DatasetReader(out)
 
     resumed = []
-    monkeypatch.setattr(gen, "_run_job", lambda c, j, o: resumed.append(j.name) or real(c, j, o))
+
+    def spy(config, jobs, out_dir):
+        resumed.extend(j.name for j in jobs)
+        return real(config, jobs, out_dir)
+
+    monkeypatch.setattr(gen, "_run_group", spy)
     manifest = gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
     assert resumed == ["spin_001"]
     assert manifest["complete"] and not list(out.rglob("*partial*"))
     DatasetReader(out).read("spin_001")
+
+
+def test_clips_simulated_in_a_batch_are_the_same_data_set(tiny_dataset, tmp_path):
+    """``batch=2``: both clips as two worlds of one model, written and judged one by one."""
+    out, single = tiny_dataset
+    manifest = gen.generate(gen.preset("tiny"), tmp_path / "b", workers=1, progress=False,
+                            batch=2)  # fmt: skip
+    assert manifest["complete"] and manifest["split"] == single["split"]
+    reader, alone = DatasetReader(tmp_path / "b"), DatasetReader(out)
+    for name, entry in manifest["sequences"].items():
+        assert entry["status"] == "done" and entry["batch"] == 2
+        got, want = reader.read(name).garment_vertices, alone.read(name).garment_vertices
+        assert got.shape == want.shape and np.isfinite(got).all()
+        # the same clip, up to the other world's rounding (see tests/sim/test_cloth.py)
+        assert np.linalg.norm(got - want, axis=-1).max() < 0.05
+    assert manifest["summary"]["clips_per_hour"] > 0
+    assert "clips per hour" in gen.format_report(manifest)
+    assert not list((tmp_path / "b" / "resume").iterdir())  # the batch's state, removed
+    with pytest.raises(LoosefitInputError, match="batch"):
+        gen.generate(gen.preset("tiny"), tmp_path / "c", progress=False, batch=0)
+
+
+def test_a_batch_with_a_diverging_clip_is_run_again_clip_by_clip(tmp_path, monkeypatch, avatar):
+    real = gen.simulate_batch
+    sizes = []
+
+    def spin_explodes(avatar, template, motions, *a, **k):
+        sizes.append(len(motions))
+        if any(m.name.startswith("spin") for m in motions):
+            raise gen.SimulationError("diverged at motion frame 3: 12 NaN vertices")
+        return real(avatar, template, motions, *a, **k)
+
+    monkeypatch.setattr(gen, "simulate_batch", spin_explodes)
+    manifest = gen.generate(gen.preset("tiny"), tmp_path / "d", progress=False, batch=2)
+    assert sizes == [2, 1, 1]
+    assert manifest["sequences"]["kick_000"]["status"] == "done"
+    assert manifest["sequences"]["spin_001"]["status"] == "flagged"
+    assert "NaN" in manifest["sequences"]["spin_001"]["reason"]
 
 
 def test_folder_with_another_dataset_is_rejected(tiny_dataset):
@@ -131,7 +175,7 @@ def test_a_dataset_made_before_a_field_existed_still_resumes(tiny_dataset, monke
     del manifest["config"]["motions"]["speeds"]  # as written before speeds existed
     (out / "manifest.json").write_text(json.dumps(manifest))
     calls = []
-    monkeypatch.setattr(gen, "_run_job", lambda *a: calls.append(a) or {})
+    monkeypatch.setattr(gen, "_run_group", lambda *a: calls.append(a) or [])
     gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
     assert calls == []
     changed = gen.preset("tiny")
@@ -144,8 +188,13 @@ def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_
     source, _ = tiny_dataset
     cfg = gen.preset("tiny")
     cfg.motions.moves = ("kick", "spin", "sway")  # kick_000 and spin_001 as in the source
-    real, simulated = gen._run_job, []
-    monkeypatch.setattr(gen, "_run_job", lambda c, j, o: simulated.append(j.name) or real(c, j, o))
+    real, simulated = gen._run_group, []
+
+    def spy(config, jobs, out_dir):
+        simulated.extend(j.name for j in jobs)
+        return real(config, jobs, out_dir)
+
+    monkeypatch.setattr(gen, "_run_group", spy)
     manifest = gen.generate(cfg, tmp_path / "grown", workers=1, progress=False, reuse=source)
     assert simulated == ["sway_002"]
     assert manifest["split"] == {"train": ["kick_000", "sway_002"], "test": ["spin_001"]}

@@ -43,7 +43,9 @@ def load_motion(
             behind ``mirror:``, danced left-right mirrored
             (:func:`~loosefit.body.mirror.mirror_motion`), or behind
             ``speed:FACTOR:``, played FACTOR times as fast at the same frame rate
-            (:func:`~loosefit.body.resample.retime_motion`); or several of these
+            (:func:`~loosefit.body.resample.retime_motion`), or behind
+            ``frames:START:STOP:``, its frames START to STOP - 1 (at ``fps``, before
+            ``start_frame`` and ``max_frames``); or several of these
             joined by ``+``: played one after another as one motion
             (:func:`~loosefit.body.chain.chain_motions`, 0.5 s transitions).
         avatar: the avatar that the motion must fit.
@@ -80,6 +82,21 @@ def load_motion(
                 f"a factor from {MIN_SPEED:g} to {MAX_SPEED:g} and a motion", repr(text),
             )  # fmt: skip
         motion = retime_motion(load_motion(inner, avatar, fps, seed, retarget), speed)
+    elif text.startswith("frames:") and not path.exists():
+        start, _, rest = text[len("frames:") :].partition(":")
+        stop, _, inner = rest.partition(":")
+        try:
+            first, last = int(start), int(stop)
+        except ValueError:
+            first = last = -1
+        if not (inner and 0 <= first < last):
+            raise LoosefitInputError("motion", "frames:START:STOP:MOTION",
+                                     "0 <= START < STOP and a motion", repr(text))  # fmt: skip
+        motion = load_motion(inner, avatar, fps, seed, retarget)
+        if last > motion.num_frames:
+            raise LoosefitInputError(f"motion '{motion.name}'", "frames:START:STOP",
+                                     f"STOP <= {motion.num_frames} (its frames)", last)  # fmt: skip
+        motion = motion.slice(first, last)
     elif path.suffix.lower() == ".bvh":
         if not path.is_file():
             raise LoosefitInputError(path, "<file>", "an existing BVH file", "no such file")

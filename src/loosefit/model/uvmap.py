@@ -188,9 +188,14 @@ class UVMap(torch.nn.Module):
     def sample(self, maps: torch.Tensor) -> torch.Tensor:
         """UV maps (B, C, H, W) read back at the vertices: (B, V, C), bilinear."""
         B, C = maps.shape[:2]
-        grid = self.sample_grid.to(maps.dtype).expand(B, -1, -1, -1)
-        s = F.grid_sample(maps, grid, mode="bilinear", padding_mode="border", align_corners=False)
+        # Sampled in float32 even under a bf16 autocast: a map of absolute positions (the
+        # vertex decoder's) would otherwise round to millimetres.
+        maps = maps.double() if maps.dtype == torch.float64 else maps.float()
+        with torch.autocast(maps.device.type, enabled=False):
+            grid = self.sample_grid.to(maps.dtype).expand(B, -1, -1, -1)
+            s = F.grid_sample(maps, grid, mode="bilinear", padding_mode="border",
+                              align_corners=False)  # fmt: skip
         s = s[:, :, 0].transpose(1, 2)  # (B, N, C)
-        out = torch.zeros(B, self.num_vertices, C, dtype=maps.dtype, device=maps.device)
+        out = torch.zeros(B, self.num_vertices, C, dtype=s.dtype, device=s.device)
         out.index_add_(1, self.sample_vertex, s)
-        return out / self.sample_count.to(maps.dtype)[None, :, None]
+        return out / self.sample_count.to(s.dtype)[None, :, None]

@@ -34,7 +34,7 @@ import math
 import time
 import zipfile
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -102,6 +102,12 @@ class ClothConfig:
     # with its shoulders capped; a hand passing the skirt goes through it. "upper": the
     # upper arms collide, the arms from the elbows down do not (a dress's bodice).
     arm_collision: bool | str = False
+    # A pose that folds into itself (a thigh centimetres into the belly in a deep crouch)
+    # makes a lens that ray parity calls outside, and cloth folded into it stays inside the
+    # body; the collider's limbs are pressed out of the rest of the body as flesh would be
+    # (loosefit.sim.overlap; the posed body and every measure are unchanged). Data sets
+    # made before this field existed were made without it.
+    flatten_overlaps: bool = True
     self_friction: float = 0.2  # Coulomb friction between two layers of cloth
     # contact of the cloth with itself (costs ~3x; without it ~10% of triangles cross in a spin)
     self_contact: bool = True  # resolve cloth-cloth contact
@@ -136,6 +142,9 @@ class ClothConfig:
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise LoosefitInputError(src, name, "an integer >= 1", repr(value))
+        if not isinstance(self.flatten_overlaps, bool):
+            raise LoosefitInputError(src, "flatten_overlaps", "true or false",
+                                     repr(self.flatten_overlaps))  # fmt: skip
         if self.arm_collision not in (False, True, "upper"):
             raise LoosefitInputError(src, "arm_collision", "false, true or 'upper'",
                                      repr(self.arm_collision))  # fmt: skip
@@ -409,20 +418,31 @@ def substep_schedule(
 class ClothSimulator:
     """Newton VBD cloth on a deforming body: a static Model, two swapped States, a step a substep.
 
+    One simulator can also run ``K`` clips at once (batched simulation, for a GPU): the
+    garment and the body then come with a leading clip axis, and each clip is a world of
+    one Newton model, with its own cloth, its own body mesh and its own waistband glue.
+    Worlds keep body contacts apart; Newton's cloth self-contact does not look at
+    worlds, so each world is also moved to its own cell of a grid, far enough apart that
+    no two clips' cloth can meet (offsets added on the way in and taken off on the way
+    out: callers see every clip in its own coordinates).
+
     Args:
-        garment_vertices: (V, 3) initial cloth positions, world frame.
+        garment_vertices: (V, 3) initial cloth positions, world frame; or (K, V, 3),
+            one garment per clip (the same mesh).
         garment_faces: (F, 3) cloth triangles; the initial positions are also the rest shape.
         waist: (W,) indices of the waistband vertices, glued to the body.
-        body_vertices: (Vb, 3) the body at the start, world frame.
+        body_vertices: (Vb, 3) the body at the start, world frame; (K, Vb, 3) batched.
         body_faces: (Fb, 3) triangles of a closed (watertight) body mesh.
         config: the physics.
         frame_dt: seconds per frame; :meth:`step_frame` divides it into ``config.substeps``
             substeps, or as many as it is given.
-        bounds: (lower (3,), upper (3,)) a box that holds the body over the whole motion;
-            contacts are culled outside it. Default: the starting body's box grown by 2 m.
+        bounds: (lower (3,), upper (3,)) a box that holds the body over the whole motion
+            (of every clip); contacts are culled outside it. Default: the starting
+            bodies' box grown by 2 m.
         loop: ``waist`` is a closed band in order (a waistband, a dress's top band),
             respaced as it is pulled onto the body; False: separate points (a dress's
             straps), each held where it is closest (see :func:`glue_waist`).
+        seeds: (K,) each clip's jitter seed (default: ``config.seed`` for all).
     """
 
     def __init__(
@@ -436,6 +456,7 @@ class ClothSimulator:
         frame_dt: float,
         bounds: tuple[np.ndarray, np.ndarray] | None = None,
         loop: bool = True,
+        seeds: list[int] | None = None,
     ) -> None:
         import newton  # imported here: importing it takes seconds
 
@@ -443,43 +464,45 @@ class ClothSimulator:
         self.frame_dt = float(frame_dt)
         self.device = wp.get_device(cfg.device)
         garment_vertices = np.asarray(garment_vertices, np.float64)
-        body_vertices = np.ascontiguousarray(body_vertices, np.float32)
+        self.batched = garment_vertices.ndim == 3
+        garments = garment_vertices if self.batched else garment_vertices[None]  # (K, V, 3)
+        bodies = np.asarray(body_vertices, np.float32)
+        bodies = bodies if self.batched else bodies[None]  # (K, Vb, 3)
+        K = self.worlds = len(garments)
+        if bodies.ndim != 3 or len(bodies) != K:
+            raise LoosefitInputError("ClothSimulator", "body_vertices", f"({K}, Vb, 3)",
+                                     f"shape {np.shape(body_vertices)}")  # fmt: skip
+        seeds = [cfg.seed] * K if seeds is None else [int(s) for s in seeds]
+        if len(seeds) != K:
+            raise LoosefitInputError("ClothSimulator", "seeds", f"{K} seeds", len(seeds))
         body_faces = np.ascontiguousarray(body_faces, np.int32)
         waist = np.asarray(waist, np.int64)
-        self.num_vertices = len(garment_vertices)
-        self.num_body_vertices = len(body_vertices)
+        V = self.num_vertices = garments.shape[1]
+        self.num_body_vertices = bodies.shape[1]
+        if bounds is None:
+            bounds = (bodies.min((0, 1)) - 2.0, bodies.max((0, 1)) + 2.0)
+        lower = np.asarray(bounds[0], np.float32).reshape(3)
+        upper = np.asarray(bounds[1], np.float32).reshape(3)
+        # Each clip's cell of the grid: the bounds' size and a metre apart.
+        cols = math.ceil(math.sqrt(K))
+        cell = (upper - lower) + 1.0
+        self.offsets = np.array(
+            [[(k % cols) * cell[0], (k // cols) * cell[1], 0.0] for k in range(K)], np.float32
+        )  # (K, 3)
 
-        # 1. Glue the waistband to the body, once.
-        self.glue = glue_waist(garment_vertices[waist], body_vertices, body_faces,
-                               cfg.waist_offset, loop)  # fmt: skip
+        # 1. Glue the waistband to each clip's body, once.
+        self.glues = [
+            glue_waist(g[waist], b, body_faces, cfg.waist_offset, loop)
+            for g, b in zip(garments, bodies, strict=True)
+        ]
+        self.glue = self.glues[0]
 
-        # 2. The cloth, with a seeded jitter that breaks the template's exact symmetry.
-        rng = np.random.default_rng(cfg.seed)
-        start = garment_vertices + cfg.jitter * rng.standard_normal(garment_vertices.shape)
+        # 2. The cloth, with a seeded jitter that breaks the template's exact symmetry, and
+        #    3. the body: one static mesh shape per clip. Newton mixes contact materials as the
+        #    mean of ke and kd and the geometric mean of mu, so the shape's mu is chosen to
+        #    give sqrt(self_friction * shape_mu) = body_friction.
         builder = newton.ModelBuilder(gravity=(0.0, 0.0, cfg.gravity))
-        builder.add_cloth_mesh(
-            pos=wp.vec3(0.0, 0.0, 0.0),
-            rot=wp.quat_identity(),
-            scale=1.0,
-            vel=wp.vec3(0.0, 0.0, 0.0),
-            vertices=[wp.vec3(*v) for v in garment_vertices],
-            indices=np.asarray(garment_faces, np.int32).ravel().tolist(),
-            density=cfg.density,
-            tri_ke=cfg.stretch_ke,
-            tri_ka=cfg.stretch_ka,
-            tri_kd=cfg.stretch_kd,
-            edge_ke=cfg.bend_ke,
-            edge_kd=cfg.bend_kd,
-            particle_radius=cfg.body_contact_distance,
-        )
-        # VBD solves one colour of vertices at a time.
-        builder.color(include_bending=cfg.color_bending)
-
-        # 3. The body: one static mesh shape. Newton mixes contact materials as the mean of
-        #    ke and kd and the geometric mean of mu, so the shape's mu is chosen to give
-        #    sqrt(self_friction * shape_mu) = body_friction.
         shape_mu = cfg.body_friction**2 / cfg.self_friction if cfg.self_friction > 0 else 0.0
-        self._body_mesh = newton.Mesh(body_vertices, body_faces.ravel(), compute_inertia=False)
         shape_cfg = newton.ModelBuilder.ShapeConfig(
             ke=cfg.contact_ke,
             kd=cfg.contact_kd,
@@ -489,7 +512,39 @@ class ClothSimulator:
             has_shape_collision=False,
             has_particle_collision=True,
         )
-        builder.add_shape_mesh(body=-1, mesh=self._body_mesh, cfg=shape_cfg)
+        self._body_meshes = []
+        start = np.empty((K * V, 3), np.float32)
+        for k in range(K):
+            if K > 1:
+                builder.begin_world(label=f"clip_{k}")
+            off = self.offsets[k].astype(np.float64)
+            builder.add_cloth_mesh(
+                pos=wp.vec3(0.0, 0.0, 0.0),
+                rot=wp.quat_identity(),
+                scale=1.0,
+                vel=wp.vec3(0.0, 0.0, 0.0),
+                vertices=[wp.vec3(*v) for v in garments[k] + off],
+                indices=np.asarray(garment_faces, np.int32).ravel().tolist(),
+                density=cfg.density,
+                tri_ke=cfg.stretch_ke,
+                tri_ka=cfg.stretch_ka,
+                tri_kd=cfg.stretch_kd,
+                edge_ke=cfg.bend_ke,
+                edge_kd=cfg.bend_kd,
+                particle_radius=cfg.body_contact_distance,
+            )
+            rng = np.random.default_rng(seeds[k])
+            start[k * V : (k + 1) * V] = (
+                garments[k] + cfg.jitter * rng.standard_normal(garments[k].shape) + off
+            )
+            mesh = newton.Mesh(bodies[k] + self.offsets[k], body_faces.ravel(),
+                               compute_inertia=False)  # fmt: skip
+            self._body_meshes.append(mesh)
+            builder.add_shape_mesh(body=-1, mesh=mesh, cfg=shape_cfg)
+            if K > 1:
+                builder.end_world()
+        # VBD solves one colour of vertices at a time.
+        builder.color(include_bending=cfg.color_bending)
 
         self.model = model = builder.finalize(device=self.device)
         model.soft_contact_ke = cfg.contact_ke
@@ -497,20 +552,17 @@ class ClothSimulator:
         model.soft_contact_mu = cfg.self_friction
         if cfg.flat_rest:
             model.edge_rest_angle.zero_()
-        # The shape's cached box is the starting body's: widen it to the whole motion.
-        if bounds is None:
-            bounds = (body_vertices.min(0) - 2.0, body_vertices.max(0) + 2.0)
-        lower = np.asarray(bounds[0], np.float32).reshape(1, 3)
-        upper = np.asarray(bounds[1], np.float32).reshape(1, 3)
-        model.shape_collision_aabb_lower.assign(lower)
-        model.shape_collision_aabb_upper.assign(upper)
+        # The shapes' cached boxes are the starting bodies': widen them to the whole motion.
+        model.shape_collision_aabb_lower.assign(lower[None] + self.offsets)
+        model.shape_collision_aabb_upper.assign(upper[None] + self.offsets)
 
-        # 4. The waistband is kinematic: inactive, infinite mass.
+        # 4. The waistbands are kinematic: inactive, infinite mass.
+        pinned = (np.arange(K)[:, None] * V + waist[None]).ravel()
         flags = model.particle_flags.numpy()
-        flags[waist] &= ~int(newton.ParticleFlags.ACTIVE)
+        flags[pinned] &= ~int(newton.ParticleFlags.ACTIVE)
         model.particle_flags.assign(flags)
         inv_mass = model.particle_inv_mass.numpy()
-        inv_mass[waist] = 0.0
+        inv_mass[pinned] = 0.0
         model.particle_inv_mass.assign(inv_mass)
 
         # 5. Contacts, solver, the two states.
@@ -528,20 +580,26 @@ class ClothSimulator:
         self.state_0 = model.state()
         self.state_1 = model.state()
         self.control = model.control()
-        q = start.astype(np.float32)
-        self.state_0.particle_q.assign(q)
-        self.state_1.particle_q.assign(q)
+        self.state_0.particle_q.assign(start)
+        self.state_1.particle_q.assign(start)
 
-        # 6. Device buffers for the body's frame and the glue.
+        # 6. Device buffers for the bodies' frame and the glue, per clip.
         d = self.device
         self._body_faces = wp.array(body_faces, dtype=wp.vec3i, device=d)
-        self._body_start = wp.array(body_vertices, dtype=wp.vec3, device=d)
-        self._body_end = wp.array(body_vertices, dtype=wp.vec3, device=d)
-        g = self.glue
-        self._glue_faces = wp.array(g.faces.astype(np.int32), dtype=wp.int32, device=d)
-        self._glue_bary = wp.array(g.barycentric.astype(np.float32), dtype=wp.vec3, device=d)
-        self._glue_local = wp.array(g.local.astype(np.float32), dtype=wp.vec3, device=d)
-        self._waist_particles = wp.array(waist.astype(np.int32), dtype=wp.int32, device=d)
+        self._body_start = [wp.array(b + o, dtype=wp.vec3, device=d)
+                            for b, o in zip(bodies, self.offsets, strict=True)]  # fmt: skip
+        self._body_end = [wp.array(b + o, dtype=wp.vec3, device=d)
+                          for b, o in zip(bodies, self.offsets, strict=True)]  # fmt: skip
+        self._glue_arrays = [
+            (
+                wp.array(g.faces.astype(np.int32), dtype=wp.int32, device=d),
+                wp.array(g.barycentric.astype(np.float32), dtype=wp.vec3, device=d),
+                wp.array(g.local.astype(np.float32), dtype=wp.vec3, device=d),
+                g.outward,
+                wp.array((waist + k * V).astype(np.int32), dtype=wp.int32, device=d),
+            )
+            for k, g in enumerate(self.glues)
+        ]
         self._damp_factor = wp.ones(1, dtype=float, device=d)
         self._graphs: dict = {}  # recorded substeps, by substep count and swap parity
         self._substeps = cfg.substeps  # of the frame being stepped
@@ -551,37 +609,37 @@ class ClothSimulator:
 
     # -- one substep at a time --------------------------------------------------
 
-    @property
-    def _wp_mesh(self) -> wp.Mesh:
-        return self._body_mesh.mesh
-
     def _pose_body(self, alpha: float) -> None:
-        mesh = self._wp_mesh
-        wp.launch(
-            _pose_body_kernel,
-            dim=self.num_body_vertices,
-            inputs=[self._body_start, self._body_end, alpha, 1.0 / self.frame_dt],
-            outputs=[mesh.points, mesh.velocities],
-            device=self.device,
-        )
-        mesh.refit()
+        for k, body in enumerate(self._body_meshes):
+            mesh = body.mesh
+            wp.launch(
+                _pose_body_kernel,
+                dim=self.num_body_vertices,
+                inputs=[self._body_start[k], self._body_end[k], alpha, 1.0 / self.frame_dt],
+                outputs=[mesh.points, mesh.velocities],
+                device=self.device,
+            )
+            mesh.refit()
 
     def _pin_waist(self) -> None:
-        wp.launch(
-            _pin_waist_kernel,
-            dim=len(self._waist_particles),
-            inputs=[
-                self._wp_mesh.points,
-                self._body_faces,
-                self._glue_faces,
-                self._glue_bary,
-                self._glue_local,
-                self.glue.outward,
-                self._waist_particles,
-            ],
-            outputs=[self.state_0.particle_q, self.state_1.particle_q],
-            device=self.device,
-        )
+        for body, (faces, bary, local, outward, particles) in zip(
+            self._body_meshes, self._glue_arrays, strict=True
+        ):
+            wp.launch(
+                _pin_waist_kernel,
+                dim=len(particles),
+                inputs=[
+                    body.mesh.points,
+                    self._body_faces,
+                    faces,
+                    bary,
+                    local,
+                    outward,
+                    particles,
+                ],  # fmt: skip
+                outputs=[self.state_0.particle_q, self.state_1.particle_q],
+                device=self.device,
+            )
 
     def _substep(self) -> None:
         """One substep once the body is posed: device work only, so that a graph can record it."""
@@ -591,7 +649,7 @@ class ClothSimulator:
         self.solver.step(self.state_0, self.state_1, self.control, self.contacts, dt)
         wp.launch(
             _damp_kernel,
-            dim=self.num_vertices,
+            dim=self.worlds * self.num_vertices,
             inputs=[self._damp_factor],
             outputs=[self.state_1.particle_qd],
             device=self.device,
@@ -607,8 +665,8 @@ class ClothSimulator:
         """Advance one frame while the body moves linearly from ``body_start`` to ``body_end``.
 
         Args:
-            body_start: (Vb, 3) body vertices at the start of the frame.
-            body_end: (Vb, 3) body vertices at the end of the frame.
+            body_start: (Vb, 3) body vertices at the start of the frame; (K, Vb, 3) batched.
+            body_end: (Vb, 3) body vertices at the end of the frame; (K, Vb, 3) batched.
             damping: velocity decay rate, 1/s (default ``config.air_damping``).
             substeps: solver steps for this frame (default ``config.substeps``).
         """
@@ -619,8 +677,11 @@ class ClothSimulator:
         self._substeps = n
         rate = cfg.air_damping if damping is None else damping
         self._damp_factor.fill_(math.exp(-rate * self.frame_dt / n))
-        self._body_start.assign(np.ascontiguousarray(body_start, np.float32))
-        self._body_end.assign(np.ascontiguousarray(body_end, np.float32))
+        starts = np.asarray(body_start, np.float32).reshape(self.worlds, -1, 3)
+        ends = np.asarray(body_end, np.float32).reshape(self.worlds, -1, 3)
+        for k in range(self.worlds):
+            self._body_start[k].assign(np.ascontiguousarray(starts[k] + self.offsets[k]))
+            self._body_end[k].assign(np.ascontiguousarray(ends[k] + self.offsets[k]))
         self.solver.rebuild_bvh(self.state_0)  # self-contact BVH, rebuilt once a frame
         for s in range(n):
             # Pose the body for the end of the substep before detecting contacts against it.
@@ -642,20 +703,30 @@ class ClothSimulator:
             self.state_0, self.state_1 = self.state_1, self.state_0
             self._swaps += 1
 
+    def _per_clip(self, x: np.ndarray, sign: float) -> np.ndarray:
+        """(K * V, 3) particle positions to (K, V, 3) or (V, 3), offsets taken off (sign -1)."""
+        x = x.reshape(self.worlds, self.num_vertices, 3) + sign * self.offsets[:, None]
+        return x if self.batched else x[0]
+
     @property
     def positions(self) -> np.ndarray:
-        """(V, 3) float32 current cloth positions (a copy)."""
-        return self.state_0.particle_q.numpy().copy()
+        """(V, 3) float32 current cloth positions (a copy); (K, V, 3) batched."""
+        return self._per_clip(self.state_0.particle_q.numpy(), -1.0).astype(np.float32)
 
     def get_state(self) -> tuple[np.ndarray, np.ndarray]:
-        """(V, 3) float32 positions and (V, 3) float32 velocities: all the solver carries over."""
-        return self.positions, self.state_0.particle_qd.numpy().copy()
+        """(V, 3) float32 positions and (V, 3) float32 velocities (a leading K batched): all
+        the solver carries over."""
+        qd = self.state_0.particle_qd.numpy().reshape(self.worlds, self.num_vertices, 3)
+        return self.positions, (qd if self.batched else qd[0]).copy()
 
     def set_state(self, positions: np.ndarray, velocities: np.ndarray) -> None:
         """Continue from a state taken by :meth:`get_state` (after the same number of frames)."""
+        q = np.asarray(positions, np.float32).reshape(self.worlds, self.num_vertices, 3)
+        q = (q + self.offsets[:, None]).reshape(-1, 3)
+        qd = np.asarray(velocities, np.float32).reshape(-1, 3)
         for state in (self.state_0, self.state_1):
-            state.particle_q.assign(np.ascontiguousarray(positions, np.float32))
-            state.particle_qd.assign(np.ascontiguousarray(velocities, np.float32))
+            state.particle_q.assign(np.ascontiguousarray(q))
+            state.particle_qd.assign(np.ascontiguousarray(qd))
 
 
 # -- driving it with a motion -----------------------------------------------------
@@ -756,100 +827,196 @@ def simulate(
         LoosefitInputError: a template without waistband, a motion on other joints.
         SimulationError: NaN or a vertex more than ``config.max_distance`` from the body.
     """
+    return simulate_batch(avatar, template, [motion], config, progress, resume, resume_every)[0]
+
+
+def simulate_batch(
+    avatar: Avatar,
+    template: GarmentTemplate,
+    motions: list[Motion],
+    config: ClothConfig | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    resume: str | Path | None = None,
+    resume_every: int = 50,
+    seeds: list[int] | None = None,
+) -> list[SimResult]:
+    """Simulate a garment through several motions at once, each clip a world of one model.
+
+    What :func:`simulate` does for one clip, for ``K`` clips stepped together (on a GPU,
+    K clips cost little more than one). Every frame gets the substeps the most
+    demanding clip needs then (:func:`substep_schedule`, the maximum over the clips),
+    so a clip may get more substeps than it would alone; a clip that ends before the
+    longest holds its last pose until the batch ends. The motions must share a frame
+    rate. Timings are the batch's, shared evenly among its clips
+    (``seconds_per_frame`` is the batch's seconds per frame divided by K).
+
+    Args:
+        avatar, template, config, resume, resume_every: as :func:`simulate`.
+        motions: K motions on the avatar's skeleton, all at one frame rate.
+        progress: called as ``progress(done, total)`` after every batch frame.
+        seeds: (K,) each clip's jitter seed (default: ``config.seed`` for all).
+
+    Returns:
+        K :class:`SimResult`, one per motion, in order.
+
+    Raises:
+        LoosefitInputError: no motion, motions at different frame rates, a template
+            without waistband, a motion on other joints.
+        SimulationError: NaN or a vertex too far from the body in any clip (the message
+            names the clip).
+    """
     config = config or ClothConfig()
-    avatar.check_motion(motion)
+    if not motions:
+        raise LoosefitInputError("simulate_batch", "motions", "at least one motion", "none")
+    fps = float(motions[0].fps)
+    for m in motions:
+        avatar.check_motion(m)
+        if abs(float(m.fps) - fps) > 1e-9:
+            raise LoosefitInputError(f"motion '{m.name}'", "fps", f"{fps} (the batch's)", m.fps)
     _check_template(template)
+    K = len(motions)
 
-    # 1. The body over the whole timeline: settle, blend, motion.
-    pre_rot, pre_root, n_settle = preroll(
-        motion, avatar.floor_height, config.settle_seconds, config.blend_seconds,
-        config.settle_at_start,
-    )  # fmt: skip
-    n_pre = len(pre_rot)
-    rotations = torch.from_numpy(np.concatenate([pre_rot, motion.rotations]))
-    root = torch.from_numpy(np.concatenate([pre_root, motion.root_translation]))
-    with torch.no_grad():
-        posed = avatar.pose(rotations, root)
-    body = posed.vertices.detach().to("cpu", torch.float32).numpy()  # (P + T, Vb, 3)
+    # 1. Each body over its whole timeline: settle, blend, motion.
+    bodies, garments, n_pre, n_settle = [], [], 0, 0
+    for motion in motions:
+        pre_rot, pre_root, n_settle = preroll(
+            motion, avatar.floor_height, config.settle_seconds, config.blend_seconds,
+            config.settle_at_start,
+        )  # fmt: skip
+        n_pre = len(pre_rot)
+        rotations = torch.from_numpy(np.concatenate([pre_rot, motion.rotations]))
+        root = torch.from_numpy(np.concatenate([pre_root, motion.root_translation]))
+        with torch.no_grad():
+            posed = avatar.pose(rotations, root)
+        bodies.append(posed.vertices.detach().to("cpu", torch.float32).numpy())  # (P+T, Vb, 3)
+        root_pose = posed.joint_transforms[0, 0].detach().double().cpu().numpy()  # (4, 4)
+        garments.append(
+            template.vertices.astype(np.float64) @ root_pose[:3, :3].T + root_pose[:3, 3]
+        )
     body_faces = avatar.collider_faces(arms=config.arm_collision).cpu().numpy()
-    root_pose = posed.joint_transforms[0, 0].detach().double().cpu().numpy()  # (4, 4)
-    garment = template.vertices.astype(np.float64) @ root_pose[:3, :3].T + root_pose[:3, 3]
+    totals = [len(b) - 1 for b in bodies]  # frames each clip steps
+    # What the cloth collides with: the posed bodies, limbs pressed out of the rest of the
+    # body where the pose folds into itself (the measures below take the posed bodies).
+    colliders, pressed = bodies, [np.zeros(len(b), np.int64) for b in bodies]
+    overlap = [np.zeros(len(b)) for b in bodies]
+    if config.flatten_overlaps:
+        from loosefit.eval.body_regions import body_parts
+        from loosefit.sim.overlap import flatten_overlaps
 
-    # 2. The simulator, with contact culling widened to the whole motion.
+        parts = body_parts(avatar, arms=config.arm_collision)
+        flat = [flatten_overlaps(b, parts) for b in bodies]
+        colliders = [f.vertices for f in flat]
+        pressed, overlap = [f.moved for f in flat], [f.depth for f in flat]
+    total = max(totals)
+
+    # 2. The simulator, with contact culling widened to the whole motions.
     t0 = time.perf_counter()
-    bounds = (body.min((0, 1)) - 2.0, body.max((0, 1)) + 2.0)
+    lower = np.min([b.min((0, 1)) for b in bodies], 0) - 2.0
+    upper = np.max([b.max((0, 1)) for b in bodies], 0) + 2.0
+    start_bodies = np.stack([b[0] for b in colliders])
     sim = ClothSimulator(
-        garment, template.faces, template.waist, body[0], body_faces, config,
-        frame_dt=1.0 / motion.fps, bounds=bounds, loop=attached_loop(template),
+        np.stack(garments) if K > 1 else garments[0], template.faces, template.waist,
+        start_bodies if K > 1 else start_bodies[0], body_faces, config,
+        frame_dt=1.0 / fps, bounds=(lower, upper), loop=attached_loop(template), seeds=seeds,
     )  # fmt: skip
     t_build = time.perf_counter() - t0
-    total = len(body) - 1
+    schedule = np.full(total, config.substeps, np.int64)
     if config.max_substeps > config.substeps:
-        waist = np.stack([glued_points(sim.glue, b, body_faces) for b in body])  # (P + T, W, 3)
-        schedule = substep_schedule(
-            waist, config.substeps, config.max_substeps, config.substep_waist_move
-        )
-    else:
-        schedule = np.full(total, config.substeps, np.int64)
+        for glue, body, n in zip(sim.glues, colliders, totals, strict=True):
+            waist = np.stack([glued_points(glue, b, body_faces) for b in body])  # (P + T, W, 3)
+            own = substep_schedule(
+                waist, config.substeps, config.max_substeps, config.substep_waist_move
+            )
+            schedule[:n] = np.maximum(schedule[:n], own)
 
-    # 3. Step through the timeline; record from the motion's first frame on.
-    out = np.empty((motion.num_frames, template.num_vertices, 3), np.float32)
-    settled = sim.positions
+    def body_at(k: int) -> np.ndarray:
+        """(Vb, 3) or (K, Vb, 3): each clip's body at timeline frame k (its last once over)."""
+        at = np.stack([b[min(k, len(b) - 1)] for b in colliders])
+        return at if K > 1 else at[0]
+
+    # 3. Step through the timeline; record from the motions' first frame on.
+    outs = [np.empty((m.num_frames, template.num_vertices, 3), np.float32) for m in motions]
+    settled = sim.positions.reshape(K, -1, 3).copy()
     first, t_before = 0, 0.0
     resume = Path(resume) if resume is not None else None
-    key = _run_key(body, template, config) if resume is not None else ""
+    key = ""
+    if resume is not None:
+        keys = [_run_key(b, template, replace(config, seed=s))
+                for b, s in zip(bodies, seeds or [config.seed] * K, strict=True)]  # fmt: skip
+        key = keys[0] if K == 1 else hashlib.sha256("".join(keys).encode()).hexdigest()[:32]
     saved = _read_resume(resume, key, total) if resume is not None else None
     if saved is not None:
         first, t_before = int(saved["frame"]), float(saved["seconds"])
-        sim.set_state(saved["positions"], saved["velocities"])
-        settled = saved["settled"]
+        shape = (K, template.num_vertices, 3) if K > 1 else (template.num_vertices, 3)
+        sim.set_state(saved["positions"].reshape(shape), saved["velocities"].reshape(shape))
+        settled = saved["settled"].reshape(K, -1, 3)
         recorded = max(first - n_pre + 1, 0)
-        out[:recorded] = saved["garment"][:recorded]
+        for c, out in enumerate(outs):
+            n = min(recorded, len(out))
+            out[:n] = saved[f"garment_{c}" if K > 1 else "garment"][:n]
     t0 = time.perf_counter()
     for k in range(first, total):
         if resume is not None and k > first and k % resume_every == 0:
             q, qd = sim.get_state()
             recorded = max(k - n_pre + 1, 0)
+            garment = (
+                {f"garment_{c}": out[: min(recorded, len(out))] for c, out in enumerate(outs)}
+                if K > 1 else {"garment": outs[0][:recorded]}
+            )  # fmt: skip
             _write_resume(
                 resume, key=np.array(key), frame=np.int64(k), positions=q, velocities=qd,
-                settled=settled, garment=out[:recorded],
-                seconds=np.float64(t_before + time.perf_counter() - t0),
+                settled=settled if K > 1 else settled[0],
+                seconds=np.float64(t_before + time.perf_counter() - t0), **garment,
             )  # fmt: skip
         settling = k + 1 < n_settle
         damping = config.settle_damping if settling else None
-        sim.step_frame(body[k], body[k + 1], damping, substeps=int(schedule[k]))
-        positions = sim.positions
-        _guard(positions, body[k + 1], config.max_distance, _frame_name(k + 1, n_settle, n_pre))
+        sim.step_frame(body_at(k), body_at(k + 1), damping, substeps=int(schedule[k]))
+        positions = sim.positions.reshape(K, -1, 3)
+        for c, (body, n) in enumerate(zip(bodies, totals, strict=True)):
+            if k >= n:
+                continue  # this clip is over: it holds its last pose
+            where = _frame_name(k + 1, n_settle, n_pre)
+            _guard(positions[c], body[k + 1], config.max_distance,
+                   where if K == 1 else f"{where} of clip '{motions[c].name}'")  # fmt: skip
+            if k + 1 >= n_pre:
+                outs[c][k + 1 - n_pre] = positions[c]
         if k + 1 == n_settle - 1:
-            settled = positions
-        if k + 1 >= n_pre:
-            out[k + 1 - n_pre] = positions
+            settled = positions.copy()
         if progress is not None:
             progress(k + 1, total)
     t_sim = t_before + time.perf_counter() - t0
     if resume is not None:
         resume.unlink(missing_ok=True)
 
-    stats = {
-        "vertices": template.num_vertices,
-        "body_vertices": int(body.shape[1]),
-        "frames_simulated": total,
-        "substeps_mean": float(schedule.mean()) if total else float(config.substeps),
-        "substeps_max": int(schedule.max()) if total else config.substeps,
-        "build_seconds": t_build,
-        "simulate_seconds": t_sim,
-        "config": asdict(config),
-    }
-    return SimResult(
-        garment_vertices=out,
-        faces=template.faces.copy(),
-        fps=motion.fps,
-        seconds_per_frame=t_sim / max(total, 1),
-        preroll_frames=n_pre,
-        settled_vertices=settled,
-        quality=quality(out, template, body[n_pre:], body_faces, motion.fps),
-        stats=stats,
-    )
+    results = []
+    for c, (motion, body, n) in enumerate(zip(motions, bodies, totals, strict=True)):
+        stats = {
+            "vertices": template.num_vertices,
+            "body_vertices": int(body.shape[1]),
+            "frames_simulated": n,
+            "substeps_mean": float(schedule[:n].mean()) if n else float(config.substeps),
+            "substeps_max": int(schedule[:n].max()) if n else config.substeps,
+            "build_seconds": t_build / K,
+            "simulate_seconds": t_sim / K,
+            "batch": K,
+            "batch_frames": total,
+            # the pose folding into itself: frames whose collider was pressed, the deepest
+            # limb vertex inside the rest of the body (m)
+            "overlap_frames": int((pressed[c][n_pre:] > 0).sum()),
+            "overlap_depth_max": float(overlap[c][n_pre:].max(initial=0.0)),
+            "config": asdict(config),
+        }
+        results.append(SimResult(
+            garment_vertices=outs[c],
+            faces=template.faces.copy(),
+            fps=motion.fps,
+            seconds_per_frame=t_sim / K / max(total, 1),
+            preroll_frames=n_pre,
+            settled_vertices=settled[c],
+            quality=quality(outs[c], template, body[n_pre:], body_faces, motion.fps),
+            stats=stats,
+        ))  # fmt: skip
+    return results
 
 
 def settle(

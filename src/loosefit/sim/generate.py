@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import hashlib
 import importlib.metadata
 import json
 import multiprocessing as mp
@@ -35,7 +36,7 @@ from loosefit.eval.quality import PENETRATION_TOLERANCE
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.sequence import AnimatedGarment
-from loosefit.sim.cloth import ClothConfig, SimulationError, simulate
+from loosefit.sim.cloth import ClothConfig, SimulationError, simulate_batch
 
 
 @dataclass
@@ -521,40 +522,61 @@ def _pool_worker_init(config: DatasetConfig, progress_queue) -> None:
     _worker_init(config, progress_queue)
 
 
-def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
-    """Simulate one clip and write it; returns its manifest entry."""
+def _run_group(config: DatasetConfig, jobs: list[Job], out_dir: str) -> list[dict]:
+    """Simulate clips together (one clip, or a batch: :func:`simulate_batch`) and write
+    them; returns their manifest entries. A batch in which one clip diverges is run
+    again clip by clip, so that only that clip is flagged."""
 
     avatar, template, q = _WORKER["avatar"], _WORKER["template"], _WORKER["queue"]
-    motion = job_motion(config, job, avatar)
-    cloth = dataclasses.replace(config.cloth, seed=job.seed)
+    motions = [job_motion(config, job, avatar) for job in jobs]
+    name = jobs[0].name if len(jobs) == 1 else group_name(jobs)
     t0 = time.perf_counter()
 
     def progress(done: int, total: int) -> None:
         if q is not None:
-            q.put((job.name, done, total))
+            q.put((name, done, total))
 
+    resume_dir = Path(out_dir) / "resume"
+    resume_dir.mkdir(exist_ok=True)
+    try:
+        results = simulate_batch(
+            avatar, template, motions, config.cloth, progress=progress,
+            resume=resume_dir / f"{name}.npz", seeds=[job.seed for job in jobs],
+        )  # fmt: skip
+    except SimulationError as exc:
+        if len(jobs) > 1:
+            return [e for job in jobs for e in _run_group(config, [job], out_dir)]
+        return [_entry(config, jobs[0], motions[0], None, time.perf_counter() - t0, str(exc))]
+    for job, motion, result in zip(jobs, motions, results, strict=True):
+        write_sequence(
+            Path(out_dir) / "sequences" / f"{job.name}.npz",
+            AnimatedGarment(dataclasses.replace(motion, name=job.name), template,
+                            result.garment_vertices,
+                            {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
+                            "newton-vbd"),
+        )  # fmt: skip
+    return [_entry(config, j, m, r) for j, m, r in zip(jobs, motions, results, strict=True)]
+
+
+def group_name(jobs: list[Job]) -> str:
+    """A batch's name (its resume file's): a fingerprint of its clips' names and seeds."""
+    text = ";".join(f"{j.name}:{j.seed}" for j in jobs)
+    return f"batch-{hashlib.sha256(text.encode()).hexdigest()[:12]}"
+
+
+def _entry(config: DatasetConfig, job: Job, motion, result, seconds: float = 0.0,
+           failure: str = "") -> dict:  # fmt: skip
+    """A clip's manifest entry: its result's quality, judged by ``config.limits``
+    (``result`` None: the simulation failed with ``failure`` after ``seconds``)."""
     entry = {
         "spec": short_spec(job.spec),
         "seed": job.seed,
         "frames": motion.num_frames,
         "test": job.test,
     }
-    try:
-        resume_dir = Path(out_dir) / "resume"
-        resume_dir.mkdir(exist_ok=True)
-        result = simulate(
-            avatar, template, motion, cloth, progress=progress,
-            resume=resume_dir / f"{job.name}.npz",
-        )  # fmt: skip
-    except SimulationError as exc:
-        entry.update(status="flagged", reason=str(exc), seconds=time.perf_counter() - t0)
+    if result is None:
+        entry.update(status="flagged", reason=failure, seconds=seconds)
         return entry
-    write_sequence(
-        Path(out_dir) / "sequences" / f"{job.name}.npz",
-        AnimatedGarment(dataclasses.replace(motion, name=job.name), template,
-                        result.garment_vertices,
-                        {"rig": avatar.config.rig, "shape": dict(avatar.shape)}, "newton-vbd"),
-    )  # fmt: skip
     qual = {k: v for k, v in result.quality.items() if np.isscalar(v)}
     lim = config.limits
     problems = []
@@ -574,11 +596,15 @@ def _run_job(config: DatasetConfig, job: Job, out_dir: str) -> dict:
     entry.update(
         status="flagged" if problems else "done",
         reason="; ".join(problems),
-        # Simulation time summed over the runs a killed job was resumed in, plus this build.
+        # Simulation time summed over the runs a killed job was resumed in, plus this build
+        # (a batch's shared evenly among its clips).
         seconds=result.stats["simulate_seconds"] + result.stats["build_seconds"],
         seconds_per_frame=result.seconds_per_frame,
         substeps_mean=result.stats["substeps_mean"],
         substeps_max=result.stats["substeps_max"],
+        batch=result.stats["batch"],
+        overlap_frames=result.stats["overlap_frames"],
+        overlap_depth_max=result.stats["overlap_depth_max"],
         quality=qual,
     )
     return entry
@@ -598,10 +624,16 @@ def _normalized(d: dict) -> dict:
     return json.loads(json.dumps(d, default=str))
 
 
+# Cloth fields whose default changed what is simulated: a data set whose manifest lacks one
+# was made with this value (not the default).
+LEGACY_CLOTH = {"flatten_overlaps": False}
+
+
 def _stored_config(manifest: dict) -> dict:
     """A manifest's configuration, with the fields added since it was written at their defaults.
 
-    A dataset made before a field existed is the one made with its default value.
+    A dataset made before a field existed is the one made with its default value (or, for
+    :data:`LEGACY_CLOTH`'s, the value it was made with).
     """
 
     def fill(old: dict, default: dict) -> dict:
@@ -614,6 +646,7 @@ def _stored_config(manifest: dict) -> dict:
         return out
 
     stored = manifest.get("config", {})
+    stored = {**stored, "cloth": {**LEGACY_CLOTH, **stored.get("cloth", {})}}
     default = _normalized(_config_dict(DatasetConfig()))
     kind = stored.get("garment", {}).get("type", "skirt")
     if kind != "skirt" and kind in GARMENT_TYPES:  # fill a dress's fields from a dress's
@@ -730,6 +763,7 @@ def generate(
     workers: int = 1,
     progress: bool = True,
     reuse: str | Path | None = None,
+    batch: int = 1,
 ) -> dict:
     """Simulate a dataset into ``out_dir`` (resuming a run of the same configuration).
 
@@ -737,6 +771,9 @@ def generate(
         config: what to simulate.
         out_dir: the dataset folder (new, empty, or holding the same configuration).
         workers: parallel simulations (one CPU core each on the CPU).
+        batch: clips simulated at once, each a world of one Newton model
+            (:func:`~loosefit.sim.cloth.simulate_batch`): for a GPU, where 16 clips
+            cost little more than one. Clips of similar length go together.
         progress: show a progress bar over frames with rate and ETA.
         reuse: another dataset folder whose clips of the same simulation are
             taken rather than simulated again (:func:`adopt_clips`).
@@ -780,14 +817,24 @@ def generate(
         if e.get("status") == "flagged" or (out / "sequences" / f"{n}.npz").is_file()
     }  # fmt: skip
     todo = [j for j in jobs if j.name not in done]
+    if not (isinstance(batch, int) and batch >= 1):
+        raise LoosefitInputError("generate", "batch", "an integer >= 1", repr(batch))
     # Frames to simulate per clip (settle and blend included), for the bar's ETA.
-
     preroll = round((config.cloth.settle_seconds + config.cloth.blend_seconds) * config.fps)
-    frames_of = {j.name: job_motion(config, j, avatar).num_frames + preroll for j in todo}
+    length = {j.name: job_motion(config, j, avatar).num_frames + preroll for j in todo}
+    # The units of work: clips alone, or batches of clips of similar length (longest first).
+    if batch > 1:
+        ordered = sorted(todo, key=lambda j: (-length[j.name], j.name))
+        groups = [ordered[i : i + batch] for i in range(0, len(ordered), batch)]
+    else:
+        groups = [[j] for j in todo]
+    name_of = [g[0].name if len(g) == 1 else group_name(g) for g in groups]
+    frames_of = {n: max(length[j.name] for j in g) for n, g in zip(name_of, groups, strict=True)}
     bar = tqdm(
         total=sum(frames_of.values()),
         unit="frame",
-        desc=f"simulate {config.preset} ({len(todo)} clips)",
+        desc=f"simulate {config.preset} ({len(todo)} clips"
+        + (f", {batch} at once)" if batch > 1 else ")"),
         disable=not progress,
         smoothing=0.05,
     )
@@ -801,16 +848,17 @@ def generate(
         bar.update(k - seen.get(name, 0))
         seen[name] = k
 
-    def record(job: Job, entry: dict) -> None:
-        manifest["sequences"][job.name] = entry
+    def record(group: list[Job], entries: list[dict]) -> None:
+        for job, entry in zip(group, entries, strict=True):
+            manifest["sequences"][job.name] = entry
+            if entry["status"] == "flagged":
+                tqdm.write(f"flagged {job.name}: {entry['reason']}")
         write_json_atomic(out / "manifest.json", manifest)
-        if entry["status"] == "flagged":
-            tqdm.write(f"flagged {job.name}: {entry['reason']}")
 
     if workers <= 1:
         _worker_init(config, _Direct(on_progress))
-        for job in todo:
-            record(job, _run_job(config, job, str(out)))
+        for group in groups:
+            record(group, _run_group(config, group, str(out)))
     else:
         ctx = mp.get_context("spawn")
         with ctx.Manager() as manager:
@@ -822,8 +870,9 @@ def generate(
                 initargs=(config, q),
             ) as pool:
                 # Longest first, so that no long clip starts last and runs alone.
-                ordered = sorted(todo, key=lambda j: -frames_of[j.name])
-                futures = {pool.submit(_run_job, config, j, str(out)): j for j in ordered}
+                by_length = sorted(zip(name_of, groups, strict=True),
+                                   key=lambda ng: -frames_of[ng[0]])  # fmt: skip
+                futures = {pool.submit(_run_group, config, g, str(out)): g for _, g in by_length}
                 pending = set(futures)
                 while pending:
                     finished = {f for f in pending if f.done()}
@@ -862,6 +911,7 @@ def summarize(manifest: dict) -> dict:
     entries = [e for e in simulated if e["status"] == "done"]
     frames = sum(e["frames"] for e in entries)
     spf = [e["seconds_per_frame"] for e in simulated]
+    timed = [e["seconds"] for e in simulated if "seconds" in e]
 
     def worst(key: str) -> float:
         return max((e["quality"].get(key, 0.0) for e in entries), default=0.0)
@@ -871,6 +921,8 @@ def summarize(manifest: dict) -> dict:
         "clips_ok": sum(e["status"] == "done" for e in manifest["sequences"].values()),
         "frames": frames,
         "seconds_per_frame_mean": float(np.mean(spf)) if spf else None,
+        # clips of this data set's length simulated per hour (a batch's time shared out)
+        "clips_per_hour": 3600.0 * len(timed) / sum(timed) if sum(timed) > 0 else None,
         "inside_max": worst("inside_max"),
         "penetration_max": worst("penetration_max"),
         "inside_depth_max": worst("inside_depth_max"),
@@ -906,4 +958,10 @@ def format_report(manifest: dict) -> str:
         f"{s.get('clips_ok', 0)}/{s.get('clips', 0)} clips kept, {s.get('frames', 0)} frames; "
         f"split {len(manifest['split']['train'])} train / {len(manifest['split']['test'])} test"
     )
+    if s.get("clips_per_hour"):
+        lines.append(
+            f"{s['seconds_per_frame_mean']:.3f} s per frame per clip, "
+            f"{s['clips_per_hour']:.1f} clips per hour "
+            f"(device {manifest['config']['cloth']['device']})"
+        )
     return "\n".join(lines)

@@ -182,10 +182,11 @@ def stack_clips(clips: list[Clip], extra: list[torch.Tensor]) -> dict[str, torch
 
 def run_window(network: BaselineNetwork, batch: dict, start: int, stop: int,
                hidden: torch.Tensor, loss) -> tuple[dict | None, torch.Tensor]:  # fmt: skip
-    """Timeline frames ``start:stop`` of stacked clips: the loss over their motion frames
-    (None if the window holds none) and the GRU state after them (detached)."""
+    """Timeline frames ``start:stop`` of stacked clips (:func:`stack_clips`, on the network's
+    device): the loss over their motion frames (None if the window holds none) and the GRU
+    state after them (detached)."""
     h, hidden = network.encode(batch["features"][:, start:stop], hidden.detach())
-    t = torch.arange(start, stop)
+    t = torch.arange(start, stop, device=h.device)
     m = t[None] - batch["preroll"][:, None]  # (B, w) motion frame
     valid = (m >= 0) & (t[None] < batch["length"][:, None])
     if not valid.any():
@@ -284,7 +285,7 @@ def train_baseline(
         steps = 0
         for b in range(0, len(order), config.batch_size):
             pick = order[b : b + config.batch_size]
-            batch = {k: v.to(config.device) if k in ("features", "target", "extra") else v
+            batch = {k: v.to(config.device)
                      for k, v in stack_clips([clips[i] for i in pick],
                                              [extra[i] for i in pick]).items()}  # fmt: skip
             hidden = network.initial_hidden(len(pick), config.device)

@@ -5,6 +5,7 @@ Checkpoint files are :mod:`loosefit.inference.checkpoints`'s.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -18,15 +19,22 @@ from loosefit.errors import LoosefitInputError
 
 
 def optimizer_step(optim: torch.optim.Optimizer, parameters, terms: dict, grad_clip: float,
-                   sums: dict[str, float]) -> None:  # fmt: skip
+                   sums: dict[str, float], world: int = 1) -> None:  # fmt: skip
     """Backpropagate ``terms["total"]``, clip the gradient norm to ``grad_clip``, step, and
-    add every term's value into ``sums`` (the epoch's running totals)."""
+    add every term's value into ``sums`` (the epoch's running totals).
+
+    Under torchrun (``world`` > 1, the network wrapped in DDP) ``terms`` are this
+    process's share of the batch's terms (they sum to them over the processes): the
+    loss is scaled by ``world`` against DDP's averaging of the gradients, and what is
+    added into ``sums`` is the sum over the processes (the same on every one).
+    """
     optim.zero_grad(set_to_none=True)
-    terms["total"].backward()
+    (terms["total"] * world).backward()
     torch.nn.utils.clip_grad_norm_(parameters, grad_clip)
     optim.step()
-    for k, v in terms.items():
-        sums[k] = sums.get(k, 0.0) + float(v.detach())
+    values = {k: v.detach() for k, v in terms.items()}
+    for k, v in (all_mean(values) if world > 1 else values).items():
+        sums[k] = sums.get(k, 0.0) + float(v)
 
 
 def epoch_means(sums: dict[str, float], steps: int, epoch: int) -> dict[str, float]:
@@ -56,14 +64,20 @@ def restore_training(saved: dict, states: dict, sampling: torch.Generator | None
     epoch reached and the loss history."""
     for key, obj in states.items():
         obj.load_state_dict(saved[key])
-    torch.set_rng_state(saved["rng"])
+    torch.set_rng_state(saved["rng"].cpu())  # read onto the training device: RNGs are CPU's
     if sampling is not None:
-        sampling.set_state(saved["sampling_rng"])
+        sampling.set_state(saved["sampling_rng"].cpu())
     return saved["epoch"], saved["history"]
 
 
+# Training fields added after runs were recorded without them, with the value such runs
+# had: their folders still resume (and rerun scripts still pass over them).
+ADDED_FIELDS = {"precision": "fp32"}
+
+
 def open_run(out: Path, stored: dict) -> None:
-    """Create a run folder or check that it holds a run of the same configuration.
+    """Create a run folder or check that it holds a run of the same configuration (a
+    recorded ``train`` configuration without a field of :data:`ADDED_FIELDS` had its value).
 
     Raises:
         LoosefitInputError: ``out/config.json`` records another configuration.
@@ -71,7 +85,11 @@ def open_run(out: Path, stored: dict) -> None:
     out.mkdir(parents=True, exist_ok=True)
     cfg_path = out / "config.json"
     if cfg_path.is_file():
-        if json.loads(cfg_path.read_text()) != json.loads(json.dumps(stored)):
+        recorded, current = json.loads(cfg_path.read_text()), json.loads(json.dumps(stored))
+        if isinstance(recorded.get("train"), dict) and isinstance(current.get("train"), dict):
+            added = {k: v for k, v in ADDED_FIELDS.items() if k in current["train"]}
+            recorded["train"] = {**added, **recorded["train"]}
+        if recorded != current:
             raise LoosefitInputError(
                 cfg_path, "train", "the configuration of this command", "another run's",
                 hint="use another --out folder, or delete this one to start over",
@@ -85,6 +103,43 @@ def machine(device: str) -> str:
     """The machine a run ran on, for reports."""
     return (f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
             f"{torch.get_num_threads()} threads, {device}")  # fmt: skip
+
+
+# -- precision -------------------------------------------------------------------------------
+
+PRECISIONS = ("fp32", "bf16")
+
+
+def check_precision(source: str, precision: str) -> None:
+    """A training configuration's ``precision``: "fp32" or "bf16".
+
+    Raises:
+        LoosefitInputError: anything else.
+    """
+    if precision not in PRECISIONS:
+        raise LoosefitInputError(source, "precision", " or ".join(PRECISIONS), repr(precision))
+
+
+def check_device_precision(precision: str, device: torch.device) -> None:
+    """Refuse bf16 on a GPU without it (compute capability below 8.0).
+
+    Raises:
+        LoosefitInputError: ``precision`` "bf16" on such a GPU.
+    """
+    if (precision == "bf16" and device.type == "cuda"
+            and not torch.cuda.is_bf16_supported(including_emulation=False)):  # fmt: skip
+        raise LoosefitInputError("--precision", "precision", "fp32 on this GPU (bf16 needs "
+                                 "compute capability 8.0 or above)", "bf16")  # fmt: skip
+
+
+def autocast(precision: str, device: torch.device):
+    """The context the networks' forward passes run in: nothing for "fp32"; for "bf16",
+    ``torch.autocast`` to bfloat16 (convolutions, linear layers and matrix products in
+    bf16, the weights themselves float32). Callers cast what comes out to float32 and
+    take their losses outside it."""
+    if precision == "fp32":
+        return contextlib.nullcontext()
+    return torch.autocast(device_type=device.type, dtype=torch.bfloat16)
 
 
 # -- several processes (torchrun) -------------------------------------------------------------

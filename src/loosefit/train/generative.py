@@ -11,13 +11,25 @@ A run is a folder::
 Killing a run and starting the same command again resumes from the last
 checkpoint. The checkpoint also holds the garment template, so a trained model
 can be used without its dataset.
+
+**Devices and processes.** Everything a step touches lives on ``device``; the
+random draws (the batch order, the sampling noise) come from the CPU's generator
+and are moved there, so a CUDA run draws what a CPU run does. Under ``torchrun``
+each process takes a share of every batch (DDP averages the gradients); only the
+first process writes files and evaluates.
+
+**Precision.** ``precision="bf16"`` runs the model's forward pass under
+``torch.autocast`` to bfloat16 (its convolutions and linear layers; the weights
+stay float32); its outputs are cast to float32 before the loss, so the loss terms,
+the Laplacian, the squared errors and the optimiser are float32 as with the
+default ``"fp32"``. Evaluation always runs in float32.
 """
 
 from __future__ import annotations
 
 import resource
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -39,12 +51,16 @@ from loosefit.model.generative import (
     GarmentGenerativeModel,
     GenerativeConfig,
     GenerativeLossConfig,
+    GenerativeOutput,
     generative_loss,
 )
 from loosefit.train.common import (
     all_mean,
     apply_overrides,
+    autocast,
     barrier,
+    check_device_precision,
+    check_precision,
     distributed,
     machine,
     open_run,
@@ -75,6 +91,10 @@ class TrainGenerativeConfig:
     max_frames: int | None = None  # per clip, for quick runs
     seed: int = 0
     device: str = "cpu"
+    precision: str = "fp32"  # the forward pass's: "fp32", or "bf16" (autocast; see the module)
+
+    def __post_init__(self) -> None:
+        check_precision("TrainGenerativeConfig", self.precision)
 
     @classmethod
     def preset(cls, name: str, **overrides) -> TrainGenerativeConfig:
@@ -100,7 +120,8 @@ class TrainGenerativeConfig:
             )  # fmt: skip
         else:
             raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
-        return apply_overrides(cfg, overrides)
+        apply_overrides(cfg, overrides).__post_init__()
+        return cfg
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -204,6 +225,12 @@ def evaluate(model: GarmentGenerativeModel, frames: PreparedFrames, faces: np.nd
 # -- training ------------------------------------------------------------------------
 
 
+def _float32(out: GenerativeOutput) -> GenerativeOutput:
+    """The model's output with every tensor in float32 (after a bf16 forward pass)."""
+    values = {f.name: getattr(out, f.name) for f in fields(out)}
+    return GenerativeOutput(**{k: None if v is None else v.float() for k, v in values.items()})
+
+
 def _ssdr_init(frames: PreparedFrames, template: GarmentTemplate, cfg: TrainGenerativeConfig):
     from loosefit.model.ssdr import SSDRConfig, decompose
 
@@ -251,6 +278,7 @@ def train_generative(
 
     torch.manual_seed(config.seed)
     device = torch.device(config.device)
+    check_device_precision(config.precision, device)
     avatar = avatar_for(reader)
     t0 = time.perf_counter()
     train = prepare_split(reader, "train", avatar, config.skinning, config.max_frames)
@@ -291,11 +319,14 @@ def train_generative(
         sums: dict[str, float] = {}
         for s in range(steps):
             idx = order[s * config.batch_size : (s + 1) * config.batch_size].to(device)
-            noise = torch.randn(len(idx), model.config.latent, device=device)  # the whole batch's
+            # the whole batch's noise, from the CPU's generator on every device
+            noise = torch.randn(len(idx), model.config.latent).to(device)
             mine, share = shard(len(idx), rank, world)  # this process's part, its weight
-            out_ = net(posed[idx[mine]], noise=noise[mine])
-            terms = generative_loss(out_, posed[idx[mine]], unposed[idx[mine]], model.template,
-                                    lap, config.loss)  # fmt: skip
+            mine = mine.to(device)
+            with autocast(config.precision, device):
+                out_ = net(posed[idx[mine]], noise=noise[mine])
+            terms = generative_loss(_float32(out_), posed[idx[mine]], unposed[idx[mine]],
+                                    model.template, lap, config.loss)  # fmt: skip
             optim.zero_grad(set_to_none=True)
             (terms["total"] * share * world).backward()  # DDP averages: the batch's mean
             optim.step()

@@ -21,6 +21,24 @@ previous state is an input, never differentiated through; ``unroll=True``
 keeps the encoder's own predictions in the graph within a window, so the loss
 of a frame also trains the predictions that fed it (unrolled training, as for
 learned simulators).
+
+**Devices and processes.** A batch is stacked once and moved to ``device``; the
+random draws (the clip order, the teacher choices, the noise on previous states)
+come from one CPU generator and are moved there, so a CUDA run draws what a CPU
+run does. Under ``torchrun`` the clips of every batch are shared among the
+processes (the encoder wrapped in DDP): each draw is made for the whole batch, in
+the order one process makes it, and each process keeps its clips' part; a
+window's loss is a mean over the valid (clip, frame) pairs of the whole batch,
+whose count the clips' lengths give, so each process divides its sums by that
+count and one process or several follow the same loss curve. Only the first
+process writes files and evaluates.
+
+**Precision.** ``precision="bf16"`` runs the encoder and the frozen decoders
+under ``torch.autocast`` to bfloat16 (convolutions, linear layers and the GRU;
+the weights stay float32); the codes, garments and GRU state are cast to float32
+as they come out, so the previous states carried on, the loss terms, the
+Laplacian, the squared errors and the optimiser are float32 as with the default
+``"fp32"``. Held-out evaluation always runs in float32.
 """
 
 from __future__ import annotations
@@ -49,7 +67,7 @@ from loosefit.inference.checkpoints import (
     read_checkpoint_file,
     save_atomic,
 )
-from loosefit.model.generative import GarmentGenerativeModel, squared_error
+from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
 from loosefit.model.motion_features import (
     feature_joints,
@@ -67,11 +85,17 @@ from loosefit.model.rollout import (
 )
 from loosefit.train.common import (
     apply_overrides,
+    autocast,
+    barrier,
+    check_device_precision,
+    check_precision,
+    distributed,
     epoch_means,
     machine,
     open_run,
     optimizer_step,
     restore_training,
+    shard,
 )
 from loosefit.train.frames import avatar_for
 from loosefit.types import Motion
@@ -120,8 +144,10 @@ class TrainMotionConfig:
     max_frames: int | None = None  # per clip, for quick runs
     seed: int = 0
     device: str = "cpu"
+    precision: str = "fp32"  # the forward passes': "fp32", or "bf16" (autocast; see the module)
 
     def __post_init__(self) -> None:
+        check_precision("TrainMotionConfig", self.precision)
         if self.previous not in ("scheduled", "teacher"):
             raise LoosefitInputError("TrainMotionConfig", "previous", "scheduled or teacher",
                                      repr(self.previous))  # fmt: skip
@@ -303,10 +329,13 @@ def pad_frames(x: torch.Tensor, n: int) -> torch.Tensor:
     return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
 
 
-def _stack(clips: list[Clip]) -> dict[str, torch.Tensor]:
-    """Clips side by side, padded to the longest by repeating their last frame."""
-    L = max(c.length for c in clips)
-    T = max(c.target.shape[0] for c in clips)
+def _stack(clips: list[Clip], longest: list[Clip] | None = None) -> dict[str, torch.Tensor]:
+    """Clips side by side, padded by repeating their last frame to the longest of
+    ``longest`` (the whole batch, when ``clips`` is one process's part of it; default
+    ``clips``)."""
+    longest = clips if longest is None else longest
+    L = max(c.length for c in longest)
+    T = max(c.target.shape[0] for c in longest)
 
     return {
         "features": torch.stack([pad_frames(c.features, L) for c in clips]),  # (B, L, F)
@@ -317,6 +346,47 @@ def _stack(clips: list[Clip]) -> dict[str, torch.Tensor]:
         "preroll": torch.tensor([c.preroll for c in clips]),
         "length": torch.tensor([c.length for c in clips]),
     }
+
+
+@dataclass
+class BatchPart:
+    """Where one process's clips sit in a batch shared among processes (torchrun).
+
+    Attributes:
+        rows: (b,) long, CPU: this process's clips among the batch's B.
+        preroll: (B,) and ``length`` (B,), CPU: every clip's of the whole batch.
+        weight: 1, or 0 for a process left without a clip (it runs clip 0 for nothing,
+            as :func:`~loosefit.train.common.shard` gives it).
+    """
+
+    rows: torch.Tensor
+    preroll: torch.Tensor
+    length: torch.Tensor
+    weight: float = 1.0
+
+    @classmethod
+    def whole(cls, batch: dict[str, torch.Tensor]) -> BatchPart:
+        """A batch run by one process alone."""
+        B = len(batch["length"])
+        return cls(torch.arange(B), batch["preroll"].cpu(), batch["length"].cpu())
+
+    def count(self, start: int, stop: int) -> int:
+        """The valid (clip, frame) pairs of the whole batch among timeline frames
+        ``start:stop``: the frames ``P <= t < length`` of each clip."""
+        first = self.preroll.clamp(min=start)
+        last = self.length.clamp(max=stop)
+        return int((last - first).clamp(min=0).sum())
+
+
+def share_batch(clips: list[Clip], rank: int, world: int, device: torch.device
+                ) -> tuple[dict[str, torch.Tensor], BatchPart]:  # fmt: skip
+    """This process's clips of a batch, stacked (padded to the whole batch's frames) on
+    ``device``, and where they sit in the batch."""
+    mine, share = shard(len(clips), rank, world)
+    batch = _stack([clips[i] for i in mine.tolist()], clips)
+    preroll, length = (torch.tensor([getattr(c, a) for c in clips]) for a in ("preroll", "length"))
+    part = BatchPart(mine, preroll, length, 1.0 if share > 0 else 0.0)
+    return {k: v.to(device) for k, v in batch.items()}, part
 
 
 def run_window(
@@ -333,65 +403,77 @@ def run_window(
     generator: torch.Generator | None = None,
     noise: float = 0.0,
     unroll: bool = False,
+    part: BatchPart | None = None,
+    precision: str = "fp32",
 ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
     """Frames ``start:stop`` of stacked clips: the loss and the state to carry on.
 
     Args:
-        encoder, generative, laplacian: the networks (the generative one frozen).
-        batch: :func:`_stack` of B clips.
+        encoder, generative, laplacian: the networks (the generative one frozen; the
+            encoder may be wrapped in DDP).
+        batch: :func:`_stack` of b clips, on the networks' device.
         start, stop: the window, on the rollout timeline.
-        hidden: (B, gru) the GRU state after frame ``start - 1`` (detached here).
-        previous: (B, V, 3) the garment of frame ``start - 1`` in its root frame.
+        hidden: (b, gru) the GRU state after frame ``start - 1`` (detached here).
+        previous: (b, V, 3) the garment of frame ``start - 1`` in its root frame.
         teacher: the chance that a frame's previous state is the ground truth.
         loss: the weights.
-        generator: draws the teacher choices (and the noise).
+        generator: draws the teacher choices (and the noise), on the CPU.
         noise: std (m) of Gaussian noise added to a ground-truth previous state.
         unroll: keep the encoder's own prediction, fed back as the next frame's
             previous state, in the graph (within this window; it is detached at the
             window's start like the GRU state).
+        part: where ``batch`` sits in a batch of B clips shared among processes
+            (default: it is the whole batch). The draws are made for all B clips.
+        precision: the forward passes' ("fp32" or "bf16"; the loss is float32).
 
     Returns:
-        The loss terms (means over the window's valid frames; ``total``
-        differentiable w.r.t. the encoder through this window only), the detached
-        GRU state and the previous garment for the next window.
+        The loss terms (this process's share of the means over the whole batch's
+        valid (clip, frame) pairs of the window: they sum to them over the processes;
+        ``total`` differentiable w.r.t. the encoder through this window only, and
+        without a gradient when the window holds no valid pair), the detached GRU
+        state and the previous garment for the next window.
     """
     s = loss.length_scale
-    B = hidden.shape[0]
+    part = BatchPart.whole(batch) if part is None else part
+    device = previous.device
     hidden = hidden.detach()
     previous = previous.detach()
-    P, length = batch["preroll"], batch["length"]
-    H, p = batch["heading"], batch["origin"]
+    P, H, p = batch["preroll"], batch["heading"], batch["origin"]
+    rows = torch.arange(len(P), device=device)
+    weight = torch.full((len(P),), float(part.weight), device=device)  # (b,)
     sums = {"geometry": 0.0, "laplacian": 0.0, "latent": 0.0}
-    count = 0
     for t in range(start, stop):
         if t > 0:
             previous = change_frame(previous, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
-        z, hidden = encoder(batch["features"][:, t], previous, hidden)
-        v = generative.decode(z)["vertices"]
-        m = t - P  # (B,) motion frame
-        valid = (m >= 0) & (t < length)
-        k = m.clamp(0, batch["target"].shape[1] - 1)
-        if valid.any():
-            rows = torch.arange(B)[valid]
-            vt, zt = batch["target"][rows, k[valid]], batch["latent"][rows, k[valid]]
-            vp, zp = v[valid], z[valid]
-            n = int(valid.sum())
-            sums["geometry"] = sums["geometry"] + n * squared_error(s * vp, s * vt)
-            sums["laplacian"] = sums["laplacian"] + n * loss.laplacian * squared_error(
-                s * laplacian(vp), s * laplacian(vt)
-            )
-            sums["latent"] = sums["latent"] + n * loss.latent * (zp - zt).pow(2).sum(-1).mean()
-            count += n
+        with autocast(precision, device):
+            z, hidden = encoder(batch["features"][:, t], previous, hidden)
+            v = generative.decode(z)["vertices"]
+        z, hidden, v = z.float(), hidden.float(), v.float()  # (b, latent), (b, gru), (b, V, 3)
+        every = (t >= part.preroll) & (t < part.length)  # (B,) the whole batch's motion frames
+        k = (t - P).clamp(0, batch["target"].shape[1] - 1)  # (b,) motion frame
+        vt, zt = batch["target"][rows, k], batch["latent"][rows, k]  # (b, V, 3), (b, latent)
+        if every.any():
+            # sums over this process's valid clips (the others weigh 0, so that every
+            # process's loss reaches every weight, as DDP needs)
+            w = every[part.rows].to(device) * weight  # (b,)
+            geometry = (s * v - s * vt).pow(2).sum(-1).mean(-1)  # (b,)
+            lap = (s * laplacian(v) - s * laplacian(vt)).pow(2).sum(-1).mean(-1)
+            sums["geometry"] = sums["geometry"] + (w * geometry).sum()
+            sums["laplacian"] = sums["laplacian"] + loss.laplacian * (w * lap).sum()
+            sums["latent"] = sums["latent"] + loss.latent * (w * (z - zt).pow(2).sum(-1)).sum()
         previous = v if unroll else v.detach()
         if teacher > 0:
-            use = (torch.rand(B, generator=generator) < teacher) & valid
+            draw = torch.rand(len(every), generator=generator)  # (B,) the whole batch's
+            use = (draw < teacher) & every
             if use.any():
-                gt = batch["target"][torch.arange(B), k]
+                gt = vt
                 if noise > 0:
-                    gt = gt + noise * torch.randn(gt.shape, generator=generator)
-                previous = torch.where(use[:, None, None], gt, previous)
-    terms = {k: v / max(count, 1) for k, v in sums.items()}
-    terms = {k: (v if torch.is_tensor(v) else torch.tensor(v)) for k, v in terms.items()}
+                    jitter = torch.randn((len(every), *vt.shape[1:]), generator=generator)
+                    gt = gt + noise * jitter[part.rows].to(device)
+                previous = torch.where(use[part.rows].to(device)[:, None, None], gt, previous)
+    count = max(part.count(start, stop), 1)
+    terms = {k: v / count if torch.is_tensor(v) else torch.tensor(v, device=device)
+             for k, v in sums.items()}  # fmt: skip
     terms["total"] = terms["geometry"] + terms["laplacian"] + terms["latent"]
     return terms, hidden.detach(), previous.detach()
 
@@ -427,8 +509,10 @@ def train_motion(
     out = Path(out)
     reader = DatasetReader(data)
     template = reader.template
+    device = torch.device(config.device)
+    check_device_precision(config.precision, device)
     gpath = Path(generative).resolve()
-    gmodel, _ = load_generative(gpath, template, config.device)
+    gmodel, _ = load_generative(gpath, template, device)
     for prm in gmodel.parameters():
         prm.requires_grad_(False)
     gmeta = {
@@ -437,24 +521,30 @@ def train_motion(
         "fingerprint": model_fingerprint(gmodel),
     }
     ckpt_path = out / "checkpoint.pt"
-    open_run(out, {"dataset": str(Path(data).resolve()), "generative": gmeta["fingerprint"],
-                   "train": config.to_dict()})  # fmt: skip
+    rank, world = distributed()
+    main = rank == 0
+    if main:
+        open_run(out, {"dataset": str(Path(data).resolve()), "generative": gmeta["fingerprint"],
+                       "train": config.to_dict()})  # fmt: skip
+    else:
+        log, progress = (lambda *_: None), False
+    barrier()
 
     torch.manual_seed(config.seed)
-    gen = torch.Generator().manual_seed(config.seed)
+    gen = torch.Generator().manual_seed(config.seed)  # every random draw of the loop
     floor = float(reader.body["floor_height"])
     t0 = time.perf_counter()
     train = prepare_clips(reader, "train", gmodel, floor, config.rollout, config.max_frames,
                           config.mirror, config.model.joints)  # fmt: skip
     fps = train[0].motion.fps
     rest_path = out / "rest_state.npy"
+    if rest_state is None and main and not rest_path.is_file():
+        np.save(rest_path, rest_state_for(reader, fps).numpy())  # settled once, by the first
+    barrier()
     if rest_state is not None:
         rest = torch.as_tensor(rest_state).float()
-    elif rest_path.is_file():
-        rest = torch.from_numpy(np.load(rest_path, allow_pickle=False))
     else:
-        rest = rest_state_for(reader, fps)
-        np.save(rest_path, rest.numpy())
+        rest = torch.from_numpy(np.load(rest_path, allow_pickle=False))
     log(f"prepared {len(train)} train clips ({sum(c.length for c in train)} frames) "
         f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
     all_feats = torch.cat([c.features for c in train])
@@ -464,8 +554,8 @@ def train_motion(
     if F != expected:
         raise LoosefitInputError(reader.root, "features", expected, F)
     encoder = DynamicMotionEncoder(gmodel, F, config.model, all_feats.mean(0), all_feats.std(0))
-    encoder.to(config.device)
-    lap = Laplacian(template.faces, template.num_vertices).to(config.device)
+    encoder.to(device)
+    lap = Laplacian(template.faces, template.num_vertices).to(device)
     optim = torch.optim.Adam(encoder.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     meta = {
         "model_config": {"encoder": asdict(config.model), "rollout": asdict(config.rollout)},
@@ -482,12 +572,18 @@ def train_motion(
         "dataset": str(Path(data).resolve()),
     }
     epoch, history = 0, []
-    if ckpt_path.is_file():
-        saved = read_checkpoint_file(ckpt_path, MOTION_FORMAT, config.device)
+    if ckpt_path.is_file():  # every process resumes from the same checkpoint
+        saved = read_checkpoint_file(ckpt_path, MOTION_FORMAT, device)
         epoch, history = restore_training(saved, {"model": encoder, "optimizer": optim}, gen)
         log(f"resumed {ckpt_path} at epoch {epoch}")
+    net = encoder
+    if world > 1:  # torchrun: each process a share of every batch's clips, gradients averaged
+        # (the encoder runs once per frame before a window's backward: DDP's hooks fire once
+        # per weight; its buffers are fixed, no need to broadcast them at every frame)
+        net = torch.nn.parallel.DistributedDataParallel(encoder, broadcast_buffers=False)
+    rest_device = rest.to(device)
 
-    writer = SummaryWriter(str(out))
+    writer = SummaryWriter(str(out)) if main else None
     bar = tqdm(total=config.epochs, initial=epoch, desc="train motion encoder", unit="epoch",
                disable=not progress)  # fmt: skip
     t_start, epochs_run = time.perf_counter(), 0
@@ -498,35 +594,39 @@ def train_motion(
         sums: dict[str, float] = {}
         steps = 0
         for b in range(0, len(order), config.batch_size):
-            batch = _stack([train[i] for i in order[b : b + config.batch_size]])
-            B = len(batch["length"])
-            hidden = encoder.initial_hidden(B)
-            previous = rest[None].expand(B, -1, -1).clone()
-            for start in range(0, int(batch["length"].max()), config.window):
-                stop = min(start + config.window, int(batch["length"].max()))
+            clips = [train[i] for i in order[b : b + config.batch_size]]
+            batch, part = share_batch(clips, rank, world, device)  # this process's clips
+            n = len(part.rows)
+            hidden = encoder.initial_hidden(n, device)
+            previous = rest_device[None].expand(n, -1, -1).clone()  # (n, V, 3)
+            L = max(c.length for c in clips)
+            for start in range(0, L, config.window):
                 terms, hidden, previous = run_window(
-                    encoder, gmodel, lap, batch, start, stop, hidden, previous, teacher,
-                    config.loss, gen, config.previous_noise, config.unroll,
+                    net, gmodel, lap, batch, start, min(start + config.window, L), hidden,
+                    previous, teacher, config.loss, gen, config.previous_noise, config.unroll,
+                    part, config.precision,
                 )  # fmt: skip
                 if not terms["total"].requires_grad:
-                    continue  # a window with no motion frame (all preroll)
-                optimizer_step(optim, encoder.parameters(), terms, config.grad_clip, sums)
+                    continue  # a window with no motion frame in the batch (all preroll)
+                optimizer_step(optim, encoder.parameters(), terms, config.grad_clip, sums, world)
                 steps += 1
         sums = epoch_means(sums, steps, epoch)
         epoch += 1
         epochs_run += 1
         history.append({"epoch": epoch, "teacher": teacher, **sums})
+        bar.set_postfix(loss=f"{sums.get('total', float('nan')):.3g}", teacher=f"{teacher:.2f}")
+        bar.update(1)
+        if not main:
+            continue
         for k, v in sums.items():
             writer.add_scalar(f"loss/{k}", v, epoch)
         writer.add_scalar("train/teacher_probability", teacher, epoch)
-        bar.set_postfix(loss=f"{sums.get('total', float('nan')):.3g}", teacher=f"{teacher:.2f}")
-        bar.update(1)
         if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
             save_checkpoint(ckpt_path, encoder, meta, optimizer=optim.state_dict(), epoch=epoch,
                             history=history, rng=torch.get_rng_state(),
                             sampling_rng=gen.get_state())  # fmt: skip
         if epoch % config.eval_every == 0 or epoch == config.epochs:
-            current = AnimationModel(gmodel, encoder, template, rest.to(config.device),
+            current = AnimationModel(gmodel, encoder, template, rest_device,
                                      tuple(joint_names), floor, fps, dict(reader.body),
                                      config.rollout, ckpt_path)  # fmt: skip
             err = evaluate_rollouts(current, reader, "test", surface=False, stages=MOTION_ONLY)
@@ -535,9 +635,12 @@ def train_motion(
             bar.write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
     bar.close()
     seconds = time.perf_counter() - t_start
+    barrier()
+    if not main:  # the model, the report and its evaluation are the first process's
+        return {"history": history}
     save_checkpoint(out / "model.pt", encoder, meta, half=True, epoch=epoch)
 
-    model = load_animation_model(out / "model.pt", gpath, config.device)
+    model = load_animation_model(out / "model.pt", gpath, device)
     report = {
         "previous_state": config.model.previous_state,
         "previous": config.previous,

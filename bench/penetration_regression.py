@@ -1,0 +1,133 @@
+"""The penetration regression set (issue 26): simulate it, judge every clip, write the table.
+
+Simulates the motions of ``configs/regression.yaml`` (the ground truth's hard cases: the
+deep crouch of salsa 60_02, mirrored and faster, 60_01's crouch, a fast spin) as a data set,
+once per variant of the cloth configuration, and reports per clip what the issue's targets
+name: the share of garment vertices inside the body (any depth: mean and 99th percentile over
+frames), the worst frame's share deeper than 5 mm, the deepest vertex, edge strain p99,
+seconds per frame, and whether the clip is kept (no vertex deeper than 3 cm, at most 1 %
+deeper than 5 mm in any frame). Each variant's data set resumes where a killed run stopped.
+
+    .venv/bin/python bench/penetration_regression.py                       # the default cloth
+    .venv/bin/python bench/penetration_regression.py --variants before,after --workers 2
+
+Variants: ``after`` is the default configuration, ``before`` the same without
+``flatten_overlaps`` (the collider as posed). About 35 core-minutes per variant on dev-cpu.
+Exit status 1 when a clip of the last variant is not kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from loosefit.data.format import DatasetReader, write_json_atomic
+from loosefit.eval.quality import PENETRATION_TOLERANCE, quality
+from loosefit.sim import generate as gen
+
+ROOT = Path(__file__).resolve().parents[1]
+VARIANTS = {"after": {}, "before": {"flatten_overlaps": False}}
+
+
+def judge(folder: Path) -> dict:
+    """Per clip figures of a simulated data set, from its sequences and posed bodies."""
+    from loosefit.train.frames import avatar_for
+
+    reader = DatasetReader(folder, allow_incomplete=True)
+    avatar = avatar_for(reader)
+    cloth = reader.manifest["config"]["cloth"]
+    faces = avatar.collider_faces(arms=cloth.get("arm_collision", False)).cpu().numpy()
+    limits = gen.QualityLimits(**reader.manifest["config"].get("limits", {}))
+    rows = {}
+    for name, entry in reader.manifest["sequences"].items():
+        if "quality" not in entry:
+            rows[name] = {"status": entry.get("status"), "reason": entry.get("reason", "")}
+            continue
+        seq = reader.read(name)
+        with torch.no_grad():
+            body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()
+        q = quality(seq.garment_vertices, reader.template, body, faces, seq.motion.fps)
+        rows[name] = {
+            "frames": int(seq.motion.num_frames),
+            "inside_mean_pct": 100 * q["inside_mean"],
+            "inside_p99_pct": 100 * float(np.percentile(q["inside_fraction"], 99)),
+            "deep_max_pct": 100 * q["penetration_max"],
+            "depth_max_cm": 100 * q["inside_depth_max"],
+            "strain_p99": q["strain_p99"],
+            "seconds_per_frame": entry.get("seconds_per_frame"),
+            "overlap_frames": entry.get("overlap_frames"),
+            "overlap_depth_cm": 100 * entry.get("overlap_depth_max", 0.0),
+            "kept": bool(
+                q["inside_depth_max"] <= limits.max_inside_depth
+                and q["penetration_max"] <= limits.max_penetration_fraction
+            ),
+        }
+    return rows
+
+
+def table(results: dict) -> str:
+    lines = [
+        "| variant | clip | frames | inside mean % | inside p99 % | > 5 mm, worst frame % | "
+        "deepest cm | strain p99 | s/frame | pose overlap: frames, deepest cm | kept |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for variant, rows in results.items():
+        for name, r in rows.items():
+            if "frames" not in r:
+                lines.append(f"| {variant} | {name} | | | | | | | | | {r['status']}: "
+                             f"{r['reason']} |")  # fmt: skip
+                continue
+            spf = r["seconds_per_frame"]
+            overlap = (f"{r['overlap_frames']}, {r['overlap_depth_cm']:.2f}"
+                       if r["overlap_frames"] is not None else "-")  # fmt: skip
+            lines.append(
+                f"| {variant} | {name} | {r['frames']} | {r['inside_mean_pct']:.3f} | "
+                f"{r['inside_p99_pct']:.2f} | {r['deep_max_pct']:.2f} | "
+                f"{r['depth_max_cm']:.2f} | {r['strain_p99']:.3f} | "
+                f"{spf:.2f} | {overlap} | {'yes' if r['kept'] else '**no**'} |"
+            )
+    return "\n".join(lines)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--config", default=str(ROOT / "configs" / "regression.yaml"))
+    ap.add_argument("--variants", default="after", help="comma-separated: before, after")
+    ap.add_argument("--out", default=str(ROOT / "runs" / "regression"))
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--json", default=None, help="also write the figures here")
+    args = ap.parse_args()
+
+    torch.set_num_threads(1)
+    results = {}
+    for variant in args.variants.split(","):
+        if variant not in VARIANTS:
+            print(f"unknown variant {variant!r}: expected one of {list(VARIANTS)}")
+            return 2
+        config = gen.read_config_file(args.config)
+        config.cloth = dataclasses.replace(config.cloth, **VARIANTS[variant])
+        config.preset = f"regression-{variant}"
+        folder = Path(args.out) / variant
+        t0 = time.perf_counter()
+        gen.generate(config, folder, workers=args.workers, progress=True)
+        print(f"{variant}: simulated in {time.perf_counter() - t0:.0f} s", flush=True)
+        results[variant] = judge(folder)
+    print(f"machine: {platform.platform()}, {os.cpu_count()} CPUs; tolerance "
+          f"{PENETRATION_TOLERANCE * 1000:.0f} mm")  # fmt: skip
+    print(table(results))
+    if args.json:
+        write_json_atomic(Path(args.json), results)
+    last = results[list(results)[-1]]
+    return 0 if all(r.get("kept") for r in last.values()) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

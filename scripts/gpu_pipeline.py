@@ -1,0 +1,292 @@
+"""The paper-scale pipeline on a lent GPU machine, in calls of under 10 minutes (issue 25, item 5).
+
+simulate (the ``paper`` preset: the 9,352-vertex skirt, salsa and procedural dances, clips
+batched as worlds of one Newton model) -> train the generative model -> train the motion
+encoder -> evaluate on the held-out chain (Table 1's and Table 3's rows) -> package -> time
+batched inference. Every step saves what the next needs in ``--work`` and resumes where a
+killed one stopped, so ``run`` can be called again and again, each call inside a time budget,
+until it says ``done``. What comes back (``--out``) is small: the packaged model (half
+precision, a few MiB a file), the tables and the logs, refreshed after every step.
+
+The device machine reaches no package registry and its disk lasts only while it is held
+(30 s between calls), and a call carries at most 64 MiB: the packages it lacks (newton,
+warp-lang, anny, ...) and the salsa clips travel in parts.
+
+Here, once (makes ``.gpu/part-1`` ... ``part-N``, each fitting one call, and prints the calls)::
+
+    .venv/bin/python scripts/gpu_pipeline.py pack
+
+On the device, one call per part (``carry`` = ``[".gpu/part-K"]``), then the pipeline until
+it prints ``done`` (each call under the 10-minute limit)::
+
+    python3 scripts/gpu_pipeline.py receive
+    python3 scripts/gpu_pipeline.py run --budget 540 --out $OUT
+
+On any machine, the whole plumbing at toy size in a minute (what a test runs)::
+
+    .venv/bin/python scripts/gpu_pipeline.py run --tiny --device cpu --work /tmp/w --out /tmp/o
+
+Exit codes of ``run``: 0 every step done; 3 the budget ran out (call again); 1 a step failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DEVICE_HOME = Path("/tmp/loosefit-gpu")  # the device machine's working folder
+CARRY_BYTES = 62 * 2**20  # what one call may carry, the working tree included (64 MiB)
+# What the device's image lacks (it has torch, numpy, scipy, torch_geometric, tqdm, ...).
+WHEELS = (
+    "warp-lang==1.19.0",
+    "newton==1.8.0",
+    "anny==0.6.2",
+    "roma==1.8.0",
+    "trimesh==5.2.0",
+    "xatlas==0.0.11",
+)
+PLATFORMS = ("manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_17_x86_64",
+             "manylinux2014_x86_64", "manylinux1_x86_64")  # fmt: skip
+
+
+# -- the steps ----------------------------------------------------------------------------
+
+
+def steps(work: Path, out: Path, device: str, tiny: bool, mocap: Path, sizes: dict) -> list:
+    """(name, command, done-when path) for each step, in order."""
+    cli = [sys.executable, "-m", "loosefit"]
+    data, gen, motion = work / "data", work / "generative", work / "motion"
+    if tiny:
+        simulate = [*cli, "simulate", "--preset", "tiny", "--workers", "1", "--batch", "2"]
+        gen_args = ["--preset", "cpu", "--epochs", "2", "--max-frames", "8"]
+        motion_args = ["--preset", "cpu", "--epochs", "2"]
+        bench = ["--sizes", "1,4", "--frames", "4"]
+    else:
+        simulate = [*cli, "simulate", "--preset", "paper", "--bvh", str(mocap), "--workers", "1",
+                    "--batch", str(sizes["batch"])]  # fmt: skip
+        if sizes.get("max_frames"):
+            simulate += ["--max-frames", str(sizes["max_frames"])]
+        gen_args = ["--preset", "full", "--epochs", str(sizes["generative_epochs"]),
+                    "--precision", sizes["precision"]]  # fmt: skip
+        motion_args = ["--preset", "cpu", "--epochs", str(sizes["motion_epochs"]), "--mirror",
+                       "--precision", sizes["precision"]]  # fmt: skip
+        bench = ["--sizes", "1,16,256", "--frames", "60"]
+    model = motion / "model.pt"
+    dev = ["--device", device]
+    evaluate = [*cli, "evaluate", "--checkpoint", str(model), "--data", str(data), "--split",
+                "test", "--no-detail"]  # fmt: skip
+    # fmt: off
+    return [
+        ("simulate", [*simulate, *dev, "--out", str(data)], work / "simulate.done"),
+        ("generative", [*cli, "train", "generative", "--data", str(data), *gen_args, *dev,
+                        "--out", str(gen)], gen / "report.json"),
+        ("motion", [*cli, "train", "motion", "--data", str(data), "--generative",
+                    str(gen / "checkpoint.pt"), *motion_args, *dev, "--out", str(motion)],
+         motion / "report.json"),
+        # Table 1's row: the motion stage alone; Table 3's: with collision handling (no
+        # detail stage is trained here)
+        ("table1", [*evaluate, "--no-collision", "--out", str(work / "table1")],
+         work / "table1" / "evaluation.json"),
+        ("table3", [*evaluate, "--out", str(work / "table3")],
+         work / "table3" / "evaluation.json"),
+        ("package", [*cli, "package", str(model), "--out", str(out / "model")],
+         out / "model" / "motion.pt"),
+        ("inference", [sys.executable, str(ROOT / "bench" / "batch_inference.py"), *bench, *dev,
+                       "--out", str(work / "BATCH_INFERENCE.md")],
+         work / "BATCH_INFERENCE.md"),
+    ]
+    # fmt: on
+
+
+def environment() -> dict:
+    """The steps' environment: this checkout's sources, and the carried packages if any."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    paths = [str(ROOT / "src")]
+    if (DEVICE_HOME / "site").is_dir():
+        paths.append(str(DEVICE_HOME / "site"))
+    env["PYTHONPATH"] = os.pathsep.join(paths + [env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return env
+
+
+def bring_back(work: Path, out: Path) -> None:
+    """Copy the small results into ``out`` (each file well under the 16 MiB limit)."""
+    out.mkdir(parents=True, exist_ok=True)
+    picks = {
+        "manifest.json": work / "data" / "manifest.json",
+        "generative_report.md": work / "generative" / "report.md",
+        "motion_report.md": work / "motion" / "report.md",
+        "table1.md": work / "table1" / "evaluation.md",
+        "table3.md": work / "table3" / "evaluation.md",
+        "BATCH_INFERENCE.md": work / "BATCH_INFERENCE.md",
+    }
+    for name, src in picks.items():
+        if src.is_file() and src.stat().st_size < 8 * 2**20:
+            shutil.copyfile(src, out / name)
+    logs = sorted((work / "logs").glob("*.log"))
+    if logs:  # one file: the end of each step's log
+        text = "".join(f"== {p.name}\n" + p.read_text(errors="replace")[-20000:] for p in logs)
+        (out / "logs.txt").write_text(text)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The next steps, within ``args.budget`` seconds; 0 all done, 3 call again, 1 failed."""
+    t_end = time.monotonic() + args.budget
+    work, out = Path(args.work), Path(args.out)
+    (work / "logs").mkdir(parents=True, exist_ok=True)
+    sizes = {"batch": args.batch, "generative_epochs": args.generative_epochs,
+             "motion_epochs": args.motion_epochs, "precision": args.precision,
+             "max_frames": args.max_frames}  # fmt: skip
+    env = environment()
+    for name, cmd, done in steps(work, out, args.device, args.tiny, Path(args.mocap), sizes):
+        if done.exists():
+            continue
+        left = t_end - time.monotonic()
+        if left < 20:
+            print(f"budget spent before {name}: call again", flush=True)
+            bring_back(work, out)
+            return 3
+        print(f"[{time.strftime('%H:%M:%S')}] {name} ({left:.0f} s left): {' '.join(cmd)}",
+              flush=True)  # fmt: skip
+        t0 = time.monotonic()
+        with open(work / "logs" / f"{name}.log", "a") as log:
+            log.write(f"\n# {time.ctime()}: {' '.join(cmd)}\n")
+            log.flush()
+            try:
+                rc = subprocess.run(cmd, cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT,
+                                    timeout=left - 10).returncode  # fmt: skip
+            except subprocess.TimeoutExpired:  # killed: the step resumes on the next call
+                print(f"{name}: stopped after {time.monotonic() - t0:.0f} s (budget); call "
+                      "again to resume it", flush=True)  # fmt: skip
+                bring_back(work, out)
+                return 3
+        if rc != 0:
+            print(f"{name} failed (exit {rc}); its log: {work / 'logs' / (name + '.log')}")
+            print((work / "logs" / f"{name}.log").read_text(errors="replace")[-3000:])
+            bring_back(work, out)
+            return 1
+        if name == "simulate":
+            done.write_text(json.dumps(json.loads((work / "data" / "manifest.json").read_text())
+                                       .get("summary", {})))  # fmt: skip
+        print(f"{name}: done in {time.monotonic() - t0:.0f} s", flush=True)
+        bring_back(work, out)
+    bring_back(work, out)
+    print("done", flush=True)
+    return 0
+
+
+# -- getting the packages and the clips there ------------------------------------------------
+
+
+def pack(args: argparse.Namespace) -> int:
+    """Download the device's missing wheels (Python 3.12, x86-64), bundle them with the salsa
+    clips and split the bundle into parts in ``.gpu/``, each small enough to travel with the
+    working tree in one call."""
+    gpu = ROOT / ".gpu"
+    wheels = gpu / "wheels"
+    wheels.mkdir(parents=True, exist_ok=True)
+    plat = [a for p in PLATFORMS for a in ("--platform", p)]
+    for spec in WHEELS:
+        name = spec.split("==")[0].replace("-", "_")
+        if any(wheels.glob(f"{name}-*.whl")):
+            continue
+        subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:",
+                        "--python-version", "3.12", "--implementation", "cp", *plat, "-d",
+                        str(wheels), spec], check=True)  # fmt: skip
+    bundle = gpu / "bundle.tar"
+    with tarfile.open(bundle, "w") as tar:
+        tar.add(wheels, arcname="wheels")
+        tar.add(Path(args.mocap), arcname="mocap")
+    for old in gpu.glob("part-*"):
+        shutil.rmtree(old)
+    data = bundle.read_bytes()
+    # A part travels with the working tree: what git tracks, and what it neither tracks nor
+    # ignores.
+    listing = ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"]
+    files = subprocess.run(listing, cwd=ROOT, capture_output=True, check=True).stdout.split(b"\0")
+    tree = sum(
+        (ROOT / f.decode()).stat().st_size for f in files if f and (ROOT / f.decode()).is_file()
+    )
+    size = CARRY_BYTES - tree
+    if size < 4 * 2**20:
+        print(f"the working tree is {tree / 2**20:.0f} MiB: too little room left to carry parts")
+        return 1
+    n = (len(data) + size - 1) // size
+    for k in range(n):
+        part = gpu / f"part-{k + 1}"
+        part.mkdir()
+        (part / f"{k + 1:02d}.bin").write_bytes(data[k * size : (k + 1) * size])
+        meta = {"parts": n, "sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
+        (part / "bundle.json").write_text(json.dumps(meta))
+    bundle.unlink()
+    print(f"{n} parts in {gpu}; on the device, one call each (carry ['.gpu/part-K']):")
+    print("    python3 scripts/gpu_pipeline.py receive")
+    print("then until it prints done:")
+    print("    python3 scripts/gpu_pipeline.py run --budget 540 --out $OUT")
+    return 0
+
+
+def receive(args: argparse.Namespace) -> int:
+    """Keep the carried part(s) on the device; once all are there, unpack and install."""
+    parts = DEVICE_HOME / "parts"
+    parts.mkdir(parents=True, exist_ok=True)
+    meta = None
+    for folder in sorted((ROOT / ".gpu").glob("part-*")):
+        for f in folder.glob("*.bin"):
+            shutil.copyfile(f, parts / f.name)
+        meta = json.loads((folder / "bundle.json").read_text())
+    if meta is None:
+        print("no .gpu/part-K carried with this call")
+        return 1
+    have = sorted(parts.glob("*.bin"))
+    if len(have) < meta["parts"]:
+        print(f"{len(have)}/{meta['parts']} parts here: call again with the next")
+        return 3
+    data = b"".join(p.read_bytes() for p in have)
+    if hashlib.sha256(data).hexdigest() != meta["sha256"]:
+        print("the parts do not make the bundle (sha256 differs): pack again")
+        return 1
+    bundle = DEVICE_HOME / "bundle.tar"
+    bundle.write_bytes(data)
+    with tarfile.open(bundle) as tar:
+        tar.extractall(DEVICE_HOME, filter="data")
+    subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-index", "--no-deps",
+                    "--no-compile", "--no-cache-dir", "--upgrade", "--target",
+                    str(DEVICE_HOME / "site"), *map(str, (DEVICE_HOME / "wheels").glob("*.whl"))],
+                   check=True)  # fmt: skip
+    print(f"installed into {DEVICE_HOME / 'site'}; clips in {DEVICE_HOME / 'mocap'}")
+    return 0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("pack", help="here: the device's missing packages and the clips, in parts")
+    p.add_argument("--mocap", default=str(ROOT.parent / "shared" / "mocap" / "cmu-salsa"))
+    sub.add_parser("receive", help="device: take a carried part; install once all are there")
+    p = sub.add_parser("run", help="the next steps of the pipeline within a time budget")
+    p.add_argument("--budget", type=float, default=540.0, help="seconds this call may take")
+    p.add_argument("--work", default=str(DEVICE_HOME / "work"))
+    p.add_argument("--out", default=os.environ.get("OUT", "out/gpu-pipeline"))
+    p.add_argument("--device", default="cuda:0")
+    p.add_argument("--mocap", default=str(DEVICE_HOME / "mocap"))
+    p.add_argument("--batch", type=int, default=20, help="clips simulated at once")
+    p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
+    p.add_argument("--generative-epochs", type=int, default=100)
+    p.add_argument("--motion-epochs", type=int, default=60)
+    p.add_argument("--precision", default="bf16", choices=("fp32", "bf16"))
+    p.add_argument("--tiny", action="store_true", help="the tiny preset and a few epochs")
+    args = ap.parse_args()
+    return {"pack": pack, "receive": receive, "run": run}[args.command](args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
