@@ -90,8 +90,11 @@ class ClothConfig:
     settle_damping: float = 5.0  # 1/s, the same while settling, so the drape comes to rest
     # contact with the body
     body_contact_distance: float = 0.004  # m, cloth vertices are kept this far outside the body
-    body_contact_gap: float = 0.02  # m, extra reach of body-contact detection; a vertex deeper
-    # than gap + distance inside the body gets no contact at all
+    # m, extra reach of body-contact detection; a vertex deeper than gap + distance inside the
+    # body gets no contact at all. 2 cm lost cloth that a fast crouch folded 2.4-3 cm deep
+    # (salsa 60_02 played 1.5x as fast: a vertex 3.1 cm inside, 2.7 cm with 4 cm of reach;
+    # docs/PENETRATION.md)
+    body_contact_gap: float = 0.04
     contact_ke: float = 1.0e4  # N/m, contact stiffness (cloth-body and cloth-cloth)
     contact_kd: float = 1.0e-2  # N s/m, contact damping (cloth-body and cloth-cloth)
     body_friction: float = 0.3  # Coulomb friction between cloth and body
@@ -108,6 +111,9 @@ class ClothConfig:
     # (loosefit.sim.overlap; the posed body and every measure are unchanged). Data sets
     # made before this field existed were made without it.
     flatten_overlaps: bool = True
+    # m: a pressed limb vertex stops this far inside the rest of the body (negative: this
+    # far outside it, room left for the cloth between the two)
+    overlap_inset: float = 0.002
     self_friction: float = 0.2  # Coulomb friction between two layers of cloth
     # contact of the cloth with itself (costs ~3x; without it ~10% of triangles cross in a spin)
     self_contact: bool = True  # resolve cloth-cloth contact
@@ -904,7 +910,7 @@ def simulate_batch(
         from loosefit.sim.overlap import flatten_overlaps
 
         parts = body_parts(avatar, arms=config.arm_collision)
-        flat = [flatten_overlaps(b, parts) for b in bodies]
+        flat = [flatten_overlaps(b, parts, config.overlap_inset) for b in bodies]
         colliders = [f.vertices for f in flat]
         pressed, overlap = [f.moved for f in flat], [f.depth for f in flat]
     total = max(totals)

@@ -626,7 +626,7 @@ def _normalized(d: dict) -> dict:
 
 # Cloth fields whose default changed what is simulated: a data set whose manifest lacks one
 # was made with this value (not the default).
-LEGACY_CLOTH = {"flatten_overlaps": False}
+LEGACY_CLOTH = {"flatten_overlaps": False, "overlap_inset": 0.002}
 
 
 def _stored_config(manifest: dict) -> dict:

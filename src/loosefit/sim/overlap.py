@@ -49,7 +49,8 @@ def flatten_overlaps(body: np.ndarray, parts: BodyParts, inset: float = 0.002) -
         body: (T, Vb, 3) posed body vertices.
         parts: the body's limbs and, for each, the closed rest of the collider without it
             (:func:`~loosefit.eval.body_regions.body_parts` with the simulation's arms).
-        inset: metres; a pressed vertex stops this far inside the rest's surface.
+        inset: metres; a pressed vertex stops this far inside the rest's surface
+            (negative: this far outside it).
 
     Returns:
         The :class:`Flattened` body: a vertex less deep than ``inset`` is left where it
@@ -73,7 +74,7 @@ def flatten_overlaps(body: np.ndarray, parts: BodyParts, inset: float = 0.002) -
                 continue
             d = hit.distance[buried]
             depth[t] = max(depth[t], float(d.max()))
-            deep = d > inset
+            deep = d > max(inset, 1e-9)  # (a negative inset also moves the shallowest)
             if not deep.any():
                 continue
             idx = tested[buried][deep]
