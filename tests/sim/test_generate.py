@@ -7,6 +7,7 @@ import pytest
 import loosefit.sim.generate as gen
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
+from tests.conftest import needs_salsa
 
 
 @pytest.fixture(scope="module")
@@ -383,3 +384,23 @@ def test_the_collider_follows_the_garment_file_s_kind(tmp_path, avatar):
         assert main(["simulate", "--garment", str(tmp_path / f"{name}.obj"),
                      "--write-config", str(cfg)]) == 0  # fmt: skip
         assert yaml.safe_load(cfg.read_text())["cloth"]["arm_collision"] == arms, name
+
+
+@needs_salsa
+@pytest.mark.parametrize("name, clips", [
+    ("regression.yaml", {"frames_290_370_60_02": 80, "frames_290_370_mirror_60_02": 80,
+                         "speed_1.5_frames_290_370_60_02": 53, "frames_150_220_60_01": 70,
+                         "speed_1.5_spin": 86}),
+    ("salsa_takes.yaml", {"60_01": 551, "60_02": 515, "speed_1.25_mirror_60_02": 410,
+                          "speed_1.5_dance_20": 389}),
+])  # fmt: skip
+def test_the_committed_penetration_sets_load_every_motion(name, clips, avatar):
+    # bench/penetration_regression.py runs these (docs/PENETRATION.md): each spec must still
+    # name a clip of ../shared and a window inside it, with the frame counts of the tables
+    from pathlib import Path
+
+    config = gen.read_config_file(Path(__file__).parents[2] / "configs" / name)
+    jobs = gen.plan_jobs(config)
+    assert [j.name for j in jobs] == list(clips)
+    for job in jobs:
+        assert gen.job_motion(config, job, avatar).num_frames == clips[job.name], job.name
