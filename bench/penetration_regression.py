@@ -64,7 +64,8 @@ def judge(folder: Path) -> dict:
 
     reader = DatasetReader(folder, allow_incomplete=True)
     avatar = avatar_for(reader)
-    cloth = reader.manifest["config"]["cloth"]
+    # a data set made before a cloth field existed was made with LEGACY_CLOTH's value
+    cloth = {**gen.LEGACY_CLOTH, **reader.manifest["config"]["cloth"]}
     arms = cloth.get("arm_collision", False)
     faces = avatar.collider_faces(arms=arms).cpu().numpy()
     parts = body_parts(avatar, arms=arms)
@@ -79,7 +80,7 @@ def judge(folder: Path) -> dict:
             body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()
         q = quality(seq.garment_vertices, reader.template, body, faces, seq.motion.fps)
         inside = np.asarray(q["inside_fraction"])  # (T,)
-        flat = flatten_overlaps(body, parts, cloth.get("overlap_inset", 0.002))
+        flat = flatten_overlaps(body, parts, cloth["overlap_inset"])
         folded = flat.moved > 0  # (T,) frames whose pose folds into itself
         inside_flat = inside.copy()
         for t in np.nonzero(folded)[0]:
