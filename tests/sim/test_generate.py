@@ -32,6 +32,23 @@ def test_tiny_dataset_is_complete_and_readable(tiny_dataset):
     assert "kick_000" in gen.format_report(manifest)
 
 
+def test_report_shows_the_inside_mean_and_the_poses_that_fold(tiny_dataset):
+    _, manifest = tiny_dataset
+    manifest = json.loads(json.dumps(manifest))
+    assert "loosefit diagnose" not in gen.format_report(manifest)  # the tiny moves never fold
+    entry = manifest["sequences"]["kick_000"]
+    entry.update(overlap_frames=21, overlap_depth_max=0.0348)
+    entry["quality"]["inside_mean"] = 0.00103
+    report = gen.format_report(manifest)
+    row = next(line for line in report.splitlines() if line.startswith("kick_000"))
+    assert "0.00103" in row and "21, 3.5 cm" in row
+    assert "loosefit diagnose DATASET kick_000" in report
+    long = {**entry, "spec": "x"}
+    manifest["sequences"]["speed_1.25_mirror_60_02_long_name"] = long
+    lines = gen.format_report(manifest).splitlines()
+    assert len({line.index("train") for line in lines if " train " in line}) == 1  # aligned
+
+
 def test_rerun_with_same_config_does_nothing(tiny_dataset, monkeypatch):
     out, _ = tiny_dataset
     calls = []

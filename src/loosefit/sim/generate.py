@@ -936,21 +936,37 @@ def summarize(manifest: dict) -> dict:
 
 
 def format_report(manifest: dict) -> str:
-    """A plain-text table of each clip's quality, for the end of a run."""
+    """A plain-text table of each clip's quality, for the end of a run.
+
+    Columns: the share of garment vertices inside the body (mean over frames, and the
+    worst frame), the worst frame's share deeper than 5 mm, the deepest vertex, the edge
+    strain p99, the fastest vertex, and the frames in which the body's pose folds into
+    itself (a limb inside the rest of the body, with how deep), where cloth is pinched.
+    """
+    width = max([14, *(len(n) + 2 for n in manifest["sequences"])])
     lines = [
-        f"{'clip':<14}{'split':<7}{'frames':>7}{'s/frame':>9}{'inside max':>12}"
-        f"{'> 5 mm':>8}{'depth cm':>10}{'strain p99':>12}{'speed':>8}  status"
+        f"{'clip':<{width}}{'split':<7}{'frames':>7}{'s/frame':>9}{'inside mean':>13}"
+        f"{'inside max':>12}{'> 5 mm':>8}{'depth cm':>10}{'strain p99':>12}{'speed':>8}"
+        f"{'folds':>12}  status"
     ]
+    folding = []
     for name, e in manifest["sequences"].items():
         q = e.get("quality", {})
+        n_fold = e.get("overlap_frames")
+        if n_fold:
+            folding.append(name)
+            folds = f"{n_fold}, {100 * e.get('overlap_depth_max', 0.0):.1f} cm"
+        else:
+            folds = "-" if n_fold is None else "0"
         lines.append(
-            f"{name:<14}{'test' if e.get('test') else 'train':<7}{e.get('frames', 0):>7}"
+            f"{name:<{width}}{'test' if e.get('test') else 'train':<7}{e.get('frames', 0):>7}"
             f"{e.get('seconds_per_frame', float('nan')):>9.2f}"
+            f"{q.get('inside_mean', float('nan')):>13.5f}"
             f"{q.get('inside_max', float('nan')):>12.4f}"
             f"{q.get('penetration_max', float('nan')):>8.4f}"
             f"{100 * q.get('inside_depth_max', float('nan')):>10.2f}"
             f"{q.get('strain_p99', float('nan')):>12.3f}"
-            f"{q.get('max_speed', float('nan')):>8.2f}  {e['status']}"
+            f"{q.get('max_speed', float('nan')):>8.2f}{folds:>12}  {e['status']}"
             + (f" ({e['reason']})" if e.get("reason") else "")
         )
     s = manifest.get("summary", {})
@@ -963,5 +979,11 @@ def format_report(manifest: dict) -> str:
             f"{s['seconds_per_frame_mean']:.3f} s per frame per clip, "
             f"{s['clips_per_hour']:.1f} clips per hour "
             f"(device {manifest['config']['cloth']['device']})"
+        )
+    if folding:
+        lines.append(
+            f"the body folds into itself (a limb inside the rest of it) in {len(folding)} "
+            f"clip(s): cloth caught there is pinched; where and how deep: loosefit diagnose "
+            f"DATASET {folding[0]} (docs/PENETRATION.md)"
         )
     return "\n".join(lines)
