@@ -41,6 +41,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from loosefit.body.unfold import LimbTest, fastest_axis, world_rotations
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # penetration_regression
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,50 +55,6 @@ MOTIONS = (
 )
 LIMB_ROOTS = {"left leg": ("LeftUpLeg", "LeftLeg", "LeftFoot"),
               "right leg": ("RightUpLeg", "RightLeg", "RightFoot")}  # fmt: skip
-JOIN_BAND = 0.02  # m: limb skin this close to the rest of the body at rest is the join
-
-
-class LimbTest:
-    """Signed distances of a limb's skin to the rest of the body (the collider with the limb
-    cut away and capped), leaving out the band where the limb joins the body."""
-
-    def __init__(self, parts, limb: str, rest: np.ndarray) -> None:
-        from loosefit.geometry.query import Surface
-
-        tested, _ = parts.tested_vertices(limb)
-        self.surface = Surface(rest, parts.limb_faces[limb])
-        sd, _ = self._signed(rest, tested)
-        self.tested = tested[sd > JOIN_BAND]
-
-    def _signed(self, body: np.ndarray, vertices: np.ndarray):
-        self.surface.refit(body)
-        hit = self.surface.query(body[vertices])
-        sd = np.where(hit.inside, -hit.distance, hit.distance)
-        return np.where(hit.faces >= 0, sd, np.inf), hit
-
-    def signed(self, body: np.ndarray):
-        """(n,) m, outside positive, and the closest-point query, for a body (Vb, 3)."""
-        return self._signed(body, self.tested)
-
-
-def world_rotations(rotations: np.ndarray, parents) -> np.ndarray:
-    """(J, 3, 3) world rotations ``G_j = G_parent @ R_j`` of a frame's local ones."""
-    G = np.empty_like(rotations)
-    for j, p in enumerate(parents):
-        G[j] = rotations[j] if p < 0 else G[p] @ rotations[j]
-    return G
-
-
-def fastest_axis(test: LimbTest, body: np.ndarray, pivot: np.ndarray, clearance: float):
-    """(3,) the world axis about ``pivot`` that moves the limb's buried skin out fastest
-    (each vertex weighted by how far it is from ``clearance`` outside)."""
-    sd, hit = test.signed(body)
-    near = sd < 0
-    p = body[test.tested[near]]
-    out = np.where(hit.inside[near, None], hit.points[near] - p, p - hit.points[near])
-    out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)
-    axis = ((clearance - sd[near])[:, None] * np.cross(p - pivot, out)).sum(0)
-    return axis / max(np.linalg.norm(axis), 1e-12)
 
 
 class Turn:
@@ -205,100 +163,27 @@ def measure(avatar, parts, spec: str, clearance: float, max_degrees: float, cap:
     return {"frames": motion.num_frames, "rows": rows}
 
 
-def ease(values: np.ndarray, radius: int) -> np.ndarray:
-    """(T,) no lower than ``values`` (T,) >= 0 anywhere, easing in and out over ``radius``
-    frames: the running maximum over +-radius, averaged by a raised cosine of that radius."""
-    values = np.asarray(values, np.float64)
-    if radius <= 0:
-        return values.copy()
-    T = len(values)
-    padded = np.pad(values, radius)
-    peak = np.max([padded[k : k + T] for k in range(2 * radius + 1)], 0)
-    x = np.arange(-radius, radius + 1, dtype=np.float64)
-    w = np.cos(0.5 * np.pi * x / (radius + 1)) ** 2
-    padded = np.pad(peak, radius)
-    return np.sum([w[k] * padded[k : k + T] for k in range(2 * radius + 1)], 0) / w.sum()
-
-
-def _clears(sd: np.ndarray, buried: np.ndarray, clearance: float) -> bool:
-    """Whether the skin that was buried stands ``clearance`` out and none is inside."""
-    return bool(sd[buried].min() >= clearance and sd.min() >= 0)
-
-
-def corrected_motion(avatar, parts, spec: str, clearance: float, cap: float,
-                     ramp_seconds: float = 0.2, steps: int = 10):  # fmt: skip
-    """The motion with each folded limb turned at the hip about its fastest axis, by the
-    smallest angle that leaves ``clearance`` (at most ``cap`` degrees), eased over
-    ``ramp_seconds``; and (T,) the turn in degrees."""
-    from loosefit.body.motions import load_motion
-    from loosefit.body.rotations import axis_angle_to_matrix
-    from loosefit.types import Motion
-
-    motion = load_motion(spec, avatar, fps=30.0)
-    T, names, parents = motion.num_frames, avatar.joint_names, avatar.skeleton.parents
-    rest = avatar.rest_vertices.double().cpu().numpy()
-    R = motion.rotations.astype(np.float64)
-
-    def pose(rot: np.ndarray, frames: np.ndarray):
-        with torch.no_grad():
-            b = avatar.pose(torch.from_numpy(rot.astype(np.float32)),
-                            torch.from_numpy(motion.root_translation[frames]))  # fmt: skip
-        return b.vertices.double().numpy(), b.joint_poses[:, :, :3, 3].double().numpy()
-
-    body, joints = pose(R, np.arange(T))
-    out, degrees = R.copy(), np.zeros(T)
-    radius = int(round(ramp_seconds * motion.fps))
-    for limb, (hip, _, _) in LIMB_ROOTS.items():
-        if not parts.limb_collides.get(limb, False):
-            continue
-        test, j = LimbTest(parts, limb, rest), names.index(hip)
-        buried = {t: sd < 0 for t in range(T) if ((sd := test.signed(body[t])[0]) < 0).any()}
-        folded = np.array(sorted(buried), int)
-        if not len(folded):
-            continue
-        axes = np.zeros((T, 3))  # in the parent joint's frame
-        for t in folded:
-            G = world_rotations(R[t], parents)
-            axes[t] = G[parents[j]].T @ fastest_axis(test, body[t], joints[t, j], clearance)
-
-        lo, hi = np.zeros(len(folded)), np.full(len(folded), math.radians(cap))
-        for _ in range(steps):
-            mid = 0.5 * (lo + hi)
-            r = R[folded].copy()
-            r[:, j] = axis_angle_to_matrix(axes[folded] * mid[:, None]) @ r[:, j]
-            v, _ = pose(r, folded)
-            ok = np.array([_clears(test.signed(x)[0], buried[t], clearance)
-                           for x, t in zip(v, folded, strict=True)])  # fmt: skip
-            lo, hi = np.where(ok, lo, mid), np.where(ok, mid, hi)
-        angle = np.zeros(T)
-        angle[folded] = hi
-        smooth = ease(angle, radius)
-        weighted = np.pad(axes * angle[:, None], ((radius, radius), (0, 0)))
-        axis = np.sum([weighted[k : k + T] for k in range(2 * radius + 1)], 0)
-        norm = np.linalg.norm(axis, axis=1)
-        f = np.flatnonzero((smooth > 0) & (norm > 0))
-        turn = axis_angle_to_matrix(axis[f] / norm[f, None] * smooth[f, None])
-        out[f, j] = turn @ out[f, j]
-        degrees[f] = np.maximum(degrees[f], np.degrees(smooth[f]))
-    fixed = Motion(motion.joint_names, out.astype(np.float32), motion.root_translation,
-                   motion.fps, motion.name + "_corrected")  # fmt: skip
-    return motion, fixed, degrees
-
-
 def simulate_pair(avatar, parts, spec: str, clearance: float, cap: float, out: Path,
                   workers: int) -> dict:  # fmt: skip
-    """Simulate ``spec`` as captured and corrected (:func:`corrected_motion`); per clip the
-    figures of bench/penetration_regression.py, the turn, and the feet."""
+    """Simulate ``spec`` as captured and as :func:`~loosefit.body.unfold.unfold_motion`
+    corrects it; per clip the figures of bench/penetration_regression.py, the turn, and
+    the feet."""
     import penetration_regression as regression
 
+    from loosefit.body.motions import load_motion
+    from loosefit.body.unfold import UnfoldConfig, unfold_motion
     from loosefit.sim import generate as gen
 
-    motion, fixed, degrees = corrected_motion(avatar, parts, spec, clearance, cap)
+    motion = load_motion(spec, avatar, fps=30.0)
+    unfolded = unfold_motion(avatar, motion, parts, UnfoldConfig(clearance=clearance,
+                                                                 max_degrees=cap))  # fmt: skip
+    fixed, degrees = unfolded.motion, unfolded.degrees
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"corrected_{cap:g}deg.npz"
     fixed.save(path)
     config = gen.read_config_file(ROOT / "configs" / "regression.yaml")
     config.preset = "pose-correction"
+    config.unfold = UnfoldConfig(enabled=False)  # the two motions as they are
     config.motions.specs = (spec, str(path))
     gen.generate(config, out / "simulated", workers=workers, progress=True)
     rows = regression.judge(out / "simulated")
@@ -343,6 +228,9 @@ def table(summary: list[dict], cap: float, clearance: float, max_degrees: float)
     def deg(x: float) -> str:
         return f"> {max_degrees:.0f}" if not math.isfinite(x) else f"{x:.1f}"
 
+    def cm(x: float) -> str:  # (no turn within the search clears it)
+        return f"{x:.1f}" if math.isfinite(x) else "-"
+
     lines = [
         f"| motion | turn | folded frames | deepest cm | to clear, median / worst deg | "
         f"to leave {100 * clearance:.0f} cm, worst deg | ankle moves cm | knee moves cm | "
@@ -354,7 +242,7 @@ def table(summary: list[dict], cap: float, clearance: float, max_degrees: float)
         lines.append(
             f"| {name} | {s['way']} | {s['folded_frames']} | {s['depth_max_cm']:.2f} | "
             f"{deg(s['clear_deg_median'])} / {deg(s['clear_deg_max'])} | "
-            f"{deg(s['clearance_deg_max'])} | {s['ankle_cm_max']:.1f} | {s['knee_cm_max']:.1f} | "
+            f"{deg(s['clearance_deg_max'])} | {cm(s['ankle_cm_max'])} | {cm(s['knee_cm_max'])} | "
             f"{s['capped_depth_cm_max']:.2f}, {s['capped_ankle_cm_max']:.1f} |"
         )
     return "\n".join(lines)

@@ -152,7 +152,8 @@ def load(path: str | Path | None = None, device: str = "cpu") -> Animator:
 
 def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flared",
              frames: int | None = None, start_frame: int = 0, seed: int = 0, config=None,
-             shape: dict | None = None, progress=None) -> AnimatedGarment:  # fmt: skip
+             shape: dict | None = None, progress=None,
+             unfold: bool = True) -> AnimatedGarment:  # fmt: skip
     """Ground truth: the garment simulated on the avatar (Newton VBD; minutes per second of
     motion on a CPU).
 
@@ -166,6 +167,9 @@ def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flar
             the upper arms in the collider for a dress).
         shape: the avatar's phenotype (anny's names); default the project's avatar.
         progress: called as ``progress(done, total)``.
+        unfold: first turn a limb that passes into the body out of it, a few degrees at most,
+            as data sets do (:mod:`loosefit.body.unfold`; the returned motion is the one
+            simulated); False simulates the motion exactly as given.
     """
     from loosefit.body.avatar import Avatar, AvatarConfig
     from loosefit.dress import garment_for
@@ -179,6 +183,11 @@ def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flar
         from loosefit.sim.cloth import ClothConfig
 
         config = ClothConfig(arm_collision=collider_arms(template))
+    if unfold:
+        from loosefit.body.unfold import unfold_motion
+        from loosefit.eval.body_regions import body_parts
+
+        m = unfold_motion(avatar, m, body_parts(avatar, arms=config.arm_collision)).motion
     result = run(avatar, template, m, config, progress=progress)
     return AnimatedGarment(m, template, result.garment_vertices,
                            {"rig": avatar.config.rig, "shape": dict(avatar.shape)},

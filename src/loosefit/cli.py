@@ -347,7 +347,8 @@ def cmd_garment(args: argparse.Namespace) -> int:
 
 def dataset_config(args: argparse.Namespace):
     """The data set ``simulate`` makes: ``--config FILE`` or ``--preset``, then
-    ``--garment``, ``--motions``, ``--test``, ``--device``, ``--max-frames`` over it."""
+    ``--garment``, ``--motions``, ``--test``, ``--device``, ``--max-frames``,
+    ``--keep-poses`` over it."""
     from loosefit.sim.generate import (
         GarmentFile,
         MotionSource,
@@ -391,6 +392,8 @@ def dataset_config(args: argparse.Namespace):
         config.cloth.device = args.device
     if args.max_frames is not None:
         config.motions.max_frames = args.max_frames
+    if getattr(args, "keep_poses", False):
+        config.unfold.enabled = False
     return config
 
 
@@ -949,6 +952,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
     p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
+    p.add_argument(
+        "--keep-poses",
+        action="store_true",
+        help="simulate the motion exactly as captured: do not turn a limb that "
+        "passes into the body out of it (unfold.enabled: false)",
+    )
     p.add_argument("--reuse", default=None, metavar="FOLDER",
                    help="take the clips this dataset shares with the one in FOLDER (simulated "
                    "alike) instead of simulating them again")  # fmt: skip

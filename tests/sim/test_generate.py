@@ -37,11 +37,12 @@ def test_report_shows_the_inside_mean_and_the_poses_that_fold(tiny_dataset):
     manifest = json.loads(json.dumps(manifest))
     assert "loosefit diagnose" not in gen.format_report(manifest)  # the tiny moves never fold
     entry = manifest["sequences"]["kick_000"]
-    entry.update(overlap_frames=21, overlap_depth_max=0.0348)
+    entry.update(overlap_frames=21, overlap_depth_max=0.0348, unfold_frames=31,
+                 unfold_degrees_max=10.0)  # fmt: skip
     entry["quality"]["inside_mean"] = 0.00103
     report = gen.format_report(manifest)
     row = next(line for line in report.splitlines() if line.startswith("kick_000"))
-    assert "0.00103" in row and "21, 3.5 cm" in row
+    assert "0.00103" in row and "21, 3.5 cm" in row and "31, 10.0 deg" in row
     assert "loosefit diagnose DATASET kick_000" in report
     long = {**entry, "spec": "x"}
     manifest["sequences"]["speed_1.25_mirror_60_02_long_name"] = long
@@ -421,3 +422,48 @@ def test_the_committed_penetration_sets_load_every_motion(name, clips, avatar):
     assert [j.name for j in jobs] == list(clips)
     for job in jobs:
         assert gen.job_motion(config, job, avatar).num_frames == clips[job.name], job.name
+
+
+def test_a_data_set_made_before_the_pose_correction_was_made_without_it():
+    stored = gen._normalized(gen._config_dict(gen.preset("tiny")))
+    del stored["unfold"]
+    assert gen._stored_config({"config": stored})["unfold"]["enabled"] is False
+    assert gen.preset("salsa").unfold.enabled is True  # new data: the correction
+
+
+def test_the_pose_correction_is_configured_from_a_file(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("preset: x\nunfold:\n  max_degrees: 5\n  enabled: true\n")
+    assert gen.read_config_file(path).unfold.max_degrees == 5.0
+    path.write_text("preset: x\nunfold:\n  degrees: 5\n")
+    with pytest.raises(LoosefitInputError, match="unfold.degrees"):
+        gen.read_config_file(path)
+    path.write_text("preset: x\nunfold:\n  max_degrees: -5\n")
+    with pytest.raises(LoosefitInputError, match="unfold.max_degrees"):
+        gen.read_config_file(path)
+
+
+@needs_salsa
+def test_a_job_simulates_the_squat_of_60_02_turned_out_of_the_belly(avatar):
+    from tests.conftest import SALSA
+
+    spec = f"frames:326:336:{SALSA / '60_02.bvh'}"  # the deepest of the squat
+    config = gen.DatasetConfig(motions=gen.MotionSource(kind="specs", specs=(spec,)))
+    job = gen.plan_jobs(config)[0]
+    motion = gen.job_motion(config, job, avatar)
+    record = motion.meta["unfold"]
+    assert record["unfold_frames"] == 10 and record["unfold_degrees_max"] == pytest.approx(10.0)
+    assert record["fold_depth_before"] > 0.03 > record["fold_depth_after"] > 0.01
+    captured = gen.job_motion(config, job, avatar, unfold=False)
+    assert "unfold" not in captured.meta and captured.num_frames == motion.num_frames
+    assert not np.array_equal(captured.rotations, motion.rotations)
+
+
+def test_keep_poses_simulates_the_capture_as_it_is(tmp_path):
+    from loosefit.cli import main
+
+    cfg = tmp_path / "c.yaml"
+    assert main(["simulate", "--preset", "tiny", "--write-config", str(cfg)]) == 0
+    assert gen.read_config_file(cfg).unfold.enabled is True
+    assert main(["simulate", "--preset", "tiny", "--keep-poses", "--write-config", str(cfg)]) == 0
+    assert gen.read_config_file(cfg).unfold.enabled is False

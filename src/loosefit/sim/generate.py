@@ -22,6 +22,7 @@ import queue
 import re
 import shutil
 import time
+import weakref
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -30,6 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from loosefit.atomic import atomic_path
+from loosefit.body.unfold import UnfoldConfig
 from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.quality import PENETRATION_TOLERANCE
@@ -125,6 +127,9 @@ class DatasetConfig:
     cloth: ClothConfig = field(default_factory=ClothConfig)
     motions: MotionSource = field(default_factory=MotionSource)
     limits: QualityLimits = field(default_factory=QualityLimits)
+    # capture poses that fold into the body turned a few degrees out of it before simulation
+    # (loosefit.body.unfold); data sets made before this field existed were made without
+    unfold: UnfoldConfig = field(default_factory=UnfoldConfig)
     fps: float = 30.0  # frame rate of the recorded clips
     seed: int = 0  # seeds the dances and each clip's cloth jitter
     shape: dict = field(default_factory=dict)  # avatar phenotype overrides
@@ -380,12 +385,15 @@ def short_spec(spec: str) -> str:
     return "+".join(re.sub(r"[^:+]*/", "", part) for part in spec.split("+"))
 
 
-def job_motion(config: DatasetConfig, job: Job, avatar):
-    """The motion a job simulates, on ``avatar``'s skeleton at the dataset's frame rate."""
+def job_motion(config: DatasetConfig, job: Job, avatar, unfold: bool = True):
+    """The motion a job simulates, on ``avatar``'s skeleton at the dataset's frame rate:
+    with ``unfold`` (and ``config.unfold.enabled``) the poses that fold into the body
+    turned out of it (:func:`~loosefit.body.unfold.unfold_motion`; the correction's
+    figures in ``motion.meta["unfold"]``); without, as loaded (the same frame count)."""
     from loosefit.body.motions import load_motion
 
     m = config.motions
-    return load_motion(
+    motion = load_motion(
         job.spec,
         avatar,
         fps=config.fps,
@@ -393,6 +401,22 @@ def job_motion(config: DatasetConfig, job: Job, avatar):
         max_frames=m.max_frames,
         start_frame=m.start_frame,
     )
+    if not (unfold and config.unfold.enabled):
+        return motion
+    from loosefit.body.unfold import unfold_motion
+    from loosefit.eval.body_regions import body_parts
+
+    arms = config.cloth.arm_collision
+    known = _PARTS.setdefault(avatar, {})
+    if arms not in known:  # built once per avatar and collider (a few seconds)
+        known[arms] = body_parts(avatar, arms=arms)
+    done = unfold_motion(avatar, motion, known[arms], config.unfold)
+    done.motion.meta["unfold"] = done.stats()
+    return done.motion
+
+
+# job_motion's body parts, per avatar and arm collision
+_PARTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def package_versions() -> dict[str, str]:
@@ -478,7 +502,8 @@ def config_from_dict(d: dict, source: str | Path = "dataset config") -> DatasetC
         style = g.pop("style", "flared" if kind == "skirt" else "straps")
         base = (SkirtConfig if kind == "skirt" else DressConfig).preset(resolution, style)
         g = {**asdict(base), **g}
-    sub = {"cloth": ClothConfig, "motions": MotionSource, "limits": QualityLimits}
+    sub = {"cloth": ClothConfig, "motions": MotionSource, "limits": QualityLimits,
+           "unfold": UnfoldConfig}  # fmt: skip
     parts = {k: build(cls, d.pop(k, {}), k) for k, cls in sub.items()}
     garment = build(GARMENT_TYPES[kind], g, "garment")
     return build(DatasetConfig, {**d, **parts, "garment": garment}, "")
@@ -605,6 +630,7 @@ def _entry(config: DatasetConfig, job: Job, motion, result, seconds: float = 0.0
         batch=result.stats["batch"],
         overlap_frames=result.stats["overlap_frames"],
         overlap_depth_max=result.stats["overlap_depth_max"],
+        **motion.meta.get("unfold", {}),
         quality=qual,
     )
     return entry
@@ -627,13 +653,14 @@ def _normalized(d: dict) -> dict:
 # Cloth fields whose default changed what is simulated: a data set whose manifest lacks one
 # was made with this value (not the default).
 LEGACY_CLOTH = {"flatten_overlaps": False, "overlap_inset": 0.002}
+LEGACY_UNFOLD = {"enabled": False}  # the same for the pose correction (loosefit.body.unfold)
 
 
 def _stored_config(manifest: dict) -> dict:
     """A manifest's configuration, with the fields added since it was written at their defaults.
 
     A dataset made before a field existed is the one made with its default value (or, for
-    :data:`LEGACY_CLOTH`'s, the value it was made with).
+    :data:`LEGACY_CLOTH`'s and :data:`LEGACY_UNFOLD`'s, the value it was made with).
     """
 
     def fill(old: dict, default: dict) -> dict:
@@ -646,7 +673,11 @@ def _stored_config(manifest: dict) -> dict:
         return out
 
     stored = manifest.get("config", {})
-    stored = {**stored, "cloth": {**LEGACY_CLOTH, **stored.get("cloth", {})}}
+    stored = {
+        **stored,
+        "cloth": {**LEGACY_CLOTH, **stored.get("cloth", {})},
+        "unfold": {**LEGACY_UNFOLD, **stored.get("unfold", {})},
+    }
     default = _normalized(_config_dict(DatasetConfig()))
     kind = stored.get("garment", {}).get("type", "skirt")
     if kind != "skirt" and kind in GARMENT_TYPES:  # fill a dress's fields from a dress's
@@ -720,7 +751,7 @@ def adopt_clips(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Pat
     other = json.loads(mpath.read_text())
     theirs = _stored_config(other)
     ours = _normalized(_config_dict(config))
-    same = ("garment", "cloth", "limits", "fps", "seed", "shape")
+    same = ("garment", "cloth", "unfold", "limits", "fps", "seed", "shape")
     clip = ("kind", "folder", "max_frames", "start_frame")
     differs = [k for k in same if theirs.get(k) != ours.get(k)]
     differs += [f"motions.{k}" for k in clip if theirs["motions"].get(k) != ours["motions"][k]]
@@ -821,7 +852,8 @@ def generate(
         raise LoosefitInputError("generate", "batch", "an integer >= 1", repr(batch))
     # Frames to simulate per clip (settle and blend included), for the bar's ETA.
     preroll = round((config.cloth.settle_seconds + config.cloth.blend_seconds) * config.fps)
-    length = {j.name: job_motion(config, j, avatar).num_frames + preroll for j in todo}
+    length = {j.name: job_motion(config, j, avatar, unfold=False).num_frames + preroll
+              for j in todo}  # fmt: skip
     # The units of work: clips alone, or batches of clips of similar length (longest first).
     if batch > 1:
         ordered = sorted(todo, key=lambda j: (-length[j.name], j.name))
@@ -940,14 +972,16 @@ def format_report(manifest: dict) -> str:
 
     Columns: the share of garment vertices inside the body (mean over frames, and the
     worst frame), the worst frame's share deeper than 5 mm, the deepest vertex, the edge
-    strain p99, the fastest vertex, and the frames in which the body's pose folds into
-    itself (a limb inside the rest of the body, with how deep), where cloth is pinched.
+    strain p99, the fastest vertex, the frames whose capture pose was turned out of the body
+    (:mod:`loosefit.body.unfold`, with the largest turn), and the frames in which the pose
+    still folds into itself (a limb inside the rest of the body, with how deep), where
+    cloth is pinched.
     """
     width = max([14, *(len(n) + 2 for n in manifest["sequences"])])
     lines = [
         f"{'clip':<{width}}{'split':<7}{'frames':>7}{'s/frame':>9}{'inside mean':>13}"
         f"{'inside max':>12}{'> 5 mm':>8}{'depth cm':>10}{'strain p99':>12}{'speed':>8}"
-        f"{'folds':>12}  status"
+        f"{'turned':>14}{'folds':>12}  status"
     ]
     folding = []
     for name, e in manifest["sequences"].items():
@@ -958,6 +992,10 @@ def format_report(manifest: dict) -> str:
             folds = f"{n_fold}, {100 * e.get('overlap_depth_max', 0.0):.1f} cm"
         else:
             folds = "-" if n_fold is None else "0"
+        n_turn = e.get("unfold_frames")
+        turned = "-" if n_turn is None else "0"
+        if n_turn:
+            turned = f"{n_turn}, {e.get('unfold_degrees_max', 0.0):.1f} deg"
         lines.append(
             f"{name:<{width}}{'test' if e.get('test') else 'train':<7}{e.get('frames', 0):>7}"
             f"{e.get('seconds_per_frame', float('nan')):>9.2f}"
@@ -966,7 +1004,7 @@ def format_report(manifest: dict) -> str:
             f"{q.get('penetration_max', float('nan')):>8.4f}"
             f"{100 * q.get('inside_depth_max', float('nan')):>10.2f}"
             f"{q.get('strain_p99', float('nan')):>12.3f}"
-            f"{q.get('max_speed', float('nan')):>8.2f}{folds:>12}  {e['status']}"
+            f"{q.get('max_speed', float('nan')):>8.2f}{turned:>14}{folds:>12}  {e['status']}"
             + (f" ({e['reason']})" if e.get("reason") else "")
         )
     s = manifest.get("summary", {})

@@ -1,0 +1,123 @@
+"""Capture poses that fold into the body, turned out of it (loosefit.body.unfold)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from loosefit.body.rotations import axis_angle_to_matrix, rotation_angle
+from loosefit.body.unfold import (
+    LimbTest,
+    UnfoldConfig,
+    ease,
+    fastest_axis,
+    unfold_motion,
+    world_rotations,
+)
+from loosefit.errors import LoosefitInputError
+from loosefit.eval.body_regions import body_parts
+from loosefit.types import Motion
+
+
+@pytest.fixture(scope="module")
+def parts(avatar):
+    return body_parts(avatar, arms=False)  # a skirt's collider: the legs collide
+
+
+def knee_lift(avatar, degrees: float, frames: int = 30, still: int = 0) -> Motion:
+    """The left thigh raised from the rest pose to ``degrees`` of flexion and back down,
+    ``still`` frames at rest before and after."""
+    half = frames // 2
+    up, down = np.linspace(0, degrees, half), np.linspace(degrees, 0, half)
+    flex = np.radians(np.concatenate([np.zeros(still), up, down, np.zeros(still)]))
+    m = avatar.rest_motion(len(flex))
+    rot = m.rotations.copy()
+    rot[:, avatar.joint_names.index("LeftUpLeg")] = axis_angle_to_matrix(
+        np.stack([-flex, 0 * flex, 0 * flex], 1)  # about +x, backwards: the knee comes up
+    )
+    return Motion(m.joint_names, rot, m.root_translation, 30.0, "knee-lift")
+
+
+def test_ease_never_falls_below_what_a_frame_needs_and_ramps_in_and_out():
+    angle = np.zeros(40)
+    angle[15:20] = [2.0, 5.0, 10.0, 7.0, 1.0]
+    eased = ease(angle, 6)
+    assert (eased >= angle - 1e-12).all()
+    # the running maximum reaches 6 frames out, its smoothing 6 more: nothing beyond
+    assert eased[:3].max() == 0.0 and eased[32:].max() == 0.0 and min(eased[3], eased[31]) > 0
+    assert np.abs(np.diff(eased)).max() < 10.0 / 3  # eased in, not a jump of 10
+    np.testing.assert_array_equal(ease(angle, 0), angle)
+
+
+def test_the_fastest_axis_lifts_the_buried_points():
+    class Hit:  # the plane z = 0, outside up
+        def __init__(self, p):
+            self.points = p * np.array([1.0, 1.0, 0.0])
+            self.inside = p[:, 2] < 0
+
+    class Plane(LimbTest):
+        def __init__(self):
+            self.tested = np.arange(3)
+
+        def signed(self, body):
+            return body[:, 2].copy(), Hit(body)
+
+    body = np.array([[1.0, 0.0, -0.02], [1.2, 0.0, -0.01], [0.5, 0.0, 0.3]])
+    axis = fastest_axis(Plane(), body, np.zeros(3), clearance=0.01)
+    np.testing.assert_allclose(axis, [0.0, -1.0, 0.0], atol=1e-9)  # +x lifted by a turn about -y
+    turned = body @ axis_angle_to_matrix(axis * 0.05).astype(np.float64).T
+    assert (turned[:2, 2] > body[:2, 2]).all()
+
+
+def test_world_rotations_compose_down_the_chain():
+    R = axis_angle_to_matrix(np.random.default_rng(0).normal(size=(2, 3, 3))).astype(np.float64)
+    G = world_rotations(R, [-1, 0, 1])
+    np.testing.assert_allclose(G[:, 2], R[:, 0] @ R[:, 1] @ R[:, 2], atol=1e-12)
+
+
+def test_a_motion_that_never_folds_is_returned_as_it_is(avatar, parts):
+    motion = knee_lift(avatar, 45.0, frames=10)
+    done = unfold_motion(avatar, motion, parts)
+    assert done.motion is motion and done.frames == 0
+    assert done.stats() == {"unfold_frames": 0, "unfold_degrees_max": 0.0,
+                            "fold_depth_before": 0.0, "fold_depth_after": 0.0}  # fmt: skip
+
+
+def test_a_thigh_raised_into_the_belly_is_turned_out_at_most_the_cap(avatar, parts):
+    motion = knee_lift(avatar, 140.0, still=15)
+    done = unfold_motion(avatar, motion, parts, UnfoldConfig(max_degrees=10.0))
+    folded = done.depth_before > 0
+    assert done.depth_before.max() > 0.05 and folded.sum() >= 8  # 6.7 cm at the top
+    assert (done.depth_after <= done.depth_before + 1e-9).all()
+    assert done.depth_after.max() < done.depth_before.max() - 0.01  # 10 degrees: 1.7 cm less
+    assert done.degrees.max() == pytest.approx(10.0) and (done.degrees <= 10.0 + 1e-9).all()
+    # only the left hip turned, by what the record says, and only near the folded frames
+    j = avatar.joint_names.index("LeftUpLeg")
+    changed = np.abs(done.motion.rotations - motion.rotations).max((2, 3))  # (T, J)
+    assert set(np.flatnonzero(changed.max(0) > 0)) == {j}
+    turned = np.degrees(rotation_angle(done.motion.rotations[:, j], motion.rotations[:, j]))
+    np.testing.assert_allclose(turned, done.degrees, atol=1e-3)
+    span = np.flatnonzero(folded)
+    radius = round(0.2 * motion.fps) * 2  # the ramp's running maximum and smoothing
+    outside = np.ones(len(folded), bool)
+    outside[max(span[0] - radius, 0) : span[-1] + radius + 1] = False
+    assert not done.degrees[outside].any() and outside.any()
+    np.testing.assert_array_equal(done.motion.root_translation, motion.root_translation)
+
+
+def test_a_shallow_fold_is_cleared_with_room_to_spare(avatar, parts):
+    motion = knee_lift(avatar, 100.0)
+    done = unfold_motion(avatar, motion, parts, UnfoldConfig(max_degrees=60.0, clearance=0.005))
+    assert done.depth_before.max() > 0.01 and done.depth_after.max() == 0.0
+    assert 0 < done.degrees.max() < 60.0  # the smallest turn, not the cap
+
+
+def test_the_configuration_is_checked():
+    for bad in ({"max_degrees": -1.0}, {"max_degrees": 120.0}, {"clearance": float("nan")},
+                {"steps": 0}, {"enabled": "yes"}, {"ramp_seconds": True}):  # fmt: skip
+        with pytest.raises(LoosefitInputError, match="UnfoldConfig"):
+            UnfoldConfig(**bad)
+
+
+def test_ease_holds_a_value_up_to_the_ends():
+    np.testing.assert_allclose(ease(np.full(5, 3.0), 6), 3.0)
