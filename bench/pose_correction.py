@@ -202,6 +202,27 @@ def simulate_pair(avatar, parts, spec: str, clearance: float, cap: float, out: P
             "frames_turned": int((degrees > 0).sum()), "feet": feet}  # fmt: skip
 
 
+def survey(avatar, parts, folder: Path) -> str:
+    """A table: per take, the frames the default correction turns and how far it turns."""
+    from loosefit.body.motions import load_motion
+    from loosefit.body.unfold import unfold_motion
+
+    lines = [
+        "| take | frames | frames turned (ramps included) | largest turn deg | "
+        "fold before, after cm |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for path in sorted(Path(folder).glob("*.bvh")):
+        motion = load_motion(str(path), avatar, fps=30.0, start_frame=10)
+        s = unfold_motion(avatar, motion, parts).stats()
+        lines.append(
+            f"| {path.stem} | {motion.num_frames} | {s['unfold_frames']} | "
+            f"{s['unfold_degrees_max']:.1f} | {100 * s['fold_depth_before']:.2f}, "
+            f"{100 * s['fold_depth_after']:.2f} |"
+        )
+    return "\n".join(lines)
+
+
 def summarize(rows: list[dict]) -> list[dict]:
     """Per motion and way: the worst and median angle to clear, and what the cap leaves."""
     out = []
@@ -266,17 +287,28 @@ def main(argv: list[str] | None = None) -> int:
         help="also simulate the first motion as captured and corrected",
     )
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "pose_correction")
+    ap.add_argument(
+        "--survey",
+        type=Path,
+        default=None,
+        metavar="FOLDER",
+        help="instead: what the default correction does to every BVH take in "
+        "FOLDER (from frame 10, as the salsa preset plays them)",
+    )
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)  # fmt: skip
     from loosefit.body.avatar import Avatar
     from loosefit.eval.body_regions import body_parts
 
-    if args.motions is None and not SALSA.is_dir():
+    if args.motions is None and args.survey is None and not SALSA.is_dir():
         print(f"no salsa clips at {SALSA}: pass --motions", file=sys.stderr)
         return 2
     specs = args.motions or [m.format(salsa=SALSA) for m in MOTIONS]
     avatar = Avatar()
     parts = body_parts(avatar, arms=False)  # the skirt's collider
+    if args.survey is not None:
+        print(survey(avatar, parts, args.survey))
+        return 0
     t0 = time.perf_counter()
     rows = []
     for spec in specs:
