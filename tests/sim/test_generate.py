@@ -411,6 +411,7 @@ def test_the_collider_follows_the_garment_file_s_kind(tmp_path, avatar):
                          "speed_1.5_spin": 86}),
     ("salsa_takes.yaml", {"60_01": 551, "60_02": 515, "speed_1.25_mirror_60_02": 410,
                           "speed_1.5_dance_20": 389}),
+    ("salsa_turned.yaml", {"61_01": 551, "61_02": 515}),
 ])  # fmt: skip
 def test_the_committed_penetration_sets_load_every_motion(name, clips, avatar):
     # bench/penetration_regression.py runs these (docs/PENETRATION.md): each spec must still
