@@ -251,9 +251,12 @@ def unfold_motion(
         return Unfolded(motion, degrees, depth_before, depth_before.copy())
     fixed = Motion(motion.joint_names, out.astype(np.float32), motion.root_translation,
                    motion.fps, motion.name, dict(motion.meta))  # fmt: skip
-    body, _ = pose(out, np.arange(T))
-    depth_after = np.zeros(T)
+    # only the turned frames changed: measure those again
+    turned = np.flatnonzero(degrees > 0)
+    body, _ = pose(out[turned], turned)
+    depth_after = depth_before.copy()
+    depth_after[turned] = 0.0
     for test in tests.values():
-        depth = [max(0.0, -test.signed(body[t])[0].min(initial=0.0)) for t in range(T)]
-        depth_after = np.maximum(depth_after, depth)
+        depth = [max(0.0, -test.signed(b)[0].min(initial=0.0)) for b in body]
+        depth_after[turned] = np.maximum(depth_after[turned], depth)
     return Unfolded(fixed, degrees, depth_before, depth_after)
