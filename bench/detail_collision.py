@@ -33,13 +33,13 @@ from loosefit.train.common import machine
 
 ROWS = {  # label: stages
     "motion stage alone": MOTION_ONLY,
-    "+ collision": Stages(detail=False),
-    "+ collision, fed back": Stages(detail=False, feedback=True),
+    "+ collision": Stages(detail=False, lengths=False),
+    "+ collision, fed back": Stages(detail=False, lengths=False, feedback=True),
 }
 DETAIL_ROWS = {  # with a detail stage packaged beside the checkpoint
-    "+ detail": Stages(collision=False),
-    "+ detail + collision": Stages(),
-    "+ detail + collision, fed back": Stages(feedback=True),
+    "+ detail": Stages(lengths=False, collision=False),
+    "+ detail + collision": Stages(lengths=False),
+    "+ detail + collision, fed back": Stages(lengths=False, feedback=True),
 }
 
 

@@ -34,12 +34,12 @@ from loosefit.model.motion_features import heading_yaw
 from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.train.common import machine
 
-RAW = Stages(detail=False, collision=False)
+RAW = Stages(detail=False, lengths=False, collision=False)
 # key: (label, checkpoint kind, stages)
 METHODS = {
     "santesteban": ("Santesteban et al. 2019 style, no post-process", "santesteban", RAW),
     "santesteban-push": ("Santesteban et al. 2019 style + their push-out", "santesteban",
-                         Stages(detail=False)),
+                         Stages(detail=False, lengths=False)),
     "virtual-bones": ("Pan et al. 2022 style (virtual bones + residual)", "virtual-bones", RAW),
     "ours-motion": ("ours w/o detail and collision (motion stage)", "ours", MOTION_ONLY),
     "ours-full": ("ours full (detail + collision handling)", "ours", Stages()),

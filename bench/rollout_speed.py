@@ -39,8 +39,10 @@ def pipelines(model) -> dict[str, Stages]:
     """The stages timed: the motion stage alone, + detail (if any), + collision handling."""
     rows = {"motion stage": MOTION_ONLY}
     if model.detail is not None:
-        rows["+ detail"] = Stages(collision=False)
-    rows["+ detail + collision" if model.detail is not None else "+ collision"] = Stages()
+        rows["+ detail"] = Stages(lengths=False, collision=False)
+    d = "+ detail " if model.detail is not None else "+ "
+    rows[d + "+ collision (before issue 34)"] = Stages(lengths=False)
+    rows[d + "+ edge lengths + collision (the whole pipeline)"] = Stages()
     return rows
 
 

@@ -525,8 +525,8 @@ def _train_baseline(args: argparse.Namespace) -> int:
 def _stages(args: argparse.Namespace):
     from loosefit.model.rollout import Stages
 
-    return Stages(detail=not args.no_detail, collision=not args.no_collision,
-                  feedback=args.feedback)  # fmt: skip
+    return Stages(detail=not args.no_detail, lengths=not args.no_lengths,
+                  collision=not args.no_collision, feedback=args.feedback)  # fmt: skip
 
 
 def _add_stage_args(p: argparse.ArgumentParser) -> None:
@@ -536,6 +536,11 @@ def _add_stage_args(p: argparse.ArgumentParser) -> None:
         help="a detail stage's model.pt (default: detail.pt beside a packaged motion.pt)",
     )
     p.add_argument("--no-detail", action="store_true", help="skip detail enhancement (3.4)")
+    p.add_argument(
+        "--no-lengths",
+        action="store_true",
+        help="skip the edge-length stage (edges back to rest length before collision)",
+    )
     p.add_argument("--no-collision", action="store_true", help="skip collision handling (3.5)")
     p.add_argument("--feedback", action="store_true",
                    help="feed the garment after detail and collision back as the next frame's "
@@ -709,19 +714,27 @@ def _render_worst(args, diag, parts, seq, body, body_faces, name: str, out: Path
 
 def _stage_line(model, stages, result) -> str:
     """What ran after the decoders, and what collision handling did."""
+    from loosefit.eval.quality import PENETRATION_TOLERANCE
+
     ran = ["motion"]
     if stages.detail and model.detail is not None:
         ran.append("detail")
     elif stages.detail:
         ran.append("(no detail stage in this checkpoint)")
+    if getattr(stages, "lengths", False) and getattr(model, "restorer", lambda s: None)(stages):
+        ran.append("edge lengths")
     if stages.collision:
         ran.append("collision")
     line = "stages: " + " -> ".join(ran)
     if result.collisions:
         before = sum(c["inside_before"] > 0 for c in result.collisions)
         after = [c for c in result.collisions if c["inside_after"] > 0]
+        deep = sum(c["depth_after"] > PENETRATION_TOLERANCE for c in result.collisions)
+        whole = model.collision.whole_body or model.arm_collision is True
+        body = "the body (arms and hands included)" if whole else "the body (without its arms)"
         line += (f"; collision handling: {before} of {len(result.collisions)} frames had cloth "
-                 f"inside the body, {len(after)} still do")  # fmt: skip
+                 f"inside {body}, {len(after)} still do, {deep} deeper than "
+                 f"{PENETRATION_TOLERANCE * 1000:.0f} mm")  # fmt: skip
         if after:
             worst = max(range(len(result.collisions)),
                         key=lambda k: result.collisions[k]["depth_after"])  # fmt: skip

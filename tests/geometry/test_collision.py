@@ -110,6 +110,33 @@ def test_a_sheet_in_a_crease_of_the_body_comes_out():
     assert not np.isnan(r.vertices.numpy()).any()
 
 
+def test_a_deep_penetration_where_body_parts_overlap_is_cleared_below_5_mm():
+    # two spheres overlapping, as an arm held into the torso: the small one's surface runs
+    # inside the large one, and there the closest face's side says "outside" for cloth
+    # that is inside; a sheet sunk 20 cm into both
+    big = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
+    arm = trimesh.creation.icosphere(subdivisions=4, radius=0.12)
+    arm.apply_translation([0.3, 0, 0])
+    bv = np.r_[big.vertices, arm.vertices].astype(np.float32)
+    bf = np.r_[big.faces, arm.faces + len(big.vertices)]
+    surface = Surface(bv, bf)
+    v, f = _sheet(40, 0.45, 0.1)
+
+    def deepest(x: np.ndarray) -> float:
+        hit = surface.query(x, 1.0, sign="winding")
+        return float(np.where(hit.inside, hit.distance, 0).max())
+
+    assert deepest(v) > 0.15
+    solve_only = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, finish=0))
+    left = solve_only.resolve(torch.from_numpy(v), surface)
+    assert deepest(left.vertices.numpy()) > 0.01  # the solve alone leaves it > 1 cm deep
+    handler = CollisionHandler(f, len(v), CollisionConfig(reach=0.2))
+    r = handler.resolve(torch.from_numpy(v), surface)
+    assert deepest(r.vertices.numpy()) < 0.005
+    assert r.depth_after >= deepest(r.vertices.numpy()) - 1e-6  # reported, not hidden
+    assert not np.isnan(r.vertices.numpy()).any()
+
+
 def test_a_body_poking_through_a_face_between_outside_vertices_is_pushed_out():
     # a sheet of 11 cm cells over a sphere's top: every vertex is outside, but the middle
     # of the cell over the top is 4 mm inside (the body shows through the cloth)

@@ -18,7 +18,7 @@ from loosefit.model.rollout import Stages
 from loosefit.sequence import AnimatedGarment
 from loosefit.train import baseline as tb
 
-RAW = Stages(detail=False, collision=False)
+RAW = Stages(detail=False, lengths=False, collision=False)
 
 
 def _config(method: str, epochs: int = 6) -> tb.TrainBaselineConfig:

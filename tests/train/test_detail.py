@@ -131,7 +131,7 @@ def test_the_later_stages_beside_the_motion_stage_change_nothing(trained, toy_da
     beside = model.animate(m, stages=Stages(overlap=True))
     np.testing.assert_array_equal(beside.vertices, apart.vertices)
     assert beside.collisions == apart.collisions and len(beside.collisions) == m.num_frames
-    assert set(beside.stage_seconds) == {"motion", "detail", "collision"}
+    assert set(beside.stage_seconds) == {"motion", "detail", "lengths", "collision"}
 
 
 def test_a_detail_stage_of_another_motion_stage_is_refused(trained, motion, tmp_path):
@@ -161,7 +161,7 @@ def test_package_carries_the_detail_stage(trained, motion, tmp_path, toy_dataset
     np.testing.assert_allclose(a, b, atol=5e-4)  # the packaged generative stage is half precision
 
 
-def test_animate_without_detail_and_collision_is_the_motion_stage_rollout(
+def test_animate_without_later_stages_is_the_motion_stage_rollout(
     trained, motion, toy_dataset, tmp_path
 ):
     out, _ = trained
@@ -170,7 +170,7 @@ def test_animate_without_detail_and_collision_is_the_motion_stage_rollout(
     seq.motion.save(motion_file)
     dest = tmp_path / "anim"
     args = ["animate", str(out / "model.pt"), str(motion_file), "--out", str(dest),
-            "--no-detail", "--no-collision"]  # fmt: skip
+            "--no-detail", "--no-lengths", "--no-collision"]  # fmt: skip
     assert main(args) == 0
     got = np.load(next(dest.glob("*.npz")))["garment_vertices"]
     model = inf.load_animation_model(motion)

@@ -41,6 +41,7 @@ from loosefit.model.baselines import BaselineConfig, BaselineNetwork, baseline_r
 from loosefit.model.detail import DetailConfig, DetailGenerator
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
+from loosefit.model.physics import ClothStructure, LengthConfig, LengthRestorer
 from loosefit.model.rollout import (
     RolloutConfig,
     Stages,
@@ -119,8 +120,11 @@ class AnimationModel:
     collision: CollisionConfig = field(default_factory=CollisionConfig)  # paper 3.5
     arm_collision: bool | str = False  # the arms in the collider, as the data's simulation
     stages: Stages = field(default_factory=Stages)  # what animate() runs by default
+    lengths: LengthConfig = field(default_factory=LengthConfig)  # edges back to rest length
+    physics_terms: tuple[str, ...] = ()  # the physics terms the stages were trained with
     _avatar: object = None
     _handler: CollisionHandler | None = None
+    _restorer: LengthRestorer | None = None
 
     @property
     def device(self) -> torch.device:
@@ -137,12 +141,21 @@ class AnimationModel:
         if self._handler is None:
             t = self.template
             self._handler = CollisionHandler(t.faces, t.num_vertices, self.collision)
-        return body_collider(self.avatar(), self._handler, motion, self.arm_collision,
-                             self.device)  # fmt: skip
+        arms = True if self.collision.whole_body else self.arm_collision
+        return body_collider(self.avatar(), self._handler, motion, arms, self.device)
 
     def check_motion(self, motion: Motion) -> None:
         """A clear error for a motion on other joints or at another frame rate."""
         check_motion_joints(motion, self.joint_names, self.path)
+
+    def restorer(self, stages: Stages) -> LengthRestorer | None:
+        """The edge-length stage (built once), or None when ``stages`` or the config skip it."""
+        if not (stages.lengths and self.lengths.enabled and self.lengths.iterations):
+            return None
+        if self._restorer is None:
+            self._restorer = LengthRestorer(ClothStructure.from_template(self.template),
+                                            self.lengths)  # fmt: skip
+        return self._restorer
 
     def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
                 stages: Stages | None = None):  # fmt: skip
@@ -156,7 +169,7 @@ class AnimationModel:
         return rollout(self.generative, self.encoder, motion, self.rest_state,
                        self.floor_height, self.rollout_config, progress, truth,
                        restart_every, detail, collide, stages.feedback,
-                       stages.overlap)  # fmt: skip
+                       stages.overlap, self.restorer(stages))  # fmt: skip
 
     def animate_batch(self, motions: list[Motion], progress=None, stages: Stages | None = None):
         """N motions (N characters) at once: the motion stage batched
@@ -175,7 +188,8 @@ class AnimationModel:
         detail = self.detail if stages.detail else None
         for m, r in zip(motions, results, strict=True):
             collide = self.collider(m) if stages.collision else None
-            refine(r, m, self.floor_height, self.rollout_config, detail, collide, self.device)
+            refine(r, m, self.floor_height, self.rollout_config, detail, collide, self.device,
+                   self.restorer(stages))  # fmt: skip
         return results
 
     def carry_drape(self, motion: Motion, progress=None):
@@ -376,7 +390,8 @@ class BaselineModel:
             t0 = time.perf_counter()
             handler = PushOutHandler(self.template.faces, self.template.num_vertices,
                                      self.collision.epsilon, self.collision.reach)  # fmt: skip
-            collide = body_collider(self.avatar(), handler, motion, self.arm_collision,
+            arms = True if self.collision.whole_body else self.arm_collision
+            collide = body_collider(self.avatar(), handler, motion, arms,
                                     self.device)  # fmt: skip
             result.decoded = result.vertices.copy()
             result.collisions = []

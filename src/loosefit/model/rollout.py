@@ -37,12 +37,13 @@ class Stages:
     """Which stages run after the decoders (each can be switched off)."""
 
     detail: bool = True  # paper 3.4, when the model carries a detail stage
+    lengths: bool = True  # edges back to their rest lengths (issue 34; physics.LengthRestorer)
     collision: bool = True  # paper 3.5
     feedback: bool = False  # the garment after them is the next frame's previous state
     overlap: bool = True  # without feedback: they run on a second thread beside the motion stage
 
 
-MOTION_ONLY = Stages(detail=False, collision=False)  # the motion stage alone (Table 1)
+MOTION_ONLY = Stages(detail=False, lengths=False, collision=False)  # the motion stage alone
 
 
 class RolloutError(RuntimeError):
@@ -160,6 +161,7 @@ def rollout(
     collide: Callable[[int, torch.Tensor], object] | None = None,
     feedback: bool = False,
     overlap: bool = True,
+    lengths: Callable[[torch.Tensor], torch.Tensor] | None = None,
 ) -> RolloutResult:
     """Animate the garment through ``motion``.
 
@@ -188,6 +190,9 @@ def rollout(
             thread, ``chunk`` frames at a time, while the motion stage goes on with the
             next frames: the same results; with two cores a frame costs about the
             slower of the two instead of their sum.
+        lengths: between detail and collision, ``(n, V, 3) -> (n, V, 3)`` world garments
+            with their edges back at rest length (a
+            :class:`~loosefit.model.physics.LengthRestorer`); None skips it.
 
     Returns:
         :class:`RolloutResult`.
@@ -214,12 +219,12 @@ def rollout(
             raise ValueError(f"truth: expected {(motion.num_frames, encoder.num_vertices, 3)}, "
                              f"found {truth.shape}")  # fmt: skip
         truth_t = torch.as_tensor(truth, dtype=torch.float32, device=device)
-    refine = detail is not None or collide is not None
+    refine = detail is not None or collide is not None or lengths is not None
     codes = torch.empty(motion.num_frames, encoder.latent)
     decoded = torch.empty(motion.num_frames, encoder.num_vertices, 3) if refine else None
     collisions: list | None = [] if collide is not None else None
-    stage = {"motion": 0.0, "detail": 0.0, "collision": 0.0}
-    later = _Later(detail, collide, H[P:].cpu(), p[P:].cpu(), device) if refine else None
+    stage = {"motion": 0.0, "detail": 0.0, "lengths": 0.0, "collision": 0.0}
+    later = _Later(detail, collide, H[P:].cpu(), p[P:].cpu(), device, lengths) if refine else None
     pool = ThreadPoolExecutor(1) if refine and overlap and not feedback else None
     jobs: list = []
     start = t0 = time.perf_counter()
@@ -267,7 +272,7 @@ def rollout(
             if collisions is not None:
                 collisions.extend(records)
     if later is not None:
-        for k in ("detail", "collision"):
+        for k in ("detail", "lengths", "collision"):
             stage[k] += later.seconds[k]
     seconds = time.perf_counter() - start if pool is not None else sum(stage.values())
     return RolloutResult(out.numpy(), seconds, total, codes.numpy(),
@@ -355,15 +360,16 @@ def collision_record(result) -> dict:
 
 
 class _Later:
-    """Detail enhancement and collision handling of decoded frames, a chunk at a time
+    """Detail enhancement, edge lengths and collision handling of decoded frames, a chunk at a time
     (after the motion stage or beside it on a second thread), or one frame at a time
     when fed back; busy seconds per stage in ``seconds``."""
 
     chunk = 64
 
-    def __init__(self, detail, collide, H, p, device) -> None:
+    def __init__(self, detail, collide, H, p, device, lengths=None) -> None:
         self.detail, self.collide, self.H, self.p, self.device = detail, collide, H, p, device
-        self.seconds = {"detail": 0.0, "collision": 0.0}
+        self.lengths = lengths
+        self.seconds = {"detail": 0.0, "lengths": 0.0, "collision": 0.0}
 
     def __call__(self, decoded: torch.Tensor, codes: torch.Tensor, s: int, e: int
                  ) -> tuple[torch.Tensor, list[dict]]:  # fmt: skip
@@ -379,6 +385,10 @@ class _Later:
                 out = from_root_frame(local, h, q).cpu()
             t1 = time.perf_counter()
             self.seconds["detail"] += t1 - t0
+            if self.lengths is not None:
+                out = self.lengths(out)
+                t0, t1 = t1, time.perf_counter()
+                self.seconds["lengths"] += t1 - t0
             records = []
             if self.collide is not None:
                 for i in range(len(out)):
@@ -390,14 +400,14 @@ class _Later:
 
 
 def refine(result: RolloutResult, motion: Motion, floor_height: float, config: RolloutConfig,
-           detail=None, collide=None, device="cpu") -> RolloutResult:  # fmt: skip
+           detail=None, collide=None, device="cpu", lengths=None) -> RolloutResult:  # fmt: skip
     """Detail enhancement and collision handling (as :func:`rollout` runs them after the
     motion stage) of a motion-stage result, e.g. one of :func:`rollout_batch`'s, in place:
     ``decoded`` keeps the decoders' garments, ``vertices`` gets the refined ones."""
-    if detail is None and collide is None:
+    if detail is None and collide is None and lengths is None:
         return result
     H, p, _ = motion_root_frames(motion, floor_height, config)
-    later = _Later(detail, collide, H, p, device)
+    later = _Later(detail, collide, H, p, device, lengths)
     decoded = torch.from_numpy(result.vertices)
     codes = torch.from_numpy(result.codes)
     parts, records = [], []

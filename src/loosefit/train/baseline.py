@@ -310,8 +310,8 @@ def train_baseline(
                             history=history, rng=torch.get_rng_state(),
                             sampling_rng=gen.get_state())  # fmt: skip
         if epoch % config.eval_every == 0 or epoch == config.epochs:
-            err = evaluate_rollouts(current(), reader, "test", surface=False,
-                                    stages=Stages(detail=False, collision=False))  # fmt: skip
+            raw = Stages(detail=False, lengths=False, collision=False)
+            err = evaluate_rollouts(current(), reader, "test", surface=False, stages=raw)
             writer.add_scalar("test/rollout_rmse_cm", err["rmse_cm"], epoch)
             history[-1]["test_rollout_rmse_cm"] = err["rmse_cm"]
             bar.write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
@@ -329,7 +329,7 @@ def train_baseline(
         "machine": machine(config.device),
         "final_loss": history[-1] if history else None,
         "test": evaluate_rollouts(
-            model, reader, "test", stages=Stages(detail=False, collision=False)
+            model, reader, "test", stages=Stages(detail=False, lengths=False, collision=False)
         ),  # fmt: skip
     }
     write_json_atomic(out / "report.json", report)

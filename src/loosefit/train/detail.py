@@ -348,7 +348,11 @@ def train_detail(
             trained, reader, "test", surface=False, stages=MOTION_ONLY
         ),  # fmt: skip
         "test_with": evaluate_rollouts(
-            trained, reader, "test", surface=False, stages=Stages(detail=True, collision=False)
+            trained,
+            reader,
+            "test",
+            surface=False,
+            stages=Stages(detail=True, lengths=False, collision=False),
         ),  # fmt: skip
     }
     write_json_atomic(out / "report.json", report)

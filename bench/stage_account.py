@@ -1,0 +1,294 @@
+"""An account of every stage (issue 34): where the learned skirt stops being cloth.
+
+For each simulated clip given (a data set folder, every clip of it or those named, or a
+sequence ``.npz`` with its motion), the committed model's stages are run on the clip's
+motion and measured against the simulation:
+
+* ``simulation``: the ground truth itself;
+* ``oracle``: the generative model's own reconstruction of the truth (encode, decode);
+* ``oracle + lengths``: that, with the edge-length stage (physics.LengthRestorer);
+* ``motion stage``: the rollout's decoded garment;
+* ``+ detail``: with the detail stage (paper 3.4);
+* ``today``: + collision handling as before issue 34 (the arms out of the collider, no
+  last projection);
+* ``+ lengths``: + detail + the edge-length stage;
+* ``after``: the whole pipeline now (detail, edge lengths, collision handling against the
+  whole body with the last projection).
+
+Measures (per clip and stage): edge strain ``|l/L - 1|`` median and p99 and the median
+signed edge change (the waistband's own edges left out); bending: the mean absolute dihedral
+angle and the 1-Wasserstein distance of the dihedral angles from the simulation's; hem flare
+(the hem's mean horizontal distance from the pelvis's vertical axis): its mean over the clip
+and, over the 61 frames around the clip's fastest turn, the mean of ``|flare / flare_sim - 1|``
+frame by frame; cloth inside the body, whole body (arms and hands included) and the
+simulation's collider (arms cut away): the mean share of vertices per frame, the frames with
+a vertex deeper than 5 mm and the deepest; RMSE, Hausdorff and STED against the simulation.
+
+    .venv/bin/python bench/stage_account.py --data datasets/account \\
+        [--sequence out/chain_spin.npz] [--checkpoint checkpoints/salsa/motion.pt] \\
+        [--out docs/STAGE_ACCOUNT.md]
+
+Writes the table (markdown), the figures as JSON beside it, and a plot of the hem flare
+per frame around each clip's fastest turn (``docs/img/stage_account_flare.png``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from loosefit.eval.metrics import hausdorff, rmse, sted
+from loosefit.eval.quality import PENETRATION_TOLERANCE
+from loosefit.garment.mesh_checks import boundary_loops
+from loosefit.geometry.collision import CollisionConfig
+from loosefit.geometry.query import Surface
+from loosefit.inference.animator import load_pipeline
+from loosefit.model.motion_features import heading_yaw
+from loosefit.model.physics import ClothStructure, dihedral_angles, signed_edge_change
+from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.train.common import machine
+
+STAGES = {  # label: stages (None: not a rollout)
+    "simulation": None,
+    "oracle": None,
+    "oracle + lengths": None,
+    "motion stage": MOTION_ONLY,
+    "+ detail": Stages(lengths=False, collision=False),
+    "today": Stages(lengths=False),
+    "+ lengths": Stages(collision=False),
+    "after": Stages(),
+}
+TODAY_COLLISION = CollisionConfig(finish=0, whole_body=False)  # before issue 34
+TURN_WINDOW = 30  # frames either side of the fastest turn
+
+
+def hem_vertices(template) -> np.ndarray:
+    """The garment's lower opening: the boundary loop lowest at rest."""
+    loops = boundary_loops(template.faces)
+    return min(loops, key=lambda loop: float(template.vertices[loop, 2].mean()))
+
+
+def flare(garment: np.ndarray, pelvis: np.ndarray, hem: np.ndarray) -> np.ndarray:
+    """(T,) the hem's mean horizontal distance (m) from the pelvis's vertical axis."""
+    d = garment[:, hem, :2] - pelvis[:, None, :2]
+    return np.linalg.norm(d, axis=-1).mean(1)
+
+
+def fastest_turn(rotations: np.ndarray, fps: float) -> int:
+    """The frame of the fastest turn about the vertical (yaw rate over 5 frames)."""
+    yaw = np.unwrap(heading_yaw(torch.from_numpy(rotations[:, 0])).numpy())
+    rate = np.abs(np.gradient(yaw)) * fps
+    smooth = np.convolve(rate, np.ones(5) / 5, mode="same")
+    return int(np.argmax(smooth))
+
+
+def inside(garment: np.ndarray, body: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per frame: share of vertices inside (winding number), deepest (m)."""
+    surface = Surface(body[0], faces)
+    share, deep = np.zeros(len(garment)), np.zeros(len(garment))
+    for t in range(len(garment)):
+        surface.refit(body[t])
+        hit = surface.query(garment[t], 0.3)
+        ins = hit.inside & (hit.faces >= 0)
+        share[t] = ins.mean()
+        deep[t] = float(hit.distance[ins].max()) if ins.any() else 0.0
+    return share, deep
+
+
+def measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles, fps,
+            template) -> dict:  # fmt: skip
+    """The figures of one stage's garment (T, V, 3) against the simulation."""
+    xt = torch.from_numpy(np.ascontiguousarray(x))
+    change = signed_edge_change(xt, structure.edges, structure.rest_lengths).numpy()
+    sub = slice(None, None, 5)
+    angles = np.abs(dihedral_angles(xt[sub].double(), structure.hinges).numpy()).ravel()
+    q = np.linspace(0.005, 0.995, 199)
+    fl, fl_truth = flare(x, pelvis, hem), flare(truth, pelvis, hem)
+    w = slice(*window)
+    out = {
+        "strain_p50": float(np.median(np.abs(change))),
+        "strain_p99": float(np.quantile(np.abs(change), 0.99)),
+        "edge_change_p50": float(np.median(change)),
+        "dihedral_mean": float(angles.mean()),
+        "dihedral_w1": float(np.abs(np.quantile(angles, q) - np.quantile(truth_angles, q)).mean()),
+        "flare_mean_m": float(fl.mean()),
+        "flare_turn_error": float(np.mean(np.abs(fl[w] / fl_truth[w] - 1))),
+        "flare_turn_ratio": float(np.mean(fl[w] / fl_truth[w])),
+        "flare_turn": fl[w].tolist(),
+    }
+    for key, f in faces.items():
+        share, deep = inside(x, body, f)
+        out[f"inside_{key}_mean"] = float(share.mean())
+        out[f"deep_{key}_frames"] = int((deep > PENETRATION_TOLERANCE).sum())
+        out[f"deepest_{key}_m"] = float(deep.max())
+    out["rmse_cm"] = 100 * rmse(x, truth)
+    out["hausdorff_cm"] = 100 * float(hausdorff(x, truth, template.faces).mean())
+    out["sted"] = float(sted(x, truth, template.faces, fps)["sted"])
+    return out
+
+
+def clip_account(model, name: str, seq) -> dict:
+    motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
+    template = model.template
+    structure = ClothStructure.from_template(template)
+    hem = hem_vertices(template)
+    avatar = model.avatar()
+    posed = avatar.pose_motion(motion)
+    body = posed.vertices.cpu().numpy()
+    pelvis = posed.joint_transforms[:, 0, :3, 3].cpu().numpy()
+    turn = fastest_turn(motion.rotations, motion.fps)
+    window = (max(turn - TURN_WINDOW, 0), min(turn + TURN_WINDOW + 1, motion.num_frames))
+    faces = {"whole": avatar.collider_faces(arms=True).cpu().numpy(),
+             "collider": avatar.collider_faces(arms=model.arm_collision).cpu().numpy()}  # fmt: skip
+    truth_angles = np.abs(dihedral_angles(torch.from_numpy(truth[::5]).double(),
+                                          structure.hinges).numpy()).ravel()  # fmt: skip
+    restorer = model.restorer(Stages())
+    rows, seconds = {}, {}
+    for label, stages in STAGES.items():
+        t0 = time.perf_counter()
+        if label == "simulation":
+            x = truth
+        elif label.startswith("oracle"):
+            x = model.reconstruct(motion, truth).vertices
+            if label.endswith("lengths"):
+                x = restorer(torch.from_numpy(x)).numpy()
+        else:
+            collision = model.collision
+            if label == "today":
+                model.collision, model._handler = TODAY_COLLISION, None
+            try:
+                x = model.animate(motion, stages=stages).vertices
+            finally:
+                model.collision, model._handler = collision, None
+        seconds[label] = time.perf_counter() - t0
+        rows[label] = measure(x, truth, structure, hem, pelvis, window, body, faces,
+                              truth_angles, motion.fps, template)  # fmt: skip
+        print(f"  {name} {label}: strain {rows[label]['strain_p50']:.3f}, edge change "
+              f"{100 * rows[label]['edge_change_p50']:+.1f} %, flare error at the turn "
+              f"{100 * rows[label]['flare_turn_error']:.1f} %, inside (whole body) "
+              f"{100 * rows[label]['inside_whole_mean']:.3f} %, RMSE "
+              f"{rows[label]['rmse_cm']:.2f} cm", flush=True)  # fmt: skip
+    return {"frames": motion.num_frames, "turn_frame": turn, "window": window, "rows": rows,
+            "seconds": seconds}  # fmt: skip
+
+
+COLUMNS = [  # key, header, format
+    ("strain_p50", "strain p50", "{:.3f}"),
+    ("strain_p99", "strain p99", "{:.3f}"),
+    ("edge_change_p50", "edge change p50 %", "{:+.1%}"),
+    ("dihedral_w1", "dihedral W1 (rad)", "{:.3f}"),
+    ("flare_mean_m", "flare cm", "{:.1f}"),
+    ("flare_turn_error", "flare error at turn", "{:.1%}"),
+    ("inside_whole_mean", "inside whole body %", "{:.3%}"),
+    ("deep_whole_frames", "frames > 5 mm (whole)", "{}"),
+    ("deepest_whole_m", "deepest cm (whole)", "{:.2f}"),
+    ("inside_collider_mean", "inside collider %", "{:.3%}"),
+    ("rmse_cm", "RMSE cm", "{:.2f}"),
+    ("hausdorff_cm", "Hausdorff cm", "{:.2f}"),
+    ("sted", "STED", "{:.4f}"),
+]
+
+
+def cell(key: str, fmt: str, value) -> str:
+    if key == "flare_mean_m" or key == "deepest_whole_m":
+        value = 100 * value
+    if fmt.endswith("%}"):
+        return fmt.format(value).replace("%", "")
+    return fmt.format(value)
+
+
+def table(clips: dict) -> str:
+    lines = []
+    for name, c in clips.items():
+        lines.append(f"\n### {name} ({c['frames']} frames, fastest turn at frame "
+                     f"{c['turn_frame']})\n")  # fmt: skip
+        lines.append("| stage | " + " | ".join(h for _, h, _ in COLUMNS) + " |")
+        lines.append("|---|" + "---:|" * len(COLUMNS))
+        for label, r in c["rows"].items():
+            lines.append(f"| {label} | " + " | ".join(cell(k, f, r[k]) for k, _, f in COLUMNS)
+                         + " |")  # fmt: skip
+    return "\n".join(lines)
+
+
+def plot(clips: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(clips), figsize=(4.5 * len(clips), 3.4), squeeze=False)
+    for ax, (name, c) in zip(axes[0], clips.items(), strict=True):
+        t = np.arange(*c["window"])
+        for label in ("simulation", "oracle", "motion stage", "today", "after"):
+            ax.plot(t, 100 * np.asarray(c["rows"][label]["flare_turn"]), label=label)
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("frame")
+        ax.set_ylabel("hem flare (cm)")
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
+    p.add_argument("--data", nargs="*", default=["datasets/account"],
+                   help="data set folders (every clip, or --clips)")  # fmt: skip
+    p.add_argument("--clips", nargs="*", default=None, help="only these clips")
+    p.add_argument("--sequence", nargs="*", default=[], help="simulated sequence .npz files")
+    p.add_argument("--max-frames", type=int, default=None)
+    p.add_argument("--out", default="docs/STAGE_ACCOUNT.md")
+    p.add_argument("--plot", default="docs/img/stage_account_flare.png")
+    args = p.parse_args()
+
+    from loosefit.cli import read_any_sequence
+    from loosefit.data.format import DatasetReader
+
+    torch.set_num_threads(1)
+    model = load_pipeline(args.checkpoint)
+    sources = {}
+    for folder in args.data:
+        reader = DatasetReader(folder, allow_incomplete=True)
+        done = sorted(f.stem for f in (Path(folder) / "sequences").glob("*.npz"))
+        for name in done:  # the finished clips (a data set still simulating lists none)
+            if args.clips is None or name in args.clips:
+                sources[name] = (reader, name)
+    for f in args.sequence:
+        sources[Path(f).stem] = (None, f)
+    clips = {}
+    for name, (reader, what) in sources.items():
+        seq = reader.read(what) if reader is not None else read_any_sequence(what)
+        if args.max_frames:
+            seq = replace(seq, motion=seq.motion.slice(0, args.max_frames),
+                          garment_vertices=seq.garment_vertices[: args.max_frames])  # fmt: skip
+        print(f"{name}: {seq.motion.num_frames} frames", flush=True)
+        clips[name] = clip_account(model, name, seq)
+    out = Path(args.out)
+    record = {"checkpoint": str(Path(args.checkpoint).resolve()), "machine": machine("cpu"),
+              "platform": platform.platform(), "torch": torch.__version__,
+              "threads": 1, "cpus": os.cpu_count(), "clips": clips}  # fmt: skip
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(record, indent=1))
+    plot(clips, Path(args.plot))
+    body = table(clips)
+    print(body)
+    marker = "<!-- stage account table -->"
+    if out.is_file() and marker in out.read_text():
+        head = out.read_text().split(marker)[0]
+        out.write_text(head + marker + "\n" + body + "\n")
+    else:
+        out.write_text(f"# The stage account\n\n{marker}\n{body}\n")
+    print(f"wrote {out}, {out.with_suffix('.json')} and {args.plot}")
+
+
+if __name__ == "__main__":
+    main()
