@@ -134,6 +134,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
         path = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
         model = load_pipeline(path)
+        _physics_note(model, model.stages)
         avatar, template = model.avatar(), model.template
     else:
         avatar = _avatar(args)
@@ -575,6 +576,7 @@ def cmd_animate(args: argparse.Namespace) -> int:
 
     model = load_pipeline(args.checkpoint, args.generative, args.detail)
     stages = _stages(args)
+    _physics_note(model, stages)
     avatar = model.avatar()
     if args.frames is not None and args.frames < 1:
         raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
@@ -710,6 +712,16 @@ def _render_worst(args, diag, parts, seq, body, body_faces, name: str, out: Path
             Image.fromarray(image).save(paths[-1], optimize=True)
             _log(f"wrote {paths[-1]}")
     return paths
+
+
+def _physics_note(model, stages) -> None:
+    """Say which physics terms (issue 34) a model's stages were trained without."""
+    missing = getattr(model, "missing_physics_terms", ())
+    if missing:
+        fix = ("the edge-length stage restores them" if stages.lengths
+               else "--no-lengths leaves them so")  # fmt: skip
+        _log(f"this model was trained without the physics terms {', '.join(missing)} "
+             f"(issue 34): its decoders give edges shorter than rest; {fix}")  # fmt: skip
 
 
 def _stage_line(model, stages, result) -> str:

@@ -178,3 +178,30 @@ def test_train_and_interpolate_commands(toy_dataset, tmp_path):
 
     seq = AnimatedGarment.load(rec / "reconstruction.npz")  # the one sequence format
     assert seq.garment_vertices.shape == (3, 96, 3) and seq.num_frames == 3
+
+
+def test_physics_terms_train_and_are_recorded(toy_dataset, skirt, tmp_path):
+    loss = GenerativeLossConfig(membrane=20.0, bending=0.5, collision=0.1)
+    train_generative(toy_dataset, tmp_path / "phys", _config(loss=loss, epochs=8),
+                     log=lambda *_: None, progress=False)  # fmt: skip
+    data = torch.load(tmp_path / "phys" / "checkpoint.pt", weights_only=False)
+    assert data["physics_terms"] == ["membrane", "bending", "collision"]
+    history = data["history"]
+    assert {"membrane", "bending", "collision"} <= set(history[0])
+    assert history[-1]["membrane"] < history[0]["membrane"]
+    assert all(np.isfinite(h["total"]) for h in history)
+    # a run without them records none
+    train_generative(toy_dataset, tmp_path / "plain", _config(epochs=1), log=lambda *_: None,
+                     progress=False)  # fmt: skip
+    assert torch.load(tmp_path / "plain" / "checkpoint.pt", weights_only=False)[
+        "physics_terms"] == []  # fmt: skip
+
+
+def test_physics_loss_weights_are_checked():
+    with pytest.raises(LoosefitInputError, match="membrane"):
+        GenerativeLossConfig(membrane=-1.0)
+    with pytest.raises(ValueError, match="ClothStructure"):
+        out = type("Out", (), {"vertices": torch.zeros(1, 3, 3), "mu": torch.zeros(1, 2),
+                               "logvar": torch.zeros(1, 2), "unposed": None})()  # fmt: skip
+        generative_loss(out, torch.zeros(1, 3, 3), None, torch.zeros(3, 3), lambda x: 0 * x,
+                        GenerativeLossConfig(membrane=1.0))  # fmt: skip

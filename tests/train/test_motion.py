@@ -390,3 +390,16 @@ def test_mirrored_clips_are_the_clips_mirrored(trained, toy_dataset):
         assert not torch.allclose(m.features, c.features)  # a different dance for the encoder
     with pytest.raises(LoosefitInputError, match="mirror"):
         tm.TrainMotionConfig.preset("cpu", mirror="yes")
+
+
+def test_membrane_and_bending_terms_train_and_are_recorded(toy_dataset, generative, skirt,
+                                                            tmp_path):  # fmt: skip
+    loss = tm.MotionLossConfig(membrane=20.0, bending=0.5)
+    _train(toy_dataset, generative, skirt, tmp_path / "phys", epochs=3, loss=loss)
+    history = torch.load(tmp_path / "phys" / "checkpoint.pt", weights_only=False)["history"]
+    assert {"membrane", "bending"} <= set(history[0]) and np.isfinite(history[-1]["total"])
+    model = inf.load_animation_model(tmp_path / "phys" / "model.pt")
+    assert "membrane" in model.physics_terms and "bending" in model.physics_terms
+    assert "collision" in model.missing_physics_terms
+    with pytest.raises(LoosefitInputError, match="collision"):
+        tm.MotionLossConfig(collision=1.0)

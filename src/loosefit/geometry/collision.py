@@ -172,7 +172,7 @@ class CollisionHandler:
         d = np.zeros_like(x0)
         active = np.zeros(V, dtype=bool)
         region = np.zeros(V, dtype=bool)
-        n, ds = _signed_distances(x0, body, cfg.reach)
+        n, ds = signed_distances(x0, body, cfg.reach)
         iterations = 1
         depth_before = float(np.clip(cfg.epsilon - ds, 0, None).max())
         inside_before = int((ds < 0).sum())
@@ -191,12 +191,12 @@ class CollisionHandler:
             d = self._solve(d + push, active, region)
             # the moved vertices' closest points again: pushed ones meet other body parts
             moved = np.flatnonzero(region)
-            n[moved], ds[moved] = _signed_distances(x0[moved] + d[moved], body, cfg.reach)
+            n[moved], ds[moved] = signed_distances(x0[moved] + d[moved], body, cfg.reach)
             iterations += 1
         x = x0 + d
         if not np.isfinite(x).all():  # cannot happen with SPD systems; never write NaN
             x, d = x0, np.zeros_like(x0)
-            n, ds = _signed_distances(x, body, cfg.reach)
+            n, ds = signed_distances(x, body, cfg.reach)
         if cfg.finish:
             x, ds, passes = self._finish(x, ds, body)
             d = x - x0
@@ -261,7 +261,7 @@ class CollisionHandler:
             return False
         corners = x[self.faces[near]]  # (Fn, 3, 3)
         pts = np.einsum("sk,fkd->fsd", self.sample_weights, corners).reshape(-1, 3)
-        n, dp = _signed_distances(pts, body, cfg.reach)
+        n, dp = signed_distances(pts, body, cfg.reach)
         bad = np.flatnonzero(dp < 0.75 * cfg.epsilon)
         if not len(bad):
             return False
@@ -336,14 +336,14 @@ class PushOutHandler:
             raise LoosefitInputError("PushOutHandler.resolve", "garment", f"({V}, 3)",
                                      f"{tuple(garment.shape)}")  # fmt: skip
         x0 = garment.detach().cpu().double().numpy()
-        n, ds = _signed_distances(x0, body, self.reach)
+        n, ds = signed_distances(x0, body, self.reach)
         short = np.clip(self.epsilon - ds, 0.0, None)  # (V,), 0 beyond reach
         d = short[:, None] * n
         x = x0 + d
         moved = short > 0
         ds_after = ds.copy()
         if moved.any():
-            ds_after[moved] = _signed_distances(x[moved], body, self.reach)[1]
+            ds_after[moved] = signed_distances(x[moved], body, self.reach)[1]
         lap = self.lap @ d
         return CollisionResult(
             vertices=torch.from_numpy(x).to(garment.device, torch.float32),
@@ -357,7 +357,7 @@ class PushOutHandler:
         )
 
 
-def _signed_distances(x: np.ndarray, body: Surface, reach: float
+def signed_distances(x: np.ndarray, body: Surface, reach: float
                       ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Normals n (N, 3) and signed distances ``ds = n.(x - b)`` (N,) of points x (N, 3),
     b their closest body points; ``ds`` is +inf (and n 0) beyond ``reach`` of the body. ``n`` is the

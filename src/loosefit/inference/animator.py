@@ -41,7 +41,13 @@ from loosefit.model.baselines import BaselineConfig, BaselineNetwork, baseline_r
 from loosefit.model.detail import DetailConfig, DetailGenerator
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
-from loosefit.model.physics import ClothStructure, LengthConfig, LengthRestorer
+from loosefit.model.physics import (
+    PHYSICS_TERMS,
+    ClothStructure,
+    LengthConfig,
+    LengthRestorer,
+    terms_of,
+)
 from loosefit.model.rollout import (
     RolloutConfig,
     Stages,
@@ -148,6 +154,11 @@ class AnimationModel:
         """A clear error for a motion on other joints or at another frame rate."""
         check_motion_joints(motion, self.joint_names, self.path)
 
+    @property
+    def missing_physics_terms(self) -> tuple[str, ...]:
+        """The physics terms (issue 34) the stages were not trained with."""
+        return tuple(t for t in PHYSICS_TERMS if t not in self.physics_terms)
+
     def restorer(self, stages: Stages) -> LengthRestorer | None:
         """The edge-length stage (built once), or None when ``stages`` or the config skip it."""
         if not (stages.lengths and self.lengths.enabled and self.lengths.iterations):
@@ -231,7 +242,7 @@ def _animation_model(path: Path, data: dict, generative, device) -> AnimationMod
     gpath = recorded_checkpoint(path, g, generative, "generative",
                                 "the generative checkpoint it was trained on",
                                 "pass --generative FILE")  # fmt: skip
-    gmodel, _ = load_generative(gpath, device=device)
+    gmodel, gdata = load_generative(gpath, device=device)
     found = model_fingerprint(gmodel)
     if found != g["fingerprint"]:
         raise LoosefitInputError(
@@ -254,7 +265,7 @@ def _animation_model(path: Path, data: dict, generative, device) -> AnimationMod
         rest.to(device),
         tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
         dict(data["body"]), RolloutConfig(**config["rollout"]), path,
-        arm_collision=arm_collision_of(data),
+        arm_collision=arm_collision_of(data), physics_terms=terms_of(gdata, data),
     )  # fmt: skip
 
 

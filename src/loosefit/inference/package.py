@@ -22,7 +22,7 @@ from loosefit.inference.checkpoints import (
 
 # what a packaged stage keeps of a run's checkpoint (besides format, model_config, model)
 _KEEP = {
-    GENERATIVE_FORMAT: ("garment", "epoch"),
+    GENERATIVE_FORMAT: ("garment", "epoch", "physics_terms"),
     MOTION_FORMAT: (
         "generative",
         "garment",
@@ -34,6 +34,7 @@ _KEEP = {
         "body",
         "cloth",
         "epoch",
+        "physics_terms",
     ),  # fmt: skip
     DETAIL_FORMAT: ("fingerprints", "motion_checkpoint", "epoch"),
 }

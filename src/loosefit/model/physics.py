@@ -42,6 +42,21 @@ DENSE_UP_TO = 4000
 PHYSICS_TERMS = ("membrane", "bending", "collision")
 
 
+def active_terms(weights) -> tuple[str, ...]:
+    """The physics terms a loss configuration (any object with their weights) turns on."""
+    return tuple(t for t in PHYSICS_TERMS if getattr(weights, t, 0) > 0)
+
+
+def terms_of(*checkpoints: dict) -> tuple[str, ...]:
+    """The physics terms that stages' checkpoint dicts were trained with (their
+    ``physics_terms``; a checkpoint from before issue 34 has none)."""
+    found = set()
+    for data in checkpoints:
+        terms = data.get("physics_terms") or []
+        found.update(str(t) for t in terms if str(t) in PHYSICS_TERMS)
+    return tuple(t for t in PHYSICS_TERMS if t in found)
+
+
 @dataclass
 class PhysicsLossConfig:
     """Weights of the physics terms (0: off) and the collision clearance.
@@ -64,7 +79,7 @@ class PhysicsLossConfig:
     @property
     def active(self) -> tuple[str, ...]:
         """The terms with a positive weight."""
-        return tuple(t for t in PHYSICS_TERMS if getattr(self, t) > 0)
+        return active_terms(self)
 
 
 @dataclass
@@ -205,8 +220,8 @@ def signed_edge_change(x: torch.Tensor, edges: torch.Tensor, rest: torch.Tensor)
 
 
 def membrane_energy(x: torch.Tensor, edges: torch.Tensor, rest: torch.Tensor) -> torch.Tensor:
-    """Mean over edges (and batch) of the squared strain ``(l / L - 1)^2``; a scalar."""
-    return signed_edge_change(x, edges, rest).pow(2).mean()
+    """(..., V, 3) -> (...): the mean over edges of the squared strain ``(l / L - 1)^2``."""
+    return signed_edge_change(x, edges, rest).pow(2).mean(-1)
 
 
 def dihedral_angles(x: torch.Tensor, hinges: torch.Tensor) -> torch.Tensor:
@@ -229,19 +244,19 @@ def dihedral_angles(x: torch.Tensor, hinges: torch.Tensor) -> torch.Tensor:
 
 def bending_energy(x: torch.Tensor, hinges: torch.Tensor, rest_angles: torch.Tensor,
                    weights: torch.Tensor) -> torch.Tensor:  # fmt: skip
-    """Weighted mean over hinges (and batch) of ``(theta - Theta)^2``; a scalar.
+    """(..., V, 3) -> (...): the weighted mean over hinges of ``(theta - Theta)^2``.
 
     The angle difference is wrapped into (-pi, pi], so a pair folded through flat the
     other way costs its true angle.
     """
     d = dihedral_angles(x, hinges) - rest_angles
     d = torch.remainder(d + torch.pi, 2 * torch.pi) - torch.pi
-    return (weights * d.pow(2)).sum(-1).mean() / weights.sum().clamp_min(1e-12)
+    return (weights * d.pow(2)).sum(-1) / weights.sum().clamp_min(1e-12)
 
 
 def collision_energy(x: torch.Tensor, points: torch.Tensor, normals: torch.Tensor,
                      epsilon: float) -> torch.Tensor:  # fmt: skip
-    """Mean over vertices (and batch) of ``max(eps - n . (x - b), 0)^2``; a scalar.
+    """(..., V, 3) -> (...): the mean over vertices of ``max(eps - n . (x - b), 0)^2``.
 
     Args:
         x: (..., V, 3) garment positions.
@@ -251,7 +266,31 @@ def collision_energy(x: torch.Tensor, points: torch.Tensor, normals: torch.Tenso
     """
     ds = (normals * (x - points)).sum(-1)
     near = normals.abs().sum(-1) > 0
-    return (torch.relu(epsilon - ds) * near).pow(2).mean()
+    return (torch.relu(epsilon - ds) * near).pow(2).mean(-1)
+
+
+def physics_terms(x: torch.Tensor, structure: ClothStructure, weights,
+                  contacts: tuple[torch.Tensor, torch.Tensor] | None = None,
+                  length_scale: float = 100.0) -> dict[str, torch.Tensor]:  # fmt: skip
+    """The weighted physics terms of garments (..., V, 3), each (...,): those of ``weights``
+    (any object with ``membrane``, ``bending``, ``collision`` and ``collision_epsilon``)
+    above 0. ``contacts``: the body's points and normals (..., V, 3) each, needed by the
+    collision term, which is taken in ``length_scale`` units (centimetres) as the squared
+    errors are."""
+    out = {}
+    if weights.membrane > 0:
+        out["membrane"] = weights.membrane * membrane_energy(x, structure.edges,
+                                                             structure.rest_lengths)  # fmt: skip
+    if weights.bending > 0:
+        out["bending"] = weights.bending * bending_energy(
+            x, structure.hinges, structure.rest_angles, structure.hinge_weights)  # fmt: skip
+    if weights.collision > 0:
+        if contacts is None:
+            raise ValueError("the collision term needs the body's points and normals")
+        s = length_scale
+        out["collision"] = weights.collision * collision_energy(
+            s * x, s * contacts[0], contacts[1], s * weights.collision_epsilon)  # fmt: skip
+    return out
 
 
 class LengthRestorer:

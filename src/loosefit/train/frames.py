@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from loosefit.body.avatar import Avatar, AvatarConfig
@@ -31,6 +32,9 @@ class PreparedFrames:
         unposed: (N, V, 3) float32 its inverse skinning, canonical frame.
         heading: (N, 3, 3) float32 and origin (N, 3) float32 of each root frame.
         fps: frames per second of the clips.
+        contact_points, contact_normals: (N, V, 3) float32, root frame: each simulated
+            vertex's closest point on the whole body and the body's outward normal there
+            (0 beyond 10 cm), for the collision term; None unless asked for.
     """
 
     names: list[str]
@@ -41,6 +45,8 @@ class PreparedFrames:
     heading: torch.Tensor
     origin: torch.Tensor
     fps: float
+    contact_points: torch.Tensor | None = None
+    contact_normals: torch.Tensor | None = None
 
     def __len__(self) -> int:
         return int(self.posed.shape[0])
@@ -61,6 +67,7 @@ def prepare_split(
     avatar: Avatar,
     skinning: InverseSkinningConfig | None = None,
     max_frames: int | None = None,
+    contacts: bool = False,
 ) -> PreparedFrames:
     """Root-frame garments and inverse-skinning targets for every frame of a split.
 
@@ -70,6 +77,8 @@ def prepare_split(
         avatar: the body the dataset was made on (:func:`avatar_for`).
         skinning: seed count and softmax temperature of the inverse skinning.
         max_frames: keep at most this many frames of each clip (for quick runs).
+        contacts: also find each simulated vertex's closest point on the whole body (arms
+            and hands included) and the normal there (the collision term's contacts).
 
     Returns:
         :class:`PreparedFrames`.
@@ -81,7 +90,9 @@ def prepare_split(
     template = torch.from_numpy(reader.template.vertices)
     seeds = avatar.seed_points(skinning.num_seeds)
     weights = seed_weights(template, seeds.rest.float().cpu(), skinning.temperature)[None]
-    out: dict[str, list] = {k: [] for k in ("clip", "frame", "posed", "unposed", "H", "p")}
+    out: dict[str, list] = {k: [] for k in ("clip", "frame", "posed", "unposed", "H", "p",
+                                            "cp", "cn")}  # fmt: skip
+    faces = avatar.collider_faces(arms=True).cpu().numpy() if contacts else None
     fps = None
     for i, name in enumerate(names):
         seq = reader.read(name)
@@ -103,6 +114,10 @@ def prepare_split(
         out["unposed"].append(unposed)
         out["H"].append(H)
         out["p"].append(p)
+        if contacts:
+            cp, cn = body_contacts(g.numpy(), body.vertices.float().cpu().numpy(), faces)
+            out["cp"].append(to_root_frame(torch.from_numpy(cp), H, p))
+            out["cn"].append(to_root_frame(torch.from_numpy(cn), H, torch.zeros_like(p)))
     return PreparedFrames(
         names=names,
         clip=torch.cat(out["clip"]),
@@ -112,4 +127,32 @@ def prepare_split(
         heading=torch.cat(out["H"]),
         origin=torch.cat(out["p"]),
         fps=float(fps),
+        contact_points=torch.cat(out["cp"]).contiguous() if contacts else None,
+        contact_normals=torch.cat(out["cn"]).contiguous() if contacts else None,
     )
+
+
+def body_contacts(garment: np.ndarray, body: np.ndarray, faces: np.ndarray, reach: float = 0.1
+                  ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Each garment vertex's closest body point and the body's outward normal there.
+
+    Args:
+        garment: (T, V, 3); body: (T, Vb, 3) the posed body; faces: (Fb, 3) its triangles.
+        reach: m; vertices farther from the body get a zero normal (no contact).
+
+    Returns:
+        points (T, V, 3) and normals (T, V, 3), float32.
+    """
+    from loosefit.geometry.collision import signed_distances
+    from loosefit.geometry.query import Surface
+
+    points = np.zeros(garment.shape, np.float32)
+    normals = np.zeros(garment.shape, np.float32)
+    surface = Surface(body[0], faces)
+    for t in range(len(garment)):
+        surface.refit(body[t])
+        n, ds = signed_distances(garment[t].astype(np.float64), surface, reach)
+        near = np.isfinite(ds)
+        normals[t] = n
+        points[t] = garment[t] - np.where(near, ds, 0.0)[:, None] * n
+    return points, normals

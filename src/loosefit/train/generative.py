@@ -54,6 +54,7 @@ from loosefit.model.generative import (
     GenerativeOutput,
     generative_loss,
 )
+from loosefit.model.physics import ClothStructure, active_terms
 from loosefit.train.common import (
     all_mean,
     apply_overrides,
@@ -148,6 +149,7 @@ def save_checkpoint(path: Path, model: GarmentGenerativeModel, template: Garment
         "config": config.to_dict(),
         "garment": garment_record(template),
         "model": model.state_dict(),
+        "physics_terms": list(active_terms(config.loss)),
         **state,
     }
     save_atomic(data, path)
@@ -281,7 +283,8 @@ def train_generative(
     check_device_precision(config.precision, device)
     avatar = avatar_for(reader)
     t0 = time.perf_counter()
-    train = prepare_split(reader, "train", avatar, config.skinning, config.max_frames)
+    contacts = config.loss.collision > 0  # the collision term's body points, per frame
+    train = prepare_split(reader, "train", avatar, config.skinning, config.max_frames, contacts)
     test = prepare_split(reader, "test", avatar, config.skinning, config.max_frames)
     log(f"prepared {len(train)} train and {len(test)} test frames "
         f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
@@ -303,6 +306,9 @@ def train_generative(
         log(f"resumed {ckpt_path} at epoch {epoch}")
 
     posed, unposed = train.posed.to(device), train.unposed.to(device)
+    structure = ClothStructure.from_template(template).to(device)
+    if contacts:
+        points, normals = train.contact_points.to(device), train.contact_normals.to(device)
     net = model
     if world > 1:  # torchrun: each process a share of every batch, gradients averaged
         net = torch.nn.parallel.DistributedDataParallel(model)
@@ -325,8 +331,10 @@ def train_generative(
             mine = mine.to(device)
             with autocast(config.precision, device):
                 out_ = net(posed[idx[mine]], noise=noise[mine])
-            terms = generative_loss(_float32(out_), posed[idx[mine]], unposed[idx[mine]],
-                                    model.template, lap, config.loss)  # fmt: skip
+            rows = idx[mine]
+            touch = (points[rows], normals[rows]) if contacts else None
+            terms = generative_loss(_float32(out_), posed[rows], unposed[rows],
+                                    model.template, lap, config.loss, structure, touch)  # fmt: skip
             optim.zero_grad(set_to_none=True)
             (terms["total"] * share * world).backward()  # DDP averages: the batch's mean
             optim.step()

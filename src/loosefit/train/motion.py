@@ -76,6 +76,12 @@ from loosefit.model.motion_features import (
     root_frames,
     to_root_frame,
 )
+from loosefit.model.physics import (
+    ClothStructure,
+    PhysicsLossConfig,
+    active_terms,
+    physics_terms,
+)
 from loosefit.model.rollout import (
     MOTION_ONLY,
     RolloutConfig,
@@ -110,6 +116,19 @@ class MotionLossConfig:
     laplacian: float = 1.5  # lambda_4
     latent: float = 0.5  # lambda_5
     length_scale: float = 100.0  # metres to centimetres, as in the generative loss
+    # physics terms (issue 34; loosefit.model.physics), 0: off. The collision term needs
+    # the body at every frame and is taken by the generative stage only
+    membrane: float = 0.0  # edge lengths against rest
+    bending: float = 0.0  # dihedral angles against rest
+    collision: float = 0.0
+    collision_epsilon: float = 0.002
+
+    def __post_init__(self) -> None:
+        if self.collision:
+            raise LoosefitInputError("MotionLossConfig", "collision",
+                                     "0 (the motion stage takes membrane and bending)",
+                                     self.collision)  # fmt: skip
+        PhysicsLossConfig(self.membrane, self.bending, self.collision, self.collision_epsilon)
 
 
 @dataclass
@@ -405,6 +424,7 @@ def run_window(
     unroll: bool = False,
     part: BatchPart | None = None,
     precision: str = "fp32",
+    structure: ClothStructure | None = None,
 ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
     """Frames ``start:stop`` of stacked clips: the loss and the state to carry on.
 
@@ -425,6 +445,8 @@ def run_window(
         part: where ``batch`` sits in a batch of B clips shared among processes
             (default: it is the whole batch). The draws are made for all B clips.
         precision: the forward passes' ("fp32" or "bf16"; the loss is float32).
+        structure: the garment's edges and hinges, for the physics terms of ``loss``
+            (needed when one has a weight).
 
     Returns:
         The loss terms (this process's share of the means over the whole batch's
@@ -461,6 +483,9 @@ def run_window(
             sums["geometry"] = sums["geometry"] + (w * geometry).sum()
             sums["laplacian"] = sums["laplacian"] + loss.laplacian * (w * lap).sum()
             sums["latent"] = sums["latent"] + loss.latent * (w * (z - zt).pow(2).sum(-1)).sum()
+            if loss.membrane > 0 or loss.bending > 0:
+                for key, e in physics_terms(v, structure, loss).items():  # (b,) each
+                    sums[key] = sums.get(key, 0.0) + (w * e).sum()
         previous = v if unroll else v.detach()
         if teacher > 0:
             draw = torch.rand(len(every), generator=generator)  # (B,) the whole batch's
@@ -474,7 +499,7 @@ def run_window(
     count = max(part.count(start, stop), 1)
     terms = {k: v / count if torch.is_tensor(v) else torch.tensor(v, device=device)
              for k, v in sums.items()}  # fmt: skip
-    terms["total"] = terms["geometry"] + terms["laplacian"] + terms["latent"]
+    terms["total"] = sum(terms.values())
     return terms, hidden.detach(), previous.detach()
 
 
@@ -556,6 +581,7 @@ def train_motion(
     encoder = DynamicMotionEncoder(gmodel, F, config.model, all_feats.mean(0), all_feats.std(0))
     encoder.to(device)
     lap = Laplacian(template.faces, template.num_vertices).to(device)
+    structure = ClothStructure.from_template(template).to(device)
     optim = torch.optim.Adam(encoder.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     meta = {
         "model_config": {"encoder": asdict(config.model), "rollout": asdict(config.rollout)},
@@ -569,6 +595,7 @@ def train_motion(
         "body": dict(reader.body),
         "rest_state": rest.numpy(),
         "cloth": reader.manifest.get("config", {}).get("cloth"),  # the physics of the data
+        "physics_terms": list(active_terms(config.loss)),
         "dataset": str(Path(data).resolve()),
     }
     epoch, history = 0, []
@@ -604,7 +631,7 @@ def train_motion(
                 terms, hidden, previous = run_window(
                     net, gmodel, lap, batch, start, min(start + config.window, L), hidden,
                     previous, teacher, config.loss, gen, config.previous_noise, config.unroll,
-                    part, config.precision,
+                    part, config.precision, structure,
                 )  # fmt: skip
                 if not terms["total"].requires_grad:
                     continue  # a window with no motion frame in the batch (all preroll)
