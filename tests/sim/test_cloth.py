@@ -322,3 +322,32 @@ def test_batched_run_resumes_and_checks_its_motions(avatar, tiny, batch, tmp_pat
         simulate_batch(avatar, skirt, [motion, slow], ClothConfig.tiny())
     with pytest.raises(LoosefitInputError, match="at least one motion"):
         simulate_batch(avatar, skirt, [], ClothConfig.tiny())
+
+
+def test_the_collider_with_arms_stops_a_hand_sweeping_through_a_tiny_skirt(avatar):
+    # the left arm lowered from the A-pose past hanging: the hand sweeps 18 cm inward at
+    # hip height, through the skirt's side, and stops 4 cm from the hip
+    from loosefit.body.rotations import axis_angle_to_matrix
+    from loosefit.eval.quality import PENETRATION_TOLERANCE
+
+    skirt = fit_skirt(avatar, TINY_SKIRT)
+    n = 20
+    motion = avatar.rest_motion(n)
+    y = 0.3 + 0.6 * np.clip(np.arange(n) / 14, 0, 1)
+    motion.rotations[:, avatar.joint_names.index("LeftArm")] = axis_angle_to_matrix(
+        np.stack([np.zeros(n), y, np.zeros(n)], 1))  # fmt: skip
+    body = avatar.pose_motion(motion).vertices.numpy()
+    faces = avatar.faces.numpy()  # the whole body, arms and hands included
+
+    def deepest(arms) -> float:
+        config = dataclasses.replace(ClothConfig.tiny(), arm_collision=arms)
+        g = simulate(avatar, skirt, motion, config).garment_vertices
+        depth = 0.0
+        for t in range(n):
+            hit = closest_points(body[t], faces, g[t])
+            if hit.inside.any():
+                depth = max(depth, float(hit.distance[hit.inside].max()))
+        return depth
+
+    assert deepest(False) > 0.015  # without the arms the hand passes through the cloth
+    assert deepest(True) < PENETRATION_TOLERANCE  # with them it pushes it
