@@ -450,9 +450,24 @@ def cmd_train(args: argparse.Namespace) -> int:
         max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
         precision=args.precision,
     )  # fmt: skip
+    _physics_weights(cfg.loss, args, collision=True)
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
     report = train_generative(args.data, out, cfg, log=_log)
     return _train_finish(out, report, "checkpoint")
+
+
+def _physics_weights(loss, args: argparse.Namespace, collision: bool) -> None:
+    """``--membrane``, ``--bending`` and (generative) ``--collision`` onto a loss config."""
+    for name in ("membrane", "bending", "collision"):
+        value = getattr(args, name, None)
+        if value is None:
+            continue
+        if name == "collision" and not collision:
+            raise LoosefitInputError("loosefit train motion", "--collision",
+                                     "no collision weight (the generative stage takes it)",
+                                     value)  # fmt: skip
+        setattr(loss, name, value)
+    type(loss).__post_init__(loss)
 
 
 def _train_finish(out, report: dict, kept: str = "model") -> int:
@@ -482,6 +497,7 @@ def _train_motion(args: argparse.Namespace) -> int:
         mirror=True if args.mirror else None, joints=args.joints, seed=args.seed,
         precision=args.precision,
     )  # fmt: skip
+    _physics_weights(cfg.loss, args, collision=False)
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
     report = train_motion(args.data, args.generative, out, cfg, log=_log)
@@ -1059,6 +1075,14 @@ def build_parser() -> argparse.ArgumentParser:
         "(autocast; losses and optimiser stay fp32)",
     )
     p.add_argument("--seed", type=int, default=None, help="training seed (default 0)")
+    for name, what in (
+        ("membrane", "edge lengths against rest"),
+        ("bending", "dihedral angles against rest"),
+        ("collision", "cloth outside the whole body; generative only"),
+    ):
+        p.add_argument(f"--{name}", type=float, default=None, metavar="W",
+                       help=f"generative, motion: weight of the {name} term ({what}; "
+                       "issue 34; default 0)")  # fmt: skip
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
     p.set_defaults(func=cmd_train)
 

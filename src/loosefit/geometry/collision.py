@@ -261,7 +261,10 @@ class CollisionHandler:
             return False
         corners = x[self.faces[near]]  # (Fn, 3, 3)
         pts = np.einsum("sk,fkd->fsd", self.sample_weights, corners).reshape(-1, 3)
-        n, dp = signed_distances(pts, body, cfg.reach)
+        # a point short of eps lies within the depth of its face's deepest vertex plus the
+        # face_reach band: no farther query needed (a far reach costs the BVH walk)
+        deepest = float(np.clip(-ds[self.faces[near]].min(), 0.0, None))
+        n, dp = signed_distances(pts, body, min(cfg.reach, deepest + 2 * cfg.face_reach))
         bad = np.flatnonzero(dp < 0.75 * cfg.epsilon)
         if not len(bad):
             return False

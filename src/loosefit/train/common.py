@@ -73,6 +73,9 @@ def restore_training(saved: dict, states: dict, sampling: torch.Generator | None
 # Training fields added after runs were recorded without them, with the value such runs
 # had: their folders still resume (and rerun scripts still pass over them).
 ADDED_FIELDS = {"precision": "fp32"}
+# the same for the loss's fields (issue 34's physics terms: runs before had them off)
+ADDED_LOSS_FIELDS = {"membrane": 0.0, "bending": 0.0, "collision": 0.0,
+                     "collision_epsilon": 0.002}  # fmt: skip
 
 
 def open_run(out: Path, stored: dict) -> None:
@@ -89,6 +92,10 @@ def open_run(out: Path, stored: dict) -> None:
         if isinstance(recorded.get("train"), dict) and isinstance(current.get("train"), dict):
             added = {k: v for k, v in ADDED_FIELDS.items() if k in current["train"]}
             recorded["train"] = {**added, **recorded["train"]}
+            loss, now = recorded["train"].get("loss"), current["train"].get("loss")
+            if isinstance(loss, dict) and isinstance(now, dict):
+                added = {k: v for k, v in ADDED_LOSS_FIELDS.items() if k in now}
+                recorded["train"]["loss"] = {**added, **loss}
         if recorded != current:
             raise LoosefitInputError(
                 cfg_path, "train", "the configuration of this command", "another run's",
