@@ -17,6 +17,7 @@ from loosefit.model.physics import (
     bending_energy,
     collision_energy,
     dihedral_angles,
+    hanging_edges,
     membrane_energy,
     mesh_hinges,
     signed_edge_change,
@@ -169,3 +170,15 @@ def test_config_checks():
     with pytest.raises(LoosefitInputError, match="tie"):
         LengthConfig(tie=0.0)
     assert PhysicsLossConfig(membrane=1.0, collision=0.5).active == ("membrane", "collision")
+
+
+def test_hanging_edges_are_the_steep_ones():
+    # a triangle with a vertical edge (0-2), a horizontal one (0-1) and a 45-degree one
+    x = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, -1]])
+    s = ClothStructure.from_mesh(x, TRI_FACES)
+    keep = hanging_edges(x, s.edges, 0.6)
+    kept = {tuple(e) for e, k in zip(s.edges.tolist(), keep.tolist(), strict=True) if k}
+    assert kept == {(0, 2), (1, 2)}  # |dz| / L: 1 and 0.71 kept, 0 not
+    assert len(s.with_edges(keep).edges) == 2
+    with pytest.raises(LoosefitInputError, match="edges"):
+        LengthConfig(edges="some")

@@ -46,6 +46,7 @@ from loosefit.model.physics import (
     ClothStructure,
     LengthConfig,
     LengthRestorer,
+    hanging_edges,
     terms_of,
 )
 from loosefit.model.rollout import (
@@ -164,8 +165,12 @@ class AnimationModel:
         if not (stages.lengths and self.lengths.enabled and self.lengths.iterations):
             return None
         if self._restorer is None:
-            self._restorer = LengthRestorer(ClothStructure.from_template(self.template),
-                                            self.lengths)  # fmt: skip
+            t, cfg = self.template, self.lengths
+            structure = ClothStructure.from_template(t)
+            if cfg.edges == "hanging":
+                structure = structure.with_edges(hanging_edges(t.vertices, structure.edges,
+                                                               cfg.min_vertical))  # fmt: skip
+            self._restorer = LengthRestorer(structure, cfg)
         return self._restorer
 
     def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
