@@ -1,0 +1,58 @@
+"""The salsa cloth with the arms in the simulation's collider: does it hold? (issue 34)
+
+Simulates windows of ``salsa`` preset jobs with ``arm_collision: true`` (everything else the
+preset's: flattened overlaps, the pose correction, adaptive substeps) and prints the quality
+figures of each (strain percentiles, the deepest vertex inside the body, the worst frame's
+share deeper than 5 mm). docs/DATASET.md quotes its output; each window takes one core::
+
+    .venv/bin/python bench/arm_collider.py 60_01:0:90 chain_60_03_60_07_61_03_61_07:0:60
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+
+import numpy as np
+import torch
+
+from loosefit.body.avatar import Avatar, AvatarConfig
+from loosefit.dress import fit_skirt
+from loosefit.eval.quality import quality
+from loosefit.sim.cloth import simulate
+from loosefit.sim.generate import job_motion, plan_jobs, preset
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("windows", nargs="+", help="JOB:START:STOP of the salsa preset")
+    p.add_argument("--bvh", default="../shared/mocap/cmu-salsa")
+    p.add_argument("--arms", default="true", choices=("true", "false", "upper"))
+    args = p.parse_args()
+    torch.set_num_threads(1)
+    arms = {"true": True, "false": False, "upper": "upper"}[args.arms]
+    config = preset("salsa", args.bvh)
+    jobs = {j.name: j for j in plan_jobs(config)}
+    avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
+    template = fit_skirt(avatar, config.garment)
+    for window in args.windows:
+        name, start, stop = window.rsplit(":", 2)
+        if name not in jobs:
+            raise SystemExit(f"{window}: expected a job among {sorted(jobs)}")
+        job = jobs[name]
+        motion = job_motion(config, job, avatar).slice(int(start), int(stop))
+        cloth = dataclasses.replace(config.cloth, seed=job.seed, arm_collision=arms)
+        t0 = time.perf_counter()
+        result = simulate(avatar, template, motion, cloth)
+        body = avatar.pose_motion(motion).vertices.numpy()
+        q = quality(result.garment_vertices, template, body,
+                    avatar.collider_faces(arms=True).numpy())  # fmt: skip
+        figures = {k: round(float(v), 4) for k, v in q.items() if np.isscalar(v)}
+        figures["seconds"] = round(time.perf_counter() - t0, 1)
+        print(window, f"arm_collision={args.arms}", json.dumps(figures), flush=True)
+
+
+if __name__ == "__main__":
+    main()
