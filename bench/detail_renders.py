@@ -19,15 +19,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
 from PIL import Image
 
 from loosefit.data.format import DatasetReader
 from loosefit.inference.animator import attach_detail, load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.render.camera import CameraView
-from loosefit.render.renderer import RenderConfig, Renderer, RenderMesh
-from loosefit.render.video import contact_sheet
+from loosefit.render.renderer import RenderConfig
+from loosefit.render.video import comparison_sheet
 
 
 def main() -> None:
@@ -72,18 +71,7 @@ def main() -> None:
         views = ("front", "side")
     config = RenderConfig(width=args.size, height=args.size, views=views, follow=True,
                           frame_counter=False)  # fmt: skip
-    tiles: dict[str, list[np.ndarray]] = {}
-    with Renderer(config) as renderer:
-        for label, garment in columns.items():
-            scene = [RenderMesh(body_faces, body, "body", name="body"),
-                     RenderMesh(model.template.faces, garment, "garment", name=label)]  # fmt: skip
-            tiles[label] = list(renderer.render_sequence(scene))
-    images, labels = [], []
-    for i, frame in enumerate(picks):
-        for label in columns:
-            images.append(tiles[label][i])
-            labels.append(f"{label}, frame {frame}")
-    sheet = contact_sheet(images, cols=len(columns), labels=labels)
+    sheet = comparison_sheet(columns, picks, body, body_faces, model.template.faces, config)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(sheet).save(out, quality=88)

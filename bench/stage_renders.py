@@ -22,8 +22,8 @@ from PIL import Image
 from loosefit.geometry.collision import CollisionConfig
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import Stages
-from loosefit.render.renderer import RenderConfig, Renderer, RenderMesh
-from loosefit.render.video import contact_sheet
+from loosefit.render.renderer import RenderConfig
+from loosefit.render.video import comparison_sheet
 
 TODAY = CollisionConfig(finish=0, whole_body=False)  # collision handling before issue 34
 
@@ -60,18 +60,8 @@ def main() -> None:
                "after": after[picks]}  # fmt: skip
     config = RenderConfig(width=args.size, height=args.size, views=tuple(args.views.split(",")),
                           follow=True, frame_counter=False)  # fmt: skip
-    tiles = {}
-    with Renderer(config) as renderer:
-        for label, garment in columns.items():
-            scene = [RenderMesh(avatar.faces.cpu().numpy(), body, "body", name="body"),
-                     RenderMesh(model.template.faces, garment, "garment", name=label)]  # fmt: skip
-            tiles[label] = list(renderer.render_sequence(scene))
-    images, labels = [], []
-    for i, frame in enumerate(picks):
-        for label in columns:
-            images.append(tiles[label][i])
-            labels.append(f"{label}, frame {frame}")
-    sheet = contact_sheet(images, cols=len(columns), labels=labels)
+    sheet = comparison_sheet(columns, picks, body, avatar.faces.cpu().numpy(),
+                             model.template.faces, config)  # fmt: skip
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(sheet).save(out, quality=85)

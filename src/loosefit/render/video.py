@@ -244,3 +244,39 @@ def contact_sheet(
             )
         sheet = np.asarray(pil).copy()
     return sheet
+
+
+def comparison_sheet(
+    columns: dict[str, np.ndarray],
+    frames: Sequence[int],
+    body: np.ndarray,
+    body_faces: np.ndarray,
+    garment_faces: np.ndarray,
+    config,
+) -> np.ndarray:
+    """Garments side by side on their body: one row a frame, one column a garment.
+
+    Args:
+        columns: label -> (K, V, 3) garment positions of the K frames shown.
+        frames: the K frame numbers, for the labels.
+        body: (K, Vb, 3) the posed body of those frames; body_faces: (Fb, 3).
+        garment_faces: (F, 3) the garments' triangles.
+        config: a :class:`~loosefit.render.renderer.RenderConfig` (views, size).
+
+    Returns:
+        (H, W, 3) uint8: the tiles with their labels ("LABEL, frame N").
+    """
+    from loosefit.render.renderer import Renderer, RenderMesh
+
+    tiles = {}
+    with Renderer(config) as renderer:
+        for label, garment in columns.items():
+            scene = [RenderMesh(body_faces, body, "body", name="body"),
+                     RenderMesh(garment_faces, garment, "garment", name=label)]  # fmt: skip
+            tiles[label] = list(renderer.render_sequence(scene))
+    images, labels = [], []
+    for i, frame in enumerate(frames):
+        for label in columns:
+            images.append(tiles[label][i])
+            labels.append(f"{label}, frame {frame}")
+    return contact_sheet(images, cols=len(columns), labels=labels)
