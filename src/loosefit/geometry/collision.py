@@ -55,12 +55,13 @@ class CollisionConfig:
     #   edge^2 / (8 radius): 1 mm for the skirt's 2 cm edges over a 5 cm thigh)
     reach: float = 0.1  # m: vertices farther than this from the body are never touched (and
     #   deeper inside it never seen): the spin sinks vertices 6.5 cm into the hips
-    finish: int = 4  # last projections: rounds that move every vertex still inside the body
+    finish: int = 6  # last projections: rounds that move every vertex still inside the body
     #   (by the winding number) straight out to eps beyond its closest skin, each alone
-    finish_reach: float = 0.02  # m: the vertices the last projection asks about: those the
+    finish_reach: float = 0.1  # m: the vertices the last projection asks about: those the
     #   solve saw closer than this (where body parts overlap, as an arm in the torso, the
-    #   closest face's side says outside for cloth that is inside: a ballet clip kept 8
-    #   frames deeper than 5 mm asking only within face_reach, none within 2 cm)
+    #   closest face's side says outside for cloth that is inside: ballet 05_20 kept 8
+    #   frames deeper than 5 mm asking only within face_reach, none within 2 cm; 05_12
+    #   kept a vertex 4.9 cm inside whose closest skin's side said 4.9 cm outside)
     whole_body: bool = True  # collide with the whole body, arms and hands included, whatever
     #   the simulation's collider was (issue 34: hands passed through the skirt)
 
@@ -219,7 +220,11 @@ class CollisionHandler:
         """The last projection: every vertex near the body that the winding number puts
         inside it (a crease, two body parts pressed together, an arm in the torso, where
         the closest face's side misleads the solve) moved straight to ``eps`` beyond its
-        closest skin, then asked again, ``finish`` times at most.
+        closest skin, then asked again, ``finish`` times at most. A vertex still inside
+        after its projection (it sat on an inner skin, the arm's surface inside the torso,
+        or was caught where two body parts overlap, each projection sending it into the
+        other) goes on the way it went, by a step that doubles each round (1 cm, 2 cm, ...),
+        until the winding number lets it out.
 
         Args:
             x: (V, 3) the garment after the solves; ds: (V,) their signed distances.
@@ -232,7 +237,8 @@ class CollisionHandler:
         x, ds = x.copy(), ds.copy()
         near = np.flatnonzero(ds < cfg.finish_reach)  # inside or near, as the solve saw it
         passes = 0
-        for _ in range(cfg.finish):
+        went = np.zeros_like(x)  # (V, 3) the direction each vertex was last moved in
+        for k in range(cfg.finish):
             if not len(near):
                 break
             hit = body.query(x[near], cfg.reach, sign="winding")
@@ -245,7 +251,12 @@ class CollisionHandler:
             idx = near[inside]
             p, dist = hit.points[inside].astype(np.float64), hit.distance[inside, None]
             out = (p - x[idx]) / np.maximum(dist, 1e-12)  # from inside toward the skin
-            x[idx] = p + cfg.epsilon * out
+            # moved before and still inside: on an inner skin, or caught between two body
+            # parts that a projection only swaps: it goes on the way it went
+            on_inner = went[idx].any(1)
+            x[idx] = np.where(on_inner[:, None], x[idx] + 0.01 * 2**k * went[idx],
+                              p + cfg.epsilon * out)  # fmt: skip
+            went[idx] = np.where(on_inner[:, None], went[idx], out)
             near = idx  # only these can still be inside (the others did not move)
         return x, ds, passes
 
