@@ -12,6 +12,7 @@ motion and measured against the simulation:
 * ``today``: + collision handling as before issue 34 (the arms out of the collider, no
   last projection);
 * ``+ lengths``: + detail + the edge-length stage;
+* ``+ lengths, all edges``: the same restoring every edge, not only the hanging ones;
 * ``after``: the whole pipeline now (detail, edge lengths, collision handling against the
   whole body with the last projection).
 
@@ -64,6 +65,7 @@ STAGES = {  # label: stages (None: not a rollout)
     "+ detail": Stages(lengths=False, collision=False),
     "today": Stages(lengths=False),
     "+ lengths": Stages(collision=False),
+    "+ lengths, all edges": Stages(collision=False),  # LengthConfig(edges="all")
     "after": Stages(),
 }
 TODAY_COLLISION = CollisionConfig(finish=0, whole_body=False)  # before issue 34
@@ -161,13 +163,16 @@ def clip_account(model, name: str, seq) -> dict:
             if label.endswith("lengths"):
                 x = restorer(torch.from_numpy(x)).numpy()
         else:
-            collision = model.collision
+            collision, lengths = model.collision, model.lengths
             if label == "today":
                 model.collision, model._handler = TODAY_COLLISION, None
+            if label.endswith("all edges"):
+                model.lengths, model._restorer = replace(lengths, edges="all"), None
             try:
                 x = model.animate(motion, stages=stages).vertices
             finally:
                 model.collision, model._handler = collision, None
+                model.lengths, model._restorer = lengths, None
         seconds[label] = time.perf_counter() - t0
         rows[label] = measure(x, truth, structure, hem, pelvis, window, body, faces,
                               truth_angles, motion.fps, template)  # fmt: skip
