@@ -31,22 +31,39 @@ import numpy as np
 import torch
 
 from loosefit.body.motions import load_motion
+from loosefit.geometry.collision import CollisionConfig
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
 
+BEFORE_34 = CollisionConfig(iterations=6, finish=0, whole_body=False)  # as before issue 34
 
-def pipelines(model) -> dict[str, Stages]:
-    """The stages timed: the motion stage alone, + detail (if any), + collision handling."""
-    rows = {"motion stage": MOTION_ONLY}
+
+def pipelines(model) -> dict[str, tuple[Stages, CollisionConfig | None]]:
+    """The stages timed (and the collision handling, None: the model's default): the motion
+    stage alone, + detail (if any), + collision handling as before issue 34, + collision
+    handling now (the whole body, the last projection), + edge lengths (the pipeline)."""
+    rows = {"motion stage": (MOTION_ONLY, None)}
     if model.detail is not None:
-        rows["+ detail"] = Stages(lengths=False, collision=False)
+        rows["+ detail"] = (Stages(lengths=False, collision=False), None)
     d = "+ detail " if model.detail is not None else "+ "
-    rows[d + "+ collision (before issue 34)"] = Stages(lengths=False)
-    rows[d + "+ edge lengths + collision (the whole pipeline)"] = Stages()
+    rows[d + "+ collision, before issue 34"] = (Stages(lengths=False), BEFORE_34)
+    rows[d + "+ collision, whole body"] = (Stages(lengths=False), None)
+    rows[d + "+ lengths + collision (all)"] = (Stages(), None)
     return rows
 
 
-def time_rollout(model, motion, threads: int, repeats: int, stages: Stages) -> dict:
+def time_rollout(model, motion, threads: int, repeats: int,
+                 pipeline: tuple[Stages, CollisionConfig | None]) -> dict:  # fmt: skip
+    stages, collision = pipeline
+    default = model.collision
+    model.collision, model._handler = collision or default, None
+    try:
+        return _time_rollout(model, motion, threads, repeats, stages)
+    finally:
+        model.collision, model._handler = default, None
+
+
+def _time_rollout(model, motion, threads: int, repeats: int, stages: Stages) -> dict:
     torch.set_num_threads(threads)
     # one thread: the stages one after another; more: detail and collision on a second
     # thread beside the motion stage
@@ -108,7 +125,14 @@ def main() -> None:
     p.add_argument("--motion", default="../shared/mocap/cmu-salsa/60_01.bvh")
     p.add_argument("--start-frame", type=int, default=10)
     p.add_argument("--frames", type=int, default=300, help="rollout frames")
-    p.add_argument("--sim-frames", type=int, default=40, help="simulated frames (of the same)")
+    p.add_argument("--sim-frames", type=int, default=40,
+                   help="simulated frames (of the same); 0: take --sim-seconds")  # fmt: skip
+    p.add_argument(
+        "--sim-seconds",
+        type=float,
+        default=2.34,
+        help="with --sim-frames 0: the simulation's s/frame to compare with",
+    )
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument(
         "--cloth-from",
@@ -142,12 +166,17 @@ def main() -> None:
             r = time_rollout(gpu, motion, cores, args.repeats, stages)
             r.update(stages=label, device=torch.cuda.get_device_name())
             result["rollout_gpu"].append(r)
-    sim_motion = motion.slice(0, args.sim_frames)
-    cloth = model_cloth(model, args.cloth_from)
-    result["simulation"] = [time_simulation(model, avatar, sim_motion, "cpu", cloth)]
-    if torch.cuda.is_available():
-        result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0", cloth))
-    sim = result["simulation"][0]["seconds_per_frame"]
+    if args.sim_frames > 0:
+        sim_motion = motion.slice(0, args.sim_frames)
+        cloth = model_cloth(model, args.cloth_from)
+        result["simulation"] = [time_simulation(model, avatar, sim_motion, "cpu", cloth)]
+        if torch.cuda.is_available():
+            result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0",
+                                                        cloth))  # fmt: skip
+        sim = result["simulation"][0]["seconds_per_frame"]
+    else:  # not simulated this run: the figure of docs/BENCHMARKS.md's last run
+        sim = args.sim_seconds
+        result["simulation"] = [{"seconds_per_frame": sim, "device": "cpu", "not_run": True}]
     for r in result["rollout"]:
         r["speedup_cpu"] = sim / r["seconds_per_frame"]
     full = [r for r in result["rollout"] if r["stages"] == list(pipelines(model))[-1]]
@@ -156,7 +185,7 @@ def main() -> None:
     print(json.dumps(result, indent=2))
     for r in result["rollout"]:
         print(
-            f"{r['stages']:>22}, {r['threads']} thread(s): {1e3 * r['seconds_per_frame']:6.1f} "
+            f"{r['stages']:>40}, {r['threads']} thread(s): {1e3 * r['seconds_per_frame']:6.1f} "
             f"ms/frame {json.dumps({k: round(v, 2) for k, v in r['ms_per_frame_of'].items()})}"
             f", {r['speedup_cpu']:.0f}x faster than the simulation"
         )
