@@ -55,12 +55,8 @@ def pipelines(model) -> dict[str, tuple[Stages, CollisionConfig | None]]:
 def time_rollout(model, motion, threads: int, repeats: int,
                  pipeline: tuple[Stages, CollisionConfig | None]) -> dict:  # fmt: skip
     stages, collision = pipeline
-    default = model.collision
-    model.collision, model._handler = collision or default, None
-    try:
+    with model.configured(collision):
         return _time_rollout(model, motion, threads, repeats, stages)
-    finally:
-        model.collision, model._handler = default, None
 
 
 def _time_rollout(model, motion, threads: int, repeats: int, stages: Stages) -> dict:

@@ -153,26 +153,20 @@ def clip_account(model, name: str, seq) -> dict:
     truth_angles = np.abs(dihedral_angles(torch.from_numpy(truth[::5]).double(),
                                           structure.hinges).numpy()).ravel()  # fmt: skip
     restorer = model.restorer(Stages())
-    rows, seconds = {}, {}
+    rows, seconds, oracle = {}, {}, None
     for label, stages in STAGES.items():
         t0 = time.perf_counter()
         if label == "simulation":
             x = truth
-        elif label.startswith("oracle"):
-            x = model.reconstruct(motion, truth).vertices
-            if label.endswith("lengths"):
-                x = restorer(torch.from_numpy(x)).numpy()
+        elif label.startswith("oracle"):  # the reconstruction once, for both oracle rows
+            if oracle is None:
+                oracle = model.reconstruct(motion, truth).vertices
+            x = restorer(torch.from_numpy(oracle)).numpy() if label.endswith("lengths") else oracle
         else:
-            collision, lengths = model.collision, model.lengths
-            if label == "today":
-                model.collision, model._handler = TODAY_COLLISION, None
-            if label.endswith("all edges"):
-                model.lengths, model._restorer = replace(lengths, edges="all"), None
-            try:
+            collision = TODAY_COLLISION if label == "today" else None
+            lengths = replace(model.lengths, edges="all") if label.endswith("all edges") else None
+            with model.configured(collision, lengths):
                 x = model.animate(motion, stages=stages).vertices
-            finally:
-                model.collision, model._handler = collision, None
-                model.lengths, model._restorer = lengths, None
         seconds[label] = time.perf_counter() - t0
         rows[label] = measure(x, truth, structure, hem, pelvis, window, body, faces,
                               truth_angles, motion.fps, template)  # fmt: skip

@@ -52,8 +52,8 @@ def main() -> None:
     picks = [int(f) for f in args.frames.split(",")]
     model = load_pipeline(args.checkpoint)
     after = model.animate(seq.motion, stages=Stages()).vertices
-    model.collision, model._handler = TODAY, None
-    today = model.animate(seq.motion, stages=Stages(lengths=False)).vertices
+    with model.configured(collision=TODAY):
+        today = model.animate(seq.motion, stages=Stages(lengths=False)).vertices
     avatar = model.avatar()
     body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()[picks]
     columns = {"simulation": np.asarray(seq.garment_vertices)[picks], "today": today[picks],

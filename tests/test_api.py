@@ -159,3 +159,16 @@ def test_nothing_outside_training_imports_train():
     # the CLI's train commands do import it (the check sees them)
     cli = (root / "cli.py").read_text()
     assert "from loosefit.train.motion import" in cli
+
+
+def test_a_configured_block_gives_the_model_its_own_stages_back(model):
+    from loosefit.geometry.collision import CollisionConfig
+    from loosefit.model.physics import LengthConfig
+    from loosefit.model.rollout import Stages
+
+    m = model.model
+    own = m.restorer(Stages())
+    collision, lengths = m.collision, m.lengths
+    with m.configured(CollisionConfig(finish=0), LengthConfig(edges="all")):
+        assert m.collision.finish == 0 and m.restorer(Stages()) is not own
+    assert m.collision is collision and m.lengths is lengths and m.restorer(Stages()) is own

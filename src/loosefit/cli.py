@@ -450,24 +450,24 @@ def cmd_train(args: argparse.Namespace) -> int:
         max_frames=args.max_frames, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
         precision=args.precision,
     )  # fmt: skip
-    _physics_weights(cfg.loss, args, collision=True)
+    cfg.loss = _physics_weights(cfg.loss, args, collision=True)
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
     report = train_generative(args.data, out, cfg, log=_log)
     return _train_finish(out, report, "checkpoint")
 
 
-def _physics_weights(loss, args: argparse.Namespace, collision: bool) -> None:
-    """``--membrane``, ``--bending`` and (generative) ``--collision`` onto a loss config."""
-    for name in ("membrane", "bending", "collision"):
-        value = getattr(args, name, None)
-        if value is None:
-            continue
-        if name == "collision" and not collision:
-            raise LoosefitInputError("loosefit train motion", "--collision",
-                                     "no collision weight (the generative stage takes it)",
-                                     value)  # fmt: skip
-        setattr(loss, name, value)
-    type(loss).__post_init__(loss)
+def _physics_weights(loss, args: argparse.Namespace, collision: bool):
+    """A loss config with ``--membrane``, ``--bending`` and (generative) ``--collision``
+    (checked as the config checks its weights)."""
+    import dataclasses
+
+    given = {n: getattr(args, n, None) for n in ("membrane", "bending", "collision")}
+    given = {n: v for n, v in given.items() if v is not None}
+    if "collision" in given and not collision:
+        raise LoosefitInputError("loosefit train motion", "--collision",
+                                 "no collision weight (the generative stage takes it)",
+                                 given["collision"])  # fmt: skip
+    return dataclasses.replace(loss, **given)
 
 
 def _train_finish(out, report: dict, kept: str = "model") -> int:
@@ -497,7 +497,7 @@ def _train_motion(args: argparse.Namespace) -> int:
         mirror=True if args.mirror else None, joints=args.joints, seed=args.seed,
         precision=args.precision,
     )  # fmt: skip
-    _physics_weights(cfg.loss, args, collision=False)
+    cfg.loss = _physics_weights(cfg.loss, args, collision=False)
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
     report = train_motion(args.data, args.generative, out, cfg, log=_log)
@@ -749,7 +749,7 @@ def _stage_line(model, stages, result) -> str:
         ran.append("detail")
     elif stages.detail:
         ran.append("(no detail stage in this checkpoint)")
-    if getattr(stages, "lengths", False) and getattr(model, "restorer", lambda s: None)(stages):
+    if hasattr(model, "restorer") and model.restorer(stages) is not None:  # baselines: none
         ran.append("edge lengths")
     if stages.collision:
         ran.append("collision")

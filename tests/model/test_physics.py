@@ -182,3 +182,14 @@ def test_hanging_edges_are_the_steep_ones():
     assert len(s.with_edges(keep).edges) == 2
     with pytest.raises(LoosefitInputError, match="edges"):
         LengthConfig(edges="some")
+
+
+def test_the_host_rounds_and_the_differentiable_rounds_agree():
+    # LengthRestorer runs its rounds in numpy without a gradient and in torch with one
+    x = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0]])
+    s = ClothStructure.from_mesh(x, PAIR_FACES, waist=np.array([0]))
+    squeezed = torch.tensor(x * [0.8, 0.9, 1.0], dtype=torch.float64)
+    restore = LengthRestorer(s, LengthConfig(iterations=5))
+    host = restore(squeezed)
+    grad = restore(squeezed.clone().requires_grad_(True)).detach()
+    assert torch.allclose(host, grad, atol=1e-6)

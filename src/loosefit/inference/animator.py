@@ -9,6 +9,7 @@ Models are rebuilt from the checkpoints' ``model_config``
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -143,6 +144,22 @@ class AnimationModel:
             self._avatar = avatar_of(self.body)
         return self._avatar
 
+    @contextmanager
+    def configured(self, collision: CollisionConfig | None = None,
+                   lengths: LengthConfig | None = None):  # fmt: skip
+        """Within the block, collision handling and the edge-length stage configured as given
+        (None: as they are), their operators built anew; after it, the model's own
+        configurations and operators come back (a comparison of settings, in one model)."""
+        saved = (self.collision, self._handler, self.lengths, self._restorer)
+        if collision is not None:
+            self.collision, self._handler = collision, None
+        if lengths is not None:
+            self.lengths, self._restorer = lengths, None
+        try:
+            yield self
+        finally:
+            self.collision, self._handler, self.lengths, self._restorer = saved
+
     def collider(self, motion: Motion) -> BodyCollider:
         """Collision handling (paper 3.5) along ``motion``'s frames (the simulation's collider)."""
         if self._handler is None:
@@ -162,7 +179,7 @@ class AnimationModel:
 
     def restorer(self, stages: Stages) -> LengthRestorer | None:
         """The edge-length stage (built once), or None when ``stages`` or the config skip it."""
-        if not (stages.lengths and self.lengths.enabled and self.lengths.iterations):
+        if not (stages.lengths and self.lengths.iterations):
             return None
         if self._restorer is None:
             t, cfg = self.template, self.lengths

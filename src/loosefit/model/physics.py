@@ -86,20 +86,17 @@ class PhysicsLossConfig:
 class LengthConfig:
     """:class:`LengthRestorer`: how many rounds, how strongly the network's shape holds."""
 
-    enabled: bool = True
     edges: str = "hanging"  # which edges: "hanging" (at rest within ~53 degrees of vertical,
     #   |dz| / L > min_vertical) or "all". Restoring every edge of the decoders' averaged
     #   garment gives back its area as a bell (the folds it lost become flare: hem flare
     #   1.18-1.33x the simulation's on the spin and ballet 05_02); the hanging edges alone
     #   give back its length (flare 0.98-1.08x; bench/stage_account.py, docs/STAGE_ACCOUNT.md)
     min_vertical: float = 0.6
-    iterations: int = 10  # local-global rounds
+    iterations: int = 10  # local-global rounds (0: the stage does nothing)
     tie: float = 1.0e-3  # alpha: how strongly every vertex stays where the network put it
     compression_only: bool = False  # restore only edges shorter than rest (leave stretch)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise LoosefitInputError("LengthConfig", "enabled", "true or false", self.enabled)
         if not (isinstance(self.iterations, int) and self.iterations >= 0):
             raise LoosefitInputError("LengthConfig", "iterations", "an integer >= 0",
                                      self.iterations)  # fmt: skip
@@ -367,15 +364,12 @@ class LengthRestorer:
         self._bh = inc[:, self.held].tocsr()  # (E, Vh)
         self._bf_t32, self._bh32 = self._bf_t.astype(np.float32), self._bh.astype(np.float32)
         self._inc32 = inc.astype(np.float32)
-
-    def _solve(self, rhs: torch.Tensor) -> torch.Tensor:
-        return _SparseSolve.apply(rhs, self._lu)
+        self._rest32 = structure.rest_lengths.cpu().numpy().astype(np.float32)[:, None, None]
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
         """(..., V, 3) positions -> (..., V, 3) with edges near rest; differentiable
         where ``x`` needs a gradient (otherwise the rounds run in numpy, on the host)."""
-        cfg = self.config
-        if not cfg.enabled or cfg.iterations == 0:
+        if self.config.iterations == 0:
             return x
         if x.requires_grad and torch.is_grad_enabled():
             return self._torch(x)
@@ -393,7 +387,7 @@ class LengthRestorer:
         cols = np.ascontiguousarray(x.transpose(1, 0, 2).reshape(V, B * 3), np.float32)
         x0f = cols[self.free]  # (Vf, B*3)
         held_part = self._bh32 @ cols[self.held]  # (E, B*3)
-        rest = self.structure.rest_lengths.cpu().numpy().astype(np.float32)[:, None, None]
+        rest = self._rest32  # (E, 1, 1)
         cur = cols.copy()
         for _ in range(cfg.iterations):
             d = (self._inc32 @ cur).reshape(-1, B, 3)  # (E, B, 3)
@@ -423,7 +417,7 @@ class LengthRestorer:
         bf_t = _torch_sparse(self._bf_t, x)
         bh = _torch_sparse(self._bh, x)
         # the held vertices' share of every edge vector, fixed: B_h x_h
-        held_part = _spmm(bh, xh.permute(1, 0, 2).reshape(len(self.held), -1))  # (E, B*3)
+        held_part = torch.sparse.mm(bh, xh.permute(1, 0, 2).reshape(len(self.held), -1))
         cur = flat
         for _ in range(cfg.iterations):
             d = cur[:, edges[:, 0]] - cur[:, edges[:, 1]]  # (B, E, 3)
@@ -432,9 +426,9 @@ class LengthRestorer:
             if cfg.compression_only:
                 target = torch.where(length < rest, target, d)
             t = target.permute(1, 0, 2).reshape(len(edges), -1)  # (E, B*3)
-            rhs = _spmm(bf_t, t - held_part) + cfg.tie * x0f.permute(1, 0, 2).reshape(
+            rhs = torch.sparse.mm(bf_t, t - held_part) + cfg.tie * x0f.permute(1, 0, 2).reshape(
                 len(self.free), -1)  # fmt: skip
-            sol = self._solve(rhs).reshape(len(self.free), B, 3).permute(1, 0, 2)
+            sol = _SparseSolve.apply(rhs, self._lu).reshape(len(self.free), B, 3).permute(1, 0, 2)
             cur = flat.index_copy(1, free, sol)
         return cur.reshape(*lead, V, 3)
 
@@ -444,10 +438,6 @@ def _torch_sparse(m, like: torch.Tensor) -> torch.Tensor:
     idx = torch.from_numpy(np.stack([m.row, m.col]).astype(np.int64))
     t = torch.sparse_coo_tensor(idx, torch.from_numpy(m.data), m.shape, check_invariants=False)
     return t.to(like.device, like.dtype).coalesce()
-
-
-def _spmm(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    return torch.sparse.mm(a, b)
 
 
 class _SparseSolve(torch.autograd.Function):
