@@ -437,6 +437,9 @@ def cmd_train(args: argparse.Namespace) -> int:
         raise LoosefitInputError("loosefit train", "--precision", "fp32 for the detail and "
                                  "baseline stages (bf16: generative and motion)",
                                  args.precision)  # fmt: skip
+    if args.stage in ("detail", "baseline") and args.init:
+        raise LoosefitInputError("loosefit train", "--init", "a warm start for the generative "
+                                 "and motion stages only", args.init)  # fmt: skip
     if args.stage == "motion":
         return _train_motion(args)
     if args.stage == "detail":
@@ -451,6 +454,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         precision=args.precision,
     )  # fmt: skip
     cfg.loss = _physics_weights(cfg.loss, args, collision=True)
+    cfg.init = args.init
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
     report = train_generative(args.data, out, cfg, log=_log)
     return _train_finish(out, report, "checkpoint")
@@ -498,6 +502,7 @@ def _train_motion(args: argparse.Namespace) -> int:
         precision=args.precision,
     )  # fmt: skip
     cfg.loss = _physics_weights(cfg.loss, args, collision=False)
+    cfg.init = args.init
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
     report = train_motion(args.data, args.generative, out, cfg, log=_log)
@@ -1083,6 +1088,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(f"--{name}", type=float, default=None, metavar="W",
                        help=f"generative, motion: weight of the {name} term ({what}; "
                        "issue 34; default 0)")  # fmt: skip
+    p.add_argument("--init", default=None, metavar="CHECKPOINT",
+                   help="generative, motion: start from this checkpoint's weights (a run's or "
+                   "a packaged set's, same garment and configuration): fine-tuning")  # fmt: skip
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
     p.set_defaults(func=cmd_train)
 

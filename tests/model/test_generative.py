@@ -205,3 +205,24 @@ def test_physics_loss_weights_are_checked():
                                "logvar": torch.zeros(1, 2), "unposed": None})()  # fmt: skip
         generative_loss(out, torch.zeros(1, 3, 3), None, torch.zeros(3, 3), lambda x: 0 * x,
                         GenerativeLossConfig(membrane=1.0))  # fmt: skip
+
+
+def test_warm_start_begins_from_the_given_weights(toy_dataset, tmp_path):
+    quiet = dict(log=lambda *_: None, progress=False)
+    train_generative(toy_dataset, tmp_path / "base", _config(epochs=2), **quiet)
+    base = tmp_path / "base" / "checkpoint.pt"
+    # one epoch at learning rate 0 from the base run's weights keeps them exactly
+    train_generative(toy_dataset, tmp_path / "fine", _config(epochs=1, lr=0.0, init=str(base)),
+                     **quiet)  # fmt: skip
+    a, b = (torch.load(p, weights_only=False)["model"]
+            for p in (base, tmp_path / "fine" / "checkpoint.pt"))  # fmt: skip
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    # ... and a fresh run does not start there
+    train_generative(toy_dataset, tmp_path / "fresh", _config(epochs=1, lr=0.0), **quiet)
+    c = torch.load(tmp_path / "fresh" / "checkpoint.pt", weights_only=False)["model"]
+    assert not all(torch.equal(a[k], c[k]) for k in a)
+    # another model configuration is refused by name
+    other = _config(epochs=1, init=str(base))
+    other.model = GenerativeConfig(uv_size=32, channels=(4, 8, 8, 16), rec_hidden=(16, 16, 16))
+    with pytest.raises(LoosefitInputError, match="model_config"):
+        train_generative(toy_dataset, tmp_path / "other", other, **quiet)

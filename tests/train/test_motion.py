@@ -403,3 +403,16 @@ def test_membrane_and_bending_terms_train_and_are_recorded(toy_dataset, generati
     assert "collision" in model.missing_physics_terms
     with pytest.raises(LoosefitInputError, match="collision"):
         tm.MotionLossConfig(collision=1.0)
+
+
+def test_warm_start_from_a_packaged_encoder(trained, toy_dataset, generative, skirt, tmp_path):
+    run, _ = trained
+    package_model(run / "model.pt", tmp_path / "pack")  # half precision, as shipped
+    _train(toy_dataset, generative, skirt, tmp_path / "fine", epochs=1, lr=0.0,
+           init=str(tmp_path / "pack" / "motion.pt"))  # fmt: skip
+    src = torch.load(tmp_path / "pack" / "motion.pt", weights_only=False)["model"]
+    got = torch.load(tmp_path / "fine" / "checkpoint.pt", weights_only=False)["model"]
+    assert all(torch.equal(src[k].float(), got[k].float().half().float()) for k in src)
+    with pytest.raises(LoosefitInputError, match="model_config.encoder"):
+        _train(toy_dataset, generative, skirt, tmp_path / "other", epochs=1,
+               model=MotionEncoderConfig(motion_fc=16, gru=32), init=str(run / "model.pt"))  # fmt: skip

@@ -27,6 +27,7 @@ default ``"fp32"``. Evaluation always runs in float32.
 
 from __future__ import annotations
 
+import json
 import resource
 import time
 from dataclasses import asdict, dataclass, field, fields
@@ -93,6 +94,9 @@ class TrainGenerativeConfig:
     seed: int = 0
     device: str = "cpu"
     precision: str = "fp32"  # the forward pass's: "fp32", or "bf16" (autocast; see the module)
+    # warm start: a generative checkpoint (a run's or a packaged generative.pt) of the same
+    # garment and model configuration whose weights the run starts from (a fresh optimiser)
+    init: str | None = None
 
     def __post_init__(self) -> None:
         check_precision("TrainGenerativeConfig", self.precision)
@@ -178,6 +182,23 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
                                  hint="load it with loosefit.inference.checkpoints."
                                  "load_generative")  # fmt: skip
     return model, TrainGenerativeConfig.from_dict(data["config"]), data
+
+
+def warm_start(model: GarmentGenerativeModel, path: str | Path, template: GarmentTemplate,
+               config: GenerativeConfig, device="cpu") -> None:  # fmt: skip
+    """Load another generative checkpoint's weights into ``model`` (fine-tuning).
+
+    Raises:
+        LoosefitInputError: not a generative checkpoint, another garment than
+            ``template``'s, or another model configuration than ``config``.
+    """
+    source, data = load_generative(path, template, device)
+    mine, theirs = (json.loads(json.dumps(asdict(c))) for c in (config, source.config))
+    if mine != theirs:
+        raise LoosefitInputError(path, "model_config", str(mine), str(theirs),
+                                 hint="warm-start from a model of this run's --preset and "
+                                 "--decoder")  # fmt: skip
+    model.load_state_dict(source.state_dict())
 
 
 # -- evaluation ---------------------------------------------------------------------
@@ -304,6 +325,9 @@ def train_generative(
         data_, _ = read_generative(ckpt_path, template, device)
         epoch, history = restore_training(data_, {"model": model, "optimizer": optim})
         log(f"resumed {ckpt_path} at epoch {epoch}")
+    elif config.init:
+        warm_start(model, config.init, template, config.model, device)
+        log(f"started from the weights of {config.init}")
 
     posed, unposed = train.posed.to(device), train.unposed.to(device)
     structure = ClothStructure.from_template(template).to(device)

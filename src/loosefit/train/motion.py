@@ -43,6 +43,7 @@ Laplacian, the squared errors and the optimiser are float32 as with the default
 
 from __future__ import annotations
 
+import json
 import os
 import resource
 import time
@@ -63,6 +64,7 @@ from loosefit.inference.checkpoints import (
     garment_record,
     half_weights,
     load_generative,
+    load_weights,
     model_fingerprint,
     read_checkpoint_file,
     save_atomic,
@@ -164,6 +166,10 @@ class TrainMotionConfig:
     seed: int = 0
     device: str = "cpu"
     precision: str = "fp32"  # the forward passes': "fp32", or "bf16" (autocast; see the module)
+    # warm start: a motion checkpoint (a run's model.pt or checkpoint.pt, or a packaged
+    # motion.pt) of the same encoder configuration and features whose weights the run
+    # starts from (a fresh optimiser); its generative model may be another (fine-tuning)
+    init: str | None = None
 
     def __post_init__(self) -> None:
         check_precision("TrainMotionConfig", self.precision)
@@ -227,6 +233,28 @@ class TrainMotionConfig:
             return float(self.teacher_end)
         a, b = self.teacher_start, self.teacher_end
         return float(a + (b - a) * epoch / span)
+
+
+def warm_start(encoder: DynamicMotionEncoder, path: str | Path, config: MotionEncoderConfig,
+               num_features: int, device="cpu") -> None:  # fmt: skip
+    """Load another motion checkpoint's encoder weights (feature statistics included) into
+    ``encoder`` (fine-tuning).
+
+    Raises:
+        LoosefitInputError: not a motion checkpoint, another encoder configuration than
+            ``config``, another number of motion features, or weights that do not fit.
+    """
+    saved = read_checkpoint_file(path, MOTION_FORMAT, device)
+    recorded = (saved.get("model_config") or {}).get("encoder")
+    mine = json.loads(json.dumps(asdict(config)))
+    if recorded is not None and {**mine, **recorded} != mine:
+        raise LoosefitInputError(path, "model_config.encoder", str(mine), str(recorded),
+                                 hint="warm-start from an encoder of this run's "
+                                 "configuration")  # fmt: skip
+    if saved.get("num_features") != num_features:
+        raise LoosefitInputError(path, "num_features", num_features, saved.get("num_features"),
+                                 hint="the same --joints as the run it starts from")  # fmt: skip
+    load_weights(encoder, saved["model"], Path(path), "this encoder configuration")
 
 
 # -- the data ------------------------------------------------------------------------
@@ -603,6 +631,9 @@ def train_motion(
         saved = read_checkpoint_file(ckpt_path, MOTION_FORMAT, device)
         epoch, history = restore_training(saved, {"model": encoder, "optimizer": optim}, gen)
         log(f"resumed {ckpt_path} at epoch {epoch}")
+    elif config.init:
+        warm_start(encoder, config.init, config.model, F, device)
+        log(f"started from the weights of {config.init}")
     net = encoder
     if world > 1:  # torchrun: each process a share of every batch's clips, gradients averaged
         # (the encoder runs once per frame before a window's backward: DDP's hooks fire once
