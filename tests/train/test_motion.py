@@ -414,5 +414,6 @@ def test_warm_start_from_a_packaged_encoder(trained, toy_dataset, generative, sk
     got = torch.load(tmp_path / "fine" / "checkpoint.pt", weights_only=False)["model"]
     assert all(torch.equal(src[k].float(), got[k].float().half().float()) for k in src)
     with pytest.raises(LoosefitInputError, match="model_config.encoder"):
-        _train(toy_dataset, generative, skirt, tmp_path / "other", epochs=1,
-               model=MotionEncoderConfig(motion_fc=16, gru=32), init=str(run / "model.pt"))  # fmt: skip
+        other = MotionEncoderConfig(motion_fc=16, gru=32)
+        _train(toy_dataset, generative, skirt, tmp_path / "other", epochs=1, model=other,
+               init=str(run / "model.pt"))  # fmt: skip
