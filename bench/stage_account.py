@@ -48,7 +48,7 @@ import torch
 
 from loosefit.eval.metrics import hausdorff, rmse, sted
 from loosefit.eval.quality import PENETRATION_TOLERANCE
-from loosefit.garment.mesh_checks import boundary_loops
+from loosefit.garment.mesh_checks import hem_loop
 from loosefit.geometry.collision import CollisionConfig
 from loosefit.geometry.query import Surface
 from loosefit.inference.animator import load_pipeline
@@ -70,12 +70,6 @@ STAGES = {  # label: stages (None: not a rollout)
 }
 TODAY_COLLISION = CollisionConfig(finish=0, whole_body=False)  # before issue 34
 TURN_WINDOW = 30  # frames either side of the fastest turn
-
-
-def hem_vertices(template) -> np.ndarray:
-    """The garment's lower opening: the boundary loop lowest at rest."""
-    loops = boundary_loops(template.faces)
-    return min(loops, key=lambda loop: float(template.vertices[loop, 2].mean()))
 
 
 def flare(garment: np.ndarray, pelvis: np.ndarray, hem: np.ndarray) -> np.ndarray:
@@ -137,11 +131,12 @@ def measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
     return out
 
 
-def clip_account(model, name: str, seq) -> dict:
+def clip_account(model, name: str, seq, labels=tuple(STAGES)) -> dict:
+    """Every stage of ``labels`` (keys of :data:`STAGES`) on one simulated clip."""
     motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
     template = model.template
     structure = ClothStructure.from_template(template)
-    hem = hem_vertices(template)
+    hem = hem_loop(template.vertices, template.faces)
     avatar = model.avatar()
     posed = avatar.pose_motion(motion)
     body = posed.vertices.cpu().numpy()
@@ -154,7 +149,8 @@ def clip_account(model, name: str, seq) -> dict:
                                           structure.hinges).numpy()).ravel()  # fmt: skip
     restorer = model.restorer(Stages())
     rows, seconds, oracle = {}, {}, None
-    for label, stages in STAGES.items():
+    for label in labels:
+        stages = STAGES[label]
         t0 = time.perf_counter()
         if label == "simulation":
             x = truth

@@ -461,16 +461,20 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def _physics_weights(loss, args: argparse.Namespace, collision: bool):
-    """A loss config with ``--membrane``, ``--bending`` and (generative) ``--collision``
-    (checked as the config checks its weights)."""
+    """A loss config with ``--membrane``, ``--bending``, (generative) ``--collision`` and
+    (motion) ``--flare`` (checked as the config checks its weights)."""
     import dataclasses
 
-    given = {n: getattr(args, n, None) for n in ("membrane", "bending", "collision")}
+    given = {n: getattr(args, n, None) for n in ("membrane", "bending", "collision", "flare")}
     given = {n: v for n, v in given.items() if v is not None}
     if "collision" in given and not collision:
         raise LoosefitInputError("loosefit train motion", "--collision",
                                  "no collision weight (the generative stage takes it)",
                                  given["collision"])  # fmt: skip
+    if "flare" in given and collision:
+        raise LoosefitInputError("loosefit train generative", "--flare",
+                                 "no flare weight (the motion stage takes it)",
+                                 given["flare"])  # fmt: skip
     return dataclasses.replace(loss, **given)
 
 
@@ -1088,6 +1092,9 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(f"--{name}", type=float, default=None, metavar="W",
                        help=f"generative, motion: weight of the {name} term ({what}; "
                        "issue 34; default 0)")  # fmt: skip
+    p.add_argument("--flare", type=float, default=None, metavar="W",
+                   help="motion: weight of the hem-flare term (the hem's mean distance from "
+                   "the root's vertical axis against the simulation's; issue 34; default 0)")  # fmt: skip
     p.add_argument("--init", default=None, metavar="CHECKPOINT",
                    help="generative, motion: start from this checkpoint's weights (a run's or "
                    "a packaged set's, same garment and configuration): fine-tuning")  # fmt: skip

@@ -319,3 +319,15 @@ def test_works_without_a_profile() -> None:
     ring_radii = np.linalg.norm(grid(skirt)[:, 0, :2], axis=1)  # the seam column
     np.testing.assert_allclose(ring_radii, 0.11, atol=1e-6)  # a cylinder: ry + ease
     assert skirt.vertices[:, 2].min() == pytest.approx(0.95 - 0.4, abs=1e-5)
+
+
+def test_hem_loop_is_the_lower_opening() -> None:
+    from loosefit.garment.mesh_checks import hem_loop
+
+    # an open tube of two rings: the waist at z = 0, the hem at z = -1
+    ring = [(np.cos(a), np.sin(a)) for a in np.linspace(0, 2 * np.pi, 6, endpoint=False)]
+    v = np.array([(x, y, 0.0) for x, y in ring] + [(x, y, -1.0) for x, y in ring])
+    f = [[i, (i + 1) % 6, 6 + i] for i in range(6)]
+    f += [[(i + 1) % 6, 6 + (i + 1) % 6, 6 + i] for i in range(6)]
+    assert sorted(hem_loop(v, np.array(f)).tolist()) == list(range(6, 12))
+    assert len(hem_loop(v[:3], np.array([[0, 1, 2], [0, 2, 1]]))) == 0  # closed: none

@@ -18,6 +18,7 @@ from loosefit.model.physics import (
     collision_energy,
     dihedral_angles,
     hanging_edges,
+    hem_radius,
     membrane_energy,
     mesh_hinges,
     signed_edge_change,
@@ -193,3 +194,13 @@ def test_the_host_rounds_and_the_differentiable_rounds_agree():
     host = restore(squeezed)
     grad = restore(squeezed.clone().requires_grad_(True)).detach()
     assert torch.allclose(host, grad, atol=1e-6)
+
+
+def test_hem_radius_by_hand():
+    # a square hem of four vertices around the axis, 3 and 4 m out, and one vertex off it
+    x = torch.tensor([[3.0, 0, -1], [0, 4, -1], [-3, 0, -1], [0, -4, -1], [9, 9, 0]])
+    hem = torch.tensor([0, 1, 2, 3])
+    assert float(hem_radius(x, hem)) == pytest.approx(3.5)
+    # batched, and blind to height
+    up = x + torch.tensor([0.0, 0, 2])
+    assert hem_radius(torch.stack([x, up]), hem).tolist() == pytest.approx([3.5, 3.5])

@@ -405,6 +405,15 @@ def test_membrane_and_bending_terms_train_and_are_recorded(toy_dataset, generati
         tm.MotionLossConfig(collision=1.0)
 
 
+def test_flare_term_trains_and_pulls_the_hem_out(toy_dataset, generative, skirt, tmp_path):
+    loss = tm.MotionLossConfig(flare=5.0)
+    _train(toy_dataset, generative, skirt, tmp_path / "flare", epochs=3, loss=loss)
+    history = torch.load(tmp_path / "flare" / "checkpoint.pt", weights_only=False)["history"]
+    assert "flare" in history[0] and np.isfinite(history[-1]["total"])
+    with pytest.raises(LoosefitInputError, match="flare"):
+        tm.MotionLossConfig(flare=-1.0)
+
+
 def test_warm_start_from_a_packaged_encoder(trained, toy_dataset, generative, skirt, tmp_path):
     run, _ = trained
     package_model(run / "model.pt", tmp_path / "pack")  # half precision, as shipped

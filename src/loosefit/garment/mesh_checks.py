@@ -122,6 +122,16 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     return loops
 
 
+def hem_loop(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(H,) int64: a garment's lower opening, the boundary loop lowest on average (+Z up);
+    empty for a closed mesh."""
+    loops = boundary_loops(faces)
+    if not loops:
+        return np.zeros(0, np.int64)
+    z = np.asarray(vertices)[:, 2]
+    return min(loops, key=lambda loop: float(z[loop].mean()))
+
+
 def uv_triangle_areas(uvs: np.ndarray, face_uvs: np.ndarray) -> np.ndarray:
     """Signed areas of the faces in UV space (positive = counter-clockwise).
 

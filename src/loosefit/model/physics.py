@@ -240,6 +240,13 @@ def signed_edge_change(x: torch.Tensor, edges: torch.Tensor, rest: torch.Tensor)
     return d.norm(dim=-1) / rest - 1.0
 
 
+def hem_radius(x: torch.Tensor, hem: torch.Tensor) -> torch.Tensor:
+    """(..., V, 3) -> (...): the hem's flare, the mean horizontal distance of the vertices
+    ``hem`` (H,) from the vertical axis through the origin (+Z up; in the root frame, the
+    axis through the root)."""
+    return x[..., hem, :2].norm(dim=-1).mean(-1)
+
+
 def membrane_energy(x: torch.Tensor, edges: torch.Tensor, rest: torch.Tensor) -> torch.Tensor:
     """(..., V, 3) -> (...): the mean over edges of the squared strain ``(l / L - 1)^2``."""
     return signed_edge_change(x, edges, rest).pow(2).mean(-1)

@@ -75,7 +75,7 @@ def restore_training(saved: dict, states: dict, sampling: torch.Generator | None
 ADDED_FIELDS = {"precision": "fp32", "init": None}
 # the same for the loss's fields (issue 34's physics terms: runs before had them off)
 ADDED_LOSS_FIELDS = {"membrane": 0.0, "bending": 0.0, "collision": 0.0,
-                     "collision_epsilon": 0.002}  # fmt: skip
+                     "collision_epsilon": 0.002, "flare": 0.0}  # fmt: skip
 
 
 def open_run(out: Path, stored: dict) -> None:

@@ -57,6 +57,7 @@ from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
+from loosefit.garment.mesh_checks import hem_loop
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.inference.animator import AnimationModel, load_animation_model
 from loosefit.inference.checkpoints import (
@@ -82,6 +83,7 @@ from loosefit.model.physics import (
     ClothStructure,
     PhysicsLossConfig,
     active_terms,
+    hem_radius,
     physics_terms,
 )
 from loosefit.model.rollout import (
@@ -124,8 +126,14 @@ class MotionLossConfig:
     bending: float = 0.0  # dihedral angles against rest
     collision: float = 0.0
     collision_epsilon: float = 0.002
+    # the hem's flare (its mean distance from the root's vertical axis) against the
+    # simulation's, squared, in the length unit (issue 34: a network that averages fold
+    # configurations pulls the hem in); 0: off
+    flare: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.flare, (int, float)) and self.flare >= 0):
+            raise LoosefitInputError("MotionLossConfig", "flare", "a weight >= 0", self.flare)
         if self.collision:
             raise LoosefitInputError("MotionLossConfig", "collision",
                                      "0 (the motion stage takes membrane and bending)",
@@ -453,6 +461,7 @@ def run_window(
     part: BatchPart | None = None,
     precision: str = "fp32",
     structure: ClothStructure | None = None,
+    hem: torch.Tensor | None = None,
 ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
     """Frames ``start:stop`` of stacked clips: the loss and the state to carry on.
 
@@ -475,6 +484,8 @@ def run_window(
         precision: the forward passes' ("fp32" or "bf16"; the loss is float32).
         structure: the garment's edges and hinges, for the physics terms of ``loss``
             (needed when one has a weight).
+        hem: (H,) the hem's vertices, for the flare term of ``loss`` (needed when it has
+            a weight).
 
     Returns:
         The loss terms (this process's share of the means over the whole batch's
@@ -514,6 +525,11 @@ def run_window(
             if loss.membrane > 0 or loss.bending > 0:
                 for key, e in physics_terms(v, structure, loss).items():  # (b,) each
                     sums[key] = sums.get(key, 0.0) + (w * e).sum()
+            if loss.flare > 0:
+                if hem is None:
+                    raise ValueError("the flare term needs the garment's hem vertices")
+                d = s * (hem_radius(v, hem) - hem_radius(vt, hem))  # (b,)
+                sums["flare"] = sums.get("flare", 0.0) + loss.flare * (w * d.pow(2)).sum()
         previous = v if unroll else v.detach()
         if teacher > 0:
             draw = torch.rand(len(every), generator=generator)  # (B,) the whole batch's
@@ -610,6 +626,7 @@ def train_motion(
     encoder.to(device)
     lap = Laplacian(template.faces, template.num_vertices).to(device)
     structure = ClothStructure.from_template(template).to(device)
+    hem = torch.from_numpy(hem_loop(template.vertices, template.faces)).to(device)
     optim = torch.optim.Adam(encoder.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     meta = {
         "model_config": {"encoder": asdict(config.model), "rollout": asdict(config.rollout)},
@@ -662,7 +679,7 @@ def train_motion(
                 terms, hidden, previous = run_window(
                     net, gmodel, lap, batch, start, min(start + config.window, L), hidden,
                     previous, teacher, config.loss, gen, config.previous_noise, config.unroll,
-                    part, config.precision, structure,
+                    part, config.precision, structure, hem,
                 )  # fmt: skip
                 if not terms["total"].requires_grad:
                     continue  # a window with no motion frame in the batch (all preroll)
