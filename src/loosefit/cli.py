@@ -1093,8 +1093,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help=f"generative, motion: weight of the {name} term ({what}; "
                        "issue 34; default 0)")  # fmt: skip
     p.add_argument("--flare", type=float, default=None, metavar="W",
-                   help="motion: weight of the hem-flare term (the hem's mean distance from "
-                   "the root's vertical axis against the simulation's; issue 34; default 0)")  # fmt: skip
+                   help="motion: weight of the hem-flare term (the hem's mean distance "
+                   "from the root's vertical axis against the simulation's; issue 34; "
+                   "default 0)")  # fmt: skip
     p.add_argument("--init", default=None, metavar="CHECKPOINT",
                    help="generative, motion: start from this checkpoint's weights (a run's or "
                    "a packaged set's, same garment and configuration): fine-tuning")  # fmt: skip
