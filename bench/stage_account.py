@@ -87,8 +87,9 @@ def fastest_turn(rotations: np.ndarray, fps: float) -> int:
 
 
 def inside(garment: np.ndarray, body: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Per frame: share of vertices inside (winding number), deepest (m)."""
-    surface = Surface(body[0], faces)
+    """Per frame: share of vertices inside (the generalised winding number: a vertex in the
+    hip under a forearm pressed into it is inside), deepest (m)."""
+    surface = Surface(body[0], faces, winding_number=True)
     share, deep = np.zeros(len(garment)), np.zeros(len(garment))
     for t in range(len(garment)):
         surface.refit(body[t])

@@ -120,8 +120,13 @@ def test_a_deep_penetration_where_body_parts_overlap_is_cleared_below_5_mm():
     arm.apply_translation([0.3, 0, 0])
     bv = np.r_[big.vertices, arm.vertices].astype(np.float32)
     bf = np.r_[big.faces, arm.faces + len(big.vertices)]
-    surface = Surface(bv, bf)
+    surface = Surface(bv, bf, winding_number=True)
     v, f = _sheet(40, 0.45, 0.1)
+    # a point in the large sphere under the small one's skin is inside by the winding
+    # number; warp's vote of three rays without it says outside (two meet that skin first)
+    under = np.array([[0.25, -0.1, -0.1]], np.float32)
+    assert surface.query(under, 1.0).inside[0]
+    assert not Surface(bv, bf).query(under, 1.0).inside[0]
 
     def deepest(x: np.ndarray) -> float:
         hit = surface.query(x, 1.0, sign="winding")

@@ -62,11 +62,15 @@ class CollisionConfig:
     #   closest face's side says outside for cloth that is inside: ballet 05_20 kept 8
     #   frames deeper than 5 mm asking only within face_reach, none within 2 cm; 05_12
     #   kept a vertex 4.9 cm inside whose closest skin's side said 4.9 cm outside)
+    winding_accuracy: float = 1.0  # the last projection's fast winding number (warp's beta;
+    #   its default 2 costs a third more, same answers on salsa 60_01 and ballet 05_12; 0.5
+    #   calls cloth centimetres outside inside)
     whole_body: bool = True  # collide with the whole body, arms and hands included, whatever
     #   the simulation's collider was (issue 34: hands passed through the skirt)
 
     def __post_init__(self) -> None:
-        for name in ("epsilon", "anchor", "reach", "face_reach", "finish_reach"):
+        for name in ("epsilon", "anchor", "reach", "face_reach", "finish_reach",
+                     "winding_accuracy"):  # fmt: skip
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise LoosefitInputError("CollisionConfig", name, "a positive number", value)
@@ -241,7 +245,7 @@ class CollisionHandler:
         for k in range(cfg.finish):
             if not len(near):
                 break
-            hit = body.query(x[near], cfg.reach, sign="winding")
+            hit = body.query(x[near], cfg.reach, sign="winding", accuracy=cfg.winding_accuracy)
             passes += 1
             valid = hit.faces >= 0
             inside = valid & hit.inside
@@ -409,11 +413,18 @@ class BodyCollider:
         num_frames: T, the motion's frames.
         chunk: frames posed at once.
         device: warp device of the closest-point queries.
+        winding_number: the body's BVH keeps the winding number (what the last projection
+            asks: an arm pressed into the hip overlaps it); default: when the handler has
+            a last projection.
     """
 
     def __init__(self, handler: CollisionHandler | PushOutHandler, body_faces: np.ndarray,
-                 pose, num_frames: int, chunk: int = 64, device: str = "cpu") -> None:  # fmt: skip
+                 pose, num_frames: int, chunk: int = 64, device: str = "cpu",
+                 winding_number: bool | None = None) -> None:  # fmt: skip
         self.handler = handler
+        if winding_number is None:
+            winding_number = bool(getattr(getattr(handler, "config", None), "finish", 0))
+        self.winding_number = winding_number
         self.faces = np.ascontiguousarray(np.asarray(body_faces), np.int64)
         self.pose = pose
         self.num_frames = num_frames
@@ -437,7 +448,7 @@ class BodyCollider:
         """The garment (V, 3) at a motion frame, pushed out of the body there."""
         vertices = self.body(frame)
         if self._surface is None:
-            self._surface = Surface(vertices, self.faces, self.device)
+            self._surface = Surface(vertices, self.faces, self.device, self.winding_number)
         else:
             self._surface.refit(vertices)
         return self.handler.resolve(garment, self._surface)
