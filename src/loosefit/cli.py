@@ -437,9 +437,9 @@ def cmd_train(args: argparse.Namespace) -> int:
         raise LoosefitInputError("loosefit train", "--precision", "fp32 for the detail and "
                                  "baseline stages (bf16: generative and motion)",
                                  args.precision)  # fmt: skip
-    if args.stage in ("detail", "baseline") and args.init:
-        raise LoosefitInputError("loosefit train", "--init", "a warm start for the generative "
-                                 "and motion stages only", args.init)  # fmt: skip
+    if args.stage == "baseline" and args.init:
+        raise LoosefitInputError("loosefit train", "--init", "a warm start for the generative, "
+                                 "motion and detail stages only", args.init)  # fmt: skip
     if args.stage == "motion":
         return _train_motion(args)
     if args.stage == "detail":
@@ -526,6 +526,7 @@ def _train_detail(args: argparse.Namespace) -> int:
     )  # fmt: skip
     if args.edge_weight is not None:
         cfg.loss.edge = args.edge_weight
+    cfg.init = args.init
     kind = ("full" if cfg.discriminator else "nodisc") + ("-edge" if cfg.loss.edge else "")
     out = args.out or f"runs/detail-{args.preset}-{kind}"
     report = train_detail(args.data, args.motion, out, cfg, args.generative, log=_log)
@@ -1097,8 +1098,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "from the root's vertical axis against the simulation's; issue 34; "
                    "default 0)")  # fmt: skip
     p.add_argument("--init", default=None, metavar="CHECKPOINT",
-                   help="generative, motion: start from this checkpoint's weights (a run's or "
-                   "a packaged set's, same garment and configuration): fine-tuning")  # fmt: skip
+                   help="generative, motion, detail: start from this checkpoint's weights "
+                   "(a run's or a packaged set's, same garment and configuration): "
+                   "fine-tuning")  # fmt: skip
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
     p.set_defaults(func=cmd_train)
 

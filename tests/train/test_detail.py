@@ -177,3 +177,18 @@ def test_animate_without_later_stages_is_the_motion_stage_rollout(
     want = rollout(model.generative, model.encoder, seq.motion, model.rest_state,
                    model.floor_height, model.rollout_config).vertices  # fmt: skip
     np.testing.assert_array_equal(got, want)
+
+
+def test_warm_start_begins_from_the_given_generator(trained, toy_dataset, motion, tmp_path):
+    run, _ = trained
+    quiet = dict(log=lambda *_: None, progress=False)
+    td.train_detail(toy_dataset, motion, tmp_path / "fine",
+                    _config(epochs=1, lr=0.0, init=str(run / "model.pt")), **quiet)  # fmt: skip
+    a = torch.load(run / "model.pt", weights_only=False)["model"]
+    b = torch.load(tmp_path / "fine" / "checkpoint.pt", weights_only=False)["model"]
+    assert all(torch.equal(a[k].float(), b[k].float()) for k in a)
+    other = DetailConfig(disc_channels=(4, 8, 8), patches=(32, 16), global_hidden=(8, 4))
+    with pytest.raises(LoosefitInputError, match="model"):
+        td.train_detail(toy_dataset, motion, tmp_path / "other",
+                        _config(epochs=1, model=other, init=str(run / "model.pt")),
+                        **quiet)  # fmt: skip

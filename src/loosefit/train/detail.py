@@ -42,7 +42,12 @@ from loosefit.inference.animator import (
     load_detail_model,
     stage_fingerprints,
 )
-from loosefit.inference.checkpoints import DETAIL_FORMAT, read_checkpoint_file, save_atomic
+from loosefit.inference.checkpoints import (
+    DETAIL_FORMAT,
+    load_weights,
+    read_checkpoint_file,
+    save_atomic,
+)
 from loosefit.model.detail import (
     DetailConfig,
     DetailGenerator,
@@ -86,6 +91,10 @@ class TrainDetailConfig:
     checkpoint_every: int = 1  # epochs
     seed: int = 0
     device: str = "cpu"
+    # warm start: a detail checkpoint (a run's, or a packaged detail.pt) of the same
+    # configuration whose generator (and discriminator, where it has one) the run starts
+    # from, whatever motion stage it was trained on (fine-tuning to a new one)
+    init: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.discriminator, bool):
@@ -264,6 +273,13 @@ def train_detail(
             gen,
         )  # fmt: skip
         log(f"resumed {ckpt_path} at epoch {epoch}")
+    elif config.init:
+        saved = read_checkpoint_file(config.init, DETAIL_FORMAT, dev)
+        load_weights(G, saved["model"], Path(config.init), "this detail configuration")
+        if "discriminator" in saved:
+            load_weights(D, saved["discriminator"], Path(config.init),
+                         "this discriminator configuration")  # fmt: skip
+        log(f"started from the weights of {config.init}")
 
     # 3. the loop
     writer = SummaryWriter(str(out))
