@@ -139,7 +139,8 @@ def test_a_deep_penetration_where_body_parts_overlap_is_cleared_below_5_mm():
     handler = CollisionHandler(f, len(v), CollisionConfig(reach=0.2))
     r = handler.resolve(torch.from_numpy(v), surface)
     assert deepest(r.vertices.numpy()) < 0.005
-    assert r.depth_after >= deepest(r.vertices.numpy()) - 1e-6  # reported, not hidden
+    # reported as it is: not hidden, and not a stale depth of a vertex moved out since
+    assert deepest(r.vertices.numpy()) - 1e-6 <= r.depth_after <= deepest(r.vertices.numpy()) + 1e-3
     assert not np.isnan(r.vertices.numpy()).any()
 
 

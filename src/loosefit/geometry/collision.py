@@ -262,6 +262,14 @@ class CollisionHandler:
                               p + cfg.epsilon * out)  # fmt: skip
             went[idx] = np.where(on_inner[:, None], went[idx], out)
             near = idx  # only these can still be inside (the others did not move)
+        else:  # the passes ran out with vertices just moved: where they are now, reported
+            if cfg.finish and len(near):
+                hit = body.query(x[near], cfg.reach, sign="winding",
+                                 accuracy=cfg.winding_accuracy)  # fmt: skip
+                passes += 1
+                valid = hit.faces >= 0
+                ds[near] = np.where(valid, np.where(hit.inside, -hit.distance, hit.distance),
+                                    np.inf)  # fmt: skip
         return x, ds, passes
 
     def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,

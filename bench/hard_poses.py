@@ -1,0 +1,107 @@
+"""Issue 34, item 4: what collision handling leaves inside the body on hard poses.
+
+The pipeline (default: the committed set) animates the penetration regression set's
+motions (``configs/regression.yaml``: the crouches of salsa 60_02, mirrored and 1.5x, 60_01's
+crouch, a 1.5x spin), salsa 60_01's opening (a hand on the hip), the account's three ballet
+clips and the spin. Per clip: the frames with a vertex inside the whole body (arms and
+hands included) by the generalised winding number, those deeper than 5 mm, the deepest,
+the mean share of vertices inside; and what the collision handler itself reported. No
+simulation is needed: the body is the reference.
+
+    .venv/bin/python bench/hard_poses.py [--checkpoint checkpoints/salsa/motion.pt] \\
+        [--out docs/HARD_POSES.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from stage_account import inside  # noqa: E402
+
+from loosefit.eval.quality import PENETRATION_TOLERANCE  # noqa: E402
+from loosefit.inference.animator import load_pipeline  # noqa: E402
+from loosefit.sim.generate import _resolve_spec, read_config_file, spec_name  # noqa: E402
+from loosefit.train.common import machine  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+EXTRA = [  # beyond the regression set: (spec, first frame, frames)
+    ("../shared/mocap/cmu-salsa/60_01.bvh", 10, 90),
+    ("../shared/mocap/cmu-ballet/05_02.bvh", 0, None),
+    ("../shared/mocap/cmu-ballet/05_10.bvh", 0, None),
+    ("../shared/mocap/cmu-ballet/05_12.bvh", 0, None),
+    ("spin", 0, None),
+]
+
+
+def motions(config: Path) -> list[tuple[str, str, int, int | None]]:
+    """(name, spec, first frame, frames) of every clip measured."""
+    cfg = read_config_file(config)
+    out = [(spec_name(s), s, 0, None) for s in cfg.motions.specs]
+    for spec, start, frames in EXTRA:
+        resolved = _resolve_spec(spec, ROOT)
+        name = Path(spec).stem + (f"_{start}-{start + frames}" if frames else "")
+        out.append((name, resolved, start, frames))
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
+    p.add_argument("--config", default="configs/regression.yaml")
+    p.add_argument("--out", default="docs/HARD_POSES.md")
+    args = p.parse_args()
+
+    from loosefit.api import motion_for
+
+    torch.set_num_threads(1)
+    model = load_pipeline(args.checkpoint)
+    avatar = model.avatar()
+    whole = avatar.collider_faces(arms=True).cpu().numpy()
+    rows, record = [], {}
+    for name, spec, start, frames in motions(Path(args.config)):
+        if "shared/mocap" in spec and not (ROOT / "../shared/mocap").exists():
+            raise SystemExit(f"{spec}: ../shared/mocap is not beside the project")
+        motion = motion_for(spec, avatar, model.fps, frames, start)
+        t0 = time.perf_counter()
+        result = model.animate(motion)
+        seconds = time.perf_counter() - t0
+        body = avatar.pose_motion(motion).vertices.cpu().numpy()
+        share, deep = inside(result.vertices, body, whole)
+        reported = np.array([c["depth_after"] for c in result.collisions])
+        r = {"frames": motion.num_frames, "frames_inside": int((deep > 0).sum()),
+             "frames_deep": int((deep > PENETRATION_TOLERANCE).sum()),
+             "deepest_cm": 100 * float(deep.max()), "inside_mean": float(share.mean()),
+             "reported_deepest_cm": 100 * float(reported.max()) if len(reported) else 0.0,
+             "ms_per_frame": 1000 * seconds / motion.num_frames}  # fmt: skip
+        record[name] = r
+        print(name, r, flush=True)
+        rows.append(f"| {name} | {r['frames']} | {r['frames_inside']} | {r['frames_deep']} | "
+                    f"{r['deepest_cm']:.2f} | {100 * r['inside_mean']:.4f} | "
+                    f"{r['reported_deepest_cm']:.2f} | {r['ms_per_frame']:.0f} |")  # fmt: skip
+    head = ("| clip | frames | frames with cloth inside | frames > 5 mm | deepest (cm) | "
+            "inside, mean % of vertices | handler's own deepest (cm) | ms / frame |\n"
+            "|---|---:|---:|---:|---:|---:|---:|---:|")  # fmt: skip
+    out = Path(args.out)
+    out.with_suffix(".json").write_text(json.dumps(
+        {"checkpoint": args.checkpoint, "machine": machine("cpu"),
+         "platform": platform.platform(), "clips": record}, indent=1))  # fmt: skip
+    marker = "<!-- hard poses table -->"
+    body = head + "\n" + "\n".join(rows)
+    if out.is_file() and marker in out.read_text():
+        out.write_text(out.read_text().split(marker)[0] + marker + "\n" + body + "\n")
+    else:
+        out.write_text(f"# Hard poses\n\n{marker}\n{body}\n")
+    print(body)
+
+
+if __name__ == "__main__":
+    main()
