@@ -13,6 +13,8 @@
 #      g-m      + membrane (edge lengths against rest)
 #      g-mb     + membrane + bending
 #      g-mbc    + membrane + bending + collision (the whole body as an obstacle)
+#      g-m3x-bc the same with three times the membrane weight
+#    (weights: docs/PHYSICS_PROBE.md, the probe on one clip, scripts/physics_probe.sh)
 # 3. The motion stage fine-tuned from the committed motion.pt (mirrored clips, as the
 #    committed ps-mirror run) on the generative run GEN_ABLATION (default g-mbc), three runs:
 #      m-plain  the paper's terms only;  m-m  + membrane;  m-mf  + membrane + hem flare
@@ -33,7 +35,7 @@ GEN_LR=${GEN_LR:-3e-4}
 MOTION_EPOCHS=${MOTION_EPOCHS:-6}
 MOTION_LR=${MOTION_LR:-3e-4}
 DETAIL_EPOCHS=${DETAIL_EPOCHS:-4}
-MEMBRANE=${MEMBRANE:-300}
+MEMBRANE=${MEMBRANE:-1000}
 BENDING=${BENDING:-10}
 COLLISION=${COLLISION:-30}
 FLARE=${FLARE:-1}
@@ -71,6 +73,7 @@ pair() {  # two commands (strings of words) side by side; fails if either fails
 pair "gen g-plain" "gen g-m --membrane $MEMBRANE"
 pair "gen g-mb --membrane $MEMBRANE --bending $BENDING" \
      "gen g-mbc --membrane $MEMBRANE --bending $BENDING --collision $COLLISION"
+gen g-m3x-bc --membrane $((3 * MEMBRANE)) --bending "$BENDING" --collision "$COLLISION"
 
 # 3. motion on the ablation's generative run
 pair "motion m-plain $GEN_ABLATION" "motion m-m $GEN_ABLATION --membrane $MEMBRANE"
@@ -80,7 +83,7 @@ motion m-mf "$GEN_ABLATION" --membrane "$MEMBRANE" --flare "$FLARE"
 "$BIN/python" bench/physics_ablation.py --base "$BEFORE/motion.pt" \
     --generative g-before="$BEFORE/generative.pt" g-plain="$RUNS/g-plain/checkpoint.pt" \
     g-m="$RUNS/g-m/checkpoint.pt" g-mb="$RUNS/g-mb/checkpoint.pt" \
-    g-mbc="$RUNS/g-mbc/checkpoint.pt" \
+    g-mbc="$RUNS/g-mbc/checkpoint.pt" g-m3x-bc="$RUNS/g-m3x-bc/checkpoint.pt" \
     --motion m-before="$BEFORE/motion.pt" m-plain="$RUNS/m-plain/model.pt" \
     m-m="$RUNS/m-m/model.pt" m-mf="$RUNS/m-mf/model.pt" \
     --out docs/PHYSICS_ABLATION.md
