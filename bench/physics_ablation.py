@@ -7,7 +7,8 @@ without the membrane, bending and flare terms) by the motion stage alone and by 
 pipeline after it (``after``: edge lengths and collision handling; a motion run has no
 detail stage of its own). Every row on the account's clips (the procedural spin, three
 held-out ballet clips, the held-out salsa chain's fastest spin), and each run's own report
-on the salsa data's held-out chain (1,957 frames) beside it.
+on its data set's test split beside it (for the salsa data, the held-out chain of 1,957
+frames).
 
     .venv/bin/python bench/physics_ablation.py \\
         --generative g-plain=runs/physics/g-plain/checkpoint.pt g-m=... \\
@@ -118,7 +119,7 @@ def main() -> None:
     record = {"machine": machine("cpu"), "platform": platform.platform(),
               "cpus": os.cpu_count(), "threads": 1, "runs": {}}  # fmt: skip
     lines = ["| run | stage | rows | " + " | ".join(h for _, h, _ in COLUMNS)
-             + " | held-out chain RMSE / Hausdorff / STED (run's report) |",
+             + " | the run's own test split: RMSE / Hausdorff / STED |",
              "|---|---|---|" + "---:|" * len(COLUMNS) + "---|"]  # fmt: skip
     for name, (stage, labels, model, path) in runs.items():
         clips = {}

@@ -13,7 +13,7 @@
 #      g-m      + membrane (edge lengths against rest)
 #      g-mb     + membrane + bending
 #      g-mbc    + membrane + bending + collision (the whole body as an obstacle)
-#      g-m3x-bc the same with three times the membrane weight
+#      g-m3x-bc the same with three times the membrane and bending weights
 #    (weights: docs/PHYSICS_PROBE.md, the probe on one clip, scripts/physics_probe.sh)
 # 3. The motion stage fine-tuned from the committed motion.pt (mirrored clips, as the
 #    committed ps-mirror run) on the generative run GEN_ABLATION (default g-mbc), three runs:
@@ -73,7 +73,7 @@ pair() {  # two commands (strings of words) side by side; fails if either fails
 pair "gen g-plain" "gen g-m --membrane $MEMBRANE"
 pair "gen g-mb --membrane $MEMBRANE --bending $BENDING" \
      "gen g-mbc --membrane $MEMBRANE --bending $BENDING --collision $COLLISION"
-gen g-m3x-bc --membrane $((3 * MEMBRANE)) --bending "$BENDING" --collision "$COLLISION"
+gen g-m3x-bc --membrane $((3 * MEMBRANE)) --bending $((3 * BENDING)) --collision "$COLLISION"
 
 # 3. motion on the ablation's generative run
 pair "motion m-plain $GEN_ABLATION" "motion m-m $GEN_ABLATION --membrane $MEMBRANE"
