@@ -132,8 +132,9 @@ def measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
     return out
 
 
-def clip_account(model, name: str, seq, labels=tuple(STAGES)) -> dict:
-    """Every stage of ``labels`` (keys of :data:`STAGES`) on one simulated clip."""
+def clip_account(model, name: str, seq, labels=tuple(STAGES), before=None) -> dict:
+    """Every stage of ``labels`` (keys of :data:`STAGES`) on one simulated clip; the
+    ``today`` row with the pipeline ``before`` when given (the set before issue 34)."""
     motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
     template = model.template
     structure = ClothStructure.from_template(template)
@@ -162,8 +163,9 @@ def clip_account(model, name: str, seq, labels=tuple(STAGES)) -> dict:
         else:
             collision = TODAY_COLLISION if label == "today" else None
             lengths = replace(model.lengths, edges="all") if label.endswith("all edges") else None
-            with model.configured(collision, lengths):
-                x = model.animate(motion, stages=stages).vertices
+            which = before if label == "today" and before is not None else model
+            with which.configured(collision, lengths):
+                x = which.animate(motion, stages=stages).vertices
         seconds[label] = time.perf_counter() - t0
         rows[label] = measure(x, truth, structure, hem, pelvis, window, body, faces,
                               truth_angles, motion.fps, template)  # fmt: skip
@@ -237,6 +239,9 @@ def plot(clips: dict, path: Path) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
+    p.add_argument("--before", default=None,
+                   help="the pipeline of the 'today' row (default: --checkpoint's), e.g. the "
+                   "set before issue 34 kept in out/salsa-before-34/motion.pt")  # fmt: skip
     p.add_argument("--data", nargs="*", default=["datasets/account"],
                    help="data set folders (every clip, or --clips)")  # fmt: skip
     p.add_argument("--clips", nargs="*", default=None, help="only these clips")
@@ -251,6 +256,7 @@ def main() -> None:
 
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
+    before = load_pipeline(args.before) if args.before else None
     sources = {}
     for folder in args.data:
         reader = DatasetReader(folder, allow_incomplete=True)
@@ -267,9 +273,11 @@ def main() -> None:
             seq = replace(seq, motion=seq.motion.slice(0, args.max_frames),
                           garment_vertices=seq.garment_vertices[: args.max_frames])  # fmt: skip
         print(f"{name}: {seq.motion.num_frames} frames", flush=True)
-        clips[name] = clip_account(model, name, seq)
+        clips[name] = clip_account(model, name, seq, before=before)
     out = Path(args.out)
-    record = {"checkpoint": str(Path(args.checkpoint).resolve()), "machine": machine("cpu"),
+    record = {"checkpoint": str(Path(args.checkpoint).resolve()),
+              "before": str(Path(args.before).resolve()) if args.before else None,
+              "machine": machine("cpu"),
               "platform": platform.platform(), "torch": torch.__version__,
               "threads": 1, "cpus": os.cpu_count(), "clips": clips}  # fmt: skip
     out.parent.mkdir(parents=True, exist_ok=True)
