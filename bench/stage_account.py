@@ -53,7 +53,12 @@ from loosefit.geometry.collision import CollisionConfig
 from loosefit.geometry.query import Surface
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import heading_yaw
-from loosefit.model.physics import ClothStructure, dihedral_angles, signed_edge_change
+from loosefit.model.physics import (
+    ClothStructure,
+    dihedral_angles,
+    hem_radius,
+    signed_edge_change,
+)
 from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.train.common import machine
 
@@ -74,8 +79,8 @@ TURN_WINDOW = 30  # frames either side of the fastest turn
 
 def flare(garment: np.ndarray, pelvis: np.ndarray, hem: np.ndarray) -> np.ndarray:
     """(T,) the hem's mean horizontal distance (m) from the pelvis's vertical axis."""
-    d = garment[:, hem, :2] - pelvis[:, None, :2]
-    return np.linalg.norm(d, axis=-1).mean(1)
+    centred = torch.from_numpy(np.asarray(garment, np.float64) - pelvis[:, None])
+    return hem_radius(centred, torch.from_numpy(hem)).numpy()
 
 
 def fastest_turn(rotations: np.ndarray, fps: float) -> int:

@@ -242,14 +242,19 @@ class CollisionHandler:
         near = np.flatnonzero(ds < cfg.finish_reach)  # inside or near, as the solve saw it
         passes = 0
         went = np.zeros_like(x)  # (V, 3) the direction each vertex was last moved in
+
+        def ask(near: np.ndarray):
+            """The winding number's answer for the vertices ``near``, into ``ds``."""
+            hit = body.query(x[near], cfg.reach, sign="winding", accuracy=cfg.winding_accuracy)
+            valid = hit.faces >= 0
+            ds[near] = np.where(valid, np.where(hit.inside, -hit.distance, hit.distance), np.inf)
+            return hit, valid & hit.inside
+
         for k in range(cfg.finish):
             if not len(near):
                 break
-            hit = body.query(x[near], cfg.reach, sign="winding", accuracy=cfg.winding_accuracy)
+            hit, inside = ask(near)
             passes += 1
-            valid = hit.faces >= 0
-            inside = valid & hit.inside
-            ds[near] = np.where(valid, np.where(hit.inside, -hit.distance, hit.distance), np.inf)
             if not inside.any():
                 break
             idx = near[inside]
@@ -264,12 +269,8 @@ class CollisionHandler:
             near = idx  # only these can still be inside (the others did not move)
         else:  # the passes ran out with vertices just moved: where they are now, reported
             if cfg.finish and len(near):
-                hit = body.query(x[near], cfg.reach, sign="winding",
-                                 accuracy=cfg.winding_accuracy)  # fmt: skip
+                ask(near)
                 passes += 1
-                valid = hit.faces >= 0
-                ds[near] = np.where(valid, np.where(hit.inside, -hit.distance, hit.distance),
-                                    np.inf)  # fmt: skip
         return x, ds, passes
 
     def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,
