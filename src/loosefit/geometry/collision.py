@@ -62,6 +62,16 @@ class CollisionConfig:
     #   closest face's side says outside for cloth that is inside: ballet 05_20 kept 8
     #   frames deeper than 5 mm asking only within face_reach, none within 2 cm; 05_12
     #   kept a vertex 4.9 cm inside whose closest skin's side said 4.9 cm outside)
+    finish_limit: float = 0.04  # m: a vertex the last projection moved on (still inside after
+    #   its projection) goes no farther than this from where the solve left it; one not out
+    #   by then stays where it is, inside (two body parts pressed together, a hand on the
+    #   hip: the cloth between is pinched, and walking it on threw vertices a metre out)
+    stretch: float = 1.5  # the most collision handling may stretch an edge, as a factor of
+    #   its rest length (or of its length before, if that is more): pushes out along two
+    #   body parts' normals (cloth pinched between a hand and the hip, a thigh and the belly)
+    #   tore edges to 10x (ballet 05_02, the crouches); see ``relax``
+    relax: int = 8  # rounds that mend the edges the pushes tore (longer than ``stretch``
+    #   times rest): shortened, then projected out again; 0: none
     winding_accuracy: float = 1.0  # the last projection's fast winding number (warp's beta;
     #   its default 2 costs a third more, same answers on salsa 60_01 and ballet 05_12; 0.5
     #   calls cloth centimetres outside inside)
@@ -70,14 +80,18 @@ class CollisionConfig:
 
     def __post_init__(self) -> None:
         for name in ("epsilon", "anchor", "reach", "face_reach", "finish_reach",
-                     "winding_accuracy"):  # fmt: skip
+                     "finish_limit", "winding_accuracy"):  # fmt: skip
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise LoosefitInputError("CollisionConfig", name, "a positive number", value)
+        if not (isinstance(self.relax, int) and self.relax >= 0):
+            raise LoosefitInputError("CollisionConfig", "relax", "an integer >= 0", self.relax)
         for name in ("rings", "iterations"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise LoosefitInputError("CollisionConfig", name, "an integer >= 1", value)
+        if not (isinstance(self.stretch, (int, float)) and self.stretch > 1.0):
+            raise LoosefitInputError("CollisionConfig", "stretch", "a number > 1", self.stretch)
         if not (isinstance(self.finish, int) and self.finish >= 0):
             raise LoosefitInputError("CollisionConfig", "finish", "an integer >= 0", self.finish)
         if not isinstance(self.whole_body, bool):
@@ -123,9 +137,12 @@ class CollisionHandler:
         faces: (F, 3) the garment's triangles.
         num_vertices: V.
         config: Eq. 16's weights and the solver's limits.
+        rest: (V, 3) the garment at rest, whose edge lengths ``stretch`` is measured against
+            (None: each frame's input).
     """
 
-    def __init__(self, faces: np.ndarray, num_vertices: int, config: CollisionConfig | None = None):
+    def __init__(self, faces: np.ndarray, num_vertices: int, config: CollisionConfig | None = None,
+                 rest: np.ndarray | None = None):  # fmt: skip
         self.config = config or CollisionConfig()
         self.num_vertices = V = num_vertices
         L = laplacian_matrix(faces, V, "uniform", dtype=torch.float64)
@@ -135,6 +152,12 @@ class CollisionHandler:
         self.system = (self.ltl + self.config.anchor * sp.identity(V, format="csr")).tocsr()
         f = np.asarray(faces, np.int64)
         e, _ = unique_edges(f)
+        self.edges = e  # (E, 2)
+        if rest is not None and np.shape(rest) != (V, 3):
+            raise LoosefitInputError("CollisionHandler", "rest", f"({V}, 3) positions",
+                                     f"{np.shape(rest)}")  # fmt: skip
+        self.rest_lengths = (None if rest is None else  # (E,) or None: the edges of the input
+                             np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1))  # fmt: skip
         adj = sp.coo_matrix((np.ones(len(e), np.float32), (e[:, 0], e[:, 1])), shape=(V, V))
         self.adjacency = (adj + adj.T).tocsr()
         # points inside each face that must stay out too (a body edge between three
@@ -207,6 +230,10 @@ class CollisionHandler:
             x, ds, passes = self._finish(x, ds, body)
             d = x - x0
             iterations += passes
+        if cfg.relax:
+            x, ds, passes = self._relax(x0, x, ds, body)
+            d = x - x0
+            iterations += passes
         lap = self.lap @ d
         return CollisionResult(
             vertices=torch.from_numpy(x).to(garment.device, torch.float32),
@@ -228,7 +255,9 @@ class CollisionHandler:
         after its projection (it sat on an inner skin, the arm's surface inside the torso,
         or was caught where two body parts overlap, each projection sending it into the
         other) goes on the way it went, by a step that doubles each round (1 cm, 2 cm, ...),
-        until the winding number lets it out.
+        but never farther than ``finish_limit`` from where the solve left it: one not out by
+        then stays inside (pinched between body parts). The vertices it moves are pinned
+        with the solve's active ones in :meth:`_guard`, where their neighbours follow.
 
         Args:
             x: (V, 3) the garment after the solves; ds: (V,) their signed distances.
@@ -238,7 +267,7 @@ class CollisionHandler:
             asked again) and the queries made.
         """
         cfg = self.config
-        x, ds = x.copy(), ds.copy()
+        start, x, ds = x, x.copy(), ds.copy()  # start: where the solve left them
         near = np.flatnonzero(ds < cfg.finish_reach)  # inside or near, as the solve saw it
         passes = 0
         went = np.zeros_like(x)  # (V, 3) the direction each vertex was last moved in
@@ -261,16 +290,81 @@ class CollisionHandler:
             p, dist = hit.points[inside].astype(np.float64), hit.distance[inside, None]
             out = (p - x[idx]) / np.maximum(dist, 1e-12)  # from inside toward the skin
             # moved before and still inside: on an inner skin, or caught between two body
-            # parts that a projection only swaps: it goes on the way it went
+            # parts that a projection only swaps: it goes on the way it went, as far as the
+            # limit lets it (those at the limit stay, and are not asked again)
             on_inner = went[idx].any(1)
-            x[idx] = np.where(on_inner[:, None], x[idx] + 0.01 * 2**k * went[idx],
+            step = x[idx] + 0.01 * 2**k * went[idx]
+            stuck = on_inner & (np.linalg.norm(step - start[idx], axis=1) > cfg.finish_limit)
+            x[idx] = np.where(on_inner[:, None], np.where(stuck[:, None], x[idx], step),
                               p + cfg.epsilon * out)  # fmt: skip
             went[idx] = np.where(on_inner[:, None], went[idx], out)
-            near = idx  # only these can still be inside (the others did not move)
+            near = idx[~stuck]  # only these can still be inside (the others did not move)
         else:  # the passes ran out with vertices just moved: where they are now, reported
             if cfg.finish and len(near):
                 ask(near)
                 passes += 1
+        return x, ds, passes
+
+    def _relax(self, x0: np.ndarray, x: np.ndarray, ds: np.ndarray, body: Surface
+               ) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
+        """Tears mended: pushes out along the normals of two body parts pressed together (a
+        hand on the hip, a thigh on the belly in a crouch) send neighbouring vertices to
+        either side and stretch the edge between to many times its length. Every edge
+        longer than ``stretch`` times its rest length (and than it was in ``x0``) is
+        shortened to that, its two vertices moving alike (averaged over their edges), and
+        the vertices moved are then projected out of the body again (to ``eps`` beyond the
+        closest skin, where the winding number, or the closest face's side without the last
+        projection, puts them inside); ``relax`` rounds. The projection is last, so no vertex
+        it asks about is left inside; where two body parts press together the tear is
+        mended only in part (hard poses, docs/HARD_POSES.md: from 85-103x rest to 4-10x).
+        Shortening last instead mends more (ballet 05_02: 4.8x against 6.7x) but leaves
+        cloth up to 3 cm inside where body parts overlap.
+
+        Args:
+            x0: (V, 3) the garment before collision handling; x: (V, 3) after the solve and
+                the last projection; ds: (V,) its signed distances.
+
+        Returns:
+            The garment, its signed distances (asked again where moved) and the queries made.
+        """
+        cfg = self.config
+        x, ds = x.copy(), ds.copy()
+        a, b = self.edges[:, 0], self.edges[:, 1]
+        before = np.linalg.norm(x0[a] - x0[b], axis=1)
+        rest = before if self.rest_lengths is None else self.rest_lengths
+        limit = np.maximum(before, cfg.stretch * rest)  # (E,)
+        passes = 0
+        moved = np.zeros(len(x), dtype=bool)
+        sign = "winding" if cfg.finish else "normal"
+        for _ in range(cfg.relax):
+            vec = x[a] - x[b]
+            length = np.linalg.norm(vec, axis=1)
+            over = np.flatnonzero(length > limit)
+            if not len(over):
+                break
+            corr = (0.5 * (length[over] - limit[over]) / length[over])[:, None] * vec[over]
+            delta, count = np.zeros_like(x), np.zeros(len(x))
+            np.add.at(delta, a[over], -corr)
+            np.add.at(delta, b[over], corr)
+            np.add.at(count, a[over], 1.0)
+            np.add.at(count, b[over], 1.0)
+            touched = np.flatnonzero(count)
+            x[touched] += delta[touched] / count[touched, None]
+            moved[touched] = True
+            hit = body.query(x[touched], cfg.reach, sign=sign, accuracy=cfg.winding_accuracy)
+            passes += 1
+            inside = hit.inside & (hit.faces >= 0)
+            if inside.any():
+                idx = touched[inside]
+                p = hit.points[inside].astype(np.float64)
+                out = (p - x[idx]) / np.maximum(hit.distance[inside, None], 1e-12)
+                x[idx] = p + cfg.epsilon * out
+        if moved.any():
+            idx = np.flatnonzero(moved)
+            hit = body.query(x[idx], cfg.reach, sign=sign, accuracy=cfg.winding_accuracy)
+            passes += 1
+            ds[idx] = np.where(hit.faces >= 0, np.where(hit.inside, -hit.distance,
+                                                        hit.distance), np.inf)  # fmt: skip
         return x, ds, passes
 
     def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,

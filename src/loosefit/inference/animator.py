@@ -164,7 +164,9 @@ class AnimationModel:
         """Collision handling (paper 3.5) along ``motion``'s frames (the simulation's collider)."""
         if self._handler is None:
             t = self.template
-            self._handler = CollisionHandler(t.faces, t.num_vertices, self.collision)
+            self._handler = CollisionHandler(
+                t.faces, t.num_vertices, self.collision, np.asarray(t.vertices, np.float64)
+            )
         arms = True if self.collision.whole_body else self.arm_collision
         return body_collider(self.avatar(), self._handler, motion, arms, self.device)
 

@@ -870,14 +870,17 @@ def generate(
         disable=not progress,
         smoothing=0.05,
     )
-    seen: dict[str, int] = {}
+    seen: dict[str, int] = {}  # the last frame each unit of work reported
+    resumed: dict[str, int] = {}  # the frames each found on disk (not this run's work)
 
     def on_progress(name: str, k: int, total: int) -> None:
-        if frames_of.get(name) != total:  # the estimate was off: correct the total
-            frames_of[name] = total
+        if name not in seen:  # a resumed unit first reports the frame after its last saved
+            resumed[name] = seen[name] = k - 1
+        if frames_of.get(name) != total - resumed[name]:  # the estimate was off: correct it
+            frames_of[name] = total - resumed[name]
             bar.total = sum(frames_of.values())
             bar.refresh()
-        bar.update(k - seen.get(name, 0))
+        bar.update(k - seen[name])
         seen[name] = k
 
     def record(group: list[Job], entries: list[dict]) -> None:
