@@ -24,6 +24,12 @@ Eq. 16 alone) and, with ``rings``, keeps a push local. The closest points of the
 moved vertices are queried again after each solve (warp's BVH,
 :class:`~loosefit.geometry.query.Surface`), since pushed vertices meet other parts
 of the body, and the active set grows until no vertex is inside ``eps``.
+
+Beyond the paper: a last projection by the winding number (where body parts overlap the
+closest face's side misleads the solve), bounded so that it never throws a vertex far
+(``finish``, ``finish_limit``), and the tears mended: pushes out of two body parts pressed
+together send neighbours to either side, and edges stretched past ``stretch`` times their
+rest length are shortened and projected out again (``relax``). docs/HARD_POSES.md.
 """
 
 from __future__ import annotations
