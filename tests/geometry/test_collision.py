@@ -111,16 +111,30 @@ def test_a_sheet_in_a_crease_of_the_body_comes_out():
     assert not np.isnan(r.vertices.numpy()).any()
 
 
+def _two_spheres(radius: float, centre: list, subdivisions: int = 4) -> Surface:
+    """A sphere of radius 0.3 at the origin and one of ``radius`` at ``centre`` sunk into
+    it (an arm held into the torso, a hand pressed into the hip), as one surface."""
+    big = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
+    part = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    part.apply_translation(centre)
+    bv = np.r_[big.vertices, part.vertices].astype(np.float32)
+    bf = np.r_[big.faces, part.faces + len(big.vertices)]
+    return Surface(bv, bf, winding_number=True)
+
+
+def _stretch(v: np.ndarray, f: np.ndarray):
+    """The longest edge against its length in ``v``, of a garment (V, 3) on faces ``f``."""
+    e = CollisionHandler(f, len(v)).edges
+    rest = np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)
+    return lambda x: float((np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) / rest).max())
+
+
 def test_a_deep_penetration_where_body_parts_overlap_is_walked_out_as_far_as_allowed():
     # two spheres overlapping, as an arm held into the torso: the small one's surface runs
     # inside the large one, and there the closest face's side says "outside" for cloth
     # that is inside; a sheet sunk 20 cm into both
-    big = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
-    arm = trimesh.creation.icosphere(subdivisions=4, radius=0.12)
-    arm.apply_translation([0.3, 0, 0])
-    bv = np.r_[big.vertices, arm.vertices].astype(np.float32)
-    bf = np.r_[big.faces, arm.faces + len(big.vertices)]
-    surface = Surface(bv, bf, winding_number=True)
+    surface = _two_spheres(0.12, [0.3, 0, 0])
+    bv, bf = surface.vertices, surface.faces
     v, f = _sheet(40, 0.45, 0.1)
     # a point in the large sphere under the small one's skin is inside by the winding
     # number; warp's vote of three rays without it says outside (two meet that skin first)
@@ -136,11 +150,7 @@ def test_a_deep_penetration_where_body_parts_overlap_is_walked_out_as_far_as_all
     solve_only = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, finish=0))
     left = solve_only.resolve(torch.from_numpy(v), surface)
     assert deepest(left.vertices.numpy()) > 0.01  # the solve alone leaves it > 1 cm deep
-    e = solve_only.edges
-    rest = np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)
-
-    def worst(x: np.ndarray) -> float:
-        return float((np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) / rest).max())
+    worst = _stretch(v, f)
 
     # the last projection walks what is still inside out (here, with no limit on how far,
     # below 5 mm) at the cost of edges stretched many times over
@@ -161,20 +171,11 @@ def test_cloth_pinched_between_body_parts_is_not_torn_out():
     # a hand pressed into the hip: a small sphere sunk 3 cm into a large one, a sheet lying
     # on the large one under it; no place outside both is near, and pushes out along the
     # two spheres' normals tear neighbouring vertices apart (salsa 60_01: edges 70x long)
-    big = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
-    hand = trimesh.creation.icosphere(subdivisions=3, radius=0.06)
-    hand.apply_translation([0, 0, 0.32])
-    bv = np.r_[big.vertices, hand.vertices].astype(np.float32)
-    bf = np.r_[big.faces, hand.faces + len(big.vertices)]
-    surface = Surface(bv, bf, winding_number=True)
+    surface = _two_spheres(0.06, [0, 0, 0.32], subdivisions=3)
     v, f = _sheet(30, 0.15, 0.0)
     v[:, 2] = np.sqrt(0.3015**2 - v[:, 0] ** 2 - v[:, 1] ** 2)  # 1.5 mm above the hip
     v = v.astype(np.float32)
-    e = CollisionHandler(f, len(v)).edges
-    rest = np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)
-
-    def worst(x: np.ndarray) -> float:
-        return float((np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) / rest).max())
+    worst = _stretch(v, f)
 
     torn = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, relax=0))
     assert worst(torn.resolve(torch.from_numpy(v), surface).vertices.numpy()) > 4.0
