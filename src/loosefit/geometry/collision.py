@@ -262,8 +262,8 @@ class CollisionHandler:
         or was caught where two body parts overlap, each projection sending it into the
         other) goes on the way it went, by a step that doubles each round (1 cm, 2 cm, ...),
         but never farther than ``finish_limit`` from where the solve left it: one not out by
-        then stays inside (pinched between body parts). The vertices it moves are pinned
-        with the solve's active ones in :meth:`_guard`, where their neighbours follow.
+        then stays inside (pinched between body parts). The edges its moves stretch are
+        mended in :meth:`_relax`.
 
         Args:
             x: (V, 3) the garment after the solves; ds: (V,) their signed distances.
@@ -281,9 +281,8 @@ class CollisionHandler:
         def ask(near: np.ndarray):
             """The winding number's answer for the vertices ``near``, into ``ds``."""
             hit = body.query(x[near], cfg.reach, sign="winding", accuracy=cfg.winding_accuracy)
-            valid = hit.faces >= 0
-            ds[near] = np.where(valid, np.where(hit.inside, -hit.distance, hit.distance), np.inf)
-            return hit, valid & hit.inside
+            ds[near] = _signed(hit)
+            return hit, (hit.faces >= 0) & hit.inside
 
         for k in range(cfg.finish):
             if not len(near):
@@ -293,8 +292,7 @@ class CollisionHandler:
             if not inside.any():
                 break
             idx = near[inside]
-            p, dist = hit.points[inside].astype(np.float64), hit.distance[inside, None]
-            out = (p - x[idx]) / np.maximum(dist, 1e-12)  # from inside toward the skin
+            beyond, out = _beyond_skin(x[idx], hit, inside, cfg.epsilon)
             # moved before and still inside: on an inner skin, or caught between two body
             # parts that a projection only swaps: it goes on the way it went, as far as the
             # limit lets it (those at the limit stay, and are not asked again)
@@ -302,7 +300,7 @@ class CollisionHandler:
             step = x[idx] + 0.01 * 2**k * went[idx]
             stuck = on_inner & (np.linalg.norm(step - start[idx], axis=1) > cfg.finish_limit)
             x[idx] = np.where(on_inner[:, None], np.where(stuck[:, None], x[idx], step),
-                              p + cfg.epsilon * out)  # fmt: skip
+                              beyond)  # fmt: skip
             went[idx] = np.where(on_inner[:, None], went[idx], out)
             near = idx[~stuck]  # only these can still be inside (the others did not move)
         else:  # the passes ran out with vertices just moved: where they are now, reported
@@ -362,15 +360,12 @@ class CollisionHandler:
             inside = hit.inside & (hit.faces >= 0)
             if inside.any():
                 idx = touched[inside]
-                p = hit.points[inside].astype(np.float64)
-                out = (p - x[idx]) / np.maximum(hit.distance[inside, None], 1e-12)
-                x[idx] = p + cfg.epsilon * out
+                x[idx] = _beyond_skin(x[idx], hit, inside, cfg.epsilon)[0]
         if moved.any():
             idx = np.flatnonzero(moved)
             hit = body.query(x[idx], cfg.reach, sign=sign, accuracy=cfg.winding_accuracy)
             passes += 1
-            ds[idx] = np.where(hit.faces >= 0, np.where(hit.inside, -hit.distance,
-                                                        hit.distance), np.inf)  # fmt: skip
+            ds[idx] = _signed(hit)
         return x, ds, passes
 
     def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,
@@ -483,6 +478,22 @@ class PushOutHandler:
             iterations=2 if moved.any() else 1,
             laplacian_change=float(np.sqrt((lap**2).sum(-1).mean())),
         )
+
+
+def _signed(hit) -> np.ndarray:
+    """(N,) the signed distances of a query's answer: minus inside (by its ``inside``),
+    +inf where no face was within its reach."""
+    return np.where(hit.faces >= 0, np.where(hit.inside, -hit.distance, hit.distance), np.inf)
+
+
+def _beyond_skin(x: np.ndarray, hit, inside: np.ndarray, epsilon: float
+                 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The points ``x`` (K, 3), the answers ``hit`` of whose ``inside`` (N,) bool mask are
+    theirs, moved to ``epsilon`` beyond their closest skin; and the unit directions (K, 3)
+    from each toward that skin."""
+    p = hit.points[inside].astype(np.float64)
+    out = (p - x) / np.maximum(hit.distance[inside, None], 1e-12)
+    return p + epsilon * out, out
 
 
 def signed_distances(x: np.ndarray, body: Surface, reach: float
