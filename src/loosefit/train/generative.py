@@ -375,18 +375,22 @@ def train_generative(
             continue
         for k, v in sums.items():
             writer.add_scalar(f"loss/{k}", v, epoch)
-        if epoch % config.eval_every == 0 or epoch == config.epochs:
-            err = evaluate(model, test, template.faces)
-            writer.add_scalar("test/rmse_cm", err["rmse_cm"], epoch)
-            writer.add_scalar("test/hausdorff_cm", err["hausdorff_cm"], epoch)
+        # the checkpoint first: a kill during an evaluation loses no training
         if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
             save_checkpoint(ckpt_path, model, template, config, optimizer=optim.state_dict(),
                             epoch=epoch, history=history, rng=torch.get_rng_state())  # fmt: skip
+        if epoch % config.eval_every == 0 and epoch < config.epochs:  # the last: the report's
+            err = evaluate(model, test, template.faces)
+            writer.add_scalar("test/rmse_cm", err["rmse_cm"], epoch)
+            writer.add_scalar("test/hausdorff_cm", err["hausdorff_cm"], epoch)
     bar.close()
     seconds = time.perf_counter() - t_start
     barrier()
     if not main:  # the report is the first process's
         return {"history": history}
+    test_err = evaluate(model, test, template.faces)
+    writer.add_scalar("test/rmse_cm", test_err["rmse_cm"], epoch)
+    writer.add_scalar("test/hausdorff_cm", test_err["hausdorff_cm"], epoch)
     writer.flush()
 
     report = {
@@ -399,7 +403,7 @@ def train_generative(
         "machine": machine(config.device),
         "final_loss": history[-1] if history else None,
         "train": evaluate(model, train, template.faces),
-        "test": evaluate(model, test, template.faces),
+        "test": test_err,
     }
     write_json_atomic(out / "report.json", report)
     (out / "report.md").write_text(format_report(report))
