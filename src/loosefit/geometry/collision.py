@@ -218,7 +218,10 @@ class CollisionHandler:
             short = np.clip(cfg.epsilon - ds, 0.0, None)  # (V,), 0 beyond reach
             push = short[:, None] * n  # (V, 3)
             # a point inside a face short of eps: its face's vertices take its push
-            face_short = self._face_pushes(x0 + d, ds, body, short, push)
+            # (after a solve only the faces it moved: the others, and their answers, are
+            # as before, and any of them that was short then pushed a vertex into the region)
+            face_short = self._face_pushes(x0 + d, ds, body, short, push,
+                                           region if iterations > 1 else None)
             if not (ds < 0.75 * cfg.epsilon).any() and not face_short:
                 break
             active |= short > 0
@@ -369,14 +372,18 @@ class CollisionHandler:
         return x, ds, passes
 
     def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,
-                     push: np.ndarray) -> bool:  # fmt: skip
+                     push: np.ndarray, moved: np.ndarray | None = None) -> bool:  # fmt: skip
         """Check points inside the faces near the body (centroid, edge midpoints); where
         one is closer than ``0.75 eps``, the face's vertices that span it take its push
         (moving them all by it moves the point by it) when it is larger than their own.
         Updates ``short`` (V,) and ``push`` (V, 3) in place; True if any point was short.
+        ``moved``: (V,) bool, only the faces with a vertex in it are checked (None: all).
         """
         cfg = self.config
-        near = np.flatnonzero((ds[self.faces] < cfg.face_reach).any(1))  # (Fn,)
+        close = (ds[self.faces] < cfg.face_reach).any(1)  # (F,)
+        if moved is not None:
+            close &= moved[self.faces].any(1)
+        near = np.flatnonzero(close)  # (Fn,)
         if not len(near):
             return False
         corners = x[self.faces[near]]  # (Fn, 3, 3)
