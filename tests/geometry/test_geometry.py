@@ -2,7 +2,7 @@ import numpy as np
 import torch
 
 from loosefit.geometry.normals import face_normals, vertex_normals
-from loosefit.geometry.query import closest_points
+from loosefit.geometry.query import Surface, closest_points
 from loosefit.geometry.skinning import nearest_rotation, rigid_point_frames
 
 
@@ -54,10 +54,14 @@ def test_rigid_point_frames_recover_a_rigid_motion():
     assert torch.allclose(t[0], torch.tensor([1.0, 2.0, 3.0]).expand(5, 3), atol=1e-5)
 
 
-def test_closest_points_on_a_cube():
+def _cube():
     v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
     quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    f = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    return v, np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+
+
+def test_closest_points_on_a_cube():
+    v, f = _cube()
     q = np.array([[0.5, 0.5, 0.9], [0.5, 0.5, 1.5], [-0.2, 0.5, 0.5]])
     hit = closest_points(v, f, q)
     assert hit.inside.tolist() == [True, False, False]
@@ -65,3 +69,22 @@ def test_closest_points_on_a_cube():
     assert np.allclose(hit.distance, [0.1, 0.5, 0.2], atol=1e-6)
     recon = (hit.barycentric[:, :, None] * v[f[hit.faces]]).sum(1)
     assert np.allclose(recon, hit.points, atol=1e-6)
+
+
+def test_a_surface_answers_each_query_afresh():
+    """Its arrays are kept from query to query: a smaller query after a larger one, and
+    points beyond reach, get their own answers, nothing left over from the last."""
+    v, f = _cube()
+    surface = Surface(v, f)
+    rng = np.random.default_rng(0)
+    many = rng.uniform(-0.5, 1.5, (300, 3))
+    first = surface.query(many, 2.0)
+    few = np.array([[0.5, 0.5, 0.9], [5.0, 5.0, 5.0]])  # the second beyond reach
+    hit = surface.query(few, 1.0)
+    assert hit.faces.tolist()[1] == -1 and np.allclose(hit.points[1], 0.0)
+    assert np.allclose(hit.barycentric[1], 0.0) and not hit.inside[1]
+    assert np.allclose(hit.points[0], [0.5, 0.5, 1.0], atol=1e-6) and hit.inside[0]
+    again = surface.query(many, 2.0)
+    for a, b in zip(vars(first).values(), vars(again).values(), strict=True):
+        assert np.array_equal(a, b)
+    assert np.array_equal(first.faces, closest_points(v, f, many, 2.0).faces)

@@ -220,8 +220,9 @@ class CollisionHandler:
             # a point inside a face short of eps: its face's vertices take its push
             # (after a solve only the faces it moved: the others, and their answers, are
             # as before, and any of them that was short then pushed a vertex into the region)
-            face_short = self._face_pushes(x0 + d, ds, body, short, push,
-                                           region if iterations > 1 else None)
+            face_short = self._face_pushes(
+                x0 + d, ds, body, short, push, region if iterations > 1 else None
+            )
             if not (ds < 0.75 * cfg.epsilon).any() and not face_short:
                 break
             active |= short > 0

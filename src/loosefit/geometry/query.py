@@ -47,8 +47,10 @@ def _store(
         out_faces[tid] = q.face
         out_bary[tid] = wp.vec3(q.u, q.v, 1.0 - q.u - q.v)
         out_sign[tid] = q.sign
-    else:
+    else:  # every field written: the arrays are reused from query to query
+        out_points[tid] = wp.vec3(0.0, 0.0, 0.0)
         out_faces[tid] = -1
+        out_bary[tid] = wp.vec3(0.0, 0.0, 0.0)
         out_sign[tid] = 1.0
 
 
@@ -112,6 +114,7 @@ class Surface:
         )
         self.mesh = wp.Mesh(points=self._points, indices=self._indices,
                             support_winding_number=winding_number)  # fmt: skip
+        self._buffers: tuple | None = None  # the queries' in and out arrays, grown as needed
 
     def refit(self, vertices: np.ndarray) -> None:
         """Move the mesh to new vertex positions (Vb, 3), the same topology."""
@@ -137,13 +140,13 @@ class Surface:
         """
         if sign not in ("winding", "normal"):
             raise ValueError(f"sign: expected 'winding' or 'normal', found {sign!r}")
-        device = self.device
         n = len(queries)
-        q = wp.array(np.ascontiguousarray(queries, np.float32), dtype=wp.vec3, device=device)
-        pts = wp.zeros(n, dtype=wp.vec3, device=device)
-        fcs = wp.zeros(n, dtype=wp.int32, device=device)
-        bary = wp.zeros(n, dtype=wp.vec3, device=device)
-        signs = wp.zeros(n, dtype=float, device=device)
+        q, pts, fcs, bary, signs = self._arrays(n)
+        if self.device == "cpu":
+            q.numpy()[:n] = queries  # the buffer itself (the host's memory)
+        else:
+            q = wp.array(np.ascontiguousarray(queries, np.float32), dtype=wp.vec3,
+                         device=self.device)  # fmt: skip
         wp.launch(
             _closest_kernel,
             dim=n,
@@ -158,16 +161,30 @@ class Surface:
                 int(sign == "winding"),
                 float(accuracy),
             ],
-            device=device,
+            device=self.device,
         )
-        points = pts.numpy()
+        points = pts.numpy()[:n].copy()
         return ClosestPoints(
             points=points,
-            faces=fcs.numpy().astype(np.int64),
-            barycentric=bary.numpy(),
-            inside=signs.numpy() < 0,
+            faces=fcs.numpy()[:n].astype(np.int64),
+            barycentric=bary.numpy()[:n].copy(),
+            inside=signs.numpy()[:n] < 0,
             distance=np.linalg.norm(points - np.asarray(queries, np.float32), axis=-1),
         )
+
+    def _arrays(self, n: int) -> tuple:
+        """The queries' arrays, at least ``n`` long: made once and kept (on the CPU a query's
+        own arrays cost more than a small query itself)."""
+        if self._buffers is None or len(self._buffers[0]) < n:
+            size, device = max(64, 1 << max(n - 1, 0).bit_length()), self.device
+            self._buffers = (
+                wp.zeros(size, dtype=wp.vec3, device=device),
+                wp.zeros(size, dtype=wp.vec3, device=device),
+                wp.zeros(size, dtype=wp.int32, device=device),
+                wp.zeros(size, dtype=wp.vec3, device=device),
+                wp.zeros(size, dtype=float, device=device),
+            )
+        return self._buffers
 
 
 def closest_points(
