@@ -50,14 +50,19 @@ mkdir -p "$RUNS" out
     cp "$BASE"/generative.pt "$BASE"/motion.pt "$BASE"/detail.pt out/salsa-before-34/; }
 BEFORE=out/salsa-before-34
 
+done_run() {  # a run whose report is written is finished: not evaluated again
+  [ -f "$RUNS/$1/report.json" ] && echo "[physics_models] $1: done ($RUNS/$1/report.json)"
+}
 gen() {  # name, extra flags
   local name=$1; shift
+  done_run "$name" && return
   "$BIN/loosefit" train generative --data "$DATA" --preset cpu --epochs "$GEN_EPOCHS" \
       --lr "$GEN_LR" --init "$BEFORE/generative.pt" --threads 1 "$@" \
       --out "$RUNS/$name" > "$RUNS/$name.log" 2>&1
 }
 motion() {  # name, generative run, extra flags
   local name=$1 g=$2; shift 2
+  done_run "$name" && return
   "$BIN/loosefit" train motion --data "$DATA" --preset cpu --epochs "$MOTION_EPOCHS" \
       --lr "$MOTION_LR" --mirror --generative "$RUNS/$g/checkpoint.pt" \
       --init "$BEFORE/motion.pt" --threads 1 "$@" --out "$RUNS/$name" > "$RUNS/$name.log" 2>&1
@@ -79,7 +84,8 @@ gen g-m3x-bc --membrane $((3 * MEMBRANE)) --bending $((3 * BENDING)) --collision
 pair "motion m-plain $GEN_ABLATION" "motion m-m $GEN_ABLATION --membrane $MEMBRANE"
 motion m-mf "$GEN_ABLATION" --membrane "$MEMBRANE" --flare "$FLARE"
 
-# 4. the table
+# 4. the table (once: the chosen pair's run below does not make it again)
+[ -n "${GEN:-}" ] && [ -f docs/PHYSICS_ABLATION.json ] ||
 "$BIN/python" bench/physics_ablation.py --base "$BEFORE/motion.pt" \
     --generative g-before="$BEFORE/generative.pt" g-plain="$RUNS/g-plain/checkpoint.pt" \
     g-m="$RUNS/g-m/checkpoint.pt" g-mb="$RUNS/g-mb/checkpoint.pt" \
@@ -93,6 +99,7 @@ if [ -n "${GEN:-}" ] && [ -n "${MOTION:-}" ]; then
   [ "$GEN" = "$GEN_ABLATION" ] || motion "$MOTION-final" "$GEN" ${MOTION_FLAGS:-}
   M="$RUNS/$MOTION/model.pt"
   [ "$GEN" = "$GEN_ABLATION" ] || M="$RUNS/$MOTION-final/model.pt"
+  done_run detail ||
   "$BIN/loosefit" train detail --data "$DATA" --preset cpu --epochs "$DETAIL_EPOCHS" \
       --motion "$M" --init "$BEFORE/detail.pt" --out "$RUNS/detail" \
       > "$RUNS/detail.log" 2>&1
