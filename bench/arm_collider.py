@@ -30,7 +30,20 @@ def main() -> None:
     p.add_argument("windows", nargs="+", help="JOB:START:STOP of the salsa preset")
     p.add_argument("--bvh", default="../shared/mocap/cmu-salsa")
     p.add_argument("--arms", default="true", choices=("true", "false", "upper"))
+    p.add_argument(
+        "--set",
+        nargs="*",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="ClothConfig fields to change (numbers), e.g. overlap_inset=-0.01",
+    )
     args = p.parse_args()
+    changes = {}
+    for item in args.set:
+        field, sep, value = item.partition("=")
+        if not sep:
+            raise SystemExit(f"--set: expected FIELD=VALUE, found {item!r}")
+        changes[field] = float(value)
     torch.set_num_threads(1)
     arms = {"true": True, "false": False, "upper": "upper"}[args.arms]
     config = preset("salsa", args.bvh)
@@ -43,7 +56,7 @@ def main() -> None:
             raise SystemExit(f"{window}: expected a job among {sorted(jobs)}")
         job = jobs[name]
         motion = job_motion(config, job, avatar).slice(int(start), int(stop))
-        cloth = dataclasses.replace(config.cloth, seed=job.seed, arm_collision=arms)
+        cloth = dataclasses.replace(config.cloth, seed=job.seed, arm_collision=arms, **changes)
         t0 = time.perf_counter()
         result = simulate(avatar, template, motion, cloth)
         body = avatar.pose_motion(motion).vertices.numpy()
@@ -51,7 +64,8 @@ def main() -> None:
                     avatar.collider_faces(arms=True).numpy())  # fmt: skip
         figures = {k: round(float(v), 4) for k, v in q.items() if np.isscalar(v)}
         figures["seconds"] = round(time.perf_counter() - t0, 1)
-        print(window, f"arm_collision={args.arms}", json.dumps(figures), flush=True)
+        print(window, f"arm_collision={args.arms}", " ".join(args.set), json.dumps(figures),
+              flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":
