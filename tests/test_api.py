@@ -53,9 +53,12 @@ def test_bad_inputs_are_clear_errors(model, tmp_path):
         loosefit.not_a_function  # noqa: B018
 
 
-def test_a_model_from_before_the_physics_terms_loads_says_so_and_keeps_edge_lengths(model):
+def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so(model, tmp_path):
+    import shutil
+
     import torch
 
+    from loosefit.api import pretrained_checkpoint
     from loosefit.model.physics import (
         PHYSICS_TERMS,
         ClothStructure,
@@ -64,10 +67,8 @@ def test_a_model_from_before_the_physics_terms_loads_says_so_and_keeps_edge_leng
     )
     from loosefit.model.rollout import Stages
 
-    # the committed set was trained before issue 34: it lacks every physics term ...
-    assert model.model.missing_physics_terms == PHYSICS_TERMS
-    # ... and the edge-length stage brings its hanging edges back to rest (the skirt's
-    # length): within 2 % at the median, where the decoders alone are 5 % or more short
+    # the committed set was trained with every physics term (issue 34)
+    assert model.model.missing_physics_terms == ()
     t = model.template
     s = ClothStructure.from_template(t)
     s = s.with_edges(hanging_edges(t.vertices, s.edges, 0.6))
@@ -75,9 +76,26 @@ def test_a_model_from_before_the_physics_terms_loads_says_so_and_keeps_edge_leng
     def median_change(x) -> float:
         return float(signed_edge_change(torch.from_numpy(x), s.edges, s.rest_lengths).median())
 
-    without = model.animate("kick", frames=24, stages=Stages(lengths=False))
-    assert median_change(without.vertices) < -0.05
+    # its skirt keeps its length: the hanging edges within 2 % of rest at the median; without
+    # the edge-length stage they are shorter (6.3 %, detail included), but less so than the
+    # set before this issue (8.0 % on this motion)
     assert abs(median_change(model.animate("kick", frames=24).vertices)) < 0.02
+    without = model.animate("kick", frames=24, stages=Stages(lengths=False))
+    assert -0.075 < median_change(without.vertices) < -0.02
+
+    # the same set with its record of the terms taken away, as a checkpoint written before
+    # issue 34: it loads, animates, and says that it lacks them
+    for name in ("generative.pt", "motion.pt", "detail.pt"):
+        src = pretrained_checkpoint().parent / name
+        data = torch.load(src, map_location="cpu", weights_only=False)
+        if isinstance(data, dict):
+            data.pop("physics_terms", None)
+            torch.save(data, tmp_path / name)
+        else:
+            shutil.copy(src, tmp_path / name)
+    old = loosefit.load(tmp_path / "motion.pt")
+    assert old.model.missing_physics_terms == PHYSICS_TERMS
+    assert np.isfinite(old.animate("kick", frames=4).vertices).all()
 
 
 def test_simulate_gives_ground_truth_of_one_motion(skirt):
