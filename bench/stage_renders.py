@@ -1,9 +1,10 @@
 """Pictures for issue 34: simulation | today | after, on chosen frames of simulated clips.
 
-For one clip of a data set (or a simulated sequence ``.npz``), the committed model animates
-the clip's motion twice: as the pipeline ran before issue 34 (``today``: detail, then
-collision handling without the arms and without the last projection) and as it runs now
-(``after``: detail, edge lengths, collision handling against the whole body). The chosen
+For one clip of a data set (or a simulated sequence ``.npz``), the clip's motion is animated
+twice: as the pipeline ran before issue 34 (``today``: the ``--before`` set, by default the
+committed one, with detail, then collision handling without the arms and without the last
+projection) and as it runs now (``after``: the committed set with detail, edge lengths,
+collision handling against the whole body). The chosen
 frames are rendered next to the simulation, one row a frame, each from the front and the
 side, the whole body (arms and hands) drawn, and tiled into one picture::
 
@@ -31,6 +32,9 @@ TODAY = CollisionConfig(finish=0, whole_body=False)  # collision handling before
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
+    p.add_argument("--before", default=None,
+                   help="the set of the 'today' column (default: --checkpoint's), e.g. "
+                   "out/salsa-before-34/motion.pt")  # fmt: skip
     p.add_argument("--data", default="datasets/account", help="a data set folder")
     p.add_argument("--clip", default=None, help="the clip (default: the first)")
     p.add_argument("--sequence", default=None, help="a simulated sequence .npz instead")
@@ -52,8 +56,9 @@ def main() -> None:
     picks = [int(f) for f in args.frames.split(",")]
     model = load_pipeline(args.checkpoint)
     after = model.animate(seq.motion, stages=Stages()).vertices
-    with model.configured(collision=TODAY):
-        today = model.animate(seq.motion, stages=Stages(lengths=False)).vertices
+    before = load_pipeline(args.before) if args.before else model
+    with before.configured(collision=TODAY):
+        today = before.animate(seq.motion, stages=Stages(lengths=False)).vertices
     avatar = model.avatar()
     body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()[picks]
     columns = {"simulation": np.asarray(seq.garment_vertices)[picks], "today": today[picks],

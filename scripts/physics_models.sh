@@ -45,10 +45,10 @@ mkdir -p "$RUNS" out
 # 1. the data
 "$BIN/loosefit" simulate --preset salsa --bvh "$BVH" --out "$DATA" --workers 2
 
-# the set before this issue, for the account's "today" rows
-[ -f out/salsa-before-34/motion.pt ] || { mkdir -p out/salsa-before-34 &&
-    cp "$BASE"/generative.pt "$BASE"/motion.pt "$BASE"/detail.pt out/salsa-before-34/; }
+# the set before this issue (the one every run starts from, and the account's "today"
+# rows), from the repository's history: the shipped set is the retrained one since
 BEFORE=out/salsa-before-34
+bash scripts/set_before_34.sh "$BEFORE"
 
 done_run() {  # a run whose report is written is finished: not evaluated again
   [ -f "$RUNS/$1/report.json" ] && echo "[physics_models] $1: done ($RUNS/$1/report.json)"

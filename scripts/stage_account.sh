@@ -10,10 +10,12 @@ cd "$(dirname "$0")/.."
 BIN=.venv/bin
 "$BIN/loosefit" simulate --config configs/account.yaml --out datasets/account
 [ -f out/chain_spin.npz ] || "$BIN/python" bench/spin_substeps.py --save out/chain_spin.npz
-"$BIN/python" bench/stage_account.py --data datasets/account --sequence out/chain_spin.npz
-"$BIN/python" bench/stage_renders.py --sequence out/chain_spin.npz --frames 48,60,72 \
+bash scripts/set_before_34.sh out/salsa-before-34   # the "today" rows' set
+B="--before out/salsa-before-34/motion.pt"
+"$BIN/python" bench/stage_account.py --data datasets/account --sequence out/chain_spin.npz $B
+"$BIN/python" bench/stage_renders.py --sequence out/chain_spin.npz --frames 48,60,72 $B \
     --out docs/img/stage_chain_spin.jpg
-"$BIN/python" bench/stage_renders.py --clip 05_10 --frames 85,99,110 \
+"$BIN/python" bench/stage_renders.py --clip 05_10 --frames 85,99,110 $B \
     --out docs/img/stage_ballet_leg.jpg
-"$BIN/python" bench/stage_renders.py --clip 05_12 --frames 60,150,240 \
+"$BIN/python" bench/stage_renders.py --clip 05_12 --frames 60,150,240 $B \
     --out docs/img/stage_ballet_arms.jpg
