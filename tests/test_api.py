@@ -54,11 +54,10 @@ def test_bad_inputs_are_clear_errors(model, tmp_path):
 
 
 def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so(model, tmp_path):
-    import shutil
-
     import torch
 
     from loosefit.api import pretrained_checkpoint
+    from loosefit.inference.checkpoints import load_torch
     from loosefit.model.physics import (
         PHYSICS_TERMS,
         ClothStructure,
@@ -86,13 +85,9 @@ def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so
     # the same set with its record of the terms taken away, as a checkpoint written before
     # issue 34: it loads, animates, and says that it lacks them
     for name in ("generative.pt", "motion.pt", "detail.pt"):
-        src = pretrained_checkpoint().parent / name
-        data = torch.load(src, map_location="cpu", weights_only=False)
-        if isinstance(data, dict):
-            data.pop("physics_terms", None)
-            torch.save(data, tmp_path / name)
-        else:
-            shutil.copy(src, tmp_path / name)
+        data = load_torch(pretrained_checkpoint().parent / name)
+        data.pop("physics_terms", None)
+        torch.save(data, tmp_path / name)
     old = loosefit.load(tmp_path / "motion.pt")
     assert old.model.missing_physics_terms == PHYSICS_TERMS
     assert np.isfinite(old.animate("kick", frames=4).vertices).all()
