@@ -99,9 +99,9 @@ if [ -n "${GEN:-}" ] && [ -n "${MOTION:-}" ]; then
   [ "$GEN" = "$GEN_ABLATION" ] || motion "$MOTION-final" "$GEN" ${MOTION_FLAGS:-}
   M="$RUNS/$MOTION/model.pt"
   [ "$GEN" = "$GEN_ABLATION" ] || M="$RUNS/$MOTION-final/model.pt"
-  done_run detail ||
+  D="detail-$GEN-$MOTION"  # one detail run per pair: another pair never reuses it
+  done_run "$D" ||
   "$BIN/loosefit" train detail --data "$DATA" --preset cpu --epochs "$DETAIL_EPOCHS" \
-      --motion "$M" --init "$BEFORE/detail.pt" --out "$RUNS/detail" \
-      > "$RUNS/detail.log" 2>&1
-  "$BIN/loosefit" package "$M" --detail "$RUNS/detail/model.pt" --out "$BASE"
+      --motion "$M" --init "$BEFORE/detail.pt" --out "$RUNS/$D" > "$RUNS/$D.log" 2>&1
+  "$BIN/loosefit" package "$M" --detail "$RUNS/$D/model.pt" --out "$BASE"
 fi
