@@ -1,0 +1,80 @@
+"""Where collision handling's time goes: the body's BVH refit and each kind of closest-point query.
+
+Animates a motion with the whole pipeline on one thread (the stages one after another) and
+times, per frame, every ``Surface.refit`` and every ``Surface.query`` grouped by the
+method that asked (the solve, the face samples, the last projection, the mending) and its
+inside test (``normal`` or ``winding``). docs/BENCHMARKS.md quotes it::
+
+    .venv/bin/python bench/collision_profile.py --motion ../shared/mocap/cmu-salsa/60_01.bvh \\
+        --start-frame 10 --frames 150
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import defaultdict
+
+import torch
+
+from loosefit.body.motions import load_motion
+from loosefit.geometry import query
+from loosefit.inference.animator import load_pipeline
+from loosefit.model.rollout import Stages
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
+    p.add_argument("--motion", default="../shared/mocap/cmu-salsa/60_01.bvh")
+    p.add_argument("--start-frame", type=int, default=10)
+    p.add_argument("--frames", type=int, default=150)
+    args = p.parse_args()
+    torch.set_num_threads(1)
+    model = load_pipeline(args.checkpoint)
+    motion = load_motion(args.motion, model.avatar(), fps=model.fps,
+                         start_frame=args.start_frame, max_frames=args.frames)  # fmt: skip
+    stages = Stages(overlap=False)
+    model.animate(motion.slice(0, min(20, motion.num_frames)), stages=stages)  # warm-up
+
+    queries = defaultdict(lambda: [0, 0, 0.0])  # (asker, sign) -> calls, points, seconds
+    refits = [0.0]
+    ask, refit = query.Surface.query, query.Surface.refit
+
+    def timed_query(self, points, max_distance=1.0e3, sign="winding", accuracy=2.0):
+        asker = sys._getframe(1).f_code.co_name
+        if asker == "signed_distances":  # the helper: name who called it
+            asker = sys._getframe(2).f_code.co_name
+        t = time.perf_counter()
+        hit = ask(self, points, max_distance, sign, accuracy)
+        entry = queries[(asker, sign)]
+        entry[0] += 1
+        entry[1] += len(points)
+        entry[2] += time.perf_counter() - t
+        return hit
+
+    def timed_refit(self, vertices):
+        t = time.perf_counter()
+        refit(self, vertices)
+        refits[0] += time.perf_counter() - t
+
+    query.Surface.query, query.Surface.refit = timed_query, timed_refit
+    try:
+        result = model.animate(motion, stages=stages)
+    finally:
+        query.Surface.query, query.Surface.refit = ask, refit
+    n = motion.num_frames
+    stage_ms = {k: round(1e3 * v / n, 1) for k, v in (result.stage_seconds or {}).items()}
+    print(f"{motion.name}, {n} frames, one thread; ms per frame of each stage: {stage_ms}")
+    print(f"body BVH refit: {1e3 * refits[0] / n:.1f} ms per frame")
+    print("| asked by | inside test | queries per frame | points per query | ms per frame |")
+    print("|---|---|---:|---:|---:|")
+    for (asker, sign), (calls, points, seconds) in sorted(queries.items(),
+                                                          key=lambda kv: -kv[1][2]):  # fmt: skip
+        print(f"| {asker} | {sign} | {calls / n:.2f} | {points / max(calls, 1):.0f} "
+              f"| {1e3 * seconds / n:.1f} |")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
