@@ -187,7 +187,7 @@ def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flar
         from loosefit.body.unfold import unfold_motion
         from loosefit.eval.body_regions import body_parts
 
-        m = unfold_motion(avatar, m, body_parts(avatar, arms=config.arm_collision)).motion
+        m = unfold_motion(avatar, m, body_parts(avatar, arms=config.colliding_arms)).motion
     result = run(avatar, template, m, config, progress=progress)
     return AnimatedGarment(m, template, result.garment_vertices,
                            {"rig": avatar.config.rig, "shape": dict(avatar.shape)},

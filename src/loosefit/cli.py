@@ -686,7 +686,10 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     arms = {"none": False, "upper": "upper", "all": True}.get(args.arms)
     if args.arms == "auto":  # the simulation's collider: the data set's, else the garment's
         config = json.loads(manifest.read_text()).get("config", {}) if manifest.is_file() else {}
-        arms = config.get("cloth", {}).get("arm_collision", collider_arms(seq.garment))
+        cloth = config.get("cloth", {})
+        arms = cloth.get("arm_collision", collider_arms(seq.garment))
+        if cloth.get("arm_friction") is not None:  # the arms collided as a mesh of their own
+            arms = True
     args.shape = ",".join(f"{k}={v}" for k, v in seq.avatar.get("shape", {}).items())
     avatar = _avatar(args)
     avatar.check_motion(seq.motion)

@@ -132,3 +132,20 @@ def test_armless_collider_is_closed_and_keeps_the_torso(avatar):
     queries = np.concatenate([queries, v[hand].mean(0, keepdims=True)])
     hit = closest_points(v, faces, queries)
     assert hit.inside.tolist() == [True, True, False]
+
+
+def test_the_cut_arms_are_a_closed_collider_of_their_own(avatar):
+    v = avatar.rest_vertices.numpy()
+    hand = avatar.vertices_of_bones(("LeftHand",)).numpy()
+    for arms in (False, "upper"):
+        faces = avatar.cut_limb_faces(arms).numpy()
+        assert boundary_loops(faces) == []  # closed at the cut
+        # outward: a positive volume, far smaller than the body's
+        tri = v[faces]
+        volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6
+        assert 0.001 < volume < 0.01
+        queries = np.stack([v[hand].mean(0), [0.0, 0.0, 0.25]]).astype(np.float32)
+        hit = closest_points(v, faces, queries)  # the left hand's middle, the chest
+        assert hit.inside.tolist() == [True, False]
+    with pytest.raises(LoosefitInputError, match="arms"):
+        avatar.cut_limb_faces(True)

@@ -157,7 +157,7 @@ def test_a_deep_penetration_where_body_parts_overlap_is_walked_out_as_far_as_all
     far = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, finish_limit=1.0))
     walked = far.resolve(torch.from_numpy(v), surface).vertices.numpy()
     assert deepest(walked) < 0.005 and worst(walked) > 5.0
-    # by default no farther than 4 cm, the tears mended: within 2 cm, no edge over 3x
+    # by default no farther than 10 cm, the tears mended: within 2 cm, no edge over 3x
     handler = CollisionHandler(f, len(v), CollisionConfig(reach=0.2))
     r = handler.resolve(torch.from_numpy(v), surface)
     x = r.vertices.numpy()

@@ -339,8 +339,9 @@ def test_the_collider_with_arms_stops_a_hand_sweeping_through_a_tiny_skirt(avata
     body = avatar.pose_motion(motion).vertices.numpy()
     faces = avatar.faces.numpy()  # the whole body, arms and hands included
 
-    def deepest(arms) -> float:
-        config = dataclasses.replace(ClothConfig.tiny(), arm_collision=arms)
+    def deepest(arms, arm_friction) -> float:
+        config = dataclasses.replace(ClothConfig.tiny(), arm_collision=arms,
+                                     arm_friction=arm_friction)  # fmt: skip
         g = simulate(avatar, skirt, motion, config).garment_vertices
         depth = 0.0
         for t in range(n):
@@ -349,5 +350,18 @@ def test_the_collider_with_arms_stops_a_hand_sweeping_through_a_tiny_skirt(avata
                 depth = max(depth, float(hit.distance[hit.inside].max()))
         return depth
 
-    assert deepest(False) > 0.015  # without the arms the hand passes through the cloth
-    assert deepest(True) < PENETRATION_TOLERANCE  # with them it pushes it
+    # without the arms the hand passes through the cloth
+    assert deepest(False, arm_friction=None) > 0.015
+    assert deepest(True, arm_friction=None) < PENETRATION_TOLERANCE  # with them it pushes it
+    # the arms as a frictionless collider of their own push it as well
+    assert deepest(False, arm_friction=0.0) < PENETRATION_TOLERANCE
+
+
+def test_arm_friction_is_checked():
+    assert ClothConfig().colliding_arms is True  # the arms as a mesh of their own
+    assert ClothConfig(arm_friction=None).colliding_arms is False
+    with pytest.raises(LoosefitInputError, match="arm_friction"):
+        ClothConfig(arm_friction=-0.1)
+    with pytest.raises(LoosefitInputError, match="arm_friction"):
+        ClothConfig(arm_friction=float("nan"))
+    assert ClothConfig(arm_collision="upper", arm_friction=0.0).arm_friction == 0.0

@@ -195,7 +195,7 @@ class Avatar(torch.nn.Module):
         if list(self.proxy_model.bone_labels) != list(self.model.bone_labels):
             raise RuntimeError("anny proxy topology has a different skeleton")  # invariant
         self.shape = shape
-        self._cut_faces: dict = {}  # arms (False or "upper") -> the collider's faces
+        self._cut_faces: dict = {}  # arms (False or "upper") -> the collider's faces, and limbs
         self._phenotype = {k: float(v) for k, v in shape.items()}
 
         # Our rest pose: identity rotations with the root joint at the origin.
@@ -395,6 +395,26 @@ class Avatar(torch.nn.Module):
             faces = cut_and_cap(self.faces.cpu().numpy(), removed)
             self._cut_faces[arms] = torch.from_numpy(faces).to(self.faces.device)
         return self._cut_faces[arms]
+
+    def cut_limb_faces(self, arms: bool | str = False) -> torch.Tensor:
+        """(F', 3) faces of the closed mesh of what :meth:`collider_faces` cuts away.
+
+        The arms from the shoulders (``arms`` False) or from the elbows (``"upper"``),
+        each closed by a fan at its cut, on the full body's vertices: a collider of their
+        own, which the cloth meets with a friction of its own
+        (``ClothConfig.arm_friction``). Faces across the cut belong to both meshes.
+        """
+        if arms not in (False, "upper"):
+            raise LoosefitInputError("Avatar.cut_limb_faces", "arms", "false or 'upper'",
+                                     repr(arms))  # fmt: skip
+        key = ("limbs", arms)
+        if key not in self._cut_faces:
+            bones = ARM_BONES if arms is False else FOREARM_BONES
+            kept = np.zeros(self.rest_vertices.shape[0], bool)
+            kept[self.vertices_of_bones(bones).cpu().numpy()] = True
+            faces = cut_and_cap(self.faces.cpu().numpy(), ~kept)
+            self._cut_faces[key] = torch.from_numpy(faces).to(self.faces.device)
+        return self._cut_faces[key]
 
     def seed_points(
         self, count: int = 256, bones: tuple[str, ...] = LOWER_BODY_BONES

@@ -52,7 +52,9 @@ def quality(
         garment_vertices: (T, V, 3) garment positions.
         template: the garment's rest shape (edge rest lengths) and faces.
         body_vertices: (T, Vb, 3) posed body, the same frames.
-        body_faces: (Fb, 3) triangles of the closed body mesh.
+        body_faces: (Fb, 3) triangles of the closed body mesh, or a tuple of such meshes
+            on the same vertices (the body without its arms and the arms, as the simulation
+            collides with them): inside one of them is inside.
         fps: frame rate, for speeds.
         tolerance: metres; a vertex less deep inside the body than this touches it
             rather than penetrates (see below).
@@ -88,13 +90,19 @@ def quality(
     inside = np.zeros(g.shape[0])
     deep = np.zeros(g.shape[0])
     depth = 0.0
+    meshes = tuple(body_faces) if isinstance(body_faces, tuple | list) else (body_faces,)
     for t in range(g.shape[0]):
-        hit = closest_points(b[t], body_faces, np.where(finite[t, :, None], g[t], 0.0))
-        within = hit.inside & finite[t]
+        within = np.zeros(V, bool)
+        dist = np.zeros(V)  # the depth inside whichever mesh holds a vertex deepest
+        for faces in meshes:
+            hit = closest_points(b[t], faces, np.where(finite[t, :, None], g[t], 0.0))
+            ins = hit.inside & finite[t]
+            dist = np.where(ins, np.maximum(dist, hit.distance), dist)
+            within |= ins
         inside[t] = within.mean()
-        deep[t] = (within & (hit.distance > tolerance)).mean()
+        deep[t] = (within & (dist > tolerance)).mean()
         if within.any():
-            depth = max(depth, float(hit.distance[within].max()))
+            depth = max(depth, float(dist[within].max()))
     strain, edges = edge_strain(g, template)
     strain = strain[finite[:, edges[:, 0]] & finite[:, edges[:, 1]]]
     p50, p95, p99 = np.percentile(strain, [50, 95, 99]) if strain.size else (np.nan,) * 3

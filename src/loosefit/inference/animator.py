@@ -102,8 +102,13 @@ def avatar_of(body: dict):
 
 
 def arm_collision_of(data: dict) -> bool | str:
-    """The arms in the collider as the data was simulated: False, True or "upper"."""
-    arms = (data.get("cloth") or {}).get("arm_collision", False)
+    """The arms the cloth met as the data was simulated: False, True or "upper" (True also
+    where they were a collider of their own, ``ClothConfig.arm_friction``; data made before
+    that field existed had none)."""
+    cloth = data.get("cloth") or {}
+    if cloth.get("arm_friction") is not None:
+        return True
+    arms = cloth.get("arm_collision", False)
     return arms if arms == "upper" else bool(arms)
 
 

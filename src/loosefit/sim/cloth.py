@@ -105,6 +105,15 @@ class ClothConfig:
     # with its shoulders capped; a hand passing the skirt goes through it. "upper": the
     # upper arms collide, the arms from the elbows down do not (a dress's bodice).
     arm_collision: bool | str = False
+    # The arms that arm_collision cuts from the body (all of them, or from the elbows for
+    # "upper") as a collider of their own, closed at the cut, with this Coulomb friction
+    # (0: frictionless); None: they do not collide (data sets made before 2026-11-26).
+    # A mesh of their own has its own inside/outside test, so cloth between a forearm and
+    # the hip is not caught in one mesh's overlap, and without friction a hand pushes the
+    # cloth without dragging it down (salsa 60_01, frames 0-90: cloth deeper than 5 mm
+    # inside the arms in 2 frames against 54, edge strain as without arms; docs/DATASET.md).
+    # Nothing is cut with arm_collision true, and this does not apply.
+    arm_friction: float | None = 0.0
     # A pose that folds into itself (a thigh centimetres into the belly in a deep crouch)
     # makes a lens that ray parity calls outside, and cloth folded into it stays inside the
     # body; the collider's limbs are pressed out of the rest of the body as flesh would be
@@ -154,6 +163,13 @@ class ClothConfig:
         if self.arm_collision not in (False, True, "upper"):
             raise LoosefitInputError(src, "arm_collision", "false, true or 'upper'",
                                      repr(self.arm_collision))  # fmt: skip
+        if self.arm_friction is not None and not (
+            isinstance(self.arm_friction, int | float)
+            and math.isfinite(self.arm_friction)
+            and self.arm_friction >= 0
+        ):
+            raise LoosefitInputError(src, "arm_friction", "None or a finite number >= 0",
+                                     repr(self.arm_friction))  # fmt: skip
         if self.max_substeps < self.substeps:
             raise LoosefitInputError(
                 src, "max_substeps", f">= substeps ({self.substeps})", repr(self.max_substeps)
@@ -189,6 +205,14 @@ class ClothConfig:
             raise LoosefitInputError(
                 src, "self_friction", "> 0 when body_friction > 0", repr(self.self_friction)
             )
+
+    @property
+    def colliding_arms(self) -> bool | str:
+        """What of the arms the cloth meets, in ``arm_collision``'s terms: True when they
+        collide in the body's mesh or as a mesh of their own (``arm_friction``), else
+        ``arm_collision``. The pressing of overlapping limbs and the pose correction treat
+        these as limbs."""
+        return True if self.arm_friction is not None else self.arm_collision
 
     @classmethod
     def tiny(cls, **overrides) -> ClothConfig:
@@ -449,6 +473,9 @@ class ClothSimulator:
             respaced as it is pulled onto the body; False: separate points (a dress's
             straps), each held where it is closest (see :func:`glue_waist`).
         seeds: (K,) each clip's jitter seed (default: ``config.seed`` for all).
+        limb_faces: (Fl, 3) triangles of a second closed mesh on the body's vertices (the
+            arms cut from ``body_faces``, :meth:`Avatar.cut_limb_faces`), a collider of its
+            own with ``config.arm_friction``; None: no such collider.
     """
 
     def __init__(
@@ -463,6 +490,7 @@ class ClothSimulator:
         bounds: tuple[np.ndarray, np.ndarray] | None = None,
         loop: bool = True,
         seeds: list[int] | None = None,
+        limb_faces: np.ndarray | None = None,
     ) -> None:
         import newton  # imported here: importing it takes seconds
 
@@ -509,16 +537,28 @@ class ClothSimulator:
         #    give sqrt(self_friction * shape_mu) = body_friction.
         builder = newton.ModelBuilder(gravity=(0.0, 0.0, cfg.gravity))
         shape_mu = cfg.body_friction**2 / cfg.self_friction if cfg.self_friction > 0 else 0.0
-        shape_cfg = newton.ModelBuilder.ShapeConfig(
-            ke=cfg.contact_ke,
-            kd=cfg.contact_kd,
-            mu=shape_mu,
-            margin=0.0,
-            gap=cfg.body_contact_gap,
-            has_shape_collision=False,
-            has_particle_collision=True,
-        )
-        self._body_meshes = []
+
+        def shape_config(mu: float):
+            return newton.ModelBuilder.ShapeConfig(
+                ke=cfg.contact_ke,
+                kd=cfg.contact_kd,
+                mu=mu,
+                margin=0.0,
+                gap=cfg.body_contact_gap,
+                has_shape_collision=False,
+                has_particle_collision=True,
+            )
+
+        shape_cfg = shape_config(shape_mu)
+        limb_cfg = None
+        if limb_faces is not None:
+            if cfg.arm_friction is None:
+                raise LoosefitInputError("ClothSimulator", "config.arm_friction",
+                                         "a number when limb_faces are given", "None")  # fmt: skip
+            limb_faces = np.ascontiguousarray(limb_faces, np.int32)
+            limb_mu = cfg.arm_friction**2 / cfg.self_friction if cfg.self_friction > 0 else 0.0
+            limb_cfg = shape_config(limb_mu)
+        self._body_meshes = []  # per clip: the body's mesh, then the limbs' if any
         start = np.empty((K * V, 3), np.float32)
         for k in range(K):
             if K > 1:
@@ -545,8 +585,13 @@ class ClothSimulator:
             )
             mesh = newton.Mesh(bodies[k] + self.offsets[k], body_faces.ravel(),
                                compute_inertia=False)  # fmt: skip
-            self._body_meshes.append(mesh)
+            self._body_meshes.append([mesh])
             builder.add_shape_mesh(body=-1, mesh=mesh, cfg=shape_cfg)
+            if limb_cfg is not None:
+                limb = newton.Mesh(bodies[k] + self.offsets[k], limb_faces.ravel(),
+                                   compute_inertia=False)  # fmt: skip
+                self._body_meshes[-1].append(limb)
+                builder.add_shape_mesh(body=-1, mesh=limb, cfg=limb_cfg)
             if K > 1:
                 builder.end_world()
         # VBD solves one colour of vertices at a time.
@@ -616,19 +661,20 @@ class ClothSimulator:
     # -- one substep at a time --------------------------------------------------
 
     def _pose_body(self, alpha: float) -> None:
-        for k, body in enumerate(self._body_meshes):
-            mesh = body.mesh
-            wp.launch(
-                _pose_body_kernel,
-                dim=self.num_body_vertices,
-                inputs=[self._body_start[k], self._body_end[k], alpha, 1.0 / self.frame_dt],
-                outputs=[mesh.points, mesh.velocities],
-                device=self.device,
-            )
-            mesh.refit()
+        for k, shapes in enumerate(self._body_meshes):
+            for shape in shapes:
+                mesh = shape.mesh
+                wp.launch(
+                    _pose_body_kernel,
+                    dim=self.num_body_vertices,
+                    inputs=[self._body_start[k], self._body_end[k], alpha, 1.0 / self.frame_dt],
+                    outputs=[mesh.points, mesh.velocities],
+                    device=self.device,
+                )
+                mesh.refit()
 
     def _pin_waist(self) -> None:
-        for body, (faces, bary, local, outward, particles) in zip(
+        for (body, *_), (faces, bary, local, outward, particles) in zip(
             self._body_meshes, self._glue_arrays, strict=True
         ):
             wp.launch(
@@ -801,6 +847,13 @@ def _read_resume(path: Path, key: str, total: int) -> dict | None:
         return None
 
 
+def _limb_faces(avatar: Avatar, config: ClothConfig) -> np.ndarray | None:
+    """(Fl, 3) the arms' own collider (``config.arm_friction``), or None."""
+    if config.arm_friction is None or config.arm_collision is True:
+        return None
+    return avatar.cut_limb_faces(config.arm_collision).cpu().numpy()
+
+
 def simulate(
     avatar: Avatar,
     template: GarmentTemplate,
@@ -900,6 +953,9 @@ def simulate_batch(
             template.vertices.astype(np.float64) @ root_pose[:3, :3].T + root_pose[:3, 3]
         )
     body_faces = avatar.collider_faces(arms=config.arm_collision).cpu().numpy()
+    # what the quality figures measure against: all the cloth meets (the arms' own mesh too)
+    limb_faces = _limb_faces(avatar, config)
+    measured_faces = body_faces if limb_faces is None else (body_faces, limb_faces)
     totals = [len(b) - 1 for b in bodies]  # frames each clip steps
     # What the cloth collides with: the posed bodies, limbs pressed out of the rest of the
     # body where the pose folds into itself (the measures below take the posed bodies).
@@ -909,7 +965,7 @@ def simulate_batch(
         from loosefit.eval.body_regions import body_parts
         from loosefit.sim.overlap import flatten_overlaps
 
-        parts = body_parts(avatar, arms=config.arm_collision)
+        parts = body_parts(avatar, arms=config.colliding_arms)
         flat = [flatten_overlaps(b, parts, config.overlap_inset) for b in bodies]
         colliders = [f.vertices for f in flat]
         pressed, overlap = [f.moved for f in flat], [f.depth for f in flat]
@@ -924,6 +980,7 @@ def simulate_batch(
         np.stack(garments) if K > 1 else garments[0], template.faces, template.waist,
         start_bodies if K > 1 else start_bodies[0], body_faces, config,
         frame_dt=1.0 / fps, bounds=(lower, upper), loop=attached_loop(template), seeds=seeds,
+        limb_faces=limb_faces,
     )  # fmt: skip
     t_build = time.perf_counter() - t0
     schedule = np.full(total, config.substeps, np.int64)
@@ -1019,7 +1076,7 @@ def simulate_batch(
             seconds_per_frame=t_sim / K / max(total, 1),
             preroll_frames=n_pre,
             settled_vertices=settled[c],
-            quality=quality(outs[c], template, body[n_pre:], body_faces, motion.fps),
+            quality=quality(outs[c], template, body[n_pre:], measured_faces, motion.fps),
             stats=stats,
         ))  # fmt: skip
     return results
@@ -1055,7 +1112,7 @@ def settle(
         garment, template.faces, template.waist, body,
         avatar.collider_faces(arms=config.arm_collision).cpu().numpy(), config,
         frame_dt=1.0 / fps, bounds=(body.min(0) - 2.0, body.max(0) + 2.0),
-        loop=attached_loop(template),
+        loop=attached_loop(template), limb_faces=_limb_faces(avatar, config),
     )  # fmt: skip
     n_settle = int(round(config.settle_seconds * fps)) + 1
     for k in range(n_settle - 1):
