@@ -1,0 +1,140 @@
+"""The edge-length stage restoring every edge, not only the hanging ones (issue 34's strain).
+
+The committed pipeline restores the hanging edges of the garment after detail
+(``LengthConfig(edges="hanging")``): the skirt gets its length back, but its circumferential
+edges stay 7-9 % short and the edge strain p99 stays about 0.4 (the simulation's 0.05-0.09).
+Restoring every edge (``edges="all"``) with the default tie turns that lost width into a bell
+(docs/STAGE_ACCOUNT.md). This measures, on the account's clips, the stage with every edge
+and a stronger tie to the network's shape (``tie``), before and after collision handling:
+strain, edge change, flare at the fastest turn, inside the whole body, RMSE.
+
+    .venv/bin/python bench/length_variants.py [--data datasets/account] \\
+        [--sequence out/chain_spin.npz] [--out docs/LENGTH_VARIANTS.md]
+
+Writes the table (markdown) and the figures as JSON beside it. About 15 minutes on dev-cpu.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from stage_account import TURN_WINDOW, fastest_turn, measure  # noqa: E402
+
+from loosefit.garment.mesh_checks import hem_loop  # noqa: E402
+from loosefit.inference.animator import load_pipeline  # noqa: E402
+from loosefit.model.physics import ClothStructure, LengthConfig, dihedral_angles  # noqa: E402
+from loosefit.model.rollout import Stages  # noqa: E402
+from loosefit.train.common import machine  # noqa: E402
+
+VARIANTS = {  # label: the edge-length stage (None: as committed)
+    "hanging edges (committed)": None,
+    "all edges, tie 1e-3": LengthConfig(edges="all"),
+    "all edges, tie 1e-2": LengthConfig(edges="all", tie=1.0e-2),
+    "all edges, tie 3e-2": LengthConfig(edges="all", tie=3.0e-2),
+}
+KEYS = ("strain_p50", "strain_p99", "edge_change_p50", "flare_turn_error", "inside_whole_mean",
+        "deep_whole_frames", "rmse_cm")  # fmt: skip
+
+
+def clip_variants(model, name: str, seq) -> dict:
+    """Every variant of :data:`VARIANTS` on one simulated clip, before and after collision."""
+    motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
+    template = model.template
+    structure = ClothStructure.from_template(template)
+    hem = hem_loop(template.vertices, template.faces)
+    avatar = model.avatar()
+    posed = avatar.pose_motion(motion)
+    body = posed.vertices.cpu().numpy()
+    pelvis = posed.joint_transforms[:, 0, :3, 3].cpu().numpy()
+    turn = fastest_turn(motion.rotations, motion.fps)
+    window = (max(turn - TURN_WINDOW, 0), min(turn + TURN_WINDOW + 1, motion.num_frames))
+    faces = {"whole": avatar.collider_faces(arms=True).cpu().numpy(),
+             "collider": avatar.collider_faces(arms=model.arm_collision).cpu().numpy()}  # fmt: skip
+    truth_angles = np.abs(dihedral_angles(torch.from_numpy(truth[::5]).double(),
+                                          structure.hinges).numpy()).ravel()  # fmt: skip
+    detail = model.animate(motion, stages=Stages(lengths=False, collision=False)).vertices
+    rows = {}
+    for label, lengths in VARIANTS.items():
+        with model.configured(lengths=lengths):
+            pre = model.restorer(Stages())(torch.from_numpy(detail)).numpy()
+            collide = model.collider(motion)
+            post = np.stack([collide(t, torch.from_numpy(pre[t])).vertices.numpy()
+                             for t in range(len(pre))])  # fmt: skip
+        for when, x in (("before collision", pre), ("after collision", post)):
+            r = measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
+                        motion.fps, template)  # fmt: skip
+            rows[f"{label}, {when}"] = {k: r[k] for k in KEYS}
+            print(f"  {name} {label}, {when}: strain p99 {r['strain_p99']:.3f}, edge change "
+                  f"{100 * r['edge_change_p50']:+.1f} %, flare error "
+                  f"{100 * r['flare_turn_error']:.1f} %, RMSE {r['rmse_cm']:.2f} cm",
+                  flush=True)  # fmt: skip
+    sim = measure(truth, truth, structure, hem, pelvis, window, body, faces, truth_angles,
+                  motion.fps, template)  # fmt: skip
+    return {"frames": motion.num_frames, "simulation": {k: sim[k] for k in KEYS}, "rows": rows}
+
+
+def table(clips: dict) -> str:
+    head = ("| clip | variant | strain p50 | strain p99 | edge change % | flare error at turn % "
+            "| inside whole body % | frames > 5 mm | RMSE cm |")  # fmt: skip
+    lines = [head, "|---|---|" + "---:|" * 7]
+
+    def row(clip, label, r):
+        return (f"| {clip} | {label} | {r['strain_p50']:.3f} | {r['strain_p99']:.3f} | "
+                f"{100 * r['edge_change_p50']:+.1f} | {100 * r['flare_turn_error']:.1f} | "
+                f"{100 * r['inside_whole_mean']:.3f} | {r['deep_whole_frames']} | "
+                f"{r['rmse_cm']:.2f} |")  # fmt: skip
+
+    for name, c in clips.items():
+        lines.append(row(name, "simulation", c["simulation"]))
+        lines.extend(row(name, label, r) for label, r in c["rows"].items())
+    return "\n".join(lines)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
+    p.add_argument("--data", default="datasets/account")
+    p.add_argument("--sequence", nargs="*", default=["out/chain_spin.npz"])
+    p.add_argument("--out", default="docs/LENGTH_VARIANTS.md")
+    args = p.parse_args()
+
+    from loosefit.cli import read_any_sequence
+    from loosefit.data.format import DatasetReader
+
+    torch.set_num_threads(1)
+    model = load_pipeline(args.checkpoint)
+    reader = DatasetReader(args.data, allow_incomplete=True)
+    sources = {f.stem: reader.read(f.stem)
+               for f in sorted((Path(args.data) / "sequences").glob("*.npz"))}  # fmt: skip
+    sources.update({Path(f).stem: read_any_sequence(f) for f in args.sequence})
+    clips = {}
+    for name, seq in sources.items():
+        print(f"{name}: {seq.motion.num_frames} frames", flush=True)
+        clips[name] = clip_variants(model, name, seq)
+    out = Path(args.out)
+    record = {"checkpoint": str(Path(args.checkpoint).resolve()), "machine": machine("cpu"),
+              "platform": platform.platform(), "torch": torch.__version__, "threads": 1,
+              "cpus": os.cpu_count(), "clips": clips}  # fmt: skip
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(record, indent=1))
+    body = table(clips)
+    print(body)
+    marker = "<!-- length variants table -->"
+    if out.is_file() and marker in out.read_text():
+        out.write_text(out.read_text().split(marker)[0] + marker + "\n" + body + "\n")
+    else:
+        out.write_text(f"# The edge-length stage on every edge\n\n{marker}\n{body}\n")
+    print(f"wrote {out} and {out.with_suffix('.json')}")
+
+
+if __name__ == "__main__":
+    main()
