@@ -149,7 +149,7 @@ def test_non_dataset_folder_is_rejected(tmp_path):
 
 
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
-    expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, paper"
+    expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, paper"
     with pytest.raises(LoosefitInputError, match=expected):
         gen.preset("huge")
     with pytest.raises(LoosefitInputError, match=r"\*\.bvh.*no \.bvh files"):
@@ -165,6 +165,27 @@ def test_salsa_holds_out_its_test_clips_as_one_long_sequence(tmp_path):
         ("60_01", False), ("60_02", False), ("chain_60_03_61_03", True),
     ]  # fmt: skip
     assert jobs[-1].spec == f"{tmp_path / '60_03.bvh'}+{tmp_path / '61_03.bvh'}"
+
+
+def test_dance_is_salsa_and_the_ballet_clips_with_three_held_out(tmp_path):
+    salsa = tmp_path / "cmu-salsa"
+    salsa.mkdir()
+    for name in ("60_01", "60_03", "61_03", "60_02", "60_07", "61_07"):
+        (salsa / f"{name}.bvh").write_text("")
+    plain = gen.plan_jobs(gen.preset("salsa", bvh_folder=str(salsa)))
+    cfg = gen.preset("dance", bvh_folder=str(salsa))
+    jobs = gen.plan_jobs(cfg)
+    assert jobs[: len(plain)] == plain  # the salsa clips and their held-out chain, as in salsa
+    ballet = jobs[len(plain) :]
+    assert [j.name for j in ballet] == list(gen.BALLET_CLIPS)
+    assert [j.name for j in ballet if j.test] == ["05_02", "05_10", "05_12"]
+    assert ballet[0].spec == str(tmp_path / "cmu-ballet" / "05_01.bvh")
+    assert len({j.seed for j in jobs}) == len(jobs)
+    # the arms collide, as simulate's defaults do; salsa keeps them out as its data was made
+    assert cfg.cloth.arm_friction == 0.0 and gen.preset("salsa").cloth.arm_friction is None
+    cfg.motions.test = (*cfg.motions.test, "05_99")
+    with pytest.raises(LoosefitInputError, match="05_99"):
+        gen.plan_jobs(cfg)
 
 
 def test_salsa_speed_adds_faster_training_clips_only(tmp_path):
