@@ -967,8 +967,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="simulate a garment dataset with Newton (resumable)")
     p.add_argument("--preset", default="demo",
-                   help="tiny, demo, salsa, salsa-speed, salsa-speeds, paper, dress-tiny or "
-                   "dress")  # fmt: skip
+                   help="tiny, demo, salsa, salsa-speed, salsa-speeds, dance, paper, "
+                   "dress-tiny or dress")  # fmt: skip
     p.add_argument("--config", default=None, metavar="FILE",
                    help="a data set configuration (.yaml, .yml or .toml) instead of a preset; "
                    "--write-config writes one to start from")  # fmt: skip
@@ -995,7 +995,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_import_args(p)
     p.add_argument("--out", default=None, help="dataset folder (default datasets/PRESET)")
-    p.add_argument("--bvh", default=None, help="salsa/paper: a folder of BVH clips")
+    p.add_argument(
+        "--bvh",
+        default=None,
+        help="salsa, dance, paper: the salsa folder of BVH clips "
+        "(dance: with cmu-ballet beside it)",
+    )
     p.add_argument("--workers", type=int, default=2, help="parallel simulations")
     p.add_argument(
         "--batch",
