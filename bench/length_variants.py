@@ -27,11 +27,10 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from stage_account import TURN_WINDOW, fastest_turn, measure  # noqa: E402
+from stage_account import clip_reference  # noqa: E402
 
-from loosefit.garment.mesh_checks import hem_loop  # noqa: E402
 from loosefit.inference.animator import load_pipeline  # noqa: E402
-from loosefit.model.physics import ClothStructure, LengthConfig, dihedral_angles  # noqa: E402
+from loosefit.model.physics import LengthConfig  # noqa: E402
 from loosefit.model.rollout import Stages  # noqa: E402
 from loosefit.train.common import machine  # noqa: E402
 
@@ -48,19 +47,7 @@ KEYS = ("strain_p50", "strain_p99", "edge_change_p50", "flare_turn_error", "insi
 def clip_variants(model, name: str, seq) -> dict:
     """Every variant of :data:`VARIANTS` on one simulated clip, before and after collision."""
     motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
-    template = model.template
-    structure = ClothStructure.from_template(template)
-    hem = hem_loop(template.vertices, template.faces)
-    avatar = model.avatar()
-    posed = avatar.pose_motion(motion)
-    body = posed.vertices.cpu().numpy()
-    pelvis = posed.joint_transforms[:, 0, :3, 3].cpu().numpy()
-    turn = fastest_turn(motion.rotations, motion.fps)
-    window = (max(turn - TURN_WINDOW, 0), min(turn + TURN_WINDOW + 1, motion.num_frames))
-    faces = {"whole": avatar.collider_faces(arms=True).cpu().numpy(),
-             "collider": avatar.collider_faces(arms=model.arm_collision).cpu().numpy()}  # fmt: skip
-    truth_angles = np.abs(dihedral_angles(torch.from_numpy(truth[::5]).double(),
-                                          structure.hinges).numpy()).ravel()  # fmt: skip
+    measure_garment, _, _ = clip_reference(model, seq)
     detail = model.animate(motion, stages=Stages(lengths=False, collision=False)).vertices
     rows = {}
     for label, lengths in VARIANTS.items():
@@ -70,15 +57,13 @@ def clip_variants(model, name: str, seq) -> dict:
             post = np.stack([collide(t, torch.from_numpy(pre[t])).vertices.numpy()
                              for t in range(len(pre))])  # fmt: skip
         for when, x in (("before collision", pre), ("after collision", post)):
-            r = measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
-                        motion.fps, template)  # fmt: skip
+            r = measure_garment(x)
             rows[f"{label}, {when}"] = {k: r[k] for k in KEYS}
             print(f"  {name} {label}, {when}: strain p99 {r['strain_p99']:.3f}, edge change "
                   f"{100 * r['edge_change_p50']:+.1f} %, flare error "
                   f"{100 * r['flare_turn_error']:.1f} %, RMSE {r['rmse_cm']:.2f} cm",
                   flush=True)  # fmt: skip
-    sim = measure(truth, truth, structure, hem, pelvis, window, body, faces, truth_angles,
-                  motion.fps, template)  # fmt: skip
+    sim = measure_garment(truth)
     return {"frames": motion.num_frames, "simulation": {k: sim[k] for k in KEYS}, "rows": rows}
 
 

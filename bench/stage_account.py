@@ -137,9 +137,10 @@ def measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
     return out
 
 
-def clip_account(model, name: str, seq, labels=tuple(STAGES), before=None) -> dict:
-    """Every stage of ``labels`` (keys of :data:`STAGES`) on one simulated clip; the
-    ``today`` row with the pipeline ``before`` when given (the set before issue 34)."""
+def clip_reference(model, seq):
+    """``(measure, turn, window)`` of one simulated clip: ``measure(x)`` gives the figures of
+    a garment (T, V, 3) on its motion against the simulation (:func:`measure`); ``turn`` is
+    the frame of the fastest turn and ``window`` the frames around it."""
     motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
     template = model.template
     structure = ClothStructure.from_template(template)
@@ -154,6 +155,19 @@ def clip_account(model, name: str, seq, labels=tuple(STAGES), before=None) -> di
              "collider": avatar.collider_faces(arms=model.arm_collision).cpu().numpy()}  # fmt: skip
     truth_angles = np.abs(dihedral_angles(torch.from_numpy(truth[::5]).double(),
                                           structure.hinges).numpy()).ravel()  # fmt: skip
+
+    def measure_garment(x: np.ndarray) -> dict:
+        return measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
+                       motion.fps, template)  # fmt: skip
+
+    return measure_garment, turn, window
+
+
+def clip_account(model, name: str, seq, labels=tuple(STAGES), before=None) -> dict:
+    """Every stage of ``labels`` (keys of :data:`STAGES`) on one simulated clip; the
+    ``today`` row with the pipeline ``before`` when given (the set before issue 34)."""
+    motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
+    measure_garment, turn, window = clip_reference(model, seq)
     restorer = model.restorer(Stages())
     rows, seconds, oracle = {}, {}, None
     for label in labels:
@@ -172,8 +186,7 @@ def clip_account(model, name: str, seq, labels=tuple(STAGES), before=None) -> di
             with which.configured(collision, lengths):
                 x = which.animate(motion, stages=stages).vertices
         seconds[label] = time.perf_counter() - t0
-        rows[label] = measure(x, truth, structure, hem, pelvis, window, body, faces,
-                              truth_angles, motion.fps, template)  # fmt: skip
+        rows[label] = measure_garment(x)
         print(f"  {name} {label}: strain {rows[label]['strain_p50']:.3f}, edge change "
               f"{100 * rows[label]['edge_change_p50']:+.1f} %, flare error at the turn "
               f"{100 * rows[label]['flare_turn_error']:.1f} %, inside (whole body) "
