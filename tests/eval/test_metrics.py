@@ -15,6 +15,7 @@ from loosefit.eval.metrics import (
     rmse,
     rmse_per_frame,
     sted,
+    sted_reference,
     summarize,
 )
 
@@ -49,13 +50,7 @@ def _cube(lo: float = 0.0, hi: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
 @pytest.fixture
 def seqs() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A perturbed 5x5 grid: target (3, 25, 3) moving and wrinkling, pred = target + noise."""
-    rng = np.random.default_rng(0)
-    v, f = _grid()
-    T = 3
-    target = np.stack([v + [0.05 * t, 0.0, 0.02 * t] for t in range(T)])
-    target = target + rng.normal(0.0, 0.03, target.shape)
-    pred = target + rng.normal(0.0, 0.02, target.shape)
-    return pred, target, f
+    return _seqs_plain()
 
 
 # ---------------------------------------------------------------------------
@@ -346,3 +341,64 @@ def test_bad_input_raises_loosefit_input_error(case):
     with pytest.raises(LoosefitInputError) as err:
         call()
     assert (err.value.source, err.value.field) == (source, field)
+
+
+# sted_reference: Vasa and Skala's tool's definition
+
+
+def test_sted_reference_of_a_uniform_scale_of_a_still_mesh_is_zero():
+    v, f = _grid()
+    target = np.stack([v] * 4)
+    s = sted_reference(1.3 * target, target, f)
+    assert s["spatial"] == pytest.approx(0.0, abs=1e-12)  # every edge stretched alike
+    assert s["temporal"] == pytest.approx(0.0, abs=1e-12)  # nothing moves: all dt
+    assert s["sted"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_sted_reference_of_a_one_frame_lag_by_hand():
+    # the grid slides 1 cm a frame along x; the prediction lags one frame behind it
+    v, f = _grid()  # 1 x 1 m, diameter sqrt(2)
+    T = 12
+    target = np.stack([v + [0.01 * t, 0.0, 0.0] for t in range(T)])
+    pred = np.concatenate([target[:1], target[:-1]])
+    s = sted_reference(pred, target, f)
+    assert s["spatial"] == pytest.approx(0.0, abs=1e-12)  # rigid: edges keep their lengths
+    u, dt = 0.01 / math.sqrt(2.0), 3.0e-4
+    moving = math.sqrt(u**2 + dt**2)  # every temporal edge of the target
+    # only the first temporal edge differs (the prediction stands still: dt), and the
+    # window's mean of the target's is the same everywhere
+    want = (moving - dt) / moving / (T - 1)
+    assert s["temporal"] == pytest.approx(want, rel=1e-9)
+    assert s["sted"] == pytest.approx(9.144e-5 * want, rel=1e-9)
+    # the window's mean divides: a target that speeds up halfway
+    steps = np.r_[np.full(6, 0.01), np.full(5, 0.03)]
+    target = np.stack([v + [x, 0.0, 0.0] for x in np.r_[0.0, np.cumsum(steps)]])
+    pred = target.copy()
+    pred[1:, :, 0] += 0.005  # one frame's step 5 mm longer, the rest as the target's
+    s = sted_reference(pred, target, f, window=2)
+    lengths = np.sqrt((steps / math.sqrt(2.0)) ** 2 + dt**2)
+    first = math.sqrt((0.015 / math.sqrt(2.0)) ** 2 + dt**2)
+    assert s["temporal"] == pytest.approx((first - lengths[0]) / lengths[:3].mean() / 11, rel=1e-9)
+
+
+def test_sted_reference_counts_unused_vertices_as_zero_and_weighs_time():
+    pred, target, f = _seqs_plain()
+    s = sted_reference(pred, target, f)
+    assert s["sted"] == pytest.approx(math.hypot(s["spatial"], 9.144e-5 * s["temporal"]))
+    assert s["spatial"] == pytest.approx(sted(pred, target, f, 30.0)["spatial"])
+    # a vertex no face uses adds a zero to the spatial mean
+    extra = lambda x: np.concatenate([x, x[:, :1] + 5.0], axis=1)  # noqa: E731
+    more = sted_reference(extra(pred), extra(target), f)
+    assert more["spatial"] == pytest.approx(s["spatial"] * 25 / 26)
+    with pytest.raises(LoosefitInputError, match="window"):
+        sted_reference(pred, target, f, window=-1)
+
+
+def _seqs_plain():
+    """The fixture ``seqs``'s sequences (a test that changes them builds its own)."""
+    rng = np.random.default_rng(0)
+    v, f = _grid()
+    target = np.stack([v + [0.05 * t, 0.0, 0.02 * t] for t in range(3)])
+    target = target + rng.normal(0.0, 0.03, target.shape)
+    pred = target + rng.normal(0.0, 0.02, target.shape)
+    return pred, target, f

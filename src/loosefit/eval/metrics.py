@@ -269,33 +269,8 @@ def sted(
     f = _faces(faces, p.shape[1], "sted")
     fps = _positive(fps, "sted", "fps")
     c = _positive(speed_scale, "sted", "speed_scale")
-    T, V, _ = p.shape
-
-    edges, _ = unique_edges(f)
-    used = np.zeros(V, bool)
-    used[edges.ravel()] = True
-    hood = _ring_edges(edges, V)[used]  # (V_used, E)
-
-    lg = _edge_lengths(g, edges)  # (T, E)
-    lp = _edge_lengths(p, edges)
-    if not (lg > 0).all():
-        t, e = np.argwhere(~(lg > 0))[0]
-        raise LoosefitInputError(
-            "sted",
-            "target",
-            "edges of positive length",
-            f"{int((~(lg > 0)).sum())} zero-length edges (first: frame {t}, "
-            f"edge {edges[e].tolist()})",
-        )
-    dev = (lp - lg) / lg
-    # The weighted variance is shift invariant; removing each frame's global mean first
-    # keeps the one-pass formula E[x^2] - E[x]^2 accurate (e.g. exact 0 for uniform scaling).
-    dev = dev - ((lg * dev).sum(1, keepdims=True) / lg.sum(1, keepdims=True))
-    s0 = (hood @ lg.T).T  # (T, V_used): sum of weights
-    s1 = (hood @ (lg * dev).T).T
-    s2 = (hood @ (lg * dev**2).T).T
-    mu = s1 / s0
-    sigma = np.sqrt(np.maximum(s2 / s0 - mu**2, 0.0))
+    T = p.shape[0]
+    sigma, used = _spatial_deviation(p, g, f, "sted")
     spatial = float(sigma.mean())
 
     if T > 1:
@@ -310,6 +285,104 @@ def sted(
         "spatial": spatial,
         "temporal": temporal,
     }
+
+
+def sted_reference(
+    pred: Any,
+    target: Any,
+    faces: Any,
+    dt: float = 3.0e-4,
+    window: int = 5,
+    weight: float = 9.144e-5,
+) -> dict[str, float]:
+    """STED as Vasa and Skala's own comparison tool computes it with its default parameters.
+
+    Spatial part: as :func:`sted` (the signed relative edge differences over the closed
+    one-ring, weighted by the target's edge lengths, a weighted standard deviation per
+    vertex), averaged over all vertices and frames, a vertex that no face uses counting 0.
+
+    Temporal part, on coordinates divided by the diameter of the target's first frame (the
+    diagonal of its bounding box): the temporal edge of a vertex from frame t to t + 1 has
+    length ``sqrt(|dx|^2 + dt^2)``; each difference ``|l'_t(v) - l_t(v)|`` is divided by
+    the mean of the target's temporal edge lengths of that vertex over frames t - window
+    to t + window (those that exist)::
+
+        STED_t = mean_{t < T-1, v} |l'_t(v) - l_t(v)| / mean_{|s - t| <= window} l_s(v)
+
+    Overall ``STED = sqrt(STED_s^2 + weight^2 STED_t^2)``.
+
+    Args:
+        pred: (T, V, 3) predicted vertex positions.
+        target: (T, V, 3) ground-truth vertex positions; its edges of positive length.
+        faces: (F, 3) triangles shared by both.
+        dt: the time step term, in diameters.
+        window: frames either side of the temporal mean.
+        weight: ``c``, the weight of the temporal part.
+
+    Returns:
+        ``{"sted": STED, "spatial": STED_s, "temporal": STED_t}`` as floats.
+    """
+    p, g = _pair(pred, target, "sted_reference")
+    f = _faces(faces, p.shape[1], "sted_reference")
+    dt = _positive(dt, "sted_reference", "dt")
+    weight = _positive(weight, "sted_reference", "weight")
+    if not (isinstance(window, int) and window >= 0):
+        raise LoosefitInputError("sted_reference", "window", "an integer >= 0", window)
+    T, V, _ = p.shape
+    sigma, _ = _spatial_deviation(p, g, f, "sted_reference")
+    spatial = float(sigma.sum() / (T * V))
+    temporal = 0.0
+    if T > 1:
+        diameter = float(np.linalg.norm(g[0].max(0) - g[0].min(0)))
+        if not diameter > 0:
+            raise LoosefitInputError("sted_reference", "target", "a first frame of some size",
+                                     "all its vertices at one point")  # fmt: skip
+        tg = np.sqrt((np.diff(g, axis=0) ** 2).sum(-1) / diameter**2 + dt**2)  # (T - 1, V)
+        tp = np.sqrt((np.diff(p, axis=0) ** 2).sum(-1) / diameter**2 + dt**2)
+        csum = np.concatenate([np.zeros((1, V)), np.cumsum(tg, axis=0)])  # (T, V)
+        lo = np.clip(np.arange(T - 1) - window, 0, None)
+        hi = np.clip(np.arange(T - 1) + window + 1, None, T - 1)
+        mean = (csum[hi] - csum[lo]) / (hi - lo)[:, None]  # (T - 1, V)
+        temporal = float((np.abs(tp - tg) / mean).mean())
+    return {
+        "sted": float(np.sqrt(spatial**2 + weight**2 * temporal**2)),
+        "spatial": spatial,
+        "temporal": temporal,
+    }
+
+
+def _spatial_deviation(p: np.ndarray, g: np.ndarray, f: np.ndarray, source: str
+                       ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """(T, V_used) the weighted standard deviation of the relative edge differences over
+    each used vertex's closed one-ring (:func:`sted`'s spatial part), and (V,) the used
+    vertices."""
+    T, V, _ = p.shape
+    edges, _ = unique_edges(f)
+    used = np.zeros(V, bool)
+    used[edges.ravel()] = True
+    hood = _ring_edges(edges, V)[used]  # (V_used, E)
+
+    lg = _edge_lengths(g, edges)  # (T, E)
+    lp = _edge_lengths(p, edges)
+    if not (lg > 0).all():
+        t, e = np.argwhere(~(lg > 0))[0]
+        raise LoosefitInputError(
+            source,
+            "target",
+            "edges of positive length",
+            f"{int((~(lg > 0)).sum())} zero-length edges (first: frame {t}, "
+            f"edge {edges[e].tolist()})",
+        )
+    dev = (lp - lg) / lg
+    # The weighted variance is shift invariant; removing each frame's global mean first
+    # keeps the one-pass formula E[x^2] - E[x]^2 accurate (e.g. exact 0 for uniform scaling).
+    dev = dev - ((lg * dev).sum(1, keepdims=True) / lg.sum(1, keepdims=True))
+    s0 = (hood @ lg.T).T  # (T, V_used): sum of weights
+    s1 = (hood @ (lg * dev).T).T
+    s2 = (hood @ (lg * dev**2).T).T
+    mu = s1 / s0
+    sigma = np.sqrt(np.maximum(s2 / s0 - mu**2, 0.0))
+    return sigma, used
 
 
 def inside_fraction(garment: Any, body: Any, body_faces: Any, device: str = "cpu") -> np.ndarray:
