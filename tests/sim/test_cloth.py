@@ -357,6 +357,27 @@ def test_the_collider_with_arms_stops_a_hand_sweeping_through_a_tiny_skirt(avata
     assert deepest(False, arm_friction=0.0) < PENETRATION_TOLERANCE
 
 
+def test_every_body_shape_is_culled_by_the_whole_motions_box(avatar):
+    # the arms' own mesh too: a box left at the first frame's body would lose its contacts
+    # once the dancer has moved away from where she started
+    from loosefit.sim.cloth import ClothSimulator, _limb_faces
+
+    skirt = fit_skirt(avatar, TINY_SKIRT)
+    body = avatar.rest_vertices.numpy()
+    faces = avatar.collider_faces(arms=False).numpy()
+    config = ClothConfig.tiny()
+    bounds = (body.min(0) - 5.0, body.max(0) + 5.0)
+    for K in (1, 2):
+        g = np.stack([skirt.vertices] * K) if K > 1 else skirt.vertices
+        b = np.stack([body] * K) if K > 1 else body
+        sim = ClothSimulator(g, skirt.faces, skirt.waist, b, faces, config, 1 / 30, bounds,
+                             limb_faces=_limb_faces(avatar, config))  # fmt: skip
+        lower = sim.model.shape_collision_aabb_lower.numpy()
+        assert lower.shape == (2 * K, 3)
+        want = np.repeat(bounds[0][None] + sim.offsets, 2, 0)
+        np.testing.assert_allclose(lower, want, atol=1e-5)
+
+
 def test_arm_friction_is_checked():
     assert ClothConfig().colliding_arms is True  # the arms as a mesh of their own
     assert ClothConfig(arm_friction=None).colliding_arms is False

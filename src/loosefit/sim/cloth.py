@@ -604,8 +604,13 @@ class ClothSimulator:
         if cfg.flat_rest:
             model.edge_rest_angle.zero_()
         # The shapes' cached boxes are the starting bodies': widen them to the whole motion.
-        model.shape_collision_aabb_lower.assign(lower[None] + self.offsets)
-        model.shape_collision_aabb_upper.assign(upper[None] + self.offsets)
+        #    Every shape of a clip (the body, and the arms if they are a mesh of their own).
+        per_world = len(self._body_meshes[0])
+        if model.shape_collision_aabb_lower.shape[0] != K * per_world:  # assign would truncate
+            raise RuntimeError(f"{model.shape_collision_aabb_lower.shape[0]} shapes in the "
+                               f"model, expected {K} x {per_world}")  # fmt: skip
+        model.shape_collision_aabb_lower.assign(np.repeat(lower[None] + self.offsets, per_world, 0))
+        model.shape_collision_aabb_upper.assign(np.repeat(upper[None] + self.offsets, per_world, 0))
 
         # 4. The waistbands are kinematic: inactive, infinite mass.
         pinned = (np.arange(K)[:, None] * V + waist[None]).ravel()
