@@ -110,8 +110,8 @@ class ClothConfig:
     # (0: frictionless); None: they do not collide (data sets made before 2026-11-26).
     # A mesh of their own has its own inside/outside test, so cloth between a forearm and
     # the hip is not caught in one mesh's overlap, and without friction a hand pushes the
-    # cloth without dragging it down (salsa 60_01, frames 0-90: cloth deeper than 5 mm
-    # inside the arms in 2 frames against 54, edge strain as without arms; docs/DATASET.md).
+    # cloth without dragging it down (salsa 60_01, frames 0-90: no frame with cloth deeper
+    # than 5 mm inside the body against 54, edge strain as without arms; docs/DATASET.md).
     # Nothing is cut with arm_collision true, and this does not apply.
     arm_friction: float | None = 0.0
     # A pose that folds into itself (a thigh centimetres into the belly in a deep crouch)
