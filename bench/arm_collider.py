@@ -6,6 +6,7 @@ figures of each (strain percentiles, the deepest vertex inside the body, the wor
 share deeper than 5 mm). docs/DATASET.md quotes its output; each window takes one core::
 
     .venv/bin/python bench/arm_collider.py 60_01:0:90 chain_60_03_60_07_61_03_61_07:0:60
+    .venv/bin/python bench/arm_collider.py --preset dance --arms preset 05_16:0:122
 """
 
 from __future__ import annotations
@@ -27,9 +28,15 @@ from loosefit.sim.generate import job_motion, plan_jobs, preset
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("windows", nargs="+", help="JOB:START:STOP of the salsa preset")
+    p.add_argument("windows", nargs="+", help="JOB:START:STOP of the preset's jobs")
+    p.add_argument("--preset", default="salsa", help="salsa, dance, ... (its jobs and cloth)")
     p.add_argument("--bvh", default="../shared/mocap/cmu-salsa")
-    p.add_argument("--arms", default="true", choices=("true", "false", "upper"))
+    p.add_argument(
+        "--arms",
+        default="true",
+        choices=("true", "false", "upper", "preset"),
+        help="the body collider's arms (preset: the preset's collider as it is)",
+    )
     p.add_argument(
         "--set",
         nargs="*",
@@ -50,8 +57,9 @@ def main() -> None:
             raise SystemExit(f"--set: expected FIELD=VALUE, found {item!r}")
         changes[field] = float(value)
     torch.set_num_threads(1)
-    arms = {"true": True, "false": False, "upper": "upper"}[args.arms]
-    config = preset("salsa", args.bvh)
+    config = preset(args.preset, args.bvh)
+    arms = {"true": True, "false": False, "upper": "upper",
+            "preset": config.cloth.arm_collision}[args.arms]  # fmt: skip
     jobs = {j.name: j for j in plan_jobs(config)}
     avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
     template = fit_skirt(avatar, config.garment)

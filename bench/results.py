@@ -1,12 +1,14 @@
-"""docs/RESULTS.md: every method against the simulation on the held-out salsa chain (paper 4.2-4.3).
+"""docs/RESULTS.md: every method against the simulation on the held-out clips (paper 4.2-4.3).
 
-Table 3's form on the held-out chain (60_03 + 60_07 + 61_03 + 61_07, 1,957 frames,
-never seen in training), every method rolled out from the chain's first frame on the
-same motion: RMSE, Hausdorff, STED, vertices inside the body and edge strain, and
-frames per second; the ratios of ours to each baseline; the generative-model ablation
-on salsa (Fig. 4, two seeds each: the run-to-run noise); a plot of every method's RMSE
-per frame over the chain; one frame of the chain's fastest turn rendered side by side
-(simulation | ours | virtual bones | Santesteban), coloured by per-vertex error::
+Table 3's form on each held-out set of the data set: the salsa chain (60_03 + 60_07 +
+61_03 + 61_07, 1,957 frames) and, on ``dance``, the three held-out ballet clips (05_02,
+05_10, 05_12), each clip rolled out whole from its first frame on the same motion by every
+method, never seen in training: RMSE, Hausdorff, STED, vertices inside the body and edge
+strain (a set's clips pooled frame by frame), and frames per second; the ratios of ours to
+each baseline; the generative-model ablation (Fig. 4, two seeds each: the run-to-run
+noise); a plot of every method's RMSE per frame over each clip; the fastest turn of each
+set rendered side by side (simulation | ours | virtual bones | Santesteban), coloured by
+per-vertex error::
 
     python bench/results.py --data datasets/salsa --baselines runs/salsa/baselines \\
         --ablation runs/salsa/ablation --out docs/RESULTS.md
@@ -32,6 +34,7 @@ from loosefit.eval.quality import edge_strain
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import heading_yaw
 from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.sim.generate import BALLET_CLIPS
 from loosefit.train.common import machine
 
 RAW = Stages(detail=False, lengths=False, collision=False)
@@ -48,8 +51,9 @@ PAPER_RATIOS = {"santesteban": 0.62, "virtual-bones": 0.75}  # ours / baseline R
 
 
 def rollouts(args, reader: DatasetReader, name: str, cache: Path) -> dict:
-    """Each method's garment over the chain (cached), and the seconds it took."""
+    """Each method's garment over one held-out clip (cached), and the seconds it took."""
     seq = reader.read(name)
+    cache.mkdir(parents=True, exist_ok=True)
     models = {}
     out = {}
     for key, (_, kind, stages) in METHODS.items():
@@ -72,32 +76,72 @@ def rollouts(args, reader: DatasetReader, name: str, cache: Path) -> dict:
     return out
 
 
-def score(vertices, truth, faces, fps, body, collider, template) -> dict:
-    per = 100 * rmse_per_frame(vertices, truth)
-    inside = 100 * inside_fraction(vertices, body, collider)
-    strain, _ = edge_strain(vertices, template)
+def score(parts: list[dict], template) -> dict:
+    """One method on a held-out set: its clips' frames pooled.
+
+    Args:
+        parts: per clip ``{"vertices", "truth", "body", "collider", "fps"}``, (T, V, 3)
+            garments, (T, Vb, 3) body, (F, 3) collider faces.
+
+    Returns:
+        RMSE and Hausdorff (cm) over every frame of the set, STED (the clips' mean weighted
+        by their frames), inside the body (% of vertices, mean and p99 over frames), edge
+        strain (p50, p99 over edges and frames), and the RMSE of every frame per clip.
+    """
+    per, haus, inside, strain, steds, frames = [], [], [], [], [], []
+    for c in parts:
+        v, g, faces = c["vertices"], c["truth"], template.faces
+        per.append(100 * rmse_per_frame(v, g))
+        haus.append(100 * hausdorff(v, g, faces))
+        inside.append(100 * inside_fraction(v, c["body"], c["collider"]))
+        strain.append(edge_strain(v, template)[0].reshape(-1))
+        steds.append(float(sted(v, g, faces, c["fps"])["sted"]))
+        frames.append(len(v))
+    all_per, all_inside = np.concatenate(per), np.concatenate(inside)
+    all_strain = np.concatenate(strain)
     return {
-        "rmse_cm": float(np.sqrt(np.mean(per**2))),
-        "hausdorff_cm": 100 * float(hausdorff(vertices, truth, faces).mean()),
-        "sted": float(sted(vertices, truth, faces, fps)["sted"]),
-        "inside_mean_pct": float(inside.mean()),
-        "inside_p99_pct": float(np.percentile(inside, 99)),
-        "strain_p50": float(np.median(strain)),
-        "strain_p99": float(np.percentile(strain, 99)),
-        "rmse_per_frame_cm": per.tolist(),
+        "rmse_cm": float(np.sqrt(np.mean(all_per**2))),
+        "hausdorff_cm": float(np.concatenate(haus).mean()),
+        "sted": float(np.average(steds, weights=frames)),
+        "inside_mean_pct": float(all_inside.mean()),
+        "inside_p99_pct": float(np.percentile(all_inside, 99)),
+        "strain_p50": float(np.median(all_strain)),
+        "strain_p99": float(np.percentile(all_strain, 99)),
+        "rmse_per_frame_cm": [p.tolist() for p in per],
+        "rmse_per_clip_cm": [float(np.sqrt(np.mean(p**2))) for p in per],
+        "sted_per_clip": steds,
     }
+
+
+def heldout_sets(reader: DatasetReader) -> dict[str, list[str]]:
+    """The held-out clips as the tables group them: the salsa chain, the ballet clips
+    (``dance``), any other held-out clip; each clip rolled out whole."""
+    sets: dict[str, list[str]] = {}
+    for name in reader.split("test"):
+        key = ("chain" if name.startswith("chain_") else
+               "ballet" if name in BALLET_CLIPS else "other")  # fmt: skip
+        sets.setdefault(key, []).append(name)
+    return sets
+
+
+SET_TITLES = {"chain": "the held-out salsa chain", "ballet": "the held-out ballet clips",
+              "other": "the other held-out clips"}  # fmt: skip
 
 
 def fastest_turn(motion, window: int = 5) -> int:
     """The motion frame where the heading turns fastest (a centred mean over ``window``)."""
+    return int(np.argmax(turn_rate(motion, window)[1:])) + 1
+
+
+def turn_rate(motion, window: int = 5) -> np.ndarray:
+    """(T,) how fast the heading turns at each frame (rad/s, a centred mean over ``window``)."""
     yaw = heading_yaw(torch.from_numpy(motion.rotations[:, 0]).double()).numpy()
     rate = np.abs(np.angle(np.exp(1j * np.diff(yaw)))) * motion.fps  # rad/s
-    smooth = np.convolve(rate, np.ones(window) / window, mode="same")
-    return int(np.argmax(smooth)) + 1
+    return np.concatenate([[0.0], np.convolve(rate, np.ones(window) / window, mode="same")])
 
 
 def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces, faces,
-            vmax: float, size: int) -> None:  # fmt: skip
+            vmax: float, size: int, where: str = "chain") -> None:  # fmt: skip
     """Simulation | methods at one frame, front and side, coloured by error, with a colour bar."""
     import matplotlib
 
@@ -128,7 +172,7 @@ def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces,
     sheet = contact_sheet(images, cols=2, labels=labels)
     fig, ax = plt.subplots(figsize=(sheet.shape[1] / 100, 0.8), dpi=100)
     mappable = matplotlib.cm.ScalarMappable(matplotlib.colors.Normalize(0, vmax), cmap)
-    text = f"per-vertex distance to the simulation (cm), chain frame {frame}"
+    text = f"per-vertex distance to the simulation (cm), {where} frame {frame}"
     fig.colorbar(mappable, cax=ax, orientation="horizontal", label=text)
     fig.subplots_adjust(left=0.05, right=0.95, bottom=0.55, top=0.9)
     fig.canvas.draw()
@@ -139,22 +183,26 @@ def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces,
     Image.fromarray(np.concatenate([pad(sheet), pad(bar)])).save(out_path, quality=88)
 
 
-def plot_per_frame(path: Path, scores: dict, spin: int, title: str) -> None:
+def plot_per_frame(path: Path, scores: dict, clips: list[str], spins: list[int],
+                   title: str) -> None:  # fmt: skip
+    """Every method's RMSE per frame, one panel per clip of the set."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(10, 4), dpi=110)
-    for key, s in scores.items():
-        ax.plot(s["rmse_per_frame_cm"], lw=0.9, label=METHODS[key][0])
-    ax.axvline(spin, color="0.5", lw=0.8, ls="--")
-    ax.text(spin, ax.get_ylim()[1] * 0.95, " fastest turn", fontsize=8, color="0.4")
-    ax.set_xlabel("frame of the held-out chain")
-    ax.set_ylabel("RMSE (cm)")
-    ax.set_ylim(bottom=0)
-    ax.set_title(title)
-    ax.legend(fontsize=7, loc="upper left")
+    fig, axes = plt.subplots(len(clips), 1, figsize=(10, 1 + 3 * len(clips)), dpi=110,
+                             squeeze=False)  # fmt: skip
+    for i, (ax, clip, spin) in enumerate(zip(axes[:, 0], clips, spins, strict=True)):
+        for key, s in scores.items():
+            ax.plot(s["rmse_per_frame_cm"][i], lw=0.9, label=METHODS[key][0])
+        ax.axvline(spin, color="0.5", lw=0.8, ls="--")
+        ax.set_ylim(bottom=0)
+        ax.text(spin, ax.get_ylim()[1] * 0.92, " fastest turn", fontsize=8, color="0.4")
+        ax.set_xlabel(f"frame of {clip}")
+        ax.set_ylabel("RMSE (cm)")
+    axes[0, 0].set_title(title)
+    axes[0, 0].legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
@@ -174,7 +222,7 @@ def ablation_section(ablation: Path) -> list[str]:
             rows.setdefault(decoder, []).append({"seed": seed, **json.loads(run.read_text())})
     if not rows:
         return ["(no ablation runs in " + str(ablation) + ")"]
-    return format_table(rows, "salsa", "cpu").splitlines()
+    return format_table(rows, Path(ablation).parent.name, "cpu").splitlines()
 
 
 def ablation_figures(ablation: Path, cache: Path, reader, seq, body, body_faces, spin: int,
@@ -230,6 +278,29 @@ def ablation_figures(ablation: Path, cache: Path, reader, seq, body, body_faces,
     return {d: e.tolist() for d, e in per.items()}
 
 
+def clip_data(args, reader: DatasetReader, name: str, cache: Path, ours) -> dict:
+    """One held-out clip: every method's rollout (cached), the simulation, the body."""
+    garments = rollouts(args, reader, name, cache / name)
+    seq = reader.read(name)
+    avatar = ours.avatar()
+    body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()
+    collider = avatar.collider_faces(arms=ours.arm_collision).cpu().numpy()
+    return {"name": name, "seq": seq, "garments": garments, "body": body,
+            "collider": collider, "body_faces": avatar.faces.cpu().numpy()}  # fmt: skip
+
+
+def simulation_scores(clips: list[dict], template) -> dict:
+    """The simulation's own inside and strain figures over a set's frames."""
+    inside = np.concatenate([100 * inside_fraction(c["seq"].garment_vertices, c["body"],
+                                                   c["collider"]) for c in clips])  # fmt: skip
+    strain = np.concatenate([edge_strain(c["seq"].garment_vertices, template)[0].reshape(-1)
+                             for c in clips])  # fmt: skip
+    return {"inside_mean_pct": float(inside.mean()),
+            "inside_p99_pct": float(np.percentile(inside, 99)),
+            "strain_p50": float(np.median(strain)),
+            "strain_p99": float(np.percentile(strain, 99))}  # fmt: skip
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", default="datasets/salsa")
@@ -245,78 +316,87 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     reader = DatasetReader(args.data)
-    name = next(n for n in reader.split("test") if n.startswith("chain_"))
+    template = reader.template
     cache = Path(args.cache)
-    (cache / "scores").mkdir(parents=True, exist_ok=True)
-    garments = rollouts(args, reader, name, cache)
-    seq = reader.read(name)
-    truth, template = seq.garment_vertices, reader.template
     ours = load_pipeline(args.checkpoint)
-    avatar = ours.avatar()
-    body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()
-    collider = avatar.collider_faces(arms=ours.arm_collision).cpu().numpy()
-    scores = {}
-    for key, g in garments.items():
-        path = cache / "scores" / f"{key}.json"
-        if not path.is_file():
-            s = score(g["vertices"], truth, template.faces, seq.motion.fps, body, collider,
-                      template)  # fmt: skip
-            s["frames_per_second"] = g["frames"] / g["seconds"]
-            path.write_text(json.dumps(s))
-        scores[key] = json.loads(path.read_text())
-        print(key, {k: v for k, v in scores[key].items() if k != "rmse_per_frame_cm"})
-    sim = cache / "scores" / "simulation.json"
-    if not sim.is_file():
-        inside = 100 * inside_fraction(truth, body, collider)
-        strain, _ = edge_strain(truth, template)
-        sim.write_text(json.dumps({
-            "inside_mean_pct": float(inside.mean()),
-            "inside_p99_pct": float(np.percentile(inside, 99)),
-            "strain_p50": float(np.median(strain)),
-            "strain_p99": float(np.percentile(strain, 99)),
-        }))  # fmt: skip
-    simulation = json.loads(sim.read_text())
-
     img = Path(args.img)
     img.mkdir(parents=True, exist_ok=True)
-    spin = fastest_turn(seq.motion)
-    plot_per_frame(img / "results_rmse_per_frame.png", scores, spin,
-                   f"held-out chain {name}: RMSE of each method per frame")  # fmt: skip
-    picks = {"ours full": garments["ours-full"]["vertices"][spin],
-             "virtual bones": garments["virtual-bones"]["vertices"][spin],
-             "Santesteban + push-out": garments["santesteban-push"]["vertices"][spin]}  # fmt: skip
-    renders(img / "results_spin.jpg", spin, truth, picks, body, avatar.faces.cpu().numpy(),
-            template.faces, 15.0, args.size)  # fmt: skip
-
-    ablation_per_frame = ablation_figures(
-        Path(args.ablation),
-        cache,
-        reader,
-        seq,
-        body,
-        avatar.faces.cpu().numpy(),
-        spin,
-        img,
-        args.size,
-    )
+    sets = {}
+    for key, names in heldout_sets(reader).items():
+        clips = [clip_data(args, reader, n, cache, ours) for n in names]
+        scores = {}
+        (cache / "scores").mkdir(parents=True, exist_ok=True)
+        for method in METHODS:
+            path = cache / "scores" / f"{key}-{method}.json"
+            if not path.is_file():
+                parts = [{"vertices": c["garments"][method]["vertices"],
+                          "truth": c["seq"].garment_vertices, "body": c["body"],
+                          "collider": c["collider"], "fps": c["seq"].motion.fps}
+                         for c in clips]  # fmt: skip
+                s = score(parts, template)
+                s["frames_per_second"] = (sum(c["garments"][method]["frames"] for c in clips)
+                                          / sum(c["garments"][method]["seconds"]
+                                                for c in clips))  # fmt: skip
+                path.write_text(json.dumps(s))
+            scores[method] = json.loads(path.read_text())
+            print(
+                key,
+                method,
+                {
+                    k: v
+                    for k, v in scores[method].items()
+                    if not k.endswith(("per_frame_cm", "per_clip_cm", "per_clip"))
+                },
+            )
+        sim = cache / "scores" / f"{key}-simulation.json"
+        if not sim.is_file():
+            sim.write_text(json.dumps(simulation_scores(clips, template)))
+        # the set's fastest turn: the clip and frame where the heading turns fastest
+        rates = [turn_rate(c["seq"].motion) for c in clips]
+        spins = [int(np.argmax(r)) for r in rates]
+        best = int(np.argmax([r[f] for r, f in zip(rates, spins, strict=True)]))
+        c, spin = clips[best], spins[best]
+        plot_per_frame(img / f"results_rmse_per_frame_{key}.png", scores, names, spins,
+                       f"{SET_TITLES[key]}: RMSE of each method per frame")  # fmt: skip
+        picks = {
+            "ours full": c["garments"]["ours-full"]["vertices"][spin],
+            "virtual bones": c["garments"]["virtual-bones"]["vertices"][spin],
+            "Santesteban + push-out": c["garments"]["santesteban-push"]["vertices"][spin],
+        }
+        renders(img / f"results_spin_{key}.jpg", spin, c["seq"].garment_vertices, picks,
+                c["body"], c["body_faces"], template.faces, 15.0, args.size,
+                where=c["name"])  # fmt: skip
+        sets[key] = {"clips": names, "frames": [c["seq"].motion.num_frames for c in clips],
+                     "scores": scores, "simulation": json.loads(sim.read_text()),
+                     "turn": {"clip": c["name"], "frame": spin,
+                              "rad_per_s": float(rates[best][spin])}}  # fmt: skip
+        if key == "chain":
+            chain = c
+    ablation_per_frame = {}
+    if "chain" in sets:
+        ablation_per_frame = ablation_figures(
+            Path(args.ablation), cache, reader, chain["seq"], chain["body"],
+            chain["body_faces"], sets["chain"]["turn"]["frame"], img, args.size,
+        )  # fmt: skip
     reports = {k: json.loads(Path(args.baselines, k, "report.json").read_text())
                for k in ("santesteban", "virtual-bones", "santesteban-s1", "virtual-bones-s1")
                if Path(args.baselines, k, "report.json").is_file()}  # fmt: skip
-    text = markdown(name, seq.motion.num_frames, scores, simulation, spin, reports,
+    spin = sets["chain"]["turn"]["frame"] if "chain" in sets else 0
+    text = markdown(args.data, sets, reports,
                     ablation_section(Path(args.ablation)) + ablation_verdict(Path(args.ablation))
                     + ablation_plots(ablation_per_frame, spin), started)  # fmt: skip
     Path(args.out).write_text(text)
-    (cache / "results.json").write_text(json.dumps({"scores": scores, "simulation": simulation,
-                                                    "spin_frame": spin}))  # fmt: skip
+    (cache / "results.json").write_text(json.dumps(sets))
     print(f"wrote {args.out}")
 
 
-def verdicts(scores: dict, spin: int, around: int = 30) -> list[str]:
-    """The issue's target, read off the table: ours (full) below both baselines on RMSE,
+def verdicts(scores: dict, turn: dict, clips: list[str], around: int = 30) -> list[str]:
+    """The issue's target, read off a set's table: ours (full) below both baselines on RMSE,
     Hausdorff and STED; each metric a baseline wins is named, with the share of frames
-    each method is ahead on and the error around the fastest turn."""
+    each method is ahead on and the error around the set's fastest turn."""
     ours = scores["ours-full"]
-    mine = np.asarray(ours["rmse_per_frame_cm"])
+    i, spin = clips.index(turn["clip"]), turn["frame"]
+    mine = np.concatenate([np.asarray(p) for p in ours["rmse_per_frame_cm"]])
     near = slice(max(spin - around, 0), spin + around + 1)
     lines = []
     for key in ("santesteban", "santesteban-push", "virtual-bones"):
@@ -325,12 +405,13 @@ def verdicts(scores: dict, spin: int, around: int = 30) -> list[str]:
                if b[k] < ours[k]]  # fmt: skip
         verdict = f"**the baseline is better on {', '.join(won)}**" if won else (
             "ours (full) is better on RMSE, Hausdorff and STED")  # fmt: skip
-        theirs = np.asarray(b["rmse_per_frame_cm"])
+        theirs = np.concatenate([np.asarray(p) for p in b["rmse_per_frame_cm"]])
+        a, t = np.asarray(ours["rmse_per_frame_cm"][i]), np.asarray(b["rmse_per_frame_cm"][i])
         lines.append(
             f"- Against {METHODS[key][0]}: {verdict}; ours has the lower RMSE on "
             f"{100 * np.mean(mine < theirs):.0f} % of the frames; within {around} frames of the "
-            f"fastest turn, RMSE {np.sqrt(np.mean(mine[near] ** 2)):.2f} (ours) against "
-            f"{np.sqrt(np.mean(theirs[near] ** 2)):.2f} cm."
+            f"fastest turn, RMSE {np.sqrt(np.mean(a[near] ** 2)):.2f} (ours) against "
+            f"{np.sqrt(np.mean(t[near] ** 2)):.2f} cm."
         )
     return lines
 
@@ -384,28 +465,23 @@ def ablation_verdict(ablation: Path) -> list[str]:
     return lines
 
 
-def markdown(name, frames, scores, simulation, spin, reports, ablation, started) -> str:
-    lines = [
-        "# Results: every method against the simulation",
-        "",
-        f"Made by `bash scripts/results.sh` (which trains the baselines and the ablation's "
-        f"models, then runs `bench/results.py`); this run started {started} on "
-        f"{machine('cpu')}.",
-        "",
-        f"## Table 3 on the held-out chain (`{name}`, {frames} frames, never seen in training)",
-        "",
-        "Every method rolled out once from the chain's first frame on the same motion; "
-        "lengths in cm; inside: % of the garment's vertices inside the body (the "
-        "simulation's collider), mean and 99th percentile over frames; strain: "
-        "|edge length / rest length - 1|, median and 99th percentile over edges and frames.",
-        "",
-        "| method | RMSE | Hausdorff | STED | inside mean % | inside p99 % | strain p50 | "
-        "strain p99 | frames/s |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-    for key, s in scores.items():
+def set_section(key: str, st: dict) -> list[str]:
+    """One held-out set's Table 3, ratios, verdicts, plot and render."""
+    scores, simulation, turn = st["scores"], st["simulation"], st["turn"]
+    clips = ", ".join(f"`{n}` ({f} frames)" for n, f in zip(st["clips"], st["frames"],
+                                                           strict=True))  # fmt: skip
+    lines = [f"## Table 3 on {SET_TITLES[key]}: {clips}", "",
+             "Never seen in training; every method rolled out once from each clip's first "
+             "frame on the same motion; the clips' frames pooled; lengths in cm; inside: % of "
+             "the garment's vertices inside the body (the simulation's collider), mean and "
+             "99th percentile over frames; strain: |edge length / rest length - 1|, median "
+             "and 99th percentile over edges and frames.", "",
+             "| method | RMSE | Hausdorff | STED | inside mean % | inside p99 % | strain p50 | "
+             "strain p99 | frames/s |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+    for method, s in scores.items():
         lines.append(
-            f"| {METHODS[key][0]} | {s['rmse_cm']:.2f} | {s['hausdorff_cm']:.2f} | "
+            f"| {METHODS[method][0]} | {s['rmse_cm']:.2f} | {s['hausdorff_cm']:.2f} | "
             f"{s['sted']:.4f} | {s['inside_mean_pct']:.3f} | {s['inside_p99_pct']:.2f} | "
             f"{s['strain_p50']:.3f} | {s['strain_p99']:.3f} | {s['frames_per_second']:.0f} |"
         )
@@ -414,24 +490,44 @@ def markdown(name, frames, scores, simulation, spin, reports, ablation, started)
         f"{simulation['inside_p99_pct']:.2f} | {simulation['strain_p50']:.3f} | "
         f"{simulation['strain_p99']:.3f} | - |"
     )
+    if len(st["clips"]) > 1:
+        lines += ["", "RMSE per clip (cm): " + "; ".join(
+            f"{METHODS[m][0]}: " + ", ".join(f"{v:.2f}" for v in s["rmse_per_clip_cm"])
+            for m, s in scores.items()) + "."]  # fmt: skip
     ours = scores["ours-full"]
     lines += ["", "Ours (full) against each baseline (ratio < 1: ours is better); the paper's "
               "Table 3 gives 0.62 against Santesteban and 0.75 against virtual bones on RMSE:",
               "", "| against | RMSE | Hausdorff | STED | paper, RMSE |",
               "|---|---:|---:|---:|---:|"]  # fmt: skip
-    for key, base in (("santesteban-push", "santesteban"), ("virtual-bones", "virtual-bones")):
-        b = scores[key]
-        lines.append(f"| {METHODS[key][0]} | {ours['rmse_cm'] / b['rmse_cm']:.2f} | "
+    for method, base in (("santesteban-push", "santesteban"), ("virtual-bones", "virtual-bones")):
+        b = scores[method]
+        lines.append(f"| {METHODS[method][0]} | {ours['rmse_cm'] / b['rmse_cm']:.2f} | "
                      f"{ours['hausdorff_cm'] / b['hausdorff_cm']:.2f} | "
                      f"{ours['sted'] / b['sted']:.2f} | {PAPER_RATIOS[base]} |")  # fmt: skip
-    lines += ["", *verdicts(scores, spin), "",
-              "How the baselines are built, and a reading of these figures (why the ratios are "
-              "not the paper's): [BASELINES.md](BASELINES.md).", ""]  # fmt: skip
-    lines += ["![RMSE per frame over the held-out chain](img/results_rmse_per_frame.png)", "",
-              f"The chain's fastest turn (frame {spin}), per-vertex error to the simulation:", "",
+    lines += ["", *verdicts(scores, turn, st["clips"]), "",
+              f"![RMSE per frame on {SET_TITLES[key]}](img/results_rmse_per_frame_{key}.png)",
+              "", f"The set's fastest turn ({turn['clip']}, frame {turn['frame']}, "
+              f"{turn['rad_per_s']:.1f} rad/s), per-vertex error to the simulation:", "",
               "![The fastest turn: simulation, ours, virtual bones, Santesteban]"
-              "(img/results_spin.jpg)",
-              "", "Training of the baselines (`loosefit train baseline --preset cpu --mirror`, "
+              f"(img/results_spin_{key}.jpg)", ""]  # fmt: skip
+    return lines
+
+
+def markdown(data: str, sets: dict, reports: dict, ablation: list[str], started: str) -> str:
+    lines = [
+        "# Results: every method against the simulation",
+        "",
+        f"Made by `bash scripts/results.sh` (which trains the baselines and the ablation's "
+        f"models, then runs `bench/results.py`) on `{data}`; this run started {started} on "
+        f"{machine('cpu')}.",
+        "",
+        "How the baselines are built, and a reading of these figures (why the ratios are "
+        "not the paper's): [BASELINES.md](BASELINES.md).",
+        "",
+    ]
+    for key, st in sets.items():
+        lines += set_section(key, st)
+    lines += ["Training of the baselines (`loosefit train baseline --preset cpu --mirror`, "
               "the committed motion stage's data and epochs):", "",
               "| baseline | epochs | parameters | s/epoch | machine |",
               "|---|---:|---:|---:|---|"]  # fmt: skip
@@ -441,9 +537,8 @@ def markdown(name, frames, scores, simulation, spin, reports, ablation, started)
     minutes = sum(r["epochs"] * r["seconds_per_epoch"] for r in reports.values()) / 60
     seeds = {k: r for k, r in reports.items() if k.endswith("-s1")}
     if seeds:
-        lines += ["", "Run-to-run noise: each baseline's held-out rollout (no post-process) "
-                  "with a second training seed, against the committed motion stage's own "
-                  "second seed (`docs/MOTION_TABLE.md`: 7.80 and 7.77 cm):", "",
+        lines += ["", "Run-to-run noise: each baseline's held-out rollouts (no post-process, "
+                  "every held-out clip) with a second training seed:", "",
                   "| baseline | seed 0 RMSE | seed 1 RMSE | seed 0 STED | seed 1 STED |",
                   "|---|---:|---:|---:|---:|"]  # fmt: skip
         for key, r1 in seeds.items():
@@ -454,11 +549,11 @@ def markdown(name, frames, scores, simulation, spin, reports, ablation, started)
     lines += ["", f"Their training loops took {minutes:.0f} min in all (one core each; the "
               "virtual-bones run's skinning decomposition and the evaluations come on "
               "top)."]  # fmt: skip
-    lines += ["", "## The generative model's ablation on salsa (Fig. 4)", "",
-              "Reconstruction (encode, decode the posterior mean) of the held-out chain by "
-              "each decoder, trained on the salsa training clips (`bench/generative_ablation.py"
-              "`, cpu preset, 40 epochs, the committed generative stage's), two seeds each:",
-              "", *ablation, ""]  # fmt: skip
+    lines += ["", "## The generative model's ablation (Fig. 4)", "",
+              "Reconstruction (encode, decode the posterior mean) of the held-out clips by "
+              "each decoder, trained on the data set's training clips (`bench/"
+              "generative_ablation.py`, cpu preset, the committed generative stage's epochs), "
+              "two seeds each:", "", *ablation, ""]  # fmt: skip
     return "\n".join(lines)
 
 

@@ -282,11 +282,12 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_motion(args: argparse.Namespace) -> int:
     from loosefit.body.motions import load_motion
+    from loosefit.body.retarget import RetargetConfig
 
     avatar = _avatar(args)
-    motion = load_motion(
-        args.spec, avatar, fps=args.fps, seed=args.seed, max_frames=args.max_frames
-    )
+    retarget = RetargetConfig(units=args.units, scale=args.scale)
+    motion = load_motion(args.spec, avatar, fps=args.fps, seed=args.seed, retarget=retarget,
+                         max_frames=args.max_frames)  # fmt: skip
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     motion.save(out)
@@ -665,6 +666,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from loosefit.eval.body_regions import body_parts
     from loosefit.eval.penetration import diagnose_clip, format_events
     from loosefit.eval.quality import PENETRATION_TOLERANCE
+    from loosefit.inference.animator import arm_collision_of
 
     source = Path(args.source)
     tolerance = PENETRATION_TOLERANCE if args.tolerance is None else args.tolerance
@@ -686,10 +688,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     arms = {"none": False, "upper": "upper", "all": True}.get(args.arms)
     if args.arms == "auto":  # the simulation's collider: the data set's, else the garment's
         config = json.loads(manifest.read_text()).get("config", {}) if manifest.is_file() else {}
-        cloth = config.get("cloth", {})
-        arms = cloth.get("arm_collision", collider_arms(seq.garment))
-        if cloth.get("arm_friction") is not None:  # the arms collided as a mesh of their own
-            arms = True
+        arms = arm_collision_of(config, collider_arms(seq.garment))
     args.shape = ",".join(f"{k}={v}" for k, v in seq.avatar.get("shape", {}).items())
     avatar = _avatar(args)
     avatar.check_motion(seq.motion)
@@ -1214,6 +1213,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fps", type=float, default=30.0)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-frames", type=int, default=None)
+    p.add_argument("--units", default="auto", choices=("auto", "m", "cm", "mm"),
+                   help="a BVH file's length unit (default: guessed from its skeleton's size; "
+                   "a dancer outside 1.2-2.2 m tall is refused)")  # fmt: skip
+    p.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        help="a BVH file's metres per unit, for other units (overrides --units)",
+    )
     _add_avatar_args(p)
     p.set_defaults(func=cmd_motion)
 

@@ -90,8 +90,29 @@ def test_a_clip_of_another_garment_is_refused(dataset):
     path = dataset / "sequences" / "s0.npz"
     AnimatedGarment(_sequence("s0", 10).motion, other, _sequence("s0", 10).garment_vertices,
                     {}, "test").save(path)  # fmt: skip
-    with pytest.raises(LoosefitInputError, match=r"s0\.npz.*another garment"):
+    with pytest.raises(LoosefitInputError, match=r"s0\.npz.*another garment") as err:
         DatasetReader(dataset).read("s0")
+    # Both fingerprints, to find which data set each clip came from.
+    from loosefit.garment.fingerprint import garment_fingerprint
+
+    ours = garment_fingerprint(_template().vertices, _template().faces)
+    theirs = garment_fingerprint(other.vertices, other.faces)
+    assert ours != theirs and ours in str(err.value) and theirs in str(err.value)
+
+
+def test_a_clip_on_another_avatar_is_refused_with_both_fingerprints(dataset):
+    from loosefit.garment.fingerprint import avatar_fingerprint
+
+    ref = _sequence("s0", 10)
+    body = {"rig": "cmu_mb", "shape": {"height": 0.9}}
+    AnimatedGarment(ref.motion, ref.garment, ref.garment_vertices, body,
+                    "test").save(dataset / "sequences" / "s0.npz")  # fmt: skip
+    reader = DatasetReader(dataset)
+    with pytest.raises(LoosefitInputError, match=r"s0\.npz.*avatar") as err:
+        reader.read("s0")
+    assert avatar_fingerprint(body) in str(err.value)
+    assert avatar_fingerprint(reader.avatar) in str(err.value)
+    reader.read("s1")  # the others are the data set's
 
 
 def test_frame_and_window_datasets(dataset):

@@ -5,6 +5,7 @@ A BVH file, a saved motion, or a procedural move.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from loosefit.body.avatar import Avatar
@@ -45,7 +46,9 @@ def load_motion(
             ``speed:FACTOR:``, played FACTOR times as fast at the same frame rate
             (:func:`~loosefit.body.resample.retime_motion`), or behind
             ``frames:START:STOP:``, its frames START to STOP - 1 (at ``fps``, before
-            ``start_frame`` and ``max_frames``); or several of these
+            ``start_frame`` and ``max_frames``); a BVH file behind ``units:UNIT:``
+            (m, cm, mm) or ``scale:METRES_PER_UNIT:``, read in that unit (otherwise
+            guessed; a dancer outside 1.2-2.2 m is refused); or several of these
             joined by ``+``: played one after another as one motion
             (:func:`~loosefit.body.chain.chain_motions`, 0.5 s transitions).
         avatar: the avatar that the motion must fit.
@@ -68,7 +71,28 @@ def load_motion(
              for i, p in enumerate(parts)]
         )  # fmt: skip
         return motion if max_frames is None else motion.slice(0, max_frames)
-    if text.startswith("mirror:") and not path.exists():
+    if text.startswith(("units:", "scale:")) and not path.exists():
+        key, _, rest = text.partition(":")
+        value, _, inner = rest.partition(":")
+        cfg = retarget or RetargetConfig()
+        if key == "units":
+            ok = value in ("m", "cm", "mm", "auto")
+            cfg = RetargetConfig(**{**cfg.__dict__, "units": value, "scale": None})
+        else:
+            try:
+                factor = float(value)
+            except ValueError:
+                factor = float("nan")
+            ok = math.isfinite(factor) and factor > 0
+            cfg = RetargetConfig(**{**cfg.__dict__, "scale": factor})
+        if not (ok and inner):
+            raise LoosefitInputError(
+                "motion", f"{key}:{'UNIT' if key == 'units' else 'METRES_PER_UNIT'}:MOTION",
+                "m, cm, mm or auto, and a motion" if key == "units"
+                else "a positive factor and a motion", repr(text),
+            )  # fmt: skip
+        motion = load_motion(inner, avatar, fps, seed, cfg)
+    elif text.startswith("mirror:") and not path.exists():
         motion = mirror_motion(load_motion(text[len("mirror:") :], avatar, fps, seed, retarget))
     elif text.startswith("speed:") and not path.exists():
         factor, _, inner = text[len("speed:") :].partition(":")
@@ -102,7 +126,8 @@ def load_motion(
             raise LoosefitInputError(path, "<file>", "an existing BVH file", "no such file")
         cfg = retarget or RetargetConfig()
         cfg = RetargetConfig(**{**cfg.__dict__, "fps": fps})
-        motion = retarget_bvh(read_bvh(path), avatar.skeleton, avatar.floor_height, cfg)
+        clip = read_bvh(path, units=cfg.units, scale=cfg.scale)
+        motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height, cfg)
     elif path.suffix.lower() == ".npz":
         motion = Motion.load(path)
         avatar.check_motion(motion)

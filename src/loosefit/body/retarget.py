@@ -127,6 +127,17 @@ class RetargetConfig:
     filter_glitches: bool = True  # remove single-frame rotation pops before retargeting
     recenter: bool = True  # start the root at x = y = 0
     ground: bool = True  # shift in z so the feet rest on the floor
+    units: str = "auto"  # the file's length unit: "m", "cm", "mm", or "auto" (read_bvh's guess)
+    scale: float | None = None  # metres per file unit; overrides units
+    check_height: bool = True  # refuse a dancer outside DANCER_HEIGHT_M (units read wrong)
+
+
+# A dancer's standing height, estimated from the hip-to-ankle length of the legs (the
+# hip, knee and ankle joints) over this fraction of an adult's stature (anthropometric
+# tables give 0.47-0.49; the default avatar's is 0.485), must lie in this range (m): a
+# file read in the wrong unit is off by a factor of 10 or more.
+LEG_TO_HEIGHT = 0.48
+DANCER_HEIGHT_M = (1.2, 2.2)
 
 
 def axis_change(up: str, forward: str) -> np.ndarray:
@@ -179,6 +190,50 @@ def _leg_length(positions: np.ndarray, names, hip: str, knee: str, ankle: str) -
     return float(np.linalg.norm(b - a) + np.linalg.norm(c - b))
 
 
+def source_height(clip: BvhClip, config: RetargetConfig | None = None) -> tuple[float, str]:
+    """The dancer's standing height in metres, as the clip was read, and how it was measured.
+
+    From the legs' hip-to-ankle length at rest over :data:`LEG_TO_HEIGHT` when the joint
+    map finds the left leg; otherwise the rest skeleton's extent (joints and End Sites)
+    along ``config.source_up``.
+    """
+    config = config or RetargetConfig()
+    names = list(clip.joint_names)
+    jmap = choose_joint_map(names, config.joint_map)
+    rest = rest_positions(clip) @ axis_change(config.source_up, config.source_forward).T
+    legs = [jmap.joints.get(n) for n in ("LeftUpLeg", "LeftLeg", "LeftFoot")]
+    leg = _leg_length(rest, names, *legs) if all(n in names for n in legs) else None
+    if leg:
+        return leg / LEG_TO_HEIGHT, f"legs {leg:.3g} m hip to ankle"
+    C = axis_change(config.source_up, config.source_forward)
+    ends = [rest[j] + C @ np.asarray(o) for j, o in clip.end_offsets.items()]
+    z = np.vstack([rest, *ends])[:, 2] if ends else rest[:, 2]
+    return float(z.max() - z.min()), "the rest skeleton's extent"
+
+
+def check_source_height(clip: BvhClip, config: RetargetConfig | None = None) -> float:
+    """The dancer's height (:func:`source_height`), refused outside :data:`DANCER_HEIGHT_M`.
+
+    Raises:
+        LoosefitInputError: naming the file, the measured height and how the units were
+            read, with the options that set them.
+    """
+    height, how = source_height(clip, config)
+    low, high = DANCER_HEIGHT_M
+    if not low <= height <= high:
+        unit = {1.0: "m", 0.01: "cm", 0.001: "mm"}.get(clip.units_scale)
+        read = f"read in {unit}" if unit else f"read at {clip.units_scale:g} m per unit"
+        raise LoosefitInputError(
+            str(clip.path), "units",
+            f"a dancer {low:g}-{high:g} m tall",
+            f"{height:.2f} m ({how}, {read})",
+            hint="give the file's length unit: --units m|cm|mm or --scale METRES_PER_UNIT "
+                 "(`loosefit motion`), or the motion spec units:cm:FILE.bvh or "
+                 "scale:F:FILE.bvh (any command, a preset, the Python API)",
+        )  # fmt: skip
+    return height
+
+
 def retarget_bvh(
     clip: BvhClip,
     skeleton: Skeleton,
@@ -200,6 +255,8 @@ def retarget_bvh(
         The motion, resampled to ``config.fps``.
     """
     config = config or RetargetConfig()
+    if config.check_height:
+        check_source_height(clip, config)
     src_names = list(clip.joint_names)
     jmap = choose_joint_map(src_names, config.joint_map)
     source = str(clip.path)
@@ -305,7 +362,12 @@ def retarget_bvh(
         root_translation=root.astype(np.float32),
         fps=clip.fps,
         name=name or (clip.path.stem if clip.path is not None else "bvh"),
-        meta={"source": source, "joint_map": jmap.name, "scale": scale},
+        meta={
+            "source": source,
+            "joint_map": jmap.name,
+            "scale": scale,
+            "units_scale": clip.units_scale,
+        },
     )
     if config.fps is not None and abs(config.fps - clip.fps) > 1e-6:
         motion = resample_motion(motion, config.fps)

@@ -32,7 +32,12 @@ import numpy as np
 
 from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.fingerprint import same_garment
+from loosefit.garment.fingerprint import (
+    avatar_fingerprint,
+    avatar_key,
+    garment_fingerprint,
+    same_garment,
+)
 from loosefit.sequence import AnimatedGarment
 from loosefit.types import GarmentTemplate, Motion, _check_array, load_npz
 
@@ -82,10 +87,24 @@ def read_sequence(path: Path, template: GarmentTemplate | None = None,
     if template is not None and not same_garment(seq.garment, template):
         raise LoosefitInputError(
             path, "vertices, faces", f"the data set's garment ({template.num_vertices} "
-            "vertices)", f"another garment ({seq.garment.num_vertices} vertices)",
+            f"vertices, fingerprint {_garment_print(template)})",
+            f"another garment ({seq.garment.num_vertices} vertices, fingerprint "
+            f"{_garment_print(seq.garment)})",
+            hint="a data set holds one garment: simulate each garment into its own",
+        )  # fmt: skip
+    if avatar is not None and avatar_key(seq.avatar) != avatar_key(avatar):
+        raise LoosefitInputError(
+            path, "avatar", f"the data set's avatar {avatar} (fingerprint "
+            f"{avatar_fingerprint(avatar)})",
+            f"another avatar {seq.avatar} (fingerprint {avatar_fingerprint(seq.avatar)})",
+            hint="a data set holds one avatar: simulate each body into its own",
         )  # fmt: skip
     seq.motion.name = path.stem  # its clip's name (validated already)
     return seq
+
+
+def _garment_print(garment: GarmentTemplate) -> str:
+    return garment_fingerprint(np.asarray(garment.vertices), np.asarray(garment.faces))
 
 
 def _read_legacy(path: Path, d, template: GarmentTemplate, avatar: dict) -> AnimatedGarment:

@@ -1,8 +1,9 @@
-"""Which garment a data set or a checkpoint belongs to."""
+"""Which garment and avatar a data set or a checkpoint belongs to."""
 
 from __future__ import annotations
 
 import hashlib
+import json
 
 import numpy as np
 
@@ -29,3 +30,16 @@ def garment_fingerprint(vertices: np.ndarray, faces: np.ndarray) -> str:
     h.update(np.ascontiguousarray(np.round(vertices, 5), np.float32).tobytes())
     h.update(np.ascontiguousarray(faces, np.int64).tobytes())
     return h.hexdigest()[:16]
+
+
+def avatar_key(avatar: dict) -> tuple[str, tuple[tuple[str, float], ...]]:
+    """An avatar description ``{"rig": ..., "shape": {...}}`` in a comparable form: the
+    rig (default ``cmu_mb``) and the phenotypes sorted, rounded to 1e-6."""
+    shape = avatar.get("shape", {}) or {}
+    return (str(avatar.get("rig", "cmu_mb")),
+            tuple(sorted((str(k), round(float(v), 6)) for k, v in shape.items())))  # fmt: skip
+
+
+def avatar_fingerprint(avatar: dict) -> str:
+    """A short hash of an avatar description (:func:`avatar_key`)."""
+    return hashlib.sha256(json.dumps(avatar_key(avatar)).encode()).hexdigest()[:16]

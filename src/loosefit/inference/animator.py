@@ -101,14 +101,14 @@ def avatar_of(body: dict):
     return Avatar(AvatarConfig(shape=dict(body.get("shape", {}))))
 
 
-def arm_collision_of(data: dict) -> bool | str:
+def arm_collision_of(data: dict, default: bool | str = False) -> bool | str:
     """The arms the cloth met as the data was simulated: False, True or "upper" (True also
     where they were a collider of their own, ``ClothConfig.arm_friction``; data made before
-    that field existed had none)."""
+    that field existed had none); ``default`` where the configuration does not say."""
     cloth = data.get("cloth") or {}
     if cloth.get("arm_friction") is not None:
         return True
-    arms = cloth.get("arm_collision", False)
+    arms = cloth.get("arm_collision", default)
     return arms if arms == "upper" else bool(arms)
 
 

@@ -411,6 +411,7 @@ def spec_name(spec: str) -> str:
     """A clip's name for a motion spec: its file stems and words, safe as a file name
     (``mirror:../a/61_01.bvh`` -> ``mirror_61_01``)."""
     parts = [re.sub(r"\.(bvh|npz)$", "", re.sub(r"[^:+]*/", "", p)) for p in spec.split("+")]
+    parts = [re.sub(r"(units|scale):[^:]*:", "", p) for p in parts]  # how it is read, not what
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", "+".join(parts)).strip("._") or "motion"
 
 
