@@ -87,6 +87,8 @@ def main() -> None:
         figures["two_mesh_frames_over_5mm"] = int((two["penetration_fraction"] > 0).sum())
         if args.save:
             np.savez(f"{args.save}_{name}_{start}_{stop}.npz", garment=g, body=body)
+        figures["released_frames"] = result.stats.get("released_frames", 0)
+        figures["released_vertices"] = result.stats.get("released_vertices", 0)
         figures["seconds"] = round(time.perf_counter() - t0, 1)
         print(window, f"arm_collision={args.arms}", " ".join(args.set), json.dumps(figures),
               flush=True)  # fmt: skip

@@ -386,3 +386,29 @@ def test_arm_friction_is_checked():
     with pytest.raises(LoosefitInputError, match="arm_friction"):
         ClothConfig(arm_friction=float("nan"))
     assert ClothConfig(arm_collision="upper", arm_friction=0.0).arm_friction == 0.0
+
+
+def test_release_trapped_puts_deep_cloth_back_on_the_moving_skin():
+    from loosefit.sim.cloth import release_trapped
+    from tests.meshes import cube
+
+    v, f = cube(1.0)  # centred at the origin, outward normals
+    before, after = v - np.array([0.1, 0.0, 0.0]), v  # the box moved 0.1 m along +x
+    x = np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.49], [0.0, 0.0, 0.7]], np.float32)
+    qd = np.ones_like(x)
+    y, yd, moved = release_trapped(x, qd, after, before, (f,), depth=0.05, offset=0.004,
+                                   frame_dt=0.5)  # fmt: skip
+    assert moved == 1
+    # the deep one (0.2 m in) goes to the top face, 4 mm out, with the box's velocity
+    np.testing.assert_allclose(y[0], [0.0, 0.0, 0.504], atol=1e-5)
+    np.testing.assert_allclose(yd[0], [0.2, 0.0, 0.0], atol=1e-5)
+    # 1 cm in (within depth) and outside: untouched
+    np.testing.assert_array_equal(y[1:], x[1:])
+    np.testing.assert_array_equal(yd[1:], qd[1:])
+    assert release_trapped(x, qd, after, before, (f,), 0.25, 0.004, 0.5)[2] == 0
+
+
+def test_release_depth_is_checked():
+    with pytest.raises(LoosefitInputError, match="release_depth"):
+        ClothConfig(release_depth=-0.01)
+    assert ClothConfig(release_depth=0.02).release_depth == 0.02

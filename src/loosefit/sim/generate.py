@@ -688,7 +688,12 @@ def _normalized(d: dict) -> dict:
 
 # Cloth fields whose default changed what is simulated: a data set whose manifest lacks one
 # was made with this value (not the default).
-LEGACY_CLOTH = {"flatten_overlaps": False, "overlap_inset": 0.002, "arm_friction": None}
+LEGACY_CLOTH = {
+    "flatten_overlaps": False,
+    "overlap_inset": 0.002,
+    "arm_friction": None,
+    "release_depth": None,
+}
 LEGACY_UNFOLD = {"enabled": False}  # the same for the pose correction (loosefit.body.unfold)
 
 
