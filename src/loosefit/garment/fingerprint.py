@@ -34,8 +34,11 @@ def garment_fingerprint(vertices: np.ndarray, faces: np.ndarray) -> str:
 
 def avatar_key(avatar: dict) -> tuple[str, tuple[tuple[str, float], ...]]:
     """An avatar description ``{"rig": ..., "shape": {...}}`` in a comparable form: the
-    rig (default ``cmu_mb``) and the phenotypes sorted, rounded to 1e-6."""
-    shape = avatar.get("shape", {}) or {}
+    rig (default ``cmu_mb``) and every phenotype (a missing one at the avatar's default,
+    as :class:`~loosefit.body.avatar.Avatar` builds it), sorted, rounded to 1e-6."""
+    from loosefit.body.avatar import DEFAULT_SHAPE
+
+    shape = {**DEFAULT_SHAPE, **(avatar.get("shape", {}) or {})}
     return (str(avatar.get("rig", "cmu_mb")),
             tuple(sorted((str(k), round(float(v), 6)) for k, v in shape.items())))  # fmt: skip
 
