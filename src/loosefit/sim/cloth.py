@@ -119,6 +119,8 @@ class ClothConfig:
     # it: cloth pinched between two body parts (the thighs crossing in a turning leap, ballet
     # 05_16) can sink past the contact's reach and stay inside for the rest of the clip
     # (81 of 122 frames, 6.4 cm deep; four times the reach did not free it). None: never.
+    # Measured there at 0.01 it halves the deep frames but tears the cloth (strain p99
+    # 0.26 -> 13; docs/DATASET.md): off by default.
     release_depth: float | None = None
     # A pose that folds into itself (a thigh centimetres into the belly in a deep crouch)
     # makes a lens that ray parity calls outside, and cloth folded into it stays inside the
