@@ -910,6 +910,8 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from loosefit.body.bvh import BVH_UNITS  # numpy only: the parser stays quick to build
+
     parser = argparse.ArgumentParser(prog="loosefit", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -1213,7 +1215,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fps", type=float, default=30.0)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-frames", type=int, default=None)
-    p.add_argument("--units", default="auto", choices=("auto", "m", "cm", "mm"),
+    p.add_argument("--units", default="auto", choices=BVH_UNITS,
                    help="a BVH file's length unit (default: guessed from its skeleton's size; "
                    "a dancer outside 1.2-2.2 m tall is refused)")  # fmt: skip
     p.add_argument(

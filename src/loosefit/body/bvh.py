@@ -46,6 +46,7 @@ _CHANNEL_NAMES = {
 }
 
 _UNIT_SCALES = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+BVH_UNITS = ("auto", *_UNIT_SCALES)  # what read_bvh's ``units`` takes
 
 # "auto" units: a rest skeleton whose largest bounding-box side exceeds this many
 # file units is taken to be in centimetres, and above the second bound in millimetres.

@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 
 from loosefit.body.avatar import Avatar
-from loosefit.body.bvh import read_bvh
+from loosefit.body.bvh import BVH_UNITS, read_bvh
 from loosefit.body.chain import chain_motions
 from loosefit.body.mirror import mirror_motion
 from loosefit.body.procedural import MOVES, named_motion, random_dance
@@ -76,7 +76,7 @@ def load_motion(
         value, _, inner = rest.partition(":")
         cfg = retarget or RetargetConfig()
         if key == "units":
-            ok = value in ("m", "cm", "mm", "auto")
+            ok = value in BVH_UNITS
             cfg = RetargetConfig(**{**cfg.__dict__, "units": value, "scale": None})
         else:
             try:

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from loosefit.body.avatar import Skeleton
-from loosefit.body.bvh import BvhClip, forward_kinematics, rest_positions
+from loosefit.body.bvh import _UNIT_SCALES, BvhClip, forward_kinematics, rest_positions
 from loosefit.body.resample import filter_rotation_glitches, resample_motion
 from loosefit.body.rotations import rotation_between
 from loosefit.errors import LoosefitInputError
@@ -200,12 +200,12 @@ def source_height(clip: BvhClip, config: RetargetConfig | None = None) -> tuple[
     config = config or RetargetConfig()
     names = list(clip.joint_names)
     jmap = choose_joint_map(names, config.joint_map)
-    rest = rest_positions(clip) @ axis_change(config.source_up, config.source_forward).T
+    C = axis_change(config.source_up, config.source_forward)
+    rest = rest_positions(clip) @ C.T
     legs = [jmap.joints.get(n) for n in ("LeftUpLeg", "LeftLeg", "LeftFoot")]
     leg = _leg_length(rest, names, *legs) if all(n in names for n in legs) else None
     if leg:
         return leg / LEG_TO_HEIGHT, f"legs {leg:.3g} m hip to ankle"
-    C = axis_change(config.source_up, config.source_forward)
     ends = [rest[j] + C @ np.asarray(o) for j, o in clip.end_offsets.items()]
     z = np.vstack([rest, *ends])[:, 2] if ends else rest[:, 2]
     return float(z.max() - z.min()), "the rest skeleton's extent"
@@ -221,7 +221,7 @@ def check_source_height(clip: BvhClip, config: RetargetConfig | None = None) -> 
     height, how = source_height(clip, config)
     low, high = DANCER_HEIGHT_M
     if not low <= height <= high:
-        unit = {1.0: "m", 0.01: "cm", 0.001: "mm"}.get(clip.units_scale)
+        unit = {v: k for k, v in _UNIT_SCALES.items()}.get(clip.units_scale)
         read = f"read in {unit}" if unit else f"read at {clip.units_scale:g} m per unit"
         raise LoosefitInputError(
             str(clip.path), "units",

@@ -1026,7 +1026,8 @@ def simulate_batch(
     body_faces = avatar.collider_faces(arms=config.arm_collision).cpu().numpy()
     # what the quality figures measure against: all the cloth meets (the arms' own mesh too)
     limb_faces = _limb_faces(avatar, config)
-    measured_faces = body_faces if limb_faces is None else (body_faces, limb_faces)
+    meshes = (body_faces,) if limb_faces is None else (body_faces, limb_faces)
+    measured_faces = meshes[0] if len(meshes) == 1 else meshes
     totals = [len(b) - 1 for b in bodies]  # frames each clip steps
     # What the cloth collides with: the posed bodies, limbs pressed out of the rest of the
     # body where the pose folds into itself (the measures below take the posed bodies).
@@ -1088,7 +1089,6 @@ def simulate_batch(
         for c, out in enumerate(outs):
             n = min(recorded, len(out))
             out[:n] = saved[f"garment_{c}" if K > 1 else "garment"][:n]
-    meshes = (body_faces,) if limb_faces is None else (body_faces, limb_faces)
     released = [np.zeros(len(b), np.int64) for b in bodies]  # cloth vertices put back, per frame
     t0 = time.perf_counter()
     for k in range(first, total):
