@@ -147,7 +147,7 @@ def table2(args, model, collider) -> dict:
                 row = {
                     "rmse_cm": float(np.sqrt(np.mean(per**2))),
                     "hausdorff_cm": 100 * float(hausdorff(v, truth, model.template.faces).mean()),
-                    "sted": sted(v, truth, model.template.faces, seq.motion.fps)["sted"],
+                    "sted": sted(v, truth, model.template.faces)["sted"],
                     **score(model, seq.motion, v, body, collider),
                 }
                 if result.collisions:

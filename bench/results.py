@@ -95,7 +95,7 @@ def score(parts: list[dict], template) -> dict:
         haus.append(100 * hausdorff(v, g, faces))
         inside.append(100 * inside_fraction(v, c["body"], c["collider"]))
         strain.append(edge_strain(v, template)[0].reshape(-1))
-        steds.append(float(sted(v, g, faces, c["fps"])["sted"]))
+        steds.append(float(sted(v, g, faces)["sted"]))
         frames.append(len(v))
     all_per, all_inside = np.concatenate(per), np.concatenate(inside)
     all_strain = np.concatenate(strain)

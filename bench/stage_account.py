@@ -133,7 +133,7 @@ def measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
         out[f"deepest_{key}_m"] = float(deep.max())
     out["rmse_cm"] = 100 * rmse(x, truth)
     out["hausdorff_cm"] = 100 * float(hausdorff(x, truth, template.faces).mean())
-    out["sted"] = float(sted(x, truth, template.faces, fps)["sted"])
+    out["sted"] = float(sted(x, truth, template.faces)["sted"])
     return out
 
 

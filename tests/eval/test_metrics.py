@@ -15,7 +15,7 @@ from loosefit.eval.metrics import (
     rmse,
     rmse_per_frame,
     sted,
-    sted_reference,
+    sted_speed_scaled,
     summarize,
 )
 
@@ -224,7 +224,7 @@ def test_sted_matches_naive_loop(seqs):
     pred = np.concatenate([pred, np.full((3, 1, 3), 2.0)], axis=1)
     target = np.concatenate([target, np.full((3, 1, 3), -2.0)], axis=1)
     for fps, c in ((30.0, 1.0), (10.0, 0.3)):
-        got = sted(pred, target, faces, fps, speed_scale=c)
+        got = sted_speed_scaled(pred, target, faces, fps, speed_scale=c)
         want = _naive_sted(pred, target, faces, fps, c)
         assert got.keys() == {"sted", "spatial", "temporal"}
         for key in want:
@@ -236,11 +236,11 @@ def test_sted_matches_naive_loop(seqs):
 def test_sted_of_a_rigid_translation_is_zero_and_of_a_stretch_positive(seqs):
     _, target, faces = seqs
     moved = target + [0.3, -0.1, 0.25]
-    s = sted(moved, target, faces, fps=30.0)
+    s = sted_speed_scaled(moved, target, faces, fps=30.0)
     assert s["sted"] == pytest.approx(0.0, abs=1e-12)
 
     stretched = target * [1.2, 1.0, 1.0]  # uneven stretch: x edges longer, y edges not
-    s = sted(stretched, target, faces, fps=30.0)
+    s = sted_speed_scaled(stretched, target, faces, fps=30.0)
     assert s["spatial"] > 0.01
     assert s["temporal"] > 0  # the sequence moves along x, so its speeds change too
     assert s["sted"] == pytest.approx(math.hypot(s["spatial"], s["temporal"]), rel=1e-12)
@@ -248,7 +248,8 @@ def test_sted_of_a_rigid_translation_is_zero_and_of_a_stretch_positive(seqs):
 
 def test_sted_spatial_ignores_uniform_scaling_and_single_frames(seqs):
     _, target, faces = seqs
-    s = sted(target[:1] * 1.5, target[:1], faces, fps=30.0)  # one frame: no temporal edges
+    # one frame: no temporal edges
+    s = sted_speed_scaled(target[:1] * 1.5, target[:1], faces, fps=30.0)
     assert s["spatial"] == pytest.approx(0.0, abs=1e-12)
     assert s["temporal"] == 0.0
 
@@ -293,13 +294,13 @@ def test_inside_fraction_matches_naive_box_test():
 
 def test_summarize_in_cm_and_m(seqs):
     pred, target, faces = seqs
-    s = summarize(pred, target, faces, fps=30.0)
+    s = summarize(pred, target, faces)
     assert s.keys() == {"rmse_cm", "hausdorff_cm", "sted", "sted_spatial", "sted_temporal"}
     assert s["rmse_cm"] == pytest.approx(100 * _naive_rmse(pred, target), rel=1e-9)
     h = np.mean(_naive_hausdorff(pred, target, faces))
     assert s["hausdorff_cm"] == pytest.approx(100 * h, abs=1e-3)
-    assert s["sted"] == pytest.approx(_naive_sted(pred, target, faces, 30.0)["sted"], rel=1e-9)
-    m = summarize(pred, target, faces, fps=30.0, units="m")
+    assert s["sted"] == pytest.approx(sted(pred, target, faces)["sted"], rel=1e-12)
+    m = summarize(pred, target, faces, units="m")
     assert m["rmse_m"] == pytest.approx(s["rmse_cm"] / 100, rel=1e-12)
     assert m["hausdorff_m"] == pytest.approx(s["hausdorff_cm"] / 100, rel=1e-12)
     assert m["sted"] == s["sted"]
@@ -324,14 +325,22 @@ def _bad_cases():
         ("hausdorff", "faces", lambda: hausdorff(x, x, f + 1)),
         ("hausdorff", "faces", lambda: hausdorff(x, x, f.astype(float))),
         ("hausdorff", "faces", lambda: hausdorff(x, x, f[:, :2])),
-        ("sted", "faces", lambda: sted(x, x, np.array([[0, 1, 1]]), 30.0)),
-        ("sted", "fps", lambda: sted(x, x, f, 0.0)),
-        ("sted", "pred", lambda: sted(nan, x, f, 30.0)),
-        ("sted", "target", lambda: sted(x, np.zeros_like(x), f, 30.0)),  # zero-length edges
+        (
+            "sted_speed_scaled",
+            "faces",
+            lambda: sted_speed_scaled(x, x, np.array([[0, 1, 1]]), 30.0),
+        ),
+        ("sted_speed_scaled", "fps", lambda: sted_speed_scaled(x, x, f, 0.0)),
+        ("sted_speed_scaled", "pred", lambda: sted_speed_scaled(nan, x, f, 30.0)),
+        # zero-length edges
+        ("sted_speed_scaled", "target", lambda: sted_speed_scaled(x, np.zeros_like(x), f, 30.0)),
+        ("sted", "pred", lambda: sted(nan, x, f)),
+        ("sted", "target", lambda: sted(x, np.zeros_like(x), f)),
+        ("sted", "dt", lambda: sted(x, x, f, dt=0.0)),
         ("inside_fraction", "body", lambda: inside_fraction(x, body[None], bf)),
         ("inside_fraction", "body_faces", lambda: inside_fraction(x[:1], body[None], bf + 8)),
-        ("summarize", "units", lambda: summarize(x, x, f, 30.0, units="mm")),
-        ("summarize", "target", lambda: summarize(x, x[:, :5], f, 30.0)),
+        ("summarize", "units", lambda: summarize(x, x, f, units="mm")),
+        ("summarize", "target", lambda: summarize(x, x[:, :5], f)),
     ]
 
 
@@ -343,25 +352,25 @@ def test_bad_input_raises_loosefit_input_error(case):
     assert (err.value.source, err.value.field) == (source, field)
 
 
-# sted_reference: Vasa and Skala's tool's definition
+# sted: Vasa and Skala's tool's definition
 
 
-def test_sted_reference_of_a_uniform_scale_of_a_still_mesh_is_zero():
+def test_sted_of_a_uniform_scale_of_a_still_mesh_is_zero():
     v, f = _grid()
     target = np.stack([v] * 4)
-    s = sted_reference(1.3 * target, target, f)
+    s = sted(1.3 * target, target, f)
     assert s["spatial"] == pytest.approx(0.0, abs=1e-12)  # every edge stretched alike
     assert s["temporal"] == pytest.approx(0.0, abs=1e-12)  # nothing moves: all dt
     assert s["sted"] == pytest.approx(0.0, abs=1e-12)
 
 
-def test_sted_reference_of_a_one_frame_lag_by_hand():
+def test_sted_of_a_one_frame_lag_by_hand():
     # the grid slides 1 cm a frame along x; the prediction lags one frame behind it
     v, f = _grid()  # 1 x 1 m, diameter sqrt(2)
     T = 12
     target = np.stack([v + [0.01 * t, 0.0, 0.0] for t in range(T)])
     pred = np.concatenate([target[:1], target[:-1]])
-    s = sted_reference(pred, target, f)
+    s = sted(pred, target, f)
     assert s["spatial"] == pytest.approx(0.0, abs=1e-12)  # rigid: edges keep their lengths
     u, dt = 0.01 / math.sqrt(2.0), 3.0e-4
     moving = math.sqrt(u**2 + dt**2)  # every temporal edge of the target
@@ -375,23 +384,23 @@ def test_sted_reference_of_a_one_frame_lag_by_hand():
     target = np.stack([v + [x, 0.0, 0.0] for x in np.r_[0.0, np.cumsum(steps)]])
     pred = target.copy()
     pred[1:, :, 0] += 0.005  # one frame's step 5 mm longer, the rest as the target's
-    s = sted_reference(pred, target, f, window=2)
+    s = sted(pred, target, f, window=2)
     lengths = np.sqrt((steps / math.sqrt(2.0)) ** 2 + dt**2)
     first = math.sqrt((0.015 / math.sqrt(2.0)) ** 2 + dt**2)
     assert s["temporal"] == pytest.approx((first - lengths[0]) / lengths[:3].mean() / 11, rel=1e-9)
 
 
-def test_sted_reference_counts_unused_vertices_as_zero_and_weighs_time():
+def test_sted_counts_unused_vertices_as_zero_and_weighs_time():
     pred, target, f = _seqs_plain()
-    s = sted_reference(pred, target, f)
+    s = sted(pred, target, f)
     assert s["sted"] == pytest.approx(math.hypot(s["spatial"], 9.144e-5 * s["temporal"]))
-    assert s["spatial"] == pytest.approx(sted(pred, target, f, 30.0)["spatial"])
+    assert s["spatial"] == pytest.approx(sted_speed_scaled(pred, target, f, 30.0)["spatial"])
     # a vertex no face uses adds a zero to the spatial mean
     extra = lambda x: np.concatenate([x, x[:, :1] + 5.0], axis=1)  # noqa: E731
-    more = sted_reference(extra(pred), extra(target), f)
+    more = sted(extra(pred), extra(target), f)
     assert more["spatial"] == pytest.approx(s["spatial"] * 25 / 26)
     with pytest.raises(LoosefitInputError, match="window"):
-        sted_reference(pred, target, f, window=-1)
+        sted(pred, target, f, window=-1)
 
 
 def _seqs_plain():

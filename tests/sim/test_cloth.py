@@ -396,8 +396,8 @@ def test_release_trapped_puts_deep_cloth_back_on_the_moving_skin():
     before, after = v - np.array([0.1, 0.0, 0.0]), v  # the box moved 0.1 m along +x
     x = np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.49], [0.0, 0.0, 0.7]], np.float32)
     qd = np.ones_like(x)
-    y, yd, moved = release_trapped(x, qd, after, before, (f,), depth=0.05, offset=0.004,
-                                   frame_dt=0.5)  # fmt: skip
+    y, yd, moved, _ = release_trapped(x, qd, after, before, (f,), depth=0.05, offset=0.004,
+                                      frame_dt=0.5)  # fmt: skip
     assert moved == 1
     # the deep one (0.2 m in) goes to the top face, 4 mm out, with the box's velocity
     np.testing.assert_allclose(y[0], [0.0, 0.0, 0.504], atol=1e-5)

@@ -64,7 +64,7 @@ def test_evaluation_scores_the_rollout_as_the_same_vertices_given_directly(train
     assert ev["horizons"]["4"] == pytest.approx(float(np.sqrt(np.mean(per[:4] ** 2))), rel=1e-6)
     assert ev["hausdorff_cm"] == pytest.approx(100 * float(hausdorff(pred, true, faces).mean()),
                                                rel=1e-6)  # fmt: skip
-    assert ev["sted"] == pytest.approx(sted(pred, true, faces, seq.motion.fps)["sted"], rel=1e-6)
+    assert ev["sted"] == pytest.approx(sted(pred, true, faces)["sted"], rel=1e-6)
 
 
 def test_rollouts_are_deterministic_on_the_motion_and_load_through_the_pipeline(

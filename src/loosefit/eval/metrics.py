@@ -9,7 +9,8 @@ arithmetic is in float64 except the surface queries of :func:`hausdorff` and
 
 * :func:`rmse`, :func:`rmse_per_frame`: per-vertex Euclidean error.
 * :func:`hausdorff`: symmetric surface-to-surface distance per frame.
-* :func:`sted`: the spatio-temporal edge difference of Vasa and Skala (2011).
+* :func:`sted`: the spatio-temporal edge difference of Vasa and Skala (2011), as their
+  tool computes it; :func:`sted_speed_scaled` the variant reported before 2026-11-26.
 * :func:`inside_fraction`: garment vertices that went inside the body.
 * :func:`summarize`: the headline numbers in one dict.
 
@@ -216,19 +217,20 @@ def hausdorff(pred: Any, target: Any, faces: Any, device: str = "cpu") -> np.nda
     return out
 
 
-def sted(
+def sted_speed_scaled(
     pred: Any,
     target: Any,
     faces: Any,
     fps: float,
     speed_scale: float = 1.0,
 ) -> dict[str, float]:
-    """Spatio-temporal edge difference (STED) of a predicted sequence against the target.
+    """STED as the project reported it before 2026-11-26 (tables made then say so).
 
-    This follows Vasa and Skala, "A perception correlated comparison method for
-    dynamic meshes" (IEEE TVCG 17(2), 2011), with the neighbourhood and time scale
-    fixed as below. Lengths ``l`` are of the target (reference) mesh, ``l'`` of the
-    prediction, per frame.
+    The reported STED is now :func:`sted`, as Vasa and Skala's own tool computes it;
+    this variant weighs time by a speed in m/s instead. It follows Vasa and Skala, "A
+    perception correlated comparison method for dynamic meshes" (IEEE TVCG 17(2), 2011),
+    with the neighbourhood and time scale fixed as below. Lengths ``l`` are of the target
+    (reference) mesh, ``l'`` of the prediction, per frame.
 
     Spatial part. For each mesh edge ``e``, the relative edge difference is
     ``dev(e) = (l'(e) - l(e)) / l(e)``. The neighbourhood ``N(v)`` of a vertex is
@@ -265,12 +267,12 @@ def sted(
     Returns:
         ``{"sted": STED, "spatial": STED_s, "temporal": STED_t}`` as floats.
     """
-    p, g = _pair(pred, target, "sted")
-    f = _faces(faces, p.shape[1], "sted")
-    fps = _positive(fps, "sted", "fps")
-    c = _positive(speed_scale, "sted", "speed_scale")
+    p, g = _pair(pred, target, "sted_speed_scaled")
+    f = _faces(faces, p.shape[1], "sted_speed_scaled")
+    fps = _positive(fps, "sted_speed_scaled", "fps")
+    c = _positive(speed_scale, "sted_speed_scaled", "speed_scale")
     T = p.shape[0]
-    sigma, used = _spatial_deviation(p, g, f, "sted")
+    sigma, used = _spatial_deviation(p, g, f, "sted_speed_scaled")
     spatial = float(sigma.mean())
 
     if T > 1:
@@ -287,17 +289,21 @@ def sted(
     }
 
 
-def sted_reference(
+def sted(
     pred: Any,
     target: Any,
     faces: Any,
+    *,
     dt: float = 3.0e-4,
     window: int = 5,
     weight: float = 9.144e-5,
 ) -> dict[str, float]:
-    """STED as Vasa and Skala's own comparison tool computes it with its default parameters.
+    """Spatio-temporal edge difference (STED) of a predicted sequence against the target, as
+    Vasa and Skala's own comparison tool computes it with its default parameters (the
+    paper's reference: "A perception correlated comparison method for dynamic meshes",
+    IEEE TVCG 17(2), 2011). This is the STED every table reports.
 
-    Spatial part: as :func:`sted` (the signed relative edge differences over the closed
+    Spatial part: as :func:`sted_speed_scaled` (the signed relative edge differences over the closed
     one-ring, weighted by the target's edge lengths, a weighted standard deviation per
     vertex), averaged over all vertices and frames, a vertex that no face uses counting 0.
 
@@ -322,20 +328,20 @@ def sted_reference(
     Returns:
         ``{"sted": STED, "spatial": STED_s, "temporal": STED_t}`` as floats.
     """
-    p, g = _pair(pred, target, "sted_reference")
-    f = _faces(faces, p.shape[1], "sted_reference")
-    dt = _positive(dt, "sted_reference", "dt")
-    weight = _positive(weight, "sted_reference", "weight")
+    p, g = _pair(pred, target, "sted")
+    f = _faces(faces, p.shape[1], "sted")
+    dt = _positive(dt, "sted", "dt")
+    weight = _positive(weight, "sted", "weight")
     if not (isinstance(window, int) and window >= 0):
-        raise LoosefitInputError("sted_reference", "window", "an integer >= 0", window)
+        raise LoosefitInputError("sted", "window", "an integer >= 0", window)
     T, V, _ = p.shape
-    sigma, _ = _spatial_deviation(p, g, f, "sted_reference")
+    sigma, _ = _spatial_deviation(p, g, f, "sted")
     spatial = float(sigma.sum() / (T * V))
     temporal = 0.0
     if T > 1:
         diameter = float(np.linalg.norm(g[0].max(0) - g[0].min(0)))
         if not diameter > 0:
-            raise LoosefitInputError("sted_reference", "target", "a first frame of some size",
+            raise LoosefitInputError("sted", "target", "a first frame of some size",
                                      "all its vertices at one point")  # fmt: skip
         tg = np.sqrt((np.diff(g, axis=0) ** 2).sum(-1) / diameter**2 + dt**2)  # (T - 1, V)
         tp = np.sqrt((np.diff(p, axis=0) ** 2).sum(-1) / diameter**2 + dt**2)
@@ -420,9 +426,7 @@ def summarize(
     pred: Any,
     target: Any,
     faces: Any,
-    fps: float,
     units: str = "cm",
-    speed_scale: float = 1.0,
     device: str = "cpu",
 ) -> dict[str, float]:
     """The headline metrics of a predicted sequence in one dict.
@@ -431,9 +435,7 @@ def summarize(
         pred: (T, V, 3) predicted vertex positions (m).
         target: (T, V, 3) ground-truth vertex positions (m).
         faces: (F, 3) triangles shared by both.
-        fps: frame rate, for :func:`sted`.
         units: ``"cm"`` (lengths times 100) or ``"m"``; the length keys end in it.
-        speed_scale: passed on to :func:`sted`.
         device: warp device for :func:`hausdorff`.
 
     Returns:
@@ -446,7 +448,7 @@ def summarize(
         raise LoosefitInputError("summarize", "units", "'cm' or 'm'", repr(units))
     k = scales[units]
     p, g = _pair(pred, target, "summarize")
-    s = sted(p, g, faces, fps, speed_scale=speed_scale)
+    s = sted(p, g, faces)
     return {
         f"rmse_{units}": rmse(p, g) * k,
         f"hausdorff_{units}": float(hausdorff(p, g, faces, device=device).mean()) * k,

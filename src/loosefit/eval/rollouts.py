@@ -102,7 +102,7 @@ def evaluate_rollouts(
         }  # fmt: skip
         if surface:
             entry["hausdorff_cm"] = 100 * float(hausdorff(pred, true, faces).mean())
-            entry["sted"] = sted(pred, true, faces, motion.fps)["sted"] if len(pred) > 1 else 0.0
+            entry["sted"] = sted(pred, true, faces)["sted"] if len(pred) > 1 else 0.0
         clips[name] = entry
     n = np.array([c["frames"] for c in clips.values()], float)
 

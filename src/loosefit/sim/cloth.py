@@ -431,6 +431,30 @@ def glued_points(glue: WaistGlue, body_vertices: np.ndarray, body_faces: np.ndar
     return surface + glue.local[:, :1] * t1 + glue.local[:, 1:2] * t2 + glue.local[:, 2:] * n
 
 
+@dataclass
+class SkinAnchors:
+    """Where on the skin each cloth vertex was last seen outside the body.
+
+    Attributes:
+        mesh: (V,) int64 index into the meshes of the closest one; -1: never outside yet.
+        face: (V,) int64 the closest face on it.
+        barycentric: (V, 3) float64 the closest point in that face.
+    """
+
+    mesh: np.ndarray
+    face: np.ndarray
+    barycentric: np.ndarray
+
+    @classmethod
+    def none(cls, num_vertices: int) -> SkinAnchors:
+        """No vertex anchored yet."""
+        return cls(
+            np.full(num_vertices, -1, np.int64),
+            np.zeros(num_vertices, np.int64),
+            np.zeros((num_vertices, 3)),
+        )
+
+
 def release_trapped(
     positions: np.ndarray,
     velocities: np.ndarray,
@@ -440,12 +464,18 @@ def release_trapped(
     depth: float,
     offset: float,
     frame_dt: float,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """Cloth vertices deep inside the body put back on its skin, moving with it.
+    anchors: SkinAnchors | None = None,
+) -> tuple[np.ndarray, np.ndarray, int, SkinAnchors]:
+    """Cloth vertices deep inside the body put back on its skin where they went in.
 
-    Each vertex inside one of ``meshes`` (by the winding number) farther than ``depth``
-    from its surface goes to the closest surface point, ``offset`` out along that face's
-    normal, with the skin's velocity there (the body's move over the frame).
+    A vertex inside one of ``meshes`` farther than ``depth`` from its surface goes back
+    to the skin point it was last seen outside over (its anchor: the closest point,
+    carried along as the skin moves), ``offset`` out along that face's normal, with the
+    skin's velocity there. Cloth pinched into a fold of the body comes back on the side
+    it went in from, next to its neighbours; the closest surface point can lie on the far
+    side of a thigh, and a vertex put there pulls its neighbours through the leg (ballet
+    05_16: edge strain p99 13). A vertex that was never outside goes to the closest point.
+    Every vertex outside all meshes is anchored anew.
 
     Args:
         positions: (V, 3) cloth vertices after a frame.
@@ -456,30 +486,58 @@ def release_trapped(
         depth: metres inside a surface beyond which a vertex is released.
         offset: metres outside the surface it is put.
         frame_dt: seconds of the frame.
+        anchors: the anchors after the previous frame (default: none yet).
 
     Returns:
-        The new (V, 3) positions and velocities (copies), and how many vertices moved.
+        The new (V, 3) positions and velocities (copies), how many vertices moved, and the
+        anchors after this frame.
     """
     from loosefit.geometry.query import Surface
 
     x = np.array(positions, np.float32)
     v = np.array(velocities, np.float32)
-    moved = 0
-    for faces in meshes:
-        hit = Surface(body, faces).query(x)
-        deep = np.flatnonzero(hit.inside & (hit.distance > depth) & (hit.faces >= 0))
-        if not len(deep):
+    n = len(x)
+    anchors = anchors or SkinAnchors.none(n)
+    anchors = SkinAnchors(anchors.mesh.copy(), anchors.face.copy(), anchors.barycentric.copy())
+    hits = [Surface(body, faces).query(x) for faces in meshes]
+    inside = np.zeros(n, bool)
+    deep = np.zeros(n, bool)
+    for hit in hits:
+        found = hit.faces >= 0
+        inside |= hit.inside & found
+        deep |= hit.inside & found & (hit.distance > depth)
+    # where to put the deep ones: their anchor, or the closest point of the mesh they are in
+    where = np.flatnonzero(deep)
+    mesh, face, bary = anchors.mesh[where], anchors.face[where], anchors.barycentric[where]
+    fresh = mesh < 0
+    for m, hit in enumerate(hits):
+        take = fresh & hit.inside[where] & (hit.distance[where] > depth) & (mesh < 0)
+        mesh[take], face[take], bary[take] = m, hit.faces[where[take]], hit.barycentric[where[take]]
+    for m, faces in enumerate(meshes):
+        sel = mesh == m
+        if not sel.any():
             continue
-        tri = faces[hit.faces[deep]]  # (n, 3)
+        tri = faces[face[sel]]  # (n, 3)
         a, b, c = (body[tri[:, i]] for i in range(3))
         normal = np.cross(b - a, c - a)
         normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
-        w = hit.barycentric[deep][:, :, None]  # (n, 3, 1)
+        w = bary[sel][:, :, None]  # (n, 3, 1)
+        skin = (body[tri] * w).sum(1)
         skin_velocity = ((body[tri] - body_before[tri]) * w).sum(1) / frame_dt
-        x[deep] = hit.points[deep] + offset * normal
-        v[deep] = skin_velocity
-        moved += len(deep)
-    return x, v, moved
+        x[where[sel]] = skin + offset * normal
+        v[where[sel]] = skin_velocity
+    # anchor anew every vertex outside every mesh, on the closest of them
+    out = np.flatnonzero(~inside)
+    if len(out):
+        dist = np.stack([np.where(h.faces[out] >= 0, h.distance[out], np.inf) for h in hits])
+        best = dist.argmin(0)
+        ok = np.isfinite(dist.min(0))
+        for m, hit in enumerate(hits):
+            sel = ok & (best == m)
+            anchors.mesh[out[sel]] = m
+            anchors.face[out[sel]] = hit.faces[out[sel]]
+            anchors.barycentric[out[sel]] = hit.barycentric[out[sel]]
+    return x, v, len(where), anchors
 
 
 def substep_schedule(
@@ -1090,6 +1148,7 @@ def simulate_batch(
             n = min(recorded, len(out))
             out[:n] = saved[f"garment_{c}" if K > 1 else "garment"][:n]
     released = [np.zeros(len(b), np.int64) for b in bodies]  # cloth vertices put back, per frame
+    anchors: list[SkinAnchors | None] = [None] * K  # where each clip's cloth was last outside
     t0 = time.perf_counter()
     for k in range(first, total):
         if resume is not None and k > first and k % resume_every == 0:
@@ -1113,9 +1172,9 @@ def simulate_batch(
             for c, body in enumerate(colliders):
                 if k >= totals[c]:
                     continue
-                q[c], qd[c], n = release_trapped(
+                q[c], qd[c], n, anchors[c] = release_trapped(
                     q[c], qd[c], body[k + 1], body[k], meshes, config.release_depth,
-                    config.body_contact_distance, 1.0 / fps,
+                    config.body_contact_distance, 1.0 / fps, anchors[c],
                 )  # fmt: skip
                 released[c][k + 1] = n
                 count += n

@@ -229,7 +229,7 @@ def evaluate(model: GarmentGenerativeModel, frames: PreparedFrames, faces: np.nd
             "frames": int(sel.sum()),
             "rmse_cm": 100 * rmse(p, t),
             "hausdorff_cm": 100 * float(hausdorff(p, t, faces).mean()),
-            "sted": sted(p, t, faces, frames.fps)["sted"] if len(p) > 1 else 0.0,
+            "sted": sted(p, t, faces)["sted"] if len(p) > 1 else 0.0,
         }
     n = np.array([c["frames"] for c in per_clip.values()], float)
 
