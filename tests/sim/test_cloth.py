@@ -226,6 +226,25 @@ def test_killed_run_resumes_from_its_saved_state(avatar, tiny, tmp_path):
     assert not path.exists()  # removed once the run is whole
 
 
+def test_resume_keeps_the_skin_anchors_of_the_release(avatar, tiny, tmp_path):
+    skirt, motion, _, done = tiny
+    config = ClothConfig.tiny(release_depth=1e-4)  # the release on: the cloth is anchored
+    whole = simulate(avatar, skirt, motion, config)
+    path, stop = tmp_path / "run.npz", done[-1][1] - 3
+
+    def kill(d, t):
+        if d == stop:
+            raise _Kill
+
+    with pytest.raises(_Kill):
+        simulate(avatar, skirt, motion, config, progress=kill, resume=path, resume_every=4)
+    with np.load(path) as saved:  # every vertex anchored on the body or the arms
+        assert saved["anchor_mesh_0"].shape == (skirt.num_vertices,)
+        assert set(np.unique(saved["anchor_mesh_0"])) <= {0, 1}
+    again = simulate(avatar, skirt, motion, config, resume=path, resume_every=4)
+    np.testing.assert_array_equal(again.garment_vertices, whole.garment_vertices)
+
+
 def test_resume_ignores_the_state_of_another_run(avatar, tiny, tmp_path):
     skirt, motion, result, done = tiny
     path = tmp_path / "run.npz"
@@ -406,6 +425,28 @@ def test_release_trapped_puts_deep_cloth_back_on_the_moving_skin():
     np.testing.assert_array_equal(y[1:], x[1:])
     np.testing.assert_array_equal(yd[1:], qd[1:])
     assert release_trapped(x, qd, after, before, (f,), 0.25, 0.004, 0.5)[2] == 0
+
+
+def test_release_trapped_puts_cloth_back_on_the_side_it_went_in_from():
+    from loosefit.sim.cloth import release_trapped
+    from tests.meshes import cube
+
+    v, f = cube(1.0)  # centred at the origin
+    x = np.array([[0.1, 0.0, 0.6], [0.0, 0.0, 2.0]], np.float32)  # over the top face
+    qd = np.zeros_like(x)
+    _, _, moved, anchors = release_trapped(x, qd, v, v, (f,), 0.05, 0.004, 1 / 30)
+    assert moved == 0 and (anchors.mesh == 0).all()
+    # the first one is pushed through to 0.4 m under the top, 0.1 m over the bottom: the
+    # closest face is the bottom, but it went in at the top, where it goes back
+    x[0] = [0.1, 0.0, -0.4]
+    y, _, moved, after = release_trapped(x, qd, v, v, (f,), 0.05, 0.004, 1 / 30, anchors)
+    assert moved == 1
+    np.testing.assert_allclose(y[0], [0.1, 0.0, 0.504], atol=1e-5)
+    # it was inside: its anchor is kept; the one outside is anchored anew
+    np.testing.assert_array_equal(after.face, anchors.face)
+    # without anchors it goes to the closest face
+    y, _, _, _ = release_trapped(x, qd, v, v, (f,), 0.05, 0.004, 1 / 30)
+    np.testing.assert_allclose(y[0], [0.1, 0.0, -0.504], atol=1e-5)
 
 
 def test_release_depth_is_checked():

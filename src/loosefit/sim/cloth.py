@@ -1138,7 +1138,13 @@ def simulate_batch(
                 for b, s in zip(bodies, seeds or [config.seed] * K, strict=True)]  # fmt: skip
         key = keys[0] if K == 1 else hashlib.sha256("".join(keys).encode()).hexdigest()[:32]
     saved = _read_resume(resume, key, total) if resume is not None else None
+    released = [np.zeros(len(b), np.int64) for b in bodies]  # cloth vertices put back, per frame
+    anchors: list[SkinAnchors | None] = [None] * K  # where each clip's cloth was last outside
     if saved is not None:
+        for c in range(K):
+            if f"anchor_mesh_{c}" in saved:
+                parts = ("mesh", "face", "barycentric")
+                anchors[c] = SkinAnchors(*(saved[f"anchor_{part}_{c}"] for part in parts))
         first, t_before = int(saved["frame"]), float(saved["seconds"])
         shape = (K, template.num_vertices, 3) if K > 1 else (template.num_vertices, 3)
         sim.set_state(saved["positions"].reshape(shape), saved["velocities"].reshape(shape))
@@ -1147,8 +1153,6 @@ def simulate_batch(
         for c, out in enumerate(outs):
             n = min(recorded, len(out))
             out[:n] = saved[f"garment_{c}" if K > 1 else "garment"][:n]
-    released = [np.zeros(len(b), np.int64) for b in bodies]  # cloth vertices put back, per frame
-    anchors: list[SkinAnchors | None] = [None] * K  # where each clip's cloth was last outside
     t0 = time.perf_counter()
     for k in range(first, total):
         if resume is not None and k > first and k % resume_every == 0:
@@ -1158,10 +1162,15 @@ def simulate_batch(
                 {f"garment_{c}": out[: min(recorded, len(out))] for c, out in enumerate(outs)}
                 if K > 1 else {"garment": outs[0][:recorded]}
             )  # fmt: skip
+            held = {  # the skin anchors of the release of trapped cloth, where there are any
+                f"anchor_{part}_{c}": getattr(a, part)
+                for c, a in enumerate(anchors) if a is not None
+                for part in ("mesh", "face", "barycentric")
+            }  # fmt: skip
             _write_resume(
                 resume, key=np.array(key), frame=np.int64(k), positions=q, velocities=qd,
                 settled=settled if K > 1 else settled[0],
-                seconds=np.float64(t_before + time.perf_counter() - t0), **garment,
+                seconds=np.float64(t_before + time.perf_counter() - t0), **garment, **held,
             )  # fmt: skip
         settling = k + 1 < n_settle
         damping = config.settle_damping if settling else None
