@@ -245,6 +245,45 @@ def test_resume_keeps_the_skin_anchors_of_the_release(avatar, tiny, tmp_path):
     np.testing.assert_array_equal(again.garment_vertices, whole.garment_vertices)
 
 
+def test_resume_takes_a_run_saved_without_the_release_it_never_needed(avatar, tiny, tmp_path):
+    skirt, motion, result, done = tiny
+    path, stop = tmp_path / "run.npz", done[-1][1] - 3
+
+    def kill(d, t):
+        if d == stop:
+            raise _Kill
+
+    with pytest.raises(_Kill):  # saved without the release
+        simulate(avatar, skirt, motion, ClothConfig.tiny(), progress=kill, resume=path,
+                 resume_every=4)  # fmt: skip
+    seen = []
+    again = simulate(avatar, skirt, motion, ClothConfig.tiny(release_depth=0.01), resume=path,
+                     resume_every=4, progress=lambda d, t: seen.append(d))  # fmt: skip
+    assert seen[0] > 1  # nothing was ever 1 cm inside: the saved frames are the same run's
+    np.testing.assert_array_equal(again.garment_vertices, result.garment_vertices)
+    assert again.stats["released_frames"] == 0
+
+
+def test_a_saved_run_the_release_would_have_changed_starts_over():
+    from loosefit.sim.cloth import _resumed_release
+    from tests.meshes import cube
+
+    v, f = cube(1.0)
+    collider = np.stack([v] * 4)  # two frames of preroll, two of motion
+    garment = np.array([[[0.0, 0.0, 0.6]], [[0.0, 0.0, 0.2]]], np.float32)  # in, 0.3 m deep
+    saved = {"frame": np.int64(3), "garment": garment, "release_depth": np.float64(np.nan)}
+    zero = [np.zeros(4, np.int64)]
+    config = ClothConfig.tiny(release_depth=0.05)
+    assert _resumed_release(saved, config, [collider], (f,), 2, 1 / 30, zero)[0] is None
+    # the same frames at 0.5 m of release depth: taken, with the anchor over the top face
+    deep = ClothConfig.tiny(release_depth=0.5)
+    kept, anchors, _ = _resumed_release(saved, deep, [collider], (f,), 2, 1 / 30, zero)
+    assert kept is saved and anchors[0].mesh.tolist() == [0]
+    # a run saved with a release that moved cloth: not taken without it
+    moved = {**saved, "release_depth": np.float64(0.05), "released_0": np.array([0, 0, 1, 0])}
+    assert _resumed_release(moved, ClothConfig.tiny(), [collider], (f,), 2, 1 / 30, zero)[0] is None
+
+
 def test_resume_ignores_the_state_of_another_run(avatar, tiny, tmp_path):
     skirt, motion, result, done = tiny
     path = tmp_path / "run.npz"

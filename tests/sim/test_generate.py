@@ -224,6 +224,36 @@ def test_a_dataset_made_before_a_field_existed_still_resumes(tiny_dataset, monke
         gen.generate(changed, out, workers=1, progress=False)
 
 
+def test_a_new_release_depth_keeps_the_clips_it_never_acts_on(tiny_dataset, tmp_path, monkeypatch):
+    import shutil
+
+    out = tmp_path / "tiny"
+    shutil.copytree(tiny_dataset[0], out)
+    real, simulated = gen._run_group, []
+
+    def spy(config, jobs, out_dir):
+        simulated.extend(j.name for j in jobs)
+        return real(config, jobs, out_dir)
+
+    monkeypatch.setattr(gen, "_run_group", spy)
+    cfg = gen.preset("tiny")
+    cfg.cloth.release_depth = 0.02  # no cloth of the tiny clips is 2 cm inside: both kept
+    manifest = gen.generate(cfg, out, workers=1, progress=False)
+    assert simulated == [] and manifest["summary"]["clips_ok"] == 2
+    assert {e["release_depth"] for e in manifest["sequences"].values()} == {0.02}
+    # a clip the release acted on is simulated again without it
+    manifest["sequences"]["spin_001"]["released_frames"] = 3
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    manifest = gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
+    assert simulated == ["spin_001"] and manifest["summary"]["clips_ok"] == 2
+    assert manifest["sequences"]["spin_001"]["release_depth"] is None
+    # any other change of the cloth is another data set
+    other = gen.preset("tiny")
+    other.cloth.release_depth, other.cloth.iterations = 0.02, 9
+    with pytest.raises(LoosefitInputError, match=r"another dataset.*cloth"):
+        gen.generate(other, out, workers=1, progress=False)
+
+
 def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_path, monkeypatch):
     source, _ = tiny_dataset
     cfg = gen.preset("tiny")

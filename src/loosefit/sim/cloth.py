@@ -540,6 +540,41 @@ def release_trapped(
     return x, v, len(where), anchors
 
 
+def replay_release(
+    garment: np.ndarray,
+    collider: np.ndarray,
+    meshes: tuple[np.ndarray, ...],
+    depth: float,
+    offset: float,
+    frame_dt: float,
+) -> tuple[int, SkinAnchors | None]:
+    """Frames of a simulated clip the release of trapped cloth would have changed.
+
+    :func:`release_trapped` over the recorded frames in order, as the simulation runs it
+    (from the motion's first frame): where it moves nothing, the clip is the one a run with
+    the release on makes (the simulation is deterministic), and the anchors it returns are
+    that run's after the last frame.
+
+    Args:
+        garment: (T, V, 3) the recorded cloth frames.
+        collider: (T, Vb, 3) the collider's body in those frames.
+        meshes, depth, offset, frame_dt: as :func:`release_trapped`.
+
+    Returns:
+        How many frames it would have moved cloth in, and the anchors after the last frame
+        (None for no frames).
+    """
+    anchors, fired = None, 0
+    still = np.zeros(garment.shape[1:], np.float32)
+    for t in range(len(garment)):
+        _, _, moved, anchors = release_trapped(
+            garment[t], still, collider[t], collider[max(t - 1, 0)], meshes, depth, offset,
+            frame_dt, anchors,
+        )  # fmt: skip
+        fired += moved > 0
+    return fired, anchors
+
+
 def substep_schedule(
     waist: np.ndarray, substeps: int, max_substeps: int, max_move: float, widen: int = 2
 ) -> np.ndarray:
@@ -956,8 +991,55 @@ def _run_key(body: np.ndarray, template: GarmentTemplate, config: ClothConfig) -
     h = hashlib.sha256()
     for a in (body[:: max(len(body) // 64, 1)], template.vertices, template.faces, template.waist):
         h.update(np.ascontiguousarray(a).tobytes())
-    h.update(str((body.shape, sorted(asdict(config).items()))).encode())
+    # the release of trapped cloth does not enter it: a run it never changed is the same
+    # (the resume checks that; see simulate_batch)
+    plain = replace(config, release_depth=None)
+    h.update(str((body.shape, sorted(asdict(plain).items()))).encode())
     return h.hexdigest()[:32]
+
+
+def _resumed_release(
+    saved: dict,
+    config: ClothConfig,
+    colliders: list[np.ndarray],
+    meshes: tuple[np.ndarray, ...],
+    n_pre: int,
+    frame_dt: float,
+    released: list[np.ndarray],
+) -> tuple[dict | None, list[SkinAnchors | None], list[np.ndarray]]:
+    """A saved run's state for the release of trapped cloth, or None to start over.
+
+    The run key leaves ``release_depth`` out, so a run saved with another release is found
+    too: it is taken when the release never changed it, judged by the frames it recorded
+    (:func:`replay_release`, which also gives the anchors) or the counts it saved.
+
+    Returns:
+        ``saved`` (None: start over), each clip's anchors and its released counts per frame.
+    """
+    K = len(colliders)
+    anchors: list[SkinAnchors | None] = [None] * K
+    parts = ("mesh", "face", "barycentric")
+    stored = float(saved.get("release_depth", np.nan))
+    stored = None if math.isnan(stored) else stored
+    counts = [np.asarray(saved.get(f"released_{c}", r)).copy() for c, r in enumerate(released)]
+    if stored == config.release_depth:
+        for c in range(K):
+            if f"anchor_mesh_{c}" in saved:
+                anchors[c] = SkinAnchors(*(saved[f"anchor_{part}_{c}"] for part in parts))
+        return saved, anchors, counts
+    if any(r.any() for r in counts):
+        return None, [None] * K, released  # the saved run's release moved cloth
+    if config.release_depth is not None:
+        recorded = max(int(saved["frame"]) - n_pre + 1, 0)
+        for c in range(K):
+            g = saved[f"garment_{c}" if K > 1 else "garment"][:recorded]
+            fired, anchors[c] = replay_release(
+                g, colliders[c][n_pre : n_pre + len(g)], meshes, config.release_depth,
+                config.body_contact_distance, frame_dt,
+            )  # fmt: skip
+            if fired:
+                return None, [None] * K, released
+    return saved, anchors, counts
 
 
 def _write_resume(path: Path, **arrays) -> None:
@@ -1018,6 +1100,66 @@ def simulate(
     return simulate_batch(avatar, template, [motion], config, progress, resume, resume_every)[0]
 
 
+@dataclass
+class Timeline:
+    """A clip's body over the simulation's timeline: settle, blend, then the motion.
+
+    Attributes:
+        body: (P + T, Vb, 3) float32 the posed body (what every measure takes).
+        collider: (P + T, Vb, 3) float32 what the cloth collides with: the posed body, its
+            limbs pressed out of the rest of it where the pose folds into itself
+            (``ClothConfig.flatten_overlaps``; else ``body`` itself).
+        pressed: (P + T,) int64 collider vertices pressed per frame.
+        overlap: (P + T,) m, the deepest limb vertex inside the rest of the body per frame.
+        n_settle: frames of settling (the first frames of the preroll).
+        n_pre: P, frames before the motion's first (settle and blend).
+        root_pose: (4, 4) float64 the root joint's transform in the first frame.
+    """
+
+    body: np.ndarray
+    collider: np.ndarray
+    pressed: np.ndarray
+    overlap: np.ndarray
+    n_settle: int
+    n_pre: int
+    root_pose: np.ndarray
+
+
+def timeline(avatar: Avatar, motion: Motion, config: ClothConfig) -> Timeline:
+    """The body a clip's simulation meets, frame by frame (:class:`Timeline`)."""
+    pre_rot, pre_root, n_settle = preroll(
+        motion, avatar.floor_height, config.settle_seconds, config.blend_seconds,
+        config.settle_at_start,
+    )  # fmt: skip
+    rotations = torch.from_numpy(np.concatenate([pre_rot, motion.rotations]))
+    root = torch.from_numpy(np.concatenate([pre_root, motion.root_translation]))
+    with torch.no_grad():
+        posed = avatar.pose(rotations, root)
+    body = posed.vertices.detach().to("cpu", torch.float32).numpy()  # (P + T, Vb, 3)
+    root_pose = posed.joint_transforms[0, 0].detach().double().cpu().numpy()  # (4, 4)
+    collider, pressed, overlap = body, np.zeros(len(body), np.int64), np.zeros(len(body))
+    if config.flatten_overlaps:
+        from loosefit.eval.body_regions import body_parts
+        from loosefit.sim.overlap import flatten_overlaps
+
+        flat = flatten_overlaps(
+            body, body_parts(avatar, arms=config.colliding_arms), config.overlap_inset
+        )
+        collider, pressed, overlap = flat.vertices, flat.moved, flat.depth
+    return Timeline(body, collider, pressed, overlap, n_settle, len(pre_rot), root_pose)
+
+
+def collider_meshes(
+    avatar: Avatar, config: ClothConfig
+) -> tuple[np.ndarray, np.ndarray | None, tuple[np.ndarray, ...]]:
+    """The body's collider faces (F, 3), the arms' own mesh (F', 3) where they collide as
+    one (else None), and both as the tuple of closed meshes the cloth meets."""
+    body_faces = avatar.collider_faces(arms=config.arm_collision).cpu().numpy()
+    limb_faces = _limb_faces(avatar, config)
+    meshes = (body_faces,) if limb_faces is None else (body_faces, limb_faces)
+    return body_faces, limb_faces, meshes
+
+
 def simulate_batch(
     avatar: Avatar,
     template: GarmentTemplate,
@@ -1065,40 +1207,17 @@ def simulate_batch(
     K = len(motions)
 
     # 1. Each body over its whole timeline: settle, blend, motion.
-    bodies, garments, n_pre, n_settle = [], [], 0, 0
-    for motion in motions:
-        pre_rot, pre_root, n_settle = preroll(
-            motion, avatar.floor_height, config.settle_seconds, config.blend_seconds,
-            config.settle_at_start,
-        )  # fmt: skip
-        n_pre = len(pre_rot)
-        rotations = torch.from_numpy(np.concatenate([pre_rot, motion.rotations]))
-        root = torch.from_numpy(np.concatenate([pre_root, motion.root_translation]))
-        with torch.no_grad():
-            posed = avatar.pose(rotations, root)
-        bodies.append(posed.vertices.detach().to("cpu", torch.float32).numpy())  # (P+T, Vb, 3)
-        root_pose = posed.joint_transforms[0, 0].detach().double().cpu().numpy()  # (4, 4)
-        garments.append(
-            template.vertices.astype(np.float64) @ root_pose[:3, :3].T + root_pose[:3, 3]
-        )
-    body_faces = avatar.collider_faces(arms=config.arm_collision).cpu().numpy()
-    # what the quality figures measure against: all the cloth meets (the arms' own mesh too)
-    limb_faces = _limb_faces(avatar, config)
-    meshes = (body_faces,) if limb_faces is None else (body_faces, limb_faces)
+    lines = [timeline(avatar, motion, config) for motion in motions]
+    bodies, colliders = [t.body for t in lines], [t.collider for t in lines]
+    pressed, overlap = [t.pressed for t in lines], [t.overlap for t in lines]
+    n_pre, n_settle = lines[0].n_pre, lines[0].n_settle
+    garments = [
+        template.vertices.astype(np.float64) @ t.root_pose[:3, :3].T + t.root_pose[:3, 3]
+        for t in lines
+    ]
+    body_faces, limb_faces, meshes = collider_meshes(avatar, config)
     measured_faces = meshes[0] if len(meshes) == 1 else meshes
     totals = [len(b) - 1 for b in bodies]  # frames each clip steps
-    # What the cloth collides with: the posed bodies, limbs pressed out of the rest of the
-    # body where the pose folds into itself (the measures below take the posed bodies).
-    colliders, pressed = bodies, [np.zeros(len(b), np.int64) for b in bodies]
-    overlap = [np.zeros(len(b)) for b in bodies]
-    if config.flatten_overlaps:
-        from loosefit.eval.body_regions import body_parts
-        from loosefit.sim.overlap import flatten_overlaps
-
-        parts = body_parts(avatar, arms=config.colliding_arms)
-        flat = [flatten_overlaps(b, parts, config.overlap_inset) for b in bodies]
-        colliders = [f.vertices for f in flat]
-        pressed, overlap = [f.moved for f in flat], [f.depth for f in flat]
     total = max(totals)
 
     # 2. The simulator, with contact culling widened to the whole motions.
@@ -1141,10 +1260,10 @@ def simulate_batch(
     released = [np.zeros(len(b), np.int64) for b in bodies]  # cloth vertices put back, per frame
     anchors: list[SkinAnchors | None] = [None] * K  # where each clip's cloth was last outside
     if saved is not None:
-        for c in range(K):
-            if f"anchor_mesh_{c}" in saved:
-                parts = ("mesh", "face", "barycentric")
-                anchors[c] = SkinAnchors(*(saved[f"anchor_{part}_{c}"] for part in parts))
+        saved, anchors, released = _resumed_release(
+            saved, config, colliders, meshes, n_pre, 1.0 / fps, released
+        )
+    if saved is not None:
         first, t_before = int(saved["frame"]), float(saved["seconds"])
         shape = (K, template.num_vertices, 3) if K > 1 else (template.num_vertices, 3)
         sim.set_state(saved["positions"].reshape(shape), saved["velocities"].reshape(shape))
@@ -1167,6 +1286,9 @@ def simulate_batch(
                 for c, a in enumerate(anchors) if a is not None
                 for part in ("mesh", "face", "barycentric")
             }  # fmt: skip
+            held.update({f"released_{c}": r for c, r in enumerate(released)})
+            depth = config.release_depth
+            held["release_depth"] = np.float64(np.nan if depth is None else depth)
             _write_resume(
                 resume, key=np.array(key), frame=np.int64(k), positions=q, velocities=qd,
                 settled=settled if K > 1 else settled[0],
@@ -1175,7 +1297,7 @@ def simulate_batch(
         settling = k + 1 < n_settle
         damping = config.settle_damping if settling else None
         sim.step_frame(body_at(k), body_at(k + 1), damping, substeps=int(schedule[k]))
-        if config.release_depth is not None:
+        if config.release_depth is not None and k + 1 >= n_pre:  # in the motion's frames
             q, qd = (a.reshape(K, -1, 3) for a in sim.get_state())
             count = 0
             for c, body in enumerate(colliders):

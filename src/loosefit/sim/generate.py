@@ -666,6 +666,9 @@ def _entry(config: DatasetConfig, job: Job, motion, result, seconds: float = 0.0
         batch=result.stats["batch"],
         overlap_frames=result.stats["overlap_frames"],
         overlap_depth_max=result.stats["overlap_depth_max"],
+        release_depth=config.cloth.release_depth,
+        released_frames=result.stats["released_frames"],
+        released_vertices=result.stats["released_vertices"],
         **motion.meta.get("unfold", {}),
         quality=qual,
     )
@@ -694,6 +697,9 @@ LEGACY_CLOTH = {
     "arm_friction": None,
     "release_depth": None,
 }
+# Cloth fields a clip can be rechecked for rather than simulated again when they change: the
+# release of trapped cloth acts only where cloth is that deep, which a clip's frames show.
+RELEASE_FIELDS = ("release_depth",)
 LEGACY_UNFOLD = {"enabled": False}  # the same for the pose correction (loosefit.body.unfold)
 
 
@@ -733,6 +739,16 @@ def _open_manifest(config: DatasetConfig, out: Path) -> dict:
     if mpath.is_file():
         manifest = json.loads(mpath.read_text())
         old = _stored_config(manifest)
+        # A change of the release of trapped cloth alone keeps the clips it never changed
+        # (generate checks each; see _recheck_release).
+        net = {k: old["cloth"].get(k) for k in RELEASE_FIELDS}
+        if old.get("cloth") != cfg.get("cloth") and {
+            k: v for k, v in old["cloth"].items() if k not in RELEASE_FIELDS
+        } == {k: v for k, v in cfg["cloth"].items() if k not in RELEASE_FIELDS}:
+            old = {**old, "cloth": cfg["cloth"]}
+            for entry in manifest["sequences"].values():
+                for k, v in net.items():
+                    entry.setdefault(k, v)
         if manifest.get("format") != FORMAT or old != cfg:
             diff = sorted(k for k in set(old) | set(cfg) if old.get(k) != cfg.get(k))
             raise LoosefitInputError(
@@ -829,6 +845,51 @@ def adopt_clips(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Pat
     return taken
 
 
+def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Path,
+                     avatar, template) -> tuple[list[str], list[str]]:  # fmt: skip
+    """Clips simulated with another release of trapped cloth, kept or to simulate again.
+
+    A clip recorded under another ``cloth.release_depth`` is the clip this configuration
+    makes when the release never acted on it, in either: its entry counts no released
+    frames, and the new release finds no cloth that deep in any of its frames
+    (:func:`~loosefit.sim.cloth.replay_release` on the collider the simulation met). Such a
+    clip is kept (its entry updated); any other (a flagged one too) is removed, to be
+    simulated again.
+
+    Returns:
+        The names of the clips kept and of those removed.
+    """
+    from loosefit.data.format import read_sequence
+    from loosefit.sim.cloth import collider_meshes, replay_release, timeline
+
+    depth = config.cloth.release_depth
+    kept, again = [], []
+    for job in jobs:
+        entry = manifest["sequences"].get(job.name)
+        if entry is None or entry.get("release_depth", depth) == depth:
+            continue
+        path = out / "sequences" / f"{job.name}.npz"
+        ok = entry.get("status") == "done" and not entry.get("released_frames") and path.exists()
+        if ok and depth is not None:
+            cloth = dataclasses.replace(config.cloth, seed=job.seed)
+            motion = job_motion(config, job, avatar)
+            line = timeline(avatar, motion, cloth)
+            garment = read_sequence(path, template).garment_vertices
+            fired, _ = replay_release(
+                garment, line.collider[line.n_pre :], collider_meshes(avatar, cloth)[2], depth,
+                cloth.body_contact_distance, 1.0 / motion.fps,
+            )  # fmt: skip
+            ok = fired == 0
+        if ok:
+            entry.update(release_depth=depth, released_frames=0, released_vertices=0)
+            kept.append(job.name)
+        else:
+            del manifest["sequences"][job.name]
+            path.unlink(missing_ok=True)
+            again.append(job.name)
+    return kept, again
+
+
 def generate(
     config: DatasetConfig,
     out_dir: str | Path,
@@ -883,6 +944,12 @@ def generate(
         taken = adopt_clips(config, jobs, manifest, out, Path(reuse))
         if progress and taken:
             tqdm.write(f"reused {len(taken)} clips from {reuse}: {', '.join(taken)}")
+    kept, again = _recheck_release(config, jobs, manifest, out, avatar, template)
+    if progress and (kept or again):
+        tqdm.write(f"release_depth changed to {config.cloth.release_depth}: kept "
+                   f"{', '.join(kept) or 'none'} (it never acts on them); simulating again "
+                   f"{', '.join(again) or 'none'}")  # fmt: skip
+    write_json_atomic(out / "manifest.json", manifest)
 
     done = {
         n for n, e in manifest["sequences"].items()
