@@ -15,13 +15,16 @@ import argparse
 import dataclasses
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
 
 from loosefit.body.avatar import Avatar, AvatarConfig
+from loosefit.data.format import write_sequence
 from loosefit.dress import fit_skirt
 from loosefit.eval.quality import quality
+from loosefit.sequence import AnimatedGarment
 from loosefit.sim.cloth import simulate
 from loosefit.sim.generate import job_motion, plan_jobs, preset
 
@@ -47,7 +50,8 @@ def main() -> None:
     p.add_argument(
         "--save",
         default=None,
-        help="write each window's garment and body to SAVE_JOB_START_STOP.npz",
+        help="write each window's sequence to SAVE_JOB_START_STOP.npz (loosefit render, "
+        "diagnose and export read it)",
     )
     args = p.parse_args()
     changes = {}
@@ -85,8 +89,13 @@ def main() -> None:
                                           avatar.cut_limb_faces(False).numpy()))  # fmt: skip
         figures["two_mesh_deepest"] = round(two["inside_depth_max"], 4)
         figures["two_mesh_frames_over_5mm"] = int((two["penetration_fraction"] > 0).sum())
-        if args.save:
-            np.savez(f"{args.save}_{name}_{start}_{stop}.npz", garment=g, body=body)
+        if args.save:  # a sequence that loosefit render / diagnose / export read
+            write_sequence(
+                Path(f"{args.save}_{name}_{start}_{stop}.npz"),
+                AnimatedGarment(dataclasses.replace(motion, name=name), template, g,
+                                {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
+                                "newton-vbd"),
+            )  # fmt: skip
         figures["released_frames"] = result.stats.get("released_frames", 0)
         figures["released_vertices"] = result.stats.get("released_vertices", 0)
         figures["seconds"] = round(time.perf_counter() - t0, 1)
