@@ -238,9 +238,9 @@ def test_resume_keeps_the_skin_anchors_of_the_release(avatar, tiny, tmp_path):
 
     with pytest.raises(_Kill):
         simulate(avatar, skirt, motion, config, progress=kill, resume=path, resume_every=4)
-    with np.load(path) as saved:  # every vertex anchored on the body or the arms
-        assert saved["anchor_mesh_0"].shape == (skirt.num_vertices,)
-        assert set(np.unique(saved["anchor_mesh_0"])) <= {0, 1}
+    with np.load(path) as saved:  # every vertex anchored on each of the five parts
+        assert saved["anchor_face_0"].shape == (skirt.num_vertices, 5)
+        assert (saved["anchor_face_0"] >= 0).all()
     again = simulate(avatar, skirt, motion, config, resume=path, resume_every=4)
     np.testing.assert_array_equal(again.garment_vertices, whole.garment_vertices)
 
@@ -274,14 +274,16 @@ def test_a_saved_run_the_release_would_have_changed_starts_over():
     saved = {"frame": np.int64(3), "garment": garment, "release_depth": np.float64(np.nan)}
     zero = [np.zeros(4, np.int64)]
     config = ClothConfig.tiny(release_depth=0.05)
-    assert _resumed_release(saved, config, [collider], (f,), 2, 1 / 30, zero)[0] is None
+    args = ([collider], [_release(v, f)], 2, 1 / 30, zero)
+    assert _resumed_release(saved, config, *args)[0] is None
     # the same frames at 0.5 m of release depth: taken, with the anchor over the top face
     deep = ClothConfig.tiny(release_depth=0.5)
-    kept, anchors, _ = _resumed_release(saved, deep, [collider], (f,), 2, 1 / 30, zero)
-    assert kept is saved and anchors[0].mesh.tolist() == [0]
+    release = _release(v, f, depth=0.5)
+    kept, _ = _resumed_release(saved, deep, [collider], [release], 2, 1 / 30, zero)
+    assert kept is saved and (release.face >= 0).all()
     # a run saved with a release that moved cloth: not taken without it
     moved = {**saved, "release_depth": np.float64(0.05), "released_0": np.array([0, 0, 1, 0])}
-    assert _resumed_release(moved, ClothConfig.tiny(), [collider], (f,), 2, 1 / 30, zero)[0] is None
+    assert _resumed_release(moved, ClothConfig.tiny(), [collider], None, 2, 1 / 30, zero)[0] is None
 
 
 def test_resume_ignores_the_state_of_another_run(avatar, tiny, tmp_path):
@@ -446,46 +448,68 @@ def test_arm_friction_is_checked():
     assert ClothConfig(arm_collision="upper", arm_friction=0.0).arm_friction == 0.0
 
 
-def test_release_trapped_puts_deep_cloth_back_on_the_moving_skin():
-    from loosefit.sim.cloth import release_trapped
+def _release(v, f, parts=None, n=1, depth=0.05):
+    from loosefit.sim.cloth import TrappedRelease
+
+    parts = np.zeros(len(v), np.int64) if parts is None else parts
+    return TrappedRelease(v, (f,), parts, n, depth, 0.004)
+
+
+def test_release_puts_deep_cloth_back_on_the_moving_skin():
     from tests.meshes import cube
 
     v, f = cube(1.0)  # centred at the origin, outward normals
     before, after = v - np.array([0.1, 0.0, 0.0]), v  # the box moved 0.1 m along +x
     x = np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.49], [0.0, 0.0, 0.7]], np.float32)
     qd = np.ones_like(x)
-    y, yd, moved, _ = release_trapped(x, qd, after, before, (f,), depth=0.05, offset=0.004,
-                                      frame_dt=0.5)  # fmt: skip
+    y, yd, moved = _release(after, f, n=3).step(x, qd, after, before, frame_dt=0.5)
     assert moved == 1
-    # the deep one (0.2 m in) goes to the top face, 4 mm out, with the box's velocity
+    # the deep one (0.2 m in), never seen outside, goes to the closest face (the top),
+    # 4 mm out, with the box's velocity
     np.testing.assert_allclose(y[0], [0.0, 0.0, 0.504], atol=1e-5)
     np.testing.assert_allclose(yd[0], [0.2, 0.0, 0.0], atol=1e-5)
     # 1 cm in (within depth) and outside: untouched
     np.testing.assert_array_equal(y[1:], x[1:])
     np.testing.assert_array_equal(yd[1:], qd[1:])
-    assert release_trapped(x, qd, after, before, (f,), 0.25, 0.004, 0.5)[2] == 0
+    assert _release(after, f, n=3, depth=0.25).step(x, qd, after, before, 0.5)[2] == 0
 
 
-def test_release_trapped_puts_cloth_back_on_the_side_it_went_in_from():
-    from loosefit.sim.cloth import release_trapped
+def test_release_puts_cloth_back_on_the_side_it_went_in_from():
     from tests.meshes import cube
 
-    v, f = cube(1.0)  # centred at the origin
+    v, f = cube(1.0)
+    release = _release(v, f, n=2)
     x = np.array([[0.1, 0.0, 0.6], [0.0, 0.0, 2.0]], np.float32)  # over the top face
     qd = np.zeros_like(x)
-    _, _, moved, anchors = release_trapped(x, qd, v, v, (f,), 0.05, 0.004, 1 / 30)
-    assert moved == 0 and (anchors.mesh == 0).all()
+    assert release.step(x, qd, v, v, 1 / 30)[2] == 0 and (release.face >= 0).all()
+    anchors = release.face.copy()
     # the first one is pushed through to 0.4 m under the top, 0.1 m over the bottom: the
     # closest face is the bottom, but it went in at the top, where it goes back
     x[0] = [0.1, 0.0, -0.4]
-    y, _, moved, after = release_trapped(x, qd, v, v, (f,), 0.05, 0.004, 1 / 30, anchors)
+    y, _, moved = release.step(x, qd, v, v, 1 / 30)
     assert moved == 1
     np.testing.assert_allclose(y[0], [0.1, 0.0, 0.504], atol=1e-5)
-    # it was inside: its anchor is kept; the one outside is anchored anew
-    np.testing.assert_array_equal(after.face, anchors.face)
-    # without anchors it goes to the closest face
-    y, _, _, _ = release_trapped(x, qd, v, v, (f,), 0.05, 0.004, 1 / 30)
-    np.testing.assert_allclose(y[0], [0.1, 0.0, -0.504], atol=1e-5)
+    np.testing.assert_array_equal(release.face, anchors)  # it was inside: anchor kept
+
+
+def test_release_anchors_on_the_part_the_cloth_is_caught_in():
+    from tests.meshes import cube
+
+    a, fa = cube(1.0)  # part 0, x in [-0.5, 0.5]
+    b, fb = cube(1.0)  # part 1, x in [0.7, 1.7]: 0.2 m apart
+    v = np.concatenate([a, b + np.array([1.2, 0.0, 0.0])]).astype(np.float32)
+    f = np.concatenate([fa, fb + len(a)])
+    parts = np.repeat([0, 1], len(a))
+    release = _release(v, f, parts)
+    x = np.array([[0.65, 0.0, 0.0]], np.float32)  # between the two, nearer part 1
+    qd = np.zeros_like(x)
+    release.step(x, qd, v, v, 1 / 30)
+    # pressed 0.2 m into part 0: back onto part 0 where it went in (x = 0.5), not onto
+    # part 1, the closest skin when it was last outside
+    x[0] = [0.3, 0.0, 0.0]
+    y, _, moved = release.step(x, qd, v, v, 1 / 30)
+    assert moved == 1
+    np.testing.assert_allclose(y[0], [0.504, 0.0, 0.0], atol=1e-5)
 
 
 def test_release_depth_is_checked():

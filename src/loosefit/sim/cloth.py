@@ -431,148 +431,169 @@ def glued_points(glue: WaistGlue, body_vertices: np.ndarray, body_faces: np.ndar
     return surface + glue.local[:, :1] * t1 + glue.local[:, 1:2] * t2 + glue.local[:, 2:] * n
 
 
-@dataclass
-class SkinAnchors:
-    """Where on the skin each cloth vertex was last seen outside the body.
+class TrappedRelease:
+    """Puts cloth vertices deep inside the body back on the skin where they went in.
 
-    Attributes:
-        mesh: (V,) int64 index into the meshes of the closest one; -1: never outside yet.
-        face: (V,) int64 the closest face on it.
-        barycentric: (V, 3) float64 the closest point in that face.
-    """
-
-    mesh: np.ndarray
-    face: np.ndarray
-    barycentric: np.ndarray
-
-    @classmethod
-    def none(cls, num_vertices: int) -> SkinAnchors:
-        """No vertex anchored yet."""
-        return cls(
-            np.full(num_vertices, -1, np.int64),
-            np.zeros(num_vertices, np.int64),
-            np.zeros((num_vertices, 3)),
-        )
-
-
-def release_trapped(
-    positions: np.ndarray,
-    velocities: np.ndarray,
-    body: np.ndarray,
-    body_before: np.ndarray,
-    meshes: tuple[np.ndarray, ...],
-    depth: float,
-    offset: float,
-    frame_dt: float,
-    anchors: SkinAnchors | None = None,
-) -> tuple[np.ndarray, np.ndarray, int, SkinAnchors]:
-    """Cloth vertices deep inside the body put back on its skin where they went in.
-
-    A vertex inside one of ``meshes`` farther than ``depth`` from its surface goes back
-    to the skin point it was last seen outside over (its anchor: the closest point,
-    carried along as the skin moves), ``offset`` out along that face's normal, with the
-    skin's velocity there. Cloth pinched into a fold of the body comes back on the side
-    it went in from, next to its neighbours; the closest surface point can lie on the far
-    side of a thigh, and a vertex put there pulls its neighbours through the leg (ballet
-    05_16: edge strain p99 13). A vertex that was never outside goes to the closest point.
-    Every vertex outside all meshes is anchored anew.
+    A vertex inside one of ``meshes`` farther than ``depth`` from its surface, after a
+    frame, goes back to the spot of the body part it is in (the part of its closest face)
+    over which it was last seen outside: its anchor on that part, the closest point of the
+    part's skin then, carried along as the skin moves; ``offset`` out along that face's
+    normal, with the skin's velocity there. Every vertex outside all meshes is anchored
+    anew on each part. Cloth pinched into a part comes back on the side it went in from,
+    next to its neighbours. Measured on ballet 05_16 (docs/DATASET.md), the closest
+    surface point instead can lie on the far side of a thigh, and one anchor for the whole
+    body can lie on the other thigh (the cloth was pressed between the two): a vertex put
+    there pulls its neighbours through the legs (edge strain p99 13 and 30). A vertex never
+    seen outside goes to the closest point.
 
     Args:
-        positions: (V, 3) cloth vertices after a frame.
-        velocities: (V, 3) their velocities.
-        body: (Vb, 3) the body at the end of the frame.
-        body_before: (Vb, 3) the body at its start.
-        meshes: (F, 3) triangle arrays over ``body``, each a closed mesh on its own.
+        body: (Vb, 3) the collider's body in the first frame.
+        meshes: (F, 3) triangle arrays over the body's vertices, each a closed mesh.
+        vertex_part: (Vb,) int64 the part of each body vertex (0 .. P - 1).
+        num_vertices: V, cloth vertices.
         depth: metres inside a surface beyond which a vertex is released.
         offset: metres outside the surface it is put.
-        frame_dt: seconds of the frame.
-        anchors: the anchors after the previous frame (default: none yet).
 
-    Returns:
-        The new (V, 3) positions and velocities (copies), how many vertices moved, and the
-        anchors after this frame.
+    Attributes:
+        face: (V, P) int64 each vertex's anchor face on each part (-1: none yet), an index
+            into ``patches[p]``.
+        barycentric: (V, P, 3) float64 the anchor point in that face.
+        patches: P (F_p, 3) the faces of each part (over all meshes).
     """
-    from loosefit.geometry.query import Surface
 
-    x = np.array(positions, np.float32)
-    v = np.array(velocities, np.float32)
-    n = len(x)
-    anchors = anchors or SkinAnchors.none(n)
-    anchors = SkinAnchors(anchors.mesh.copy(), anchors.face.copy(), anchors.barycentric.copy())
-    hits = [Surface(body, faces).query(x) for faces in meshes]
-    inside = np.zeros(n, bool)
-    deep = np.zeros(n, bool)
-    for hit in hits:
-        found = hit.faces >= 0
-        inside |= hit.inside & found
-        deep |= hit.inside & found & (hit.distance > depth)
-    # where to put the deep ones: their anchor, or the closest point of the mesh they are in
-    where = np.flatnonzero(deep)
-    mesh, face, bary = anchors.mesh[where], anchors.face[where], anchors.barycentric[where]
-    fresh = mesh < 0
-    for m, hit in enumerate(hits):
-        take = fresh & hit.inside[where] & (hit.distance[where] > depth) & (mesh < 0)
-        mesh[take], face[take], bary[take] = m, hit.faces[where[take]], hit.barycentric[where[take]]
-    for m, faces in enumerate(meshes):
-        sel = mesh == m
-        if not sel.any():
-            continue
-        tri = faces[face[sel]]  # (n, 3)
-        a, b, c = (body[tri[:, i]] for i in range(3))
-        normal = np.cross(b - a, c - a)
-        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
-        w = bary[sel][:, :, None]  # (n, 3, 1)
-        skin = (body[tri] * w).sum(1)
-        skin_velocity = ((body[tri] - body_before[tri]) * w).sum(1) / frame_dt
-        x[where[sel]] = skin + offset * normal
-        v[where[sel]] = skin_velocity
-    # anchor anew every vertex outside every mesh, on the closest of them
-    out = np.flatnonzero(~inside)
-    if len(out):
-        dist = np.stack([np.where(h.faces[out] >= 0, h.distance[out], np.inf) for h in hits])
-        best = dist.argmin(0)
-        ok = np.isfinite(dist.min(0))
-        for m, hit in enumerate(hits):
-            sel = ok & (best == m)
-            anchors.mesh[out[sel]] = m
-            anchors.face[out[sel]] = hit.faces[out[sel]]
-            anchors.barycentric[out[sel]] = hit.barycentric[out[sel]]
-    return x, v, len(where), anchors
+    def __init__(self, body: np.ndarray, meshes: tuple[np.ndarray, ...], vertex_part: np.ndarray,
+                 num_vertices: int, depth: float, offset: float) -> None:  # fmt: skip
+        from loosefit.geometry.query import Surface
+
+        self.meshes, self.depth, self.offset = meshes, float(depth), float(offset)
+        faces = np.unique(np.sort(np.concatenate(meshes), axis=1), axis=0, return_index=True)[1]
+        faces = np.concatenate(meshes)[np.sort(faces)]  # each triangle once, as first given
+        corner = np.asarray(vertex_part, np.int64)[faces]  # (F, 3)
+        part = np.array([np.bincount(c, minlength=3).argmax() for c in corner])  # majority
+        P = int(np.asarray(vertex_part).max()) + 1
+        self.patches = [faces[part == p] for p in range(P)]
+        body = np.asarray(body, np.float32)
+        self._whole = [Surface(body, f) for f in meshes]
+        self._parts = [Surface(body, f) if len(f) else None for f in self.patches]
+        self._part_of = [part[_rows_index(faces, f)] for f in meshes]  # mesh face -> part
+        self.face = np.full((num_vertices, P), -1, np.int64)
+        self.barycentric = np.zeros((num_vertices, P, 3))
+
+    def step(
+        self,
+        positions: np.ndarray,
+        velocities: np.ndarray,
+        body: np.ndarray,
+        body_before: np.ndarray,
+        frame_dt: float,
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """Release the deep vertices after a frame and anchor the ones outside.
+
+        Args:
+            positions: (V, 3) cloth vertices after the frame.
+            velocities: (V, 3) their velocities.
+            body: (Vb, 3) the collider's body at the end of the frame.
+            body_before: (Vb, 3) at its start.
+            frame_dt: seconds of the frame.
+
+        Returns:
+            The new (V, 3) positions and velocities (copies) and how many vertices moved.
+        """
+        x = np.array(positions, np.float32)
+        v = np.array(velocities, np.float32)
+        body = np.asarray(body, np.float32)
+        for s in (*self._whole, *(p for p in self._parts if p is not None)):
+            s.refit(body)
+        n = len(x)
+        inside = np.zeros(n, bool)
+        deep_part = np.full(n, -1, np.int64)  # the part a deep vertex is in
+        deep_dist = np.zeros(n)
+        for hit, part_of in zip((s.query(x) for s in self._whole), self._part_of, strict=True):
+            found = hit.faces >= 0
+            inside |= hit.inside & found
+            deep = hit.inside & found & (hit.distance > np.maximum(self.depth, deep_dist))
+            deep_part[deep] = part_of[hit.faces[deep]]
+            deep_dist[deep] = hit.distance[deep]
+        where = np.flatnonzero(deep_part >= 0)
+        for p in np.unique(deep_part[where]):
+            idx = where[deep_part[where] == p]
+            face, bary = self.face[idx, p], self.barycentric[idx, p]
+            fresh = face < 0
+            if fresh.any():  # never seen outside: the closest point of the part
+                hit = self._parts[p].query(x[idx[fresh]])
+                face[fresh], bary[fresh] = hit.faces, hit.barycentric
+            tri = self.patches[p][face]  # (k, 3)
+            a, b, c = (body[tri[:, i]] for i in range(3))
+            normal = np.cross(b - a, c - a)
+            normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
+            w = bary[:, :, None]  # (k, 3, 1)
+            x[idx] = (body[tri] * w).sum(1) + self.offset * normal
+            v[idx] = ((body[tri] - np.asarray(body_before, np.float32)[tri]) * w).sum(1) / frame_dt
+        out = np.flatnonzero(~inside)
+        if len(out):
+            for p, s in enumerate(self._parts):
+                if s is not None:
+                    hit = s.query(x[out])
+                    self.face[out, p], self.barycentric[out, p] = hit.faces, hit.barycentric
+        return x, v, len(where)
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The anchors, to save with a run."""
+        return {"anchor_face": self.face.copy(), "anchor_barycentric": self.barycentric.copy()}
+
+    def load(self, state: dict[str, np.ndarray]) -> None:
+        """Take the anchors of :meth:`state`."""
+        self.face = np.array(state["anchor_face"], np.int64)
+        self.barycentric = np.array(state["anchor_barycentric"], np.float64)
+
+
+def _rows_index(rows: np.ndarray, of: np.ndarray) -> np.ndarray:
+    """(F',) index into ``rows`` (F, 3) of each triangle of ``of`` (F', 3), as sets."""
+    a, b = np.sort(rows, axis=1), np.sort(of, axis=1)
+    n = int(max(a.max(initial=0), b.max(initial=0))) + 1
+    key = np.array([1, n, n * n], np.int64)
+    ka, kb = a @ key, b @ key
+    order = np.argsort(ka)
+    return order[np.searchsorted(ka, kb, sorter=order)]
+
+
+def release_parts(avatar: Avatar, config: ClothConfig) -> np.ndarray:
+    """(Vb,) int64 the body part of each body vertex for :class:`TrappedRelease`: 0 the
+    trunk and head, then each limb of :data:`loosefit.eval.body_regions.LIMBS`."""
+    from loosefit.eval.body_regions import body_parts
+
+    parts = body_parts(avatar, arms=config.colliding_arms)
+    out = np.zeros(len(parts.region), np.int64)
+    for i, verts in enumerate(parts.limb_vertices.values()):
+        out[verts] = i + 1
+    return out
 
 
 def replay_release(
-    garment: np.ndarray,
-    collider: np.ndarray,
-    meshes: tuple[np.ndarray, ...],
-    depth: float,
-    offset: float,
-    frame_dt: float,
-) -> tuple[int, SkinAnchors | None]:
+    garment: np.ndarray, collider: np.ndarray, release: TrappedRelease, frame_dt: float
+) -> int:
     """Frames of a simulated clip the release of trapped cloth would have changed.
 
-    :func:`release_trapped` over the recorded frames in order, as the simulation runs it
-    (from the motion's first frame): where it moves nothing, the clip is the one a run with
-    the release on makes (the simulation is deterministic), and the anchors it returns are
-    that run's after the last frame.
+    ``release.step`` over the recorded frames in order, as the simulation runs it (from
+    the motion's first frame): where it moves nothing, the clip is the one a run with the
+    release on makes (the simulation is deterministic), and ``release`` holds that run's
+    anchors after the last frame.
 
     Args:
         garment: (T, V, 3) the recorded cloth frames.
         collider: (T, Vb, 3) the collider's body in those frames.
-        meshes, depth, offset, frame_dt: as :func:`release_trapped`.
+        release: a fresh :class:`TrappedRelease` (its anchors are updated).
+        frame_dt: seconds per frame.
 
     Returns:
-        How many frames it would have moved cloth in, and the anchors after the last frame
-        (None for no frames).
+        How many frames it would have moved cloth in.
     """
-    anchors, fired = None, 0
+    fired = 0
     still = np.zeros(garment.shape[1:], np.float32)
     for t in range(len(garment)):
-        _, _, moved, anchors = release_trapped(
-            garment[t], still, collider[t], collider[max(t - 1, 0)], meshes, depth, offset,
-            frame_dt, anchors,
-        )  # fmt: skip
-        fired += moved > 0
-    return fired, anchors
+        fired += release.step(garment[t], still, collider[t], collider[max(t - 1, 0)],
+                              frame_dt)[2] > 0  # fmt: skip
+    return fired
 
 
 def substep_schedule(
@@ -1002,44 +1023,38 @@ def _resumed_release(
     saved: dict,
     config: ClothConfig,
     colliders: list[np.ndarray],
-    meshes: tuple[np.ndarray, ...],
+    releases: list[TrappedRelease] | None,
     n_pre: int,
     frame_dt: float,
     released: list[np.ndarray],
-) -> tuple[dict | None, list[SkinAnchors | None], list[np.ndarray]]:
+) -> tuple[dict | None, list[np.ndarray]]:
     """A saved run's state for the release of trapped cloth, or None to start over.
 
     The run key leaves ``release_depth`` out, so a run saved with another release is found
     too: it is taken when the release never changed it, judged by the frames it recorded
     (:func:`replay_release`, which also gives the anchors) or the counts it saved.
+    ``releases`` (one per clip, None when the release is off) take the saved run's anchors.
 
     Returns:
-        ``saved`` (None: start over), each clip's anchors and its released counts per frame.
+        ``saved`` (None: start over) and each clip's released counts per frame.
     """
     K = len(colliders)
-    anchors: list[SkinAnchors | None] = [None] * K
-    parts = ("mesh", "face", "barycentric")
     stored = float(saved.get("release_depth", np.nan))
     stored = None if math.isnan(stored) else stored
     counts = [np.asarray(saved.get(f"released_{c}", r)).copy() for c, r in enumerate(released)]
     if stored == config.release_depth:
-        for c in range(K):
-            if f"anchor_mesh_{c}" in saved:
-                anchors[c] = SkinAnchors(*(saved[f"anchor_{part}_{c}"] for part in parts))
-        return saved, anchors, counts
+        for c, release in enumerate(releases or []):
+            if f"anchor_face_{c}" in saved:
+                release.load({k: saved[f"{k}_{c}"] for k in release.state()})
+        return saved, counts
     if any(r.any() for r in counts):
-        return None, [None] * K, released  # the saved run's release moved cloth
-    if config.release_depth is not None:
-        recorded = max(int(saved["frame"]) - n_pre + 1, 0)
-        for c in range(K):
-            g = saved[f"garment_{c}" if K > 1 else "garment"][:recorded]
-            fired, anchors[c] = replay_release(
-                g, colliders[c][n_pre : n_pre + len(g)], meshes, config.release_depth,
-                config.body_contact_distance, frame_dt,
-            )  # fmt: skip
-            if fired:
-                return None, [None] * K, released
-    return saved, anchors, counts
+        return None, released  # the saved run's release moved cloth
+    recorded = max(int(saved["frame"]) - n_pre + 1, 0)
+    for c, release in enumerate(releases or []):
+        g = saved[f"garment_{c}" if K > 1 else "garment"][:recorded]
+        if replay_release(g, colliders[c][n_pre : n_pre + len(g)], release, frame_dt):
+            return None, released
+    return saved, counts
 
 
 def _write_resume(path: Path, **arrays) -> None:
@@ -1258,11 +1273,21 @@ def simulate_batch(
         key = keys[0] if K == 1 else hashlib.sha256("".join(keys).encode()).hexdigest()[:32]
     saved = _read_resume(resume, key, total) if resume is not None else None
     released = [np.zeros(len(b), np.int64) for b in bodies]  # cloth vertices put back, per frame
-    anchors: list[SkinAnchors | None] = [None] * K  # where each clip's cloth was last outside
+
+    def fresh_releases() -> list[TrappedRelease] | None:
+        if config.release_depth is None:
+            return None
+        parts = release_parts(avatar, config)
+        return [TrappedRelease(c[0], meshes, parts, template.num_vertices, config.release_depth,
+                               config.body_contact_distance) for c in colliders]  # fmt: skip
+
+    releases = fresh_releases()
     if saved is not None:
-        saved, anchors, released = _resumed_release(
-            saved, config, colliders, meshes, n_pre, 1.0 / fps, released
+        saved, released = _resumed_release(
+            saved, config, colliders, releases, n_pre, 1.0 / fps, released
         )
+        if saved is None:
+            releases = fresh_releases()
     if saved is not None:
         first, t_before = int(saved["frame"]), float(saved["seconds"])
         shape = (K, template.num_vertices, 3) if K > 1 else (template.num_vertices, 3)
@@ -1281,11 +1306,9 @@ def simulate_batch(
                 {f"garment_{c}": out[: min(recorded, len(out))] for c, out in enumerate(outs)}
                 if K > 1 else {"garment": outs[0][:recorded]}
             )  # fmt: skip
-            held = {  # the skin anchors of the release of trapped cloth, where there are any
-                f"anchor_{part}_{c}": getattr(a, part)
-                for c, a in enumerate(anchors) if a is not None
-                for part in ("mesh", "face", "barycentric")
-            }  # fmt: skip
+            held = {  # the skin anchors of the release of trapped cloth, where it is on
+                f"{k}_{c}": a for c, r in enumerate(releases or []) for k, a in r.state().items()
+            }
             held.update({f"released_{c}": r for c, r in enumerate(released)})
             depth = config.release_depth
             held["release_depth"] = np.float64(np.nan if depth is None else depth)
@@ -1297,16 +1320,13 @@ def simulate_batch(
         settling = k + 1 < n_settle
         damping = config.settle_damping if settling else None
         sim.step_frame(body_at(k), body_at(k + 1), damping, substeps=int(schedule[k]))
-        if config.release_depth is not None and k + 1 >= n_pre:  # in the motion's frames
+        if releases is not None and k + 1 >= n_pre:  # in the motion's frames
             q, qd = (a.reshape(K, -1, 3) for a in sim.get_state())
             count = 0
             for c, body in enumerate(colliders):
                 if k >= totals[c]:
                     continue
-                q[c], qd[c], n, anchors[c] = release_trapped(
-                    q[c], qd[c], body[k + 1], body[k], meshes, config.release_depth,
-                    config.body_contact_distance, 1.0 / fps, anchors[c],
-                )  # fmt: skip
+                q[c], qd[c], n = releases[c].step(q[c], qd[c], body[k + 1], body[k], 1.0 / fps)
                 released[c][k + 1] = n
                 count += n
             if count:

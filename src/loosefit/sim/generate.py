@@ -860,7 +860,13 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
         The names of the clips kept and of those removed.
     """
     from loosefit.data.format import read_sequence
-    from loosefit.sim.cloth import collider_meshes, replay_release, timeline
+    from loosefit.sim.cloth import (
+        TrappedRelease,
+        collider_meshes,
+        release_parts,
+        replay_release,
+        timeline,
+    )
 
     depth = config.cloth.release_depth
     kept, again = [], []
@@ -875,11 +881,13 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
             motion = job_motion(config, job, avatar)
             line = timeline(avatar, motion, cloth)
             garment = read_sequence(path, template).garment_vertices
-            fired, _ = replay_release(
-                garment, line.collider[line.n_pre :], collider_meshes(avatar, cloth)[2], depth,
-                cloth.body_contact_distance, 1.0 / motion.fps,
+            release = TrappedRelease(
+                line.collider[0], collider_meshes(avatar, cloth)[2], release_parts(avatar, cloth),
+                template.num_vertices, depth, cloth.body_contact_distance,
             )  # fmt: skip
-            ok = fired == 0
+            ok = (
+                replay_release(garment, line.collider[line.n_pre :], release, 1.0 / motion.fps) == 0
+            )
         if ok:
             entry.update(release_depth=depth, released_frames=0, released_vertices=0)
             kept.append(job.name)
