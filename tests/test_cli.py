@@ -39,7 +39,8 @@ def test_demo_animates_the_pretrained_model_and_exports_it(tmp_path, capsys):
     assert main(args) == 0
     seq = DressedSequence.load(out / "sequence.npz")
     assert seq.source.startswith("loosefit model") and seq.garment_vertices.shape[0] == 30
-    assert "frames per second" in capsys.readouterr().err
+    err = capsys.readouterr().err  # throughput apart from the clip's own rate (issue 36)
+    assert "animated 30 frames of a 30 fps clip (1.0 s) in" in err and "frames per second" in err
     cache, _, _ = read_pc2(out / "demo.pc2")
     np.testing.assert_array_equal(cache, seq.garment_vertices)
     for name in ("demo.usdc", "demo.obj", "demo_body.pc2", "video.mp4", "video_sheet.png"):

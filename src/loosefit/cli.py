@@ -148,9 +148,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         result = model.animate(motion, progress=bar.progress)
         bar.close()
         garment, source = result.vertices, f"loosefit model {path.parent.name}"
-        _log(f"animated {motion.num_frames} frames ({motion.num_frames / motion.fps:.0f} s of "
-             f"motion) in {result.seconds:.1f} s: {result.frames_per_second:.0f} frames per "
-             "second; " + _stage_line(model, model.stages, result))  # fmt: skip
+        _log(_throughput(motion, result) + "; " + _stage_line(model, model.stages, result))
     elif args.no_physics:
         garment = carry_rigidly(template, body, avatar).cpu().numpy()
         source = "rigid"
@@ -628,10 +626,7 @@ def cmd_animate(args: argparse.Namespace) -> int:
                           f"loosefit model {Path(args.checkpoint).resolve()}")  # fmt: skip
     path.parent.mkdir(parents=True, exist_ok=True)
     seq.save(path)
-    _log(
-        f"wrote {path}: {motion.num_frames} frames at "
-        f"{result.frames_per_second:.0f} frames per second ({result.frames} with the preroll)"
-    )
+    _log(f"{_throughput(motion, result)}; wrote {path}")
     if args.export:
         _log_exported(seq.export(args.export))
     if args.render:
@@ -750,6 +745,18 @@ def _physics_note(model, stages) -> None:
                else "--no-lengths leaves them so")  # fmt: skip
         _log(f"this model was trained without the physics terms {', '.join(missing)} "
              f"(issue 34): its decoders give edges shorter than rest; {fix}")  # fmt: skip
+
+
+def _throughput(motion, result) -> str:
+    """How long a rollout took, apart from the clip's own frame rate: "animated 274 frames
+    of a 30 fps clip (9.1 s) in 55.0 s (5 frames per second)"."""
+    extra = result.frames - motion.num_frames
+    preroll = f", {extra} frames of preroll more" if extra > 0 else ""
+    return (
+        f"animated {motion.num_frames} frames of a {motion.fps:g} fps clip "
+        f"({motion.num_frames / motion.fps:.1f} s) in {result.seconds:.1f} s "
+        f"({result.frames_per_second:.0f} frames per second{preroll})"
+    )
 
 
 def _stage_line(model, stages, result) -> str:
