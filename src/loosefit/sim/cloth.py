@@ -114,13 +114,15 @@ class ClothConfig:
     # than 5 mm inside the body against 54, edge strain as without arms; docs/DATASET.md).
     # Nothing is cut with arm_collision true, and this does not apply.
     arm_friction: float | None = 0.0
-    # m: after each frame, a cloth vertex deeper than this inside the body (by the winding
-    # number, against each mesh the cloth collides with) is put back on the skin, moving with
-    # it: cloth pinched between two body parts (the thighs crossing in a turning leap, ballet
-    # 05_16) can sink past the contact's reach and stay inside for the rest of the clip
-    # (81 of 122 frames, 6.4 cm deep; four times the reach did not free it). None: never.
-    # Measured there at 0.01 it halves the deep frames but tears the cloth (strain p99
-    # 0.26 -> 13; docs/DATASET.md): off by default.
+    # m: after each frame of the motion, a cloth vertex deeper than this inside the body
+    # (against each mesh the cloth collides with) is put back on the skin of the part it is
+    # in, where it went in, moving with it (TrappedRelease): cloth pinched between two body
+    # parts (the thighs crossing in a turning leap, ballet 05_16) can sink past the
+    # contact's reach and stay inside for the rest of the clip (81 of 122 frames, 6.4 cm
+    # deep; four times the reach did not free it). None: never.
+    # Measured there (docs/DATASET.md), it tears the cloth wherever it puts the vertices
+    # (strain p99 0.26 -> 13-30: to the closest skin, or back where they went in,
+    # TrappedRelease): off by default.
     release_depth: float | None = None
     # A pose that folds into itself (a thigh centimetres into the belly in a deep crouch)
     # makes a lens that ray parity calls outside, and cloth folded into it stays inside the
