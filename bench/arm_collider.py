@@ -48,6 +48,13 @@ def main() -> None:
         help="ClothConfig fields to change (numbers), e.g. overlap_inset=-0.01",
     )
     p.add_argument(
+        "--unfold",
+        nargs="*",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="UnfoldConfig fields to change (numbers), e.g. max_degrees=25",
+    )
+    p.add_argument(
         "--save",
         default=None,
         help="write each window's sequence to SAVE_JOB_START_STOP.npz (loosefit render, "
@@ -60,8 +67,15 @@ def main() -> None:
         if not sep:
             raise SystemExit(f"--set: expected FIELD=VALUE, found {item!r}")
         changes[field] = float(value)
+    unfold = {}
+    for item in args.unfold:
+        field, sep, value = item.partition("=")
+        if not sep:
+            raise SystemExit(f"--unfold: expected FIELD=VALUE, found {item!r}")
+        unfold[field] = float(value)
     torch.set_num_threads(1)
     config = preset(args.preset, args.bvh)
+    config.unfold = dataclasses.replace(config.unfold, **unfold)
     arms = {"true": True, "false": False, "upper": "upper",
             "preset": config.cloth.arm_collision}[args.arms]  # fmt: skip
     jobs = {j.name: j for j in plan_jobs(config)}
@@ -99,7 +113,9 @@ def main() -> None:
         figures["released_frames"] = result.stats.get("released_frames", 0)
         figures["released_vertices"] = result.stats.get("released_vertices", 0)
         figures["seconds"] = round(time.perf_counter() - t0, 1)
-        print(window, f"arm_collision={args.arms}", " ".join(args.set), json.dumps(figures),
+        figures.update({k: v for k, v in motion.meta.get("unfold", {}).items() if np.isscalar(v)})
+        print(window, f"arm_collision={args.arms}", " ".join(args.set + args.unfold),
+              json.dumps(figures),
               flush=True)  # fmt: skip
 
 

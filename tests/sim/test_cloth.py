@@ -286,6 +286,22 @@ def test_a_saved_run_the_release_would_have_changed_starts_over():
     assert _resumed_release(moved, ClothConfig.tiny(), [collider], None, 2, 1 / 30, zero)[0] is None
 
 
+def test_a_field_at_its_value_from_before_it_existed_stays_out_of_the_run_key(tiny, monkeypatch):
+    import loosefit.sim.cloth as cloth
+
+    template = tiny[0]
+    body = np.zeros((3, 10, 3), np.float32)
+    config = ClothConfig.tiny()
+    before = cloth._run_key(body, template, config)
+    monkeypatch.setattr(cloth, "RUN_KEY_SINCE", {"jitter": config.jitter})
+    assert cloth._run_key(body, template, config) != before  # the field left the key
+    other = dataclasses.replace(config, jitter=2 * config.jitter)
+    assert cloth._run_key(body, template, other) != cloth._run_key(body, template, config)
+    # the release never enters it
+    with_release = dataclasses.replace(config, release_depth=0.02)
+    assert cloth._run_key(body, template, with_release) == cloth._run_key(body, template, config)
+
+
 def test_resume_ignores_the_state_of_another_run(avatar, tiny, tmp_path):
     skirt, motion, result, done = tiny
     path = tmp_path / "run.npz"
