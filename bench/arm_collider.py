@@ -29,6 +29,17 @@ from loosefit.sim.cloth import simulate
 from loosefit.sim.generate import job_motion, plan_jobs, preset
 
 
+def _assignments(items: list[str], flag: str) -> dict[str, float]:
+    """FIELD=VALUE arguments as {field: number}."""
+    out = {}
+    for item in items:
+        field, sep, value = item.partition("=")
+        if not sep:
+            raise SystemExit(f"{flag}: expected FIELD=VALUE, found {item!r}")
+        out[field] = float(value)
+    return out
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("windows", nargs="+", help="JOB:START:STOP of the preset's jobs")
@@ -61,18 +72,7 @@ def main() -> None:
         "diagnose and export read it)",
     )
     args = p.parse_args()
-    changes = {}
-    for item in args.set:
-        field, sep, value = item.partition("=")
-        if not sep:
-            raise SystemExit(f"--set: expected FIELD=VALUE, found {item!r}")
-        changes[field] = float(value)
-    unfold = {}
-    for item in args.unfold:
-        field, sep, value = item.partition("=")
-        if not sep:
-            raise SystemExit(f"--unfold: expected FIELD=VALUE, found {item!r}")
-        unfold[field] = float(value)
+    changes, unfold = _assignments(args.set, "--set"), _assignments(args.unfold, "--unfold")
     torch.set_num_threads(1)
     config = preset(args.preset, args.bvh)
     config.unfold = dataclasses.replace(config.unfold, **unfold)

@@ -51,6 +51,7 @@ from loosefit.types import GarmentTemplate, Motion
 
 if TYPE_CHECKING:
     from loosefit.body.avatar import Avatar
+    from loosefit.eval.body_regions import BodyParts
 
 
 class SimulationError(RuntimeError):
@@ -467,11 +468,16 @@ class TrappedRelease:
                  num_vertices: int, depth: float, offset: float) -> None:  # fmt: skip
         from loosefit.geometry.query import Surface
 
-        self.meshes, self.depth, self.offset = meshes, float(depth), float(offset)
+        self.depth, self.offset = float(depth), float(offset)
         faces = np.unique(np.sort(np.concatenate(meshes), axis=1), axis=0, return_index=True)[1]
         faces = np.concatenate(meshes)[np.sort(faces)]  # each triangle once, as first given
-        corner = np.asarray(vertex_part, np.int64)[faces]  # (F, 3)
-        part = np.array([np.bincount(c, minlength=3).argmax() for c in corner])  # majority
+        c = np.asarray(vertex_part, np.int64)[faces]  # (F, 3) each corner's part
+        # the part of most corners (of three different parts, the lowest)
+        part = np.where(
+            c[:, 1] == c[:, 2],
+            c[:, 1],
+            np.where((c[:, 0] == c[:, 1]) | (c[:, 0] == c[:, 2]), c[:, 0], c.min(1)),
+        )
         P = int(np.asarray(vertex_part).max()) + 1
         self.patches = [faces[part == p] for p in range(P)]
         body = np.asarray(body, np.float32)
@@ -559,12 +565,9 @@ def _rows_index(rows: np.ndarray, of: np.ndarray) -> np.ndarray:
     return order[np.searchsorted(ka, kb, sorter=order)]
 
 
-def release_parts(avatar: Avatar, config: ClothConfig) -> np.ndarray:
+def release_parts(parts: BodyParts) -> np.ndarray:
     """(Vb,) int64 the body part of each body vertex for :class:`TrappedRelease`: 0 the
     trunk and head, then each limb of :data:`loosefit.eval.body_regions.LIMBS`."""
-    from loosefit.eval.body_regions import body_parts
-
-    parts = body_parts(avatar, arms=config.colliding_arms)
     out = np.zeros(len(parts.region), np.int64)
     for i, verts in enumerate(parts.limb_vertices.values()):
         out[verts] = i + 1
@@ -1150,8 +1153,12 @@ class Timeline:
     root_pose: np.ndarray
 
 
-def timeline(avatar: Avatar, motion: Motion, config: ClothConfig) -> Timeline:
-    """The body a clip's simulation meets, frame by frame (:class:`Timeline`)."""
+def timeline(
+    avatar: Avatar, motion: Motion, config: ClothConfig, parts: BodyParts | None = None
+) -> Timeline:
+    """The body a clip's simulation meets, frame by frame (:class:`Timeline`); ``parts``:
+    the avatar's :func:`~loosefit.eval.body_regions.body_parts` with the config's arms
+    (built here when needed and not given)."""
     pre_rot, pre_root, n_settle = preroll(
         motion, avatar.floor_height, config.settle_seconds, config.blend_seconds,
         config.settle_at_start,
@@ -1164,14 +1171,19 @@ def timeline(avatar: Avatar, motion: Motion, config: ClothConfig) -> Timeline:
     root_pose = posed.joint_transforms[0, 0].detach().double().cpu().numpy()  # (4, 4)
     collider, pressed, overlap = body, np.zeros(len(body), np.int64), np.zeros(len(body))
     if config.flatten_overlaps:
-        from loosefit.eval.body_regions import body_parts
         from loosefit.sim.overlap import flatten_overlaps
 
-        flat = flatten_overlaps(
-            body, body_parts(avatar, arms=config.colliding_arms), config.overlap_inset
-        )
+        flat = flatten_overlaps(body, parts or collider_parts(avatar, config), config.overlap_inset)
         collider, pressed, overlap = flat.vertices, flat.moved, flat.depth
     return Timeline(body, collider, pressed, overlap, n_settle, len(pre_rot), root_pose)
+
+
+def collider_parts(avatar: Avatar, config: ClothConfig) -> BodyParts:
+    """The avatar's :class:`~loosefit.eval.body_regions.BodyParts` with the arms the cloth
+    meets (what the pressing of overlaps and the release of trapped cloth take)."""
+    from loosefit.eval.body_regions import body_parts
+
+    return body_parts(avatar, arms=config.colliding_arms)
 
 
 def collider_meshes(
@@ -1232,7 +1244,9 @@ def simulate_batch(
     K = len(motions)
 
     # 1. Each body over its whole timeline: settle, blend, motion.
-    lines = [timeline(avatar, motion, config) for motion in motions]
+    needs_parts = config.flatten_overlaps or config.release_depth is not None
+    parts = collider_parts(avatar, config) if needs_parts else None  # once for all clips
+    lines = [timeline(avatar, motion, config, parts) for motion in motions]
     bodies, colliders = [t.body for t in lines], [t.collider for t in lines]
     pressed, overlap = [t.pressed for t in lines], [t.overlap for t in lines]
     n_pre, n_settle = lines[0].n_pre, lines[0].n_settle
@@ -1287,8 +1301,8 @@ def simulate_batch(
     def fresh_releases() -> list[TrappedRelease] | None:
         if config.release_depth is None:
             return None
-        parts = release_parts(avatar, config)
-        return [TrappedRelease(c[0], meshes, parts, template.num_vertices, config.release_depth,
+        where = release_parts(parts)
+        return [TrappedRelease(c[0], meshes, where, template.num_vertices, config.release_depth,
                                config.body_contact_distance) for c in colliders]  # fmt: skip
 
     releases = fresh_releases()

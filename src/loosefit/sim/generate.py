@@ -863,6 +863,7 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
     from loosefit.sim.cloth import (
         TrappedRelease,
         collider_meshes,
+        collider_parts,
         release_parts,
         replay_release,
         timeline,
@@ -870,6 +871,7 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
 
     depth = config.cloth.release_depth
     kept, again = [], []
+    parts = meshes = None  # built once, for the first clip to replay
     for job in jobs:
         entry = manifest["sequences"].get(job.name)
         if entry is None or entry.get("release_depth", depth) == depth:
@@ -877,13 +879,15 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
         path = out / "sequences" / f"{job.name}.npz"
         ok = entry.get("status") == "done" and not entry.get("released_frames") and path.exists()
         if ok and depth is not None:
-            cloth = dataclasses.replace(config.cloth, seed=job.seed)
+            cloth = config.cloth
+            if parts is None:
+                parts, meshes = collider_parts(avatar, cloth), collider_meshes(avatar, cloth)[2]
             motion = job_motion(config, job, avatar)
-            line = timeline(avatar, motion, cloth)
+            line = timeline(avatar, motion, cloth, parts)
             garment = read_sequence(path, template).garment_vertices
             release = TrappedRelease(
-                line.collider[0], collider_meshes(avatar, cloth)[2], release_parts(avatar, cloth),
-                template.num_vertices, depth, cloth.body_contact_distance,
+                line.collider[0], meshes, release_parts(parts), template.num_vertices, depth,
+                cloth.body_contact_distance,
             )  # fmt: skip
             ok = (
                 replay_release(garment, line.collider[line.n_pre :], release, 1.0 / motion.fps) == 0
@@ -953,11 +957,12 @@ def generate(
         if progress and taken:
             tqdm.write(f"reused {len(taken)} clips from {reuse}: {', '.join(taken)}")
     kept, again = _recheck_release(config, jobs, manifest, out, avatar, template)
-    if progress and (kept or again):
-        tqdm.write(f"release_depth changed to {config.cloth.release_depth}: kept "
-                   f"{', '.join(kept) or 'none'} (it never acts on them); simulating again "
-                   f"{', '.join(again) or 'none'}")  # fmt: skip
-    write_json_atomic(out / "manifest.json", manifest)
+    if kept or again:
+        write_json_atomic(out / "manifest.json", manifest)
+        if progress:
+            tqdm.write(f"release_depth changed to {config.cloth.release_depth}: kept "
+                       f"{', '.join(kept) or 'none'} (it never acts on them); simulating "
+                       f"again {', '.join(again) or 'none'}")  # fmt: skip
 
     done = {
         n for n, e in manifest["sequences"].items()
