@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from loosefit.errors import LoosefitInputError
-from loosefit.geometry.cap import boundary_loops, cut_and_cap
+from loosefit.geometry.cap import boundary_loops, cut_and_cap, triangle_keys
 
 
 def _edges_used_twice(faces: np.ndarray) -> bool:
@@ -72,3 +72,12 @@ def test_a_non_manifold_edge_is_an_error():
     f = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
     with pytest.raises(LoosefitInputError, match="manifold"):
         boundary_loops(f)
+
+
+def test_triangle_keys_match_the_same_vertices_in_any_order():
+    a = np.array([[0, 1, 2], [2, 3, 4], [5, 6, 7]])
+    b = np.array([[4, 2, 3], [1, 2, 0], [0, 1, 3]])
+    ka, kb = triangle_keys(a, b)
+    assert ka.dtype == np.int64 and ka.shape == (3,) and kb.shape == (3,)
+    assert kb[0] == ka[1] and kb[1] == ka[0]  # rotated and reflected orders
+    assert kb[2] not in ka and len(set(ka)) == 3

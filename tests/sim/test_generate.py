@@ -519,3 +519,44 @@ def test_keep_poses_simulates_the_capture_as_it_is(tmp_path):
     assert gen.read_config_file(cfg).unfold.enabled is True
     assert main(["simulate", "--preset", "tiny", "--keep-poses", "--write-config", str(cfg)]) == 0
     assert gen.read_config_file(cfg).unfold.enabled is False
+
+
+def test_a_new_pose_correction_keeps_the_clips_whose_motion_it_leaves(
+    tiny_dataset, tmp_path, monkeypatch
+):
+    import shutil
+
+    out = tmp_path / "tiny"
+    shutil.copytree(tiny_dataset[0], out)
+    real, simulated = gen._run_group, []
+
+    def spy(config, jobs, out_dir):
+        simulated.extend(j.name for j in jobs)
+        return real(config, jobs, out_dir)
+
+    monkeypatch.setattr(gen, "_run_group", spy)
+    cfg = gen.preset("tiny")
+    cfg.unfold.deep_degrees = 30.0  # no leg of the tiny clips folds 3.5 cm deep: both kept
+    manifest = gen.generate(cfg, out, workers=1, progress=False)
+    assert simulated == [] and manifest["summary"]["clips_ok"] == 2
+    assert not any("unfold_config" in e for e in manifest["sequences"].values())
+    assert manifest["config"]["unfold"]["deep_degrees"] == 30.0
+
+    # a correction that changes a clip's motion (here: says it does): it is simulated again
+    import loosefit.body.unfold as unfold
+
+    seen = []
+
+    def same(avatar, motion, parts, a, b):
+        seen.append((motion.name, a.max_degrees, b.max_degrees))
+        return "spin" not in motion.name
+
+    monkeypatch.setattr(unfold, "same_correction", same)
+    cfg.unfold.max_degrees = 20.0
+    manifest = gen.generate(cfg, out, workers=1, progress=False)
+    assert simulated == ["spin_001"] and manifest["summary"]["clips_ok"] == 2
+    assert sorted(seen) == [("kick", 10.0, 20.0), ("spin", 10.0, 20.0)]
+    # any other change besides it is another data set
+    cfg.unfold.max_degrees, cfg.cloth.iterations = 25.0, 9
+    with pytest.raises(LoosefitInputError, match=r"another dataset.*cloth"):
+        gen.generate(cfg, out, workers=1, progress=False)

@@ -55,6 +55,14 @@ class UnfoldConfig:
     max_degrees: float = 10.0  # the largest turn of a limb's root joint
     ramp_seconds: float = 0.2  # a turn eases in and out over this
     steps: int = 10  # bisection steps of the angle search (resolution max_degrees / 2^steps)
+    # A deep fold gets a larger cap: for the limbs in ``deep_limbs``, the cap rises linearly
+    # from ``max_degrees`` at a fold ``deep_range[0]`` m deep to ``deep_degrees`` at
+    # ``deep_range[1]`` m and deeper (see :func:`cap_degrees`). A turning leap's thigh goes
+    # 8.9 cm into the hips, and 10 degrees leave the cloth caught there (docs/DATASET.md,
+    # "Turning leaps"). None: the one cap for every fold.
+    deep_degrees: float | None = None
+    deep_range: tuple[float, float] = (0.035, 0.08)
+    deep_limbs: tuple[str, ...] = ("left leg", "right leg")
 
     def __post_init__(self) -> None:
         src = "UnfoldConfig"
@@ -69,6 +77,39 @@ class UnfoldConfig:
             raise LoosefitInputError(src, "max_degrees", "at most 90", repr(self.max_degrees))
         if not (isinstance(self.steps, int) and 1 <= self.steps <= 30):
             raise LoosefitInputError(src, "steps", "an integer from 1 to 30", repr(self.steps))
+        deep = self.deep_degrees
+        if deep is not None and not (
+            isinstance(deep, int | float) and not isinstance(deep, bool)
+            and math.isfinite(deep) and self.max_degrees <= deep <= 90
+        ):  # fmt: skip
+            raise LoosefitInputError(src, "deep_degrees",
+                                     f"None or a number from max_degrees ({self.max_degrees}) "
+                                     "to 90", repr(deep))  # fmt: skip
+        self.deep_range = tuple(self.deep_range)
+        ok = len(self.deep_range) == 2 and all(
+            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+            for x in self.deep_range
+        )
+        if not (ok and 0 <= self.deep_range[0] < self.deep_range[1]):
+            raise LoosefitInputError(src, "deep_range", "two depths in m, 0 <= shallow < deep",
+                                     repr(self.deep_range))  # fmt: skip
+        self.deep_limbs = tuple(self.deep_limbs)
+        unknown = [x for x in self.deep_limbs if x not in LIMB_ROOTS]
+        if unknown:
+            raise LoosefitInputError(src, "deep_limbs", f"limbs among {list(LIMB_ROOTS)}",
+                                     repr(unknown))  # fmt: skip
+
+
+def cap_degrees(config: UnfoldConfig, limb: str, depth: np.ndarray) -> np.ndarray:
+    """(n,) the largest turn of ``limb``'s root joint for folds ``depth`` (n,) m deep:
+    ``config.max_degrees``, rising to ``config.deep_degrees`` over ``config.deep_range`` for
+    the limbs of ``config.deep_limbs``."""
+    depth = np.asarray(depth, np.float64)
+    if config.deep_degrees is None or limb not in config.deep_limbs:
+        return np.full(depth.shape, float(config.max_degrees))
+    shallow, deep = config.deep_range
+    w = np.clip((depth - shallow) / (deep - shallow), 0.0, 1.0)
+    return config.max_degrees + w * (config.deep_degrees - config.max_degrees)
 
 
 @dataclass
@@ -174,11 +215,53 @@ def _clears(sd: np.ndarray, buried: np.ndarray, clearance: float) -> bool:
     return bool(sd[buried].min(initial=np.inf) >= clearance and sd.min() >= 0)
 
 
+def fold_depths(test: LimbTest, body: np.ndarray) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """(T,) m, how deep the limb's skin is inside the rest of the body (Vb, 3) per frame of a
+    posed body (T, Vb, 3) (0 where it is not), and for each frame where it is, which tested
+    vertices are: {t: (n,) bool}."""
+    sds = [test.signed(b)[0] for b in body]
+    depth = np.array([max(0.0, -s.min(initial=0.0)) for s in sds])
+    return depth, {t: s < 0 for t, s in enumerate(sds) if (s < 0).any()}
+
+
+# The fields that decide how far a folded frame may turn, and nothing else.
+CAP_FIELDS = ("max_degrees", "deep_degrees", "deep_range", "deep_limbs")
+
+
+def same_correction(avatar, motion: Motion, parts: BodyParts, a: UnfoldConfig,
+                    b: UnfoldConfig) -> bool:  # fmt: skip
+    """Whether :func:`unfold_motion` corrects ``motion`` the same under ``a`` and ``b``,
+    without running either (the angle search is most of its time).
+
+    The limbs are turned independently, each by an angle found for its folded frames up to
+    the cap of that frame. Two configurations that differ only in :data:`CAP_FIELDS` give
+    the same motion when every folded frame of every limb gets the same cap under both.
+    Configurations that differ in anything else are taken as different.
+    """
+    if not (a.enabled or b.enabled):
+        return True
+    if any(getattr(a, f) != getattr(b, f) for f in ("enabled", "clearance", "ramp_seconds",
+                                                     "steps")):  # fmt: skip
+        return False
+    avatar.check_motion(motion)
+    rest = avatar.rest_vertices.double().cpu().numpy()
+    with torch.no_grad():
+        posed = avatar.pose(torch.from_numpy(motion.rotations),
+                            torch.from_numpy(motion.root_translation))  # fmt: skip
+    body = posed.vertices.double().cpu().numpy()
+    for limb in (limb for limb in parts.limb_vertices if parts.limb_collides[limb]):
+        depth, buried = fold_depths(LimbTest(parts, limb, rest), body)
+        d = depth[np.array(sorted(buried), np.int64)]
+        if not np.array_equal(cap_degrees(a, limb, d), cap_degrees(b, limb, d)):
+            return False
+    return True
+
+
 def unfold_motion(
     avatar, motion: Motion, parts: BodyParts, config: UnfoldConfig | None = None
 ) -> Unfolded:
     """Turn every colliding limb that is inside the rest of the body out of it, at most
-    ``config.max_degrees`` at its root joint.
+    ``config.max_degrees`` at its root joint (more for deep folds: :func:`cap_degrees`).
 
     Args:
         avatar: the :class:`~loosefit.body.avatar.Avatar` the motion is on.
@@ -214,11 +297,11 @@ def unfold_motion(
                                      repr(limb))  # fmt: skip
         test = tests[limb] = LimbTest(parts, limb, rest)
         j = names.index(LIMB_ROOTS[limb])
-        sds = [test.signed(body[t])[0] for t in range(T)]
-        depth_before = np.maximum(depth_before, [max(0.0, -s.min(initial=0.0)) for s in sds])
-        buried = {t: s < 0 for t, s in enumerate(sds) if (s < 0).any()}
+        depth, buried = fold_depths(test, body)
+        depth_before = np.maximum(depth_before, depth)
         folded = np.array(sorted(buried), np.int64)
-        if not len(folded) or config.max_degrees <= 0:
+        cap = np.radians(cap_degrees(config, limb, depth[folded]))
+        if not len(folded) or not cap.any():
             continue
         G = world_rotations(R[folded], parents)  # (n, J, 3, 3)
         axes = np.zeros((T, 3))  # each folded frame's turn axis, in the parent joint's frame
@@ -226,7 +309,7 @@ def unfold_motion(
             axes[t] = G[i, parents[j]].T @ fastest_axis(test, body[t], joints[t, j],
                                                         config.clearance)  # fmt: skip
         # the smallest angle that clears, by bisection between 0 and the cap
-        lo, hi = np.zeros(len(folded)), np.full(len(folded), math.radians(config.max_degrees))
+        lo, hi = np.zeros(len(folded)), cap
         for _ in range(config.steps):
             mid = 0.5 * (lo + hi)
             r = R[folded].copy()

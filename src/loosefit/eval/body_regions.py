@@ -188,10 +188,9 @@ class BodyParts:
 
 def _rows_in(faces: np.ndarray, others: np.ndarray) -> np.ndarray:
     """(F,) bool: which triangles of ``faces`` (F, 3) are among ``others`` (F', 3), as sets."""
-    a, b = np.sort(faces, axis=1), np.sort(others, axis=1)
-    n = int(max(a.max(initial=0), b.max(initial=0))) + 1
-    key = np.array([1, n, n * n], np.int64)  # one int64 per triangle (n < 2M vertices)
-    return np.isin(a @ key, b @ key)
+    from loosefit.geometry.cap import triangle_keys
+
+    return np.isin(*triangle_keys(faces, others))
 
 
 def vertex_regions(

@@ -7,6 +7,15 @@ import numpy as np
 from loosefit.errors import LoosefitInputError
 
 
+def triangle_keys(*faces: np.ndarray) -> list[np.ndarray]:
+    """One int64 per triangle of each (F_i, 3) array, equal for the same three vertices in any
+    order (fewer than 2M vertices): [(F_i,) int64], to match triangles across meshes."""
+    rows = [np.sort(np.asarray(f, np.int64), axis=1) for f in faces]
+    n = max(int(r.max(initial=0)) for r in rows) + 1
+    key = np.array([1, n, n * n], np.int64)
+    return [r @ key for r in rows]
+
+
 def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     """The holes of a triangle mesh, each as a loop of vertex indices.
 

@@ -174,20 +174,6 @@ class ClothConfig:
         if self.arm_collision not in (False, True, "upper"):
             raise LoosefitInputError(src, "arm_collision", "false, true or 'upper'",
                                      repr(self.arm_collision))  # fmt: skip
-        if self.arm_friction is not None and not (
-            isinstance(self.arm_friction, int | float)
-            and math.isfinite(self.arm_friction)
-            and self.arm_friction >= 0
-        ):
-            raise LoosefitInputError(src, "arm_friction", "None or a finite number >= 0",
-                                     repr(self.arm_friction))  # fmt: skip
-        if self.release_depth is not None and not (
-            isinstance(self.release_depth, int | float)
-            and math.isfinite(self.release_depth)
-            and self.release_depth > 0
-        ):
-            raise LoosefitInputError(src, "release_depth", "None or a finite number > 0",
-                                     repr(self.release_depth))  # fmt: skip
         if self.max_substeps < self.substeps:
             raise LoosefitInputError(
                 src, "max_substeps", f">= substeps ({self.substeps})", repr(self.max_substeps)
@@ -206,14 +192,18 @@ class ClothConfig:
             "self_contact_margin", "self_contact_gap", "self_contact_rest_exclusion",
             "settle_seconds", "blend_seconds",
         )  # fmt: skip
-        if self.waist_offset is not None:
-            nonnegative += ("waist_offset",)
+        optional = ("waist_offset", "arm_friction", "release_depth")  # None: off
+        positive += tuple(n for n in ("release_depth",) if getattr(self, n) is not None)
+        nonnegative += tuple(n for n in ("waist_offset", "arm_friction")
+                             if getattr(self, n) is not None)  # fmt: skip
         for name in positive + nonnegative:
             value = getattr(self, name)
-            low_ok = value > 0 if name in positive else value >= 0
-            if not (isinstance(value, int | float) and math.isfinite(value) and low_ok):
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            low_ok = ok and (value > 0 if name in positive else value >= 0)
+            if not (low_ok and math.isfinite(value)):
                 want = "a finite number > 0" if name in positive else "a finite number >= 0"
-                raise LoosefitInputError(src, name, want, repr(value))
+                raise LoosefitInputError(src, name, ("None or " if name in optional else "")
+                                         + want, repr(value))  # fmt: skip
         if self.self_contact and self.self_contact_margin + self.self_contact_gap <= 0:
             raise LoosefitInputError(
                 src, "self_contact_margin + self_contact_gap", "> 0 with self_contact on", "0"
@@ -557,10 +547,9 @@ class TrappedRelease:
 
 def _rows_index(rows: np.ndarray, of: np.ndarray) -> np.ndarray:
     """(F',) index into ``rows`` (F, 3) of each triangle of ``of`` (F', 3), as sets."""
-    a, b = np.sort(rows, axis=1), np.sort(of, axis=1)
-    n = int(max(a.max(initial=0), b.max(initial=0))) + 1
-    key = np.array([1, n, n * n], np.int64)
-    ka, kb = a @ key, b @ key
+    from loosefit.geometry.cap import triangle_keys
+
+    ka, kb = triangle_keys(rows, of)
     order = np.argsort(ka)
     return order[np.searchsorted(ka, kb, sorter=order)]
 

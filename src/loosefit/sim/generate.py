@@ -162,7 +162,7 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
       and modern dance clips of ``cmu-ballet`` beside the salsa folder (three held out,
       :data:`BALLET_TEST`), with the arms colliding (the cloth defaults of the day);
       mirrored at training time (``--mirror``). About 12,500 frames: some 10 hours of
-      one CPU core, minutes on a GPU.
+      one CPU core, about 8 minutes of an H100 (docs/BENCHMARKS.md).
     * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
       salsa plus procedural dances; meant for a GPU.
     * ``dress-tiny``: ``tiny`` with a coarse strapless dress, for tests.
@@ -221,6 +221,9 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
         return DatasetConfig(
             preset=name,
             garment=SkirtConfig.preset("cpu", "flared"),
+            # a leap's thigh goes up to 8.8 cm into the hips: the hip turns up to 30 degrees
+            # for such folds (10 for those under 3.5 cm, every salsa clip's but 60_04's)
+            unfold=UnfoldConfig(deep_degrees=30.0),
             motions=MotionSource(
                 kind="bvh",
                 folder=salsa,
@@ -439,15 +442,22 @@ def job_motion(config: DatasetConfig, job: Job, avatar, unfold: bool = True):
     if not (unfold and config.unfold.enabled):
         return motion
     from loosefit.body.unfold import unfold_motion
+
+    done = unfold_motion(avatar, motion, _limb_parts(config, avatar), config.unfold)
+    done.motion.meta["unfold"] = done.stats()
+    return done.motion
+
+
+def _limb_parts(config: DatasetConfig, avatar):
+    """The body parts the pose correction tests, built once per avatar and collider (a few
+    seconds)."""
     from loosefit.eval.body_regions import body_parts
 
     arms = config.cloth.colliding_arms
     known = _PARTS.setdefault(avatar, {})
-    if arms not in known:  # built once per avatar and collider (a few seconds)
+    if arms not in known:
         known[arms] = body_parts(avatar, arms=arms)
-    done = unfold_motion(avatar, motion, known[arms], config.unfold)
-    done.motion.meta["unfold"] = done.stats()
-    return done.motion
+    return known[arms]
 
 
 # job_motion's body parts, per avatar and arm collision
@@ -749,6 +759,12 @@ def _open_manifest(config: DatasetConfig, out: Path) -> dict:
             for entry in manifest["sequences"].values():
                 for k, v in net.items():
                     entry.setdefault(k, v)
+        # A change of the pose correction alone keeps the clips whose motion it leaves as it
+        # was (generate checks each; see _recheck_unfold): each entry notes what made it.
+        if old.get("unfold") != cfg.get("unfold"):
+            for entry in manifest["sequences"].values():
+                entry.setdefault("unfold_config", old["unfold"])
+            old = {**old, "unfold": cfg["unfold"]}
         if manifest.get("format") != FORMAT or old != cfg:
             diff = sorted(k for k in set(old) | set(cfg) if old.get(k) != cfg.get(k))
             raise LoosefitInputError(
@@ -902,6 +918,40 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
     return kept, again
 
 
+def _recheck_unfold(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Path,
+                    avatar) -> tuple[list[str], list[str]]:  # fmt: skip
+    """Clips simulated under another pose correction, kept or to simulate again.
+
+    A clip whose entry notes another ``unfold_config`` (:func:`_open_manifest`) is the clip
+    this configuration makes when both corrections give it the same motion, frame for frame
+    (:func:`~loosefit.body.unfold.same_correction`: a cap raised for deep folds leaves a clip
+    without them as it was). Such a clip is kept (a flagged one stays flagged: the simulation
+    is deterministic); any other is removed, to be simulated again.
+
+    Returns:
+        The names of the clips kept and of those removed.
+    """
+    from loosefit.body.unfold import same_correction
+
+    kept, again = [], []
+    known = {f.name for f in dataclasses.fields(UnfoldConfig)}
+    for job in jobs:
+        entry = manifest["sequences"].get(job.name)
+        if entry is None or "unfold_config" not in entry:
+            continue
+        stored = UnfoldConfig(**{k: v for k, v in entry["unfold_config"].items() if k in known})
+        motion = job_motion(config, job, avatar, unfold=False)
+        parts = _limb_parts(config, avatar)
+        if same_correction(avatar, motion, parts, stored, config.unfold):
+            del entry["unfold_config"]
+            kept.append(job.name)
+        else:
+            del manifest["sequences"][job.name]
+            (out / "sequences" / f"{job.name}.npz").unlink(missing_ok=True)
+            again.append(job.name)
+    return kept, again
+
+
 def generate(
     config: DatasetConfig,
     out_dir: str | Path,
@@ -956,6 +1006,14 @@ def generate(
         taken = adopt_clips(config, jobs, manifest, out, Path(reuse))
         if progress and taken:
             tqdm.write(f"reused {len(taken)} clips from {reuse}: {', '.join(taken)}")
+    kept, again = _recheck_unfold(config, jobs, manifest, out, avatar)
+    if kept or again:
+        write_json_atomic(out / "manifest.json", manifest)
+        if progress:
+            tqdm.write(
+                f"the pose correction changed: kept {', '.join(kept) or 'none'} (their "
+                f"motion is the same); simulating again {', '.join(again) or 'none'}"
+            )
     kept, again = _recheck_release(config, jobs, manifest, out, avatar, template)
     if kept or again:
         write_json_atomic(out / "manifest.json", manifest)
