@@ -17,18 +17,26 @@ def pipeline(work: Path, out: Path, budget: float) -> subprocess.CompletedProces
 
 def test_the_pipeline_runs_in_budgeted_calls_and_brings_back_the_model(tmp_path):
     work, out = tmp_path / "work", tmp_path / "out"
-    # A call too short for the whole pipeline stops inside a step and says to call again.
-    first = pipeline(work, out, 45)
+    # A call too short for the whole pipeline stops (inside a step or before the next one)
+    # and says to call again, having brought back what there is. No figure of speed: the
+    # calls go on until the pipeline is done, however fast this machine is.
+    first = pipeline(work, out, 25)
     assert first.returncode == 3, first.stdout + first.stderr
     assert "call again" in first.stdout
-    assert (work / "simulate.done").is_file()  # the simulation fits in 35 s; training does not
-    assert (out / "manifest.json").is_file() and (out / "logs.txt").is_file()
-    # The next call goes on from there (the simulation is not run again) to the end.
-    second = pipeline(work, out, 600)
-    assert second.returncode == 0, second.stdout + second.stderr
-    assert "simulate (" not in second.stdout and second.stdout.strip().endswith("done")
-    for name in ("model/generative.pt", "model/motion.pt", "table1.md", "table3.md",
-                 "generative_report.md", "motion_report.md", "BATCH_INFERENCE.md"):  # fmt: skip
+    assert (out / "logs.txt").is_file()
+    for _ in range(12):  # each call resumes where the last stopped
+        simulated = (work / "simulate.done").is_file()
+        call = pipeline(work, out, 300)
+        assert call.returncode in (0, 3), call.stdout + call.stderr
+        if simulated:  # a finished step is never run again
+            assert "simulate (" not in call.stdout
+        if call.returncode == 0:
+            break
+        assert "call again" in call.stdout
+    assert call.returncode == 0 and call.stdout.strip().endswith("done"), call.stdout
+    for name in ("manifest.json", "model/generative.pt", "model/motion.pt", "table1.md",
+                 "table3.md", "generative_report.md", "motion_report.md",
+                 "BATCH_INFERENCE.md"):  # fmt: skip
         path = out / name
         assert path.is_file() and path.stat().st_size < 16 * 2**20, name
     assert "spin_001" in (out / "table1.md").read_text()

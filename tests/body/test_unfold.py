@@ -9,9 +9,9 @@ from loosefit.body.rotations import axis_angle_to_matrix, rotation_angle
 from loosefit.body.unfold import (
     LimbTest,
     UnfoldConfig,
-    cap_degrees,
     ease,
     fastest_axis,
+    motion_cap,
     same_correction,
     unfold_motion,
     world_rotations,
@@ -114,30 +114,29 @@ def test_a_shallow_fold_is_cleared_with_room_to_spare(avatar, parts):
     assert 0 < done.degrees.max() < 60.0  # the smallest turn, not the cap
 
 
-def test_the_cap_rises_with_the_fold_depth_for_the_legs_alone():
-    config = UnfoldConfig(max_degrees=10.0, deep_degrees=30.0, deep_range=(0.035, 0.08))
-    depth = np.array([0.0, 0.035, 0.0575, 0.08, 0.2])
-    np.testing.assert_allclose(cap_degrees(config, "left leg", depth), [10, 10, 20, 30, 30])
-    np.testing.assert_allclose(cap_degrees(config, "right arm", depth), 10.0)
-    np.testing.assert_allclose(cap_degrees(UnfoldConfig(), "left leg", depth), 10.0)
+def test_a_motion_with_a_deep_leg_fold_gets_the_deep_cap_for_every_limb():
+    config = UnfoldConfig(max_degrees=10.0, deep_degrees=30.0, deep_depth=0.05)
+    assert motion_cap(config, {"left leg": 0.06, "right arm": 0.0}) == 30.0
+    assert motion_cap(config, {"left leg": 0.05, "right arm": 0.09}) == 10.0  # arms don't count
+    assert motion_cap(UnfoldConfig(), {"left leg": 0.09}) == 10.0  # deep_degrees None
 
 
-def test_a_deep_fold_is_turned_further_than_a_shallow_one_may_be(avatar, parts):
+def test_a_deep_fold_is_turned_as_the_deep_cap_would_turn_it(avatar, parts):
     motion = knee_lift(avatar, 140.0, still=15)  # 6.7 cm into the belly at the top
     flat = unfold_motion(avatar, motion, parts, UnfoldConfig(max_degrees=10.0))
-    config = UnfoldConfig(max_degrees=10.0, deep_degrees=30.0)
-    deep = unfold_motion(avatar, motion, parts, config)
-    cap = cap_degrees(config, "left leg", deep.depth_before)
-    assert 10.0 + 1 < deep.degrees.max() <= cap.max() + 1e-6
+    deep = unfold_motion(avatar, motion, parts, UnfoldConfig(max_degrees=10.0, deep_degrees=30.0))
+    assert 10.0 + 1 < deep.degrees.max() <= 30.0 + 1e-6
     assert deep.depth_after.max() < flat.depth_after.max() - 0.01
     np.testing.assert_array_equal(deep.depth_before, flat.depth_before)
+    thirty = unfold_motion(avatar, motion, parts, UnfoldConfig(max_degrees=30.0))
+    np.testing.assert_array_equal(deep.motion.rotations, thirty.motion.rotations)
 
 
 def test_same_correction_tells_whether_two_caps_change_a_motion(avatar, parts):
     base, deep = UnfoldConfig(), UnfoldConfig(deep_degrees=30.0)
     shallow = knee_lift(avatar, 100.0)
-    assert 0.01 < unfold_motion(avatar, shallow, parts).depth_before.max() < 0.035
-    assert same_correction(avatar, shallow, parts, base, deep)  # no fold reaches 3.5 cm
+    assert 0.01 < unfold_motion(avatar, shallow, parts).depth_before.max() < 0.05
+    assert same_correction(avatar, shallow, parts, base, deep)  # no fold reaches 5 cm
     np.testing.assert_array_equal(
         unfold_motion(avatar, shallow, parts, base).motion.rotations,
         unfold_motion(avatar, shallow, parts, deep).motion.rotations,
@@ -155,7 +154,7 @@ def test_the_configuration_is_checked():
     for bad in ({"max_degrees": -1.0}, {"max_degrees": 120.0}, {"clearance": float("nan")},
                 {"steps": 0}, {"enabled": "yes"}, {"ramp_seconds": True},
                 {"deep_degrees": 5.0}, {"deep_degrees": 95.0}, {"deep_degrees": float("inf")},
-                {"deep_range": (0.08, 0.03)}, {"deep_range": (0.03,)},
+                {"deep_depth": -0.01}, {"deep_depth": float("nan")},
                 {"deep_limbs": ("tail",)}):  # fmt: skip
         with pytest.raises(LoosefitInputError, match="UnfoldConfig"):
             UnfoldConfig(**bad)

@@ -55,14 +55,13 @@ class UnfoldConfig:
     max_degrees: float = 10.0  # the largest turn of a limb's root joint
     ramp_seconds: float = 0.2  # a turn eases in and out over this
     steps: int = 10  # bisection steps of the angle search (resolution max_degrees / 2^steps)
-    # A deep fold gets a larger cap: for the limbs in ``deep_limbs``, the cap rises linearly
-    # from ``max_degrees`` at a fold ``deep_range[0]`` m deep to ``deep_degrees`` at
-    # ``deep_range[1]`` m and deeper (see :func:`cap_degrees`). A turning leap's thigh goes
-    # 8.9 cm into the hips, and 10 degrees leave the cloth caught there (docs/DATASET.md,
-    # "Turning leaps"). None: the one cap for every fold.
+    # A motion whose legs fold deeper than ``deep_depth`` (m) into the rest of the body (a
+    # leap's thigh 8.6 cm into the hips) may turn every limb up to ``deep_degrees``: 10
+    # degrees leave the cloth caught between the thighs there, from the shallower frames
+    # around the deepest on (docs/DATASET.md, "Turning leaps"). None: ``max_degrees`` always.
     deep_degrees: float | None = None
-    deep_range: tuple[float, float] = (0.035, 0.08)
-    deep_limbs: tuple[str, ...] = ("left leg", "right leg")
+    deep_depth: float = 0.05
+    deep_limbs: tuple[str, ...] = ("left leg", "right leg")  # the limbs whose folds count
 
     def __post_init__(self) -> None:
         src = "UnfoldConfig"
@@ -85,14 +84,10 @@ class UnfoldConfig:
             raise LoosefitInputError(src, "deep_degrees",
                                      f"None or a number from max_degrees ({self.max_degrees}) "
                                      "to 90", repr(deep))  # fmt: skip
-        self.deep_range = tuple(self.deep_range)
-        ok = len(self.deep_range) == 2 and all(
-            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
-            for x in self.deep_range
-        )
-        if not (ok and 0 <= self.deep_range[0] < self.deep_range[1]):
-            raise LoosefitInputError(src, "deep_range", "two depths in m, 0 <= shallow < deep",
-                                     repr(self.deep_range))  # fmt: skip
+        d = self.deep_depth
+        if not (isinstance(d, int | float) and not isinstance(d, bool) and math.isfinite(d)
+                and d >= 0):  # fmt: skip
+            raise LoosefitInputError(src, "deep_depth", "a finite depth in m >= 0", repr(d))
         self.deep_limbs = tuple(self.deep_limbs)
         unknown = [x for x in self.deep_limbs if x not in LIMB_ROOTS]
         if unknown:
@@ -100,16 +95,16 @@ class UnfoldConfig:
                                      repr(unknown))  # fmt: skip
 
 
-def cap_degrees(config: UnfoldConfig, limb: str, depth: np.ndarray) -> np.ndarray:
-    """(n,) the largest turn of ``limb``'s root joint for folds ``depth`` (n,) m deep:
-    ``config.max_degrees``, rising to ``config.deep_degrees`` over ``config.deep_range`` for
-    the limbs of ``config.deep_limbs``."""
-    depth = np.asarray(depth, np.float64)
-    if config.deep_degrees is None or limb not in config.deep_limbs:
-        return np.full(depth.shape, float(config.max_degrees))
-    shallow, deep = config.deep_range
-    w = np.clip((depth - shallow) / (deep - shallow), 0.0, 1.0)
-    return config.max_degrees + w * (config.deep_degrees - config.max_degrees)
+def motion_cap(config: UnfoldConfig, deepest: dict[str, float]) -> float:
+    """The largest turn, in degrees, of any limb's root joint in a motion whose limbs fold at
+    most ``deepest`` ({limb: m}) into the rest of the body: ``config.deep_degrees`` when a
+    limb of ``config.deep_limbs`` folds deeper than ``config.deep_depth``, else
+    ``config.max_degrees``."""
+    if config.deep_degrees is not None and any(
+        deepest.get(limb, 0.0) > config.deep_depth for limb in config.deep_limbs
+    ):
+        return float(config.deep_degrees)
+    return float(config.max_degrees)
 
 
 @dataclass
@@ -225,7 +220,7 @@ def fold_depths(test: LimbTest, body: np.ndarray) -> tuple[np.ndarray, dict[int,
 
 
 # The fields that decide how far a folded frame may turn, and nothing else.
-CAP_FIELDS = ("max_degrees", "deep_degrees", "deep_range", "deep_limbs")
+CAP_FIELDS = ("max_degrees", "deep_degrees", "deep_depth", "deep_limbs")
 
 
 def same_correction(avatar, motion: Motion, parts: BodyParts, a: UnfoldConfig,
@@ -233,9 +228,9 @@ def same_correction(avatar, motion: Motion, parts: BodyParts, a: UnfoldConfig,
     """Whether :func:`unfold_motion` corrects ``motion`` the same under ``a`` and ``b``,
     without running either (the angle search is most of its time).
 
-    The limbs are turned independently, each by an angle found for its folded frames up to
-    the cap of that frame. Two configurations that differ only in :data:`CAP_FIELDS` give
-    the same motion when every folded frame of every limb gets the same cap under both.
+    Every limb is turned by angles found for its folded frames up to one cap for the whole
+    motion (:func:`motion_cap`). Two configurations that differ only in :data:`CAP_FIELDS`
+    give the same motion when they give it the same cap, or when no limb folds at all.
     Configurations that differ in anything else are taken as different.
     """
     if not (a.enabled or b.enabled):
@@ -249,19 +244,19 @@ def same_correction(avatar, motion: Motion, parts: BodyParts, a: UnfoldConfig,
         posed = avatar.pose(torch.from_numpy(motion.rotations),
                             torch.from_numpy(motion.root_translation))  # fmt: skip
     body = posed.vertices.double().cpu().numpy()
-    for limb in (limb for limb in parts.limb_vertices if parts.limb_collides[limb]):
-        depth, buried = fold_depths(LimbTest(parts, limb, rest), body)
-        d = depth[np.array(sorted(buried), np.int64)]
-        if not np.array_equal(cap_degrees(a, limb, d), cap_degrees(b, limb, d)):
-            return False
-    return True
+    deepest = {
+        limb: float(fold_depths(LimbTest(parts, limb, rest), body)[0].max(initial=0.0))
+        for limb in parts.limb_vertices if parts.limb_collides[limb]
+    }  # fmt: skip
+    return not any(deepest.values()) or motion_cap(a, deepest) == motion_cap(b, deepest)
 
 
 def unfold_motion(
     avatar, motion: Motion, parts: BodyParts, config: UnfoldConfig | None = None
 ) -> Unfolded:
     """Turn every colliding limb that is inside the rest of the body out of it, at most
-    ``config.max_degrees`` at its root joint (more for deep folds: :func:`cap_degrees`).
+    ``config.max_degrees`` at its root joint (more in a motion with deep folds:
+    :func:`motion_cap`).
 
     Args:
         avatar: the :class:`~loosefit.body.avatar.Avatar` the motion is on.
@@ -290,18 +285,19 @@ def unfold_motion(
     out, degrees = R.copy(), np.zeros(T)
     depth_before = np.zeros(T)
     radius = int(round(config.ramp_seconds * motion.fps))
-    tests = {}
+    tests, folds = {}, {}
     for limb in (limb for limb in parts.limb_vertices if parts.limb_collides[limb]):
         if limb not in LIMB_ROOTS:
             raise LoosefitInputError("unfold_motion", "parts", f"limbs among {list(LIMB_ROOTS)}",
                                      repr(limb))  # fmt: skip
-        test = tests[limb] = LimbTest(parts, limb, rest)
-        j = names.index(LIMB_ROOTS[limb])
-        depth, buried = fold_depths(test, body)
-        depth_before = np.maximum(depth_before, depth)
+        tests[limb] = LimbTest(parts, limb, rest)
+        folds[limb] = fold_depths(tests[limb], body)
+        depth_before = np.maximum(depth_before, folds[limb][0])
+    cap = math.radians(motion_cap(config, {k: d.max(initial=0.0) for k, (d, _) in folds.items()}))
+    for limb, (_, buried) in folds.items():
+        test, j = tests[limb], names.index(LIMB_ROOTS[limb])
         folded = np.array(sorted(buried), np.int64)
-        cap = np.radians(cap_degrees(config, limb, depth[folded]))
-        if not len(folded) or not cap.any():
+        if not len(folded) or cap <= 0:
             continue
         G = world_rotations(R[folded], parents)  # (n, J, 3, 3)
         axes = np.zeros((T, 3))  # each folded frame's turn axis, in the parent joint's frame
@@ -309,7 +305,7 @@ def unfold_motion(
             axes[t] = G[i, parents[j]].T @ fastest_axis(test, body[t], joints[t, j],
                                                         config.clearance)  # fmt: skip
         # the smallest angle that clears, by bisection between 0 and the cap
-        lo, hi = np.zeros(len(folded)), cap
+        lo, hi = np.zeros(len(folded)), np.full(len(folded), cap)
         for _ in range(config.steps):
             mid = 0.5 * (lo + hi)
             r = R[folded].copy()

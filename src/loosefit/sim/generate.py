@@ -221,8 +221,9 @@ def preset(name: str, bvh_folder: str | None = None) -> DatasetConfig:
         return DatasetConfig(
             preset=name,
             garment=SkirtConfig.preset("cpu", "flared"),
-            # a leap's thigh goes up to 8.8 cm into the hips: the hip turns up to 30 degrees
-            # for such folds (10 for those under 3.5 cm, every salsa clip's but 60_04's)
+            # a leap's thigh goes up to 8.8 cm into the hips: a clip whose legs fold deeper
+            # than 5 cm turns its limbs up to 30 degrees (10 ballet clips; no salsa clip,
+            # whose legs fold 4.9 cm at most)
             unfold=UnfoldConfig(deep_degrees=30.0),
             motions=MotionSource(
                 kind="bvh",
