@@ -84,3 +84,64 @@ def test_motion_from_bvh(tmp_path, avatar):
     assert main(["motion", str(SALSA / "61_01.bvh"), "--out", str(out), "--max-frames", "60"]) == 0
     m = Motion.load(out)
     assert m.num_frames == 60 and m.fps == 30.0 and m.joint_names == avatar.joint_names
+
+
+def test_inspect_motion_prints_the_matches(tmp_path, capsys, avatar):
+    import dataclasses
+
+    from loosefit.body.motions import load_motion
+    from tests.body.bvh_conventions import CONVENTIONS, write_convention_bvh
+
+    motion = load_motion("spin", avatar).slice(0, 12)
+    path = write_convention_bvh(tmp_path / "mixamo.bvh", CONVENTIONS["mixamo"], avatar.skeleton,
+                                motion, avatar.floor_height)  # fmt: skip
+    assert main(["inspect-motion", str(path)]) == 0
+    out = capsys.readouterr().out
+    parts = ("frames: 12 at 30 fps", "units: cm (guessed", "dancer: 1.", "joints (27):",
+             "joint map: auto-matched", "mixamorig:HeadTop_End",
+             "source joints not used")  # fmt: skip
+    for part in parts:
+        assert part in out, part
+    rows = {line.split()[0]: line.split()[1:] for line in out.splitlines()[1:] if line.strip()}
+    assert rows["LeftUpLeg"] == ["mixamorig:LeftUpLeg", "name"]
+    assert rows["Spine1"] == ["mixamorig:Spine2", "name"]
+    # --units and --scale as for every motion command
+    assert main(["inspect-motion", str(path), "--units", "m"]) == 0
+    assert "outside 1.2-2.2 m" in capsys.readouterr().out
+    # A skeleton it cannot map: the joints, then the error.
+    keep = {a: s for a, s in CONVENTIONS["mixamo"].joints.items() if "Right" not in a}
+    half = dataclasses.replace(CONVENTIONS["mixamo"], joints=keep, extras=[])
+    path = write_convention_bvh(tmp_path / "half.bvh", half, avatar.skeleton, motion,
+                                avatar.floor_height)  # fmt: skip
+    assert main(["inspect-motion", str(path)]) == 2
+    captured = capsys.readouterr()
+    assert "mixamorig:LeftUpLeg" in captured.out and "RightUpLeg" in captured.err
+
+
+def test_motion_takes_a_joint_map_file(tmp_path, capsys, avatar):
+    import dataclasses
+
+    from loosefit.body.motions import load_motion
+    from loosefit.types import Motion
+    from tests.body.bvh_conventions import NAMELESS, write_convention_bvh
+
+    names = {a: f"Knochen{i}" for i, a in enumerate(NAMELESS.joints)}  # made-up names
+    conv = dataclasses.replace(NAMELESS, joints=names, up="+z", forward="-y")
+    motion = load_motion("kick", avatar).slice(0, 10)
+    bvh = write_convention_bvh(tmp_path / "k.bvh", conv, avatar.skeleton, motion,
+                               avatar.floor_height)  # fmt: skip
+    mapping = tmp_path / "k.yaml"
+    mapping.write_text("".join(f"{a}: {s}\n" for a, s in names.items())
+                       + "source_up: +z\nsource_forward: -y\n")  # fmt: skip
+    out = tmp_path / "k.npz"
+    assert main(["motion", str(bvh), "--out", str(out), "--joint-map", str(mapping)]) == 0
+    assert Motion.load(out).num_frames == 10
+    capsys.readouterr()
+    assert main(["inspect-motion", str(bvh), "--joint-map", str(mapping)]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()]
+    assert ["LeftUpLeg", "Knochen2", "map", "file"] in rows
+    # A typo in the file names the file and the key.
+    mapping.write_text("Hips: Knochen0\nLeftUpleg: Knochen2\n")
+    assert main(["motion", str(bvh), "--out", str(out), "--joint-map", str(mapping)]) == 2
+    err = capsys.readouterr().err
+    assert "k.yaml" in err and "LeftUpleg" in err and "did you mean LeftUpLeg" in err

@@ -32,7 +32,7 @@ def pretrained_checkpoint() -> Path:
 
 
 def motion_for(spec: str | Path | Motion, avatar, fps: float, frames: int | None = None,
-               start_frame: int = 0, seed: int = 0) -> Motion:  # fmt: skip
+               start_frame: int = 0, seed: int = 0, retarget=None) -> Motion:  # fmt: skip
     """A motion on the avatar's skeleton at ``fps``, ``frames`` long (played again if longer).
 
     Args:
@@ -44,6 +44,8 @@ def motion_for(spec: str | Path | Motion, avatar, fps: float, frames: int | None
         frames: frames to keep (more than the motion has: it plays again); None: all.
         start_frame: drop the frames before this one.
         seed: seeds procedural motions.
+        retarget: how a BVH file is read and mapped
+            (:class:`~loosefit.body.retarget.RetargetConfig`; default: its defaults).
     """
     from loosefit.body.chain import chain_motions
     from loosefit.body.motions import load_motion
@@ -55,7 +57,8 @@ def motion_for(spec: str | Path | Motion, avatar, fps: float, frames: int | None
                                      f"{spec.fps:g}", hint="resample it")  # fmt: skip
         motion = spec.slice(start_frame, spec.num_frames)
     else:
-        motion = load_motion(spec, avatar, fps=fps, seed=seed, start_frame=start_frame)
+        motion = load_motion(spec, avatar, fps=fps, seed=seed, retarget=retarget,
+                             start_frame=start_frame)  # fmt: skip
     if frames is not None:
         if frames < 1:
             raise LoosefitInputError("frames", "frames", "at least 1", frames)

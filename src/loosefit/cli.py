@@ -4,6 +4,7 @@ Subcommands:
     demo     pose the avatar with a procedural dance, dress it, write a video
     render   render a motion (BVH, saved or procedural) or a saved sequence to MP4 + PNG
     motion   convert a BVH file or a procedural move to a motion file (.npz)
+    inspect-motion  a BVH file's joints, how they map onto the avatar, height, units
     garment  make a parametric skirt or import an OBJ, write OBJ + template (.npz)
     simulate simulate a garment dataset with Newton's VBD cloth solver
 """
@@ -51,6 +52,31 @@ def _add_render_args(p: argparse.ArgumentParser, views: str = "front,three_quart
         action="store_true",
         help="frame the whole path once instead of following the dancer",
     )
+
+
+def _add_bvh_args(p: argparse.ArgumentParser, units: tuple[str, ...]) -> None:
+    """How a BVH motion is read and mapped: --units, --scale, --joint-map."""
+    p.add_argument("--units", default="auto", choices=units,
+                   help="a BVH file's length unit (default: guessed from its skeleton's size; "
+                   "a dancer outside 1.2-2.2 m tall is refused)")  # fmt: skip
+    p.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        help="a BVH file's metres per unit, for other units (overrides --units)",
+    )
+    p.add_argument("--joint-map", default="auto", metavar="MAP",
+                   help="a BVH file's joints: auto (a shipped map that fits, else matched "
+                   "by name and structure), daz, cmu_mb, or a .yaml/.toml file of 'avatar "
+                   "joint: your joint' lines (docs/INPUTS.md; inspect-motion shows the "
+                   "match)")  # fmt: skip
+
+
+def _retarget_config(args: argparse.Namespace):
+    """The RetargetConfig that --units, --scale and --joint-map ask for."""
+    from loosefit.body.retarget import RetargetConfig
+
+    return RetargetConfig(units=args.units, scale=args.scale, joint_map=args.joint_map)
 
 
 def _parse_shape(text: str) -> dict[str, float]:
@@ -140,7 +166,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
         avatar = _avatar(args)
         template = _garment(args.garment or "flared", avatar, args.resolution)
     motion = load_motion(spec, avatar, fps=model.fps if model else args.fps, seed=args.seed,
-                         max_frames=max_frames, start_frame=args.start_frame)  # fmt: skip
+                         retarget=_retarget_config(args), max_frames=max_frames,
+                         start_frame=args.start_frame)  # fmt: skip
     _log(f"motion '{motion.name}': {motion.num_frames} frames at {motion.fps:g} fps")
     body = avatar.pose_motion(motion)
     if model is not None:
@@ -258,7 +285,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         template = seq.garment
     elif args.motion:
         avatar = _avatar(args)
-        motion = load_motion(args.motion, avatar, fps=args.fps, seed=args.seed)
+        motion = load_motion(args.motion, avatar, fps=args.fps, seed=args.seed,
+                             retarget=_retarget_config(args))  # fmt: skip
         start, stop = _frame_range(args, motion.num_frames)
         motion = motion.slice(start, stop)
         template = _garment(args.garment, avatar)
@@ -280,16 +308,24 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_motion(args: argparse.Namespace) -> int:
     from loosefit.body.motions import load_motion
-    from loosefit.body.retarget import RetargetConfig
 
     avatar = _avatar(args)
-    retarget = RetargetConfig(units=args.units, scale=args.scale)
-    motion = load_motion(args.spec, avatar, fps=args.fps, seed=args.seed, retarget=retarget,
-                         max_frames=args.max_frames)  # fmt: skip
+    motion = load_motion(args.spec, avatar, fps=args.fps, seed=args.seed,
+                         retarget=_retarget_config(args), max_frames=args.max_frames)  # fmt: skip
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     motion.save(out)
     _log(f"wrote {out}: {motion.num_frames} frames at {motion.fps:g} fps, {motion.duration:.1f} s")
+    return 0
+
+
+def cmd_inspect_motion(args: argparse.Namespace) -> int:
+    from loosefit.body.inspect_motion import inspect_motion
+
+    report = inspect_motion(args.file, _retarget_config(args))
+    print(report.format())
+    if report.error is not None:
+        raise report.error
     return 0
 
 
@@ -605,7 +641,8 @@ def cmd_animate(args: argparse.Namespace) -> int:
     avatar = model.avatar()
     if args.frames is not None and args.frames < 1:
         raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
-    motion = motion_for(args.motion, avatar, model.fps, args.frames, args.start_frame, args.seed)
+    motion = motion_for(args.motion, avatar, model.fps, args.frames, args.start_frame, args.seed,
+                        retarget=_retarget_config(args))  # fmt: skip
     # the motion's own name (a chain's names all of its parts), safe as a file name
     name = re.sub(r"[^A-Za-z0-9_.-]+", "_", motion.name).strip("._") or "motion"
     out = Path(args.out)
@@ -951,6 +988,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"))
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--fps", type=float, default=30.0)
+    _add_bvh_args(p, BVH_UNITS)
     _add_avatar_args(p)
     _add_render_args(p)
     p.set_defaults(func=cmd_demo)
@@ -969,6 +1007,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-frames", type=int, default=None, help="render at most this many frames")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--fps", type=float, default=30.0)
+    _add_bvh_args(p, BVH_UNITS)
     _add_avatar_args(p)
     _add_render_args(p, views="front,side")
     p.set_defaults(func=cmd_render)
@@ -1142,6 +1181,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--export", default=None, metavar="PATH",
                    help="also export garment and body: .usd/.usdc/.usda (USD), .pc2 (point "
                    "caches + OBJ), or a folder (OBJ per frame)")  # fmt: skip
+    _add_bvh_args(p, BVH_UNITS)
     _add_stage_args(p)
     _add_render_args(p, views="front,side")
     p.set_defaults(func=cmd_animate)
@@ -1222,17 +1262,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fps", type=float, default=30.0)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-frames", type=int, default=None)
-    p.add_argument("--units", default="auto", choices=BVH_UNITS,
-                   help="a BVH file's length unit (default: guessed from its skeleton's size; "
-                   "a dancer outside 1.2-2.2 m tall is refused)")  # fmt: skip
-    p.add_argument(
-        "--scale",
-        type=float,
-        default=None,
-        help="a BVH file's metres per unit, for other units (overrides --units)",
-    )
+    _add_bvh_args(p, BVH_UNITS)
     _add_avatar_args(p)
     p.set_defaults(func=cmd_motion)
+
+    p = sub.add_parser("inspect-motion", help="how a BVH file would be read: its joints, "
+                       "the avatar joint each drives and why, the dancer's height, units, "
+                       "frames")  # fmt: skip
+    p.add_argument("file", help="a .bvh file")
+    _add_bvh_args(p, BVH_UNITS)
+    p.set_defaults(func=cmd_inspect_motion)
 
     p = sub.add_parser("garment", help="make a skirt or a dress, or import a garment file onto "
                        "the avatar")  # fmt: skip

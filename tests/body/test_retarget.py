@@ -168,8 +168,9 @@ def test_missing_root_joint_is_an_error(avatar, tmp_path):
 def test_missing_limb_joint_is_an_error(avatar, tmp_path):
     path = write_tpose(tmp_path / "noshin.bvh")
     path.write_text(path.read_text().replace("lShin", "lCalf"))
+    config = RetargetConfig(joint_map="daz")  # "auto" now matches lCalf (test_joint_match.py)
     with pytest.raises(LoosefitInputError, match=r"noshin\.bvh.*lShin"):
-        retarget_bvh(read_bvh(path), avatar.skeleton, avatar.floor_height)
+        retarget_bvh(read_bvh(path), avatar.skeleton, avatar.floor_height, config)
 
 
 def test_unknown_joint_map_is_an_error():

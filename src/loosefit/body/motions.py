@@ -48,7 +48,10 @@ def load_motion(
             ``frames:START:STOP:``, its frames START to STOP - 1 (at ``fps``, before
             ``start_frame`` and ``max_frames``); a BVH file behind ``units:UNIT:``
             (m, cm, mm) or ``scale:METRES_PER_UNIT:``, read in that unit (otherwise
-            guessed; a dancer outside 1.2-2.2 m is refused); or several of these
+            guessed; a dancer outside 1.2-2.2 m is refused); a BVH file behind
+            ``joint-map:MAP:`` (``auto``, ``daz``, ``cmu_mb`` or a ``.yaml``/``.toml``
+            map file; see :func:`~loosefit.body.retarget.resolve_joint_map`), its joints
+            mapped so; or several of these
             joined by ``+``: played one after another as one motion
             (:func:`~loosefit.body.chain.chain_motions`, 0.5 s transitions).
         avatar: the avatar that the motion must fit.
@@ -71,7 +74,15 @@ def load_motion(
              for i, p in enumerate(parts)]
         )  # fmt: skip
         return motion if max_frames is None else motion.slice(0, max_frames)
-    if text.startswith(("units:", "scale:")) and not path.exists():
+    if text.startswith("joint-map:") and not path.exists():
+        value, _, inner = text[len("joint-map:") :].partition(":")
+        if not (value and inner):
+            raise LoosefitInputError("motion", "joint-map:MAP:MOTION",
+                                     "auto, a joint map's name or a map file, and a motion",
+                                     repr(text))  # fmt: skip
+        cfg = RetargetConfig(**{**(retarget or RetargetConfig()).__dict__, "joint_map": value})
+        motion = load_motion(inner, avatar, fps, seed, cfg)
+    elif text.startswith(("units:", "scale:")) and not path.exists():
         key, _, rest = text.partition(":")
         value, _, inner = rest.partition(":")
         cfg = retarget or RetargetConfig()

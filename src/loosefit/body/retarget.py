@@ -20,95 +20,44 @@ rigidly. Local rotations are then ``R_a = G_parent^T G_a``.
 The root translation is the source root's position scaled by the ratio of the
 two skeletons' leg lengths, recentred to start at the origin in XY, and shifted
 in Z so the feet rest on the floor.
+
+Which source joint drives each avatar joint (:func:`resolve_joint_map`): a shipped
+map (:data:`JOINT_MAPS`) when one fits the clip, else the joint matcher
+(:mod:`loosefit.body.joint_match`, by name and by structure), or a map file the
+user writes (:func:`~loosefit.body.joint_maps.load_joint_map_file`).
+
+Any rest pose works (a T-pose, an A-pose, arms down; bones along any axis): the
+limbs are aligned by their rest directions, and only the rotation channels of the
+joints and their OFFSETs (the rest pose) are read, except the root's path: the
+mapped root's world position, with the position channels of it and of the joints
+above it as :func:`~loosefit.body.bvh.read_bvh` reads them (added to the OFFSET).
+Position channels on the other joints (studio files write six channels on every
+joint, repeating the offset) are ignored. A studio file whose root joint channels
+repeat the offset moves the root path by a constant, which recentring and
+grounding remove.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from loosefit.body.avatar import Skeleton
 from loosefit.body.bvh import _UNIT_SCALES, BvhClip, forward_kinematics, rest_positions
+from loosefit.body.joint_maps import (  # noqa: F401 - JointMap, DAZ_MAP, CMU_MB_MAP re-exported
+    CMU_MB_MAP,
+    DAZ_MAP,
+    JOINT_MAPS,
+    JointMap,
+    is_map_file,
+    load_joint_map_file,
+)
+from loosefit.body.joint_match import JointMatch, match_skeleton
 from loosefit.body.resample import filter_rotation_glitches, resample_motion
 from loosefit.body.rotations import rotation_between
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
-
-_SIDES = (("Left", "l"), ("Right", "r"))
-
-
-def _sided(template: dict[str, str]) -> dict[str, str]:
-    """Expand '{S}'/'{s}' placeholders into left and right entries."""
-    out = {}
-    for avatar, source in template.items():
-        if "{S}" in avatar or "{s}" in avatar:
-            for S, s in _SIDES:
-                out[avatar.format(S=S, s=s.upper())] = source.format(S=S, s=s)
-        else:
-            out[avatar] = source
-    return out
-
-
-@dataclass(frozen=True)
-class JointMap:
-    """How a source skeleton's joints drive the avatar's (cmu_mb rig).
-
-    Attributes:
-        name: the map's name.
-        joints: avatar joint name -> source joint name.
-        align: avatar joints whose rest direction is aligned to the source's.
-    """
-
-    name: str
-    joints: dict[str, str]
-    align: tuple[str, ...] = field(default_factory=tuple)
-
-
-_LIMBS = tuple(
-    f"{S}{b}"
-    for S, _ in _SIDES
-    for b in ("Shoulder", "Arm", "ForeArm", "Hand", "UpLeg", "Leg", "Foot")
-)
-
-# DAZ-style names, as in the CMU salsa BVH conversions (hip, abdomen, lThigh, ...).
-DAZ_MAP = JointMap(
-    name="daz",
-    joints=_sided(
-        {
-            "Hips": "hip",
-            "LowerBack": "abdomen",
-            "Spine1": "chest",
-            "Neck": "neck",
-            "Head": "head",
-            "{s}HipJoint": "{s}Buttock",
-            "{S}UpLeg": "{s}Thigh",
-            "{S}Leg": "{s}Shin",
-            "{S}Foot": "{s}Foot",
-            "{S}Shoulder": "{s}Collar",
-            "{S}Arm": "{s}Shldr",
-            "{S}ForeArm": "{s}ForeArm",
-            "{S}Hand": "{s}Hand",
-        }
-    ),
-    align=_LIMBS,
-)
-
-_CMU_NAMES = (
-    "Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase LowerBack Spine Spine1 "
-    "LeftShoulder LeftArm LeftForeArm LeftHand LThumb LeftFingerBase LeftHandFinger1 Neck Neck1 "
-    "Head RightShoulder RightArm RightForeArm RightHand RThumb RightFingerBase RightHandFinger1 "
-    "RHipJoint RightUpLeg RightLeg RightFoot RightToeBase"
-).split()
-
-# CMU MotionBuilder names (the CMU database's own BVH conversions): the avatar's names.
-CMU_MB_MAP = JointMap(
-    name="cmu_mb",
-    joints={n: n for n in _CMU_NAMES},
-    align=_LIMBS + ("LeftToeBase", "RightToeBase"),
-)
-
-JOINT_MAPS: dict[str, JointMap] = {m.name: m for m in (DAZ_MAP, CMU_MB_MAP)}
 
 _AXES = {
     "+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0),
@@ -120,8 +69,10 @@ _AXES = {
 class RetargetConfig:
     """How a BVH clip becomes a motion on the avatar."""
 
-    joint_map: str = "auto"  # a name in JOINT_MAPS, or "auto": the map covering most joints
-    source_up: str = "+y"  # the source's up axis
+    # a name in JOINT_MAPS; "auto": a shipped map that fits the clip, else the joint matcher
+    # (loosefit.body.joint_match); or a .yaml/.yml/.toml map file (load_joint_map_file)
+    joint_map: str = "auto"
+    source_up: str = "+y"  # the source's up axis (a map file's source_up overrides it)
     source_forward: str = "+z"  # the direction the source skeleton faces at zero rotation
     fps: float | None = 30.0  # resample to this rate (None keeps the source's)
     filter_glitches: bool = True  # remove single-frame rotation pops before retargeting
@@ -156,19 +107,89 @@ def axis_change(up: str, forward: str) -> np.ndarray:
     return dst @ src.T
 
 
-def choose_joint_map(source_names: list[str] | tuple[str, ...], name: str = "auto") -> JointMap:
-    """The joint map by name, or the shipped map whose source joints the clip covers best."""
+def _fits(jmap: JointMap, names: set[str]) -> bool:
+    """Whether a map finds the clip's root and every limb it aligns (retarget_bvh's needs)."""
+    needed = ["Hips", *(a for a in jmap.align if a in jmap.joints)]
+    return all(jmap.joints.get(a) in names for a in needed)
+
+
+def choose_joint_map(
+    source_names: list[str] | tuple[str, ...],
+    name: str = "auto",
+    clip: BvhClip | None = None,
+    config: RetargetConfig | None = None,
+) -> JointMap:
+    """The joint map by name or file, or for ``"auto"`` the one that fits the clip.
+
+    ``"auto"``: the shipped map whose source joints the clip covers best; with ``clip``
+    given, the best shipped map that fits it (its root and aligned limbs all present),
+    else the joint matcher's map (see :func:`resolve_joint_map`).
+    """
+    if clip is not None:
+        cfg = RetargetConfig(**{**(config or RetargetConfig()).__dict__, "joint_map": name})
+        return resolve_joint_map(clip, cfg).joint_map
     if name != "auto":
+        if is_map_file(name):
+            return load_joint_map_file(name, source_names)
         if name not in JOINT_MAPS:
             raise LoosefitInputError(
-                "RetargetConfig", "joint_map", f"one of {['auto', *JOINT_MAPS]}", repr(name)
-            )
+                "RetargetConfig", "joint_map",
+                f"one of {['auto', *JOINT_MAPS]} or a .yaml/.yml/.toml joint map file",
+                repr(name),
+            )  # fmt: skip
         return JOINT_MAPS[name]
     have = set(source_names)
     return max(
         JOINT_MAPS.values(),
         key=lambda m: sum(s in have for s in m.joints.values()) / len(m.joints),
     )
+
+
+def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> JointMatch:
+    """The joint map a clip is retargeted with, and how each avatar joint was matched.
+
+    ``config.joint_map`` a shipped map's name: that map; a map file: the file
+    (:func:`~loosefit.body.joint_maps.load_joint_map_file`, its joints checked against
+    the clip's); ``"auto"``: the shipped maps first, the best covering one that fits the
+    clip (so the CMU and DAZ files retarget as they always did), else the joint matcher
+    (:func:`~loosefit.body.joint_match.match_skeleton`) on the clip's names and rest
+    pose in the avatar's axes (``config.source_up``/``source_forward``).
+
+    Raises:
+        LoosefitInputError: an unknown map name, a bad map file, or a skeleton that no
+            shipped map fits and the matcher cannot map (naming the file).
+    """
+    config = config or RetargetConfig()
+    names = list(clip.joint_names)
+    name = config.joint_map
+    if name != "auto":
+        jmap = choose_joint_map(names, name)
+        if jmap.joints:
+            how = "map file" if is_map_file(name) else f"map {jmap.name}"
+            return JointMatch(jmap, dict.fromkeys(jmap.joints, how))
+        # a map file with only the axes: matched automatically in them
+        axes = {"source_up": jmap.source_up or config.source_up,
+                "source_forward": jmap.source_forward or config.source_forward}  # fmt: skip
+        match = resolve_joint_map(clip, replace(config, joint_map="auto", **axes))
+        note = f"axes from {name}: up {axes['source_up']}, forward {axes['source_forward']}"
+        return JointMatch(replace(match.joint_map, **axes), match.how, (*match.notes, note))
+    have = set(names)
+    by_cover = sorted(
+        JOINT_MAPS.values(),
+        key=lambda m: -sum(s in have for s in m.joints.values()) / len(m.joints),
+    )
+    for jmap in by_cover:  # fmt: skip
+        if _fits(jmap, have):
+            present = {a: s for a, s in jmap.joints.items() if s in have}
+            return JointMatch(jmap, dict.fromkeys(present, f"map {jmap.name}"))
+    C = axis_change(config.source_up, config.source_forward)
+    return match_skeleton(names, clip.parents, rest_positions(clip) @ C.T, str(clip.path))
+
+
+def _axes(jmap: JointMap, config: RetargetConfig) -> np.ndarray:
+    """The axis change for a clip: a map file's axes, else the configuration's."""
+    up = jmap.source_up or config.source_up
+    return axis_change(up, jmap.source_forward or config.source_forward)
 
 
 def _world_fk(skeleton: Skeleton, world: np.ndarray, root: np.ndarray) -> np.ndarray:
@@ -199,8 +220,11 @@ def source_height(clip: BvhClip, config: RetargetConfig | None = None) -> tuple[
     """
     config = config or RetargetConfig()
     names = list(clip.joint_names)
-    jmap = choose_joint_map(names, config.joint_map)
-    C = axis_change(config.source_up, config.source_forward)
+    try:
+        jmap = resolve_joint_map(clip, config).joint_map
+    except LoosefitInputError:  # no legs found: measure the extent; retarget_bvh explains
+        jmap = JointMap("none", {})
+    C = _axes(jmap, config)
     rest = rest_positions(clip) @ C.T
     legs = [jmap.joints.get(n) for n in ("LeftUpLeg", "LeftLeg", "LeftFoot")]
     leg = _leg_length(rest, names, *legs) if all(n in names for n in legs) else None
@@ -255,10 +279,10 @@ def retarget_bvh(
         The motion, resampled to ``config.fps``.
     """
     config = config or RetargetConfig()
+    src_names = list(clip.joint_names)
+    jmap = resolve_joint_map(clip, config).joint_map  # a skeleton it cannot map: say so first
     if config.check_height:
         check_source_height(clip, config)
-    src_names = list(clip.joint_names)
-    jmap = choose_joint_map(src_names, config.joint_map)
     source = str(clip.path)
     root_name = skeleton.names[0]
     if jmap.joints.get(root_name) not in src_names:
@@ -282,7 +306,7 @@ def retarget_bvh(
     rotations = clip.rotations.astype(np.float64)
     if config.filter_glitches:
         rotations = filter_rotation_glitches(rotations, clip.fps)
-    C = axis_change(config.source_up, config.source_forward)
+    C = _axes(jmap, config)
     src_pos, src_world = forward_kinematics(
         BvhClip(**{**clip.__dict__, "rotations": rotations})
     )  # (T, Js, 3), (T, Js, 3, 3)

@@ -1,0 +1,125 @@
+"""What loosefit makes of a motion file before retargeting it (``loosefit inspect-motion``).
+
+The joints found, what drives each avatar joint and how it was decided, the
+dancer's height, the units and the frame rate, in one readable report.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from loosefit.body.bvh import _UNIT_SCALES, BvhClip, read_bvh, rest_positions
+from loosefit.body.joint_maps import AVATAR_JOINTS
+from loosefit.body.joint_match import JointMatch
+from loosefit.body.retarget import (
+    DANCER_HEIGHT_M,
+    RetargetConfig,
+    resolve_joint_map,
+    source_height,
+)
+from loosefit.errors import LoosefitInputError
+
+
+@dataclass
+class MotionInspection:
+    """What :func:`inspect_motion` found in a BVH file.
+
+    Attributes:
+        clip: the file as read.
+        units: how its lengths were read, e.g. "cm (guessed: the rest skeleton spans 171
+            file units)".
+        height: the dancer's height, metres, as read.
+        height_how: how the height was measured.
+        match: the joint map and the decision behind each avatar joint; None if there
+            is none (then ``error`` says why).
+        error: the error retargeting would raise for the joints, or None.
+    """
+
+    clip: BvhClip
+    units: str
+    height: float
+    height_how: str
+    match: JointMatch | None
+    error: LoosefitInputError | None
+
+    def format(self) -> str:
+        """The report as text, one fact a line."""
+        clip = self.clip
+        lines = [
+            f"file: {clip.path}",
+            f"frames: {clip.num_frames} at {clip.fps:.4g} fps "
+            f"({(clip.num_frames - 1) * clip.frame_time:.2f} s)",
+            f"units: {self.units}",
+        ]
+        low, high = DANCER_HEIGHT_M
+        ok = low <= self.height <= high
+        warn = "" if ok else f"; outside {low:g}-{high:g} m: set --units or --scale"
+        lines.append(f"dancer: {self.height:.2f} m tall ({self.height_how}){warn}")
+        lines.append(f"joints ({clip.num_joints}):")
+        depth = np.zeros(clip.num_joints, dtype=np.int64)
+        for j, p in enumerate(clip.parents):
+            depth[j] = depth[p] + 1 if p >= 0 else 0
+            lines.append(f"  {'  ' * depth[j]}{clip.joint_names[j]}")
+        if self.match is None:
+            return "\n".join(lines)
+        jmap = self.match.joint_map
+        lines.append(f"joint map: {jmap.name}")
+        width = max(len(a) for a in AVATAR_JOINTS)
+        src_width = max([len(s) for s in jmap.joints.values()] + [12])
+        lines.append(f"  {'avatar joint':<{width}}  {'source joint':<{src_width}}  how")
+        for a in AVATAR_JOINTS:
+            if a in jmap.joints and a in self.match.how:
+                lines.append(f"  {a:<{width}}  {jmap.joints[a]:<{src_width}}  "
+                             f"{self.match.how[a]}")  # fmt: skip
+        rest = [a for a in AVATAR_JOINTS if a not in self.match.how]
+        if rest:
+            lines.append(f"  not driven (they follow their parent): {', '.join(rest)}")
+        used = set(jmap.joints.values())
+        unused = [n for n in clip.joint_names if n not in used]
+        if unused:
+            lines.append(f"  source joints not used: {', '.join(unused)}")
+        if jmap.align:
+            lines.append(f"  aligned at rest: {', '.join(jmap.align)}")
+        lines += [f"  {n}" for n in self.match.notes]
+        return "\n".join(lines)
+
+
+def _units(clip: BvhClip, config: RetargetConfig) -> str:
+    unit = {v: k for k, v in _UNIT_SCALES.items()}.get(clip.units_scale)
+    if config.scale is not None:
+        return f"{config.scale:g} m per file unit (--scale)"
+    if config.units != "auto":
+        return f"{config.units} (--units)"
+    rest = rest_positions(clip) / clip.units_scale
+    ends = [rest[j] + o / clip.units_scale for j, o in clip.end_offsets.items()]
+    points = np.vstack([rest, *ends]) if ends else rest
+    extent = float((points.max(0) - points.min(0)).max())
+    return (f"{unit} (guessed: the rest skeleton spans {extent:.4g} file units; "
+            "--units or --scale to set)")  # fmt: skip
+
+
+def inspect_motion(path: str | Path, config: RetargetConfig | None = None) -> MotionInspection:
+    """Read a BVH file and say how it would be retargeted with ``config``.
+
+    Args:
+        path: the ``.bvh`` file.
+        config: units, scale, joint map and axes, as retargeting takes them.
+
+    Returns:
+        The inspection; a skeleton that cannot be mapped comes back with ``error`` set.
+
+    Raises:
+        LoosefitInputError: for a file that cannot be read as BVH.
+    """
+    config = config or RetargetConfig()
+    clip = read_bvh(path, units=config.units, scale=config.scale)
+    height, how = source_height(clip, config)
+    match, error = None, None
+    try:
+        match = resolve_joint_map(clip, config)
+    except LoosefitInputError as exc:
+        error = exc
+    return MotionInspection(clip, _units(clip, config), height, how, match, error)

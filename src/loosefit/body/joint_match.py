@@ -1,0 +1,456 @@
+"""Matching any humanoid skeleton's joints to the avatar's, by name and by structure.
+
+A BVH file from another tool names its joints its own way (``mixamorig:LeftUpLeg``,
+``thigh_l``, ``left_hip``, ``UpperLeg_L``, ``lThigh``...). :func:`match_skeleton`
+finds the avatar joints that retargeting needs in three steps:
+
+1. **Names.** Each name is cut into a side and a body part
+   (:func:`classify_joint_name`): a namespace (``xxx:``) and prefixes such as
+   ``mixamorig``, ``joint_`` or ``Bip01`` are dropped; the side is ``Left``/``Right``,
+   ``L``/``R``/``l``/``r`` before a capital or a separator, or ``_L``/``.L``/``_l``/
+   ``Left`` at the end, in any case; the part comes from synonyms (``UpLeg``/
+   ``Thigh``/``UpperLeg``, ``Leg``/``Shin``/``Calf``/``LowerLeg``/``Knee``,
+   ``Foot``/``Ankle``, ``Toe``/``ToeBase``/``Ball``, ``Collar``/``Clavicle``,
+   ``Arm``/``UpperArm``/``Shldr``, ``ForeArm``/``LowerArm``/``Elbow``,
+   ``Hand``/``Wrist``, ``Spine``/``Chest``/``Abdomen``, ``Neck``, ``Head``,
+   ``Hips``/``Pelvis``/``Root``). ``Shoulder`` is a collar before an upper arm and an
+   upper arm after a collar; a sided ``Hip`` is a thigh unless a thigh follows it;
+   ``Foot`` after an ``Ankle`` is the toe (SMPL).
+2. **Structure.** The pelvis is the named root that branches, else the first joint
+   that branches. Its branches that reach far below it are the legs; the one that
+   reaches highest is the torso. The spine path runs from the pelvis to the head;
+   the two longest branches off it are the arms, and the joint they branch from is
+   the chest (the avatar's ``Spine1``). Along a leg the two longest consecutive
+   bones are thigh and shin (then foot and toe; a joint before the thigh is the hip
+   joint); along an arm, upper arm and forearm (then the hand; a joint before is the
+   collar). Names place a joint on its chain where they can; structure fills the rest.
+3. **Sides.** By the names in a limb; failing that, by the side of its rest pose:
+   the avatar's left is +X once the source's up and forward axes are applied.
+
+The result (:class:`JointMatch`) says for each avatar joint which source joint
+drives it and how that was decided, for ``loosefit inspect-motion`` to print.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from loosefit.body.joint_maps import LIMBS, MAP_FILE_EXAMPLE, JointMap
+from loosefit.errors import LoosefitInputError
+
+# Dropped from the front of a name (after any namespace "xxx:").
+_PREFIX = re.compile(r"^(mixamorig\d*[_:]?|joint[_\s.-]|jnt[_\s.-]|bip0?1[_\s.-]|def[_-]|b_|j_)",
+                     re.IGNORECASE)  # fmt: skip
+_SIDE_PATTERNS = (  # (regex, group holding the side); tried in order
+    (re.compile(r"^(left|right)[_\s.-]?", re.IGNORECASE), 1),
+    (re.compile(r"[_\s.-]?(left|right)$", re.IGNORECASE), 1),
+    (re.compile(r"^([LRlr])(?:[_\s.-]|(?=[A-Z]))"), 1),
+    (re.compile(r"[_\s.-]([LRlr])$"), 1),
+    (re.compile(r"(?<=[a-z])([LR])$"), 1),
+)
+# Body part of a name's base (lower case, letters only), sided and unsided.
+_UNSIDED_PARTS = {
+    **dict.fromkeys(("hips", "hip", "pelvis", "root"), "root"),
+    **dict.fromkeys(("spine", "chest", "upperchest", "abdomen", "abdomenlower",
+                     "abdomenupper", "lowerback", "upperback", "torso", "back"), "spine"),
+    **dict.fromkeys(("neck", "necklower", "neckupper"), "neck"),
+    "head": "head",
+}  # fmt: skip
+_SIDED_PARTS = {
+    **dict.fromkeys(("collar", "clavicle"), "collar"),
+    "shoulder": "shoulder",  # a collar or an upper arm, by what follows
+    **dict.fromkeys(("arm", "upperarm", "uparm", "shldr", "shldrbend"), "upperarm"),
+    **dict.fromkeys(("forearm", "lowerarm", "elbow", "forearmbend"), "forearm"),
+    **dict.fromkeys(("hand", "wrist"), "hand"),
+    **dict.fromkeys(("hipjoint", "buttock"), "hipjoint"),
+    "hip": "hip",  # a thigh, or the hip joint before one
+    **dict.fromkeys(("upleg", "upperleg", "thigh", "thighbend"), "thigh"),
+    **dict.fromkeys(("leg", "lowerleg", "shin", "calf", "knee"), "shin"),
+    **dict.fromkeys(("foot", "ankle"), "foot"),
+    **dict.fromkeys(("toe", "toes", "toebase", "ball"), "toe"),
+}  # fmt: skip
+_END_MARKER = re.compile(r"end|top|nub|tip|site", re.IGNORECASE)
+
+# The avatar joints a skeleton must drive, and what each is called in messages.
+_LEG = {"UpLeg": "thigh", "Leg": "shin", "Foot": "foot"}
+_ARM = {"Arm": "upper arm", "ForeArm": "forearm", "Hand": "hand"}
+REQUIRED = ("Hips",) + tuple(f"{S}{b}" for S in ("Left", "Right") for b in (*_LEG, *_ARM))
+_PART_WORDS = {  # the part a missing avatar joint needs -> names that would have matched
+    "root": "Hips, Pelvis, Root", "thigh": "UpLeg, Thigh, UpperLeg, Hip",
+    "shin": "Leg, Shin, Calf, LowerLeg, Knee", "foot": "Foot, Ankle",
+    "upperarm": "Arm, UpperArm, Shoulder, Shldr", "forearm": "ForeArm, LowerArm, Elbow",
+    "hand": "Hand, Wrist",
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class NameParts:
+    """What a joint's name says: its side ("L", "R" or None) and body part (or None)."""
+
+    side: str | None
+    part: str | None
+    base: str  # the name without namespace, prefix, side and digits, lower case
+
+
+def classify_joint_name(name: str) -> NameParts:
+    """Side and body part of a joint name (see the module's docstring for the rules).
+
+    ``classify_joint_name("mixamorig:LeftUpLeg")`` is ``NameParts("L", "thigh", "upleg")``;
+    ``"spine_02"`` is ``(None, "spine", "spine")``; a finger such as ``LeftHandIndex1``
+    has no part (``base="handindex"``).
+    """
+    text = name.rsplit(":", 1)[-1].strip()
+    text = _PREFIX.sub("", text) or text
+    side = None
+    for pattern, group in _SIDE_PATTERNS:
+        m = pattern.search(text)
+        if m and len(text) > len(m.group(0)):
+            side = m.group(group)[0].upper()
+            text = text[: m.start()] + text[m.end() :]
+            break
+    base = re.sub(r"[^a-z]", "", re.sub(r"\d+$", "", re.sub(r"[^a-z0-9]", "", text.lower())))
+    part = (_SIDED_PARTS if side else _UNSIDED_PARTS).get(base)
+    if part is None and side is None and base in _SIDED_PARTS and base != "hip":
+        part = _SIDED_PARTS[base]  # a limb without a side: structure decides which
+    return NameParts(side, part, base)
+
+
+@dataclass(frozen=True)
+class JointMatch:
+    """Which source joint drives each avatar joint, and how that was decided.
+
+    Attributes:
+        joint_map: the map (``name="auto-matched"`` from :func:`match_skeleton`), as
+            :func:`~loosefit.body.retarget.retarget_bvh` uses it.
+        how: avatar joint -> "name", "structure", "map file" or "map NAME".
+        notes: the decisions behind the chains (pelvis, torso, sides), to print.
+    """
+
+    joint_map: JointMap
+    how: dict[str, str]
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def _path(parents: np.ndarray, top: int, bottom: int) -> list[int]:
+    """Joints from ``top`` (excluded) down to ``bottom`` (included); [] if not below it."""
+    out = []
+    j = bottom
+    while j >= 0 and j != top:
+        out.append(j)
+        j = int(parents[j])
+    return out[::-1] if j == top else []
+
+
+def _first(chain_parts: list[str | None], wanted: tuple[str, ...], start: int = 0) -> int | None:
+    for i in range(max(start, 0), len(chain_parts)):
+        if chain_parts[i] in wanted:
+            return i
+    return None
+
+
+def _longest_pair(points: np.ndarray) -> int | None:
+    """Index i where bones i -> i+1 -> i+2 of a chain (K, 3) are longest together."""
+    if len(points) < 3:
+        return None
+    bones = np.linalg.norm(np.diff(points, axis=0), axis=1)  # (K - 1,)
+    return int(np.argmax(bones[:-1] + bones[1:]))
+
+
+def _leg_roles(parts: list[str | None], points: np.ndarray) -> dict[str, tuple[int, str]]:
+    """Chain index and how, for hipjoint/thigh/shin/foot/toe along a leg chain."""
+    thigh = _first(parts, ("thigh",))
+    if thigh is None:
+        thigh = _first(parts, ("hip",))  # SMPL's left_hip is the thigh
+    hipjoint = _first(parts[: thigh if thigh is not None else len(parts)], ("hipjoint", "hip"))
+    shin = _first(parts, ("shin",), thigh + 1 if thigh is not None else 0)
+    foot = _first(parts, ("foot",), shin + 1 if shin is not None else 0)
+    toe = _first(parts, ("toe", "foot"), foot + 1) if foot is not None else None
+    named = {"hipjoint": hipjoint, "thigh": thigh, "shin": shin, "foot": foot, "toe": toe}
+    if thigh is None:
+        thigh = shin - 1 if shin is not None else foot - 2 if foot is not None else None
+        if thigh is None:
+            thigh = _longest_pair(points)
+    return _complete(named, ("hipjoint", "thigh", "shin", "foot", "toe"), thigh, len(parts))
+
+
+def _arm_roles(parts: list[str | None], points: np.ndarray) -> dict[str, tuple[int, str]]:
+    """Chain index and how, for collar/arm/forearm/hand along an arm chain."""
+    collar = _first(parts, ("collar",))
+    arm = _first(parts, ("upperarm",))
+    shoulder = _first(parts, ("shoulder",))
+    if shoulder is not None:
+        if collar is not None and collar < shoulder:
+            arm = shoulder if arm is None or arm < shoulder else arm
+        elif arm is not None and arm > shoulder:
+            collar = shoulder
+        elif _first(parts, ("forearm",)) == shoulder + 1:
+            arm = shoulder
+    if collar is not None and arm is not None and collar > arm:
+        collar = None
+    forearm = _first(parts, ("forearm",), arm + 1 if arm is not None else 0)
+    hand = _first(parts, ("hand",), forearm + 1 if forearm is not None else 0)
+    named = {"collar": collar, "arm": arm, "forearm": forearm, "hand": hand}
+    if arm is None:
+        arm = forearm - 1 if forearm is not None else hand - 2 if hand is not None else None
+        if arm is None:
+            arm = _longest_pair(points)
+    return _complete(named, ("collar", "arm", "forearm", "hand"), arm, len(parts))
+
+
+def _complete(
+    named: dict[str, int | None], order: tuple[str, ...], anchor: int | None, n: int
+) -> dict[str, tuple[int, str]]:
+    """Fill the roles names left open around the chain's anchor (thigh or upper arm).
+
+    ``order`` is (joint before the anchor, anchor, the joints after it...). A role
+    takes the next chain index after the previous role; a named index out of that
+    order is dropped.
+    """
+    out: dict[str, tuple[int, str]] = {}
+    if anchor is None or not 0 <= anchor < n:
+        return out
+    before, main, *after = order
+    out[main] = (anchor, "name" if named[main] == anchor else "structure")
+    b = named[before]
+    if b is not None and b < anchor:
+        out[before] = (b, "name")
+    elif anchor >= 1:
+        out[before] = (anchor - 1, "structure")
+    prev = anchor
+    for role in after:
+        i = named[role]
+        if i is not None and i == prev + 1:
+            out[role] = (i, "name")
+        elif i is not None and i > prev + 1:
+            out[role] = (i, "name")  # joints between (twist bones) are skipped
+        elif prev + 1 < n:
+            out[role] = (prev + 1, "structure")
+        else:
+            break
+        prev = out[role][0]
+    return out
+
+
+def _side(members: list[int], parts: list[NameParts], rest: np.ndarray) -> tuple[str | None, float]:
+    """The side the names of a limb's joints give (or None), and its mean rest X."""
+    sides = [parts[j].side for j in members if parts[j].side]
+    side = None
+    if sides:
+        left = sides.count("L")
+        side = "L" if left > len(sides) - left else "R" if left < len(sides) - left else None
+    return side, float(rest[members, 0].mean())
+
+
+def _two_sides(
+    limbs: list[int], subtree: list[list[int]], parts: list[NameParts], rest: np.ndarray
+) -> tuple[dict[str, int], str]:
+    """{'L': branch, 'R': branch} for up to two limb branches, and how sides were told."""
+    sides = [_side(subtree[c], parts, rest) for c in limbs]
+    if len(limbs) == 2 and {sides[0][0], sides[1][0]} == {"L", "R"}:
+        return {sides[0][0]: limbs[0], sides[1][0]: limbs[1]}, "name"
+    if len(limbs) == 2:  # the avatar's left is +X
+        left = 0 if sides[0][1] > sides[1][1] else 1
+        return {"L": limbs[left], "R": limbs[1 - left]}, "structure"
+    if len(limbs) == 1:
+        s = sides[0][0] or ("L" if sides[0][1] > 0 else "R")
+        return {s: limbs[0]}, "name" if sides[0][0] else "structure"
+    return {}, "structure"
+
+
+def match_skeleton(
+    names: list[str] | tuple[str, ...],
+    parents: np.ndarray,
+    rest: np.ndarray,
+    source: str = "skeleton",
+) -> JointMatch:
+    """Match a humanoid skeleton's joints to the avatar's, by name and structure.
+
+    Args:
+        names: J source joint names, parents before children.
+        parents: (J,) parent indices, -1 for the root.
+        rest: (J, 3) rest-pose joint positions in the avatar's axes (Z up, facing -Y,
+            the character's left +X), any unit.
+        source: the file, for error messages.
+
+    Returns:
+        The match: the avatar's pelvis, spine (LowerBack, Spine, Spine1), neck (Neck,
+        Neck1), head, and per side hip joint, thigh, shin, foot, toe, collar, upper arm,
+        forearm and hand, as far as the skeleton has them; ``align`` is the limbs found.
+
+    Raises:
+        LoosefitInputError: naming the file, the avatar joints of :data:`REQUIRED` that
+            nothing drives, the candidates found for each, and a map file line to write.
+    """
+    names = list(names)
+    parents = np.asarray(parents, dtype=np.int64)
+    rest = np.asarray(rest, dtype=np.float64)
+    J = len(names)
+    parts = [classify_joint_name(n) for n in names]
+    kinds = [p.part for p in parts]
+    kids: list[list[int]] = [[] for _ in range(J)]
+    depth = np.zeros(J, dtype=np.int64)
+    for j, p in enumerate(parents):
+        if p >= 0:
+            kids[p].append(j)
+            depth[j] = depth[p] + 1
+    subtree: list[list[int]] = [[j] for j in range(J)]
+    for j in range(J - 1, 0, -1):  # parents precede children
+        if parents[j] >= 0:
+            subtree[parents[j]] += subtree[j]
+    # the skeleton's size (its height, or its arm span): legs reach down a quarter of it
+    # below the pelvis, arms out 0.15 of it from the spine
+    extent = float(np.ptp(rest, axis=0).max()) if J else 0.0
+    found: dict[str, int] = {}
+    how: dict[str, str] = {}
+    notes: list[str] = []
+
+    # 1. The pelvis: a named root that branches (into the most named legs, then the
+    # deepest: a scene's "root" above the "pelvis"), else the first joint that branches.
+    legged = [any(kinds[i] in ("thigh", "shin", "foot", "hip") for i in subtree[j])
+              for j in range(J)]  # fmt: skip
+    named_roots = [j for j in range(J) if kinds[j] == "root" and len(kids[j]) >= 2]
+    pelvis = None
+    if named_roots:
+        pelvis = max(named_roots, key=lambda j: (sum(legged[c] for c in kids[j]), depth[j]))
+        how_pelvis = "name"
+    elif J:
+        j = int(np.flatnonzero(parents < 0)[0])
+        while len(kids[j]) == 1:
+            j = kids[j][0]
+        pelvis = j if len(kids[j]) >= 2 else None
+        how_pelvis = "structure"
+    if pelvis is None:
+        _fail(source, names, parts, found, ["no joint branches into legs and a spine"])
+    found["Hips"], how["Hips"] = pelvis, how_pelvis
+    notes.append(f"pelvis: '{names[pelvis]}' ({how_pelvis})")
+
+    # 2. Its branches: the torso (reaching highest, or holding the head), the legs (low).
+    branches = kids[pelvis]
+    heads = [j for j in subtree[pelvis] if kinds[j] == "head" and j != pelvis]
+    top = min(heads, key=lambda j: depth[j]) if heads else None
+    if top is not None:
+        torso = next(c for c in branches if top in subtree[c])
+    else:
+        torso = max(branches, key=lambda c: rest[subtree[c], 2].max())
+    low = {c: rest[subtree[c], 2].min() for c in branches if c != torso}
+    legs = [c for c in low if low[c] < rest[pelvis, 2] - 0.25 * extent]
+    named_legs = [c for c in legs if legged[c]]
+    legs = sorted(named_legs if len(named_legs) >= 2 else legs, key=lambda c: low[c])[:2]
+    leg_side, how_side = _two_sides(legs, subtree, parts, rest)
+    found_legs = ", ".join(f"'{names[c]}' ({s})" for s, c in leg_side.items())
+    notes.append(f"torso: '{names[torso]}'; legs: " + (f"{found_legs}, sides by {how_side}"
+                 if found_legs else "none reach below the pelvis (axes wrong?)"))  # fmt: skip
+    for s, c in leg_side.items():
+        S = "Left" if s == "L" else "Right"
+        lowest = max(subtree[c], key=lambda j: (-rest[j, 2], depth[j]))
+        chain = _path(parents, pelvis, lowest)
+        while len(kids[chain[-1]]) == 1:
+            chain.append(kids[chain[-1]][0])
+        roles = _leg_roles([kinds[j] for j in chain], rest[chain])
+        avatar = {"hipjoint": f"{s}HipJoint", "thigh": f"{S}UpLeg", "shin": f"{S}Leg",
+                  "foot": f"{S}Foot", "toe": f"{S}ToeBase"}  # fmt: skip
+        for role, (i, h) in roles.items():
+            found[avatar[role]], how[avatar[role]] = chain[i], h
+
+    # 3. The spine path, pelvis to head (named, else the highest joint, or the one below
+    # it if that one is a "HeadTop_End"), and the arms that branch off it.
+    head, how["Head"] = top, "name"
+    if top is None:
+        highest = max(subtree[torso], key=lambda j: (rest[j, 2], -depth[j]))
+        head, how["Head"] = highest, "structure"
+        if _END_MARKER.search(names[highest]) and parents[highest] not in (pelvis, -1):
+            head = int(parents[highest])
+    found["Head"] = head
+    spine_path = _path(parents, pelvis, head)
+    on_path = set(spine_path)
+    offshoots = [(s, c) for s in spine_path[:-1] for c in kids[s] if c not in on_path]
+    reach = {c: float(np.linalg.norm(rest[subtree[c]] - rest[s], axis=1).max())
+             for s, c in offshoots}  # fmt: skip
+    arm_kinds = ("collar", "shoulder", "upperarm", "forearm", "hand")
+    named_arms = [(s, c) for s, c in offshoots if any(kinds[j] in arm_kinds for j in subtree[c])]
+    pool = named_arms if len(named_arms) >= 2 else offshoots
+    arms = sorted(pool, key=lambda sc: -reach[sc[1]])[:2]
+    arms = [(s, c) for s, c in arms if reach[c] > 0.15 * extent]
+    arm_side, how_arm_side = _two_sides([c for _, c in arms], subtree, parts, rest)
+    notes.append("arms: " + (", ".join(f"'{names[c]}' ({s})" for s, c in arm_side.items())
+                             or "none") + f", sides by {how_arm_side}")  # fmt: skip
+    for s, c in arm_side.items():
+        S = "Left" if s == "L" else "Right"
+        lengths = {c: 0.0}  # path length from the branch's first joint
+        for j in sorted(subtree[c])[1:]:
+            bone = float(np.linalg.norm(rest[j] - rest[parents[j]]))
+            lengths[j] = lengths[int(parents[j])] + bone
+        tip = max(lengths, key=lambda j: (lengths[j], -depth[j]))
+        chain = [c, *_path(parents, c, tip)]
+        roles = _arm_roles([kinds[j] for j in chain], rest[chain])
+        avatar = {"collar": f"{S}Shoulder", "arm": f"{S}Arm", "forearm": f"{S}ForeArm",
+                  "hand": f"{S}Hand"}  # fmt: skip
+        for role, (i, h) in roles.items():
+            found[avatar[role]], how[avatar[role]] = chain[i], h
+
+    # 4. Spine and neck along the path; the chest is where the arms branch.
+    chest_at = max((spine_path.index(s) for s, _ in arms), default=len(spine_path) - 2)
+    spine = spine_path[: chest_at + 1]
+    neck = spine_path[chest_at + 1 : -1]
+    slots = {"Spine1": -1} if len(spine) == 1 else {"LowerBack": 0, "Spine1": -1}
+    if len(spine) >= 3:
+        slots["Spine"] = (len(spine) - 1) // 2
+    for a, i in slots.items():
+        if spine:
+            found[a] = spine[i]
+            how[a] = "name" if kinds[spine[i]] == "spine" else "structure"
+    for a, i in ({"Neck": 0, "Neck1": -1} if len(neck) >= 2 else {"Neck": 0}).items():
+        if neck:
+            found[a] = neck[i]
+            how[a] = "name" if kinds[neck[i]] == "neck" else "structure"
+
+    missing = [a for a in REQUIRED if a not in found]
+    if missing:
+        _fail(source, names, parts, found, notes, missing)
+    order = ("Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase", "LowerBack",
+             "Spine", "Spine1", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand", "Neck",
+             "Neck1", "Head", "RightShoulder", "RightArm", "RightForeArm", "RightHand",
+             "RHipJoint", "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase")  # fmt: skip
+    joints = {a: names[found[a]] for a in order if a in found}
+    jmap = JointMap("auto-matched", joints, tuple(a for a in LIMBS if a in joints))
+    return JointMatch(jmap, {a: how[a] for a in joints}, tuple(notes))
+
+
+def _fail(
+    source: str,
+    names: list[str],
+    parts: list[NameParts],
+    found: dict[str, int],
+    notes: list[str],
+    missing: list[str] | None = None,
+) -> None:
+    """Raise the error for a skeleton the matcher cannot map."""
+    missing = missing or list(REQUIRED)
+    details = []
+    for a in missing:
+        side = "L" if a.startswith("Left") else "R" if a.startswith("Right") else None
+        bone = a.removeprefix("Left").removeprefix("Right")
+        part = {"Hips": "root", **{k: v.replace(" ", "") for k, v in {**_LEG, **_ARM}.items()}}
+        want = {"root": ("root",), "thigh": ("thigh", "hip"), "shin": ("shin",),
+                "foot": ("foot",), "upperarm": ("upperarm", "shoulder"),
+                "forearm": ("forearm",), "hand": ("hand",)}[part[bone]]  # fmt: skip
+        cands = [n for n, p in zip(names, parts, strict=True)
+                 if p.part in want and (side is None or p.side in (side, None))]  # fmt: skip
+        what = (f"candidates {cands[:4]}" if cands
+                else f"no joint named like {_PART_WORDS[part[bone]]}")  # fmt: skip
+        details.append(f"{a}: {what}")
+    raise LoosefitInputError(
+        source, "HIERARCHY",
+        "a humanoid skeleton the joint matcher can map: a pelvis with two legs (thigh, shin, "
+        "foot) and a spine with two arms (upper arm, forearm, hand)",
+        f"nothing for {missing} ({'; '.join(details)}; {'; '.join(notes)}; "
+        f"its joints: {', '.join(names[:40])}{'...' if len(names) > 40 else ''})",
+        hint=f"write a joint map file (YAML or TOML), one line 'avatar joint: your joint' per "
+             f"joint, e.g. '{MAP_FILE_EXAMPLE}', and pass --joint-map FILE (the motion spec "
+             "joint-map:FILE:CLIP.bvh elsewhere); `loosefit inspect-motion CLIP.bvh` lists "
+             "the joints; a skeleton not Y up and facing +Z: source_up and source_forward "
+             "in a map file",
+    )  # fmt: skip

@@ -1,0 +1,304 @@
+"""BVH files in other tools' conventions, written from a motion on the avatar.
+
+:func:`write_convention_bvh` writes a motion as a BVH whose skeleton is the
+avatar's (or a subset of it), renamed to a convention (Mixamo, Unreal, SMPL, a
+studio layout...), posed at rest as that convention is (a T-pose, an A-pose,
+arms down), in its units and with its channels, such that retargeting it back
+must give the motion again: each limb's rest pose is the avatar's carried by the
+smallest rotation onto the convention's bone direction (what retargeting undoes),
+and the joints a convention lacks hold still in the motion (:func:`reduced`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from loosefit.body.avatar import Skeleton
+from loosefit.body.joint_maps import LIMBS
+from loosefit.body.retarget import axis_change
+from loosefit.body.rotations import rotation_between
+from loosefit.types import Motion
+
+OUT, DOWN, FWD = np.array([1.0, 0, 0]), np.array([0, 0, -1.0]), np.array([0, -1.0, 0])
+
+
+def _sided(
+    template: dict[str, str], sides=(("Left", "L", "l", "left"), ("Right", "R", "r", "right"))
+) -> dict:
+    """{avatar: source} with {S}/{s}/{x}/{w} placeholders for Left/L, L/R, l/r, left/right."""
+    out = {}
+    for a, b in template.items():
+        if "{" not in a:
+            out[a] = b
+            continue
+        for S, s, x, w in sides:
+            out[a.format(S=S, s=s)] = b.format(S=S, s=s, x=x, w=w)
+    return out
+
+
+def tpose(sign: float) -> dict[str, np.ndarray]:
+    """Limb directions of a T-pose for one side (sign +1 left, -1 right), avatar axes."""
+    out = OUT * [sign, 1, 1]
+    return {"Shoulder": out, "Arm": out, "ForeArm": out, "Hand": out, "UpLeg": DOWN,
+            "Leg": DOWN, "Foot": np.array([0, -0.5, -1.0]), "ToeBase": FWD}  # fmt: skip
+
+
+def apose(sign: float) -> dict[str, np.ndarray]:
+    """An A-pose: arms 45 degrees down, legs a little apart."""
+    d = np.array([sign, 0, -1.0])
+    return {"Shoulder": OUT * [sign, 1, 1], "Arm": d, "ForeArm": d, "Hand": d,
+            "UpLeg": np.array([0.1 * sign, 0, -1]), "Leg": DOWN, "Foot": np.array([0, -1, -1.0]),
+            "ToeBase": FWD}  # fmt: skip
+
+
+def arms_down(sign: float) -> dict[str, np.ndarray]:
+    """Arms hanging along the sides, feet flat: bones along -Z, +-X and -Y."""
+    return {"Shoulder": OUT * [sign, 1, 1], "Arm": DOWN, "ForeArm": DOWN, "Hand": DOWN,
+            "UpLeg": DOWN, "Leg": DOWN, "Foot": FWD, "ToeBase": FWD}  # fmt: skip
+
+
+@dataclass
+class Convention:
+    """A naming and rest-pose convention for a humanoid BVH.
+
+    Attributes:
+        name: a label.
+        joints: avatar joint -> the convention's name, the joints it has.
+        pose: side sign -> limb directions at rest (``tpose``, ``apose``, ``arms_down``).
+        extras: joints the avatar lacks: (name, parent's name or None for a new BVH root
+            above the hips, avatar joint whose bone (head to tail) gives the offset).
+        units: file units per metre.
+        six_channels: position and rotation channels on every joint.
+        order: rotation channel order.
+        up, forward: the file's up axis and the way the skeleton faces at rest.
+    """
+
+    name: str
+    joints: dict[str, str]
+    pose: object = tpose
+    extras: list[tuple[str, str | None, str | None]] = field(default_factory=list)
+    units: float = 1.0
+    six_channels: bool = False
+    order: str = "ZXY"
+    up: str = "+y"
+    forward: str = "+z"
+
+
+CMU_MB = Convention("cmu_mb", {n: n for n in (
+        "Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase LowerBack Spine Spine1 "
+        "LeftShoulder LeftArm LeftForeArm LeftHand LThumb LeftFingerBase LeftHandFinger1 "
+        "Neck Neck1 Head RightShoulder RightArm RightForeArm RightHand RThumb "
+        "RightFingerBase RightHandFinger1 RHipJoint RightUpLeg RightLeg RightFoot "
+        "RightToeBase").split()}, order="ZYX")  # fmt: skip
+DAZ = Convention("daz", _sided({
+        "Hips": "hip", "LowerBack": "abdomen", "Spine1": "chest", "Neck": "neck",
+        "Head": "head", "{s}HipJoint": "{x}Buttock", "{S}UpLeg": "{x}Thigh",
+        "{S}Leg": "{x}Shin", "{S}Foot": "{x}Foot", "{S}Shoulder": "{x}Collar",
+        "{S}Arm": "{x}Shldr", "{S}ForeArm": "{x}ForeArm", "{S}Hand": "{x}Hand"}),
+        units=100)  # fmt: skip
+MIXAMO = Convention("mixamo", _sided({
+        "Hips": "mixamorig:Hips", "LowerBack": "mixamorig:Spine",
+        "Spine": "mixamorig:Spine1", "Spine1": "mixamorig:Spine2",
+        "Neck": "mixamorig:Neck", "Head": "mixamorig:Head",
+        **{f"{{S}}{b}": f"mixamorig:{{S}}{b}" for b in (
+            "UpLeg", "Leg", "Foot", "ToeBase", "Shoulder", "Arm", "ForeArm", "Hand")}}),
+        extras=[("mixamorig:HeadTop_End", "mixamorig:Head", "Head"),
+                ("mixamorig:LeftHandIndex1", "mixamorig:LeftHand", "LeftHand"),
+                ("mixamorig:RightHandIndex1", "mixamorig:RightHand", "RightHand"),
+                ("mixamorig:LeftToe_End", "mixamorig:LeftToeBase", "LeftToeBase"),
+                ("mixamorig:RightToe_End", "mixamorig:RightToeBase", "RightToeBase")],
+        units=100, order="XYZ")  # fmt: skip
+UNREAL = Convention("unreal", _sided({
+        "Hips": "pelvis", "LowerBack": "spine_01", "Spine": "spine_02", "Spine1": "spine_03",
+        "Neck": "neck_01", "Head": "head", "{S}Shoulder": "clavicle_{x}",
+        "{S}Arm": "upperarm_{x}", "{S}ForeArm": "lowerarm_{x}", "{S}Hand": "hand_{x}",
+        "{S}UpLeg": "thigh_{x}", "{S}Leg": "calf_{x}", "{S}Foot": "foot_{x}",
+        "{S}ToeBase": "ball_{x}"}), pose=apose, units=100)  # fmt: skip
+STUDIO = Convention("studio", _sided({
+        "Hips": "Hips", "LowerBack": "Spine", "Spine1": "Chest", "Neck": "Neck",
+        "Head": "Head", "{S}Shoulder": "Shoulder_{s}", "{S}Arm": "UpperArm_{s}",
+        "{S}ForeArm": "LowerArm_{s}", "{S}Hand": "Hand_{s}", "{S}UpLeg": "UpperLeg_{s}",
+        "{S}Leg": "LowerLeg_{s}", "{S}Foot": "Foot_{s}", "{S}ToeBase": "Toes_{s}"}),
+        pose=arms_down, extras=[("joint_Root", None, None)], units=100,
+        six_channels=True, order="YXZ")  # fmt: skip
+SMPL = Convention("smpl", _sided({
+        "Hips": "pelvis", "{S}UpLeg": "{w}_hip", "{S}Leg": "{w}_knee",
+        "{S}Foot": "{w}_ankle", "{S}ToeBase": "{w}_foot", "LowerBack": "spine1",
+        "Spine": "spine2", "Spine1": "spine3", "Neck": "neck", "Head": "head",
+        "{S}Shoulder": "{w}_collar", "{S}Arm": "{w}_shoulder", "{S}ForeArm": "{w}_elbow",
+        "{S}Hand": "{w}_wrist"}),
+        extras=[("left_hand", "left_wrist", "LeftHand"),
+                ("right_hand", "right_wrist", "RightHand")])  # fmt: skip
+# No names to go by: everything from the structure (sides from the rest pose).
+NAMELESS = Convention("nameless", {n: f"node{i:02d}" for i, n in enumerate(
+        "Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase LowerBack Spine Spine1 "
+        "LeftShoulder LeftArm LeftForeArm LeftHand Neck Neck1 Head RightShoulder RightArm "
+        "RightForeArm RightHand RHipJoint RightUpLeg RightLeg RightFoot "
+        "RightToeBase".split())}, units=100)  # fmt: skip
+
+CONVENTIONS = {c.name: c for c in (CMU_MB, DAZ, MIXAMO, UNREAL, STUDIO, SMPL, NAMELESS)}
+
+
+def reduced(motion: Motion, keep) -> Motion:
+    """The motion with every joint not in ``keep`` held at its rest (identity) rotation."""
+    rot = motion.rotations.copy()
+    for j, n in enumerate(motion.joint_names):
+        if n not in keep:
+            rot[:, j] = np.eye(3)
+    return Motion(motion.joint_names, rot, motion.root_translation, motion.fps, motion.name)
+
+
+def joint_positions(skeleton: Skeleton, motion: Motion) -> np.ndarray:
+    """(T, J, 3) avatar joint positions: the root at its translation, bones rotated."""
+    T, J = motion.rotations.shape[:2]
+    world = np.zeros((T, J, 3, 3))
+    pos = np.zeros((T, J, 3))
+    for j, p in enumerate(skeleton.parents):
+        rot = motion.rotations[:, j].astype(np.float64)
+        if p < 0:
+            world[:, j], pos[:, j] = rot, motion.root_translation
+        else:
+            world[:, j] = world[:, p] @ rot
+            pos[:, j] = pos[:, p] + world[:, p] @ (skeleton.heads[j] - skeleton.heads[p])
+    return pos
+
+
+def _world(skeleton: Skeleton, motion: Motion) -> np.ndarray:
+    T, J = motion.rotations.shape[:2]
+    world = np.zeros((T, J, 3, 3))
+    for j, p in enumerate(skeleton.parents):
+        rot = motion.rotations[:, j].astype(np.float64)
+        world[:, j] = rot if p < 0 else world[:, p] @ rot
+    return world
+
+
+def write_convention_bvh(
+    path: Path, conv: Convention, skeleton: Skeleton, motion: Motion, floor_height: float
+) -> Path:
+    """Write ``reduced(motion, conv.joints)`` as a BVH in the convention; returns ``path``."""
+    C = axis_change(conv.up, conv.forward).astype(np.float64)  # file axes -> avatar axes
+    names, parents = skeleton.names, skeleton.parents
+    heads, tails = skeleton.heads.astype(np.float64), skeleton.tails.astype(np.float64)
+    kept = [a for a in names if a in conv.joints]
+    src_parent = {}  # avatar joint -> nearest kept avatar ancestor
+    for a in kept:
+        p = parents[names.index(a)]
+        while p >= 0 and names[p] not in conv.joints:
+            p = parents[p]
+        src_parent[a] = names[p] if p >= 0 else None
+    extra_kids = {p for _, p, _ in conv.extras if p}
+    has_children = {src_parent[a] for a in kept if src_parent[a]} | {
+        a for a in kept if conv.joints[a] in extra_kids
+    }
+
+    # 1. Rest alignment of each avatar bone, as retargeting will measure it.
+    J = len(names)
+    A = np.tile(np.eye(3), (J, 1, 1))
+    for a, an in enumerate(names):
+        p = parents[a]
+        A[a] = A[p] if p >= 0 else np.eye(3)
+        if an not in LIMBS or an not in conv.joints:
+            continue
+        kids = [c for c in skeleton.children(a) if names[c] in conv.joints]
+        if kids:
+            c = min(kids, key=lambda c: np.linalg.norm(heads[c] - tails[a]))
+            d_av = heads[c] - heads[a]
+        elif an not in has_children:  # a leaf: an End Site along the avatar's bone
+            d_av = tails[a] - heads[a]
+        else:
+            continue
+        sign = 1.0 if an.startswith("Left") else -1.0
+        target = conv.pose(sign)[an.removeprefix("Left").removeprefix("Right")]
+        A[a] = rotation_between(d_av[None], target[None])[0].astype(np.float64)
+    rest = np.zeros((J, 3))  # the convention's rest pose, avatar axes
+    for j, p in enumerate(parents):
+        if p >= 0:
+            rest[j] = rest[p] + A[p] @ (heads[j] - heads[p])
+
+    # 2. World rotations of the source joints, then local ones.
+    ref = reduced(motion, conv.joints)
+    W = _world(skeleton, ref)  # (T, J, 3, 3)
+    Q = {a: C.T @ W[:, names.index(a)] @ A[names.index(a)].T @ C for a in kept}
+    local = {a: Q[a] if src_parent[a] is None else
+             np.swapaxes(Q[src_parent[a]], -1, -2) @ Q[a] for a in kept}  # fmt: skip
+    T = motion.num_frames
+    u = conv.units
+
+    # 3. The hierarchy: (name, offset in file units, End Site or None, frame values).
+    def to_file(v):
+        return (C.T @ v) * u
+
+    root_extra = next((e for e in conv.extras if e[1] is None), None)
+    hips_pos = to_file(ref.root_translation.astype(np.float64).T).T  # (T, 3)
+    children: dict[str | None, list[str]] = {}
+    for a in kept:
+        children.setdefault(src_parent[a], []).append(a)
+    lines = ["HIERARCHY"]
+    columns: list[np.ndarray] = []
+    euler = conv.order
+
+    def channels(position: bool) -> str:
+        rot = " ".join(f"{c}rotation" for c in euler)
+        return f"CHANNELS 6 Xposition Yposition Zposition {rot}" if position \
+            else f"CHANNELS 3 {rot}"  # fmt: skip
+
+    def emit(name, offset, rotations, positions, end, kids_fn, depth, keyword="JOINT"):
+        pad = "  " * depth
+        lines.append(f"{pad}{keyword} {name}")
+        lines.append(f"{pad}{{")
+        lines.append(f"{pad}  OFFSET {' '.join(f'{v:.6f}' for v in offset)}")
+        lines.append(f"{pad}  {channels(positions is not None)}")
+        if positions is not None:
+            columns.append(positions)
+        angles = Rotation.from_matrix(rotations).as_euler(euler.upper(), degrees=True)
+        columns.append(angles)
+        kids_fn(depth + 1)
+        if end is not None:
+            lines.append(f"{pad}  End Site")
+            lines.append(f"{pad}  {{")
+            lines.append(f"{pad}    OFFSET {' '.join(f'{v:.6f}' for v in end)}")
+            lines.append(f"{pad}  }}")
+        lines.append(f"{pad}}}")
+
+    eye = np.broadcast_to(np.eye(3), (T, 3, 3))
+
+    def emit_avatar(a, depth, keyword="JOINT"):
+        j = names.index(a)
+        q = src_parent[a]
+        offset = to_file(rest[j] - rest[names.index(q)]) if q else np.zeros(3)
+        if a == "Hips" and root_extra:
+            offset = to_file(np.array([0, 0, floor_height]))
+        positions = None
+        if a == "Hips":
+            positions = hips_pos
+        elif conv.six_channels:
+            positions = np.broadcast_to(offset, (T, 3))  # studio files repeat the offset
+        mine = [e for e in conv.extras if e[1] == conv.joints[a]]
+        leaf = a not in has_children
+        end = to_file(A[j] @ (tails[j] - heads[j])) if leaf else None
+
+        def kids_fn(d):
+            for c in children.get(a, []):
+                emit_avatar(c, d)
+            for name, _, bone in mine:
+                b = names.index(bone)
+                off = to_file(A[b] @ (tails[b] - heads[b]))
+                pos = np.broadcast_to(off, (T, 3)) if conv.six_channels else None
+                emit(name, off, eye, pos, off * 0.5, lambda d: None, d)
+
+        emit(conv.joints[a], offset, local[a], positions, end, kids_fn, depth, keyword)
+
+    if root_extra:
+        emit(root_extra[0], np.zeros(3), eye, np.zeros((T, 3)), None,
+             lambda d: emit_avatar("Hips", d), 0, "ROOT")  # fmt: skip
+    else:
+        emit_avatar("Hips", 0, "ROOT")
+    data = np.concatenate([np.asarray(c).reshape(T, -1) for c in columns], axis=1)  # (T, C)
+    lines += ["MOTION", f"Frames: {T}", f"Frame Time: {1.0 / motion.fps!r}"]
+    lines += [" ".join(f"{v:.6f}" for v in row) for row in data]
+    path.write_text("\n".join(lines) + "\n")
+    return path
