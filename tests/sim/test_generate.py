@@ -224,7 +224,9 @@ def test_a_dataset_made_before_a_field_existed_still_resumes(tiny_dataset, monke
         gen.generate(changed, out, workers=1, progress=False)
 
 
-def test_a_new_release_depth_keeps_the_clips_it_never_acts_on(tiny_dataset, tmp_path, monkeypatch):
+@pytest.fixture
+def spied_copy(tiny_dataset, tmp_path, monkeypatch):
+    """A copy of the tiny data set, and the list of the clips simulated into it from now on."""
     import shutil
 
     out = tmp_path / "tiny"
@@ -236,6 +238,11 @@ def test_a_new_release_depth_keeps_the_clips_it_never_acts_on(tiny_dataset, tmp_
         return real(config, jobs, out_dir)
 
     monkeypatch.setattr(gen, "_run_group", spy)
+    return out, simulated
+
+
+def test_a_new_release_depth_keeps_the_clips_it_never_acts_on(spied_copy):
+    out, simulated = spied_copy
     cfg = gen.preset("tiny")
     cfg.cloth.release_depth = 0.02  # no cloth of the tiny clips is 2 cm inside: both kept
     manifest = gen.generate(cfg, out, workers=1, progress=False)
@@ -521,22 +528,10 @@ def test_keep_poses_simulates_the_capture_as_it_is(tmp_path):
     assert gen.read_config_file(cfg).unfold.enabled is False
 
 
-def test_a_new_pose_correction_keeps_the_clips_whose_motion_it_leaves(
-    tiny_dataset, tmp_path, monkeypatch
-):
-    import shutil
-
-    out = tmp_path / "tiny"
-    shutil.copytree(tiny_dataset[0], out)
-    real, simulated = gen._run_group, []
-
-    def spy(config, jobs, out_dir):
-        simulated.extend(j.name for j in jobs)
-        return real(config, jobs, out_dir)
-
-    monkeypatch.setattr(gen, "_run_group", spy)
+def test_a_new_pose_correction_keeps_the_clips_whose_motion_it_leaves(spied_copy, monkeypatch):
+    out, simulated = spied_copy
     cfg = gen.preset("tiny")
-    cfg.unfold.deep_degrees = 30.0  # no leg of the tiny clips folds 3.5 cm deep: both kept
+    cfg.unfold.deep_degrees = 30.0  # no leg of the tiny clips folds 5 cm deep: both kept
     manifest = gen.generate(cfg, out, workers=1, progress=False)
     assert simulated == [] and manifest["summary"]["clips_ok"] == 2
     assert not any("unfold_config" in e for e in manifest["sequences"].values())
