@@ -12,7 +12,7 @@ from loosefit.body.gltf import DEFAULT_FPS, read_gltf, sample_channel
 from loosefit.body.retarget import RetargetConfig, resolve_joint_map
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
-from tests.body.bvh_conventions import CONVENTIONS, joint_positions, reduced, write_convention_bvh
+from tests.body.bvh_conventions import CONVENTIONS, motion_error, write_convention_bvh
 from tests.body.gltf_writer import write_document, write_gltf
 
 CM = 0.01
@@ -30,20 +30,6 @@ def _clip(tmp_path, avatar, dance, conv="mixamo"):
     path = tmp_path / f"{conv}.bvh"
     write_convention_bvh(path, CONVENTIONS[conv], avatar.skeleton, dance, avatar.floor_height)
     return read_bvh(path)
-
-
-def motion_error(avatar, want, got, joints) -> tuple[float, float]:
-    """Mean and max distance (m) of the mapped joints of ``got`` from ``want`` (reduced to
-    ``joints``), after the one constant shift that recentring and grounding add."""
-    idx = [avatar.skeleton.names.index(a) for a in joints]
-    ref = reduced(want, joints)
-    d = (
-        joint_positions(avatar.skeleton, got)[:, idx]
-        - joint_positions(avatar.skeleton, ref)[:, idx]
-    )
-    d -= d.reshape(-1, 3).mean(0)
-    err = np.linalg.norm(d, axis=-1)
-    return float(err.mean()), float(err.max())
 
 
 @pytest.mark.parametrize(
@@ -206,3 +192,40 @@ def test_inspect_motion_reads_gltf(avatar, dance, tmp_path):
                  "skin: 'body'", "rest pose: the skin's bind pose", "mixamorig:LeftUpLeg",
                  "joint map: auto-matched"):  # fmt: skip
         assert part in text, (part, text)
+
+
+def test_accessors_read_strides_normalized_integers_and_sparse_values(tmp_path):
+    from loosefit.body.gltf_file import GltfDocument, read_accessor
+
+    floats = np.arange(12, dtype=np.float32).reshape(4, 3)
+    strided = np.zeros((4, 5), np.float32)  # 3 floats and 8 bytes of padding per element
+    strided[:, :3] = floats
+    shorts = np.array([[32767, -32767, 0, -32768]], np.int16)
+    indices = np.array([1, 3], np.uint16)
+    values = np.array([[-1, -1, -1], [-2, -2, -2]], np.float32)
+    data = strided.tobytes() + shorts.tobytes() + indices.tobytes() + values.tobytes()
+    o = [0, 80, 88, 92]
+    gltf = {
+        "bufferViews": [{"buffer": 0, "byteOffset": o[0], "byteLength": 80, "byteStride": 20},
+                        {"buffer": 0, "byteOffset": o[1], "byteLength": 8},
+                        {"buffer": 0, "byteOffset": o[2], "byteLength": 4},
+                        {"buffer": 0, "byteOffset": o[3], "byteLength": 24}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 1, "componentType": 5122, "count": 1, "type": "VEC4",
+             "normalized": True},
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "sparse": {"count": 2, "indices": {"bufferView": 2, "componentType": 5123},
+                        "values": {"bufferView": 3}}},
+            {"componentType": 5126, "count": 2, "type": "SCALAR"},
+        ],
+    }  # fmt: skip
+    doc = GltfDocument(tmp_path / "a.gltf", gltf, [data])
+    assert np.array_equal(read_accessor(doc, 0, "x"), floats)
+    assert np.allclose(read_accessor(doc, 1, "x"), [[1, -1, 0, -1]])
+    want = floats.copy()
+    want[[1, 3]] = values
+    assert np.array_equal(read_accessor(doc, 2, "x"), want)
+    assert np.array_equal(read_accessor(doc, 3, "x"), [[0], [0]])  # no bufferView: zeros
+    with pytest.raises(LoosefitInputError, match=r"a\.gltf.*'where'.*an index into 'accessors'"):
+        read_accessor(doc, 7, "where")
