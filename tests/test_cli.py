@@ -145,3 +145,31 @@ def test_motion_takes_a_joint_map_file(tmp_path, capsys, avatar):
     assert main(["motion", str(bvh), "--out", str(out), "--joint-map", str(mapping)]) == 2
     err = capsys.readouterr().err
     assert "k.yaml" in err and "LeftUpleg" in err and "did you mean LeftUpLeg" in err
+
+
+def test_motion_commands_take_gltf_and_smpl_files(tmp_path, capsys, avatar):
+    import numpy as np
+
+    from loosefit.body.bvh import read_bvh
+    from loosefit.body.motions import load_motion
+    from loosefit.types import Motion
+    from tests.body.bvh_conventions import CONVENTIONS, write_convention_bvh
+    from tests.body.gltf_writer import write_gltf
+
+    motion = load_motion("spin", avatar).slice(0, 12)
+    bvh = write_convention_bvh(tmp_path / "m.bvh", CONVENTIONS["mixamo"], avatar.skeleton,
+                               motion, avatar.floor_height)  # fmt: skip
+    glb = write_gltf(tmp_path / "m.glb", read_bvh(bvh), idle_first=True)
+    out = tmp_path / "m.npz"
+    assert main(["motion", str(glb), "--out", str(out), "--animation", "dance"]) == 0
+    assert Motion.load(out).num_frames == 12
+    assert main(["inspect-motion", str(glb), "--animation", "1"]) == 0
+    assert "animation: 'dance' (2 of 2" in capsys.readouterr().out
+    assert main(["inspect-motion", str(glb), "--animation", "walk"]) == 2
+    assert "'walk'" in capsys.readouterr().err
+    smpl = tmp_path / "s.npz"
+    np.savez(smpl, poses=np.zeros((8, 156)), trans=np.zeros((8, 3)), mocap_framerate=60.0)
+    assert main(["motion", str(smpl), "--out", str(out), "--smpl-up", "+y"]) == 0
+    assert Motion.load(out).num_frames == 4  # 60 fps resampled to 30
+    assert main(["inspect-motion", str(smpl)]) == 0
+    assert "up: +y in the file's world (detected" in capsys.readouterr().out

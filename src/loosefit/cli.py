@@ -3,8 +3,8 @@
 Subcommands:
     demo     pose the avatar with a procedural dance, dress it, write a video
     render   render a motion (BVH, saved or procedural) or a saved sequence to MP4 + PNG
-    motion   convert a BVH file or a procedural move to a motion file (.npz)
-    inspect-motion  a BVH file's joints, how they map onto the avatar, height, units
+    motion   convert a BVH, glTF or SMPL file or a procedural move to a motion file (.npz)
+    inspect-motion  a motion file's joints, how they map onto the avatar, height, units
     garment  make a parametric skirt or import an OBJ, write OBJ + template (.npz)
     simulate simulate a garment dataset with Newton's VBD cloth solver
 """
@@ -55,7 +55,8 @@ def _add_render_args(p: argparse.ArgumentParser, views: str = "front,three_quart
 
 
 def _add_bvh_args(p: argparse.ArgumentParser, units: tuple[str, ...]) -> None:
-    """How a BVH motion is read and mapped: --units, --scale, --joint-map."""
+    """How a motion capture file is read and mapped: --units, --scale, --joint-map (BVH,
+    glTF), --animation, --skin (glTF), --smpl-up (SMPL .npz)."""
     p.add_argument("--units", default="auto", choices=units,
                    help="a BVH file's length unit (default: guessed from its skeleton's size; "
                    "a dancer outside 1.2-2.2 m tall is refused)")  # fmt: skip
@@ -70,13 +71,25 @@ def _add_bvh_args(p: argparse.ArgumentParser, units: tuple[str, ...]) -> None:
                    "by name and structure), daz, cmu_mb, or a .yaml/.toml file of 'avatar "
                    "joint: your joint' lines (docs/INPUTS.md; inspect-motion shows the "
                    "match)")  # fmt: skip
+    p.add_argument("--animation", default=None, metavar="NAME",
+                   help="a glTF/GLB file's animation, by name or index (default: the first; "
+                   "inspect-motion lists them)")  # fmt: skip
+    p.add_argument("--skin", default=None, metavar="NAME",
+                   help="a glTF/GLB file's skin, by name or index (default: the one its "
+                   "animation drives most)")  # fmt: skip
+    p.add_argument("--smpl-up", default="auto", choices=("auto", "+x", "-x", "+y", "-y", "+z",
+                   "-z"), help="an SMPL .npz's world up axis (AMASS: +z; default: found from "
+                   "its root orientations)")  # fmt: skip
 
 
 def _retarget_config(args: argparse.Namespace):
-    """The RetargetConfig that --units, --scale and --joint-map ask for."""
+    """The RetargetConfig that --units, --scale, --joint-map, --animation, --skin and
+    --smpl-up ask for."""
     from loosefit.body.retarget import RetargetConfig
 
-    return RetargetConfig(units=args.units, scale=args.scale, joint_map=args.joint_map)
+    return RetargetConfig(units=args.units, scale=args.scale, joint_map=args.joint_map,
+                          animation=args.animation, skin=args.skin,
+                          smpl_up=args.smpl_up)  # fmt: skip
 
 
 def _parse_shape(text: str) -> dict[str, float]:
@@ -995,7 +1008,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("render", help="render a motion or a saved sequence to MP4 and PNG")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--motion", help="a .bvh or .npz motion, or a procedural move name")
+    src.add_argument("--motion", help="a .bvh, .gltf/.glb or .npz (loosefit or SMPL) motion, "
+                     "or a procedural move name")  # fmt: skip
     src.add_argument("--sequence", help="a sequence .npz (animate, the API, demo, a dataset)")
     src.add_argument("--dataset", help="a dataset folder written by loosefit simulate")
     p.add_argument("--clip", default=None, help="with --dataset: the clip (default: the first)")
@@ -1163,7 +1177,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "inputs", nargs="+", metavar="[CHECKPOINT] MOTION",
         help="a motion run's model.pt or checkpoint.pt (default: the pretrained pair in "
-        "checkpoints/salsa), then a .bvh or .npz motion, a procedural move, or dance:SECONDS "
+        "checkpoints/salsa), then a .bvh, .gltf/.glb or .npz (loosefit or SMPL) motion, a "
+        "procedural move, or dance:SECONDS "
         "(mirror:MOTION mirrors one left-right; A+B plays one after another)",
     )  # fmt: skip
     _add_generative_arg(p)
@@ -1256,8 +1271,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, default=384)
     p.set_defaults(func=cmd_interpolate)
 
-    p = sub.add_parser("motion", help="convert a BVH or a procedural move to a motion .npz")
-    p.add_argument("spec", help="a .bvh file, a procedural move name, or dance:SECONDS")
+    p = sub.add_parser("motion", help="convert a BVH, glTF or SMPL file or a procedural move "
+                       "to a motion .npz")  # fmt: skip
+    p.add_argument("spec", help="a .bvh, .gltf/.glb or SMPL .npz file, a procedural move name, "
+                   "or dance:SECONDS")  # fmt: skip
     p.add_argument("--out", required=True, help="output .npz")
     p.add_argument("--fps", type=float, default=30.0)
     p.add_argument("--seed", type=int, default=0)
@@ -1266,10 +1283,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_avatar_args(p)
     p.set_defaults(func=cmd_motion)
 
-    p = sub.add_parser("inspect-motion", help="how a BVH file would be read: its joints, "
+    p = sub.add_parser("inspect-motion", help="how a motion capture file (BVH, glTF, SMPL "
+                       ".npz) would be read: its joints, "
                        "the avatar joint each drives and why, the dancer's height, units, "
                        "frames")  # fmt: skip
-    p.add_argument("file", help="a .bvh file")
+    p.add_argument("file", help="a .bvh, .gltf/.glb or SMPL .npz file")
     _add_bvh_args(p, BVH_UNITS)
     p.set_defaults(func=cmd_inspect_motion)
 

@@ -302,3 +302,17 @@ def write_convention_bvh(
     lines += [" ".join(f"{v:.6f}" for v in row) for row in data]
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def motion_error(avatar, want, got, joints) -> tuple[float, float]:
+    """Mean and max distance (m) of the mapped joints of ``got`` from ``want`` (reduced to
+    ``joints``), after the one constant shift that recentring and grounding add."""
+    idx = [avatar.skeleton.names.index(a) for a in joints]
+    ref = reduced(want, joints)
+    d = (
+        joint_positions(avatar.skeleton, got)[:, idx]
+        - joint_positions(avatar.skeleton, ref)[:, idx]
+    )
+    d -= d.reshape(-1, 3).mean(0)
+    err = np.linalg.norm(d, axis=-1)
+    return float(err.mean()), float(err.max())

@@ -1,4 +1,5 @@
-"""What loosefit makes of a motion file before retargeting it (``loosefit inspect-motion``).
+"""What loosefit makes of a motion capture file before retargeting it (``loosefit
+inspect-motion``): BVH, glTF/GLB or an SMPL pose ``.npz``.
 
 The joints found, what drives each avatar joint and how it was decided, the
 dancer's height, the units and the frame rate, in one readable report.
@@ -11,9 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.body.bvh import _UNIT_SCALES, BvhClip, read_bvh, rest_positions
+from loosefit.body.bvh import _UNIT_SCALES, BvhClip, rest_positions
 from loosefit.body.joint_maps import AVATAR_JOINTS
 from loosefit.body.joint_match import JointMatch
+from loosefit.body.motion_files import read_clip
 from loosefit.body.retarget import (
     DANCER_HEIGHT_M,
     RetargetConfig,
@@ -25,7 +27,7 @@ from loosefit.errors import LoosefitInputError
 
 @dataclass
 class MotionInspection:
-    """What :func:`inspect_motion` found in a BVH file.
+    """What :func:`inspect_motion` found in a motion capture file.
 
     Attributes:
         clip: the file as read.
@@ -54,6 +56,7 @@ class MotionInspection:
             f"({(clip.num_frames - 1) * clip.frame_time:.2f} s)",
             f"units: {self.units}",
         ]
+        lines += [f"{k}: {v}" for k, v in clip.meta.get("report", {}).items()]
         low, high = DANCER_HEIGHT_M
         ok = low <= self.height <= high
         warn = "" if ok else f"; outside {low:g}-{high:g} m: set --units or --scale"
@@ -89,10 +92,15 @@ class MotionInspection:
 
 def _units(clip: BvhClip, config: RetargetConfig) -> str:
     unit = {v: k for k, v in _UNIT_SCALES.items()}.get(clip.units_scale)
+    form = clip.meta.get("format")
+    if form == "SMPL":
+        return "m (SMPL)"
     if config.scale is not None:
         return f"{config.scale:g} m per file unit (--scale)"
     if config.units != "auto":
         return f"{config.units} (--units)"
+    if form == "glTF":
+        return "m (glTF's unit; --units or --scale to set)"
     rest = rest_positions(clip) / clip.units_scale
     ends = [rest[j] + o / clip.units_scale for j, o in clip.end_offsets.items()]
     points = np.vstack([rest, *ends]) if ends else rest
@@ -102,20 +110,22 @@ def _units(clip: BvhClip, config: RetargetConfig) -> str:
 
 
 def inspect_motion(path: str | Path, config: RetargetConfig | None = None) -> MotionInspection:
-    """Read a BVH file and say how it would be retargeted with ``config``.
+    """Read a motion capture file and say how it would be retargeted with ``config``.
 
     Args:
-        path: the ``.bvh`` file.
-        config: units, scale, joint map and axes, as retargeting takes them.
+        path: a ``.bvh``, ``.gltf``/``.glb`` or SMPL ``.npz`` file
+            (:func:`~loosefit.body.motion_files.read_clip`).
+        config: how it is read (units, scale, animation, skin, SMPL up axis) and
+            mapped (joint map, axes), as retargeting takes them.
 
     Returns:
         The inspection; a skeleton that cannot be mapped comes back with ``error`` set.
 
     Raises:
-        LoosefitInputError: for a file that cannot be read as BVH.
+        LoosefitInputError: for a file that cannot be read.
     """
     config = config or RetargetConfig()
-    clip = read_bvh(path, units=config.units, scale=config.scale)
+    clip = read_clip(path, config)
     height, how = source_height(clip, config)
     match, error = None, None
     try:

@@ -1,6 +1,7 @@
 """One entry point for every way a user names a motion.
 
-A BVH file, a saved motion, or a procedural move.
+A motion capture file (BVH, glTF/GLB, an SMPL pose .npz), a saved motion, or a
+procedural move.
 """
 
 from __future__ import annotations
@@ -9,12 +10,14 @@ import math
 from pathlib import Path
 
 from loosefit.body.avatar import Avatar
-from loosefit.body.bvh import BVH_UNITS, read_bvh
+from loosefit.body.bvh import BVH_UNITS
 from loosefit.body.chain import chain_motions
 from loosefit.body.mirror import mirror_motion
+from loosefit.body.motion_files import CLIP_READERS, is_capture_file, read_clip
 from loosefit.body.procedural import MOVES, named_motion, random_dance
 from loosefit.body.resample import resample_motion, retime_motion
 from loosefit.body.retarget import RetargetConfig, retarget_bvh
+from loosefit.body.smpl import npz_fields
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
 
@@ -38,8 +41,11 @@ def load_motion(
     """A motion on the avatar's skeleton from a file or a procedural name.
 
     Args:
-        spec: a ``.bvh`` file (retargeted), a ``.npz`` motion saved by
-            :meth:`Motion.save`, a procedural move name (``spin``, ``walk``, ...),
+        spec: a motion capture file, retargeted: ``.bvh``, ``.gltf``/``.glb`` (a skin
+            and an animation, :mod:`~loosefit.body.gltf`) or an SMPL-family ``.npz``
+            (``poses``, ``trans``, a frame rate; :mod:`~loosefit.body.smpl`); a ``.npz``
+            motion saved by :meth:`Motion.save` (told from an SMPL one by its fields);
+            a procedural move name (``spin``, ``walk``, ...),
             ``dance`` (a random dance of 12 s), ``dance:SECONDS``; any of these
             behind ``mirror:``, danced left-right mirrored
             (:func:`~loosefit.body.mirror.mirror_motion`), or behind
@@ -51,13 +57,14 @@ def load_motion(
             guessed; a dancer outside 1.2-2.2 m is refused); a BVH file behind
             ``joint-map:MAP:`` (``auto``, ``daz``, ``cmu_mb`` or a ``.yaml``/``.toml``
             map file; see :func:`~loosefit.body.retarget.resolve_joint_map`), its joints
-            mapped so; or several of these
+            mapped so; a glTF file behind ``animation:NAME:`` (a name or an index), that
+            animation; or several of these
             joined by ``+``: played one after another as one motion
             (:func:`~loosefit.body.chain.chain_motions`, 0.5 s transitions).
         avatar: the avatar that the motion must fit.
         fps: the frame rate of the result.
         seed: seeds procedural motions.
-        retarget: options for BVH files.
+        retarget: how motion capture files are read and mapped (BVH, glTF, SMPL).
         max_frames: keep at most this many frames.
         start_frame: drop the frames before this one (after resampling to ``fps``);
             in a chain, from each of its parts.
@@ -132,14 +139,28 @@ def load_motion(
             raise LoosefitInputError(f"motion '{motion.name}'", "frames:START:STOP",
                                      f"STOP <= {motion.num_frames} (its frames)", last)  # fmt: skip
         motion = motion.slice(first, last)
-    elif path.suffix.lower() == ".bvh":
-        if not path.is_file():
-            raise LoosefitInputError(path, "<file>", "an existing BVH file", "no such file")
+    elif text.startswith("animation:") and not path.exists():
+        value, _, inner = text[len("animation:") :].partition(":")
+        if not (value and inner):
+            raise LoosefitInputError("motion", "animation:NAME:MOTION",
+                                     "a glTF animation's name or index, and a motion",
+                                     repr(text))  # fmt: skip
+        cfg = RetargetConfig(**{**(retarget or RetargetConfig()).__dict__, "animation": value})
+        motion = load_motion(inner, avatar, fps, seed, cfg)
+    elif path.suffix.lower() in CLIP_READERS and (path.suffix.lower() != ".npz"
+                                                  or is_capture_file(path)):  # fmt: skip
         cfg = retarget or RetargetConfig()
         cfg = RetargetConfig(**{**cfg.__dict__, "fps": fps})
-        clip = read_bvh(path, units=cfg.units, scale=cfg.scale)
+        clip = read_clip(path, cfg)
         motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height, cfg)
     elif path.suffix.lower() == ".npz":
+        fields = npz_fields(path) if path.is_file() else ["rotations"]  # Motion.load says
+        if "rotations" not in fields:
+            raise LoosefitInputError(
+                path, "rotations",
+                "a loosefit motion (joint_names, rotations, root_translation, fps) or an SMPL "
+                "pose file (poses, trans, mocap_framerate)", f"fields {sorted(fields)}",
+            )  # fmt: skip
         motion = Motion.load(path)
         avatar.check_motion(motion)
         if abs(motion.fps - fps) > 1e-6:
@@ -162,7 +183,8 @@ def load_motion(
         raise LoosefitInputError(
             "motion",
             "spec",
-            f"a .bvh or .npz file, or one of {list(PROCEDURAL_NAMES)} (dance:SECONDS)",
+            f"a .bvh, .gltf, .glb or .npz file, or one of {list(PROCEDURAL_NAMES)} "
+            + "(dance:SECONDS)",
             repr(text),
         )
     if not 0 <= start_frame < motion.num_frames:

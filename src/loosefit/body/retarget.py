@@ -67,7 +67,7 @@ _AXES = {
 
 @dataclass
 class RetargetConfig:
-    """How a BVH clip becomes a motion on the avatar."""
+    """How a motion capture file (BVH, glTF, SMPL .npz) is read and mapped onto the avatar."""
 
     # a name in JOINT_MAPS; "auto": a shipped map that fits the clip, else the joint matcher
     # (loosefit.body.joint_match); or a .yaml/.yml/.toml map file (load_joint_map_file)
@@ -81,6 +81,9 @@ class RetargetConfig:
     units: str = "auto"  # the file's length unit: "m", "cm", "mm", or "auto" (read_bvh's guess)
     scale: float | None = None  # metres per file unit; overrides units
     check_height: bool = True  # refuse a dancer outside DANCER_HEIGHT_M (units read wrong)
+    animation: str | None = None  # glTF: the animation's name or index (None: the first)
+    skin: str | None = None  # glTF: the skin's name or index (None: the one animated most)
+    smpl_up: str = "auto"  # SMPL .npz: its world's up axis, +z for AMASS ("auto": detected)
 
 
 # A dancer's standing height, estimated from the hip-to-ankle length of the legs (the

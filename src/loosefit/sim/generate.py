@@ -389,7 +389,10 @@ def _resolve_spec(spec: str, base: Path) -> str:
     parts = []
     for part in spec.split("+"):
         head, _, tail = part.rpartition(":")
-        if tail.lower().endswith((".bvh", ".npz")) and not Path(tail).is_absolute():
+        if (
+            tail.lower().endswith((".bvh", ".npz", ".gltf", ".glb"))
+            and not Path(tail).is_absolute()
+        ):
             tail = str(base / tail)
         parts.append(f"{head}:{tail}" if head else tail)
     return "+".join(parts)
@@ -414,7 +417,8 @@ def write_config_file(config: DatasetConfig, path: str | Path) -> Path:
 def spec_name(spec: str) -> str:
     """A clip's name for a motion spec: its file stems and words, safe as a file name
     (``mirror:../a/61_01.bvh`` -> ``mirror_61_01``)."""
-    parts = [re.sub(r"\.(bvh|npz)$", "", re.sub(r"[^:+]*/", "", p)) for p in spec.split("+")]
+    parts = [re.sub(r"\.(bvh|npz|gltf|glb)$", "", re.sub(r"[^:+]*/", "", p))
+             for p in spec.split("+")]  # fmt: skip
     parts = [re.sub(r"(units|scale):[^:]*:", "", p) for p in parts]  # how it is read, not what
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", "+".join(parts)).strip("._") or "motion"
 
