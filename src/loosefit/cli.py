@@ -353,16 +353,43 @@ def _offset(text: str | None) -> tuple[float, float, float]:
     return (x, y, z)
 
 
+def _fit_file(args: argparse.Namespace):
+    """``garment FILE --fit``: the file fitted to the avatar (or, ``--shape auto``, to the
+    anny body it fits best); the template, the import's report, the fit's, the avatar."""
+    from loosefit.fit import FitConfig, fit_garment
+
+    auto = args.shape.strip() == "auto"
+    if auto:
+        _log("--shape auto: searching anny's weight, height and proportions for the body the "
+             "garment fits best")  # fmt: skip
+    template, fit, avatar = fit_garment(
+        args.source, "auto" if auto else None, FitConfig(settle_seconds=args.settle),
+        args.units, args.up, args.kind, _offset(args.offset), args.attach,
+        avatar=None if auto else _avatar(args),
+    )  # fmt: skip
+    return template, template.meta["import"], fit, avatar
+
+
 def cmd_garment(args: argparse.Namespace) -> int:
     from loosefit.garment.obj import write_obj
 
-    avatar = _avatar(args)
-    suffix = Path(args.source).suffix.lower()
-    if suffix in (".obj", ".gltf", ".glb"):
+    is_file = Path(args.source).suffix.lower() in (".obj", ".gltf", ".glb")
+    if args.fit and not is_file:
+        raise LoosefitInputError("--fit", "source", "a garment file (.obj, .gltf, .glb) made "
+                                 "for another body", repr(args.source))  # fmt: skip
+    if args.fit:
+        template, report, fit, avatar = _fit_file(args)
+    elif is_file:
         from loosefit.dress import import_garment
 
+        avatar = _avatar(args)
         template, report = import_garment(args.source, avatar, args.units, args.up, args.kind,
                                           _offset(args.offset), args.attach)  # fmt: skip
+    else:
+        template = _garment(args.source, _avatar(args), args.resolution, args.length)
+        if template is None:
+            raise LoosefitInputError("loosefit garment", "source", "a style or a file", "'none'")
+    if is_file:
         for key in ("units", "up", "kind"):
             r = report[key]
             how = "guessed" if r["guessed"] else "given"
@@ -375,10 +402,12 @@ def cmd_garment(args: argparse.Namespace) -> int:
              f"{', '.join(f'{100 * t:.1f}' for t in shift)} cm); held by "
              f"{report['attachment']['vertices']} vertices ({report['attachment']['as']}); "
              f"UVs: {report['uv_source']}")  # fmt: skip
-    else:
-        template = _garment(args.source, avatar, args.resolution, args.length)
-        if template is None:
-            raise LoosefitInputError("loosefit garment", "source", "a style or a file", "'none'")
+    if args.fit:
+        for line in fit.format().splitlines():
+            _log(f"fitted: {line}")
+        shape = ",".join(f"{k}={v:g}" for k, v in avatar.shape.items())
+        _log(f"fitted to the avatar {shape}" + (f" ({fit.shape_tried} shapes tried): simulate "
+             f"it with --shape {shape}" if fit.shape_tried else ""))  # fmt: skip
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     name = Path(args.source).stem
@@ -1299,6 +1328,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"))
     p.add_argument("--length", type=float, default=None, help="skirt or dress length, metres")
     _add_import_args(p)
+    p.add_argument("--fit", action="store_true",
+                   help="a garment made for another body: push it out of the avatar (keeping "
+                   "its shape, Eq. 16) and drape it there, instead of refusing it; with "
+                   "--shape auto, first pick the anny body it fits best")  # fmt: skip
+    p.add_argument("--settle", type=float, default=0.5,
+                   help="with --fit: seconds of drape on the avatar standing still")  # fmt: skip
     _add_avatar_args(p)
     p.set_defaults(func=cmd_garment)
     return parser

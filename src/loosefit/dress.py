@@ -138,7 +138,11 @@ def garment_for(spec: str, avatar: Avatar, resolution: str = "cpu",
     if suffix in ("obj", "gltf", "glb"):
         return import_garment(spec, avatar)[0]
     if suffix == "npz":
-        return GarmentTemplate.load(spec)
+        from loosefit.fit import check_fitted_shape
+
+        template = GarmentTemplate.load(spec)
+        check_fitted_shape(template, avatar, spec)  # a --fit garment: on the body it was fitted to
+        return template
     raise LoosefitInputError("garment", "value", f"one of {STYLES + tuple(DRESS_SPECS)}, 'none', "
                              "or a .obj/.gltf/.glb/.npz file", repr(spec))  # fmt: skip
 

@@ -110,7 +110,11 @@ def make_garment(garment, avatar):
         return fit_dress(avatar, garment)
     path = Path(garment.path)
     if path.suffix.lower() == ".npz":
-        return GarmentTemplate.load(path)
+        from loosefit.fit import check_fitted_shape
+
+        template = GarmentTemplate.load(path)
+        check_fitted_shape(template, avatar, path)  # a --fit garment: on the body it was fitted to
+        return template
     return import_garment(path, avatar, garment.units, garment.up, garment.kind,
                           garment.offset, garment.attach)[0]  # fmt: skip
 
