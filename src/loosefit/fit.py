@@ -43,8 +43,9 @@ class FitConfig:
     #   simulator's body_contact_distance, so the drape starts without a contact force)
     rings: int = 8  # Eq. 16: a push moves the cloth within this many edges of it (4 in
     #   rollouts; a garment's whole panel may be too small, not one vertex)
-    reach: float = 0.1  # m, the deepest a vertex may be inside the body and still be pushed
-    #   out, and the farthest the garment's attached vertices may be from it
+    reach: float = 0.1  # m, the deepest a vertex may be inside the body and be pushed out
+    attach_reach: float = 0.1  # m, the farthest the garment's attached vertices (its top)
+    #   may be from the body: farther, it was not made for a body like this one
     tolerance: float = 0.005  # m, after the push no vertex may be deeper inside than this
     settle_seconds: float = 0.5  # s of drape on the avatar standing still; 0: none
     cloth: object | None = None  # the drape's ClothConfig (None: the defaults, the upper
@@ -52,7 +53,7 @@ class FitConfig:
     fps: float = 30.0  # the drape steps whole frames at this rate
 
     def __post_init__(self) -> None:
-        for name in ("clearance", "reach", "tolerance", "fps"):
+        for name in ("clearance", "reach", "attach_reach", "tolerance", "fps"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise LoosefitInputError("FitConfig", name, "a positive number", repr(value))
@@ -156,10 +157,10 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
     v0 = template.vertices.astype(np.float64)
     inside_before, depth_before, dist = inside_of(v0, avatar, arms)
     far = float(dist[template.waist].max())
-    if far > config.reach:
+    if far > config.attach_reach:
         raise LoosefitInputError(
             source, "placement", f"a garment whose attached vertices (its top) lie within "
-            f"{100 * config.reach:.0f} cm of the body", f"they are up to {100 * far:.1f} cm "
+            f"{100 * config.attach_reach:.0f} cm of the body", f"they are up to {100 * far:.1f} cm "
             "from it", hint="--fit dresses a body with a garment made for another, not one "
             "far from it: check --units and --kind, or move it with --offset X,Y,Z (metres)",
         )  # fmt: skip
