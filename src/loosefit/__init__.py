@@ -7,10 +7,13 @@
     model = loosefit.load()                    # the pretrained set, or a checkpoint path
     result = model.animate("dance:20")         # a .bvh/.npz file, a move, or a Motion
     result.export("dance.usdc")                # also .usda, .pc2 (+ OBJ), a folder of OBJs
+
+    template, report, avatar = loosefit.fit_garment("made_for_another.obj")  # onto the avatar
+    loosefit.simulate("dance:4", template, shape=avatar.shape)               # ground truth
 """
 
 __version__ = "0.1.0"
-__all__ = ["AnimatedGarment", "Animator", "load", "simulate", "__version__"]
+__all__ = ["AnimatedGarment", "Animator", "fit_garment", "load", "simulate", "__version__"]
 
 
 def __getattr__(name: str):
@@ -19,6 +22,10 @@ def __getattr__(name: str):
         from loosefit import api
 
         return getattr(api, name)
+    if name == "fit_garment":
+        from loosefit.fit import fit_garment
+
+        return fit_garment
     if name == "AnimatedGarment":
         from loosefit.sequence import AnimatedGarment
 

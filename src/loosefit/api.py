@@ -180,6 +180,10 @@ def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flar
 
     avatar = Avatar(AvatarConfig(shape=dict(shape or {})) if shape else None)
     template = garment if isinstance(garment, GarmentTemplate) else garment_for(garment, avatar)
+    if isinstance(garment, GarmentTemplate):  # one fitted to a body (fit_garment): that body
+        from loosefit.fit import check_fitted_shape
+
+        check_fitted_shape(template, avatar, "garment")
     m = motion_for(motion, avatar, 30.0, frames, start_frame, seed)
     if config is None:  # a dress's bodice reaches the upper arms: they collide
         from loosefit.dress import collider_arms

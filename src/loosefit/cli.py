@@ -468,6 +468,9 @@ def dataset_config(args: argparse.Namespace):
         config.motions.test = tuple(args.test)
     if args.device:
         config.cloth.device = args.device
+    if getattr(args, "shape", ""):  # the avatar's body: the manifest carries it on to training
+        config.shape = _parse_shape(args.shape)
+        config.preset = "custom"
     if args.max_frames is not None:
         config.motions.max_frames = args.max_frames
     if getattr(args, "keep_poses", False):
@@ -1084,6 +1087,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="the clips held out (their names: file stems, or the specs' names)",
     )
     _add_import_args(p)
+    p.add_argument("--shape", default="",
+                   help="the avatar's body as anny phenotypes in [0, 1], e.g. "
+                   "'weight=0.7,height=0.6' (a garment --fit to one: its shape)")  # fmt: skip
     p.add_argument("--out", default=None, help="dataset folder (default datasets/PRESET)")
     p.add_argument(
         "--bvh",
