@@ -151,3 +151,10 @@ def test_the_garment_command_fits_and_says_what_it_did(other_dress, tmp_path, ca
     assert "placement" in capsys.readouterr().err
     assert main(["garment", "flared", "--fit", "--out", str(tmp_path / "y")]) == 2
     assert "--fit" in capsys.readouterr().err and not (tmp_path / "y").exists()
+
+
+def test_simulate_takes_the_avatar_s_shape_into_the_data_set():
+    from loosefit.cli import build_parser, dataset_config
+
+    args = build_parser().parse_args(["simulate", "--preset", "tiny", "--shape", "weight=0.7"])
+    assert dataset_config(args).shape == {"weight": 0.7}
