@@ -29,6 +29,16 @@ MAX_DANCE_SECONDS = 3600.0
 MIN_SPEED, MAX_SPEED = 0.1, 10.0
 
 
+# Motion specs that set one RetargetConfig field for the motion after them:
+# prefix -> (the field, the spec's form, what it takes)
+_SETTING_PREFIXES = {
+    "joint-map:": ("joint_map", "joint-map:MAP:MOTION",
+                   "auto, a joint map's name or a map file, and a motion"),
+    "animation:": ("animation", "animation:NAME:MOTION",
+                   "a glTF animation's name or index, and a motion"),
+}  # fmt: skip
+
+
 def load_motion(
     spec: str | Path,
     avatar: Avatar,
@@ -81,13 +91,13 @@ def load_motion(
              for i, p in enumerate(parts)]
         )  # fmt: skip
         return motion if max_frames is None else motion.slice(0, max_frames)
-    if text.startswith("joint-map:") and not path.exists():
-        value, _, inner = text[len("joint-map:") :].partition(":")
+    setting = next((k for k in _SETTING_PREFIXES if text.startswith(k)), None)
+    if setting is not None and not path.exists():
+        field_name, form, wanted = _SETTING_PREFIXES[setting]
+        value, _, inner = text[len(setting) :].partition(":")
         if not (value and inner):
-            raise LoosefitInputError("motion", "joint-map:MAP:MOTION",
-                                     "auto, a joint map's name or a map file, and a motion",
-                                     repr(text))  # fmt: skip
-        cfg = RetargetConfig(**{**(retarget or RetargetConfig()).__dict__, "joint_map": value})
+            raise LoosefitInputError("motion", form, wanted, repr(text))
+        cfg = RetargetConfig(**{**(retarget or RetargetConfig()).__dict__, field_name: value})
         motion = load_motion(inner, avatar, fps, seed, cfg)
     elif text.startswith(("units:", "scale:")) and not path.exists():
         key, _, rest = text.partition(":")
@@ -139,14 +149,6 @@ def load_motion(
             raise LoosefitInputError(f"motion '{motion.name}'", "frames:START:STOP",
                                      f"STOP <= {motion.num_frames} (its frames)", last)  # fmt: skip
         motion = motion.slice(first, last)
-    elif text.startswith("animation:") and not path.exists():
-        value, _, inner = text[len("animation:") :].partition(":")
-        if not (value and inner):
-            raise LoosefitInputError("motion", "animation:NAME:MOTION",
-                                     "a glTF animation's name or index, and a motion",
-                                     repr(text))  # fmt: skip
-        cfg = RetargetConfig(**{**(retarget or RetargetConfig()).__dict__, "animation": value})
-        motion = load_motion(inner, avatar, fps, seed, cfg)
     elif path.suffix.lower() in CLIP_READERS and (path.suffix.lower() != ".npz"
                                                   or is_capture_file(path)):  # fmt: skip
         cfg = retarget or RetargetConfig()

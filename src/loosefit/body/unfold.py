@@ -23,7 +23,7 @@ model is never edited.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import torch
@@ -67,7 +67,7 @@ class UnfoldConfig:
         src = "UnfoldConfig"
         if not isinstance(self.enabled, bool):
             raise LoosefitInputError(src, "enabled", "true or false", repr(self.enabled))
-        for name in ("clearance", "max_degrees", "ramp_seconds"):
+        for name in ("clearance", "max_degrees", "ramp_seconds", "deep_depth"):
             value = getattr(self, name)
             ok = isinstance(value, int | float) and not isinstance(value, bool)
             if not (ok and math.isfinite(value) and value >= 0):
@@ -84,10 +84,6 @@ class UnfoldConfig:
             raise LoosefitInputError(src, "deep_degrees",
                                      f"None or a number from max_degrees ({self.max_degrees}) "
                                      "to 90", repr(deep))  # fmt: skip
-        d = self.deep_depth
-        if not (isinstance(d, int | float) and not isinstance(d, bool) and math.isfinite(d)
-                and d >= 0):  # fmt: skip
-            raise LoosefitInputError(src, "deep_depth", "a finite depth in m >= 0", repr(d))
         self.deep_limbs = tuple(self.deep_limbs)
         unknown = [x for x in self.deep_limbs if x not in LIMB_ROOTS]
         if unknown:
@@ -235,8 +231,8 @@ def same_correction(avatar, motion: Motion, parts: BodyParts, a: UnfoldConfig,
     """
     if not (a.enabled or b.enabled):
         return True
-    if any(getattr(a, f) != getattr(b, f) for f in ("enabled", "clearance", "ramp_seconds",
-                                                     "steps")):  # fmt: skip
+    if any(getattr(a, f.name) != getattr(b, f.name) for f in fields(UnfoldConfig)
+           if f.name not in CAP_FIELDS):  # fmt: skip
         return False
     avatar.check_motion(motion)
     rest = avatar.rest_vertices.double().cpu().numpy()

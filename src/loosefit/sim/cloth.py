@@ -192,10 +192,12 @@ class ClothConfig:
             "self_contact_margin", "self_contact_gap", "self_contact_rest_exclusion",
             "settle_seconds", "blend_seconds",
         )  # fmt: skip
-        optional = ("waist_offset", "arm_friction", "release_depth")  # None: off
-        positive += tuple(n for n in ("release_depth",) if getattr(self, n) is not None)
-        nonnegative += tuple(n for n in ("waist_offset", "arm_friction")
-                             if getattr(self, n) is not None)  # fmt: skip
+        # None turns these off; a number is checked as the others
+        optional_positive = ("release_depth",)
+        optional_nonnegative = ("waist_offset", "arm_friction")
+        optional = optional_positive + optional_nonnegative
+        positive += tuple(n for n in optional_positive if getattr(self, n) is not None)
+        nonnegative += tuple(n for n in optional_nonnegative if getattr(self, n) is not None)
         for name in positive + nonnegative:
             value = getattr(self, name)
             ok = isinstance(value, int | float) and not isinstance(value, bool)
