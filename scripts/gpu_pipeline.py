@@ -22,6 +22,12 @@ it prints ``done`` (each call under the 10-minute limit)::
     python3 scripts/gpu_pipeline.py receive
     python3 scripts/gpu_pipeline.py run --budget 540 --out $OUT
 
+Issue 35's set (the ``dance`` data, the salsa set fine-tuned on it as
+``scripts/dance_models.sh`` does on the CPU, the detail stage, Table 1's and 3's rows)::
+
+    python3 scripts/gpu_pipeline.py run --preset dance --generative-epochs 10 \
+        --motion-epochs 10 --budget 540 --out $OUT
+
 On any machine, the whole plumbing at toy size in a minute (what a test runs)::
 
     .venv/bin/python scripts/gpu_pipeline.py run --tiny --device cpu --work /tmp/w --out /tmp/o
@@ -61,8 +67,62 @@ PLATFORMS = ("manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_17_x
 # -- the steps ----------------------------------------------------------------------------
 
 
+def dance_steps(work: Path, out: Path, device: str, tiny: bool, mocap: Path, sizes: dict) -> list:
+    """Issue 35's set on a GPU: the ``dance`` data, then the committed salsa set fine-tuned on
+    it as ``scripts/dance_models.sh`` does on the CPU (its physics terms and learning rate), the
+    detail stage, the package and Table 1's and Table 3's rows on the held-out chain and
+    ballet clips. ``tiny``: the same steps on the ``tiny`` preset, a few frames and epochs, each
+    stage trained from scratch (the salsa set is of another garment)."""
+    cli = [sys.executable, "-m", "loosefit"]
+    data, gen, motion, detail = (work / n for n in ("data", "generative", "motion", "detail"))
+    base = ROOT / "src" / "loosefit" / "pretrained" / "salsa"
+    dev = ["--device", device]
+    if tiny:
+        simulate = [*cli, "simulate", "--preset", "tiny", "--workers", "1", "--batch", "2"]
+        epochs = {"generative": "1", "motion": "1", "detail": "1"}
+        precision: list[str] = []
+        frames = ["--max-frames", "8"]
+        init = {"generative": [], "motion": [], "detail": []}
+    else:
+        simulate = [*cli, "simulate", "--preset", "dance", "--bvh", str(mocap), "--workers", "1",
+                    "--batch", str(sizes["batch"])]  # fmt: skip
+        epochs = {s: str(sizes[f"{s}_epochs"]) for s in ("generative", "motion", "detail")}
+        precision = ["--precision", sizes["precision"]]
+        frames = []
+        init = {stage: ["--init", str(base / f"{stage}.pt")] for stage in epochs}
+    train = [*cli, "train"]
+    common = ["--data", str(data), "--preset", "cpu", "--lr", "3e-4", *dev, *frames]
+    package = out / "model"
+    evaluate = [*cli, "evaluate", "--checkpoint", str(package / "motion.pt"), "--data", str(data),
+                "--split", "test"]  # fmt: skip
+    # fmt: off
+    return [
+        ("simulate", [*simulate, *dev, "--out", str(data)], work / "simulate.done"),
+        ("generative", [*train, "generative", *common, "--epochs", epochs["generative"],
+                        *precision, *init["generative"], "--membrane", "1000",
+                        "--bending", "10", "--collision", "30", "--out", str(gen)],
+         gen / "report.json"),
+        ("motion", [*train, "motion", *common, "--epochs", epochs["motion"], *precision,
+                    "--mirror", "--generative", str(gen / "checkpoint.pt"), *init["motion"],
+                    "--membrane", "1000", "--flare", "1", "--out", str(motion)],
+         motion / "report.json"),
+        ("detail", [*train, "detail", *common, "--epochs", epochs["detail"], "--motion",
+                    str(motion / "model.pt"), *init["detail"], "--out", str(detail)],
+         detail / "report.json"),
+        ("package", [*cli, "package", str(motion / "model.pt"), "--detail",
+                     str(detail / "model.pt"), "--out", str(package)], package / "detail.pt"),
+        ("table1", [*evaluate, "--no-detail", "--no-collision", "--no-lengths", "--out",
+                    str(work / "table1")], work / "table1" / "evaluation.json"),
+        ("table3", [*evaluate, "--out", str(work / "table3")],
+         work / "table3" / "evaluation.json"),
+    ]
+    # fmt: on
+
+
 def steps(work: Path, out: Path, device: str, tiny: bool, mocap: Path, sizes: dict) -> list:
     """(name, command, done-when path) for each step, in order."""
+    if sizes.get("preset") == "dance":
+        return dance_steps(work, out, device, tiny, mocap, sizes)
     cli = [sys.executable, "-m", "loosefit"]
     data, gen, motion = work / "data", work / "generative", work / "motion"
     if tiny:
@@ -124,6 +184,7 @@ def bring_back(work: Path, out: Path) -> None:
         "manifest.json": work / "data" / "manifest.json",
         "generative_report.md": work / "generative" / "report.md",
         "motion_report.md": work / "motion" / "report.md",
+        "detail_report.md": work / "detail" / "report.md",
         "table1.md": work / "table1" / "evaluation.md",
         "table3.md": work / "table3" / "evaluation.md",
         "BATCH_INFERENCE.md": work / "BATCH_INFERENCE.md",
@@ -144,7 +205,8 @@ def run(args: argparse.Namespace) -> int:
     (work / "logs").mkdir(parents=True, exist_ok=True)
     sizes = {"batch": args.batch, "generative_epochs": args.generative_epochs,
              "motion_epochs": args.motion_epochs, "precision": args.precision,
-             "max_frames": args.max_frames}  # fmt: skip
+             "max_frames": args.max_frames, "preset": args.preset,
+             "detail_epochs": args.detail_epochs}  # fmt: skip
     env = environment()
     for name, cmd, done in steps(work, out, args.device, args.tiny, Path(args.mocap), sizes):
         if done.exists():
@@ -205,6 +267,9 @@ def pack(args: argparse.Namespace) -> int:
     with tarfile.open(bundle, "w") as tar:
         tar.add(wheels, arcname="wheels")
         tar.add(Path(args.mocap), arcname="mocap")
+        ballet = Path(args.mocap).parent / "cmu-ballet"
+        if ballet.is_dir():  # the dance preset reads them beside the salsa folder
+            tar.add(ballet, arcname="cmu-ballet")
     for old in gpu.glob("part-*"):
         shutil.rmtree(old)
     data = bundle.read_bytes()
@@ -283,6 +348,10 @@ def main() -> int:
     p.add_argument("--generative-epochs", type=int, default=100)
     p.add_argument("--motion-epochs", type=int, default=60)
     p.add_argument("--precision", default="bf16", choices=("fp32", "bf16"))
+    p.add_argument("--detail-epochs", type=int, default=4, help="dance: detail stage epochs")
+    p.add_argument("--preset", default="paper", choices=("paper", "dance"),
+                   help="paper: issue 25's paper-scale pipeline; dance: issue 35's set (the "
+                   "dance data, the salsa set fine-tuned on it, Table 1 and 3 rows)")  # fmt: skip
     p.add_argument("--tiny", action="store_true", help="the tiny preset and a few epochs")
     args = ap.parse_args()
     return {"pack": pack, "receive": receive, "run": run}[args.command](args)

@@ -43,3 +43,26 @@ def test_the_pipeline_runs_in_budgeted_calls_and_brings_back_the_model(tmp_path)
     # Everything done: a third call does nothing.
     third = pipeline(work, out, 60)
     assert third.returncode == 0 and "] " not in third.stdout
+
+
+def test_the_dance_pipeline_trains_every_stage_and_brings_back_the_set(tmp_path, toy_dataset):
+    """Issue 35's set on a GPU (``--preset dance``), at toy size: the data comes from the toy
+    set (simulating is the step the paper pipeline's test runs), then the three stages, the
+    package with its detail stage and both tables."""
+    import shutil
+
+    work, out = tmp_path / "work", tmp_path / "out"
+    shutil.copytree(toy_dataset, work / "data")
+    (work / "simulate.done").write_text("{}")
+    cmd = [sys.executable, str(SCRIPT), "run", "--preset", "dance", "--tiny", "--device", "cpu",
+           "--work", str(work), "--out", str(out), "--budget", "600"]  # fmt: skip
+    call = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert call.returncode == 0 and call.stdout.strip().endswith("done"), call.stdout
+    for step in ("generative", "motion", "detail", "package", "table1", "table3"):
+        assert f"{step}: done" in call.stdout, step
+    for name in ("model/generative.pt", "model/motion.pt", "model/detail.pt", "table1.md",
+                 "table3.md", "detail_report.md"):  # fmt: skip
+        path = out / name
+        assert path.is_file() and path.stat().st_size < 16 * 2**20, name
+    # The toy set's test clip is rolled out by both tables.
+    assert "| c | 16 |" in (out / "table3.md").read_text()

@@ -14,27 +14,27 @@ def rollout_markdown(result: dict, title: str = "Rollout evaluation") -> str:
     """A table of :func:`loosefit.eval.rollouts.evaluate_rollouts`' result (lengths in cm)."""
     hs = sorted({h for c in result["clips"].values() for h in c["horizons"]}, key=int)
     surface = "hausdorff_cm" in result
-    head = "| clip | frames | RMSE | " + " | ".join(f"iter-{h}" for h in hs)
-    head += " | Hausdorff | STED |" if surface else " |"
-    rule = "|---|---:|---:|" + "---:|" * len(hs) + ("---:|---:|" if surface else "") + "---:|"
+    names = ["clip", "frames", "RMSE", *(f"iter-{h}" for h in hs)]
+    names += ["Hausdorff", "STED"] if surface else []
+    names.append("rollout fps")
     lines = [
         f"# {title}",
         "",
         f"Split `{result['split']}`; rollouts from each clip's first frame; RMSE and "
         "Hausdorff in centimetres; iter-N: RMSE over the first N frames.",
         "",
-        head + " rollout fps |",
-        rule,
+        "| " + " | ".join(names) + " |",
+        "|---|" + "---:|" * (len(names) - 1),
     ]
     rows = list(result["clips"].items()) + [("**all**", result)]
     for name, c in rows:
-        cells = [f"{c['horizons'][h]:.3f}" if h in c["horizons"] else "-" for h in hs]
-        row = f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | " + " | ".join(cells)
+        cells = [name, str(c["frames"]), f"{c['rmse_cm']:.3f}"]
+        cells += [f"{c['horizons'][h]:.3f}" if h in c["horizons"] else "-" for h in hs]
         if surface:
-            row += f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f}"
+            cells += [f"{c['hausdorff_cm']:.3f}", f"{c['sted']:.4f}"]
         fps = c.get("frames_per_second")
-        row += f" | {fps:.0f} |" if fps else " | |"
-        lines.append(row)
+        cells.append(f"{fps:.0f}" if fps else "")
+        lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 

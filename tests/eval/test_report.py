@@ -1,0 +1,31 @@
+"""Rollout reports: every Markdown row has as many cells as the header names."""
+
+from __future__ import annotations
+
+import pytest
+
+from loosefit.eval.report import rollout_markdown
+
+
+def _result(horizons: dict, surface: bool) -> dict:
+    clip = {"frames": 16, "rmse_cm": 1.5, "horizons": horizons, "frames_per_second": 30.0}
+    if surface:
+        clip |= {"hausdorff_cm": 4.0, "sted": 0.25}
+    return {"split": "test", "clips": {"c": clip}, **clip}
+
+
+@pytest.mark.parametrize("horizons", [{}, {100: 1.2}, {100: 1.2, 500: 1.4}])
+@pytest.mark.parametrize("surface", [False, True])
+def test_rows_match_the_header(horizons, surface):
+    table = [
+        ln for ln in rollout_markdown(_result(horizons, surface)).splitlines() if ln[:1] == "|"
+    ]
+    head, rule, *rows = table
+    width = head.count("|")
+    assert rule.count("|") == width and all(r.count("|") == width for r in rows)
+    names = [c.strip() for c in head.strip("|").split("|")]
+    assert "" not in names  # no unnamed column (a clip shorter than every horizon)
+    assert names[-1] == "rollout fps" and ("STED" in names) == surface
+    assert [f"iter-{h}" for h in horizons] == [n for n in names if n.startswith("iter-")]
+    cells = [c.strip() for c in rows[0].strip("|").split("|")]
+    assert cells[:3] == ["c", "16", "1.500"] and cells[-1] == "30"
