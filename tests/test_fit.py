@@ -64,6 +64,8 @@ def test_fit_pushes_it_out_keeps_its_top_and_reports_the_displacements(other_dre
     assert moved.max() == pytest.approx(report.moved_max, abs=1e-5)
     assert np.array_equal(template.faces, placed.faces)
     assert np.array_equal(template.waist, placed.waist)
+    # the cloth's rest shape stays the file's: the push and the drape only stretch it
+    np.testing.assert_array_equal(template.rest_vertices, placed.vertices)
     assert template.meta["fit"]["inside_before"] == report.inside_before
     assert template.meta["fit"]["shape"] == Avatar().shape
     assert "inside the body as placed" in report.format()
@@ -146,6 +148,8 @@ def test_the_garment_command_fits_and_says_what_it_did(other_dress, tmp_path, ca
     assert "fitted: " in err and "inside the body as placed" in err
     back = GarmentTemplate.load(out / "other.npz")
     assert back.meta["fit"]["inside_after"] == 0
+    placed = import_garment(other_dress, Avatar(), kind="dress", check=False)[0]
+    np.testing.assert_array_equal(back.rest_vertices, placed.vertices)  # kept in the file
     # without --fit it is refused; --fit wants a file
     assert main(argv[:2] + ["--kind", "dress", "--out", str(tmp_path / "x")]) == 2
     assert "placement" in capsys.readouterr().err
