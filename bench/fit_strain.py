@@ -1,15 +1,22 @@
-"""How much ``garment --fit``'s drape changes a garment's edge lengths (its rest lengths after the
-fit), on the parametric strapless dress made for another body (as tests/test_fit.py makes it,
-at full resolution) and fitted to the default avatar.
+"""The rest lengths a garment fitted with ``garment --fit`` is simulated with, against the
+garment file's, and how far the fit's drape stretches it from them, on the parametric
+strapless dress made for another body (as tests/test_fit.py makes it, at full resolution)
+and fitted to the default avatar.
+
+The simulator takes the cloth's rest shape from the template's ``rest_vertices`` (the file
+as placed) and starts from its ``vertices`` (the drape): the first should not differ from the
+file at all, the second is the stretch the simulation starts with.
 
 Usage:
     .venv/bin/python bench/fit_strain.py
+    .venv/bin/python bench/fit_strain.py --fitted runs/fit_dress/fitted.npz  # bench/fit_dress.py's
 
 docs/YOUR_GARMENT.md quotes its output.
 """
 
 from __future__ import annotations
 
+import argparse
 import tempfile
 import time
 from pathlib import Path
@@ -21,6 +28,7 @@ from loosefit.dress import fit_dress, import_garment
 from loosefit.fit import FitConfig, fit_garment
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.obj import write_obj
+from loosefit.types import GarmentTemplate
 
 OTHER_BODY = {"weight": 0.8, "height": 0.9, "proportions": 0.0}
 
@@ -32,7 +40,17 @@ def edge_lengths(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.linalg.norm(vertices[e[:, 0]] - vertices[e[:, 1]], axis=1)
 
 
+def describe(r: np.ndarray) -> str:
+    """A relative change of edge lengths (E,) in one line."""
+    return (f"median {np.median(r):+.2%}, 5th-95th percentile {np.percentile(r, 5):+.2%} to "
+            f"{np.percentile(r, 95):+.2%}, largest {np.abs(r).max():.1%}")  # fmt: skip
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--fitted", help="a template fitted already (bench/fit_dress.py's "
+                        "fitted.npz, the same dress): measured, not fitted again")  # fmt: skip
+    args = parser.parse_args()
     dress = fit_dress(Avatar(AvatarConfig(shape=OTHER_BODY)),
                       DressConfig.preset("cpu", "strapless"))  # fmt: skip
     v = dress.vertices.astype(np.float64) * 100.0  # centimetres, Y up, as another tool writes
@@ -43,14 +61,18 @@ def main() -> None:
         avatar = Avatar()
         placed = import_garment(path, avatar, kind="dress", check=False)[0]
         t0 = time.perf_counter()
-        fitted, report, _ = fit_garment(path, config=FitConfig(), kind="dress", avatar=avatar)
-        seconds = time.perf_counter() - t0
-    r = edge_lengths(fitted.vertices, placed.faces) / edge_lengths(placed.vertices, placed.faces)
-    r -= 1
-    print(f"fit: {seconds:.0f} s, {fitted.num_vertices} vertices; {report.format()}")
-    print(f"edge length change: median {np.median(r):+.2%}, 5th-95th percentile "
-          f"{np.percentile(r, 5):+.2%} to {np.percentile(r, 95):+.2%}, largest "
-          f"{np.abs(r).max():.1%}")  # fmt: skip
+        if args.fitted:
+            fitted = GarmentTemplate.load(args.fitted)
+            how = f"read from {args.fitted}, fitted in {fitted.meta['fit']['seconds']:.0f} s"
+        else:
+            fitted, report, _ = fit_garment(path, config=FitConfig(), kind="dress", avatar=avatar)
+            how = f"fitted in {time.perf_counter() - t0:.0f} s; {report.format()}"
+    file = edge_lengths(placed.vertices, placed.faces)
+    print(f"fit: {fitted.num_vertices} vertices, {how}")
+    print("rest lengths the simulator uses against the file's: "
+          + describe(edge_lengths(fitted.rest, placed.faces) / file - 1))  # fmt: skip
+    print("the drape (where the simulation starts) against them: "
+          + describe(edge_lengths(fitted.vertices, placed.faces) / file - 1))  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -38,7 +38,30 @@ def test_template_file_keeps_meta(avatar, tmp_path):
     skirt.save(tmp_path / "skirt.npz")
     back = GarmentTemplate.load(tmp_path / "skirt.npz")
     assert np.array_equal(back.vertices, skirt.vertices)
+    assert back.rest_vertices is None and back.rest is back.vertices  # its start is its rest
     assert (
         back.meta["style"] == "aline"
         and back.meta["config"]["rings"] == skirt.meta["config"]["rings"]
     )
+
+
+def test_a_rest_shape_apart_from_the_start_goes_through_every_file(avatar, tmp_path):
+    """A fitted garment's rest shape: the template file, a sequence and a checkpoint keep it."""
+    import dataclasses
+
+    from loosefit.inference.checkpoints import template_dict, template_from_dict
+    from loosefit.sequence import AnimatedGarment
+    from loosefit.types import GarmentTemplate
+
+    skirt = fit_skirt(avatar)
+    fitted = dataclasses.replace(skirt, rest_vertices=skirt.vertices * 0.95)
+    fitted.save(tmp_path / "fitted.npz")
+    back = GarmentTemplate.load(tmp_path / "fitted.npz")
+    np.testing.assert_array_equal(back.rest, fitted.rest_vertices)
+    np.testing.assert_array_equal(template_from_dict(template_dict(fitted)).rest, back.rest)
+    assert template_from_dict(template_dict(skirt)).rest_vertices is None
+    motion = avatar.rest_motion(2)
+    g = np.repeat(skirt.vertices[None], 2, 0)
+    seq = AnimatedGarment(motion, fitted, g, {"rig": "cmu_mb", "shape": {}}, "test")
+    again = AnimatedGarment.load(seq.save(tmp_path / "seq.npz"))
+    np.testing.assert_array_equal(again.garment.rest, fitted.rest_vertices)

@@ -143,6 +143,9 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
 
     Returns:
         The fitted template (its ``meta["fit"]``: the report) and the :class:`FitReport`.
+        Its vertices are the draped garment, where a simulation starts; its
+        ``rest_vertices`` are the garment as placed, so that the cloth keeps the file's
+        rest lengths (the push and the drape stretch it; they do not remake it).
 
     Raises:
         LoosefitInputError: its attached vertices farther than ``reach`` from the body (a
@@ -182,7 +185,7 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
         cloth = replace(cloth, settle_seconds=config.settle_seconds)
         draped = GarmentTemplate(pushed.astype(np.float32), template.faces, template.uvs,
                                  template.face_uvs, template.waist, name=template.name,
-                                 meta=dict(template.meta))  # fmt: skip
+                                 meta=dict(template.meta), rest_vertices=template.rest)  # fmt: skip
         fitted = settle(avatar, draped, cloth, config.fps).astype(np.float64)
         if inside_of(fitted, avatar, arms)[1] > 0:  # the drape's contact left some: out again
             draped.vertices = fitted.astype(np.float32)
@@ -198,7 +201,7 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
     meta = {**template.meta, "fit": asdict(report)}
     out = GarmentTemplate(fitted.astype(np.float32), template.faces, template.uvs,
                           template.face_uvs, template.waist, name=template.name,
-                          meta=meta)  # fmt: skip
+                          meta=meta, rest_vertices=template.rest)  # fmt: skip
     return out, report
 
 

@@ -158,6 +158,7 @@ class AnimatedGarment:
                 waist=g.waist,
                 garment_name=np.array(g.name),
                 garment_meta=np.array(json.dumps(g.meta or {}, default=_plain)),
+                **({} if g.rest_vertices is None else {"rest_vertices": g.rest_vertices}),
                 garment_vertices=self.garment_vertices,
                 avatar=np.array(json.dumps(self.avatar)),
                 source=np.array(self.source),
@@ -192,7 +193,9 @@ class AnimatedGarment:
         if missing:
             raise LoosefitInputError(path, ", ".join(missing), "present", "missing")
         gv = d["garment_vertices"]
-        for key in ("rotations", "root_translation", "garment_vertices", "vertices", "uvs"):
+        floats = ("rotations", "root_translation", "garment_vertices", "vertices", "uvs",
+                  "rest_vertices")  # fmt: skip
+        for key in (k for k in floats if k in d.files):
             if d[key].dtype != np.float32:
                 raise LoosefitInputError(path, key, "dtype float32", f"dtype {d[key].dtype}")
         try:
@@ -215,6 +218,7 @@ class AnimatedGarment:
                 *(_numeric(d, path, k) for k in ("vertices", "faces", "uvs", "face_uvs", "waist")),
                 name=npz_text(d, path, "garment_name", "garment"),
                 meta=meta if isinstance(meta, dict) else {},
+                rest_vertices=d["rest_vertices"] if "rest_vertices" in d.files else None,
             )  # fmt: skip
             return cls(motion, garment, gv, avatar, npz_text(d, path, "source", "unknown"))
         except LoosefitInputError as exc:

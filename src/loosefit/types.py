@@ -277,6 +277,11 @@ class GarmentTemplate:
         face_uvs: (F, 3) int64 indices into ``uvs`` for each face corner.
         waist: (W,) int64 indices of the waistband vertices (attached to the body).
         name: a label.
+        rest_vertices: (V, 3) float32 the cloth's rest shape (its unstretched edge lengths
+            and triangles) when it is not ``vertices``, the positions the garment starts
+            from: a garment fitted to the avatar (``garment --fit``) starts draped on it
+            and keeps the file's rest lengths. Any rigid placement (only lengths and
+            angles are read from it). None: ``vertices`` are both.
     """
 
     vertices: np.ndarray
@@ -286,6 +291,7 @@ class GarmentTemplate:
     waist: np.ndarray
     name: str = "garment"
     meta: dict = field(default_factory=dict)
+    rest_vertices: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.vertices = np.asarray(self.vertices, dtype=np.float32)
@@ -293,11 +299,18 @@ class GarmentTemplate:
         self.uvs = np.asarray(self.uvs, dtype=np.float32)
         self.face_uvs = np.asarray(self.face_uvs, dtype=np.int64)
         self.waist = np.asarray(self.waist, dtype=np.int64)
+        if self.rest_vertices is not None:
+            self.rest_vertices = np.asarray(self.rest_vertices, dtype=np.float32)
         self.validate()
 
     @property
     def num_vertices(self) -> int:
         return int(self.vertices.shape[0])
+
+    @property
+    def rest(self) -> np.ndarray:
+        """(V, 3) the rest shape: ``rest_vertices`` if given, else ``vertices``."""
+        return self.vertices if self.rest_vertices is None else self.rest_vertices
 
     def validate(self) -> None:
         """Check shapes, index ranges and finiteness."""
@@ -308,6 +321,8 @@ class GarmentTemplate:
         _check_array(src, "face_uvs", self.face_uvs, (self.faces.shape[0], 3), kind="i")
         _check_array(src, "waist", self.waist, (None,), kind="i")
         V, U = self.vertices.shape[0], self.uvs.shape[0]
+        if self.rest_vertices is not None:
+            _check_array(src, "rest_vertices", self.rest_vertices, (V, 3))
         if self.faces.shape[0] == 0:
             raise LoosefitInputError(src, "faces", "at least one face", "0 faces")
         for name, idx, n in (("faces", self.faces, V), ("face_uvs", self.face_uvs, U)):
@@ -341,11 +356,13 @@ class GarmentTemplate:
             waist=self.waist,
             name=np.array(self.name),
             meta=np.array(json.dumps(self.meta, default=_plain)),
+            **({} if self.rest_vertices is None else {"rest_vertices": self.rest_vertices}),
         )
 
     @classmethod
     def load(cls, path: str | Path) -> GarmentTemplate:
-        """Read a template written by :meth:`save`, validating every field."""
+        """Read a template written by :meth:`save`, validating every field (one written
+        before ``rest_vertices``, or without them: its vertices are its rest shape)."""
         path = Path(path)
         need = ("vertices", "faces", "uvs", "face_uvs", "waist")
         data = load_npz(path, "a .npz garment template", need)
@@ -358,6 +375,9 @@ class GarmentTemplate:
                 **{k: _numeric(data, path, k) for k in need},
                 name=npz_text(data, path, "name", path.stem),
                 meta=meta if isinstance(meta, dict) else {},
+                rest_vertices=_numeric(data, path, "rest_vertices")
+                if "rest_vertices" in data
+                else None,
             )
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found) from exc

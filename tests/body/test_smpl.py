@@ -13,6 +13,7 @@ from loosefit.body.smpl import (
     SMPL_OFFSETS,
     SMPL_PARENTS,
     read_smpl_npz,
+    template_from_skeleton,
 )
 from loosefit.errors import LoosefitInputError
 from tests.body.bvh_conventions import CONVENTIONS, joint_positions, motion_error, reduced
@@ -201,3 +202,26 @@ def test_inspect_motion_reads_smpl(avatar, dance, tmp_path):
              "auto-matched")  # fmt: skip
     for part in parts:
         assert part in text, (part, text)
+
+
+def test_the_template_skeleton_is_the_avatar_s_own_in_a_t_pose(avatar):
+    """No SMPL number ships: the template is the default avatar's joints (rounded to 0.1 mm),
+    the arms straight and level, each bone as long as the avatar's."""
+    offsets, ends = template_from_skeleton(avatar.skeleton)
+    np.testing.assert_allclose(SMPL_OFFSETS, offsets, atol=5.1e-5)
+    assert set(ends) == set(SMPL_END_OFFSETS)
+    for j, e in ends.items():
+        np.testing.assert_allclose(SMPL_END_OFFSETS[j], e, atol=5.1e-5)
+    sk = avatar.skeleton
+    for side, sign in (("left", 1), ("right", -1)):
+        for smpl, bone in ((f"{side}_elbow", "Arm"), (f"{side}_wrist", "ForeArm")):
+            o = offsets[SMPL_JOINTS.index(smpl)]
+            j = sk.index(side.capitalize() + bone)
+            assert o[0] * sign > 0 and np.allclose(o[1:], 0)  # level, along the body's side
+            assert np.linalg.norm(o) == pytest.approx(np.linalg.norm(sk.tails[j] - sk.heads[j]),
+                                                      abs=1e-4)  # fmt: skip
+    knee, hip = SMPL_JOINTS.index("left_knee"), SMPL_JOINTS.index("left_hip")
+    thigh = sk.heads[sk.index("LeftLeg")] - sk.heads[sk.index("LeftUpLeg")]
+    assert np.linalg.norm(offsets[knee]) == pytest.approx(np.linalg.norm(thigh), abs=1e-4)
+    x, y, z = sk.heads[sk.index("LeftUpLeg")] - sk.heads[sk.index("Hips")]  # Z up, -Y front
+    np.testing.assert_allclose(offsets[hip], [x, z, -y], atol=1e-6)  # SMPL's: Y up, +Z front

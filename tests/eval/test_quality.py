@@ -37,3 +37,18 @@ def test_quality_on_known_cases():
     assert len(edges) == 18  # a cube's 12 sides and 6 face diagonals
     with pytest.raises(LoosefitInputError):
         quality(g[:, :5], garment, b, body_faces)
+
+
+def test_strain_is_measured_against_the_rest_shape_not_the_start():
+    """A template that starts stretched (a fitted garment, draped): its rest lengths are
+    its ``rest_vertices``'."""
+    from loosefit.eval.quality import edge_strain
+
+    v, f = cube(1.0)
+    start = (1.1 * v).astype(np.float32)
+    garment = GarmentTemplate(start, f, np.zeros((1, 2)), np.zeros_like(f),
+                              np.zeros(0, np.int64), rest_vertices=v)  # fmt: skip
+    strain, _ = edge_strain(start[None], garment)
+    np.testing.assert_allclose(strain, 0.1, atol=1e-5)
+    plain = GarmentTemplate(start, f, np.zeros((1, 2)), np.zeros_like(f), np.zeros(0, np.int64))
+    assert edge_strain(start[None], plain)[0].max() < 1e-6

@@ -333,6 +333,33 @@ def test_settle_alone_gives_the_drape_every_clip_starts_from(avatar, tiny):
     assert alone[:, 2].min() < -0.2  # hangs below the root, not at the template's rest
 
 
+def test_the_cloth_keeps_its_templates_rest_shape_not_its_start(avatar, tiny):
+    """A template whose rest shape is 10% smaller than where it starts (as a fitted garment
+    starts draped): the cloth pulls in to the rest lengths; without rest_vertices the
+    start is the rest shape, as before, and the template without them keeps its run key."""
+    import loosefit.sim.cloth as cloth
+    from loosefit.sim.cloth import settle
+
+    skirt = tiny[0]
+    centre = skirt.vertices.mean(0)
+    small = dataclasses.replace(skirt, rest_vertices=centre + 0.9 * (skirt.vertices - centre))
+    config = ClothConfig.tiny()
+    edges = np.unique(np.sort(skirt.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), 1), axis=0)
+    free = ~np.isin(edges, skirt.waist).any(1)
+
+    def lengths(v):
+        return np.linalg.norm(v[edges[free, 0]] - v[edges[free, 1]], axis=1)
+
+    rest = lengths(skirt.vertices)
+    as_before = lengths(settle(avatar, skirt, config)) / rest
+    shrunk = lengths(settle(avatar, small, config)) / rest
+    assert np.median(as_before) > 0.97 and np.median(shrunk) < np.median(as_before) - 0.03
+    body = np.zeros((3, 10, 3), np.float32)
+    assert cloth._run_key(body, small, config) != cloth._run_key(body, skirt, config)
+    with pytest.raises(LoosefitInputError, match=r"rest_vertices.*\(96, 3\)|rest_vertices"):
+        dataclasses.replace(skirt, rest_vertices=skirt.vertices[:-1])
+
+
 # -- several clips at once ------------------------------------------------------------
 
 

@@ -152,7 +152,8 @@ def test_unknown_preset_and_empty_bvh_folder(tmp_path):
     expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, paper"
     with pytest.raises(LoosefitInputError, match=expected):
         gen.preset("huge")
-    with pytest.raises(LoosefitInputError, match=r"\*\.bvh.*no \.bvh files"):
+    with pytest.raises(LoosefitInputError, match=r"motion files \(\.bvh, \.gltf, \.glb, \.npz\)"
+                       r".*no motion file"):  # fmt: skip
         gen.plan_jobs(gen.preset("salsa", bvh_folder=str(tmp_path)))
 
 
@@ -358,6 +359,55 @@ def test_motions_as_specs_are_named_and_held_out_by_name(tmp_path):
     config.motions = gen.MotionSource(kind="specs", specs=("spin", "spin"))
     with pytest.raises(LoosefitInputError, match="distinct names"):
         gen.plan_jobs(config)
+
+
+def test_a_folder_of_mixed_motion_files_is_a_data_set_s_motions(tmp_path, avatar):
+    """BVH, GLB, SMPL .npz and loosefit .npz files side by side, from the command line: each
+    a clip named after its file, each read to the motion it was written from."""
+    from loosefit.body.bvh import read_bvh
+    from loosefit.body.motions import load_motion
+    from loosefit.cli import build_parser, dataset_config
+    from tests.body.bvh_conventions import CONVENTIONS, motion_error, write_convention_bvh
+    from tests.body.gltf_writer import write_gltf
+    from tests.body.test_smpl import SMPL_MAP, smpl_arrays
+
+    dance = load_motion("dance:2", avatar, seed=3)
+    folder = tmp_path / "mocap"
+    folder.mkdir()
+    daz = CONVENTIONS["daz"]
+    write_convention_bvh(folder / "a_studio.bvh", daz, avatar.skeleton, dance,
+                         avatar.floor_height)  # fmt: skip
+    write_gltf(folder / "b_blender.glb", read_bvh(folder / "a_studio.bvh"))
+    poses, trans = smpl_arrays(avatar, dance)
+    np.savez(folder / "c_amass.npz", poses=poses, trans=trans, mocap_framerate=np.array(30.0))
+    dance.save(folder / "d_loosefit.npz")
+    (folder / "notes.txt").write_text("not a motion")
+    args = build_parser().parse_args(["simulate", "--preset", "tiny", "--motions", str(folder),
+                                      "--test", "c_amass"])  # fmt: skip
+    jobs = gen.plan_jobs(dataset_config(args))
+    assert [(j.name, j.test) for j in jobs] == [
+        ("a_studio", False),
+        ("b_blender", False),
+        ("c_amass", True),
+        ("d_loosefit", False),
+    ]
+    cm = 0.01
+    for job, joints in zip(jobs, (daz.joints, daz.joints, SMPL_MAP, None), strict=True):
+        back = load_motion(job.spec, avatar)
+        assert back.num_frames == dance.num_frames, job.name
+        if joints is None:
+            np.testing.assert_allclose(back.rotations, dance.rotations, atol=1e-6)
+        else:
+            mean, _ = motion_error(avatar, dance, back, joints)
+            assert mean < 1 * cm, (job.name, mean)
+    # refused, naming the files: one clip name twice, an .npz that is no motion
+    dance.save(folder / "a_studio.npz")
+    with pytest.raises(LoosefitInputError, match=r"a_studio.*a_studio\.bvh and a_studio\.npz"):
+        gen.plan_jobs(dataset_config(args))
+    (folder / "a_studio.npz").unlink()
+    np.savez(folder / "e_points.npz", positions=np.zeros((3, 3)))
+    with pytest.raises(LoosefitInputError, match=r"e_points\.npz.*poses.*fields \['positions'\]"):
+        gen.plan_jobs(dataset_config(args))
 
 
 @pytest.mark.parametrize("name", gen.PRESETS)

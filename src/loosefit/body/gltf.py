@@ -302,7 +302,8 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
             f"keyframes over at most {MAX_SECONDS:g} s",
             f"{t0:g} s to {t1:g} s",
         )
-    T = int(np.floor((t1 - t0) * fps + 1e-6)) + 1
+    # keyframe times are float32 in a file: a last key at 101/30 s reads 100.99999 frames
+    T = int(np.floor((t1 - t0) * fps + 1e-3)) + 1
     at = t0 + np.arange(T) / fps  # (T,)
 
     # 4. World transforms of the joints and every node above them, at each frame and at rest.

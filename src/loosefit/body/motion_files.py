@@ -5,6 +5,7 @@ BVH (:mod:`loosefit.body.bvh`), glTF/GLB (:mod:`loosefit.body.gltf`) and SMPL-fa
 :class:`~loosefit.body.bvh.BvhClip`, which :func:`~loosefit.body.retarget.retarget_bvh`
 maps onto the avatar. A ``.npz`` saved by loosefit (:meth:`Motion.save`) is a motion
 already, not a clip: :func:`is_capture_file` tells the two apart by their fields.
+:func:`motion_files` lists a folder's motions of every kind (a data set's motion folder).
 """
 
 from __future__ import annotations
@@ -73,3 +74,44 @@ def read_clip(path: str | Path, config: RetargetConfig | None = None) -> BvhClip
         raise LoosefitInputError(path, "<file>", f"an existing {what.split(' ', 1)[1]}",
                                  "no such file")  # fmt: skip
     return reader(path, config)
+
+
+MOTION_SUFFIXES = (".bvh", ".gltf", ".glb", ".npz")  # what a folder of motions holds
+
+
+def motion_files(folder: str | Path) -> list[Path]:
+    """The motion files of a folder, sorted by name: BVH, glTF/GLB, SMPL-family ``.npz`` and
+    loosefit motion ``.npz`` files (:meth:`Motion.save`), mixed; other files are left alone.
+
+    Each becomes a clip named after its file's stem, so two files with one stem are refused.
+
+    Raises:
+        LoosefitInputError: naming the folder: missing, or with no motion file; or naming
+            the files: two with one stem, an ``.npz`` that is no motion (neither SMPL
+            ``poses`` nor loosefit ``rotations``).
+    """
+    folder = Path(folder)
+    want = f"a folder with motion files ({', '.join(MOTION_SUFFIXES)})"
+    if not folder.is_dir():
+        raise LoosefitInputError(folder, "<folder>", want, "no such folder")
+    files = sorted(f for f in folder.iterdir()
+                   if f.is_file() and f.suffix.lower() in MOTION_SUFFIXES)  # fmt: skip
+    if not files:
+        raise LoosefitInputError(folder, "<folder>", want, "no motion file")
+    seen: dict[str, Path] = {}
+    for f in files:
+        if f.stem in seen:
+            raise LoosefitInputError(
+                folder, f.stem, "one file per clip name (a clip is named after its file)",
+                f"{seen[f.stem].name} and {f.name}", hint="rename or move one of them",
+            )  # fmt: skip
+        seen[f.stem] = f
+        if f.suffix.lower() == ".npz":
+            fields = npz_fields(f)
+            if not (is_smpl_npz(fields) or "rotations" in fields):
+                raise LoosefitInputError(
+                    f, "poses", "an SMPL pose file (poses, trans, a frame rate) or a loosefit "
+                    "motion (rotations, ...)", f"fields {sorted(fields)}",
+                    hint="move files that are no motions out of the folder",
+                )  # fmt: skip
+    return files

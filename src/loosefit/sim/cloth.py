@@ -635,7 +635,8 @@ class ClothSimulator:
     Args:
         garment_vertices: (V, 3) initial cloth positions, world frame; or (K, V, 3),
             one garment per clip (the same mesh).
-        garment_faces: (F, 3) cloth triangles; the initial positions are also the rest shape.
+        garment_faces: (F, 3) cloth triangles; the initial positions are also the rest shape
+            unless ``rest_vertices`` are given.
         waist: (W,) indices of the waistband vertices, glued to the body.
         body_vertices: (Vb, 3) the body at the start, world frame; (K, Vb, 3) batched.
         body_faces: (Fb, 3) triangles of a closed (watertight) body mesh.
@@ -652,6 +653,10 @@ class ClothSimulator:
         limb_faces: (Fl, 3) triangles of a second closed mesh on the body's vertices (the
             arms cut from ``body_faces``, :meth:`Avatar.cut_limb_faces`), a collider of its
             own with ``config.arm_friction``; None: no such collider.
+        rest_vertices: (V, 3) the cloth's rest shape (edge lengths, triangle shapes and
+            areas, so masses), in any rigid placement, when it is not the initial positions
+            (:attr:`GarmentTemplate.rest_vertices`: a garment fitted to the avatar starts
+            draped and keeps its file's rest lengths); None: the initial positions.
     """
 
     def __init__(
@@ -667,6 +672,7 @@ class ClothSimulator:
         loop: bool = True,
         seeds: list[int] | None = None,
         limb_faces: np.ndarray | None = None,
+        rest_vertices: np.ndarray | None = None,
     ) -> None:
         import newton  # imported here: importing it takes seconds
 
@@ -688,6 +694,11 @@ class ClothSimulator:
         body_faces = np.ascontiguousarray(body_faces, np.int32)
         waist = np.asarray(waist, np.int64)
         V = self.num_vertices = garments.shape[1]
+        if rest_vertices is not None:
+            rest_vertices = np.asarray(rest_vertices, np.float64)
+            if rest_vertices.shape != (V, 3):
+                raise LoosefitInputError("ClothSimulator", "rest_vertices", f"shape ({V}, 3)",
+                                         f"shape {rest_vertices.shape}")  # fmt: skip
         self.num_body_vertices = bodies.shape[1]
         if bounds is None:
             bounds = (bodies.min((0, 1)) - 2.0, bodies.max((0, 1)) + 2.0)
@@ -745,7 +756,11 @@ class ClothSimulator:
                 rot=wp.quat_identity(),
                 scale=1.0,
                 vel=wp.vec3(0.0, 0.0, 0.0),
-                vertices=[wp.vec3(*v) for v in garments[k] + off],
+                # the rest shape (the particles' positions are set to ``start`` below)
+                vertices=[
+                    wp.vec3(*v)
+                    for v in (garments[k] if rest_vertices is None else rest_vertices) + off
+                ],  # fmt: skip
                 indices=np.asarray(garment_faces, np.int32).ravel().tolist(),
                 density=cfg.density,
                 tri_ke=cfg.stretch_ke,
@@ -1015,6 +1030,8 @@ def _run_key(body: np.ndarray, template: GarmentTemplate, config: ClothConfig) -
     h = hashlib.sha256()
     for a in (body[:: max(len(body) // 64, 1)], template.vertices, template.faces, template.waist):
         h.update(np.ascontiguousarray(a).tobytes())
+    if template.rest_vertices is not None:  # a template without them keeps its key
+        h.update(np.ascontiguousarray(template.rest_vertices).tobytes())
     # the release of trapped cloth does not enter it: a run it never changed is the same
     # (the resume checks that; see simulate_batch)
     fields = asdict(replace(config, release_depth=None))
@@ -1259,7 +1276,7 @@ def simulate_batch(
         np.stack(garments) if K > 1 else garments[0], template.faces, template.waist,
         start_bodies if K > 1 else start_bodies[0], body_faces, config,
         frame_dt=1.0 / fps, bounds=(lower, upper), loop=attached_loop(template), seeds=seeds,
-        limb_faces=limb_faces,
+        limb_faces=limb_faces, rest_vertices=template.rest_vertices,
     )  # fmt: skip
     t_build = time.perf_counter() - t0
     schedule = np.full(total, config.substeps, np.int64)
@@ -1428,6 +1445,7 @@ def settle(
         avatar.collider_faces(arms=config.arm_collision).cpu().numpy(), config,
         frame_dt=1.0 / fps, bounds=(body.min(0) - 2.0, body.max(0) + 2.0),
         loop=attached_loop(template), limb_faces=_limb_faces(avatar, config),
+        rest_vertices=template.rest_vertices,
     )  # fmt: skip
     n_settle = int(round(config.settle_seconds * fps)) + 1
     for k in range(n_settle - 1):

@@ -45,13 +45,14 @@ from loosefit.sim.cloth import ClothConfig, SimulationError, simulate_batch
 class MotionSource:
     """Where a dataset's motions come from."""
 
-    # "procedural" (random dances), "bvh" (a folder of BVH files) or "specs" (any motions
-    # load_motion reads: files, moves, dance:SECONDS, mirror:..., speed:..., A+B)
+    # "procedural" (random dances), "bvh" (a folder of motion files: BVH, glTF/GLB and
+    # SMPL or loosefit .npz, mixed; the name is from when it read only BVH) or "specs" (any
+    # motions load_motion reads: files, moves, dance:SECONDS, mirror:..., speed:..., A+B)
     kind: str = "procedural"
     count: int = 8  # procedural: number of dances
     moves: tuple[str, ...] = ()  # procedural: one clip per named move instead of random dances
     seconds: float = 6.0  # procedural: length of each dance
-    folder: str = ""  # bvh: the folder of .bvh files
+    folder: str = ""  # bvh: the folder of motion files (body.motion_files.motion_files)
     max_frames: int | None = None  # keep at most this many frames of each clip (None: all)
     start_frame: int = 0  # drop the frames of each clip before this one
     test: tuple[str, ...] = ()  # bvh, specs: clip names held out for testing
@@ -279,13 +280,9 @@ def plan_jobs(config: DatasetConfig) -> list[Job]:
     jobs: list[Job] = []
     folder_stems: set[str] = set()  # the clips of a bvh folder
     if m.kind == "bvh" or config.preset == "paper":
-        folder = Path(m.folder)
-        files = sorted(folder.glob("*.bvh")) if folder.is_dir() else []
-        if not files:
-            raise LoosefitInputError(
-                folder, "*.bvh", "a folder with BVH files", "no such folder" if not folder.is_dir()
-                else "no .bvh files",
-            )  # fmt: skip
+        from loosefit.body.motion_files import motion_files
+
+        files = motion_files(m.folder)  # .bvh, .gltf, .glb, .npz
         jobs += [
             Job(f.stem, str(f), config.seed + i, f.stem in m.test)
             for i, f in enumerate(files)
