@@ -92,8 +92,9 @@ class Viewer:
         # rate of a browser drawing WebGL in software (measured); from the front, above.
         scene.configure_environment_map(None)
         scene.configure_default_lights(enabled=False)
-        scene.add_light_hemisphere("/lights/sky", sky_color=(255, 255, 255),
-                                   ground_color=(120, 110, 100), intensity=1.2)
+        scene.add_light_hemisphere(
+            "/lights/sky", sky_color=(255, 255, 255), ground_color=(120, 110, 100), intensity=1.2
+        )
         scene.add_light_directional("/lights/key", intensity=2.0, position=(1.5, -3.0, 4.0))
         scene.add_light_directional("/lights/back", intensity=0.8, position=(-1.0, 3.0, 2.0))
         floor = float(min(s.body[0, :, 2].min() for s in self.sequences))
@@ -337,11 +338,9 @@ class Viewer:
         if len(self.sequences) < 2:
             self.stats.content = ""
             return
-        rows = [
-            f"| {s.name} | {100 * rmse_per_frame(s.garment[t, None], ref.garment[t, None])[0]:.2f} |"
-            for s in self.sequences
-            if s is not ref
-        ]
+        others = [s for s in self.sequences if s is not ref]
+        rmse = [rmse_per_frame(s.garment[t : t + 1], ref.garment[t : t + 1])[0] for s in others]
+        rows = [f"| {s.name} | {100 * e:.2f} |" for s, e in zip(others, rmse, strict=True)]
         self.stats.content = f"RMSE to **{ref.name}**, this frame\n\n| | cm |\n|---|---|\n" + (
             "\n".join(rows)
         )
