@@ -129,7 +129,9 @@ class Chromium:
         if binary is None:
             raise FileNotFoundError(f"no Chromium: none of {BINARIES} on PATH")
         self.timeout = timeout
-        self._profile = tempfile.TemporaryDirectory(prefix="loosefit-chromium-")
+        # the browser's helpers may still write there as it quits: cleaned up as they can be
+        self._profile = tempfile.TemporaryDirectory(prefix="loosefit-chromium-",
+                                                    ignore_cleanup_errors=True)  # fmt: skip
         profile = Path(self._profile.name)
         self.process = subprocess.Popen(
             [binary, *FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
@@ -234,7 +236,11 @@ class Chromium:
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
-        self._profile.cleanup()
+        for _ in range(10):  # the helper processes leave shortly after the browser
+            self._profile.cleanup()
+            if not Path(self._profile.name).exists():
+                break
+            time.sleep(0.2)
 
     def __enter__(self) -> Chromium:
         return self
