@@ -141,3 +141,41 @@ def test_a_taken_port_gives_way_to_the_next(clips):
             assert viewer.port > port
         finally:
             viewer.close()
+
+
+def test_view_command_serves_a_data_set_clip_and_prints_the_url(toy_dataset, monkeypatch, capsys):
+    from loosefit.view.server import Viewer
+
+    served = []
+    monkeypatch.setattr(Viewer, "wait", lambda self: (served.append(self), self.close()))
+    assert main(["view", "--data", str(toy_dataset), "--clip", "b", "--port", "0"]) == 0
+    (viewer,) = served
+    assert viewer.sequences[0].name == "b (simulation)" and viewer.num_frames == 16
+    assert f"loosefit viewer: {viewer.url}" in capsys.readouterr().out
+    assert main(["view", "--data", str(toy_dataset)]) == 2
+    assert "--clip" in capsys.readouterr().err
+
+
+def test_demo_view_opens_the_demo_result(tmp_path, monkeypatch, capsys, avatar):
+    from loosefit.view.server import Viewer
+
+    served = []
+    monkeypatch.setattr(Viewer, "wait", lambda self: (served.append(self), self.close()))
+    args = ["demo", "--out", str(tmp_path), "--motion", "kick", "--no-physics", "--size", "48",
+            "--views", "front", "--max-frames", "6", "--view", "--port", "0"]  # fmt: skip
+    assert main(args) == 0
+    (viewer,) = served
+    assert viewer.num_frames == 6 and viewer.sequences[0].name == "demo (rigid)"
+    assert "loosefit viewer: http://" in capsys.readouterr().out
+
+
+def test_animated_garment_view_returns_the_running_viewer(clips, capsys):
+    a, still = clips
+    viewer = a.view(still, names=["a", "still"], wait=False, port=0, layout="overlaid")
+    try:
+        assert [s.name for s in viewer.sequences] == ["a", "still"]
+        assert viewer.sequences[0].body is viewer.sequences[1].body  # one motion: posed once
+        assert viewer.bodies[0].visible and not viewer.bodies[1].visible  # overlaid: one body
+        assert viewer.url in capsys.readouterr().out
+    finally:
+        viewer.close()
