@@ -7,6 +7,7 @@ Subcommands:
     inspect-motion  a motion file's joints, how they map onto the avatar, height, units
     garment  make a parametric skirt or import an OBJ, write OBJ + template (.npz)
     simulate simulate a garment dataset with Newton's VBD cloth solver
+    view     sequences in a 3D viewer in the browser (body, garment, colour by error)
 """
 
 from __future__ import annotations
@@ -23,6 +24,39 @@ from loosefit.errors import LoosefitInputError
 
 def _log(msg: str) -> None:
     print(f"[loosefit] {msg}", file=sys.stderr, flush=True)
+
+
+def _add_view_args(p: argparse.ArgumentParser) -> None:
+    from loosefit.view.config import COLOURINGS  # light: viser is imported on start
+
+    p.add_argument(
+        "--port",
+        type=int,
+        default=8080,
+        help="the first port tried (taken: the next free one, printed)",
+    )
+    p.add_argument(
+        "--host", default="127.0.0.1", help="the address to listen on (0.0.0.0: every interface)"
+    )
+    p.add_argument(
+        "--colour",
+        default="plain",
+        choices=tuple(COLOURINGS),
+        help="colour the garment by: its distance to the reference (error), edge "
+        "strain, or depth inside the body (changeable in the panel)",
+    )
+    p.add_argument(
+        "--reference",
+        type=int,
+        default=0,
+        help="the sequence the distance and RMSE are measured to (0: the first)",
+    )
+    p.add_argument(
+        "--overlay",
+        action="store_true",
+        help="overlaid rather than side by side (changeable in the panel)",
+    )
+    p.add_argument("--paused", action="store_true", help="start paused")
 
 
 def _add_avatar_args(p: argparse.ArgumentParser) -> None:
@@ -221,6 +255,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
             _log_exported(export_animation(out / f"demo{suffix}", meshes, motion.fps))
     title = f"loosefit demo: {motion.name}" + (" (learned)" if learned else f" ({source})")
     _render(args, avatar, motion, template, garment, out, title, body=body)
+    if args.view:
+        _serve([seq], [f"demo ({source})"], [str(out / "sequence.npz")], args)
     return 0
 
 
@@ -998,6 +1034,35 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_view(args: argparse.Namespace) -> int:
+    """Sequences (and a data set's clip) in the browser viewer, served until Ctrl-C."""
+    from loosefit.view.scene import read_sequences
+
+    seqs, labels, sources = read_sequences(args.sequences, args.data, args.clip)
+    _serve(seqs, labels, sources, args)
+    return 0
+
+
+def _serve(seqs, labels, sources, args) -> None:
+    """Pose the bodies, start the viewer, print its URL and serve until interrupted."""
+    from loosefit.view import ViewerConfig, view
+
+    config = ViewerConfig(host=args.host, port=args.port, colouring=args.colour,
+                          layout="overlaid" if args.overlay else "side by side",
+                          reference=args.reference, play=not args.paused)  # fmt: skip
+    config.validate(len(seqs))  # before minutes of posing
+    frames = sum(s.num_frames for s in seqs)
+    _log(f"{len(seqs)} sequence(s), {seqs[0].num_frames} frames each: posing the bodies")
+    bar = tqdm_bar("pose", unit="frame")
+    t = time.perf_counter()
+    viewer = view(seqs, labels, config, sources, progress=bar.progress)
+    bar.close()
+    moved = f" (port {args.port} is in use)" if viewer.port != args.port else ""
+    _log(f"ready in {time.perf_counter() - t:.1f} s ({frames} frames)")
+    print(f"loosefit viewer: {viewer.url}{moved}  (Ctrl-C to stop)", flush=True)
+    viewer.wait()
+
+
 def build_parser() -> argparse.ArgumentParser:
     from loosefit.body.bvh import BVH_UNITS  # numpy only: the parser stays quick to build
 
@@ -1036,6 +1101,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bvh_args(p, BVH_UNITS)
     _add_avatar_args(p)
     _add_render_args(p)
+    p.add_argument(
+        "--view",
+        action="store_true",
+        help="then open the result in the browser viewer (as loosefit view)",
+    )
+    _add_view_args(p)
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("render", help="render a motion or a saved sequence to MP4 and PNG")
@@ -1235,6 +1306,30 @@ def build_parser() -> argparse.ArgumentParser:
     _add_stage_args(p)
     _add_render_args(p, views="front,side")
     p.set_defaults(func=cmd_animate)
+
+    p = sub.add_parser(
+        "view", help="sequences in a 3D viewer in the browser (pip install 'loosefit[viewer]')",
+        description="Serve sequences of one garment and motion in a 3D viewer in the browser "
+        "(viser): the bodies and garments side by side or overlaid, each shown or hidden; "
+        "play, pause, a frame slider, the speed, a camera that follows; the garment coloured "
+        "by its distance to a reference sequence, its edge strain or its depth inside the "
+        "body, with the frame's RMSE. Nothing needs a display: open the printed URL in any "
+        "browser (from another machine: ssh -L PORT:localhost:PORT). Sequences opened "
+        "together share one timeline and are refused (naming both) unless they have the "
+        "same garment, frame count and frame rate; view others one at a time.",
+    )  # fmt: skip
+    p.add_argument("sequences", nargs="*", metavar="SEQUENCE",
+                   help="sequence .npz files: animate's, the API's save(), demo's "
+                   "sequence.npz, a data set's sequences/NAME.npz")  # fmt: skip
+    p.add_argument(
+        "--data",
+        default=None,
+        metavar="DATASET",
+        help="a data set folder: with --clip, its simulated clip (shown first)",
+    )
+    p.add_argument("--clip", default=None, metavar="NAME", help="the clip of --data")
+    _add_view_args(p)
+    p.set_defaults(func=cmd_view)
 
     p = sub.add_parser("export", help="a sequence to USD, PC2 point caches or an OBJ sequence")
     p.add_argument(

@@ -125,6 +125,24 @@ class AnimatedGarment:
                                   self.body_faces if body else None)  # fmt: skip
         return export_animation(path, meshes, self.fps)
 
+    def view(self, *others: AnimatedGarment, names: list[str] | None = None,
+             wait: bool = True, **config):  # fmt: skip
+        """Open this sequence (and ``others`` of the same garment and frames, side by side)
+        in the browser viewer (:mod:`loosefit.view`; ``pip install 'loosefit[viewer]'``).
+
+        Prints the URL; with ``wait`` serves until Ctrl-C, otherwise returns the running
+        :class:`~loosefit.view.server.Viewer` at once (``close()`` it). ``config``:
+        :class:`~loosefit.view.ViewerConfig` fields, e.g. ``port=8081``,
+        ``colouring="error"``, ``layout="overlaid"``.
+        """
+        from loosefit.view import ViewerConfig, view
+
+        viewer = view([self, *others], names, ViewerConfig(**config))
+        print(f"loosefit viewer: {viewer.url}", flush=True)
+        if wait:
+            viewer.wait()
+        return viewer
+
     def __post_init__(self) -> None:
         gv = np.asarray(self.garment_vertices)
         if np.issubdtype(gv.dtype, np.floating):

@@ -1,0 +1,181 @@
+"""The viewer in a headless browser: the garment is drawn and moves from frame to frame;
+sequences that cannot play together are refused; a taken port gives way to the next.
+
+The browser test needs Chromium (Debian's ``chromium``; installed with apt-get when it is
+missing and the machine allows it, skipped otherwise) and draws WebGL in software.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+
+import numpy as np
+import pytest
+
+pytest.importorskip("viser", reason="the viewer's optional extra: pip install 'loosefit[viewer]'")
+
+from loosefit.cli import main  # noqa: E402
+from loosefit.errors import LoosefitInputError  # noqa: E402
+from loosefit.sequence import AnimatedGarment  # noqa: E402
+from loosefit.view import ViewerConfig, view  # noqa: E402
+from loosefit.view.headless import Chromium, find_chromium  # noqa: E402
+from loosefit.view.scene import read_sequences  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def chromium_binary() -> str:
+    """Chromium, installed with apt-get (Debian's package) when missing, or a skip."""
+    found = find_chromium()
+    if found:
+        return found
+    if shutil.which("apt-get") is None or os.geteuid() != 0:
+        pytest.skip("no Chromium, and apt-get as root is not available to install it")
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    for cmd in (["apt-get", "update"], ["apt-get", "install", "-y", "chromium"]):
+        run = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=900)
+        if run.returncode != 0:
+            pytest.skip(f"could not install Chromium ({' '.join(cmd)}: {run.stderr[-300:]})")
+    return find_chromium() or pytest.skip("apt-get installed chromium, but it is not on PATH")
+
+
+@pytest.fixture(scope="module")
+def clips(toy_dataset):
+    """The toy data set's clip 'a' (its hem swings) and the same clip, hem still."""
+    seqs, labels, sources = read_sequences(data=toy_dataset, clip="a")
+    a = seqs[0]
+    still = AnimatedGarment(a.motion, a.garment, np.repeat(a.garment_vertices[:1], a.num_frames,
+                                                           axis=0), a.avatar, "still")  # fmt: skip
+    return a, still
+
+
+def _garment_mask(browser: Chromium, viewer, t: int, before: np.ndarray) -> tuple:
+    """Frame ``t`` with the garment and without: the pixels it covers, and the screenshot."""
+    viewer.set_frame(t)
+    viewer.garments[0].visible = True
+    shown = browser.settled_screenshot(before)
+    viewer.garments[0].visible = False
+    hidden = browser.settled_screenshot(shown)
+    viewer.garments[0].visible = True
+    diff = np.abs(shown.astype(np.int16) - hidden.astype(np.int16)).max(-1)  # (H, W)
+    return diff > 40, shown
+
+
+def test_garment_is_drawn_and_moves(clips, chromium_binary, tmp_path):
+    a, _ = clips
+    viewer = view([a], names=["clip a"], config=ViewerConfig(port=0, play=False, follow=False))
+    try:
+        assert viewer.port > 0 and viewer.url.endswith(f":{viewer.port}")
+        with Chromium(chromium_binary, width=800, height=600) as browser:
+            browser.open(viewer.url)
+            first = browser.settled_screenshot()
+            mask0, shot0 = _garment_mask(browser, viewer, 0, first)
+            mask1, shot1 = _garment_mask(browser, viewer, 5, shot0)  # the hem swung out
+        from PIL import Image
+
+        Image.fromarray(shot0).save(tmp_path / "frame0.png")
+        Image.fromarray(shot1).save(tmp_path / "frame5.png")
+        n0, n1 = int(mask0.sum()), int(mask1.sum())
+        assert n0 > 500 and n1 > 500, f"garment pixels: {n0}, {n1} (see {tmp_path})"
+        moved = int((mask0 ^ mask1).sum())
+        assert moved > 0.1 * min(n0, n1), f"{moved} of {n0} garment pixels changed ({tmp_path})"
+    finally:
+        viewer.close()
+
+
+def test_frames_and_colourings_through_the_api(clips):
+    a, still = clips
+    viewer = view([a, still], names=["a", "still"],
+                  config=ViewerConfig(port=0, play=False, colouring="error"))  # fmt: skip
+    try:
+        viewer.set_frame(5)
+        assert viewer.frame == 5 and int(viewer.slider.value) == 5
+        # the distance to the reference: 0 for the reference itself, colour meshes shown
+        assert not viewer.garments[1].visible
+        assert any(m.visible for m in viewer.bin_meshes[1])
+        assert "RMSE to **a**" in viewer.stats.content
+        rmse = float(viewer.stats.content.split("| still | ")[1].split(" |")[0])
+        d = a.garment_vertices[5] - still.garment_vertices[5]
+        assert rmse == pytest.approx(100 * np.sqrt((d * d).sum(-1).mean()), abs=0.01)
+        for mode in ("edge strain", "inside the body", "plain"):
+            viewer.mode.value = mode
+            viewer.set_frame(6)
+        assert viewer.garments[0].visible
+        with pytest.raises(LoosefitInputError, match="0 to 15"):
+            viewer.set_frame(16)
+    finally:
+        viewer.close()
+
+
+def test_sequences_of_other_frame_counts_are_refused(clips, tmp_path, capsys):
+    a, _ = clips
+    short = AnimatedGarment(a.motion.slice(0, 10), a.garment, a.garment_vertices[:10], a.avatar)
+    pa, pb = a.save(tmp_path / "long.npz"), short.save(tmp_path / "short.npz")
+    assert main(["view", str(pa), str(pb), "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "long.npz" in err and "short.npz" in err and "16 frames" in err and "10 frames" in err
+
+
+def test_other_garments_are_refused(clips, skirt, avatar):
+    from loosefit.dress import carry_rigidly, fit_skirt
+    from loosefit.garment.skirt import SkirtConfig
+
+    a, _ = clips
+    other = fit_skirt(avatar, SkirtConfig(style="aline", rings=5, segments=12))
+    g = carry_rigidly(other, avatar.pose_motion(a.motion), avatar).numpy()
+    b = AnimatedGarment(a.motion, other, g, a.avatar)
+    with pytest.raises(LoosefitInputError, match=r"sequence 1 and sequence 2.*another garment"):
+        view([a, b], config=ViewerConfig(port=0))
+
+
+def test_a_taken_port_gives_way_to_the_next(clips):
+    a, _ = clips
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        viewer = view([a], config=ViewerConfig(port=port, play=False))
+        try:
+            assert viewer.port > port
+        finally:
+            viewer.close()
+
+
+def test_view_command_serves_a_data_set_clip_and_prints_the_url(toy_dataset, monkeypatch, capsys):
+    from loosefit.view.server import Viewer
+
+    served = []
+    monkeypatch.setattr(Viewer, "wait", lambda self: (served.append(self), self.close()))
+    assert main(["view", "--data", str(toy_dataset), "--clip", "b", "--port", "0"]) == 0
+    (viewer,) = served
+    assert viewer.sequences[0].name == "b (simulation)" and viewer.num_frames == 16
+    assert f"loosefit viewer: {viewer.url}" in capsys.readouterr().out
+    assert main(["view", "--data", str(toy_dataset)]) == 2
+    assert "--clip" in capsys.readouterr().err
+
+
+def test_demo_view_opens_the_demo_result(tmp_path, monkeypatch, capsys, avatar):
+    from loosefit.view.server import Viewer
+
+    served = []
+    monkeypatch.setattr(Viewer, "wait", lambda self: (served.append(self), self.close()))
+    args = ["demo", "--out", str(tmp_path), "--motion", "kick", "--no-physics", "--size", "48",
+            "--views", "front", "--max-frames", "6", "--view", "--port", "0"]  # fmt: skip
+    assert main(args) == 0
+    (viewer,) = served
+    assert viewer.num_frames == 6 and viewer.sequences[0].name == "demo (rigid)"
+    assert "loosefit viewer: http://" in capsys.readouterr().out
+
+
+def test_animated_garment_view_returns_the_running_viewer(clips, capsys):
+    a, still = clips
+    viewer = a.view(still, names=["a", "still"], wait=False, port=0, layout="overlaid")
+    try:
+        assert [s.name for s in viewer.sequences] == ["a", "still"]
+        assert viewer.sequences[0].body is viewer.sequences[1].body  # one motion: posed once
+        assert viewer.bodies[0].visible and not viewer.bodies[1].visible  # overlaid: one body
+        assert viewer.url in capsys.readouterr().out
+    finally:
+        viewer.close()
