@@ -28,6 +28,7 @@ from loosefit.sim.cluster import (
     ClusterConfig,
     ClusterError,
     check_node,
+    check_reachable,
     import_ray,
     split_address,
 )
@@ -243,6 +244,31 @@ def test_an_address_where_no_cluster_answers_fails_at_once_naming_it(tmp_path, c
     assert main(argv) == 2
     assert f"nothing answering at 127.0.0.1:{port}" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_port_that_does_not_speak_as_a_ray_head_is_refused_at_once():
+    with socket.socket() as silent:  # the kernel accepts, nobody answers
+        silent.bind(("127.0.0.1", 0))
+        silent.listen()
+        address = f"127.0.0.1:{silent.getsockname()[1]}"
+        with pytest.raises(LoosefitInputError, match=f"nothing answering at {address} within 1 s"):
+            check_reachable(address, 1.0)
+    with socket.socket() as other:  # another service: it says something else, and hangs up
+        other.bind(("127.0.0.1", 0))
+        other.listen()
+        address = f"127.0.0.1:{other.getsockname()[1]}"
+
+        def greet() -> None:
+            conn, _ = other.accept()
+            with conn:
+                conn.sendall(b"SSH-2.0-OpenSSH_9.6\r\n")
+
+        thread = threading.Thread(target=greet, daemon=True)
+        thread.start()
+        with pytest.raises(LoosefitInputError, match=f"something at {address} that does not "
+                           "answer as a Ray head"):  # fmt: skip
+            check_reachable(address, 5.0)
+        thread.join()
 
 
 def test_without_ray_the_error_says_how_to_install_it(monkeypatch, tmp_path):

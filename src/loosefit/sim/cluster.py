@@ -80,23 +80,36 @@ def split_address(address: str) -> tuple[str, int]:
     return host, port or (CLIENT_PORT if client else GCS_PORT)
 
 
+# An HTTP/2 client's opening (RFC 9113, 3.4) and an empty SETTINGS frame: a Ray head's
+# services speak gRPC over HTTP/2, and answer with a SETTINGS frame (type 4) of their own.
+_HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
+
+
 def check_reachable(address: str, timeout: float) -> None:
-    """Fail at once, naming ``address``, when nothing answers there within ``timeout``
-    seconds (Ray itself retries for minutes).
+    """Fail at once, naming ``address``, unless a gRPC server (a Ray head's) answers there
+    within ``timeout`` seconds: Ray itself would retry for minutes.
 
     Raises:
-        LoosefitInputError: naming the address and why it was not reached.
+        LoosefitInputError: naming the address and what answered there, if anything.
     """
     host, port = split_address(address)
+    expected = ("the address of a running Ray cluster's head (`ray start --head` prints it; "
+                "docs/CLUSTER.md)")  # fmt: skip
     try:
-        socket.create_connection((host, port), timeout=timeout).close()
+        with socket.create_connection((host, port), timeout=timeout) as conn:
+            conn.settimeout(timeout)
+            conn.sendall(_HTTP2_PREFACE)
+            head = b""
+            while len(head) < 4 and (chunk := conn.recv(9 - len(head))):
+                head += chunk
     except OSError as exc:
-        raise LoosefitInputError(
-            "--ray", "address",
-            "the address of a running Ray cluster's head (`ray start --head` prints it; "
-            "docs/CLUSTER.md)",
-            f"nothing answering at {host}:{port} within {timeout:g} s ({exc or 'timed out'})",
-        ) from None  # fmt: skip
+        raise LoosefitInputError("--ray", "address", expected,
+                                 f"nothing answering at {host}:{port} within {timeout:g} s "
+                                 f"({exc or 'timed out'})") from None  # fmt: skip
+    if len(head) < 4 or head[3] != 4:
+        raise LoosefitInputError("--ray", "address", expected,
+                                 f"something at {host}:{port} that does not answer as a Ray "
+                                 f"head (no gRPC server) within {timeout:g} s")  # fmt: skip
 
 
 def preflight(cluster: ClusterConfig) -> None:
