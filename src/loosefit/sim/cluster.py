@@ -20,6 +20,7 @@ import json
 import os
 import platform
 import socket
+import time
 import urllib.parse
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -154,7 +155,7 @@ def connect(cluster: ClusterConfig, local_cpus: int | None = None) -> bool:
 
     Returns:
         Whether this call connected (the caller shuts Ray down after); False when this
-        process was connected already (and stays so).
+        process was connected already (it stays so, and ``cluster.address`` is unused).
 
     Raises:
         LoosefitInputError: ray is not installed; the address is malformed or nothing
@@ -206,10 +207,14 @@ def check_node(out_dir: Path, created: str, versions: dict[str, str]) -> None:
             not on shared storage), or another version of a package.
     """
     node = platform.node()
-    try:
-        found = json.loads((out_dir / "manifest.json").read_text()).get("created")
-    except (OSError, ValueError):
-        found = None
+    for attempt in range(3):  # a network file system may fail a read while the driver
+        try:  # replaces the manifest: read again before refusing
+            found = json.loads((out_dir / "manifest.json").read_text()).get("created")
+        except (OSError, ValueError):
+            found = None
+        if found == created:
+            break
+        time.sleep(0.2 * (attempt + 1))
     if found != created:
         raise LoosefitInputError(
             out_dir, "manifest.json",
@@ -281,6 +286,7 @@ def run_on_ray(
     started = connect(cluster, local_cpus)
     pending: list = []
     failed: list = []
+    progress = None
     try:
         from ray.util.queue import Queue
 
@@ -315,6 +321,8 @@ def run_on_ray(
     finally:
         for ref in pending:  # stopped early: the tasks left stop too (their saves stay)
             ray.cancel(ref, force=True)
+        if progress is not None:
+            progress.shutdown()
         if started:
             ray.shutdown()
     if failed:
