@@ -195,9 +195,10 @@ def run_with_kill(head, out: Path, clip: str, cluster: ClusterConfig):
 
 @needs_ray
 def test_a_killed_worker_s_clip_goes_on_from_its_save_and_the_data_set_is_the_local_one(
-    head, local_tiny, tmp_path
+    head, local_tiny, tmp_path, monkeypatch
 ):
-    out = tmp_path / "ray"
+    monkeypatch.chdir(tmp_path)  # --out relative to the command's folder, not the workers'
+    out = Path("ray")
     killer, error = run_with_kill(head, out, "kick_000", ClusterConfig(head[1]))
     assert error is None
     # Ray ran the clip's task again, which went on from the save, not from the start

@@ -234,9 +234,14 @@ def check_node(out_dir: Path, created: str, versions: dict[str, str]) -> None:
 
 
 def simulate_on_node(config: DatasetConfig, jobs: list[Job], out_dir: str, resume_every: int,
-                     created: str, versions: dict[str, str], progress) -> list[dict]:  # fmt: skip
-    """A Ray task: :func:`check_node`, then :func:`~loosefit.sim.generate.run_clips`."""
+                     created: str, versions: dict[str, str], cwd: str,
+                     progress) -> list[dict]:  # fmt: skip
+    """A Ray task: :func:`check_node`, then :func:`~loosefit.sim.generate.run_clips` in
+    the command's working directory ``cwd`` where the node has it (as a local worker
+    runs), so that the configuration's relative paths name the same files."""
     check_node(Path(out_dir), created, versions)
+    if Path(cwd).is_dir():
+        os.chdir(cwd)
     return run_clips(config, jobs, out_dir, resume_every, progress)
 
 
@@ -295,11 +300,12 @@ def run_on_ray(
         task = ray.remote(
             num_cpus=1, num_gpus=gpus, max_retries=cluster.max_retries, retry_exceptions=False
         )(simulate_on_node)
-        versions = package_versions()
+        versions, cwd = package_versions(), os.getcwd()
+        out_dir = str(Path(out_dir).resolve())  # the nodes' working directories differ
         units = {}
         for group in groups:
             ref = task.options(name=f"simulate {unit_name(group)}").remote(
-                config, group, out_dir, resume_every, created, versions, progress
+                config, group, out_dir, resume_every, created, versions, cwd, progress
             )
             units[ref] = group
         pending = list(units)
