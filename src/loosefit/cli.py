@@ -525,9 +525,15 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         return 0
     if args.out is None:
         args.out = f"datasets/{config.preset}"
+    cluster = None
+    if args.ray is not None:  # --ray [ADDRESS]: every clip a task on a Ray cluster
+        from loosefit.sim.cluster import ClusterConfig
+
+        cluster = ClusterConfig(address=args.ray or None)
     manifest = generate(
-        config, args.out, workers=args.workers, progress=True, reuse=args.reuse, batch=args.batch
-    )
+        config, args.out, workers=args.workers, progress=True, reuse=args.reuse, batch=args.batch,
+        resume_every=args.save_every, cluster=cluster,
+    )  # fmt: skip
     print(format_report(manifest))
     _log(f"dataset in {args.out}")
     return 0
@@ -1168,7 +1174,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="salsa, dance, paper: the salsa folder of BVH clips "
         "(dance: with cmu-ballet beside it)",
     )
-    p.add_argument("--workers", type=int, default=2, help="parallel simulations")
+    p.add_argument("--workers", type=int, default=2,
+                   help="parallel simulations (--ray: the CPUs of a Ray instance it starts "
+                   "here when none runs)")  # fmt: skip
+    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                   help="simulate every clip as a task on a Ray cluster: the head's HOST:PORT "
+                   "(`ray start --head` prints it), or none: RAY_ADDRESS, the cluster of this "
+                   "machine, else a new one here; --out on storage every node shares "
+                   "(docs/CLUSTER.md; pip install 'loosefit[cluster]')")  # fmt: skip
+    p.add_argument("--save-every", type=int, default=50, metavar="FRAMES",
+                   help="frames between the saves of a clip's state, from which a killed run "
+                   "goes on")  # fmt: skip
     p.add_argument(
         "--batch",
         type=int,

@@ -31,3 +31,7 @@ class LoosefitInputError(ValueError):
         if hint:
             msg += f" ({hint})"
         super().__init__(msg)
+
+    def __reduce__(self):
+        # raised in another process (a --workers pool, a Ray task), it arrives whole
+        return type(self), (self.source, self.field, self.expected, self.found, self.hint)

@@ -66,14 +66,14 @@ def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
     real = gen._run_group
     done = []
 
-    def first_then_die(config, jobs, out_dir):
+    def first_then_die(config, jobs, out_dir, *rest):
         (job,) = jobs
         if done:
             # A half-written file from the kill must never count as a sequence.
             (out / "sequences" / f"{job.name}.partial.npz").write_bytes(b"half")
             raise KeyboardInterrupt
         done.append(job.name)
-        return real(config, jobs, out_dir)
+        return real(config, jobs, out_dir, *rest)
 
     monkeypatch.setattr(gen, "_run_group", first_then_die)
     with pytest.raises(KeyboardInterrupt):
@@ -85,9 +85,9 @@ def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
 
     resumed = []
 
-    def spy(config, jobs, out_dir):
+    def spy(config, jobs, out_dir, *rest):
         resumed.extend(j.name for j in jobs)
-        return real(config, jobs, out_dir)
+        return real(config, jobs, out_dir, *rest)
 
     monkeypatch.setattr(gen, "_run_group", spy)
     manifest = gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
@@ -234,9 +234,9 @@ def spied_copy(tiny_dataset, tmp_path, monkeypatch):
     shutil.copytree(tiny_dataset[0], out)
     real, simulated = gen._run_group, []
 
-    def spy(config, jobs, out_dir):
+    def spy(config, jobs, out_dir, *rest):
         simulated.extend(j.name for j in jobs)
-        return real(config, jobs, out_dir)
+        return real(config, jobs, out_dir, *rest)
 
     monkeypatch.setattr(gen, "_run_group", spy)
     return out, simulated
@@ -268,9 +268,9 @@ def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_
     cfg.motions.moves = ("kick", "spin", "sway")  # kick_000 and spin_001 as in the source
     real, simulated = gen._run_group, []
 
-    def spy(config, jobs, out_dir):
+    def spy(config, jobs, out_dir, *rest):
         simulated.extend(j.name for j in jobs)
-        return real(config, jobs, out_dir)
+        return real(config, jobs, out_dir, *rest)
 
     monkeypatch.setattr(gen, "_run_group", spy)
     manifest = gen.generate(cfg, tmp_path / "grown", workers=1, progress=False, reuse=source)

@@ -1392,6 +1392,7 @@ def simulate_batch(
             "simulate_seconds": t_sim / K,
             "batch": K,
             "batch_frames": total,
+            "resumed_frame": first,  # the timeline frame a killed run went on from (0: none)
             # the pose folding into itself: frames whose collider was pressed, the deepest
             # limb vertex inside the rest of the body (m)
             "overlap_frames": int((pressed[c][n_pre:] > 0).sum()),

@@ -26,6 +26,7 @@ import weakref
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from tqdm import tqdm
@@ -39,6 +40,9 @@ from loosefit.garment.dress import DressConfig
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.sequence import AnimatedGarment
 from loosefit.sim.cloth import ClothConfig, SimulationError, simulate_batch
+
+if TYPE_CHECKING:
+    from loosefit.sim.cluster import ClusterConfig
 
 
 @dataclass
@@ -590,7 +594,7 @@ def _worker_init(config: DatasetConfig, progress_queue) -> None:
     torch.set_num_threads(1)
     avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
     _WORKER.update(avatar=avatar, template=make_garment(config.garment, avatar),
-                   queue=progress_queue)  # fmt: skip
+                   queue=progress_queue, config=config)  # fmt: skip
 
 
 def _pool_worker_init(config: DatasetConfig, progress_queue) -> None:
@@ -599,14 +603,32 @@ def _pool_worker_init(config: DatasetConfig, progress_queue) -> None:
     _worker_init(config, progress_queue)
 
 
-def _run_group(config: DatasetConfig, jobs: list[Job], out_dir: str) -> list[dict]:
+def run_clips(config: DatasetConfig, jobs: list[Job], out_dir: str, resume_every: int = 50,
+              progress_queue=None) -> list[dict]:  # fmt: skip
+    """Simulate and write one unit of work (:func:`_run_group`) in any process: what a Ray
+    task runs (:mod:`loosefit.sim.cluster`). The avatar and garment are built the first
+    time the process meets ``config`` and kept for its next units.
+
+    Args:
+        progress_queue: anything with ``put((name, frame, total))``, or None.
+    """
+    if _WORKER.get("config") != config:
+        _worker_init(config, progress_queue)
+    _WORKER["queue"] = progress_queue
+    return _run_group(config, jobs, out_dir, resume_every)
+
+
+def _run_group(config: DatasetConfig, jobs: list[Job], out_dir: str,
+               resume_every: int = 50) -> list[dict]:  # fmt: skip
     """Simulate clips together (one clip, or a batch: :func:`simulate_batch`) and write
-    them; returns their manifest entries. A batch in which one clip diverges is run
-    again clip by clip, so that only that clip is flagged."""
+    them; returns their manifest entries. The run saves its state in ``out_dir/resume``
+    every ``resume_every`` frames and goes on from there when run again after a kill.
+    A batch in which one clip diverges is run again clip by clip, so that only that clip
+    is flagged."""
 
     avatar, template, q = _WORKER["avatar"], _WORKER["template"], _WORKER["queue"]
     motions = [job_motion(config, job, avatar) for job in jobs]
-    name = jobs[0].name if len(jobs) == 1 else group_name(jobs)
+    name = unit_name(jobs)
     t0 = time.perf_counter()
 
     def progress(done: int, total: int) -> None:
@@ -618,11 +640,12 @@ def _run_group(config: DatasetConfig, jobs: list[Job], out_dir: str) -> list[dic
     try:
         results = simulate_batch(
             avatar, template, motions, config.cloth, progress=progress,
-            resume=resume_dir / f"{name}.npz", seeds=[job.seed for job in jobs],
+            resume=resume_dir / f"{name}.npz", resume_every=resume_every,
+            seeds=[job.seed for job in jobs],
         )  # fmt: skip
     except SimulationError as exc:
         if len(jobs) > 1:
-            return [e for job in jobs for e in _run_group(config, [job], out_dir)]
+            return [e for job in jobs for e in _run_group(config, [job], out_dir, resume_every)]
         return [_entry(config, jobs[0], motions[0], None, time.perf_counter() - t0, str(exc))]
     for job, motion, result in zip(jobs, motions, results, strict=True):
         write_sequence(
@@ -639,6 +662,12 @@ def group_name(jobs: list[Job]) -> str:
     """A batch's name (its resume file's): a fingerprint of its clips' names and seeds."""
     text = ";".join(f"{j.name}:{j.seed}" for j in jobs)
     return f"batch-{hashlib.sha256(text.encode()).hexdigest()[:12]}"
+
+
+def unit_name(jobs: list[Job]) -> str:
+    """A unit of work's name (its progress reports' and resume file's): a clip's own, or
+    its batch's (:func:`group_name`)."""
+    return jobs[0].name if len(jobs) == 1 else group_name(jobs)
 
 
 def _entry(config: DatasetConfig, job: Job, motion, result, seconds: float = 0.0,
@@ -680,6 +709,8 @@ def _entry(config: DatasetConfig, job: Job, motion, result, seconds: float = 0.0
         substeps_mean=result.stats["substeps_mean"],
         substeps_max=result.stats["substeps_max"],
         batch=result.stats["batch"],
+        # the timeline frame a killed run was resumed from (absent: simulated in one go)
+        **({"resumed_frame": first} if (first := result.stats.get("resumed_frame")) else {}),
         overlap_frames=result.stats["overlap_frames"],
         overlap_depth_max=result.stats["overlap_depth_max"],
         release_depth=config.cloth.release_depth,
@@ -965,19 +996,27 @@ def generate(
     progress: bool = True,
     reuse: str | Path | None = None,
     batch: int = 1,
+    resume_every: int = 50,
+    cluster: ClusterConfig | None = None,
 ) -> dict:
     """Simulate a dataset into ``out_dir`` (resuming a run of the same configuration).
 
     Args:
         config: what to simulate.
         out_dir: the dataset folder (new, empty, or holding the same configuration).
-        workers: parallel simulations (one CPU core each on the CPU).
+        workers: parallel simulations (one CPU core each on the CPU); with ``cluster``,
+            the CPUs of a Ray instance it starts on this machine when it finds none.
         batch: clips simulated at once, each a world of one Newton model
             (:func:`~loosefit.sim.cloth.simulate_batch`): for a GPU, where 16 clips
             cost little more than one. Clips of similar length go together.
         progress: show a progress bar over frames with rate and ETA.
         reuse: another dataset folder whose clips of the same simulation are
             taken rather than simulated again (:func:`adopt_clips`).
+        resume_every: frames between the saves of a clip's state in ``out_dir/resume``,
+            from which a killed run goes on.
+        cluster: run every unit of work as a task on this Ray cluster
+            (:func:`loosefit.sim.cluster.run_on_ray`; ``out_dir`` on storage every node
+            shares) instead of in processes of this machine; the data set is the same.
 
     Returns:
         The final manifest (also written to ``out_dir/manifest.json``).
@@ -985,6 +1024,10 @@ def generate(
     from loosefit.body.avatar import Avatar, AvatarConfig
     from loosefit.dress import collider_arms
 
+    if cluster is not None:  # no ray, or no cluster at the address: now, before any work
+        from loosefit.sim.cluster import preflight
+
+        preflight(cluster)
     out = Path(out_dir)
     jobs = plan_jobs(config)
     manifest = _open_manifest(config, out)
@@ -1035,6 +1078,9 @@ def generate(
     todo = [j for j in jobs if j.name not in done]
     if not (isinstance(batch, int) and batch >= 1):
         raise LoosefitInputError("generate", "batch", "an integer >= 1", repr(batch))
+    if not (isinstance(resume_every, int) and resume_every >= 1):
+        raise LoosefitInputError("generate", "resume_every", "an integer >= 1",
+                                 repr(resume_every))  # fmt: skip
     # Frames to simulate per clip (settle and blend included), for the bar's ETA.
     preroll = round((config.cloth.settle_seconds + config.cloth.blend_seconds) * config.fps)
     length = {j.name: job_motion(config, j, avatar, unfold=False).num_frames + preroll
@@ -1045,7 +1091,7 @@ def generate(
         groups = [ordered[i : i + batch] for i in range(0, len(ordered), batch)]
     else:
         groups = [[j] for j in todo]
-    name_of = [g[0].name if len(g) == 1 else group_name(g) for g in groups]
+    name_of = [unit_name(g) for g in groups]
     frames_of = {n: max(length[j.name] for j in g) for n, g in zip(name_of, groups, strict=True)}
     bar = tqdm(
         total=sum(frames_of.values()),
@@ -1061,6 +1107,9 @@ def generate(
     def on_progress(name: str, k: int, total: int) -> None:
         if name not in seen:  # a resumed unit first reports the frame after its last saved
             resumed[name] = seen[name] = k - 1
+        elif k <= seen[name]:  # run again from its last save (a Ray task whose worker died):
+            resumed[name] -= seen[name] - (k - 1)  # the frames done twice are work done twice
+            seen[name] = k - 1
         if frames_of.get(name) != total - resumed[name]:  # the estimate was off: correct it
             frames_of[name] = total - resumed[name]
             bar.total = sum(frames_of.values())
@@ -1075,10 +1124,19 @@ def generate(
                 tqdm.write(f"flagged {job.name}: {entry['reason']}")
         write_json_atomic(out / "manifest.json", manifest)
 
-    if workers <= 1:
+    # Longest first, so that no long clip starts last and runs alone.
+    by_length = [g for _, g in sorted(zip(name_of, groups, strict=True),
+                                      key=lambda ng: -frames_of[ng[0]])]  # fmt: skip
+    if cluster is not None:
+        from loosefit.sim.cluster import run_on_ray
+
+        created = manifest.get("created", "")
+        run_on_ray(cluster, config, by_length, str(out), resume_every, created, on_progress,
+                   record, local_cpus=workers)  # fmt: skip
+    elif workers <= 1:
         _worker_init(config, _Direct(on_progress))
         for group in groups:
-            record(group, _run_group(config, group, str(out)))
+            record(group, _run_group(config, group, str(out), resume_every))
     else:
         ctx = mp.get_context("spawn")
         with ctx.Manager() as manager:
@@ -1089,10 +1147,8 @@ def generate(
                 initializer=_pool_worker_init,
                 initargs=(config, q),
             ) as pool:
-                # Longest first, so that no long clip starts last and runs alone.
-                by_length = sorted(zip(name_of, groups, strict=True),
-                                   key=lambda ng: -frames_of[ng[0]])  # fmt: skip
-                futures = {pool.submit(_run_group, config, g, str(out)): g for _, g in by_length}
+                futures = {pool.submit(_run_group, config, g, str(out), resume_every): g
+                           for g in by_length}  # fmt: skip
                 pending = set(futures)
                 while pending:
                     finished = {f for f in pending if f.done()}
