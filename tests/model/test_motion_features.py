@@ -14,7 +14,9 @@ from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import (
     LOWER_BODY_JOINTS,
     feature_joints,
+    frame_features,
     heading_frames,
+    heading_yaw,
     motion_features,
     num_features,
     root_frames,
@@ -96,3 +98,22 @@ def test_joint_sets_need_their_joints(avatar):
     names = [n for n in avatar.joint_names if n != "LeftLeg"]
     with pytest.raises(LoosefitInputError, match="LeftLeg"):
         feature_joints(names, "lower")
+
+
+def test_frame_features_one_frame_at_a_time_in_float32(avatar):
+    """The ONNX graph's features (one frame and the root before it, float32) are the
+    motion's (double precision, then rounded), a turn across +-pi included."""
+    m = load_motion("spin", avatar).slice(0, 60)
+    rot, root = torch.from_numpy(m.rotations).float(), torch.from_numpy(m.root_translation)
+    whole = motion_features(rot, root, m.fps, avatar.floor_height)
+    before = torch.cat([rot[:1, 0], rot[:-1, 0]])
+    root_before = torch.cat([root[:1], root[:-1]])
+    frames = frame_features(rot, root.float(), before, root_before.float(), m.fps,
+                            avatar.floor_height)  # fmt: skip
+    assert frames.dtype == torch.float32
+    torch.testing.assert_close(frames, whole, atol=1e-4, rtol=0)
+    J = len(avatar.joint_names)
+    turn = whole[:, 6 * J + 3]
+    yaw = np.unwrap([float(y) for y in heading_yaw(rot[:, 0].double())])
+    assert yaw.max() - yaw.min() > 2 * math.pi  # a whole turn: the heading wraps, the rate not
+    np.testing.assert_allclose(turn[1:].numpy(), np.diff(yaw) * m.fps, atol=1e-3)

@@ -125,6 +125,49 @@ def _six_d(r: torch.Tensor) -> torch.Tensor:
     return torch.cat([r[..., :, 0], r[..., :, 1]], -1)
 
 
+def frame_features(
+    rotations: torch.Tensor,
+    root_translation: torch.Tensor,
+    previous_root_rotation: torch.Tensor,
+    previous_root_translation: torch.Tensor,
+    fps: float,
+    floor_height: float,
+    joints: list[int] | None = None,
+) -> torch.Tensor:
+    """The features of B frames from each frame's joints and the root of the frame before
+    (see the module's docstring); computed in the inputs' float type.
+
+    A motion's first frame passes its own root as the previous one (no velocity, no turn).
+    The ONNX export (:mod:`loosefit.inference.onnx_export`) computes the features so, one
+    frame at a time, in its graph.
+
+    Args:
+        rotations: (B, J, 3, 3) local joint rotations of the frames.
+        root_translation: (B, 3) their root positions, metres.
+        previous_root_rotation: (B, 3, 3) the root joint's rotation one frame earlier.
+        previous_root_translation: (B, 3) the root position one frame earlier.
+        fps: frames per second.
+        floor_height: the root's height when the avatar stands.
+        joints: indices of the non-root joints whose rotations are features
+            (:func:`feature_joints`); by default every joint but the root.
+
+    Returns:
+        (B, 6 K + 11) features, K the number of those joints (J - 1 by default).
+    """
+    B = rotations.shape[0]
+    yaw = heading_yaw(rotations[:, 0])
+    H = yaw_matrix(yaw)  # (B, 3, 3)
+    local = rotations[:, 1:] if joints is None else rotations[:, joints]
+    local = _six_d(local).reshape(B, -1)  # (B, 6 K)
+    tilt = _six_d(H.transpose(-1, -2) @ rotations[:, 0])  # (B, 6)
+    step = root_translation - previous_root_translation
+    velocity = (step.unsqueeze(1) @ H).squeeze(1) * fps  # H^T step, as a row vector
+    turn = yaw - heading_yaw(previous_root_rotation)
+    turn = torch.remainder(turn + math.pi, 2 * math.pi) - math.pi  # wrapped to [-pi, pi)
+    height = root_translation[:, 2:] - floor_height
+    return torch.cat([local, tilt, velocity, (turn * fps)[:, None], height], -1)
+
+
 def motion_features(
     rotations: torch.Tensor,
     root_translation: torch.Tensor,
@@ -132,7 +175,8 @@ def motion_features(
     floor_height: float,
     joints: list[int] | None = None,
 ) -> torch.Tensor:
-    """The per-frame features of a motion (see the module's docstring).
+    """The per-frame features of a motion (see the module's docstring): :func:`frame_features`
+    of every frame and the one before it, in double precision.
 
     Args:
         rotations: (T, J, 3, 3) local joint rotations.
@@ -147,19 +191,10 @@ def motion_features(
     """
     rotations = rotations.double()
     root = root_translation.double()
-    T = rotations.shape[0]
-    yaw = heading_yaw(rotations[:, 0])
-    H = yaw_matrix(yaw)
-    local = rotations[:, 1:] if joints is None else rotations[:, joints]
-    local = _six_d(local).reshape(T, -1)
-    tilt = _six_d(H.transpose(-1, -2) @ rotations[:, 0])
-    step = torch.zeros_like(root)
-    step[1:] = root[1:] - root[:-1]
-    velocity = (step.unsqueeze(1) @ H).squeeze(1) * fps  # H^T step, as a row vector
-    turn = torch.zeros_like(yaw)
-    turn[1:] = torch.remainder(yaw[1:] - yaw[:-1] + math.pi, 2 * math.pi) - math.pi
-    height = root[:, 2:] - floor_height
-    return torch.cat([local, tilt, velocity, (turn * fps)[:, None], height], -1).float()
+    before = torch.cat([rotations[:1, 0], rotations[:-1, 0]])  # (T, 3, 3): frame 0 its own
+    root_before = torch.cat([root[:1], root[:-1]])  # (T, 3)
+    return frame_features(rotations, root, before, root_before, fps, floor_height,
+                          joints).float()  # fmt: skip
 
 
 def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

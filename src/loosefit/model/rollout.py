@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from loosefit.body.chain import preroll
+from loosefit.body.chain import rollout_timeline
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder
 from loosefit.model.motion_features import (
@@ -68,11 +68,9 @@ def timeline(
         rotations (P + T, J, 3, 3) float32, root translations (P + T, 3) float32,
         and P, the number of frames before the motion's first.
     """
-    settle = max(config.warm_frames - 1, 0) / motion.fps
-    rot, root, _ = preroll(motion, floor_height, settle, config.blend_seconds)
-    rotations = torch.from_numpy(np.concatenate([rot, motion.rotations]))
-    roots = torch.from_numpy(np.concatenate([root, motion.root_translation]))
-    return rotations, roots, len(rot)
+    rot, root, P = rollout_timeline(motion, floor_height, config.warm_frames,
+                                    config.blend_seconds)  # fmt: skip
+    return torch.from_numpy(rot), torch.from_numpy(root), P
 
 
 def motion_root_frames(
