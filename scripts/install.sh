@@ -33,6 +33,6 @@ if ! $VPY -c "import torch" 2>/dev/null; then
     $VPY -m pip install -q "torch==2.13.0" 2>/dev/null || $VPY -m pip install -q torch
   fi
 fi
-# The optional extras too, so that `make test` runs their tests (viewer, cluster).
-$VPY -m pip install -q -e ".[dev,viewer,cluster]"
+# The optional extras too, so that `make test` runs their tests (viewer, cluster, onnx).
+$VPY -m pip install -q -e ".[dev,viewer,cluster,onnx]"
 $VPY -c "import torch, loosefit; print(f'loosefit {loosefit.__version__} installed (torch {torch.__version__})')"

@@ -136,6 +136,29 @@ class Animator:
         return [AnimatedGarment(m, self.template, r.vertices, shape, f"loosefit model {self.path}")
                 for m, r in zip(ms, results, strict=True)]  # fmt: skip
 
+    def export_onnx(self, path: str | Path, detail: bool = True, check: bool = True
+                    ) -> list[Path]:  # fmt: skip
+        """The learned runtime (motion features, the motion encoder's step, the decoders, the
+        detail generator) as one ONNX graph at ``path``, its GRU state and previous garment
+        explicit inputs and outputs, and a JSON beside it saying what they mean
+        (:func:`~loosefit.inference.onnx_export.export_onnx`; docs/ENGINE_EXPORT.md).
+
+        Args:
+            path: the ``.onnx`` file.
+            detail: the detail stage in the graph (when the model has one).
+            check: one frame through onnxruntime against PyTorch before keeping the file.
+
+        Returns:
+            The ``.onnx`` and ``.json`` paths.
+
+        Raises:
+            LoosefitInputError: a stage that cannot be exported (a baseline), or the
+                ``onnx`` extra missing (``pip install 'loosefit[onnx]'``).
+        """
+        from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
+
+        return export_onnx(self.model, path, OnnxExportConfig(detail=detail, check=check))
+
 
 def load(path: str | Path | None = None, device: str = "cpu") -> Animator:
     """A trained model: the pretrained set by default, or any checkpoint ``loosefit animate``

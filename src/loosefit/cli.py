@@ -8,6 +8,7 @@ Subcommands:
     garment  make a parametric skirt or import an OBJ, write OBJ + template (.npz)
     simulate simulate a garment dataset with Newton's VBD cloth solver
     view     sequences in a 3D viewer in the browser (body, garment, colour by error)
+    export-model  the learned runtime as ONNX (+ JSON) for a game engine
 """
 
 from __future__ import annotations
@@ -953,6 +954,21 @@ def cmd_package(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_export_model(args: argparse.Namespace) -> int:
+    from loosefit.api import pretrained_checkpoint
+    from loosefit.inference.animator import load_pipeline
+    from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
+
+    checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
+    model = load_pipeline(checkpoint, args.generative, args.detail)
+    config = OnnxExportConfig(opset=args.opset, detail=not args.no_detail,
+                              check=not args.no_check)  # fmt: skip
+    _log(f"exporting {checkpoint} to ONNX (opset {config.opset})")
+    onnx_path, json_path = export_onnx(model, args.out, config)
+    _log(f"wrote {onnx_path} ({onnx_path.stat().st_size / 1e6:.1f} MB) and {json_path}")
+    return 0
+
+
 def _frame_ref(text: str, names: list[str], source: str) -> tuple[str, int]:
     name, _, frame = text.rpartition(":")
     if not name or not frame.isdigit():
@@ -1396,6 +1412,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True,
                    help="folder for generative.pt, motion.pt (and detail.pt)")  # fmt: skip
     p.set_defaults(func=cmd_package)
+
+    p = sub.add_parser("export-model", help="the learned runtime as ONNX for an engine, with "
+                       "a JSON of what its inputs mean (docs/ENGINE_EXPORT.md)")  # fmt: skip
+    p.add_argument("out", help="the .onnx file to write (OUT.json is written beside it)")
+    p.add_argument("--checkpoint", default=None,
+                   help="a motion-stage, detail or packaged checkpoint (default: the "
+                   "pretrained set)")  # fmt: skip
+    _add_generative_arg(p)
+    p.add_argument("--detail", default=None, help="a detail stage's checkpoint to include")
+    p.add_argument("--no-detail", action="store_true", help="leave the detail stage out")
+    p.add_argument("--opset", type=int, default=17, help="ONNX opset (16-20)")
+    p.add_argument("--no-check", action="store_true",
+                   help="skip running a frame through onnxruntime against PyTorch")  # fmt: skip
+    p.set_defaults(func=cmd_export_model)
 
     p = sub.add_parser("reconstruct", help="encode and decode a clip with a generative model")
     p.add_argument("--checkpoint", required=True, help="a generative run's checkpoint.pt")

@@ -1,0 +1,208 @@
+"""The ONNX export (issue 37, item 2): onnxruntime rolls out PyTorch's frames; the JSON says
+what the inputs are; stages the graph cannot hold are refused by name."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+import loosefit
+from loosefit.api import motion_for
+from loosefit.errors import LoosefitInputError
+from loosefit.inference.onnx_export import (
+    INPUTS,
+    OUTPUTS,
+    STATE,
+    OnnxExportConfig,
+    check_exportable,
+    export_onnx,
+)
+from loosefit.model.rollout import MOTION_ONLY, Stages
+
+ort = pytest.importorskip(
+    "onnxruntime", reason="onnxruntime is not installed (pip install 'loosefit[onnx]')"
+)
+
+from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx  # noqa: E402
+
+DETAIL_ONLY = Stages(lengths=False, collision=False, overlap=False)  # what the graph holds
+
+
+@pytest.fixture(scope="module")
+def model():
+    return loosefit.load()
+
+
+@pytest.fixture(scope="module")
+def exported(model, tmp_path_factory):
+    path = tmp_path_factory.mktemp("onnx") / "salsa.onnx"
+    model.export_onnx(path)
+    return path
+
+
+def test_onnxruntime_rolls_out_the_pytorch_frames_over_300_frames(model, exported):
+    m = model.model
+    motion = motion_for("dance:12", m.avatar(), model.fps, 300, seed=5)
+    want = m.animate(motion, stages=DETAIL_ONLY)
+    got = rollout_onnx(OnnxRuntime(exported, threads=1), motion)
+    assert got.shape == want.vertices.shape == (300, model.template.num_vertices, 3)
+    gap = np.linalg.norm(got - want.vertices, axis=-1)  # (T, V) m
+    assert gap.max() < 1e-4, f"frame {int(gap.max(1).argmax())}: {gap.max():.2e} m"
+    # the detail stage is in the graph: the garment is not the decoders' alone
+    assert np.linalg.norm(got - want.decoded, axis=-1).max() > 1e-3
+
+
+def test_a_batch_of_characters_steps_as_each_alone(model, exported):
+    runtime = OnnxRuntime(exported)
+    avatar = model.model.avatar()
+    motions = [motion_for(s, avatar, model.fps, 6) for s in ("spin", "kick", "sway")]
+    rot = np.stack([mo.rotations for mo in motions])  # (3, T, J, 3, 3)
+    root = np.stack([mo.root_translation for mo in motions])  # (3, T, 3)
+    state, alone = runtime.initial_state(3), [runtime.initial_state(1) for _ in motions]
+    for t in range(6):
+        batch, state = runtime.step(rot[:, t], root[:, t], state, start=t == 0)
+        for i in range(3):
+            one, alone[i] = runtime.step(rot[i : i + 1, t], root[i : i + 1, t], alone[i],
+                                         start=t == 0)  # fmt: skip
+            np.testing.assert_allclose(batch[i], one[0], atol=1e-5)
+    # a character restarted alone (start for it only) leaves the others as they were
+    restart = np.array([False, True, False])
+    again, _ = runtime.step(rot[:, 0], root[:, 0], state, start=restart)
+    first, _ = runtime.step(rot[1:2, 0], root[1:2, 0], runtime.initial_state(1), start=True)
+    np.testing.assert_allclose(again[1], first[0], atol=1e-5)
+    assert np.abs(again[0] - first[0]).max() > 1e-3
+
+
+def test_the_json_says_what_the_inputs_mean(model, exported):
+    meta = json.loads(exported.with_suffix(".json").read_text())
+    m = model.model
+    J, V, G = len(m.joint_names), m.template.num_vertices, m.encoder.config.gru
+    assert meta["format"] == "loosefit-onnx-step/1" and meta["onnx"] == "salsa.onnx"
+    assert meta["joint_names"] == list(m.joint_names) and meta["joint_names"][0] == "Hips"
+    assert meta["frame_rate"] == 30.0 and meta["vertex_count"] == V == 2352
+    assert meta["face_count"] == len(m.template.faces)
+    assert meta["floor_height"] == pytest.approx(m.floor_height)
+    assert meta["inputs"]["joint_rotations"]["shape"] == ["B", J, 3, 3]
+    assert meta["inputs"]["hidden"]["shape"] == ["B", G]
+    assert meta["state"] == STATE
+    features = meta["motion_features"]
+    assert sum(part["size"] for part in features["layout"]) == features["size"] == 191
+    assert features["layout"][0]["joints"] == list(m.joint_names[1:])
+    assert meta["start_of_motion"]["warm_frames"] == m.rollout_config.warm_frames
+    assert "detail generator" in meta["stages"]["in_graph"]
+    assert any("collision" in s for s in meta["stages"]["not_in_graph"])
+    assert meta["check"]["max_difference_m"] < 1e-4
+    # the graph's own names and shapes are the JSON's, and it carries the JSON too
+    session = ort.InferenceSession(str(exported), providers=["CPUExecutionProvider"])
+    for got, names, table in ((session.get_inputs(), INPUTS, meta["inputs"]),
+                              (session.get_outputs(), OUTPUTS, meta["outputs"])):  # fmt: skip
+        assert [x.name for x in got] == list(names) == list(table)
+        for x in got:
+            assert x.shape[1:] == table[x.name]["shape"][1:], x.name
+    embedded = json.loads(session.get_modelmeta().custom_metadata_map["loosefit"])
+    assert embedded["joint_names"] == meta["joint_names"]
+
+
+def test_unsupported_stages_are_named(model, tmp_path, monkeypatch):
+    from loosefit.inference.animator import BaselineModel
+    from loosefit.model.baselines import BaselineConfig, BaselineNetwork
+
+    m = model.model
+    V = m.template.num_vertices
+    net = BaselineNetwork(BaselineConfig(method="santesteban", motion_fc=8, gru=8,
+                                         head_hidden=8), m.encoder.num_features,
+                          torch.zeros(V, 3), torch.zeros(V, 4))  # fmt: skip
+    baseline = BaselineModel(net, m.template, m.joint_names, m.floor_height, m.fps, m.body,
+                             m.rollout_config, tmp_path / "baseline.pt")  # fmt: skip
+    with pytest.raises(LoosefitInputError, match=r"baseline\.pt.*'santesteban' baseline"):
+        export_onnx(baseline, tmp_path / "b.onnx")
+    odd = loosefit.load().model
+    odd.detail = torch.nn.Linear(3, 3)
+    with pytest.raises(LoosefitInputError, match=r"stage: detail.*DetailGenerator.*Linear"):
+        check_exportable(odd)
+    with pytest.raises(LoosefitInputError, match=r"\.onnx"):
+        export_onnx(m, tmp_path / "model.txt")
+    monkeypatch.setitem(sys.modules, "onnx", None)  # the extra not installed
+    with pytest.raises(LoosefitInputError, match=r"loosefit\[onnx\]"):
+        export_onnx(m, tmp_path / "m.onnx")
+    assert not list(tmp_path.iterdir())  # nothing written
+
+
+def _tiny_model(skirt, avatar, decoder: str, previous_state: bool):
+    """An untrained model of the coarse skirt with ``decoder`` (weights from a seed)."""
+    from loosefit.inference.animator import AnimationModel
+    from loosefit.model.generative import GarmentGenerativeModel, GenerativeConfig
+    from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
+    from loosefit.model.motion_features import num_features
+    from loosefit.model.rollout import RolloutConfig
+
+    torch.manual_seed(0)
+    V, bones = skirt.num_vertices, 4
+    ssdr = None
+    if decoder == "ssdr":
+        weights = torch.softmax(torch.randn(V, bones), -1).numpy()
+        mean = np.tile(np.eye(3, 4, dtype=np.float32), (bones, 1, 1))
+        ssdr = (skirt.vertices, weights, mean)
+    config = GenerativeConfig(decoder=decoder, uv_size=32, channels=(4, 4, 4, 4), latent=8,
+                              half=4, rec_hidden=(8, 8, 8), ssdr_bones=bones)  # fmt: skip
+    gen = GarmentGenerativeModel(skirt, config, ssdr).eval()
+    J = len(avatar.joint_names)
+    enc = DynamicMotionEncoder(gen, num_features(J), MotionEncoderConfig(
+        motion_fc=8, gru=8, previous_state=previous_state)).eval()  # fmt: skip
+    rest = torch.from_numpy(skirt.vertices).float() - torch.tensor([0, 0, avatar.floor_height])
+    return AnimationModel(gen, enc, skirt, rest, tuple(avatar.joint_names),
+                          float(avatar.floor_height), 30.0, {}, RolloutConfig(),
+                          "tiny.pt")  # fmt: skip
+
+
+@pytest.mark.parametrize(("decoder", "previous_state"),
+                         [("decomposed", False), ("vertex", True), ("ssdr", True)])  # fmt: skip
+def test_every_decoder_exports(skirt, avatar, tmp_path, decoder, previous_state):
+    tiny = _tiny_model(skirt, avatar, decoder, previous_state)
+    path = tmp_path / "tiny.onnx"
+    export_onnx(tiny, path, OnnxExportConfig(check=True))
+    motion = motion_for("spin", avatar, 30.0, 30)
+    want = tiny.animate(motion, stages=MOTION_ONLY).vertices
+    np.testing.assert_allclose(rollout_onnx(OnnxRuntime(path), motion), want, atol=1e-5)
+
+
+def test_cli_export_model_end_to_end(model, tmp_path, capsys):
+    from loosefit.cli import main
+
+    out = tmp_path / "engine" / "salsa.onnx"
+    out.parent.mkdir()
+    assert main(["export-model", str(out), "--no-detail"]) == 0
+    assert "wrote" in capsys.readouterr().err
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert "detail generator" not in meta["stages"]["in_graph"]
+    motion = motion_for("kick", model.model.avatar(), model.fps, 20)
+    want = model.model.animate(motion, stages=MOTION_ONLY).vertices
+    got = rollout_onnx(OnnxRuntime(out), motion)
+    assert np.linalg.norm(got - want, axis=-1).max() < 1e-4
+    assert main(["export-model", str(tmp_path / "salsa.pt")]) == 2
+    assert "expected a path ending in .onnx" in capsys.readouterr().err
+    assert main(["export-model", str(tmp_path / "none" / "x.onnx")]) == 2
+    assert "writable folder" in capsys.readouterr().err
+
+
+def test_the_runtime_refuses_other_motions_and_files(model, exported, tmp_path, avatar):
+    runtime = OnnxRuntime(exported)
+    fast = avatar.rest_motion(4, fps=60.0)
+    with pytest.raises(LoosefitInputError, match="fps"):
+        rollout_onnx(runtime, fast)
+    lonely = tmp_path / "lonely.onnx"
+    lonely.write_bytes(exported.read_bytes())
+    with pytest.raises(LoosefitInputError, match=r"lonely\.json.*no such file"):
+        OnnxRuntime(lonely)
+
+
+def test_the_reference_loop_needs_no_torch():
+    import subprocess
+
+    code = "import sys, loosefit.inference.onnx_runtime; print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
