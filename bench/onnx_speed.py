@@ -1,0 +1,93 @@
+"""The exported ONNX runtime against the PyTorch rollout, one thread each, in one run.
+
+For the packaged model (or ``--checkpoint``): the graph of ``loosefit export-model`` with
+and without the detail stage, rolled out by the reference loop
+(:func:`loosefit.inference.onnx_runtime.rollout_onnx`, onnxruntime with
+``intra_op_num_threads=1``), and the PyTorch rollout of the same stages
+(``torch.set_num_threads(1)``, no overlap), on one motion. Every frame computed counts
+(the preroll's too, in both). Wall time is the best of ``--repeats``; beside it the
+calling thread's CPU time (``time.thread_time``) and the process's (``time.process_time``)
+of that run, since the machine may be shared. Also the largest difference of the garments
+(m). docs/BENCHMARKS.md and docs/ENGINE_EXPORT.md quote the table::
+
+    OMP_NUM_THREADS=1 python bench/onnx_speed.py --motion dance:12 --frames 300
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from loosefit.api import motion_for
+from loosefit.inference.animator import load_pipeline
+from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
+from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx
+from loosefit.model.rollout import MOTION_ONLY, Stages
+
+WITH_DETAIL = Stages(lengths=False, collision=False, overlap=False)
+
+
+def timed(run, repeats: int) -> tuple[dict, np.ndarray]:
+    """The best wall time of ``repeats`` calls of ``run()`` and that call's CPU times."""
+    best, out = None, None
+    for _ in range(repeats):
+        w, th, pr = time.perf_counter(), time.thread_time(), time.process_time()
+        out = run()
+        w, th, pr = time.perf_counter() - w, time.thread_time() - th, time.process_time() - pr
+        if best is None or w < best["wall"]:
+            best = {"wall": w, "thread": th, "process": pr}
+    return best, out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
+    ap.add_argument("--motion", default="dance:12", help="a file or a procedural move")
+    ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--seed", type=int, default=5)
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args()
+
+    torch.set_num_threads(1)
+    model = load_pipeline(args.checkpoint)
+    motion = motion_for(args.motion, model.avatar(), model.fps, args.frames, seed=args.seed)
+    total = None
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, stages, detail in (("motion stage", MOTION_ONLY, False),
+                                      ("motion stage + detail", WITH_DETAIL, True)):  # fmt: skip
+            if detail and model.detail is None:
+                continue
+            path = Path(tmp) / f"{'detail' if detail else 'motion'}.onnx"
+            export_onnx(model, path, OnnxExportConfig(detail=detail))
+            runtime = OnnxRuntime(path, threads=1)
+            model.animate(motion.slice(0, 10), stages=stages)  # warm-up
+            rollout_onnx(runtime, motion.slice(0, 10))
+            t_torch, ref = timed(lambda s=stages: model.animate(motion, stages=s), args.repeats)
+            t_onnx, got = timed(lambda r=runtime: rollout_onnx(r, motion), args.repeats)
+            total = ref.frames
+            gap = float(np.linalg.norm(got - ref.vertices, axis=-1).max())
+            for what, t in (("PyTorch", t_torch), ("onnxruntime", t_onnx)):
+                ms = {k: 1e3 * v / total for k, v in t.items()}
+                rows.append((label, what, total / t["wall"], ms["wall"], ms["thread"],
+                             ms["process"], gap))  # fmt: skip
+            print(f"{label}: largest difference {gap:.2e} m", flush=True)
+    print(f"\n{platform.machine()}, torch {torch.__version__}, onnxruntime "
+          f"{__import__('onnxruntime').__version__}, 1 thread each; {motion.name}, "
+          f"{motion.num_frames} frames + {total - motion.num_frames} of preroll\n")  # fmt: skip
+    print("| stages | runtime | frames/s (wall) | ms/frame wall | ms/frame thread CPU | "
+          "ms/frame process CPU | largest difference (m) |")  # fmt: skip
+    print("|---|---|---:|---:|---:|---:|---:|")
+    for label, what, fps, wall, thread, proc, gap in rows:
+        print(f"| {label} | {what} | {fps:.0f} | {wall:.2f} | {thread:.2f} | {proc:.2f} | "
+              f"{gap:.1e} |")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
