@@ -140,8 +140,9 @@ class Animator:
                     ) -> list[Path]:  # fmt: skip
         """The learned runtime (motion features, the motion encoder's step, the decoders, the
         detail generator) as one ONNX graph at ``path``, its GRU state and previous garment
-        explicit inputs and outputs, and a JSON beside it saying what they mean
-        (:func:`~loosefit.inference.onnx_export.export_onnx`; docs/ENGINE_EXPORT.md).
+        explicit inputs and outputs, a JSON beside it saying what they mean and the
+        garment's mesh as OBJ (:func:`~loosefit.inference.onnx_export.export_onnx`;
+        docs/ENGINE_EXPORT.md).
 
         Args:
             path: the ``.onnx`` file.
@@ -149,7 +150,7 @@ class Animator:
             check: one frame through onnxruntime against PyTorch before keeping the file.
 
         Returns:
-            The ``.onnx`` and ``.json`` paths.
+            The ``.onnx``, ``.json`` and ``.obj`` paths.
 
         Raises:
             LoosefitInputError: a stage that cannot be exported (a baseline), or the

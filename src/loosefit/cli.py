@@ -964,8 +964,11 @@ def cmd_export_model(args: argparse.Namespace) -> int:
     config = OnnxExportConfig(opset=args.opset, detail=not args.no_detail,
                               check=not args.no_check)  # fmt: skip
     _log(f"exporting {checkpoint} to ONNX (opset {config.opset})")
-    onnx_path, json_path = export_onnx(model, args.out, config)
-    _log(f"wrote {onnx_path} ({onnx_path.stat().st_size / 1e6:.1f} MB) and {json_path}")
+    onnx_path, json_path, obj_path = export_onnx(model, args.out, config)
+    _log(
+        f"wrote {onnx_path} ({onnx_path.stat().st_size / 1e6:.1f} MB), {json_path} and "
+        f"{obj_path} (the garment's mesh)"
+    )
     return 0
 
 
@@ -1415,7 +1418,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("export-model", help="the learned runtime as ONNX for an engine, with "
                        "a JSON of what its inputs mean (docs/ENGINE_EXPORT.md)")  # fmt: skip
-    p.add_argument("out", help="the .onnx file to write (OUT.json is written beside it)")
+    p.add_argument(
+        "out",
+        help="the .onnx file to write (OUT.json and the garment's OUT.obj are written beside it)",
+    )
     p.add_argument("--checkpoint", default=None,
                    help="a motion-stage, detail or packaged checkpoint (default: the "
                    "pretrained set)")  # fmt: skip

@@ -82,6 +82,12 @@ def test_the_json_says_what_the_inputs_mean(model, exported):
     m = model.model
     J, V, G = len(m.joint_names), m.template.num_vertices, m.encoder.config.gru
     assert meta["format"] == "loosefit-onnx-step/1" and meta["onnx"] == "salsa.onnx"
+    from loosefit.garment.obj import read_obj
+
+    mesh = read_obj(exported.with_suffix(".obj"))  # the garment's mesh, the graph's vertices
+    assert meta["mesh"] == "salsa.obj"
+    np.testing.assert_allclose(mesh.vertices, m.template.vertices, atol=1e-6)
+    np.testing.assert_array_equal(mesh.faces, m.template.faces)
     assert meta["joint_names"] == list(m.joint_names) and meta["joint_names"][0] == "Hips"
     assert meta["frame_rate"] == 30.0 and meta["vertex_count"] == V == 2352
     assert meta["face_count"] == len(m.template.faces)

@@ -46,6 +46,7 @@ from torch import nn
 
 from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
+from loosefit.garment.obj import write_obj
 from loosefit.model.detail import DetailGenerator
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_features import (
@@ -272,6 +273,7 @@ def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
     return {
         "format": FORMAT,
         "onnx": onnx_name,
+        "mesh": str(Path(onnx_name).with_suffix(".obj")),
         "opset": opset,
         "checkpoint": str(model.path),
         "conventions": "metres, seconds, radians; world right-handed, Z up; at rest the "
@@ -365,8 +367,9 @@ def _needs(module: str) -> None:
 
 
 def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None) -> list[Path]:
-    """Write ``model``'s learned runtime as ONNX at ``path`` and its JSON beside it
-    (``path`` with ``.json``), both or neither.
+    """Write ``model``'s learned runtime as ONNX at ``path``, its JSON beside it (``path``
+    with ``.json``) and the garment's mesh (``.obj``: the rest shape, faces and UVs, its
+    vertices in the graph's order), all three or none.
 
     Args:
         model: an :class:`~loosefit.inference.animator.AnimationModel` (on any device; the
@@ -375,7 +378,7 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
         config: the opset, the detail stage, the check.
 
     Returns:
-        The two paths written.
+        The three paths written.
 
     Raises:
         LoosefitInputError: a stage the graph does not support, a path that is not
@@ -394,8 +397,11 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
     step = RuntimeStep(model, detail).cpu().eval()
     example = {k: torch.from_numpy(v) for k, v in example_inputs(model, 2).items()}
     meta = export_metadata(model, path.name, detail, config.opset)
-    json_path = path.with_suffix(".json")
-    with atomic_path(path) as tmp, atomic_path(json_path) as tmp_json:
+    json_path, obj_path = path.with_suffix(".json"), path.with_suffix(".obj")
+    with atomic_path(path) as tmp, atomic_path(json_path) as tmp_json, \
+            atomic_path(obj_path) as tmp_obj:  # fmt: skip
+        t = model.template
+        write_obj(tmp_obj, t.vertices, t.faces, t.uvs, t.face_uvs)
         with torch.no_grad(), warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the legacy exporter's deprecation, trace notes
             torch.onnx.export(
@@ -408,7 +414,7 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
         if config.check:
             meta["check"] = check_first_frame(step, tmp, model, config.tolerance)
         tmp_json.write_text(json.dumps(meta, indent=1) + "\n")
-    return [path, json_path]
+    return [path, json_path, obj_path]
 
 
 def _set_metadata(path: Path, meta: dict) -> None:
