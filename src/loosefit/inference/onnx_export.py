@@ -34,6 +34,7 @@ torch.export-based exporter needs.
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 import warnings
@@ -394,7 +395,7 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
     if config.check:
         _needs("onnxruntime")
     detail = config.detail and model.detail is not None
-    step = RuntimeStep(model, detail).cpu().eval()
+    step = copy.deepcopy(RuntimeStep(model, detail)).cpu().eval()  # the model stays put
     example = {k: torch.from_numpy(v) for k, v in example_inputs(model, 2).items()}
     meta = export_metadata(model, path.name, detail, config.opset)
     json_path, obj_path = path.with_suffix(".json"), path.with_suffix(".obj")
