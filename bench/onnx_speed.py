@@ -11,6 +11,8 @@ of that run, since the machine may be shared. Also the largest difference of the
 (m). docs/BENCHMARKS.md and docs/ENGINE_EXPORT.md quote the table::
 
     OMP_NUM_THREADS=1 python bench/onnx_speed.py --motion dance:12 --frames 300
+
+``--batch 1,8,32`` also steps B characters per call of the graph (with the detail stage).
 """
 
 from __future__ import annotations
@@ -45,6 +47,43 @@ def timed(run, repeats: int) -> tuple[dict, np.ndarray]:
     return best, out
 
 
+def print_batches(args, model, frames: int) -> None:
+    """The graph with the detail stage stepping B characters at once (B procedural dances),
+    one thread: frames per second counting every character's frames, preroll included."""
+    from loosefit.body.chain import rollout_timeline
+
+    sizes = [int(b) for b in args.batch.split(",")]
+    rc = model.rollout_config
+    lines = [(rollout_timeline(motion_for("dance:12", model.avatar(), model.fps, frames,
+                                          seed=i), model.floor_height, rc.warm_frames,
+                               rc.blend_seconds)) for i in range(max(sizes))]  # fmt: skip
+    rot = np.stack([r for r, _, _ in lines]).astype(np.float32)  # (B, P + T, J, 3, 3)
+    root = np.stack([q for _, q, _ in lines]).astype(np.float32)  # (B, P + T, 3)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "detail.onnx"
+        export_onnx(model, path, OnnxExportConfig(detail=model.detail is not None))
+        runtime = OnnxRuntime(path, threads=1)
+
+        def run(B: int) -> None:
+            state = runtime.initial_state(B)
+            for t in range(rot.shape[1]):
+                _, state = runtime.step(rot[:B, t], root[:B, t], state, start=t == 0)
+
+        print("| characters B | frames/s (wall) | ms/frame wall | ms/frame thread CPU | "
+              "ms/frame process CPU |")  # fmt: skip
+        print("|---:|---:|---:|---:|---:|")
+        run(1)  # warm-up
+        for B in sizes:
+            t, _ = timed(lambda B=B: run(B), args.repeats)
+            n = B * rot.shape[1]
+            print(
+                f"| {B} | {n / t['wall']:.0f} | {1e3 * t['wall'] / n:.2f} | "
+                f"{1e3 * t['thread'] / n:.2f} | {1e3 * t['process'] / n:.2f} |",
+                flush=True,
+            )
+    print()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
@@ -52,6 +91,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--batch", default="", help="also B characters per call, e.g. 1,8,32")
     args = ap.parse_args()
 
     torch.set_num_threads(1)
@@ -81,6 +121,8 @@ def main() -> None:
     print(f"\n{platform.machine()}, torch {torch.__version__}, onnxruntime "
           f"{__import__('onnxruntime').__version__}, 1 thread each; {motion.name}, "
           f"{motion.num_frames} frames + {total - motion.num_frames} of preroll\n")  # fmt: skip
+    if args.batch:
+        print_batches(args, model, motion.num_frames)
     print("| stages | runtime | frames/s (wall) | ms/frame wall | ms/frame thread CPU | "
           "ms/frame process CPU | largest difference (m) |")  # fmt: skip
     print("|---|---|---:|---:|---:|---:|---:|")
