@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
+from importlib.util import find_spec
 
 import numpy as np
 import pytest
@@ -21,13 +22,13 @@ from loosefit.inference.onnx_export import (
     check_exportable,
     export_onnx,
 )
+from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx
 from loosefit.model.rollout import MOTION_ONLY, Stages
 
-ort = pytest.importorskip(
-    "onnxruntime", reason="onnxruntime is not installed (pip install 'loosefit[onnx]')"
+needs_ort = pytest.mark.skipif(
+    find_spec("onnxruntime") is None or find_spec("onnx") is None,
+    reason="onnx or onnxruntime is not installed (pip install 'loosefit[onnx]')",
 )
-
-from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx  # noqa: E402
 
 DETAIL_ONLY = Stages(lengths=False, collision=False, overlap=False)  # what the graph holds
 
@@ -44,6 +45,7 @@ def exported(model, tmp_path_factory):
     return path
 
 
+@needs_ort
 def test_onnxruntime_rolls_out_the_pytorch_frames_over_300_frames(model, exported):
     m = model.model
     motion = motion_for("dance:12", m.avatar(), model.fps, 300, seed=5)
@@ -56,6 +58,7 @@ def test_onnxruntime_rolls_out_the_pytorch_frames_over_300_frames(model, exporte
     assert np.linalg.norm(got - want.decoded, axis=-1).max() > 1e-3
 
 
+@needs_ort
 def test_a_batch_of_characters_steps_as_each_alone(model, exported):
     runtime = OnnxRuntime(exported)
     avatar = model.model.avatar()
@@ -77,6 +80,7 @@ def test_a_batch_of_characters_steps_as_each_alone(model, exported):
     assert np.abs(again[0] - first[0]).max() > 1e-3
 
 
+@needs_ort
 def test_the_json_says_what_the_inputs_mean(model, exported):
     meta = json.loads(exported.with_suffix(".json").read_text())
     m = model.model
@@ -103,6 +107,8 @@ def test_the_json_says_what_the_inputs_mean(model, exported):
     assert any("collision" in s for s in meta["stages"]["not_in_graph"])
     assert meta["check"]["max_difference_m"] < 1e-4
     # the graph's own names and shapes are the JSON's, and it carries the JSON too
+    import onnxruntime as ort
+
     session = ort.InferenceSession(str(exported), providers=["CPUExecutionProvider"])
     for got, names, table in ((session.get_inputs(), INPUTS, meta["inputs"]),
                               (session.get_outputs(), OUTPUTS, meta["outputs"])):  # fmt: skip
@@ -165,6 +171,7 @@ def _tiny_model(skirt, avatar, decoder: str, previous_state: bool):
                           "tiny.pt")  # fmt: skip
 
 
+@needs_ort
 @pytest.mark.parametrize(("decoder", "previous_state"),
                          [("decomposed", False), ("vertex", True), ("ssdr", True)])  # fmt: skip
 def test_every_decoder_exports(skirt, avatar, tmp_path, decoder, previous_state):
@@ -176,6 +183,7 @@ def test_every_decoder_exports(skirt, avatar, tmp_path, decoder, previous_state)
     np.testing.assert_allclose(rollout_onnx(OnnxRuntime(path), motion), want, atol=1e-5)
 
 
+@needs_ort
 def test_cli_export_model_end_to_end(model, tmp_path, capsys):
     from loosefit.cli import main
 
@@ -195,6 +203,7 @@ def test_cli_export_model_end_to_end(model, tmp_path, capsys):
     assert "writable folder" in capsys.readouterr().err
 
 
+@needs_ort
 def test_the_runtime_refuses_other_motions_and_files(model, exported, tmp_path, avatar):
     runtime = OnnxRuntime(exported)
     fast = avatar.rest_motion(4, fps=60.0)
