@@ -66,6 +66,7 @@ INPUTS = ("joint_rotations", "root_translation", "start", "previous_garment", "h
           "previous_root_rotation", "previous_root_translation")  # fmt: skip
 OUTPUTS = ("garment", "next_garment", "next_hidden", "next_root_rotation",
            "next_root_translation", "latent")  # fmt: skip
+SUPPORTED_DECODERS = frozenset({"decomposed", "vertex", "ssdr"})  # GenerativeConfig.decoder
 STATE = {  # output -> the input it becomes on the next frame
     "next_garment": "previous_garment",
     "next_hidden": "hidden",
@@ -172,9 +173,6 @@ def decode(generative: GarmentGenerativeModel, sample: GatherSample, z: torch.Te
     A = g.bones(z).view(B, -1, 3, 4)  # (B, bones, 3, 4)
     posed = torch.einsum("bkij,vj->bvki", A[..., :3], g.ssdr_rest) + A[:, None, :, :, 3]
     return (g.ssdr_weights[None, :, :, None] * posed).sum(2)
-
-
-SUPPORTED_DECODERS = frozenset({"decomposed", "vertex", "ssdr"})
 
 
 class RuntimeStep(nn.Module):
