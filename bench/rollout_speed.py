@@ -156,6 +156,9 @@ def main() -> None:
     p.add_argument("--start-frame", type=int, default=10, help="as load_motion's")
     p.add_argument("--frames", type=int, default=300, help="rollout frames (of each motion)")
     p.add_argument("--threads", default="1", help="thread counts, e.g. 1,2 ('all': the CPUs)")
+    p.add_argument("--quick", action="store_true",
+                   help="only the motion stage, + detail and the whole pipeline before and "
+                   "after issue 37 (not the issue 34 rows)")  # fmt: skip
     p.add_argument("--sim-frames", type=int, default=40,
                    help="simulated frames (of the same); 0: take --sim-seconds")  # fmt: skip
     p.add_argument(
@@ -200,6 +203,7 @@ def main() -> None:
             )
             for spec, m in motions
             for label, stages in pipelines(model).items()
+            if not (args.quick and "issue 34" in label or args.quick and label.endswith("body"))
             for t in threads
         ],  # fmt: skip
     }
