@@ -7,14 +7,20 @@ Times, in one run, on the same garment and the same motion:
   stage (paper 3.4, when the checkpoint has one packaged beside it) and with
   collision handling (3.5): the whole pipeline, each stage's milliseconds per frame
   apart, with 1 CPU thread and with all of them, and on the GPU when there is one;
-* Newton's VBD simulation of that garment on that motion, with the cloth
+* Newton's VBD simulation of that garment on the first motion, with the cloth
   configuration of the model's training data (one CPU core, or the GPU).
+
+Several motions in one run (issue 37: salsa 60_01, the held-out chain around its fastest
+spin, the procedural spin, ballet 05_20 by default); ``PATH@START`` takes the loaded
+motion's frames from START. Each row gives the wall clock and the CPU time of the thread
+that ran it (``time.thread_time`` with one thread, the process's with more: on a shared
+machine the wall clock also counts the other jobs' turns), both in ms per frame.
 
 Only motion frames are timed (the rollout's and the simulation's preroll are
 not), after a warm-up. The figures go in docs/BENCHMARKS.md::
 
-    python bench/rollout_speed.py --checkpoint runs/motion-cpu-ps/model.pt \
-        --motion ../shared/mocap/cmu-salsa/60_01.bvh --frames 300 --sim-frames 40
+    OMP_NUM_THREADS=1 python bench/rollout_speed.py --sim-frames 5 --repeats 1 \
+        --out out/rollout_speed_37.json
 """
 
 from __future__ import annotations
@@ -35,19 +41,29 @@ from loosefit.geometry.collision import CollisionConfig
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
 
-BEFORE_34 = CollisionConfig(iterations=6, finish=0, whole_body=False)  # as before issue 34
+BEFORE_34 = CollisionConfig(iterations=6, finish=0, whole_body=False, fast=False)  # issue 34
+BEFORE_37 = CollisionConfig(fast=False)  # collision handling as before issue 37's fast path
+CHAIN = "+".join(f"../shared/mocap/cmu-salsa/{n}.bvh" for n in ("60_03", "60_07", "61_03", "61_07"))
+MOTIONS = [  # issue 37: the whole pipeline on each of these, one command
+    "../shared/mocap/cmu-salsa/60_01.bvh",
+    CHAIN + "@1050",  # the held-out chain, its fastest spin (frames ~1,188-1,208) inside
+    "spin",
+    "../shared/mocap/cmu-ballet/05_20.bvh",
+]
 
 
 def pipelines(model) -> dict[str, tuple[Stages, CollisionConfig | None]]:
     """The stages timed (and the collision handling, None: the model's default): the motion
     stage alone, + detail (if any), + collision handling as before issue 34, + collision
-    handling now (the whole body, the last projection), + edge lengths (the pipeline)."""
+    handling now (the whole body, the last projection), + edge lengths (the pipeline),
+    the pipeline with collision handling as before issue 37 (no fast path)."""
     rows = {"motion stage": (MOTION_ONLY, None)}
     if model.detail is not None:
         rows["+ detail"] = (Stages(lengths=False, collision=False), None)
     d = "+ detail " if model.detail is not None else "+ "
     rows[d + "+ collision, before issue 34"] = (Stages(lengths=False), BEFORE_34)
     rows[d + "+ collision, whole body"] = (Stages(lengths=False), None)
+    rows[d + "+ lengths + collision, before issue 37"] = (Stages(), BEFORE_37)
     rows[d + "+ lengths + collision (all)"] = (Stages(), None)
     return rows
 
@@ -65,24 +81,40 @@ def _time_rollout(model, motion, threads: int, repeats: int, stages: Stages) -> 
     # thread beside the motion stage
     stages = dataclasses.replace(stages, overlap=threads > 1)
     model.animate(motion.slice(0, min(20, motion.num_frames)), stages=stages)  # warm-up
-    per_frame, per_stage = [], []
+    # CPU time: the one thread's (everything runs on it), or the process's with more
+    clock = time.thread_time if threads == 1 else time.process_time
+    per_frame, per_frame_cpu, per_stage, per_stage_cpu = [], [], [], []
     for _ in range(repeats):
         marks = {}
 
         def progress(done, total, marks=marks):
             if done == total - motion.num_frames:  # the preroll is over
-                marks["start"] = time.perf_counter()
+                marks["start"], marks["cpu"] = time.perf_counter(), clock()
 
         result = model.animate(motion, progress, stages=stages)
         per_frame.append((time.perf_counter() - marks["start"]) / motion.num_frames)
-        per_stage.append(
-            {k: v for k, v in (result.stage_seconds or {}).items() if k != "motion"}
-        )  # fmt: skip (motion's includes the preroll)
+        per_frame_cpu.append((clock() - marks["cpu"]) / motion.num_frames)
+        # (the motion stage's own figure includes the preroll: left out)
+        per_stage.append({k: v for k, v in (result.stage_seconds or {}).items() if k != "motion"})
+        per_stage_cpu.append(
+            {k: v for k, v in (result.stage_cpu_seconds or {}).items() if k != "motion"}
+        )
+
+    def ms(per: list[dict]) -> dict:
+        return {k: 1e3 * float(np.median([d[k] for d in per])) / motion.num_frames for k in per[0]}
+
     s = float(np.median(per_frame))
-    ms = {k: 1e3 * float(np.median([d[k] for d in per_stage])) / motion.num_frames
-          for k in per_stage[0]}  # fmt: skip
     return {"threads": threads, "seconds_per_frame": s, "frames_per_second": 1.0 / s,
-            "ms_per_frame_of": ms}  # fmt: skip
+            "cpu_seconds_per_frame": float(np.median(per_frame_cpu)),
+            "ms_per_frame_of": ms(per_stage), "cpu_ms_per_frame_of": ms(per_stage_cpu)}  # fmt: skip
+
+
+def _name(spec: str, start_frame: int) -> str:
+    """A motion spec, short: file names without folders, and where it starts."""
+    path, _, at = spec.rpartition("@") if "@" in spec else (spec, "", "")
+    parts = [Path(p).stem for p in path.split("+")]
+    name = parts[0] if len(parts) == 1 else f"chain {parts[0]}..{parts[-1]}"
+    return f"{name} from {start_frame}" + (f", frame {at} on" if at else "")
 
 
 def time_simulation(model, avatar, motion, device: str, cloth: dict) -> dict:
@@ -94,11 +126,12 @@ def time_simulation(model, avatar, motion, device: str, cloth: dict) -> dict:
 
     def progress(done, total):
         if done == total - motion.num_frames:
-            marks["start"] = time.perf_counter()
+            marks["start"], marks["cpu"] = time.perf_counter(), time.process_time()
 
     simulate(avatar, model.template, motion, ClothConfig(**cloth), progress=progress)
     s = (time.perf_counter() - marks["start"]) / motion.num_frames
-    return {"device": device, "seconds_per_frame": s}
+    cpu = (time.process_time() - marks["cpu"]) / motion.num_frames
+    return {"device": device, "seconds_per_frame": s, "cpu_seconds_per_frame": cpu}
 
 
 def model_cloth(model, dataset: str | None) -> dict:
@@ -118,9 +151,14 @@ def main() -> None:
         default="checkpoints/salsa/motion.pt",
         help="a motion run's model.pt or a packaged motion.pt (its detail.pt too)",
     )
-    p.add_argument("--motion", default="../shared/mocap/cmu-salsa/60_01.bvh")
-    p.add_argument("--start-frame", type=int, default=10)
-    p.add_argument("--frames", type=int, default=300, help="rollout frames")
+    p.add_argument("--motion", nargs="+", default=MOTIONS,
+                   help="motion specs; PATH@START: from frame START on")  # fmt: skip
+    p.add_argument("--start-frame", type=int, default=10, help="as load_motion's")
+    p.add_argument("--frames", type=int, default=300, help="rollout frames (of each motion)")
+    p.add_argument("--threads", default="1", help="thread counts, e.g. 1,2 ('all': the CPUs)")
+    p.add_argument("--quick", action="store_true",
+                   help="only the motion stage, + detail and the whole pipeline before and "
+                   "after issue 37 (not the issue 34 rows)")  # fmt: skip
     p.add_argument("--sim-frames", type=int, default=40,
                    help="simulated frames (of the same); 0: take --sim-seconds")  # fmt: skip
     p.add_argument(
@@ -141,18 +179,32 @@ def main() -> None:
 
     model = load_pipeline(args.checkpoint)
     avatar = model.avatar()
-    motion = load_motion(args.motion, avatar, fps=model.fps, start_frame=args.start_frame,
-                         max_frames=args.frames)  # fmt: skip
     cores = os.cpu_count() or 1
+    threads = sorted({cores if t == "all" else int(t) for t in args.threads.split(",")})
+    motions = []
+    for spec in args.motion:
+        path, _, at = spec.rpartition("@") if "@" in spec else (spec, "", "")
+        start = int(at) if at else 0
+        m = load_motion(path, avatar, fps=model.fps, start_frame=args.start_frame,
+                        max_frames=None if start else args.frames)  # fmt: skip
+        motions.append((spec, m.slice(start, min(start + args.frames, m.num_frames))))
+    motion = motions[0][1]
     result = {
         "machine": f"{platform.processor() or platform.machine()}, {cores} CPUs, "
         f"torch {torch.__version__}",
         "garment_vertices": model.template.num_vertices,
-        "motion": f"{Path(args.motion).name} from frame {args.start_frame}",
+        "motion": f"{Path(motions[0][0]).name} from frame {args.start_frame}",
         "rollout": [
-            dict(time_rollout(model, motion, t, args.repeats, stages), stages=label)
+            dict(
+                time_rollout(model, m, t, args.repeats, stages),
+                stages=label,
+                motion=_name(spec, args.start_frame),
+                frames=m.num_frames,
+            )
+            for spec, m in motions
             for label, stages in pipelines(model).items()
-            for t in sorted({1, cores})
+            if not (args.quick and "issue 34" in label or args.quick and label.endswith("body"))
+            for t in threads
         ],  # fmt: skip
     }
     if torch.cuda.is_available():
@@ -175,17 +227,27 @@ def main() -> None:
         result["simulation"] = [{"seconds_per_frame": sim, "device": "cpu", "not_run": True}]
     for r in result["rollout"]:
         r["speedup_cpu"] = sim / r["seconds_per_frame"]
+    sim_cpu = result["simulation"][0].get("cpu_seconds_per_frame", sim)
+    for r in result["rollout"]:
+        r["speedup_cpu_time"] = sim_cpu / r["cpu_seconds_per_frame"]
     full = [r for r in result["rollout"] if r["stages"] == list(pipelines(model))[-1]]
     best = min(r["seconds_per_frame"] for r in full)
     result["speedup_cpu"] = sim / best
     print(json.dumps(result, indent=2))
     for r in result["rollout"]:
+        cpu = {k: round(v, 2) for k, v in r["cpu_ms_per_frame_of"].items()}
         print(
-            f"{r['stages']:>40}, {r['threads']} thread(s): {1e3 * r['seconds_per_frame']:6.1f} "
-            f"ms/frame {json.dumps({k: round(v, 2) for k, v in r['ms_per_frame_of'].items()})}"
-            f", {r['speedup_cpu']:.0f}x faster than the simulation"
+            f"{r['motion'][:28]:>28} {r['stages']:>44}, {r['threads']} thread(s): "
+            f"{1e3 * r['seconds_per_frame']:6.1f} ms/frame (CPU "
+            f"{1e3 * r['cpu_seconds_per_frame']:6.1f}; stages' CPU ms {json.dumps(cpu)}), "
+            f"{r['speedup_cpu']:.0f}x faster than the simulation"
         )
-    print(f"simulation {sim:.2f} s/frame; the whole pipeline is {sim / best:.0f}x faster per frame")
+    print(f"simulation {sim:.2f} s/frame (CPU {sim_cpu:.2f}); the whole pipeline, one thread:")
+    for r in full:
+        if r["threads"] == 1:
+            print(f"  {r['motion']}: {r['frames_per_second']:.1f} frames/s wall, "
+                  f"{1 / r['cpu_seconds_per_frame']:.1f} by CPU time; {r['speedup_cpu']:.0f}x "
+                  f"the simulation (wall), {r['speedup_cpu_time']:.0f}x (CPU time)")  # fmt: skip
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(json.dumps(result, indent=2))

@@ -40,6 +40,7 @@ def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
     result = model.animate(motion)  # every stage: motion, detail, edge lengths, collision
     vertices = result.vertices
     assert set(result.stage_seconds) == {"motion", "detail", "lengths", "collision"}
+    assert set(result.stage_cpu_seconds) == set(result.stage_seconds)
     assert vertices.shape == (40, model.template.num_vertices, 3)
     assert np.isfinite(vertices).all()
     strain, _ = edge_strain(vertices, model.template)

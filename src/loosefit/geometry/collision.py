@@ -40,6 +40,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
+from scipy.linalg import solveh_banded
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.mesh_checks import unique_edges
@@ -87,6 +89,10 @@ class CollisionConfig:
     #   calls cloth centimetres outside inside)
     whole_body: bool = True  # collide with the whole body, arms and hands included, whatever
     #   the simulation's collider was (issue 34: hands passed through the skirt)
+    fast: bool = True  # issue 37: the same answers in less time: each solve a banded
+    #   Cholesky in a bandwidth-reducing order fixed once (not SuperLU), and "inside" the winding
+    #   number counted along rays (``Surface.query(sign="rays")``: no solid-angle data to refit
+    #   each frame) instead of warp's fast winding number; False: as before issue 37
 
     def __post_init__(self) -> None:
         for name in ("epsilon", "anchor", "reach", "face_reach", "finish_reach",
@@ -104,9 +110,10 @@ class CollisionConfig:
             raise LoosefitInputError("CollisionConfig", "stretch", "a number > 1", self.stretch)
         if not (isinstance(self.finish, int) and self.finish >= 0):
             raise LoosefitInputError("CollisionConfig", "finish", "an integer >= 0", self.finish)
-        if not isinstance(self.whole_body, bool):
-            raise LoosefitInputError("CollisionConfig", "whole_body", "true or false",
-                                     self.whole_body)  # fmt: skip
+        for name in ("whole_body", "fast"):
+            if not isinstance(getattr(self, name), bool):
+                raise LoosefitInputError("CollisionConfig", name, "true or false",
+                                         getattr(self, name))  # fmt: skip
 
 
 @dataclass
@@ -160,6 +167,12 @@ class CollisionHandler:
         self.lap = sp.csr_matrix((lv, (li, lj)), shape=(V, V))
         self.ltl = (self.lap.T @ self.lap).tocsr()
         self.system = (self.ltl + self.config.anchor * sp.identity(V, format="csr")).tocsr()
+        self.system.sort_indices()
+        # the fast solve's order: reverse Cuthill-McKee of the whole system, so that any
+        # sub-system taken in it is banded (a bandwidth of 40-80 for the skirt's)
+        order = reverse_cuthill_mckee(self.system, symmetric_mode=True)
+        self.rank = np.empty(V, np.int64)  # (V,) each vertex's place in that order
+        self.rank[order] = np.arange(V)
         f = np.asarray(faces, np.int64)
         e, _ = unique_edges(f)
         self.edges = e  # (E, 2)
@@ -175,6 +188,12 @@ class CollisionHandler:
         self.faces = f
         w = np.array([[1, 1, 1], [1, 1, 0], [0, 1, 1], [1, 0, 1]], np.float64)
         self.sample_weights = w / w.sum(1, keepdims=True)  # (4, 3)
+        # the last projection's inside test (Surface.query's sign)
+        self.inside_test = "rays" if self.config.fast else "winding"
+        # (V,) each vertex's closest body face when last asked (-1: none), the fast path's
+        # hint for its next query (the same answer, from less of the BVH); kept from frame
+        # to frame: a hint is only ever a bound, so a stale one costs time, never an answer
+        self._face = np.full(V, -1, np.int64)
 
     def laplacian(self, x: torch.Tensor) -> torch.Tensor:
         """(V, 3) -> (V, 3): the uniform Laplacian ``Delta`` of Eq. 16."""
@@ -211,7 +230,7 @@ class CollisionHandler:
         d = np.zeros_like(x0)
         active = np.zeros(V, dtype=bool)
         region = np.zeros(V, dtype=bool)
-        n, ds = signed_distances(x0, body, cfg.reach)
+        n, ds = self._signed(x0, body, cfg.reach, slice(None))
         iterations = 1
         depth_before = float(np.clip(cfg.epsilon - ds, 0, None).max())
         inside_before = int((ds < 0).sum())
@@ -234,12 +253,12 @@ class CollisionHandler:
             d = self._solve(d + push, active, region)
             # the moved vertices' closest points again: pushed ones meet other body parts
             moved = np.flatnonzero(region)
-            n[moved], ds[moved] = signed_distances(x0[moved] + d[moved], body, cfg.reach)
+            n[moved], ds[moved] = self._signed(x0[moved] + d[moved], body, cfg.reach, moved)
             iterations += 1
         x = x0 + d
         if not np.isfinite(x).all():  # cannot happen with SPD systems; never write NaN
             x, d = x0, np.zeros_like(x0)
-            n, ds = signed_distances(x, body, cfg.reach)
+            n, ds = self._signed(x, body, cfg.reach, slice(None))
         if cfg.finish:
             x, ds, passes = self._finish(x, ds, body)
             d = x - x0
@@ -288,7 +307,7 @@ class CollisionHandler:
 
         def ask(near: np.ndarray):
             """The winding number's answer for the vertices ``near``, into ``ds``."""
-            hit = body.query(x[near], cfg.reach, sign="winding", accuracy=cfg.winding_accuracy)
+            hit = self._ask(x[near], body, near, self.inside_test)
             ds[near] = _signed(hit)
             return hit, (hit.faces >= 0) & hit.inside
 
@@ -347,7 +366,7 @@ class CollisionHandler:
         limit = np.maximum(before, cfg.stretch * rest)  # (E,)
         passes = 0
         moved = np.zeros(len(x), dtype=bool)
-        sign = "winding" if cfg.finish else "normal"
+        sign = self.inside_test if cfg.finish else "normal"
         for _ in range(cfg.relax):
             vec = x[a] - x[b]
             length = np.linalg.norm(vec, axis=1)
@@ -363,7 +382,7 @@ class CollisionHandler:
             touched = np.flatnonzero(count)
             x[touched] += delta[touched] / count[touched, None]
             moved[touched] = True
-            hit = body.query(x[touched], cfg.reach, sign=sign, accuracy=cfg.winding_accuracy)
+            hit = self._ask(x[touched], body, touched, sign)
             passes += 1
             inside = hit.inside & (hit.faces >= 0)
             if inside.any():
@@ -371,10 +390,31 @@ class CollisionHandler:
                 x[idx] = _beyond_skin(x[idx], hit, inside, cfg.epsilon)[0]
         if moved.any():
             idx = np.flatnonzero(moved)
-            hit = body.query(x[idx], cfg.reach, sign=sign, accuracy=cfg.winding_accuracy)
+            hit = self._ask(x[idx], body, idx, sign)
             passes += 1
             ds[idx] = _signed(hit)
         return x, ds, passes
+
+    def _ask(self, x: np.ndarray, body: Surface, idx, sign: str):
+        """The closest points and inside test ``sign`` of the vertices ``idx`` (an index
+        array or a slice) at ``x`` (N, 3), within ``reach``; the fast path's hints from
+        each vertex's closest face before, and noted for the next."""
+        cfg = self.config
+        hint = self._face[idx] if cfg.fast else None
+        hit = body.query(x, cfg.reach, sign=sign, accuracy=cfg.winding_accuracy, hint=hint)
+        if cfg.fast:
+            self._face[idx] = hit.faces
+        return hit
+
+    def _signed(self, x: np.ndarray, body: Surface, reach: float, idx
+                ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """:func:`signed_distances` of the vertices ``idx`` at ``x`` (N, 3), with the fast
+        path's hints (see :meth:`_ask`)."""
+        fast = self.config.fast
+        hit = body.query(x, reach, sign="normal", hint=self._face[idx] if fast else None)
+        if fast:
+            self._face[idx] = hit.faces
+        return _normals(x, body, hit)
 
     def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,
                      push: np.ndarray, moved: np.ndarray | None = None) -> bool:  # fmt: skip
@@ -396,7 +436,11 @@ class CollisionHandler:
         # a point short of eps lies within the depth of its face's deepest vertex plus the
         # face_reach band: no farther query needed (a far reach costs the BVH walk)
         deepest = float(np.clip(-ds[self.faces[near]].min(), 0.0, None))
-        n, dp = signed_distances(pts, body, min(cfg.reach, deepest + 2 * cfg.face_reach))
+        # the fast path's hints: the closest face of a vertex each point depends on
+        hint = self._face[self.faces[near][:, [0, 0, 1, 0]]].ravel() if cfg.fast else None
+        hit = body.query(pts, min(cfg.reach, deepest + 2 * cfg.face_reach), sign="normal",
+                         hint=hint)  # fmt: skip
+        n, dp = _normals(pts, body, hit)
         bad = np.flatnonzero(dp < 0.75 * cfg.epsilon)
         if not len(bad):
             return False
@@ -432,11 +476,33 @@ class CollisionHandler:
         a = np.flatnonzero(active)
         d[a] = pinned[a]
         f = np.flatnonzero(region & ~active)
-        if len(f):
+        if len(f) and self.config.fast:
+            f = f[np.argsort(self.rank[f])]
+            rhs = -(self.ltl @ d)[f]  # d is 0 off the active set: (L^T L)_FA D_A
+            d[f] = solveh_banded(self._banded(f), rhs, lower=True, check_finite=False)
+        elif len(f):
             rhs = -(self.ltl[f][:, a] @ d[a])
             lu = spla.splu(self.system[f][:, f].tocsc(), permc_spec="MMD_AT_PLUS_A")
             d[f] = lu.solve(rhs)
         return d
+
+    def _banded(self, f: np.ndarray) -> np.ndarray:
+        """The sub-system ``(L^T L + mu I)_FF`` of the free vertices ``f`` (n,) in lower
+        banded storage (b + 1, n) for :func:`scipy.linalg.solveh_banded` (``ab[i - j, j]``
+        holds entry (i, j), i >= j), read from the CSR arrays without building a matrix."""
+        A = self.system
+        pos = np.full(self.num_vertices, -1, np.int64)
+        pos[f] = np.arange(len(f))
+        starts, counts = A.indptr[f], np.diff(A.indptr)[f]
+        # (nnz_F,) the entries of the rows f: each row's run of the CSR arrays
+        take = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+        row = np.repeat(np.arange(len(f)), counts)
+        col = pos[A.indices[take]]
+        keep = (col >= 0) & (col <= row)  # in the sub-system, on or below the diagonal
+        row, col, val = row[keep], col[keep], A.data[take[keep]]
+        ab = np.zeros((int((row - col).max()) + 1, len(f)))
+        ab[row - col, col] = val
+        return ab
 
 
 class PushOutHandler:
@@ -514,7 +580,11 @@ def signed_distances(x: np.ndarray, body: Surface, reach: float
     b their closest body points; ``ds`` is +inf (and n 0) beyond ``reach`` of the body. ``n`` is the
     distance's gradient, so ``ds = +-|x - b|`` (minus inside, by the closest face's
     side); for a point on the surface itself, the face's normal."""
-    hit = body.query(x, reach, sign="normal")
+    return _normals(x, body, body.query(x, reach, sign="normal"))
+
+
+def _normals(x: np.ndarray, body: Surface, hit) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`signed_distances` of points x (N, 3) from their query's answer ``hit``."""
     valid = hit.faces >= 0
     side = np.where(hit.inside, -1.0, 1.0)[:, None]
     away = (x - hit.points) * side
@@ -547,7 +617,7 @@ class BodyCollider:
         device: warp device of the closest-point queries.
         winding_number: the body's BVH keeps the winding number (what the last projection
             asks: an arm pressed into the hip overlaps it); default: when the handler has
-            a last projection.
+            a last projection that asks it (not the fast path's rays).
     """
 
     def __init__(self, handler: CollisionHandler | PushOutHandler, body_faces: np.ndarray,
@@ -555,7 +625,9 @@ class BodyCollider:
                  winding_number: bool | None = None) -> None:  # fmt: skip
         self.handler = handler
         if winding_number is None:
-            winding_number = bool(getattr(getattr(handler, "config", None), "finish", 0))
+            winding_number = getattr(handler, "inside_test", None) == "winding" and bool(
+                handler.config.finish
+            )
         self.winding_number = winding_number
         self.faces = np.ascontiguousarray(np.asarray(body_faces), np.int64)
         self.pose = pose

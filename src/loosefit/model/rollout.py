@@ -129,6 +129,9 @@ class RolloutResult:
             vertices), or None when it did not run.
         stage_seconds: wall-clock seconds per stage ("motion", "detail", "collision"),
             where measured.
+        stage_cpu_seconds: the same stages' CPU time on the threads that ran them
+            (``time.thread_time``: unlike the wall clock, not lengthened by other work on
+            a shared machine).
     """
 
     vertices: np.ndarray
@@ -138,6 +141,7 @@ class RolloutResult:
     decoded: np.ndarray | None = None
     collisions: list | None = None
     stage_seconds: dict | None = None
+    stage_cpu_seconds: dict | None = None
 
     @property
     def frames_per_second(self) -> float:
@@ -222,10 +226,12 @@ def rollout(
     decoded = torch.empty(motion.num_frames, encoder.num_vertices, 3) if refine else None
     collisions: list | None = [] if collide is not None else None
     stage = {"motion": 0.0, "detail": 0.0, "lengths": 0.0, "collision": 0.0}
+    cpu = dict.fromkeys(stage, 0.0)  # the same, thread CPU time
     later = _Later(detail, collide, H[P:].cpu(), p[P:].cpu(), device, lengths) if refine else None
     pool = ThreadPoolExecutor(1) if refine and overlap and not feedback else None
     jobs: list = []
     start = t0 = time.perf_counter()
+    c0 = time.thread_time()
     for t in range(total):
         m = t - P
         if restart_every is not None and m > 0 and m % restart_every == 0:
@@ -243,18 +249,20 @@ def rollout(
                 decoded[m] = world[0].cpu()
             if refine and feedback:  # this frame through the later stages, then fed back
                 stage["motion"] += time.perf_counter() - t0
+                cpu["motion"] += time.thread_time() - c0
                 part, records = later(decoded, codes, m, m + 1)
                 world = part.to(device)
                 if collisions is not None:
                     collisions.extend(records)
                 prev = to_root_frame(world, H[t : t + 1], p[t : t + 1])
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.thread_time()
             out[m] = world[0].cpu()
             if pool is not None and (m + 1) % later.chunk == 0:  # a chunk to refine
                 jobs.append(pool.submit(later, decoded, codes, m + 1 - later.chunk, m + 1))
         if progress is not None:
             progress(t + 1, total)
     stage["motion"] += time.perf_counter() - t0
+    cpu["motion"] += time.thread_time() - c0
     if later is not None and not feedback:
         T = motion.num_frames
         done = len(jobs) * later.chunk
@@ -272,10 +280,12 @@ def rollout(
     if later is not None:
         for k in ("detail", "lengths", "collision"):
             stage[k] += later.seconds[k]
+            cpu[k] += later.cpu_seconds[k]
     seconds = time.perf_counter() - start if pool is not None else sum(stage.values())
     return RolloutResult(out.numpy(), seconds, total, codes.numpy(),
                          decoded.numpy() if refine else None, collisions,
-                         {k: v for k, v in stage.items() if v > 0})  # fmt: skip
+                         {k: v for k, v in stage.items() if v > 0},
+                         {k: v for k, v in cpu.items() if stage[k] > 0})  # fmt: skip
 
 
 @torch.no_grad()
@@ -368,6 +378,7 @@ class _Later:
         self.detail, self.collide, self.H, self.p, self.device = detail, collide, H, p, device
         self.lengths = lengths
         self.seconds = {"detail": 0.0, "lengths": 0.0, "collision": 0.0}
+        self.cpu_seconds = dict.fromkeys(self.seconds, 0.0)  # thread CPU time, the same
 
     def __call__(self, decoded: torch.Tensor, codes: torch.Tensor, s: int, e: int
                  ) -> tuple[torch.Tensor, list[dict]]:  # fmt: skip
@@ -375,18 +386,20 @@ class _Later:
         (T, latent): the refined garments (e - s, V, 3) and collision records."""
         with torch.no_grad():  # grad mode is per thread
             out = decoded[s:e].clone()
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             if self.detail is not None:
                 h, q = self.H[s:e].to(self.device), self.p[s:e].to(self.device)
                 local = to_root_frame(out.to(self.device), h, q)
                 local = local + self.detail(local, codes[s:e].to(self.device))
                 out = from_root_frame(local, h, q).cpu()
-            t1 = time.perf_counter()
+            t1, c1 = time.perf_counter(), time.thread_time()
             self.seconds["detail"] += t1 - t0
+            self.cpu_seconds["detail"] += c1 - c0
             if self.lengths is not None:
                 out = self.lengths(out)
-                t0, t1 = t1, time.perf_counter()
+                t0, t1, c0, c1 = t1, time.perf_counter(), c1, time.thread_time()
                 self.seconds["lengths"] += t1 - t0
+                self.cpu_seconds["lengths"] += c1 - c0
             records = []
             if self.collide is not None:
                 for i in range(len(out)):
@@ -394,6 +407,7 @@ class _Later:
                     out[i] = result.vertices.cpu()
                     records.append(collision_record(result))
                 self.seconds["collision"] += time.perf_counter() - t1
+                self.cpu_seconds["collision"] += time.thread_time() - c1
         return out, records
 
 
