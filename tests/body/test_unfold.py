@@ -89,6 +89,7 @@ def test_a_thigh_raised_into_the_belly_is_turned_out_at_most_the_cap(avatar, par
     motion = knee_lift(avatar, 140.0, still=15)
     done = unfold_motion(avatar, motion, parts, UnfoldConfig(max_degrees=10.0))
     folded = done.depth_before > 0
+    assert done.motion.num_frames == motion.num_frames  # a data set's frame counts stay
     assert done.depth_before.max() > 0.05 and folded.sum() >= 8  # 6.7 cm at the top
     assert (done.depth_after <= done.depth_before + 1e-9).all()
     assert done.depth_after.max() < done.depth_before.max() - 0.01  # 10 degrees: 1.7 cm less

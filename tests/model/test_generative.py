@@ -132,7 +132,7 @@ def test_a_killed_run_resumes(toy_dataset, tmp_path):
         f"import sys; sys.path.insert(0, {repo!r})\n"
         "from tests.model.test_generative import _config\n"
         "from loosefit.train.generative import train_generative\n"
-        f"train_generative({str(toy_dataset)!r}, {str(run)!r}, _config(epochs=40),"
+        f"train_generative({str(toy_dataset)!r}, {str(run)!r}, _config(epochs=12),"
         " progress=False)\n"
     )
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL,
@@ -146,12 +146,12 @@ def test_a_killed_run_resumes(toy_dataset, tmp_path):
     proc.kill()
     proc.wait()
     done = torch.load(ckpt, weights_only=False)["epoch"]
-    assert 2 <= done < 40 and not (run / "report.json").exists()
+    assert 2 <= done < 12 and not (run / "report.json").exists()
     lines = []
-    train_generative(toy_dataset, run, _config(epochs=40), log=lines.append, progress=False)
+    train_generative(toy_dataset, run, _config(epochs=12), log=lines.append, progress=False)
     assert any(f"at epoch {done}" in line for line in lines)
     history = torch.load(ckpt, weights_only=False)["history"]
-    assert [h["epoch"] for h in history] == list(range(1, 41))
+    assert [h["epoch"] for h in history] == list(range(1, 13))
 
 
 def test_train_and_interpolate_commands(toy_dataset, tmp_path):
