@@ -608,3 +608,27 @@ def test_a_new_pose_correction_keeps_the_clips_whose_motion_it_leaves(spied_copy
     cfg.unfold.max_degrees, cfg.cloth.iterations = 25.0, 9
     with pytest.raises(LoosefitInputError, match=r"another dataset.*cloth"):
         gen.generate(cfg, out, workers=1, progress=False)
+
+
+def test_the_data_set_s_garment_is_the_workers_whatever_the_caller_s_threads():
+    # The avatar's rest shape differs in a float's last bit between torch thread counts;
+    # generate builds template.npz on one thread, as the workers build the garment they
+    # simulate, and gives the caller its thread count back.
+    import torch
+
+    from loosefit.body.avatar import Avatar, AvatarConfig
+
+    config = gen.preset("tiny")
+    threads = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        with gen.one_torch_thread():
+            assert torch.get_num_threads() == 1
+            avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
+            ours = gen.make_garment(config.garment, avatar).vertices
+        assert torch.get_num_threads() == 2
+        gen._worker_init(config, None)  # what a worker process does first
+        np.testing.assert_array_equal(gen._WORKER["template"].vertices, ours)
+    finally:
+        gen._WORKER.clear()
+        torch.set_num_threads(threads)

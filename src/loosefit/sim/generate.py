@@ -10,6 +10,7 @@ out of the split rather than silently used.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as _dt
 import hashlib
@@ -585,6 +586,23 @@ def _exit_with_parent(poll_seconds: float = 2.0) -> None:
     threading.Thread(target=watch, daemon=True).start()
 
 
+@contextlib.contextmanager
+def one_torch_thread():
+    """Run the block on one torch thread, as every simulation worker does, then give the
+    caller back its own count. The avatar's rest shape, and so the garment fitted to it,
+    differs in a float's last bit between thread counts (torch's reductions split the work
+    differently): built on one thread, the data set's ``template.npz`` is the garment its
+    clips were simulated with, whatever the caller's threads."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
 def _worker_init(config: DatasetConfig, progress_queue) -> None:
     """Build the avatar and garment once per worker process."""
     import torch
@@ -1035,8 +1053,9 @@ def generate(
     for stale in (out / "sequences").glob("*.partial.npz"):
         stale.unlink()  # left by a killed run: never a whole sequence
 
-    avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
-    template = make_garment(config.garment, avatar)
+    with one_torch_thread():
+        avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
+        template = make_garment(config.garment, avatar)
     if collider_arms(template) == "upper" and config.cloth.arm_collision is False:
         raise LoosefitInputError(
             "DatasetConfig", "cloth.arm_collision", "'upper' (or true) for a dress: its bodice "
@@ -1134,9 +1153,10 @@ def generate(
         run_on_ray(cluster, config, by_length, str(out), resume_every, created, on_progress,
                    record, local_cpus=workers)  # fmt: skip
     elif workers <= 1:
-        _worker_init(config, _Direct(on_progress))
-        for group in groups:
-            record(group, _run_group(config, group, str(out), resume_every))
+        with one_torch_thread():  # in this process: its thread count is the caller's again
+            _worker_init(config, _Direct(on_progress))
+            for group in groups:
+                record(group, _run_group(config, group, str(out), resume_every))
     else:
         ctx = mp.get_context("spawn")
         with ctx.Manager() as manager:
