@@ -92,7 +92,7 @@ def test_a_fixed_pixel_ratio_sizes_the_canvas(clips, chromium_binary):
         assert viewer.url.endswith("/?fixedDpr=0.5")
         with Chromium(chromium_binary, width=800, height=600) as browser:
             browser.open(viewer.url, settle=1.0)
-            canvas = "document.querySelector('canvas')"
+            canvas = "document.querySelector('canvas[data-engine]')"  # three.js's
             width, css_width = browser.evaluate(f"[{canvas}.width, {canvas}.clientWidth]")
         assert css_width > 100 and width == pytest.approx(css_width / 2, abs=1)
     finally:
