@@ -38,8 +38,8 @@ class ViewerConfig:
         loop: play again from the start at the end.
         pixel_ratio: the canvas's pixels per screen pixel, fixed (viser's ``fixedDpr``,
             put in the URL); None: the browser's own, lowered by viser while it draws
-            slowly. A browser drawing WebGL in software draws in about a third of the time
-            at 0.5 (docs/VIEWER.md); with a GPU leave it None.
+            slowly. A browser drawing WebGL in software draws a frame in a fifth to a third
+            less time at 0.5 (docs/VIEWER.md); with a GPU leave it None.
     """
 
     host: str = "127.0.0.1"
