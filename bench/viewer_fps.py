@@ -23,6 +23,7 @@ import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -89,25 +90,33 @@ def main() -> None:
         server.wait(timeout=30)
 
 
-def _gpu_process(pid: int):
-    """Chromium's GPU process (``--type=gpu-process``) under the browser ``pid``, or None."""
-    import psutil
-
-    for child in psutil.Process(pid).children(recursive=True):
+def _gpu_process(pid: int) -> int | None:
+    """The id of Chromium's GPU process (``--type=gpu-process``) among the descendants of
+    ``pid`` (the launcher may be a script), read from Linux's /proc; None when none is."""
+    parent, gpu = {}, []
+    for proc in Path("/proc").glob("[0-9]*"):
         try:
-            if "--type=gpu-process" in child.cmdline():
-                return child
-        except psutil.Error:
+            cmdline = (proc / "cmdline").read_bytes()  # Chromium rewrites it: one string
+            parent[int(proc.name)] = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
             continue
+        if b"--type=gpu-process" in cmdline:
+            gpu.append(int(proc.name))
+    for candidate in gpu:
+        p = candidate
+        while p in parent and p != pid:
+            p = parent[p]
+        if p == pid:
+            return candidate
     return None
 
 
-def _cpu_seconds(process) -> float:
+def _cpu_seconds(pid: int | None) -> float:
     """User and system CPU seconds of a process so far (0 when there is none)."""
-    if process is None:
+    if pid is None:
         return 0.0
-    t = process.cpu_times()
-    return t.user + t.system
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 if __name__ == "__main__":
