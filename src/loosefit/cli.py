@@ -58,6 +58,14 @@ def _add_view_args(p: argparse.ArgumentParser) -> None:
         help="overlaid rather than side by side (changeable in the panel)",
     )
     p.add_argument("--paused", action="store_true", help="start paused")
+    p.add_argument(
+        "--pixel-ratio",
+        type=float,
+        default=None,
+        help="the canvas's pixels per screen pixel, fixed (e.g. 0.5 for a browser drawing "
+        "WebGL without a GPU: a quarter of the pixels, a frame drawn in a fifth to a third "
+        "less time; default: the browser's, lowered by viser while frames are slow)",
+    )
 
 
 def _add_avatar_args(p: argparse.ArgumentParser) -> None:
@@ -1074,7 +1082,8 @@ def _serve(seqs, labels, sources, args) -> None:
 
     config = ViewerConfig(host=args.host, port=args.port, colouring=args.colour,
                           layout="overlaid" if args.overlay else "side by side",
-                          reference=args.reference, play=not args.paused)  # fmt: skip
+                          reference=args.reference, play=not args.paused,
+                          pixel_ratio=args.pixel_ratio)  # fmt: skip
     config.validate(len(seqs))  # before minutes of posing
     frames = sum(s.num_frames for s in seqs)
     _log(f"{len(seqs)} sequence(s), {seqs[0].num_frames} frames each: posing the bodies")

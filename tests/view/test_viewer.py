@@ -85,6 +85,22 @@ def test_garment_is_drawn_and_moves(clips, chromium_binary, tmp_path):
         viewer.close()
 
 
+def test_a_fixed_pixel_ratio_sizes_the_canvas(clips, chromium_binary):
+    a, _ = clips
+    viewer = view([a], config=ViewerConfig(port=0, play=False, pixel_ratio=0.5))
+    try:
+        assert viewer.url.endswith("/?fixedDpr=0.5")
+        with Chromium(chromium_binary, width=800, height=600) as browser:
+            browser.open(viewer.url, settle=1.0)
+            canvas = "document.querySelector('canvas[data-engine]')"  # three.js's
+            width, css_width = browser.evaluate(f"[{canvas}.width, {canvas}.clientWidth]")
+        assert css_width > 100 and width == pytest.approx(css_width / 2, abs=1)
+    finally:
+        viewer.close()
+    with pytest.raises(LoosefitInputError, match="pixel_ratio"):
+        ViewerConfig(pixel_ratio=0.0).validate(1)
+
+
 def test_frames_and_colourings_through_the_api(clips):
     a, still = clips
     viewer = view([a, still], names=["a", "still"],

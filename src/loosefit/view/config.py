@@ -36,6 +36,10 @@ class ViewerConfig:
         follow: the camera follows the shown bodies (horizontally).
         play: start playing.
         loop: play again from the start at the end.
+        pixel_ratio: the canvas's pixels per screen pixel, fixed (viser's ``fixedDpr``,
+            put in the URL); None: the browser's own, lowered by viser while it draws
+            slowly. A browser drawing WebGL in software draws a frame in a fifth to a third
+            less time at 0.5 (docs/VIEWER.md); with a GPU leave it None.
     """
 
     host: str = "127.0.0.1"
@@ -49,6 +53,7 @@ class ViewerConfig:
     follow: bool = True
     play: bool = True
     loop: bool = True
+    pixel_ratio: float | None = None
 
     def validate(self, num_sequences: int) -> None:
         """Raises LoosefitInputError naming the field that is out of range."""
@@ -64,6 +69,8 @@ class ViewerConfig:
             ("speed", 0 < self.speed <= 4, "more than 0, at most 4", self.speed),
             ("spacing", self.spacing >= 0, "0 m or more", self.spacing),
             ("port", 0 <= self.port < 65536, "0 to 65535", self.port),
+            ("pixel_ratio", self.pixel_ratio is None or 0.1 <= self.pixel_ratio <= 4,
+             "None or 0.1 to 4", self.pixel_ratio),
         )  # fmt: skip
         for name, ok, expected, found in checks:
             if not ok:

@@ -75,6 +75,8 @@ class Viewer:
         self.port = int(self.server.get_port())
         shown = "localhost" if config.host in ("0.0.0.0", "127.0.0.1", "::") else config.host
         self.url = f"http://{shown}:{self.port}"
+        if config.pixel_ratio is not None:  # viser's page reads it from its URL
+            self.url += f"/?fixedDpr={config.pixel_ratio:g}"
         self._build_scene()
         self._build_panel()
         self.set_frame(0)
