@@ -64,8 +64,9 @@ def test_fit_pushes_it_out_keeps_its_top_and_reports_the_displacements(other_dre
     assert moved.max() == pytest.approx(report.moved_max, abs=1e-5)
     assert np.array_equal(template.faces, placed.faces)
     assert np.array_equal(template.waist, placed.waist)
-    # the cloth's rest shape stays the file's: the push and the drape only stretch it
-    np.testing.assert_array_equal(template.rest_vertices, placed.vertices)
+    # the cloth's rest shape stays the file's: the push and the drape only stretch it (to a
+    # float's last bit: the two placements may run on different torch thread counts)
+    np.testing.assert_allclose(template.rest_vertices, placed.vertices, rtol=0, atol=1e-6)
     assert template.meta["fit"]["inside_before"] == report.inside_before
     assert template.meta["fit"]["shape"] == Avatar().shape
     assert "inside the body as placed" in report.format()
