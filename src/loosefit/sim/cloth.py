@@ -458,11 +458,13 @@ class TrappedRelease:
 
     def __init__(self, body: np.ndarray, meshes: tuple[np.ndarray, ...], vertex_part: np.ndarray,
                  num_vertices: int, depth: float, offset: float) -> None:  # fmt: skip
+        from loosefit.geometry.cap import triangle_keys
         from loosefit.geometry.query import Surface
 
         self.depth, self.offset = float(depth), float(offset)
-        faces = np.unique(np.sort(np.concatenate(meshes), axis=1), axis=0, return_index=True)[1]
-        faces = np.concatenate(meshes)[np.sort(faces)]  # each triangle once, as first given
+        every = np.concatenate(meshes)
+        first = np.unique(triangle_keys(every)[0], return_index=True)[1]
+        faces = every[np.sort(first)]  # each triangle once, as first given
         c = np.asarray(vertex_part, np.int64)[faces]  # (F, 3) each corner's part
         # the part of most corners (of three different parts, the lowest)
         part = np.where(
