@@ -916,6 +916,34 @@ def adopt_clips(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Pat
     return taken
 
 
+def _recheck(jobs: list[Job], manifest: dict, out: Path, stale, still_right, keep
+             ) -> tuple[list[str], list[str]]:  # fmt: skip
+    """Clips recorded under another setting, kept or removed to be simulated again.
+
+    Args:
+        stale: ``stale(entry)``: whether the clip's entry was made under another setting.
+        still_right: ``still_right(job, entry)``: whether this configuration makes the same
+            clip (then it is kept).
+        keep: ``keep(entry)`` updates a kept clip's entry to this configuration.
+
+    Returns:
+        The names of the clips kept and of those removed (their entry and sequence file).
+    """
+    kept, again = [], []
+    for job in jobs:
+        entry = manifest["sequences"].get(job.name)
+        if entry is None or not stale(entry):
+            continue
+        if still_right(job, entry):
+            keep(entry)
+            kept.append(job.name)
+        else:
+            del manifest["sequences"][job.name]
+            (out / "sequences" / f"{job.name}.npz").unlink(missing_ok=True)
+            again.append(job.name)
+    return kept, again
+
+
 def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Path,
                      avatar, template) -> tuple[list[str], list[str]]:  # fmt: skip
     """Clips simulated with another release of trapped cloth, kept or to simulate again.
@@ -940,37 +968,34 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
         timeline,
     )
 
-    depth = config.cloth.release_depth
-    kept, again = [], []
-    parts = meshes = None  # built once, for the first clip to replay
-    for job in jobs:
-        entry = manifest["sequences"].get(job.name)
-        if entry is None or entry.get("release_depth", depth) == depth:
-            continue
+    depth, cloth = config.cloth.release_depth, config.cloth
+    built: dict = {}  # the collider's parts and meshes, for the first clip to replay
+
+    def still_right(job: Job, entry: dict) -> bool:
         path = out / "sequences" / f"{job.name}.npz"
-        ok = entry.get("status") == "done" and not entry.get("released_frames") and path.exists()
-        if ok and depth is not None:
-            cloth = config.cloth
-            if parts is None:
-                parts, meshes = collider_parts(avatar, cloth), collider_meshes(avatar, cloth)[2]
-            motion = job_motion(config, job, avatar)
-            line = timeline(avatar, motion, cloth, parts)
-            garment = read_sequence(path, template).garment_vertices
-            release = TrappedRelease(
-                line.collider[0], meshes, release_parts(parts), template.num_vertices, depth,
-                cloth.body_contact_distance,
-            )  # fmt: skip
-            ok = (
-                replay_release(garment, line.collider[line.n_pre :], release, 1.0 / motion.fps) == 0
-            )
-        if ok:
-            entry.update(release_depth=depth, released_frames=0, released_vertices=0)
-            kept.append(job.name)
-        else:
-            del manifest["sequences"][job.name]
-            path.unlink(missing_ok=True)
-            again.append(job.name)
-    return kept, again
+        if entry.get("status") != "done" or entry.get("released_frames") or not path.exists():
+            return False
+        if depth is None:
+            return True
+        if not built:
+            built.update(parts=collider_parts(avatar, cloth),
+                         meshes=collider_meshes(avatar, cloth)[2])  # fmt: skip
+        motion = job_motion(config, job, avatar)
+        line = timeline(avatar, motion, cloth, built["parts"])
+        garment = read_sequence(path, template).garment_vertices
+        release = TrappedRelease(
+            line.collider[0], built["meshes"], release_parts(built["parts"]),
+            template.num_vertices, depth, cloth.body_contact_distance,
+        )  # fmt: skip
+        return replay_release(garment, line.collider[line.n_pre :], release, 1.0 / motion.fps) == 0
+
+    return _recheck(
+        jobs, manifest, out,
+        stale=lambda entry: entry.get("release_depth", depth) != depth,
+        still_right=still_right,
+        keep=lambda entry: entry.update(release_depth=depth, released_frames=0,
+                                        released_vertices=0),
+    )  # fmt: skip
 
 
 def _recheck_unfold(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Path,
@@ -988,23 +1013,20 @@ def _recheck_unfold(config: DatasetConfig, jobs: list[Job], manifest: dict, out:
     """
     from loosefit.body.unfold import same_correction
 
-    kept, again = [], []
     known = {f.name for f in dataclasses.fields(UnfoldConfig)}
-    for job in jobs:
-        entry = manifest["sequences"].get(job.name)
-        if entry is None or "unfold_config" not in entry:
-            continue
+
+    def still_right(job: Job, entry: dict) -> bool:
         stored = UnfoldConfig(**{k: v for k, v in entry["unfold_config"].items() if k in known})
         motion = job_motion(config, job, avatar, unfold=False)
         parts = _limb_parts(config, avatar)
-        if same_correction(avatar, motion, parts, stored, config.unfold):
-            del entry["unfold_config"]
-            kept.append(job.name)
-        else:
-            del manifest["sequences"][job.name]
-            (out / "sequences" / f"{job.name}.npz").unlink(missing_ok=True)
-            again.append(job.name)
-    return kept, again
+        return same_correction(avatar, motion, parts, stored, config.unfold)
+
+    return _recheck(
+        jobs, manifest, out,
+        stale=lambda entry: "unfold_config" in entry,
+        still_right=still_right,
+        keep=lambda entry: entry.pop("unfold_config"),
+    )  # fmt: skip
 
 
 def generate(
