@@ -395,13 +395,14 @@ class CollisionHandler:
             ds[idx] = _signed(hit)
         return x, ds, passes
 
-    def _ask(self, x: np.ndarray, body: Surface, idx, sign: str):
+    def _ask(self, x: np.ndarray, body: Surface, idx, sign: str, reach: float | None = None):
         """The closest points and inside test ``sign`` of the vertices ``idx`` (an index
-        array or a slice) at ``x`` (N, 3), within ``reach``; the fast path's hints from
-        each vertex's closest face before, and noted for the next."""
+        array or a slice) at ``x`` (N, 3), within ``reach`` (default: the config's); the
+        fast path's hints from each vertex's closest face before, and noted for the next."""
         cfg = self.config
+        reach = cfg.reach if reach is None else reach
         hint = self._face[idx] if cfg.fast else None
-        hit = body.query(x, cfg.reach, sign=sign, accuracy=cfg.winding_accuracy, hint=hint)
+        hit = body.query(x, reach, sign=sign, accuracy=cfg.winding_accuracy, hint=hint)
         if cfg.fast:
             self._face[idx] = hit.faces
         return hit
@@ -410,11 +411,7 @@ class CollisionHandler:
                 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """:func:`signed_distances` of the vertices ``idx`` at ``x`` (N, 3), with the fast
         path's hints (see :meth:`_ask`)."""
-        fast = self.config.fast
-        hit = body.query(x, reach, sign="normal", hint=self._face[idx] if fast else None)
-        if fast:
-            self._face[idx] = hit.faces
-        return _normals(x, body, hit)
+        return _normals(x, body, self._ask(x, body, idx, "normal", reach))
 
     def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,
                      push: np.ndarray, moved: np.ndarray | None = None) -> bool:  # fmt: skip
