@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import copy
 import json
-import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +45,7 @@ import torch
 from torch import nn
 
 from loosefit.atomic import atomic_path
+from loosefit.body.rotations import axis_angle_to_matrix
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.obj import write_obj
 from loosefit.model.detail import DetailGenerator
@@ -447,7 +447,8 @@ def check_first_frame(step: RuntimeStep, path: Path, model, tolerance: float) ->
             want = step(*(torch.from_numpy(feed[k]) for k in INPUTS))
         worst = max(worst, float(np.abs(got["garment"] - want[0].numpy()).max()))
         feed = {**feed, **{STATE[k]: got[k] for k in STATE}, "start": np.zeros(1, bool)}
-        bent = _rot_x(0.3) @ feed["joint_rotations"][0, 1:]  # every joint but the root
+        # every joint but the root turned 0.3 rad about x
+        bent = axis_angle_to_matrix(np.array([0.3, 0.0, 0.0])) @ feed["joint_rotations"][0, 1:]
         feed["joint_rotations"] = feed["joint_rotations"].copy()
         feed["joint_rotations"][0, 1:] = bent
         feed["root_translation"] = feed["root_translation"] + np.float32([0.01, 0.0, 0.0])
@@ -455,8 +456,3 @@ def check_first_frame(step: RuntimeStep, path: Path, model, tolerance: float) ->
         raise LoosefitInputError(path, "graph", f"onnxruntime within {tolerance} m of "
                                  "PyTorch on two frames", f"{worst:.3g} m")  # fmt: skip
     return {"frames": 2, "max_difference_m": worst, "onnxruntime": ort.__version__}
-
-
-def _rot_x(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]], np.float32)
