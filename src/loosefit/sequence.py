@@ -91,12 +91,18 @@ class AnimatedGarment:
     def num_frames(self) -> int:
         return self.motion.num_frames
 
-    def _pose_body(self) -> None:
-        from loosefit.body.avatar import Avatar, AvatarConfig
+    def avatar_config(self):
+        """The :class:`~loosefit.body.avatar.AvatarConfig` of the body this sequence was made
+        on (its ``avatar`` description: the rig, default ``cmu_mb``, and the phenotype)."""
+        from loosefit.body.avatar import AvatarConfig
 
-        config = AvatarConfig(rig=self.avatar.get("rig", "cmu_mb"),
-                              shape=dict(self.avatar.get("shape", {})))  # fmt: skip
-        avatar = Avatar(config)
+        return AvatarConfig(rig=self.avatar.get("rig", "cmu_mb"),
+                            shape=dict(self.avatar.get("shape", {})))  # fmt: skip
+
+    def _pose_body(self) -> None:
+        from loosefit.body.avatar import Avatar
+
+        avatar = Avatar(self.avatar_config())
         self._body = avatar.pose_motion(self.motion).vertices.cpu().numpy()
         self._body_faces = avatar.faces.cpu().numpy()
 

@@ -88,7 +88,7 @@ def pose_bodies(
         sequences: the sequences.
         progress: called as ``progress(frames posed, frames to pose)``.
     """
-    from loosefit.body.avatar import Avatar, AvatarConfig
+    from loosefit.body.avatar import Avatar
 
     keys = [_body_key(s) for s in sequences]
     distinct = list(dict.fromkeys(keys))
@@ -97,8 +97,7 @@ def pose_bodies(
     avatars: dict[str, Avatar] = {}
     posed = {}
     for key, seq in zip(distinct, todo, strict=True):
-        config = AvatarConfig(rig=seq.avatar.get("rig", "cmu_mb"),
-                              shape=dict(seq.avatar.get("shape", {})))  # fmt: skip
+        config = seq.avatar_config()
         akey = repr((config.rig, sorted(config.shape.items())))
         if akey not in avatars:
             avatars[akey] = Avatar(config)
