@@ -37,8 +37,8 @@ from loosefit.garment.mesh_checks import unique_edges
 
 # LengthRestorer solves its system by blocks of its banded Cholesky factor when the band
 # (reverse Cuthill-McKee) is at most this fraction of the free vertices and at most
-# BANDED_UP_TO wide (the blocks hold ~4 n b numbers: 2,268 x 81 for the skirt, 3 MB in
-# float32); a wider band is left to SuperLU, whose fill does not grow with the band
+# BANDED_UP_TO wide (the blocks hold ~3 n b numbers: 2 MB in float32 for the skirt's
+# 2,268 x 81); a wider band is left to SuperLU, whose fill does not grow with the band
 BAND_FRACTION = 1 / 8
 BANDED_UP_TO = 512
 
