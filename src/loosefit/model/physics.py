@@ -35,8 +35,12 @@ import torch
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.mesh_checks import unique_edges
 
-# LengthRestorer keeps a dense inverse of its system up to this many free vertices
-DENSE_UP_TO = 4000
+# LengthRestorer solves its system by blocks of its banded Cholesky factor when the band
+# (reverse Cuthill-McKee) is at most this fraction of the free vertices and at most
+# BANDED_UP_TO wide (the blocks hold ~3 n b numbers: 2 MB in float32 for the skirt's
+# 2,268 x 81); a wider band is left to SuperLU, whose fill does not grow with the band
+BAND_FRACTION = 1 / 8
+BANDED_UP_TO = 512
 
 # the terms a checkpoint can have been trained with (the names of PhysicsLossConfig's weights)
 PHYSICS_TERMS = ("membrane", "bending", "collision")
@@ -334,9 +338,12 @@ class LengthRestorer:
     a mass-spring system solved as projective dynamics solves it (Bouaziz et al. 2014;
     Liu et al. 2013): the global step's matrix ``B^T B + alpha I`` (``B`` the edge
     incidence, waistband columns out) is the same in every round and every frame, so it
-    is factorised once (SuperLU) and each round is one sparse solve for all coordinates
-    and frames. Unlike vertex-by-vertex strain limiting, one round moves the whole
-    garment, so a uniform shrink of a few per cent is undone in a few rounds.
+    is factorised once and each round is one solve for all coordinates and frames: by
+    blocks of its banded Cholesky factor, the free vertices taken in reverse
+    Cuthill-McKee order (:mod:`loosefit.geometry.banded`), or by SuperLU where that band
+    is too wide (:data:`BAND_FRACTION`, :data:`BANDED_UP_TO`). Unlike vertex-by-vertex
+    strain limiting, one round moves the whole garment, so a uniform shrink of a few per
+    cent is undone in a few rounds.
 
     Gradients pass through (the solve's backward is a solve with the same matrix), so
     the restorer can sit at the end of a decoder in training.
@@ -350,6 +357,8 @@ class LengthRestorer:
         import scipy.sparse as sp
         import scipy.sparse.linalg as spla
 
+        from loosefit.geometry.banded import BlockBandedCholesky, band_order
+
         self.config = cfg = config or LengthConfig()
         self.structure = structure
         edges = structure.edges.cpu().numpy()
@@ -358,20 +367,32 @@ class LengthRestorer:
         rows = np.r_[np.arange(E), np.arange(E)]
         inc = sp.csr_matrix((np.r_[np.ones(E), -np.ones(E)], (rows, edges.T.reshape(-1))),
                             shape=(E, V))  # fmt: skip
-        self.free = np.flatnonzero(~fixed)
+        free = np.flatnonzero(~fixed)
+        tie = cfg.tie * sp.identity(len(free))
+        bf = inc[:, free]
+        order, width = band_order(bf.T @ bf + tie)
+        self.free = free[order]  # (Vf,) the free vertices in band order: the system is banded
         self.held = np.flatnonzero(fixed)
         bf = inc[:, self.free]
-        system = (bf.T @ bf + cfg.tie * sp.identity(len(self.free))).tocsc()
+        system = (bf.T @ bf + tie).tocsc()  # (Vf, Vf)
+        # the differentiable rounds' solve (float64, its backward the same solve) and the
+        # host rounds' where the band is too wide
         self._lu = spla.splu(system, permc_spec="MMD_AT_PLUS_A")
-        # up to a few thousand vertices a dense inverse is the faster solve for many
-        # right-hand sides (one matrix product: 2,352 vertices, 64 frames: ~25 ms a round)
-        self._inverse = (np.linalg.inv(system.toarray()).astype(np.float32)
-                         if len(self.free) <= DENSE_UP_TO else None)  # fmt: skip
+        # the host rounds' solve: float32 blocks (2 ms a round for the skirt's 64 frames
+        # on one core, where the dense float32 inverse this replaces took 16 ms; float64
+        # blocks take 5 ms). Their relative error (~2e-7; condition number ~1.5e3 for the
+        # skirt at tie 1e-3) falls on each round's change, not on the positions
+        # (restore_numpy; bench/length_solve.py)
+        narrow = width <= min(BAND_FRACTION * len(free), BANDED_UP_TO)
+        self.banded = BlockBandedCholesky(system, np.float32) if narrow else None
         self._bf_t = bf.T.tocsr()  # (Vf, E)
         self._bh = inc[:, self.held].tocsr()  # (E, Vh)
-        self._bf_t32, self._bh32 = self._bf_t.astype(np.float32), self._bh.astype(np.float32)
-        self._inc32 = inc.astype(np.float32)
-        self._rest32 = structure.rest_lengths.cpu().numpy().astype(np.float32)[:, None, None]
+        self._bf_t32 = self._bf_t.astype(np.float32)
+        # the host rounds keep every vertex in one order, the free ones first (band
+        # order) and then the held ones, so a round's solve fills rows :Vf
+        self._order = np.r_[self.free, self.held]  # (V,)
+        self._inc32 = inc[:, self._order].tocsr().astype(np.float32)  # (E, V) in that order
+        self._rest32 = structure.rest_lengths.cpu().numpy().astype(np.float32)[:, None]  # (E, 1)
 
     def __call__(self, x: torch.Tensor) -> torch.Tensor:
         """(..., V, 3) positions -> (..., V, 3) with edges near rest; differentiable
@@ -388,26 +409,43 @@ class LengthRestorer:
         return out.reshape(*lead, V, 3)
 
     def restore_numpy(self, x: np.ndarray) -> np.ndarray:
-        """(B, V, 3) -> (B, V, 3) float32: the rounds on the host (no gradient)."""
+        """(B, V, 3) -> (B, V, 3) float32: the rounds on the host (no gradient).
+
+        Each round solves for the change of the free vertices, not their positions:
+        ``x' = x + A^-1 (b - A x)`` with ``b - A x = B_f^T (t - d) + alpha (x0 - x)``, ``d``
+        the current edge vectors and ``t`` their targets. The change is millimetres where
+        the positions are metres, so the float32 solve's relative error costs ~1e-7 m
+        instead of ~1e-5 m (the skirt on salsa 60_01: 4e-7 m from float64 throughout;
+        the dense float32 inverse this replaces solved for positions and was 1e-5 m off).
+        """
         cfg = self.config
         B, V, _ = x.shape
-        cols = np.ascontiguousarray(x.transpose(1, 0, 2).reshape(V, B * 3), np.float32)
-        x0f = cols[self.free]  # (Vf, B*3)
-        held_part = self._bh32 @ cols[self.held]  # (E, B*3)
-        rest = self._rest32  # (E, 1, 1)
-        cur = cols.copy()
+        Vf = len(self.free)
+        # (V, 3*B) float32, vertices in the rounds' order (free in band order, then held);
+        # the frames innermost, so that the per-edge arithmetic runs along them
+        cur = np.asarray(x, np.float32).transpose(1, 2, 0)[self._order].reshape(V, 3 * B)
+        x0f = cur[:Vf].copy()  # (Vf, 3*B) where the network put the free vertices
+        tie = np.float32(cfg.tie)
+        rest = self._rest32  # (E, 1)
         for _ in range(cfg.iterations):
-            d = (self._inc32 @ cur).reshape(-1, B, 3)  # (E, B, 3)
-            sq = d * d
-            length = np.sqrt(sq[..., 0:1] + sq[..., 1:2] + sq[..., 2:3])
+            d = (self._inc32 @ cur).reshape(-1, 3, B)  # (E, 3, B) the edge vectors
+            length = d[:, 0] * d[:, 0]  # (E, B)
+            length += d[:, 1] * d[:, 1]
+            length += d[:, 2] * d[:, 2]
+            np.sqrt(length, out=length)
             np.maximum(length, 1e-12, out=length)
-            scale = rest / length
+            scale = np.divide(rest, length, out=length)
             if cfg.compression_only:
-                scale = np.maximum(scale, 1.0)
-            target = (d * scale).reshape(-1, B * 3)
-            rhs = self._bf_t32 @ (target - held_part) + np.float32(cfg.tie) * x0f
-            cur[self.free] = self._lu.solve(rhs) if self._inverse is None else self._inverse @ rhs
-        return cur.reshape(V, B, 3).transpose(1, 0, 2)
+                np.maximum(scale, 1.0, out=scale)
+            scale -= 1
+            d *= scale[:, None]  # t - d: each edge to its rest length along its direction
+            residual = self._bf_t32 @ d.reshape(-1, 3 * B)  # (Vf, 3*B) b - A x
+            residual += tie * (x0f - cur[:Vf])
+            solver = self._lu if self.banded is None else self.banded
+            cur[:Vf] += solver.solve(residual)
+        out = np.empty((B, V, 3), np.float32)  # contiguous, vertices in their own order
+        out[:, self._order] = cur.reshape(V, 3, B).transpose(2, 0, 1)
+        return out
 
     def _torch(self, x: torch.Tensor) -> torch.Tensor:
         cfg = self.config
