@@ -184,10 +184,12 @@ class CollisionHandler:
         adj = sp.coo_matrix((np.ones(len(e), np.float32), (e[:, 0], e[:, 1])), shape=(V, V))
         self.adjacency = (adj + adj.T).tocsr()
         # points inside each face that must stay out too (a body edge between three
-        # vertices that are outside pokes through the cloth): centroid and edge midpoints
+        # vertices that are outside pokes through the cloth): centroid and edge midpoints,
+        # each midpoint asked once for the two faces that share its edge
         self.faces = f
-        w = np.array([[1, 1, 1], [1, 1, 0], [0, 1, 1], [1, 0, 1]], np.float64)
-        self.sample_weights = w / w.sum(1, keepdims=True)  # (4, 3)
+        half = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)  # (3F, 2)
+        _, inverse = np.unique(half, axis=0, return_inverse=True)  # as unique_edges sorts
+        self.face_edges = inverse.reshape(-1, 3)  # (F, 3) each face's edges, rows of edges
         # the last projection's inside test (Surface.query's sign)
         self.inside_test = "rays" if self.config.fast else "winding"
         # (V,) each vertex's closest body face when last asked (-1: none), the fast path's
@@ -374,11 +376,10 @@ class CollisionHandler:
             if not len(over):
                 break
             corr = (0.5 * (length[over] - limit[over]) / length[over])[:, None] * vec[over]
-            delta, count = np.zeros_like(x), np.zeros(len(x))
-            np.add.at(delta, a[over], -corr)
-            np.add.at(delta, b[over], corr)
-            np.add.at(count, a[over], 1.0)
-            np.add.at(count, b[over], 1.0)
+            ends = np.r_[a[over], b[over]]  # (2 O,) each over-long edge's two vertices
+            pull = np.concatenate([-corr, corr])  # (2 O, 3) what each end takes
+            delta = np.stack([np.bincount(ends, pull[:, k], len(x)) for k in range(3)], 1)
+            count = np.bincount(ends, minlength=len(x))
             touched = np.flatnonzero(count)
             x[touched] += delta[touched] / count[touched, None]
             moved[touched] = True
@@ -428,25 +429,30 @@ class CollisionHandler:
         near = np.flatnonzero(close)  # (Fn,)
         if not len(near):
             return False
-        corners = x[self.faces[near]]  # (Fn, 3, 3)
-        pts = np.einsum("sk,fkd->fsd", self.sample_weights, corners).reshape(-1, 3)
+        fv = self.faces[near]  # (Fn, 3)
+        ev = self.edges[np.unique(self.face_edges[near])]  # (En, 2) their edges, each once
+        # (Fn + En, 3) the samples: the faces' centroids, then the edges' midpoints
+        # (the centroid as a weighted sum of the corners, rounded as it always was)
+        centroids = np.einsum("k,fkd->fd", np.full(3, 1 / 3), x[fv])
+        pts = np.concatenate([centroids, 0.5 * (x[ev[:, 0]] + x[ev[:, 1]])])
         # a point short of eps lies within the depth of its face's deepest vertex plus the
         # face_reach band: no farther query needed (a far reach costs the BVH walk)
-        deepest = float(np.clip(-ds[self.faces[near]].min(), 0.0, None))
+        deepest = float(np.clip(-ds[fv].min(), 0.0, None))
         # the fast path's hints: the closest face of a vertex each point depends on
-        hint = self._face[self.faces[near][:, [0, 0, 1, 0]]].ravel() if cfg.fast else None
+        hint = self._face[np.r_[fv[:, 0], ev[:, 0]]] if cfg.fast else None
         hit = body.query(pts, min(cfg.reach, deepest + 2 * cfg.face_reach), sign="normal",
                          hint=hint)  # fmt: skip
         n, dp = _normals(pts, body, hit)
         bad = np.flatnonzero(dp < 0.75 * cfg.epsilon)
         if not len(bad):
             return False
-        face, sample = np.divmod(bad, len(self.sample_weights))
-        deficit = cfg.epsilon - dp[bad]  # (B,)
-        spans = self.sample_weights[sample] > 0  # (B, 3) the vertices a point depends on
-        v = self.faces[near[face]][spans]  # (B * k,)
-        dv = np.repeat(deficit, spans.sum(1))
-        nv = np.repeat(n[bad], spans.sum(1), axis=0)
+        # each point short of eps: the vertices it depends on (a centroid's 3, a midpoint's 2)
+        centroid = bad < len(fv)
+        bc, be = bad[centroid], bad[~centroid]
+        deficit = cfg.epsilon - dp  # (Fn + En,)
+        v = np.r_[fv[bc].ravel(), ev[be - len(fv)].ravel()]  # (3 Bc + 2 Be,)
+        dv = np.r_[np.repeat(deficit[bc], 3), np.repeat(deficit[be], 2)]
+        nv = np.concatenate([np.repeat(n[bc], 3, axis=0), np.repeat(n[be], 2, axis=0)])
         order = np.argsort(dv)  # ascending: the largest push of a vertex is written last
         v, dv, nv = v[order], dv[order], nv[order]
         take = dv > short[v]
