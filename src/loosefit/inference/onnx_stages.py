@@ -25,9 +25,11 @@ The garments before collision handling are PyTorch's within float rounding: over
 frames of the pretrained set, 5e-7 m after the decoders and the detail stage, 3e-6 m after
 the edge lengths (the tests ask for 1e-4 m). Collision handling is the same code, but it
 is not continuous in its input: a vertex at the edge of its contact set by a micrometre
-can be pushed out otherwise, so after it a few vertices of a few frames differ by up to a
-millimetre (0.8 mm, 16 vertex-frames of 705,600 over those 300 frames; PyTorch's own
-garments with 1e-6 m of noise added after the detail stage move up to 8 mm after it).
+can be pushed out otherwise, so after it a few vertices of a few frames differ by
+millimetres (0.8 mm over those 300 frames, 16 vertex-frames of 705,600; up to 23 mm on
+150 frames of bench/rollout_speed.py's clips, 99.9 % within 4e-5 m). PyTorch's own
+garments with 1e-6 m of noise added after the detail stage move up to 8 mm after it
+(docs/BENCHMARKS.md, "The onnx runtime").
 
 Unlike the engine graph of :mod:`loosefit.inference.onnx_export` (motion features and root
 frames inside, world garments), these graphs take what the rollout already computes; they
