@@ -16,6 +16,12 @@ motion's frames from START. Each row gives the wall clock and the CPU time of th
 that ran it (``time.thread_time`` with one thread, the process's with more: on a shared
 machine the wall clock also counts the other jobs' turns), both in ms per frame.
 
+Every row runs with each ``--runtime`` (default both): ``torch``, the learned stages in
+PyTorch, and ``onnx``, the motion stage and the detail generator in onnxruntime
+(``animate(..., runtime="onnx")``, one intra-op thread on one torch thread), the stages
+after them the same; an onnx row also gives its largest difference (m) from the torch row.
+``motion`` in the stage figures is per frame computed (the preroll's too).
+
 Only motion frames are timed (the rollout's and the simulation's preroll are
 not), after a warm-up. The figures go in docs/BENCHMARKS.md::
 
@@ -27,6 +33,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
+import importlib.util
 import json
 import os
 import platform
@@ -69,18 +77,22 @@ def pipelines(model) -> dict[str, tuple[Stages, CollisionConfig | None]]:
 
 
 def time_rollout(model, motion, threads: int, repeats: int,
-                 pipeline: tuple[Stages, CollisionConfig | None]) -> dict:  # fmt: skip
+                 pipeline: tuple[Stages, CollisionConfig | None],
+                 runtime: str = "torch") -> tuple[dict, np.ndarray]:  # fmt: skip
+    """The figures of a row and the garments (T, V, 3) of its last run."""
     stages, collision = pipeline
     with model.configured(collision):
-        return _time_rollout(model, motion, threads, repeats, stages)
+        return _time_rollout(model, motion, threads, repeats, stages, runtime)
 
 
-def _time_rollout(model, motion, threads: int, repeats: int, stages: Stages) -> dict:
+def _time_rollout(model, motion, threads: int, repeats: int, stages: Stages, runtime: str
+                  ) -> tuple[dict, np.ndarray]:  # fmt: skip
     torch.set_num_threads(threads)
     # one thread: the stages one after another; more: detail and collision on a second
     # thread beside the motion stage
     stages = dataclasses.replace(stages, overlap=threads > 1)
-    model.animate(motion.slice(0, min(20, motion.num_frames)), stages=stages)  # warm-up
+    # warm-up (the onnx runtime's graphs are exported here, untimed)
+    model.animate(motion.slice(0, min(20, motion.num_frames)), stages=stages, runtime=runtime)
     # CPU time: the one thread's (everything runs on it), or the process's with more
     clock = time.thread_time if threads == 1 else time.process_time
     per_frame, per_frame_cpu, per_stage, per_stage_cpu = [], [], [], []
@@ -91,22 +103,28 @@ def _time_rollout(model, motion, threads: int, repeats: int, stages: Stages) -> 
             if done == total - motion.num_frames:  # the preroll is over
                 marks["start"], marks["cpu"] = time.perf_counter(), clock()
 
-        result = model.animate(motion, progress, stages=stages)
+        result = model.animate(motion, progress, stages=stages, runtime=runtime)
         per_frame.append((time.perf_counter() - marks["start"]) / motion.num_frames)
         per_frame_cpu.append((clock() - marks["cpu"]) / motion.num_frames)
-        # (the motion stage's own figure includes the preroll: left out)
-        per_stage.append({k: v for k, v in (result.stage_seconds or {}).items() if k != "motion"})
-        per_stage_cpu.append(
-            {k: v for k, v in (result.stage_cpu_seconds or {}).items() if k != "motion"}
-        )
+        # the motion stage's own figure includes the preroll: per frame computed
+        per_stage.append(_per_frame(result.stage_seconds, motion.num_frames, result.frames))
+        per_stage_cpu.append(_per_frame(result.stage_cpu_seconds, motion.num_frames,
+                                        result.frames))  # fmt: skip
 
     def ms(per: list[dict]) -> dict:
-        return {k: 1e3 * float(np.median([d[k] for d in per])) / motion.num_frames for k in per[0]}
+        return {k: 1e3 * float(np.median([d[k] for d in per])) for k in per[0]}
 
     s = float(np.median(per_frame))
-    return {"threads": threads, "seconds_per_frame": s, "frames_per_second": 1.0 / s,
-            "cpu_seconds_per_frame": float(np.median(per_frame_cpu)),
-            "ms_per_frame_of": ms(per_stage), "cpu_ms_per_frame_of": ms(per_stage_cpu)}  # fmt: skip
+    return {"threads": threads, "runtime": runtime, "seconds_per_frame": s,
+            "frames_per_second": 1.0 / s, "cpu_seconds_per_frame": float(np.median(per_frame_cpu)),
+            "ms_per_frame_of": ms(per_stage),
+            "cpu_ms_per_frame_of": ms(per_stage_cpu)}, result.vertices  # fmt: skip
+
+
+def _per_frame(seconds: dict | None, frames: int, computed: int) -> dict:
+    """A result's seconds per stage, per motion frame (the motion stage's: per frame
+    computed, the preroll's too)."""
+    return {k: v / (computed if k == "motion" else frames) for k, v in (seconds or {}).items()}
 
 
 def _name(spec: str, start_frame: int) -> str:
@@ -168,6 +186,9 @@ def main() -> None:
         help="with --sim-frames 0: the simulation's s/frame to compare with",
     )
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--runtime", default="torch,onnx",
+                   help="what runs the learned stages, each row with each: torch, onnx "
+                   "(onnxruntime; left out with a note when it is not installed)")  # fmt: skip
     p.add_argument(
         "--cloth-from",
         default=None,
@@ -189,29 +210,42 @@ def main() -> None:
                         max_frames=None if start else args.frames)  # fmt: skip
         motions.append((spec, m.slice(start, min(start + args.frames, m.num_frames))))
     motion = motions[0][1]
+    runtimes = [r.strip() for r in args.runtime.split(",")]
+    if "onnx" in runtimes and importlib.util.find_spec("onnxruntime") is None:
+        print("onnxruntime is not installed (pip install 'loosefit[onnx]'): torch rows only")
+        runtimes.remove("onnx")
     result = {
         "machine": f"{platform.processor() or platform.machine()}, {cores} CPUs, "
         f"torch {torch.__version__}",
+        "date": time.strftime("%Y-%m-%d"),
         "garment_vertices": model.template.num_vertices,
         "motion": f"{Path(motions[0][0]).name} from frame {args.start_frame}",
-        "rollout": [
-            dict(
-                time_rollout(model, m, t, args.repeats, stages),
-                stages=label,
-                motion=_name(spec, args.start_frame),
-                frames=m.num_frames,
-            )
-            for spec, m in motions
-            for label, stages in pipelines(model).items()
-            if not (args.quick and "issue 34" in label or args.quick and label.endswith("body"))
-            for t in threads
-        ],  # fmt: skip
+        "rollout": [],
     }
+    if "onnx" in runtimes:
+        result["onnxruntime"] = importlib.import_module("onnxruntime").__version__
+    for spec, m in motions:
+        for label, stages in pipelines(model).items():
+            if args.quick and ("issue 34" in label or label.endswith("body")):
+                continue
+            for t in threads:
+                torch_garments = None
+                for runtime in runtimes:
+                    row, garments = time_rollout(model, m, t, args.repeats, stages, runtime)
+                    row.update(stages=label, motion=_name(spec, args.start_frame),
+                               frames=m.num_frames)  # fmt: skip
+                    if runtime == "torch":
+                        torch_garments = garments
+                    elif torch_garments is not None:  # the largest difference from torch's
+                        gap = np.linalg.norm(garments - torch_garments, axis=-1)  # (T, V)
+                        row["largest_difference_m"] = float(gap.max())
+                        row["difference_p999_m"] = float(np.quantile(gap, 0.999))
+                    result["rollout"].append(row)
     if torch.cuda.is_available():
         gpu = load_pipeline(args.checkpoint, device="cuda")
         result["rollout_gpu"] = []
         for label, stages in pipelines(gpu).items():
-            r = time_rollout(gpu, motion, cores, args.repeats, stages)
+            r, _ = time_rollout(gpu, motion, cores, args.repeats, stages)  # torch on the GPU
             r.update(stages=label, device=torch.cuda.get_device_name())
             result["rollout_gpu"].append(r)
     if args.sim_frames > 0:
@@ -236,17 +270,20 @@ def main() -> None:
     print(json.dumps(result, indent=2))
     for r in result["rollout"]:
         cpu = {k: round(v, 2) for k, v in r["cpu_ms_per_frame_of"].items()}
+        gap = f", largest difference {r['largest_difference_m']:.1e} m" if (
+            "largest_difference_m" in r) else ""  # fmt: skip
         print(
-            f"{r['motion'][:28]:>28} {r['stages']:>44}, {r['threads']} thread(s): "
-            f"{1e3 * r['seconds_per_frame']:6.1f} ms/frame (CPU "
+            f"{r['motion'][:28]:>28} {r['stages']:>44} [{r['runtime']}], {r['threads']} "
+            f"thread(s): {1e3 * r['seconds_per_frame']:6.1f} ms/frame (CPU "
             f"{1e3 * r['cpu_seconds_per_frame']:6.1f}; stages' CPU ms {json.dumps(cpu)}), "
-            f"{r['speedup_cpu']:.0f}x faster than the simulation"
+            f"{r['speedup_cpu']:.0f}x faster than the simulation{gap}"
         )
     print(f"simulation {sim:.2f} s/frame (CPU {sim_cpu:.2f}); the whole pipeline, one thread:")
     for r in full:
         if r["threads"] == 1:
-            print(f"  {r['motion']}: {r['frames_per_second']:.1f} frames/s wall, "
-                  f"{1 / r['cpu_seconds_per_frame']:.1f} by CPU time; {r['speedup_cpu']:.0f}x "
+            print(f"  {r['motion']} [{r['runtime']}]: {r['frames_per_second']:.1f} frames/s "
+                  f"wall, {1 / r['cpu_seconds_per_frame']:.1f} by CPU time "
+                  f"({1e3 * r['cpu_seconds_per_frame']:.1f} ms); {r['speedup_cpu']:.0f}x "
                   f"the simulation (wall), {r['speedup_cpu_time']:.0f}x (CPU time)")  # fmt: skip
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)

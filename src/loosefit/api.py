@@ -91,7 +91,8 @@ class Animator:
 
     def animate(self, motion: str | Path | Motion, frames: int | None = None,
                 start_frame: int = 0, seed: int = 0, stages=None,
-                progress: Callable[[int, int], None] | None = None) -> AnimatedGarment:  # fmt: skip
+                progress: Callable[[int, int], None] | None = None,
+                runtime: str = "torch") -> AnimatedGarment:  # fmt: skip
         """The garment through a motion.
 
         Args:
@@ -103,13 +104,21 @@ class Animator:
             stages: which stages run after the decoders
                 (:class:`~loosefit.model.rollout.Stages`; default all).
             progress: called as ``progress(done, total)``.
+            runtime: what runs the learned stages: ``"torch"`` (PyTorch), or ``"onnx"``
+                (onnxruntime: the same garments, faster on one core; ``pip install
+                'loosefit[onnx]'``; docs/ENGINE_EXPORT.md). Edge lengths and collision
+                handling are the same Python code either way.
 
         Returns:
             :class:`~loosefit.sequence.AnimatedGarment`, world positions.
+
+        Raises:
+            LoosefitInputError: an unreadable motion, or ``runtime="onnx"`` without
+                onnxruntime or for a baseline.
         """
         avatar = self.model.avatar()
         m = motion_for(motion, avatar, self.fps, frames, start_frame, seed)
-        result = self.model.animate(m, progress, stages=stages)
+        result = self.model.animate(m, progress, stages=stages, runtime=runtime)
         shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
         return AnimatedGarment(m, self.template, result.vertices, shape,
                                f"loosefit model {self.path}")  # fmt: skip

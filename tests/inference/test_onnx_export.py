@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import sys
-from importlib.util import find_spec
 
 import numpy as np
 import pytest
@@ -24,18 +23,9 @@ from loosefit.inference.onnx_export import (
 )
 from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx
 from loosefit.model.rollout import MOTION_ONLY, Stages
-
-needs_ort = pytest.mark.skipif(
-    find_spec("onnxruntime") is None or find_spec("onnx") is None,
-    reason="onnx or onnxruntime is not installed (pip install 'loosefit[onnx]')",
-)
+from tests.inference.conftest import needs_ort, tiny_model
 
 DETAIL_ONLY = Stages(lengths=False, collision=False, overlap=False)  # what the graph holds
-
-
-@pytest.fixture(scope="module")
-def model():
-    return loosefit.load()
 
 
 @pytest.fixture(scope="module")
@@ -144,38 +134,11 @@ def test_unsupported_stages_are_named(model, tmp_path, monkeypatch):
     assert not list(tmp_path.iterdir())  # nothing written
 
 
-def _tiny_model(skirt, avatar, decoder: str, previous_state: bool):
-    """An untrained model of the coarse skirt with ``decoder`` (weights from a seed)."""
-    from loosefit.inference.animator import AnimationModel
-    from loosefit.model.generative import GarmentGenerativeModel, GenerativeConfig
-    from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
-    from loosefit.model.motion_features import num_features
-    from loosefit.model.rollout import RolloutConfig
-
-    torch.manual_seed(0)
-    V, bones = skirt.num_vertices, 4
-    ssdr = None
-    if decoder == "ssdr":
-        weights = torch.softmax(torch.randn(V, bones), -1).numpy()
-        mean = np.tile(np.eye(3, 4, dtype=np.float32), (bones, 1, 1))
-        ssdr = (skirt.vertices, weights, mean)
-    config = GenerativeConfig(decoder=decoder, uv_size=32, channels=(4, 4, 4, 4), latent=8,
-                              half=4, rec_hidden=(8, 8, 8), ssdr_bones=bones)  # fmt: skip
-    gen = GarmentGenerativeModel(skirt, config, ssdr).eval()
-    J = len(avatar.joint_names)
-    enc = DynamicMotionEncoder(gen, num_features(J), MotionEncoderConfig(
-        motion_fc=8, gru=8, previous_state=previous_state)).eval()  # fmt: skip
-    rest = torch.from_numpy(skirt.vertices).float() - torch.tensor([0, 0, avatar.floor_height])
-    return AnimationModel(gen, enc, skirt, rest, tuple(avatar.joint_names),
-                          float(avatar.floor_height), 30.0, {}, RolloutConfig(),
-                          "tiny.pt")  # fmt: skip
-
-
 @needs_ort
 @pytest.mark.parametrize(("decoder", "previous_state"),
                          [("decomposed", False), ("vertex", True), ("ssdr", True)])  # fmt: skip
 def test_every_decoder_exports(skirt, avatar, tmp_path, decoder, previous_state):
-    tiny = _tiny_model(skirt, avatar, decoder, previous_state)
+    tiny = tiny_model(skirt, avatar, decoder, previous_state)
     path = tmp_path / "tiny.onnx"
     export_onnx(tiny, path, OnnxExportConfig(check=True))
     motion = motion_for("spin", avatar, 30.0, 30)

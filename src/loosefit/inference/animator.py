@@ -62,6 +62,15 @@ from loosefit.model.rollout import (
 )
 from loosefit.types import GarmentTemplate, Motion
 
+RUNTIMES = ("torch", "onnx")  # what runs the learned stages: PyTorch, or onnxruntime
+
+
+def check_runtime(runtime: str, source: str = "animate") -> None:
+    """A clear error for a runtime other than :data:`RUNTIMES`."""
+    if runtime not in RUNTIMES:
+        raise LoosefitInputError(source, "runtime", " or ".join(map(repr, RUNTIMES)),
+                                 repr(runtime))  # fmt: skip
+
 
 def check_motion_joints(motion: Motion, joint_names: tuple[str, ...], path: Path) -> None:
     """A clear error for a motion on other joints than a checkpoint's, or not finite."""
@@ -138,6 +147,7 @@ class AnimationModel:
     _avatar: object = None
     _handler: CollisionHandler | None = None
     _restorer: LengthRestorer | None = None
+    _onnx: object = None  # the learned stages in onnxruntime (OnnxStages), built once
 
     @property
     def device(self) -> torch.device:
@@ -197,19 +207,41 @@ class AnimationModel:
             self._restorer = LengthRestorer(structure, cfg)
         return self._restorer
 
+    def onnx_stages(self):
+        """The learned stages as ONNX graphs in onnxruntime
+        (:class:`~loosefit.inference.onnx_stages.OnnxStages`), exported on first use and
+        kept (again when the encoder or generative model has been replaced)."""
+        from loosefit.inference.onnx_stages import OnnxStages
+
+        if self._onnx is None or not self._onnx.built_from(self):
+            self._onnx = OnnxStages(self)
+        return self._onnx
+
     def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
-                stages: Stages | None = None):  # fmt: skip
+                stages: Stages | None = None, runtime: str = "torch"):  # fmt: skip
         """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first) through the
         motion stage, then the detail stage (if the model has one) and collision handling,
-        as ``stages`` (default ``self.stages``) says."""
+        as ``stages`` (default ``self.stages``) says.
+
+        ``runtime``: what runs the learned stages (the motion stage and the detail
+        generator): ``"torch"`` (PyTorch), or ``"onnx"`` (onnxruntime, the graphs exported
+        in memory on first use, :mod:`loosefit.inference.onnx_stages`: faster on one core;
+        needs ``pip install 'loosefit[onnx]'`` and a model on the CPU). The edge-length
+        stage and collision handling are the same Python code either way; the garments
+        before collision handling are PyTorch's within float rounding (micrometres).
+        """
+        check_runtime(runtime)
         self.check_motion(motion)
         stages = stages or self.stages
         detail = self.detail if stages.detail else None
+        step = None
+        if runtime == "onnx":
+            step, detail = self.onnx_stages().runners(detail, torch.get_num_threads())
         collide = self.collider(motion) if stages.collision else None
         return rollout(self.generative, self.encoder, motion, self.rest_state,
                        self.floor_height, self.rollout_config, progress, truth,
                        restart_every, detail, collide, stages.feedback,
-                       stages.overlap, self.restorer(stages))  # fmt: skip
+                       stages.overlap, self.restorer(stages), step)  # fmt: skip
 
     def animate_batch(self, motions: list[Motion], progress=None, stages: Stages | None = None):
         """N motions (N characters) at once: the motion stage batched
@@ -403,11 +435,17 @@ class BaselineModel:
         check_motion_joints(motion, self.joint_names, self.path)
 
     def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
-                stages: Stages | None = None):  # fmt: skip
+                stages: Stages | None = None, runtime: str = "torch"):  # fmt: skip
         """The garment through ``motion`` (T, V, 3) world positions, a
         :class:`~loosefit.model.rollout.RolloutResult`; then the post-process where the
         method has one and ``stages.collision``. ``truth``/``restart_every`` do not
-        apply (no previous garment is fed back) and are refused."""
+        apply (no previous garment is fed back) and are refused, and so is
+        ``runtime="onnx"`` (a baseline runs in PyTorch only)."""
+        check_runtime(runtime)
+        if runtime != "torch":
+            raise LoosefitInputError(self.path, "runtime", "'torch' (a baseline has no ONNX "
+                                     f"graphs; the '{self.method}' baseline)",
+                                     repr(runtime))  # fmt: skip
         if restart_every is not None:
             raise LoosefitInputError("BaselineModel.animate", "restart_every",
                                      "None (a baseline never sees the previous garment)",

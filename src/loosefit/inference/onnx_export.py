@@ -355,12 +355,17 @@ def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
 # -- writing ----------------------------------------------------------------------------------
 
 
-def _needs(module: str) -> None:
+def needs_package(module: str, source: str = "export-model") -> None:
+    """A clear error, naming ``source`` and the ``onnx`` extra, unless ``module`` imports.
+
+    Raises:
+        LoosefitInputError: ``module`` (``onnx``, ``onnxruntime``) is not installed.
+    """
     try:
         __import__(module)
     except ImportError:
         raise LoosefitInputError(
-            "export-model", "<dependencies>", f"the {module} package (pip install "
+            source, "<dependencies>", f"the {module} package (pip install "
             "'loosefit[onnx]')", "not installed",
         ) from None  # fmt: skip
 
@@ -389,9 +394,9 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
     check_exportable(model)
     if path.suffix != ".onnx":
         raise LoosefitInputError(path, "<file>", "a path ending in .onnx", repr(path.suffix))
-    _needs("onnx")
+    needs_package("onnx")
     if config.check:
-        _needs("onnxruntime")
+        needs_package("onnxruntime")
     detail = config.detail and model.detail is not None
     step = copy.deepcopy(RuntimeStep(model, detail)).cpu().eval()  # the model stays put
     example = {k: torch.from_numpy(v) for k, v in example_inputs(model, 2).items()}

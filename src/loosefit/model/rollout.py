@@ -159,11 +159,12 @@ def rollout(
     progress: Callable[[int, int], None] | None = None,
     truth: np.ndarray | None = None,
     restart_every: int | None = None,
-    detail: torch.nn.Module | None = None,
+    detail: Callable[[torch.Tensor, torch.Tensor], torch.Tensor] | None = None,
     collide: Callable[[int, torch.Tensor], object] | None = None,
     feedback: bool = False,
     overlap: bool = True,
     lengths: Callable[[torch.Tensor], torch.Tensor] | None = None,
+    step: Callable | None = None,
 ) -> RolloutResult:
     """Animate the garment through ``motion``.
 
@@ -181,8 +182,8 @@ def rollout(
             previous frame, so that every frame is predicted at most that many frames
             after a true state (the GRU's state depends on the motion alone and runs on).
         restart_every: frames between restarts (needs ``truth``).
-        detail: the detail generator (paper 3.4), ``(V_t, Z_t) -> I_de`` on garments in
-            their root frames; None skips it.
+        detail: the detail generator (paper 3.4), ``(V_t, Z_t) -> I_de`` on garments
+            (n, V, 3) in their root frames and codes (n, Z); None skips it.
         collide: collision handling (paper 3.5), ``collide(motion_frame, garment (V, 3)
             world) -> CollisionResult``; None skips it.
         feedback: feed the garment after detail and collision back as the next frame's
@@ -195,6 +196,11 @@ def rollout(
         lengths: between detail and collision, ``(n, V, 3) -> (n, V, 3)`` world garments
             with their edges back at rest length (a
             :class:`~loosefit.model.physics.LengthRestorer`); None skips it.
+        step: the motion stage's network call, ``step(features (1, F), previous (1, V, 3),
+            hidden (1, G)) -> (Z_t (1, Z), hidden (1, G), garment (1, V, 3))``, garments
+            in the frame's root frame; None: ``encoder`` and ``generative``'s decoders in
+            PyTorch (:class:`~loosefit.inference.onnx_stages.OnnxStep` runs them in
+            onnxruntime).
 
     Returns:
         :class:`RolloutResult`.
@@ -238,8 +244,11 @@ def rollout(
             prev = to_root_frame(truth_t[m - 1 : m], H[t - 1 : t], p[t - 1 : t])
         if t > 0:
             prev = change_frame(prev, H[t - 1 : t], p[t - 1 : t], H[t : t + 1], p[t : t + 1])
-        z, hidden = encoder(feats[t : t + 1], prev, hidden)
-        prev = generative.decode(z)["vertices"]
+        if step is None:
+            z, hidden = encoder(feats[t : t + 1], prev, hidden)
+            prev = generative.decode(z)["vertices"]
+        else:
+            z, hidden, prev = step(feats[t : t + 1], prev, hidden)
         where = f"motion frame {t - P}" if t >= P else f"preroll frame {t}"
         check_garment(prev, config.max_distance, where)
         if t >= P:

@@ -1,0 +1,49 @@
+"""What the ONNX tests share: the pretrained model, a tiny untrained one, the skip mark."""
+
+from __future__ import annotations
+
+from importlib.util import find_spec
+
+import numpy as np
+import pytest
+import torch
+
+import loosefit
+
+needs_ort = pytest.mark.skipif(
+    find_spec("onnxruntime") is None or find_spec("onnx") is None,
+    reason="onnx or onnxruntime is not installed (pip install 'loosefit[onnx]')",
+)
+
+
+@pytest.fixture(scope="module")
+def model():
+    """The pretrained set (an :class:`loosefit.api.Animator`)."""
+    return loosefit.load()
+
+
+def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
+    """An untrained model of the coarse skirt with ``decoder`` (weights from a seed)."""
+    from loosefit.inference.animator import AnimationModel
+    from loosefit.model.generative import GarmentGenerativeModel, GenerativeConfig
+    from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
+    from loosefit.model.motion_features import num_features
+    from loosefit.model.rollout import RolloutConfig
+
+    torch.manual_seed(0)
+    V, bones = skirt.num_vertices, 4
+    ssdr = None
+    if decoder == "ssdr":
+        weights = torch.softmax(torch.randn(V, bones), -1).numpy()
+        mean = np.tile(np.eye(3, 4, dtype=np.float32), (bones, 1, 1))
+        ssdr = (skirt.vertices, weights, mean)
+    config = GenerativeConfig(decoder=decoder, uv_size=32, channels=(4, 4, 4, 4), latent=8,
+                              half=4, rec_hidden=(8, 8, 8), ssdr_bones=bones)  # fmt: skip
+    gen = GarmentGenerativeModel(skirt, config, ssdr).eval()
+    J = len(avatar.joint_names)
+    enc = DynamicMotionEncoder(gen, num_features(J), MotionEncoderConfig(
+        motion_fc=8, gru=8, previous_state=previous_state)).eval()  # fmt: skip
+    rest = torch.from_numpy(skirt.vertices).float() - torch.tensor([0, 0, avatar.floor_height])
+    return AnimationModel(gen, enc, skirt, rest, tuple(avatar.joint_names),
+                          float(avatar.floor_height), 30.0, {}, RolloutConfig(),
+                          "tiny.pt")  # fmt: skip
