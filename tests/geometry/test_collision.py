@@ -68,7 +68,9 @@ def test_a_sheet_through_a_box_comes_out_and_stays_smooth():
     over = (np.abs(v[:, 0]) < 0.11) & (np.abs(v[:, 1]) < 0.11)
     assert r.inside_after == 0
     assert (x[over, 2] >= 0.15).all()
-    assert (x[over, 2] <= 0.15 + 2e-3).all()  # pushed to the lid (eps = 1 mm), not beyond
+    # pushed to the lid (eps = 1 mm), not beyond (2.4 mm where the walls' pushes meet the
+    # lid's: a face's point is not followed against its vertex's own way out)
+    assert (x[over, 2] <= 0.15 + 3e-3).all()
     # the lid's edges force a crease, but a smaller one than where only the vertices that
     # were inside move, by as much
     assert r.laplacian_change < _naive_change(handler, v, r.vertices, inside_box(v))
@@ -153,10 +155,11 @@ def test_a_deep_penetration_where_body_parts_overlap_is_walked_out_as_far_as_all
     worst = _stretch(v, f)
 
     # the last projection walks what is still inside out (here, with no limit on how far,
-    # below 5 mm) at the cost of edges stretched many times over
+    # below 5 mm) at the cost of edges stretched over twice (2.7x to the next skin on each
+    # vertex's way; more than 5x by the doubling steps before issue 37's pops)
     far = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, finish_limit=1.0))
     walked = far.resolve(torch.from_numpy(v), surface).vertices.numpy()
-    assert deepest(walked) < 0.005 and worst(walked) > 5.0
+    assert deepest(walked) < 0.005 and worst(walked) > 2.0
     # by default no farther than 10 cm, the tears mended: within 2 cm, no edge over 3x
     handler = CollisionHandler(f, len(v), CollisionConfig(reach=0.2))
     r = handler.resolve(torch.from_numpy(v), surface)
@@ -177,8 +180,11 @@ def test_cloth_pinched_between_body_parts_is_not_torn_out():
     v = v.astype(np.float32)
     worst = _stretch(v, f)
 
+    # no longer torn by the pushes themselves: a point of a face that would send a vertex
+    # through the hand, against its own way out, is not followed (4x before issue 37's pops,
+    # 1.3x now); the mending is there for what is left
     torn = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, relax=0))
-    assert worst(torn.resolve(torch.from_numpy(v), surface).vertices.numpy()) > 4.0
+    assert worst(torn.resolve(torch.from_numpy(v), surface).vertices.numpy()) < 3.0
     handler = CollisionHandler(f, len(v), CollisionConfig(reach=0.2), rest=v)
     r = handler.resolve(torch.from_numpy(v), surface)
     x = r.vertices.numpy()
@@ -273,3 +279,44 @@ def test_push_out_moves_each_close_vertex_along_the_normal_to_epsilon():
     with pytest.raises(LoosefitInputError, match="garment"):
         handler.resolve(torch.zeros(3, 3), Surface(np.asarray(sphere.vertices, np.float32),
                                                    np.asarray(sphere.faces)))  # fmt: skip
+
+
+def _slab_collider(sticky: bool = True) -> BodyCollider:
+    """A slab 10 cm thick across x (a limb, flattened) as a body that stays put, and a
+    4 cm square of cloth (5 x 5 vertices, in a plane x = const) to collide with it."""
+    slab = trimesh.creation.box(extents=(0.1, 0.4, 0.4))
+    bv, bf = np.asarray(slab.vertices, np.float32), np.asarray(slab.faces)
+    _, f = _sheet(5, 0.02, 0.0)
+    handler = CollisionHandler(f, 25, CollisionConfig(sticky=sticky))
+    return BodyCollider(handler, bf, lambda a, b: np.repeat(bv[None], b - a, 0), num_frames=3)
+
+
+def _square_at(x: float) -> torch.Tensor:
+    """(25, 3) the square of :func:`_slab_collider` in the plane at ``x``."""
+    v, _ = _sheet(5, 0.02, 0.0)
+    return torch.from_numpy(np.c_[np.full(len(v), x), v[:, :2]].astype(np.float32))
+
+
+def test_cloth_deep_in_a_limb_leaves_it_on_the_side_it_left_by_the_frame_before():
+    # 3 mm off the slab's middle: out through the nearer face (+x, 4.7 cm away) ...
+    collider = _slab_collider()
+    first = collider(0, _square_at(0.003)).vertices.numpy()
+    assert (first[:, 0] > 0.05).all()
+    # ... and the next frame, 3 mm to the other side of the middle, out the same way: not
+    # through the limb to its other face (5.3 cm against 4.7: a flicker of 10 cm)
+    second = collider(1, _square_at(-0.003))
+    assert (second.vertices.numpy()[:, 0] > 0.05).all() and second.inside_after == 0
+    # with no frame before (a frame skipped), or without ``sticky``: the nearer face
+    assert (collider(0, _square_at(0.003)).vertices.numpy()[:, 0] > 0.05).all()
+    assert (collider(2, _square_at(-0.003)).vertices.numpy()[:, 0] < -0.05).all()
+    plain = _slab_collider(sticky=False)
+    plain(0, _square_at(0.003))
+    assert (plain(1, _square_at(-0.003)).vertices.numpy()[:, 0] < -0.05).all()
+
+
+def test_sticky_keeps_to_the_nearer_face_where_the_other_side_is_much_farther():
+    # 3 cm off the middle (2 cm from -x, 8 cm from +x): the way of the frame before is
+    # more than sticky_factor times as far, so the nearer face wins
+    collider = _slab_collider()
+    collider(0, _square_at(0.003))
+    assert (collider(1, _square_at(-0.03)).vertices.numpy()[:, 0] < -0.05).all()

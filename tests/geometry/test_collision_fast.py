@@ -175,3 +175,21 @@ def test_the_fast_path_over_a_real_rollout():
         c["inside_after"] for c in today.collisions
     )
     assert sum(c["moved"] for c in fast.collisions) > 0
+
+
+def test_first_hits_meet_the_skin_where_a_ray_does():
+    # from a sphere's centre every ray meets its skin at the radius (a polyhedron: within
+    # its sagitta); one that starts outside and points away meets nothing
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
+    surface = Surface(np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces))
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(50, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    t, face = surface.first_hits(np.zeros((50, 3)), d, 1.0)
+    assert (face >= 0).all() and np.allclose(t, 0.3, atol=2e-3)
+    t, face = surface.first_hits(np.array([[0.0, 0.0, 0.5]]), np.array([[0.0, 0.0, 1.0]]), 1.0)
+    assert face[0] == -1 and t[0] == 1.0
+    # no farther than asked
+    assert (surface.first_hits(np.zeros((1, 3)), d[:1], 0.2)[1] == -1).all()
+    with pytest.raises(ValueError, match="directions"):
+        surface.first_hits(np.zeros((2, 3)), np.zeros((3, 3)), 1.0)

@@ -93,10 +93,18 @@ class CollisionConfig:
     #   Cholesky in a bandwidth-reducing order fixed once (not SuperLU), and "inside" the winding
     #   number counted along rays (``Surface.query(sign="rays")``: no solid-angle data to refit
     #   each frame) instead of warp's fast winding number; False: as before issue 37
+    sticky: bool = True  # along a motion, cloth inside the body leaves it on the side it left
+    #   by in the frame before, when its closest skin is now on the other side (the hem deep
+    #   in a thigh, near its middle: pushed out to the front, then to the back, frame after
+    #   frame, a flicker of 10-20 cm; ballet 05_20, bench/collision_pops.py)
+    sticky_factor: float = 1.5  # ... where that side is at most this many times as far as
+    #   the closest skin (plus sticky_slack): near a limb's middle, not the shallow cloth
+    #   whose closest skin is plainly the way out (0.5 cm inside, its side of before 5 cm on)
+    sticky_slack: float = 0.005  # m
 
     def __post_init__(self) -> None:
-        for name in ("epsilon", "anchor", "reach", "face_reach", "finish_reach",
-                     "finish_limit", "winding_accuracy"):  # fmt: skip
+        for name in ("epsilon", "anchor", "reach", "face_reach", "finish_reach", "finish_limit",
+                     "winding_accuracy", "sticky_factor", "sticky_slack"):  # fmt: skip
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise LoosefitInputError("CollisionConfig", name, "a positive number", value)
@@ -110,7 +118,7 @@ class CollisionConfig:
             raise LoosefitInputError("CollisionConfig", "stretch", "a number > 1", self.stretch)
         if not (isinstance(self.finish, int) and self.finish >= 0):
             raise LoosefitInputError("CollisionConfig", "finish", "an integer >= 0", self.finish)
-        for name in ("whole_body", "fast"):
+        for name in ("whole_body", "fast", "sticky"):
             if not isinstance(getattr(self, name), bool):
                 raise LoosefitInputError("CollisionConfig", name, "true or false",
                                          getattr(self, name))  # fmt: skip
@@ -209,7 +217,8 @@ class CollisionHandler:
             out = np.maximum(out, (self.adjacency @ out > 0).astype(np.float32))
         return out > 0
 
-    def resolve(self, garment: torch.Tensor, body: Surface) -> CollisionResult:
+    def resolve(self, garment: torch.Tensor, body: Surface, previous: np.ndarray | None = None
+                ) -> CollisionResult:  # fmt: skip
         """One frame: the garment pushed out of the body (Eq. 16).
 
         Only the vertices within ``reach`` of the body are ever moved, and after each
@@ -219,6 +228,8 @@ class CollisionHandler:
         Args:
             garment: (V, 3) the predicted garment, world positions (m), on any device.
             body: the posed body's surface (refitted to this frame).
+            previous: (V, 3) the way each vertex was moved out in the frame before, unit
+                vectors (0: not moved), for ``sticky`` (None: no frame before).
 
         Returns:
             :class:`CollisionResult`, its vertices on the garment's device.
@@ -232,7 +243,12 @@ class CollisionHandler:
         d = np.zeros_like(x0)
         active = np.zeros(V, dtype=bool)
         region = np.zeros(V, dtype=bool)
+        way = previous if cfg.sticky and previous is not None else None
+        if way is not None and np.shape(way) != (V, 3):
+            raise LoosefitInputError("CollisionHandler.resolve", "previous", f"({V}, 3)",
+                                     f"{np.shape(way)}")  # fmt: skip
         n, ds = self._signed(x0, body, cfg.reach, slice(None))
+        self._stick(x0, n, ds, way, body)
         iterations = 1
         depth_before = float(np.clip(cfg.epsilon - ds, 0, None).max())
         inside_before = int((ds < 0).sum())
@@ -256,6 +272,10 @@ class CollisionHandler:
             # the moved vertices' closest points again: pushed ones meet other body parts
             moved = np.flatnonzero(region)
             n[moved], ds[moved] = self._signed(x0[moved] + d[moved], body, cfg.reach, moved)
+            if way is not None:
+                n_m, ds_m = n[moved], ds[moved]
+                self._stick(x0[moved] + d[moved], n_m, ds_m, way[moved], body)
+                n[moved], ds[moved] = n_m, ds_m
             iterations += 1
         x = x0 + d
         if not np.isfinite(x).all():  # cannot happen with SPD systems; never write NaN
@@ -289,9 +309,14 @@ class CollisionHandler:
         closest skin, then asked again, ``finish`` times at most. A vertex still inside
         after its projection (it sat on an inner skin, the arm's surface inside the torso,
         or was caught where two body parts overlap, each projection sending it into the
-        other) goes on the way it went, by a step that doubles each round (1 cm, 2 cm, ...),
-        but never farther than ``finish_limit`` from where the solve left it: one not out by
-        then stays inside (pinched between body parts). The edges its moves stretch are
+        other) goes on the way it went to the next skin that way meets (a ray), ``eps``
+        beyond it, but never farther than ``finish_limit`` from where the solve left it: one
+        not out by then stays inside (pinched between body parts). A vertex lying on the
+        outside of its closest skin (within ``face_reach``) that is inside all the same is
+        in another body part pressed onto that skin (a forearm on the hip): the cloth is
+        pinched there, and stays; projected through the skin it lay on and walked on, it
+        came out a body part's width away in one frame and not the next (salsa 60_01's
+        waist: 5-7 cm flicker, bench/collision_pops.py). The edges its moves stretch are
         mended in :meth:`_relax`.
 
         Args:
@@ -313,7 +338,7 @@ class CollisionHandler:
             ds[near] = _signed(hit)
             return hit, (hit.faces >= 0) & hit.inside
 
-        for k in range(cfg.finish):
+        for _ in range(cfg.finish):
             if not len(near):
                 break
             hit, inside = ask(near)
@@ -326,10 +351,19 @@ class CollisionHandler:
             # parts that a projection only swaps: it goes on the way it went, as far as the
             # limit lets it (those at the limit stay, and are not asked again)
             on_inner = went[idx].any(1)
-            step = x[idx] + 0.01 * 2**k * went[idx]
-            stuck = on_inner & (np.linalg.norm(step - start[idx], axis=1) > cfg.finish_limit)
-            x[idx] = np.where(on_inner[:, None], np.where(stuck[:, None], x[idx], step),
-                              beyond)  # fmt: skip
+            step = beyond  # (K, 3) where each goes this round
+            # (K,) not moved yet, on the outside of its closest skin: pinched, stays
+            stuck = ~on_inner & _on_skin(x[idx], body, hit, inside, cfg.face_reach)
+            step[stuck] = x[idx[stuck]]
+            if on_inner.any():  # on to the next skin its way meets, eps beyond
+                w = idx[on_inner]
+                left = cfg.finish_limit - np.linalg.norm(x[w] - start[w], axis=1)  # (Kw,)
+                t, face = body.first_hits(x[w], went[w], float(max(left.max(), 0.0)))
+                go = (face >= 0) & (t + cfg.epsilon <= left)
+                step[on_inner] = np.where(go[:, None], x[w] + (t + cfg.epsilon)[:, None]
+                                          * went[w], x[w])  # fmt: skip
+                stuck[on_inner] = ~go
+            x[idx] = step
             went[idx] = np.where(on_inner[:, None], went[idx], out)
             near = idx[~stuck]  # only these can still be inside (the others did not move)
         else:  # the passes ran out with vertices just moved: where they are now, reported
@@ -396,6 +430,25 @@ class CollisionHandler:
             ds[idx] = _signed(hit)
         return x, ds, passes
 
+    def _stick(self, x: np.ndarray, n: np.ndarray, ds: np.ndarray, way: np.ndarray | None,
+               body: Surface) -> None:  # fmt: skip
+        """``sticky``: the vertices at ``x`` (N, 3) inside the body (``ds < 0``) whose closest
+        skin is now against the way they were moved out in the frame before (``way``, (N, 3)
+        unit or 0) leave along that way instead, to where its ray first meets the skin, if
+        that is at most ``sticky_factor`` times as far as the closest skin (plus
+        ``sticky_slack``). Updates their normals ``n`` (N, 3) and signed distances ``ds`` (N,)
+        in place."""
+        if way is None:
+            return
+        turn = np.flatnonzero((ds < 0) & ((n * way).sum(1) < 0))
+        if not len(turn):
+            return
+        reach = -ds[turn] * self.config.sticky_factor + self.config.sticky_slack  # (K,)
+        t, face = body.first_hits(x[turn], way[turn], float(reach.max()))
+        ok = (face >= 0) & (t <= reach)
+        n[turn[ok]] = way[turn[ok]]
+        ds[turn[ok]] = -t[ok]
+
     def _ask(self, x: np.ndarray, body: Surface, idx, sign: str, reach: float | None = None):
         """The closest points and inside test ``sign`` of the vertices ``idx`` (an index
         array or a slice) at ``x`` (N, 3), within ``reach`` (default: the config's); the
@@ -455,7 +508,11 @@ class CollisionHandler:
         nv = np.concatenate([np.repeat(n[bc], 3, axis=0), np.repeat(n[be], 2, axis=0)])
         order = np.argsort(dv)  # ascending: the largest push of a vertex is written last
         v, dv, nv = v[order], dv[order], nv[order]
-        take = dv > short[v]
+        # a vertex inside the body keeps its own way out: a point of its face that is
+        # nearer the far side of a limb (the hem deep in a thigh, its faces across the
+        # middle) would send it through the limb, one side or the other from frame to frame
+        own = (push[v] * nv).sum(1)  # (K,) short[v] times the cosine to its own push
+        take = (dv > short[v]) & ((short[v] <= 0) | (own >= -1e-9 * short[v]))  # not against
         short[v[take]] = dv[take]
         push[v[take]] = dv[take, None] * nv[take]
         return True
@@ -533,8 +590,10 @@ class PushOutHandler:
         (li, lj), lv = L.indices().numpy(), L.values().numpy()
         self.lap = sp.csr_matrix((lv, (li, lj)), shape=(num_vertices, num_vertices))
 
-    def resolve(self, garment: torch.Tensor, body: Surface) -> CollisionResult:
-        """One frame: the garment (V, 3), world positions, with close vertices pushed out."""
+    def resolve(self, garment: torch.Tensor, body: Surface, previous: np.ndarray | None = None
+                ) -> CollisionResult:  # fmt: skip
+        """One frame: the garment (V, 3), world positions, with close vertices pushed out
+        (each frame on its own: ``previous`` is not used)."""
         V = self.num_vertices
         if garment.shape != (V, 3):
             raise LoosefitInputError("PushOutHandler.resolve", "garment", f"({V}, 3)",
@@ -565,6 +624,17 @@ def _signed(hit) -> np.ndarray:
     """(N,) the signed distances of a query's answer: minus inside (by its ``inside``),
     +inf where no face was within its reach."""
     return np.where(hit.faces >= 0, np.where(hit.inside, -hit.distance, hit.distance), np.inf)
+
+
+def _on_skin(x: np.ndarray, body: Surface, hit, inside: np.ndarray, reach: float) -> np.ndarray:
+    """(K,) bool: which of the points ``x`` (K, 3), the answers ``hit`` of whose ``inside``
+    (N,) bool mask are theirs, lie on the outer side of their closest face, nearer it than
+    ``reach``."""
+    f = hit.faces[inside]
+    tri = body.vertices[body.faces[f]].astype(np.float64)  # (K, 3, 3)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # (K, 3) outward
+    side = ((x - hit.points[inside]) * normal).sum(1)
+    return (side > 0) & (hit.distance[inside] < reach)
 
 
 def _beyond_skin(x: np.ndarray, hit, inside: np.ndarray, epsilon: float
@@ -640,6 +710,8 @@ class BodyCollider:
         self._start = -1
         self._body: np.ndarray | None = None
         self._surface: Surface | None = None
+        self._last = -2  # the frame resolved last
+        self._way: np.ndarray | None = None  # (V, 3) how each vertex was moved out there
 
     def body(self, frame: int) -> np.ndarray:
         """(Vb, 3) vertices of the posed body at a motion frame."""
@@ -658,4 +730,11 @@ class BodyCollider:
             self._surface = Surface(vertices, self.faces, self.device, self.winding_number)
         else:
             self._surface.refit(vertices)
-        return self.handler.resolve(garment, self._surface)
+        previous = self._way if frame == self._last + 1 else None
+        result = self.handler.resolve(garment, self._surface, previous)
+        # the way each vertex was moved out (unit; 0 where it moved less than a millimetre)
+        moved = (result.vertices - garment.to(result.vertices.device)).detach().cpu().numpy()
+        size = np.linalg.norm(moved, axis=1, keepdims=True)
+        self._way = np.where(size > 1e-3, moved / np.maximum(size, 1e-12), 0.0)
+        self._last = frame
+        return result

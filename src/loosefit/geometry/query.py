@@ -199,6 +199,25 @@ def _closest_rays_kernel(
     _store(mesh, q, tid, out_points, out_faces, out_bary, out_sign)
 
 
+@wp.kernel
+def _ray_kernel(
+    mesh: wp.uint64,
+    origins: wp.array(dtype=wp.vec3),
+    directions: wp.array(dtype=wp.vec3),
+    max_t: float,
+    out_t: wp.array(dtype=float),
+    out_faces: wp.array(dtype=wp.int32),
+):
+    tid = wp.tid()
+    h = wp.mesh_query_ray(mesh, origins[tid], directions[tid], max_t)
+    if h.result:
+        out_t[tid] = h.t
+        out_faces[tid] = h.face
+    else:
+        out_t[tid] = max_t
+        out_faces[tid] = -1
+
+
 class Surface:
     """A triangle mesh held in one warp BVH, for many closest-point queries.
 
@@ -321,6 +340,27 @@ class Surface:
             inside=signs[:n] < 0,
             distance=np.linalg.norm(points - np.asarray(queries, np.float32), axis=-1),
         )
+
+    def first_hits(self, origins: np.ndarray, directions: np.ndarray, max_t: float
+                   ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Where the rays ``origins + t directions`` (N, 3) each, directions of unit length)
+        first meet the surface, ``0 < t <= max_t``.
+
+        Returns:
+            t (N,) float32 (``max_t`` where a ray meets nothing), and the face met (N,) int64
+            (-1: none).
+        """
+        n = len(origins)
+        if np.shape(directions) != (n, 3):
+            raise ValueError(f"directions: expected ({n}, 3), found {np.shape(directions)}")
+        t = wp.zeros(max(n, 1), dtype=float, device=self.device)
+        faces = wp.zeros(max(n, 1), dtype=wp.int32, device=self.device)
+        if n:
+            o, d = (wp.array(np.ascontiguousarray(a, np.float32), dtype=wp.vec3, device=self.device)
+                    for a in (origins, directions))  # fmt: skip
+            wp.launch(_ray_kernel, dim=n, inputs=[self.mesh.id, o, d, float(max_t), t, faces],
+                      device=self.device)  # fmt: skip
+        return t.numpy()[:n], faces.numpy()[:n].astype(np.int64)
 
     def _arrays(self, n: int) -> tuple:
         """The queries' arrays, at least ``n`` long: made once and kept (on the CPU a query's
