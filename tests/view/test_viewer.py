@@ -149,6 +149,25 @@ def test_frames_and_colourings_through_the_api(clips):
         viewer.close()
 
 
+def test_the_floor_follows_the_bodies_in_whole_metres(clips):
+    from loosefit.view.server import FLOOR_SIZE
+
+    a, still = clips
+    viewer = view([a, still], config=ViewerConfig(port=0, play=False, spacing=1.5))
+    try:
+        for t in (0, 8, 15):
+            viewer.set_frame(t)
+            x, y, _ = viewer.floor.position
+            under = viewer._follow_point()  # the shown bodies' middle
+            assert (x, y) == (round(under[0]), round(under[1]))  # its lines stay put
+        assert viewer.floor.width == FLOOR_SIZE + 1.5  # both, side by side along x
+        assert viewer.floor.height == FLOOR_SIZE
+        viewer.set_visible(1, False)
+        assert viewer.floor.width == FLOOR_SIZE
+    finally:
+        viewer.close()
+
+
 def test_sequences_of_other_frame_counts_are_refused(clips, tmp_path, capsys):
     a, _ = clips
     short = AnimatedGarment(a.motion.slice(0, 10), a.garment, a.garment_vertices[:10], a.avatar)
