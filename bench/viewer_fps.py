@@ -7,12 +7,16 @@ the printed URL: read, bodies posed, server up), opens the page in headless Chro
 body's vertices) as they reach the page's script (viser's websocket worker decodes them
 and hands them over), (2) the frames the page drew (its WebGL canvas cleared), and (3) the
 CPU time of Chromium's GPU process (where SwiftShader draws) per frame drawn: what a frame
-costs, less sensitive than the rate to other jobs sharing the machine.
+costs, less sensitive than the rate to other jobs sharing the machine; and that of all the
+browser's processes and of the server. Of the frames drawn it also counts those that
+followed a new frame's arrival (the rest redrew the frame shown). Chromium draws without
+multisampling unless ``--antialias`` (``loosefit.view.headless.NO_ANTIALIAS``).
 docs/VIEWER.md quotes its output::
 
     .venv/bin/python bench/viewer_fps.py out/dance1957.npz
     .venv/bin/python bench/viewer_fps.py out/dance1957.npz out/dance1957_rigid.npz --seconds 20
-    .venv/bin/python bench/viewer_fps.py out/dance1957.npz --pixel-ratio 0.5
+    .venv/bin/python bench/viewer_fps.py out/dance1957.npz --pixel-ratio 0.5 --antialias
+    .venv/bin/python bench/viewer_fps.py out/dance1957.npz --flag=--num-raster-threads=1
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.sequence import AnimatedGarment
-from loosefit.view.headless import Chromium
+from loosefit.view.headless import BODY_BYTES, Chromium
 
 
 def main() -> None:
@@ -39,6 +43,11 @@ def main() -> None:
     ap.add_argument("--port", type=int, default=8090)
     ap.add_argument("--size", default="1280x800", help="the browser's window")
     ap.add_argument("--pixel-ratio", type=float, default=None, help="view --pixel-ratio")
+    ap.add_argument("--antialias", action="store_true",
+                    help="WebGL with multisampled edges (a browser's default)")  # fmt: skip
+    ap.add_argument("--flag", action="append", default=[],
+                    help="another Chromium switch (repeatable), e.g. --flag=--num-raster-threads=1"
+                    )  # fmt: skip
     args = ap.parse_args()
 
     seq = AnimatedGarment.load(args.sequences[0])
@@ -63,7 +72,8 @@ def main() -> None:
               f"{V} vertices: loosefit view printed its URL {time.perf_counter() - t0:.1f} s "
               "after it started (Python's start, reading, posing the bodies, serving)")  # fmt: skip
         width, height = (int(v) for v in args.size.split("x"))
-        with Chromium(width=width, height=height) as browser:
+        with Chromium(width=width, height=height, antialias=args.antialias,
+                      flags=args.flag) as browser:  # fmt: skip
             t1 = time.perf_counter()
             browser.open(url, settle=0.0)
             while not (browser.evaluate("window.__draws") or 0):
@@ -72,50 +82,72 @@ def main() -> None:
                   "started")  # fmt: skip
             time.sleep(3.0)  # past the first frames' set-up
             gpu = _gpu_process(browser.process.pid)
-            cpu0 = _cpu_seconds(gpu)
+            procs = _descendants(browser.process.pid)
+            cpu0 = [_cpu_seconds(p) for p in (gpu, *procs, server.pid)]
             got = browser.receive(args.seconds)
-            gpu_cpu = _cpu_seconds(gpu) - cpu0
-        body_bytes = 12 * 13718  # the avatar's vertices, float32
-        big = got.messages >= body_bytes
+            cpu = [
+                _cpu_seconds(p) - c for p, c in zip((gpu, *procs, server.pid), cpu0, strict=True)
+            ]
+            gpu_cpu, browser_cpu, server_cpu = cpu[0], sum(cpu[1:-1]), cpu[-1]
+        big = got.messages >= BODY_BYTES
         gaps = np.diff(got.times[big]) * 1000.0 if big.sum() > 1 else np.zeros(1)
         print(f"in {args.seconds:g} s the browser received {int(big.sum())} frame messages "
-              f"({got.rate(body_bytes):.1f} per second; {got.messages[big].mean() / 1e3:.0f} kB "
+              f"({got.rate(BODY_BYTES):.1f} per second; {got.messages[big].mean() / 1e3:.0f} kB "
               f"each; gaps median {np.median(gaps):.1f} ms, 95th percentile "
               f"{np.percentile(gaps, 95):.1f} ms) and drew {got.draws} frames "
-              f"({got.draws / args.seconds:.1f} per second; the GPU process used "
-              f"{gpu_cpu / args.seconds:.2f} of a core, {1000 * gpu_cpu / max(got.draws, 1):.0f} "
-              f"ms per frame drawn; load average {os.getloadavg()[0]:.1f})")  # fmt: skip
+              f"({got.draws / args.seconds:.1f} per second, {got.new_draws / args.seconds:.1f} "
+              f"of them a new frame; the GPU process used {gpu_cpu / args.seconds:.2f} of a "
+              f"core, {1000 * gpu_cpu / max(got.draws, 1):.0f} ms per frame drawn; all the "
+              f"browser's processes {browser_cpu / args.seconds:.2f}, "
+              f"{1000 * browser_cpu / max(got.draws, 1):.0f} ms; the server "
+              f"{server_cpu / args.seconds:.2f}; load average "
+              f"{os.getloadavg()[0]:.1f})")  # fmt: skip
     finally:
         server.terminate()
         server.wait(timeout=30)
 
 
-def _gpu_process(pid: int) -> int | None:
-    """The id of Chromium's GPU process (``--type=gpu-process``) among the descendants of
-    ``pid`` (the launcher may be a script), read from Linux's /proc; None when none is."""
-    parent, gpu = {}, []
+def _processes() -> dict[int, tuple[int, bytes]]:
+    """Every process's id -> (its parent's id, its command line), read from Linux's /proc."""
+    found = {}
     for proc in Path("/proc").glob("[0-9]*"):
         try:
             cmdline = (proc / "cmdline").read_bytes()  # Chromium rewrites it: one string
-            parent[int(proc.name)] = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            parent = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
         except (OSError, ValueError, IndexError):
             continue
-        if b"--type=gpu-process" in cmdline:
-            gpu.append(int(proc.name))
-    for candidate in gpu:
-        p = candidate
-        while p in parent and p != pid:
-            p = parent[p]
-        if p == pid:
-            return candidate
-    return None
+        found[int(proc.name)] = (parent, cmdline)
+    return found
+
+
+def _descendants(pid: int) -> list[int]:
+    """``pid`` and the ids of its descendants (the launcher may be a script)."""
+    procs = _processes()
+
+    def under(p: int) -> bool:
+        while p in procs and p != pid:
+            p = procs[p][0]
+        return p == pid
+
+    return [p for p in procs if under(p)]
+
+
+def _gpu_process(pid: int) -> int | None:
+    """The id of Chromium's GPU process (``--type=gpu-process``) among the descendants of
+    ``pid``; None when none is."""
+    procs = _processes()
+    gpu = [p for p in _descendants(pid) if b"--type=gpu-process" in procs.get(p, (0, b""))[1]]
+    return gpu[0] if gpu else None
 
 
 def _cpu_seconds(pid: int | None) -> float:
-    """User and system CPU seconds of a process so far (0 when there is none)."""
+    """User and system CPU seconds of a process so far (0 when there is none or it ended)."""
     if pid is None:
         return 0.0
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 

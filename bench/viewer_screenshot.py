@@ -5,7 +5,7 @@ WebGL) at one frame, the camera following the bodies::
 
     .venv/bin/python bench/viewer_screenshot.py out/dance1957_rigid.npz out/dance1957.npz \\
         --names rigid,"loosefit model" --frames 400 --frame 250 --colour error --scale 20 \\
-        --out docs/img/viewer.png
+        --antialias --out docs/img/viewer.png
 """
 
 from __future__ import annotations
@@ -29,6 +29,9 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=None, help="the colour bar's top, its unit")
     ap.add_argument("--size", default="1200x860", help="the browser's window")
     ap.add_argument("--colours", type=int, default=256, help="palette size of the PNG")
+    ap.add_argument("--pixel-ratio", type=float, default=None, help="view --pixel-ratio")
+    ap.add_argument("--antialias", action="store_true",
+                    help="multisampled edges (a browser's default; the docs' picture)")  # fmt: skip
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
 
@@ -38,12 +41,13 @@ def main() -> None:
         seqs = [AnimatedGarment(s.motion.slice(0, n), s.garment, s.garment_vertices[:n],
                                 s.avatar, s.source) for s in seqs]  # fmt: skip
     names = args.names.split(",") if args.names else None
-    viewer = view(seqs, names, ViewerConfig(port=0, play=False, colouring=args.colour))
+    config = ViewerConfig(port=0, play=False, colouring=args.colour, pixel_ratio=args.pixel_ratio)
+    viewer = view(seqs, names, config)
     try:
         if args.scale is not None:
             viewer.scale_max.value = args.scale
         width, height = (int(v) for v in args.size.split("x"))
-        with Chromium(width=width, height=height) as browser:
+        with Chromium(width=width, height=height, antialias=args.antialias) as browser:
             browser.open(viewer.url, settle=3.0)
             first = browser.settled_screenshot()
             viewer.set_frame(args.frame)

@@ -63,8 +63,9 @@ def _add_view_args(p: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         help="the canvas's pixels per screen pixel, fixed (e.g. 0.5 for a browser drawing "
-        "WebGL without a GPU: a quarter of the pixels, a frame drawn in a fifth to a third "
-        "less time; default: the browser's, lowered by viser while frames are slow)",
+        "WebGL without a GPU: a quarter of the pixels, a frame drawn in about 40%% less time; "
+        "start Chromium with --webgl-antialiasing-mode=none as well; default: the "
+        "browser's, lowered by viser while frames are slow)",
     )
 
 

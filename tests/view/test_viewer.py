@@ -11,6 +11,7 @@ import os
 import shutil
 import socket
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ from loosefit.cli import main  # noqa: E402
 from loosefit.errors import LoosefitInputError  # noqa: E402
 from loosefit.sequence import AnimatedGarment  # noqa: E402
 from loosefit.view import ViewerConfig, view  # noqa: E402
-from loosefit.view.headless import Chromium, find_chromium  # noqa: E402
+from loosefit.view.headless import BODY_BYTES, Chromium, find_chromium  # noqa: E402
 from loosefit.view.scene import read_sequences  # noqa: E402
 
 
@@ -94,11 +95,34 @@ def test_a_fixed_pixel_ratio_sizes_the_canvas(clips, chromium_binary):
             browser.open(viewer.url, settle=1.0)
             canvas = "document.querySelector('canvas[data-engine]')"  # three.js's
             width, css_width = browser.evaluate(f"[{canvas}.width, {canvas}.clientWidth]")
+            # the headless browser's default: WebGL without multisampling (NO_ANTIALIAS)
+            gl = f"{canvas}.getContext('webgl2')"
+            antialias, samples = browser.evaluate(
+                f"[{gl}.getContextAttributes().antialias, {gl}.getParameter({gl}.SAMPLES)]"
+            )
         assert css_width > 100 and width == pytest.approx(css_width / 2, abs=1)
+        assert antialias is False and samples == 0
     finally:
         viewer.close()
     with pytest.raises(LoosefitInputError, match="pixel_ratio"):
         ViewerConfig(pixel_ratio=0.0).validate(1)
+
+
+def test_frames_drawn_and_new_frames_are_counted(clips, chromium_binary):
+    a, _ = clips
+    viewer = view([a], config=ViewerConfig(port=0, play=True, speed=0.5))
+    try:
+        with Chromium(chromium_binary, width=400, height=300) as browser:
+            browser.open(viewer.url, settle=1.0)
+            got = browser.receive(2.0)
+            viewer.pause()
+            time.sleep(0.5)
+            still = browser.receive(1.5)
+        frames = int((got.messages >= BODY_BYTES).sum())  # 15 per second sent
+        assert frames > 5 and 0 < got.new_draws <= min(got.draws, frames + 1)
+        assert still.new_draws == 0  # paused: whatever it drew redrew the frame shown
+    finally:
+        viewer.close()
 
 
 def test_frames_and_colourings_through_the_api(clips):
@@ -121,6 +145,25 @@ def test_frames_and_colourings_through_the_api(clips):
         assert viewer.garments[0].visible
         with pytest.raises(LoosefitInputError, match="0 to 15"):
             viewer.set_frame(16)
+    finally:
+        viewer.close()
+
+
+def test_the_floor_follows_the_bodies_in_whole_metres(clips):
+    from loosefit.view.server import FLOOR_SIZE
+
+    a, still = clips
+    viewer = view([a, still], config=ViewerConfig(port=0, play=False, spacing=1.5))
+    try:
+        for t in (0, 8, 15):
+            viewer.set_frame(t)
+            x, y, _ = viewer.floor.position
+            under = viewer._follow_point()  # the shown bodies' middle
+            assert (x, y) == (round(under[0]), round(under[1]))  # its lines stay put
+        assert viewer.floor.width == FLOOR_SIZE + 1.5  # both, side by side along x
+        assert viewer.floor.height == FLOOR_SIZE
+        viewer.set_visible(1, False)
+        assert viewer.floor.width == FLOOR_SIZE
     finally:
         viewer.close()
 

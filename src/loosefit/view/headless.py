@@ -3,7 +3,8 @@ rate at which a browser receives and draws its frames.
 
 For the viewer's tests, its benchmark (``bench/viewer_fps.py``) and the docs' screenshots;
 nothing here is needed to use the viewer. Chromium draws WebGL without a GPU or a display
-with SwiftShader (``--use-angle=swiftshader``). The protocol is spoken over the
+with SwiftShader (``--use-angle=swiftshader``), by default without multisampled edges
+(:data:`NO_ANTIALIAS`: half a frame's cost there). The protocol is spoken over the
 ``websockets`` library that viser brings.
 """
 
@@ -18,11 +19,13 @@ import subprocess
 import tempfile
 import time
 import urllib.request
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+BODY_BYTES = 12 * 13718  # the avatar's vertices, float32: a frame's upload is at least this
 BINARIES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 FLAGS = (
     "--headless",
@@ -39,18 +42,28 @@ FLAGS = (
     "--disable-renderer-backgrounding",
     "--remote-debugging-port=0",  # a free port, written to DevToolsActivePort
 )
-# Counts in the page (1) the frames it draws: three.js clears the canvas once per frame, and
-# (2) the messages it receives: viser's websocket lives in a web worker, which hands the
-# page each batch of decoded messages; the arrival times and the bytes of their arrays
-# (vertices, faces) are kept.
+# WebGL without multisampling: in software (SwiftShader) a 4-sample canvas costs about twice
+# as much per frame drawn as a plain one (docs/VIEWER.md); what is lost is smooth edges.
+NO_ANTIALIAS = ("--webgl-antialiasing-mode=none",)
+# Counts in the page (1) the frames it draws: three.js clears the canvas once per frame,
+# (2) those of them that followed the arrival of a frame's message (vertices at least a
+# body's size; the rest redrew the frame already shown), and (3) the messages it receives:
+# viser's websocket lives in a web worker, which hands the page each batch of decoded
+# messages; the arrival times and the bytes of their arrays (vertices, faces) are kept.
 INSTRUMENT = """
 (() => {
   window.__draws = 0;
+  window.__newDraws = 0;
   window.__received = [];
+  let fresh = false;  // a frame arrived since the last draw
   for (const C of [WebGLRenderingContext, WebGL2RenderingContext]) {
     const clear = C.prototype.clear;
     C.prototype.clear = function (mask) {
-      if (mask & this.COLOR_BUFFER_BIT) window.__draws += 1;
+      if (mask & this.COLOR_BUFFER_BIT) {
+        window.__draws += 1;
+        if (fresh) window.__newDraws += 1;
+        fresh = false;
+      }
       return clear.call(this, mask);
     };
   }
@@ -65,14 +78,17 @@ INSTRUMENT = """
       return n;
     };
     worker.addEventListener("message", (e) => {
-      if (e.data && Array.isArray(e.data.messages))
-        window.__received.push([performance.now(), bytes(e.data.messages, 0)]);
+      if (e.data && Array.isArray(e.data.messages)) {
+        const n = bytes(e.data.messages, 0);
+        window.__received.push([performance.now(), n]);
+        if (n >= BODY_BYTES) fresh = true;
+      }
     });
     return worker;
   };
   window.Worker.prototype = Base.prototype;
 })();
-"""
+""".replace("BODY_BYTES", str(BODY_BYTES))
 # Viser's notice that WebGL runs in software (true here) would cover part of the view.
 HIDE_NOTICES = (
     "const s = document.createElement('style');"
@@ -90,6 +106,14 @@ def find_chromium() -> str | None:
     return None
 
 
+def command(binary: str, profile: Path, width: int, height: int, antialias: bool = False,
+            flags: Sequence[str] = ()) -> list[str]:  # fmt: skip
+    """The command line of a headless Chromium (:class:`Chromium`'s arguments)."""
+    size = f"--window-size={width},{height}"
+    quality = () if antialias else NO_ANTIALIAS
+    return [binary, *FLAGS, *quality, *flags, f"--user-data-dir={profile}", size, "about:blank"]
+
+
 @dataclass
 class Received:
     """What a page received and drew over a measurement.
@@ -99,12 +123,15 @@ class Received:
         messages: (N,) the sizes in bytes of the websocket messages the page received.
         times: (N,) s, when each reached the page (the browser's clock).
         draws: frames the page drew in that time (WebGL clears of the canvas).
+        new_draws: those of ``draws`` that followed the arrival of a frame (the rest redrew
+            the frame already shown): at most one per frame received.
     """
 
     seconds: float
     messages: np.ndarray
     times: np.ndarray
     draws: int
+    new_draws: int
 
     def rate(self, min_bytes: int = 0) -> float:
         """Messages of at least ``min_bytes`` per second, between the first and the last."""
@@ -119,10 +146,15 @@ class Chromium:
         binary: the browser (default: :func:`find_chromium`).
         width, height: the window in pixels.
         timeout: s to wait for the browser to start and for each command.
+        antialias: WebGL's multisampled edges, as a browser gives them by default; off
+            (:data:`NO_ANTIALIAS`), a frame costs SwiftShader about half as much.
+        flags: command-line switches added to :data:`FLAGS` (a later one wins).
+        scripts: JavaScript run in every page before its own (after the counters').
     """
 
     def __init__(self, binary: str | None = None, width: int = 1280, height: int = 800,
-                 timeout: float = 60.0) -> None:  # fmt: skip
+                 timeout: float = 60.0, antialias: bool = False, flags: Sequence[str] = (),
+                 scripts: Sequence[str] = ()) -> None:  # fmt: skip
         from websockets.sync.client import connect
 
         binary = binary or find_chromium()
@@ -134,8 +166,7 @@ class Chromium:
                                                     ignore_cleanup_errors=True)  # fmt: skip
         profile = Path(self._profile.name)
         self.process = subprocess.Popen(
-            [binary, *FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
-             "about:blank"],
+            command(binary, profile, width, height, antialias, flags),
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )  # fmt: skip
         port_file = profile / "DevToolsActivePort"
@@ -153,7 +184,8 @@ class Chromium:
         self._ids = itertools.count(1)
         self._events: list[dict] = []
         self.call("Page.enable")
-        self.call("Page.addScriptToEvaluateOnNewDocument", source=INSTRUMENT)
+        for source in (INSTRUMENT, *scripts):
+            self.call("Page.addScriptToEvaluateOnNewDocument", source=source)
 
     def call(self, method: str, **params) -> dict:
         """Send one command and return its result (events meanwhile are kept)."""
@@ -217,12 +249,14 @@ class Chromium:
 
     def receive(self, seconds: float) -> Received:
         """Count for ``seconds`` the messages the page receives and the frames it draws."""
+        count = "[window.__draws, window.__newDraws]"
         self.evaluate("window.__received = []")
-        draws0 = int(self.evaluate("window.__draws") or 0)
+        draws0, new0 = self.evaluate(count)
         time.sleep(seconds)
-        draws = int(self.evaluate("window.__draws") or 0) - draws0
+        draws, new = self.evaluate(count)
         got = np.array(self.evaluate("window.__received") or [], np.float64).reshape(-1, 2)
-        return Received(seconds, got[:, 1].astype(np.int64), got[:, 0] / 1000.0, draws)
+        return Received(seconds, got[:, 1].astype(np.int64), got[:, 0] / 1000.0,
+                        int(draws - draws0), int(new - new0))  # fmt: skip
 
     def close(self) -> None:
         """Quit the browser and remove its profile."""

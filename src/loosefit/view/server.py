@@ -31,6 +31,11 @@ from loosefit.view.scene import ViewSequence
 SCALE_OF = {"plain": None, "error": "error", "strain": "strain", "inside": "inside"}
 GARMENT_COLOURS = ((70, 130, 200), (230, 120, 40), (80, 170, 90), (170, 80, 170), (200, 60, 60))
 BODY_COLOUR = (205, 200, 195)
+# The floor: a square of grid this much wider than the shown bodies' spread, under them and
+# moved with them in whole metres (its lines stay put on the ground). A browser drawing in
+# software pays for every pixel of floor (viser's grid shader): a 20 m floor to the horizon
+# cost it about 40% of a frame more (docs/VIEWER.md).
+FLOOR_SIZE = 6.0  # m
 MAX_UPDATES_PER_S = 60.0  # faster playback skips frames rather than flood the browser
 PANEL_EVERY_S = 0.25  # while playing, the slider and figures follow this often
 
@@ -46,6 +51,7 @@ class Viewer:
         url: where a browser opens it.
         port: the port it got (``config.port`` or the next free one).
         server: the :class:`viser.ViserServer`.
+        floor: the floor's grid (a viser ``GridHandle``).
     """
 
     def __init__(self, sequences: Sequence[ViewSequence], config: ViewerConfig | None = None):
@@ -100,8 +106,9 @@ class Viewer:
         scene.add_light_directional("/lights/key", intensity=2.0, position=(1.5, -3.0, 4.0))
         scene.add_light_directional("/lights/back", intensity=0.8, position=(-1.0, 3.0, 2.0))
         floor = float(min(s.body[0, :, 2].min() for s in self.sequences))
-        scene.add_grid("/floor", width=20.0, height=20.0, position=(0.0, 0.0, floor),
-                       cell_size=0.25, section_size=1.0)  # fmt: skip
+        self.floor = scene.add_grid("/floor", width=FLOOR_SIZE, height=FLOOR_SIZE,
+                                    position=(0.0, 0.0, floor), cell_size=0.25,
+                                    section_size=1.0)  # fmt: skip
         bins = self.config.bins
         self.nodes, self.bodies, self.garments, self.bin_meshes, self.labels = [], [], [], [], []
         self._label_z: list[float] = []
@@ -137,6 +144,9 @@ class Viewer:
         for slot, i in enumerate(shown):
             x = (slot - (len(shown) - 1) / 2) * self.config.spacing if side else 0.0
             self.nodes[i].position = (x, 0.0, 0.0)
+        width = FLOOR_SIZE + (self.config.spacing * (len(shown) - 1) if side else 0.0)
+        if self.floor.width != width:
+            self.floor.width = width
         seen: set[int] = set()
         for i, body in enumerate(self.bodies):
             key = id(self.sequences[i].body)
@@ -331,6 +341,9 @@ class Viewer:
                     # viser moves the point looked at with the camera: the view is kept
                     client.camera.position = client.camera.position + delta
         self._follow_at = point
+        x, y = np.round(point[:2])  # whole metres: the grid's lines stay where they were
+        if (x, y) != tuple(self.floor.position[:2]):
+            self.floor.position = (float(x), float(y), float(self.floor.position[2]))
 
     def _panel_text(self, t: int, ref: ViewSequence) -> None:
         self.time_text.content = (
