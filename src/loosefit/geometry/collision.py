@@ -75,9 +75,9 @@ class CollisionConfig:
     #   by then stays where it is, inside (two body parts pressed together, a hand on the
     #   hip: the cloth between is pinched, and walking it on threw vertices a metre out).
     #   4 cm left a waistband vertex under a forearm on the small of the back 6.4 and 7.8 mm
-    #   deep (ballet 05_02 frame 253, the chain spin frame 57: its steps of 1, 2 and 4 cm
-    #   add up to 7); 10 cm clears both, and no vertex of the five account clips moves
-    #   farther than it did (bench/stage_account.py, docs/STAGE_ACCOUNT.md)
+    #   deep (ballet 05_02 frame 253, the chain spin frame 57, walked then in steps of 1, 2
+    #   and 4 cm; now a ray to the next skin on its way); 10 cm clears both, and no vertex
+    #   of the five account clips moves farther than it did (docs/STAGE_ACCOUNT.md)
     stretch: float = 1.5  # the most collision handling may stretch an edge, as a factor of
     #   its rest length (or of its length before, if that is more): pushes out along two
     #   body parts' normals (cloth pinched between a hand and the hip, a thigh and the belly)
