@@ -151,6 +151,14 @@ def test_rays_count_the_winding_number_where_body_parts_overlap():
     np.testing.assert_allclose(rays.distance, normal.distance, atol=1e-6)  # ties: either face
     with pytest.raises(ValueError, match="sign"):
         surface.query(x, 1.0, sign="parity")
+    # the rays alone, from the closest points a query gave: the same answers (the last
+    # projection's first round reuses the solve's closest points so)
+    near = surface.query(x, 0.05, sign="normal")  # some points beyond reach: face -1, outside
+    assert (near.faces < 0).any()
+    alone = surface.inside_by_rays(x, near.points, near.faces)
+    np.testing.assert_array_equal(alone, surface.query(x, 0.05, sign="rays").inside)
+    with pytest.raises(ValueError, match="closest"):
+        surface.inside_by_rays(x, near.points[:10], near.faces)
 
 
 @needs_salsa

@@ -46,7 +46,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.laplacian import laplacian_matrix
-from loosefit.geometry.query import Surface
+from loosefit.geometry.query import ClosestPoints, Surface
 
 
 @dataclass
@@ -204,6 +204,9 @@ class CollisionHandler:
         # hint for its next query (the same answer, from less of the BVH); kept from frame
         # to frame: a hint is only ever a bound, so a stale one costs time, never an answer
         self._face = np.full(V, -1, np.int64)
+        # (V, 3) each vertex's closest body point when last asked (the fast path: the last
+        # projection's first inside test reuses the solve's, at the same positions)
+        self._closest = np.zeros((V, 3), np.float32)
 
     def laplacian(self, x: torch.Tensor) -> torch.Tensor:
         """(V, 3) -> (V, 3): the uniform Laplacian ``Delta`` of Eq. 16."""
@@ -332,16 +335,29 @@ class CollisionHandler:
         passes = 0
         went = np.zeros_like(x)  # (V, 3) the direction each vertex was last moved in
 
-        def ask(near: np.ndarray):
-            """The winding number's answer for the vertices ``near``, into ``ds``."""
-            hit = self._ask(x[near], body, near, self.inside_test)
+        def ask(near: np.ndarray, known: bool = False):
+            """The winding number's answer for the vertices ``near``, into ``ds``; ``known``:
+            their closest points are the solve's last answers, at the same positions (the
+            fast path's first round: only the rays are cast)."""
+            if known:
+                points, faces = self._closest[near], self._face[near]
+                inside = body.inside_by_rays(x[near], points, faces)
+                hit = ClosestPoints(
+                    points,
+                    faces,
+                    np.zeros_like(points),
+                    inside,
+                    np.linalg.norm(points - x[near].astype(np.float32), axis=1),
+                )
+            else:
+                hit = self._ask(x[near], body, near, self.inside_test)
             ds[near] = _signed(hit)
             return hit, (hit.faces >= 0) & hit.inside
 
-        for _ in range(cfg.finish):
+        for k in range(cfg.finish):
             if not len(near):
                 break
-            hit, inside = ask(near)
+            hit, inside = ask(near, known=cfg.fast and k == 0)
             passes += 1
             if not inside.any():
                 break
@@ -459,6 +475,7 @@ class CollisionHandler:
         hit = body.query(x, reach, sign=sign, accuracy=cfg.winding_accuracy, hint=hint)
         if cfg.fast:
             self._face[idx] = hit.faces
+            self._closest[idx] = hit.points
         return hit
 
     def _signed(self, x: np.ndarray, body: Surface, reach: float, idx

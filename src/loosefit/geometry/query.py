@@ -158,6 +158,44 @@ def _ray_winding(mesh: wp.uint64, p: wp.vec3, d: wp.vec3) -> int:
     return w
 
 
+@wp.func
+def _rays_sign(mesh: wp.uint64, p: wp.vec3, closest: wp.vec3) -> float:
+    """-1 where ``p`` is inside the mesh by the winding number counted along rays, +1 outside:
+    a ray away from its closest skin (at ``closest``) that crosses no face starts outside
+    (winding number 0); otherwise the majority of three rays' winding numbers."""
+    away = p - closest
+    length = wp.length(away)
+    outside = False
+    if length > 1.0e-6:
+        outside = wp.mesh_query_ray_count_intersections(mesh, p, away / length) == 0
+    sign = float(1.0)  # noqa: UP018 (warp: a variable the branch may change)
+    if not outside:
+        votes = int(0)  # noqa: UP018 (as in _ray_winding)
+        if _ray_winding(mesh, p, _RAY_A) > 0:
+            votes += 1
+        if _ray_winding(mesh, p, _RAY_B) > 0:
+            votes += 1
+        if votes == 1 and _ray_winding(mesh, p, _RAY_C) > 0:
+            votes += 1
+        sign = wp.where(votes >= 2, -1.0, 1.0)
+    return sign
+
+
+@wp.kernel
+def _rays_kernel(
+    mesh: wp.uint64,
+    queries: wp.array(dtype=wp.vec3),
+    closest: wp.array(dtype=wp.vec3),
+    faces: wp.array(dtype=wp.int32),
+    out_sign: wp.array(dtype=float),
+):
+    tid = wp.tid()
+    if faces[tid] >= 0:
+        out_sign[tid] = _rays_sign(mesh, queries[tid], closest[tid])
+    else:
+        out_sign[tid] = 1.0
+
+
 @wp.kernel
 def _closest_rays_kernel(
     mesh: wp.uint64,
@@ -178,24 +216,7 @@ def _closest_rays_kernel(
         reach = _reach(mesh, p, max_dist, hints[tid], num_faces)
     q = wp.mesh_query_point_no_sign(mesh, p, reach)
     if q.result:
-        # inside: a ray away from the closest skin that crosses no face starts outside
-        # (winding number 0); otherwise the majority of three rays' winding numbers
-        away = p - wp.mesh_eval_position(mesh, q.face, q.u, q.v)
-        length = wp.length(away)
-        outside = False
-        if length > 1.0e-6:
-            outside = wp.mesh_query_ray_count_intersections(mesh, p, away / length) == 0
-        if outside:
-            q.sign = 1.0
-        else:
-            votes = int(0)  # noqa: UP018 (as in _ray_winding)
-            if _ray_winding(mesh, p, _RAY_A) > 0:
-                votes += 1
-            if _ray_winding(mesh, p, _RAY_B) > 0:
-                votes += 1
-            if votes == 1 and _ray_winding(mesh, p, _RAY_C) > 0:
-                votes += 1
-            q.sign = wp.where(votes >= 2, -1.0, 1.0)
+        q.sign = _rays_sign(mesh, p, wp.mesh_eval_position(mesh, q.face, q.u, q.v))
     _store(mesh, q, tid, out_points, out_faces, out_bary, out_sign)
 
 
@@ -340,6 +361,28 @@ class Surface:
             inside=signs[:n] < 0,
             distance=np.linalg.norm(points - np.asarray(queries, np.float32), axis=-1),
         )
+
+    def inside_by_rays(self, points: np.ndarray, closest: np.ndarray, faces: np.ndarray
+                       ) -> np.ndarray:  # fmt: skip
+        """``query(sign="rays")``'s inside test alone, for points (N, 3) whose closest surface
+        points (N, 3) and faces (N,) (-1: none near, then outside) a query gave already: the
+        same answers without walking the BVH for the closest points again.
+
+        Returns:
+            (N,) bool, True inside.
+        """
+        n = len(points)
+        if np.shape(closest) != (n, 3) or np.shape(faces) != (n,):
+            raise ValueError(f"closest, faces: expected ({n}, 3) and ({n},), found "
+                             f"{np.shape(closest)} and {np.shape(faces)}")  # fmt: skip
+        if not n:
+            return np.zeros(0, dtype=bool)
+        p, c = (wp.array(np.ascontiguousarray(a, np.float32), dtype=wp.vec3, device=self.device)
+                for a in (points, closest))  # fmt: skip
+        f = wp.array(np.asarray(faces, np.int32), dtype=wp.int32, device=self.device)
+        sign = wp.zeros(n, dtype=float, device=self.device)
+        wp.launch(_rays_kernel, dim=n, inputs=[self.mesh.id, p, c, f, sign], device=self.device)
+        return sign.numpy() < 0
 
     def first_hits(self, origins: np.ndarray, directions: np.ndarray, max_t: float
                    ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
