@@ -4,9 +4,10 @@ Animates each motion with the whole pipeline and again without collision handlin
 counts the vertex-frames whose acceleration (second difference of positions, m per frame
 squared) collision handling raised by more than 1 and 2 cm: a vertex pushed out of a limb
 one way in a frame and the other way in the next, or walked through a body part in one
-frame and not the next. Also the collision handling's CPU time per frame and the vertices
-it leaves inside the body. ``--variants`` compares settings of ``CollisionConfig``
-(``name:field=value,...``). docs/BENCHMARKS.md quotes it::
+frame and not the next. Also the collision handling's CPU time per frame, the vertices
+it leaves inside the body and the longest edge against its rest length (what a push tears).
+``--variants`` compares settings of ``CollisionConfig`` (``name:field=value,...``).
+docs/BENCHMARKS.md quotes it::
 
     OMP_NUM_THREADS=1 python bench/collision_pops.py ../shared/mocap/cmu-salsa/60_01.bvh \\
         ../shared/mocap/cmu-ballet/05_20.bvh --frames 150
@@ -23,6 +24,7 @@ import numpy as np
 import torch
 
 from loosefit.body.motions import load_motion
+from loosefit.garment.mesh_checks import unique_edges
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import Stages
 
@@ -57,9 +59,13 @@ def main() -> None:
     model = load_pipeline(args.checkpoint)
     print(f"{time.strftime('%Y-%m-%d')}, {platform.machine()}, torch {torch.__version__}, one "
           f"thread; {args.frames} frames of each motion from frame {args.start_frame}")  # fmt: skip
+    edges, _ = unique_edges(np.asarray(model.template.faces))
+    rest = np.asarray(model.template.rest)
+    rest_lengths = np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)  # (E,)
     print("| motion | collision handling | CPU ms/frame | vertex-frames +1 cm | +2 cm | largest "
-          "| 99.9th pct | vertex-frames inside after |")  # fmt: skip
-    print("|---|---|---:|---:|---:|---:|---:|---:|")
+          "| 99.9th pct | vertex-frames inside after | longest edge / rest | frames with an "
+          "edge > 2x |")  # fmt: skip
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for spec in args.motions:
         motion = load_motion(spec, model.avatar(), fps=model.fps, start_frame=args.start_frame,
                              max_frames=args.frames)  # fmt: skip
@@ -69,13 +75,16 @@ def main() -> None:
             name, kw = parse_variant(variant)
             with model.configured(collision=dataclasses.replace(model.collision, **kw)) as m:
                 r = m.animate(motion, stages=Stages(overlap=False))
-            extra = accelerations(np.asarray(r.vertices)) - before  # (T - 2, V) m
+            x = np.asarray(r.vertices)
+            extra = accelerations(x) - before  # (T - 2, V) m
+            stretch = np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=-1) / rest_lengths
             inside = sum(c["inside_after"] for c in r.collisions)
             ms = 1e3 * r.stage_cpu_seconds["collision"] / motion.num_frames
             pct = 1e3 * np.quantile(extra, 0.999)
             print(f"| {motion.name} | {name} | {ms:.1f} | {(extra > 0.01).sum()} "
                   f"| {(extra > 0.02).sum()} | {100 * extra.max():.1f} cm | {pct:.1f} mm "
-                  f"| {inside} |", flush=True)  # fmt: skip
+                  f"| {inside} | {stretch.max():.2f} | {(stretch.max(1) > 2).sum()} |",
+                  flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":

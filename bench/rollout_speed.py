@@ -45,7 +45,7 @@ import numpy as np
 import torch
 
 from loosefit.body.motions import load_motion
-from loosefit.geometry.collision import CollisionConfig
+from loosefit.geometry.collision import CollisionConfig, collision_setting
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
 
@@ -64,7 +64,8 @@ def pipelines(model) -> dict[str, tuple[Stages, CollisionConfig | None]]:
     """The stages timed (and the collision handling, None: the model's default): the motion
     stage alone, + detail (if any), + collision handling as before issue 34, + collision
     handling now (the whole body, the last projection), + edge lengths (the pipeline),
-    the pipeline with collision handling as before issue 37 (no fast path)."""
+    the pipeline with collision handling as before issue 37 (no fast path) and with
+    ``--collision realtime``'s."""
     rows = {"motion stage": (MOTION_ONLY, None)}
     if model.detail is not None:
         rows["+ detail"] = (Stages(lengths=False, collision=False), None)
@@ -72,6 +73,8 @@ def pipelines(model) -> dict[str, tuple[Stages, CollisionConfig | None]]:
     rows[d + "+ collision, before issue 34"] = (Stages(lengths=False), BEFORE_34)
     rows[d + "+ collision, whole body"] = (Stages(lengths=False), None)
     rows[d + "+ lengths + collision, before issue 37"] = (Stages(), BEFORE_37)
+    rows[d + "+ lengths + collision, realtime"] = (
+        Stages(), collision_setting(model.collision, "realtime"))  # fmt: skip
     rows[d + "+ lengths + collision (all)"] = (Stages(), None)
     return rows
 
@@ -265,6 +268,7 @@ def main() -> None:
     for r in result["rollout"]:
         r["speedup_cpu_time"] = sim_cpu / r["cpu_seconds_per_frame"]
     full = [r for r in result["rollout"] if r["stages"] == list(pipelines(model))[-1]]
+    quick = [r for r in result["rollout"] if r["stages"].endswith("realtime")]
     best = min(r["seconds_per_frame"] for r in full)
     result["speedup_cpu"] = sim / best
     print(json.dumps(result, indent=2))
@@ -278,8 +282,9 @@ def main() -> None:
             f"{1e3 * r['cpu_seconds_per_frame']:6.1f}; stages' CPU ms {json.dumps(cpu)}), "
             f"{r['speedup_cpu']:.0f}x faster than the simulation{gap}"
         )
-    print(f"simulation {sim:.2f} s/frame (CPU {sim_cpu:.2f}); the whole pipeline, one thread:")
-    for r in full:
+    print(f"simulation {sim:.2f} s/frame (CPU {sim_cpu:.2f}); the whole pipeline, one thread "
+          "(then with --collision realtime):")  # fmt: skip
+    for r in full + quick:
         if r["threads"] == 1:
             print(f"  {r['motion']} [{r['runtime']}]: {r['frames_per_second']:.1f} frames/s "
                   f"wall, {1 / r['cpu_seconds_per_frame']:.1f} by CPU time "

@@ -51,6 +51,34 @@ def test_bad_inputs_are_clear_errors(model, tmp_path):
         model.animate(motion)
     with pytest.raises(AttributeError):
         loosefit.not_a_function  # noqa: B018
+    with pytest.raises(LoosefitInputError, match="full or realtime"):
+        model.animate("kick", frames=4, collision="fast")
+
+
+def test_realtime_collision_handling_keeps_the_cloth_out_with_fewer_rounds(model):
+    # the same frames, collision handling cut to one solve and one round of its last steps:
+    # the model's own configuration is back afterwards
+    full = model.animate("kick", frames=45)
+    quick = model.animate("kick", frames=45, collision="realtime")
+    assert model.model.collision.iterations == 4 and model.model.collision.relax == 8
+    assert np.isfinite(quick.vertices).all()
+    assert np.abs(quick.vertices - full.vertices).max() > 0  # other rounds ran
+    from loosefit.eval.metrics import inside_fraction
+
+    for garment in (full, quick):  # a little cloth within a millimetre of the skin at most
+        inside = inside_fraction(garment.vertices, garment.body_vertices, garment.body_faces)
+        assert inside.max() < 0.01
+
+
+def test_cli_animate_collision_realtime(tmp_path, capsys):
+    from loosefit.cli import main
+
+    args = ["animate", "kick", "--frames", "6", "--out", str(tmp_path / "k.npz")]
+    assert main([*args, "--collision", "realtime"]) == 0
+    assert loosefit.AnimatedGarment.load(tmp_path / "k.npz").num_frames == 6
+    with pytest.raises(SystemExit):  # argparse: not one of the choices
+        main([*args, "--collision", "fast"])
+    assert "invalid choice: 'fast'" in capsys.readouterr().err
 
 
 def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so(model, tmp_path):

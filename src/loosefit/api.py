@@ -92,7 +92,7 @@ class Animator:
     def animate(self, motion: str | Path | Motion, frames: int | None = None,
                 start_frame: int = 0, seed: int = 0, stages=None,
                 progress: Callable[[int, int], None] | None = None,
-                runtime: str = "torch") -> AnimatedGarment:  # fmt: skip
+                runtime: str = "torch", collision: str = "full") -> AnimatedGarment:  # fmt: skip
         """The garment through a motion.
 
         Args:
@@ -108,6 +108,10 @@ class Animator:
                 (onnxruntime: the same garments, faster on one core; ``pip install
                 'loosefit[onnx]'``; docs/ENGINE_EXPORT.md). Edge lengths and collision
                 handling are the same Python code either way.
+            collision: ``"full"`` (default), or ``"realtime"``: one solve and one round of
+                the last projection and of the mending a frame, 1.3-2.2x faster collision
+                handling, a little more cloth left within a millimetre of the skin
+                (docs/BENCHMARKS.md, "Issue 37").
 
         Returns:
             :class:`~loosefit.sequence.AnimatedGarment`, world positions.
@@ -118,7 +122,8 @@ class Animator:
         """
         avatar = self.model.avatar()
         m = motion_for(motion, avatar, self.fps, frames, start_frame, seed)
-        result = self.model.animate(m, progress, stages=stages, runtime=runtime)
+        result = self.model.animate(m, progress, stages=stages, runtime=runtime,
+                                    collision=collision)  # fmt: skip
         shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
         return AnimatedGarment(m, self.template, result.vertices, shape,
                                f"loosefit model {self.path}")  # fmt: skip

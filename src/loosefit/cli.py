@@ -229,7 +229,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     body = avatar.pose_motion(motion)
     if model is not None:
         bar = tqdm_bar("animate", unit="frame")
-        result = model.animate(motion, progress=bar.progress, runtime=args.runtime)
+        result = model.animate(motion, progress=bar.progress, runtime=args.runtime,
+                               collision=args.collision)  # fmt: skip
         bar.close()
         garment, source = result.vertices, f"loosefit model {path.parent.name}"
         _log(_throughput(motion, result) + "; " + _stage_line(model, model.stages, result))
@@ -706,13 +707,19 @@ def _add_stage_args(p: argparse.ArgumentParser) -> None:
                    "previous state (default: the decoders' output, as in training)")  # fmt: skip
 
 
-def _add_runtime_arg(p: argparse.ArgumentParser) -> None:
+def _add_runtime_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--runtime", default="torch", choices=("torch", "onnx"),
         help="what runs the learned stages (motion stage, detail): torch (PyTorch), or onnx "
         "(onnxruntime: the same garments, faster on one core; pip install 'loosefit[onnx]'; "
         "the graphs are exported in memory at the start, about a second). Edge lengths and "
         "collision handling are the same either way (docs/ENGINE_EXPORT.md)",
+    )  # fmt: skip
+    p.add_argument(
+        "--collision", default="full", choices=("full", "realtime"),
+        help="collision handling: full, or realtime (one solve and one round of its last "
+        "projection and mending a frame: 1.3-2.2x faster, a little more cloth left within a "
+        "millimetre of the skin; docs/BENCHMARKS.md, 'Issue 37')",
     )  # fmt: skip
 
 
@@ -762,7 +769,8 @@ def cmd_animate(args: argparse.Namespace) -> int:
         check_export_path(args.export)  # before the work, not after
     _log(f"animating {motion.num_frames} frames of '{motion.name}'")
     bar = tqdm_bar("rollout", unit="frame")
-    result = model.animate(motion, bar.progress, stages=stages, runtime=args.runtime)
+    result = model.animate(motion, bar.progress, stages=stages, runtime=args.runtime,
+                           collision=args.collision)  # fmt: skip
     bar.close()
     _log(_stage_line(model, stages, result))
     shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
@@ -1136,7 +1144,7 @@ def build_parser() -> argparse.ArgumentParser:
     mode.add_argument("--no-physics", action="store_true", help="carry the skirt rigidly instead")
     p.add_argument("--checkpoint", default=None,
                    help="a model to animate with (default: the pretrained set)")  # fmt: skip
-    _add_runtime_arg(p)
+    _add_runtime_args(p)
     p.add_argument("--sim-device", default="cpu", help="warp device for the simulation")
     p.add_argument("--garment", default=None,
                    help="--physics/--no-physics: skirt style (aline, flared, circle) or an OBJ "
@@ -1360,7 +1368,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "caches + OBJ), or a folder (OBJ per frame)")  # fmt: skip
     _add_bvh_args(p, BVH_UNITS)
     _add_stage_args(p)
-    _add_runtime_arg(p)
+    _add_runtime_args(p)
     _add_render_args(p, views="front,side")
     p.set_defaults(func=cmd_animate)
 

@@ -9,9 +9,11 @@ import trimesh
 
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.collision import (
+    REALTIME,
     BodyCollider,
     CollisionConfig,
     CollisionHandler,
+    collision_setting,
 )
 from loosefit.geometry.query import Surface
 from tests.meshes import grid
@@ -320,3 +322,12 @@ def test_sticky_keeps_to_the_nearer_face_where_the_other_side_is_much_farther():
     collider = _slab_collider()
     collider(0, _square_at(0.003))
     assert (collider(1, _square_at(-0.03)).vertices.numpy()[:, 0] < -0.05).all()
+
+
+def test_collision_settings_full_and_realtime():
+    config = CollisionConfig(epsilon=2e-3)
+    assert collision_setting(config, "full") is config
+    quick = collision_setting(config, "realtime")
+    assert quick.epsilon == 2e-3 and all(getattr(quick, k) == v for k, v in REALTIME.items())
+    with pytest.raises(LoosefitInputError, match="full or realtime"):
+        collision_setting(config, "fast")

@@ -34,7 +34,7 @@ rest length are shortened and projected out again (``relax``). docs/HARD_POSES.m
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -122,6 +122,23 @@ class CollisionConfig:
             if not isinstance(getattr(self, name), bool):
                 raise LoosefitInputError("CollisionConfig", name, "true or false",
                                          getattr(self, name))  # fmt: skip
+
+
+# ``loosefit animate --collision realtime``: one solve, one round of the last projection and
+# of the mending a frame (issue 37). Against the default on 150 frames (bench/collision_pops.py,
+# docs/BENCHMARKS.md): collision handling 1.3-2.2x faster, no frame deeper than the default's,
+# fewer jumps from frame to frame; more vertices left within eps of the skin or 1 mm inside
+# where body parts press together (60_01: 854 vertex-frames against 546)
+REALTIME = {"iterations": 1, "finish": 1, "relax": 1}
+COLLISION_SETTINGS = ("full", "realtime")
+
+
+def collision_setting(config: CollisionConfig, setting: str) -> CollisionConfig:
+    """``config`` as ``setting`` runs it: ``"full"`` as it is, ``"realtime"`` with
+    :data:`REALTIME`'s rounds."""
+    if setting not in COLLISION_SETTINGS:
+        raise LoosefitInputError("collision", "setting", " or ".join(COLLISION_SETTINGS), setting)
+    return config if setting == "full" else replace(config, **REALTIME)
 
 
 @dataclass
