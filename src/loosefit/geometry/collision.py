@@ -268,7 +268,7 @@ class CollisionHandler:
             raise LoosefitInputError("CollisionHandler.resolve", "previous", f"({V}, 3)",
                                      f"{np.shape(way)}")  # fmt: skip
         n, ds = self._signed(x0, body, cfg.reach, slice(None))
-        self._stick(x0, n, ds, way, body)
+        n, ds = self._stick(x0, n, ds, way, body)
         iterations = 1
         depth_before = float(np.clip(cfg.epsilon - ds, 0, None).max())
         inside_before = int((ds < 0).sum())
@@ -291,11 +291,13 @@ class CollisionHandler:
             d = self._solve(d + push, active, region)
             # the moved vertices' closest points again: pushed ones meet other body parts
             moved = np.flatnonzero(region)
-            n[moved], ds[moved] = self._signed(x0[moved] + d[moved], body, cfg.reach, moved)
-            if way is not None:
-                n_m, ds_m = n[moved], ds[moved]
-                self._stick(x0[moved] + d[moved], n_m, ds_m, way[moved], body)
-                n[moved], ds[moved] = n_m, ds_m
+            at = x0[moved] + d[moved]
+            n[moved], ds[moved] = self._stick(
+                at,
+                *self._signed(at, body, cfg.reach, moved),
+                None if way is None else way[moved],
+                body,
+            )
             iterations += 1
         x = x0 + d
         if not np.isfinite(x).all():  # cannot happen with SPD systems; never write NaN
@@ -464,23 +466,28 @@ class CollisionHandler:
         return x, ds, passes
 
     def _stick(self, x: np.ndarray, n: np.ndarray, ds: np.ndarray, way: np.ndarray | None,
-               body: Surface) -> None:  # fmt: skip
+               body: Surface) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """``sticky``: the vertices at ``x`` (N, 3) inside the body (``ds < 0``) whose closest
         skin is now against the way they were moved out in the frame before (``way``, (N, 3)
         unit or 0) leave along that way instead, to where its ray first meets the skin, if
         that is at most ``sticky_factor`` times as far as the closest skin (plus
-        ``sticky_slack``). Updates their normals ``n`` (N, 3) and signed distances ``ds`` (N,)
-        in place."""
+        ``sticky_slack``).
+
+        Returns:
+            The normals ``n`` (N, 3) and signed distances ``ds`` (N,), theirs changed (in
+            place; as given where ``way`` is None).
+        """
         if way is None:
-            return
+            return n, ds
         turn = np.flatnonzero((ds < 0) & ((n * way).sum(1) < 0))
         if not len(turn):
-            return
+            return n, ds
         reach = -ds[turn] * self.config.sticky_factor + self.config.sticky_slack  # (K,)
         t, face = body.first_hits(x[turn], way[turn], float(reach.max()))
         ok = (face >= 0) & (t <= reach)
         n[turn[ok]] = way[turn[ok]]
         ds[turn[ok]] = -t[ok]
+        return n, ds
 
     def _ask(self, x: np.ndarray, body: Surface, idx, sign: str, reach: float | None = None):
         """The closest points and inside test ``sign`` of the vertices ``idx`` (an index
@@ -660,14 +667,18 @@ def _signed(hit) -> np.ndarray:
     return np.where(hit.faces >= 0, np.where(hit.inside, -hit.distance, hit.distance), np.inf)
 
 
+def _face_normals(body: Surface, faces: np.ndarray) -> np.ndarray:
+    """(K, 3) float64 outward normals, unnormalised (twice the area long), of the body's
+    faces (K,)."""
+    tri = body.vertices[body.faces[faces]].astype(np.float64)  # (K, 3, 3)
+    return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+
+
 def _on_skin(x: np.ndarray, body: Surface, hit, inside: np.ndarray, reach: float) -> np.ndarray:
     """(K,) bool: which of the points ``x`` (K, 3), the answers ``hit`` of whose ``inside``
     (N,) bool mask are theirs, lie on the outer side of their closest face, nearer it than
     ``reach``."""
-    f = hit.faces[inside]
-    tri = body.vertices[body.faces[f]].astype(np.float64)  # (K, 3, 3)
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # (K, 3) outward
-    side = ((x - hit.points[inside]) * normal).sum(1)
+    side = ((x - hit.points[inside]) * _face_normals(body, hit.faces[inside])).sum(1)
     return (side > 0) & (hit.distance[inside] < reach)
 
 
@@ -699,8 +710,7 @@ def _normals(x: np.ndarray, body: Surface, hit) -> tuple[np.ndarray, np.ndarray]
     n = away / np.maximum(dist, 1e-12)
     flat = valid & (hit.distance <= 1e-5)
     if flat.any():  # on the surface: the closest face's normal
-        tri = body.vertices[body.faces[hit.faces[flat]]].astype(np.float64)  # (k, 3, 3)
-        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        fn = _face_normals(body, hit.faces[flat])
         n[flat] = fn / np.maximum(np.linalg.norm(fn, axis=-1, keepdims=True), 1e-30)
     ds = np.where(valid, (n * (x - hit.points)).sum(-1), np.inf)
     n[~valid] = 0.0
