@@ -41,10 +41,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import torch
 from scipy.linalg import solveh_banded
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.mesh_checks import unique_edges
+from loosefit.geometry.banded import band_order
 from loosefit.geometry.laplacian import laplacian_matrix
 from loosefit.geometry.query import ClosestPoints, Surface
 
@@ -195,7 +195,7 @@ class CollisionHandler:
         self.system.sort_indices()
         # the fast solve's order: reverse Cuthill-McKee of the whole system, so that any
         # sub-system taken in it is banded (a bandwidth of 40-80 for the skirt's)
-        order = reverse_cuthill_mckee(self.system, symmetric_mode=True)
+        order, _ = band_order(self.system)
         self.rank = np.empty(V, np.int64)  # (V,) each vertex's place in that order
         self.rank[order] = np.arange(V)
         f = np.asarray(faces, np.int64)
