@@ -406,19 +406,26 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
             atomic_path(obj_path) as tmp_obj:  # fmt: skip
         t = model.template
         write_obj(tmp_obj, t.vertices, t.faces, t.uvs, t.face_uvs)
-        with torch.no_grad(), warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the legacy exporter's deprecation, trace notes
-            torch.onnx.export(
-                step, tuple(example[k] for k in INPUTS), str(tmp), dynamo=False,
-                opset_version=config.opset, input_names=list(INPUTS),
-                output_names=list(OUTPUTS),
-                dynamic_axes={k: {0: "B"} for k in (*INPUTS, *OUTPUTS)},
-            )  # fmt: skip
+        trace_graph(step, tuple(example[k] for k in INPUTS), str(tmp), INPUTS, OUTPUTS,
+                    config.opset)  # fmt: skip
         _set_metadata(tmp, meta)
         if config.check:
             meta["check"] = check_first_frame(step, tmp, model, config.tolerance)
         tmp_json.write_text(json.dumps(meta, indent=1) + "\n")
     return [path, json_path, obj_path]
+
+
+def trace_graph(module: nn.Module, example: tuple, target, inputs, outputs, opset: int) -> None:
+    """``module`` (on the CPU, in eval mode) traced on ``example`` into an ONNX graph written
+    to ``target`` (a path or a binary file object), every input and output's first axis
+    (the batch) free."""
+    with torch.no_grad(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the legacy exporter's deprecation, trace notes
+        torch.onnx.export(
+            module, example, target, dynamo=False, opset_version=opset,
+            input_names=list(inputs), output_names=list(outputs),
+            dynamic_axes={k: {0: "B"} for k in (*inputs, *outputs)},
+        )  # fmt: skip
 
 
 def _set_metadata(path: Path, meta: dict) -> None:

@@ -52,14 +52,19 @@ from __future__ import annotations
 
 import copy
 import io
-import warnings
 
 import numpy as np
 import torch
 from torch import nn
 
 from loosefit.errors import LoosefitInputError
-from loosefit.inference.onnx_export import GatherSample, check_exportable, decode, needs_package
+from loosefit.inference.onnx_export import (
+    GatherSample,
+    check_exportable,
+    decode,
+    needs_package,
+    trace_graph,
+)
 
 SOURCE = "runtime 'onnx'"  # what the errors name
 OPSET = 17
@@ -93,13 +98,7 @@ class StepGraph(nn.Module):
 def _export(module: nn.Module, example: tuple, inputs, outputs) -> bytes:
     """``module`` (on the CPU, in eval mode) as an ONNX graph in memory, batch size free."""
     buffer = io.BytesIO()
-    with torch.no_grad(), warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the legacy exporter's deprecation, trace notes
-        torch.onnx.export(
-            module, example, buffer, dynamo=False, opset_version=OPSET,
-            input_names=list(inputs), output_names=list(outputs),
-            dynamic_axes={k: {0: "B"} for k in (*inputs, *outputs)},
-        )  # fmt: skip
+    trace_graph(module, example, buffer, inputs, outputs, OPSET)
     return buffer.getvalue()
 
 
