@@ -21,6 +21,7 @@ import torch
 
 from loosefit.body.motions import load_motion
 from loosefit.geometry import query
+from loosefit.geometry.collision import COLLISION_SETTINGS, collision_setting
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import Stages
 
@@ -33,11 +34,14 @@ def main() -> None:
     p.add_argument("--frames", type=int, default=150)
     p.add_argument("--before-37", action="store_true",
                    help="collision handling as before issue 37 (no fast path)")  # fmt: skip
+    p.add_argument("--collision", choices=COLLISION_SETTINGS, default="full",
+                   help="collision handling's setting (realtime: one round of each)")  # fmt: skip
     args = p.parse_args()
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
     if args.before_37:
         model.collision = dataclasses.replace(model.collision, fast=False)
+    model.collision = collision_setting(model.collision, args.collision)
     motion = load_motion(args.motion, model.avatar(), fps=model.fps,
                          start_frame=args.start_frame, max_frames=args.frames)  # fmt: skip
     stages = Stages(overlap=False)
@@ -75,7 +79,8 @@ def main() -> None:
     n = motion.num_frames
     stage_ms = {k: round(1e3 * v / n, 1) for k, v in (result.stage_seconds or {}).items()}
     cpu_ms = {k: round(1e3 * v / n, 1) for k, v in (result.stage_cpu_seconds or {}).items()}
-    print(f"{motion.name}, {n} frames, one thread, fast path {model.collision.fast}; ms per "
+    print(f"{motion.name}, {n} frames, one thread, fast path {model.collision.fast}, "
+          f"{args.collision} collision handling; ms per "
           f"frame of each stage: {stage_ms}, CPU: {cpu_ms}")  # fmt: skip
     print(f"body BVH refit: {1e3 * refits[0] / n:.1f} ms per frame (CPU {1e3 * refits[1] / n:.1f})")
     print("| asked by | inside test | queries per frame | points per query | ms per frame "

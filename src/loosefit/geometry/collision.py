@@ -432,34 +432,42 @@ class CollisionHandler:
         cfg = self.config
         x, ds = x.copy(), ds.copy()
         a, b = self.edges[:, 0], self.edges[:, 1]
-        before = np.linalg.norm(x0[a] - x0[b], axis=1)
-        rest = before if self.rest_lengths is None else self.rest_lengths
-        limit = np.maximum(before, cfg.stretch * rest)  # (E,)
         passes = 0
-        moved = np.zeros(len(x), dtype=bool)
+        stale = np.zeros(len(x), dtype=bool)  # (V,) moved since ``ds`` was asked for it
         sign = self.inside_test if cfg.finish else "normal"
         for _ in range(cfg.relax):
-            vec = x[a] - x[b]
+            # only an edge with an end moved can be over its limit (the others are as long
+            # as before, which the limit is at least): the same edges, a fraction of the work
+            changed = (x != x0).any(1)  # (V,)
+            maybe = np.flatnonzero(changed[a] | changed[b])
+            before = np.linalg.norm(x0[a[maybe]] - x0[b[maybe]], axis=1)
+            rest = before if self.rest_lengths is None else self.rest_lengths[maybe]
+            limit = np.maximum(before, cfg.stretch * rest)  # (M,)
+            vec = x[a[maybe]] - x[b[maybe]]
             length = np.linalg.norm(vec, axis=1)
-            over = np.flatnonzero(length > limit)
+            keep = length > limit
+            over = maybe[keep]
             if not len(over):
                 break
-            corr = (0.5 * (length[over] - limit[over]) / length[over])[:, None] * vec[over]
+            vec, length = vec[keep], length[keep]
+            corr = (0.5 * (length - limit[keep]) / length)[:, None] * vec
             ends = np.r_[a[over], b[over]]  # (2 O,) each over-long edge's two vertices
             pull = np.concatenate([-corr, corr])  # (2 O, 3) what each end takes
             delta = np.stack([np.bincount(ends, pull[:, k], len(x)) for k in range(3)], 1)
             count = np.bincount(ends, minlength=len(x))
             touched = np.flatnonzero(count)
             x[touched] += delta[touched] / count[touched, None]
-            moved[touched] = True
             hit = self._ask(x[touched], body, touched, sign)
             passes += 1
+            ds[touched] = _signed(hit)
+            stale[touched] = False
             inside = hit.inside & (hit.faces >= 0)
             if inside.any():
                 idx = touched[inside]
                 x[idx] = _beyond_skin(x[idx], hit, inside, cfg.epsilon)[0]
-        if moved.any():
-            idx = np.flatnonzero(moved)
+                stale[idx] = True
+        if stale.any():  # where the last projections left them (the others as asked)
+            idx = np.flatnonzero(stale)
             hit = self._ask(x[idx], body, idx, sign)
             passes += 1
             ds[idx] = _signed(hit)
