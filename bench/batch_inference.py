@@ -22,6 +22,7 @@ docs/BATCH_INFERENCE.md quotes them::
 
     python bench/batch_inference.py                          # CPU, 2 threads, ~10 min
     python bench/batch_inference.py --device cuda --paper    # on a GPU
+    python bench/batch_inference.py --runtime onnx --collision realtime --threads 1
 """
 
 from __future__ import annotations
@@ -38,7 +39,9 @@ import torch
 
 import loosefit
 from loosefit.api import motion_for
-from loosefit.model.rollout import Stages, rollout_batch
+from loosefit.geometry.collision import COLLISION_SETTINGS
+from loosefit.inference.animator import RUNTIMES
+from loosefit.model.rollout import MOTION_ONLY, Stages, rollout_batch
 
 
 def paper_scale(model):
@@ -119,6 +122,11 @@ def main() -> int:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--paper", action="store_true", help="also the paper's resolution")
     ap.add_argument("--out", default=None, help="also write the rows here (JSON)")
+    ap.add_argument("--runtime", choices=RUNTIMES, default="torch",
+                    help="what runs the learned stages (onnx: the packaged model's motion "
+                         "stage rows and the whole pipeline)")  # fmt: skip
+    ap.add_argument("--collision", choices=COLLISION_SETTINGS, default="full",
+                    help="the whole pipeline's collision handling")  # fmt: skip
     args = ap.parse_args()
 
     if args.threads:
@@ -138,18 +146,23 @@ def main() -> int:
                                                           rest.to(args.device))  # fmt: skip
     motion_rows = []
     for name, (gen, enc, rest) in scales.items():
-        rollout_batch(gen, enc, dances[:1], rest, m.floor_height, m.rollout_config)  # warm-up
+
+        def motion_stage(n, g=gen, e=enc, r=rest, packaged=gen is m.generative):
+            if packaged and args.runtime == "onnx":
+                return m.animate_batch(dances[:n], stages=MOTION_ONLY, runtime="onnx")
+            return rollout_batch(g, e, dances[:n], r, m.floor_height, m.rollout_config)
+
+        motion_stage(1)  # warm-up (the onnx runtime's graphs exported)
         for n in sizes:
-            t, res = clock(lambda n=n, g=gen, e=enc, r=rest: rollout_batch(
-                g, e, dances[:n], r, m.floor_height, m.rollout_config), args.repeats,
-                args.device)  # fmt: skip
+            t, res = clock(lambda n=n, f=motion_stage: f(n), args.repeats, args.device)
             motion_rows.append(row(name, n, sum(r.frames for r in res), t))
             print(f"{name}: N={n}: {motion_rows[-1]['frames_per_second']:,.0f} frames/s",
                   flush=True)  # fmt: skip
     pipeline_rows = []
-    m.animate_batch(dances[:1], stages=Stages())  # warm-up (the collider's first build)
+    how = {"runtime": args.runtime, "collision": args.collision}
+    m.animate_batch(dances[:1], stages=Stages(), **how)  # warm-up (the collider's first build)
     for n in whole:
-        t, res = clock(lambda n=n: m.animate_batch(dances[:n]), 1, args.device)
+        t, res = clock(lambda n=n: m.animate_batch(dances[:n], **how), 1, args.device)
         busy = {}
         for r in res:
             for k, v in (r.stage_seconds or {}).items():
@@ -161,14 +174,16 @@ def main() -> int:
               flush=True)  # fmt: skip
     one_by_one = whole and min(max(whole), 8)
     if one_by_one:
-        t, res = clock(lambda: [m.animate(d) for d in dances[:one_by_one]], 1, args.device)
+        t, res = clock(lambda: [m.animate(d, **how) for d in dances[:one_by_one]], 1,
+                       args.device)  # fmt: skip
         pipeline_rows.append(row("animate, one character after another", one_by_one,
                                  sum(r.frames for r in res), t))  # fmt: skip
     dev = (torch.cuda.get_device_name() if args.device.startswith("cuda")
            else f"{platform.machine()}, {torch.get_num_threads()} torch threads")  # fmt: skip
     load = ", ".join(f"{a:.1f}" for a in (*load_before, *os.getloadavg()))
     lines = [f"`bench/batch_inference.py` on {dev}, torch {torch.__version__}; "
-             f"{args.frames} motion frames per character (+ the preroll); load average "
+             f"{args.frames} motion frames per character (+ the preroll); runtime "
+             f"{args.runtime}, {args.collision} collision handling; load average "
              f"(1, 5, 15 min) before and after: {load}", "",
              *table(motion_rows), ""]  # fmt: skip
     for name in scales:

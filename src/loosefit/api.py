@@ -129,10 +129,12 @@ class Animator:
                                f"loosefit model {self.path}")  # fmt: skip
 
     def animate_batch(self, motions: list, frames: int | None = None, seed: int = 0, stages=None,
-                       progress=None) -> list[AnimatedGarment]:  # fmt: skip
+                      progress=None, runtime: str = "torch", collision: str = "full"
+                      ) -> list[AnimatedGarment]:  # fmt: skip
         """N motions (files, moves or :class:`~loosefit.types.Motion`) at once, N characters:
         the motion stage runs batched (one network call per frame for all of them). ``seed``
-        seeds procedural motions (the i-th gets ``seed + i``).
+        seeds procedural motions (the i-th gets ``seed + i``); ``runtime`` and ``collision``
+        as for :meth:`animate`.
 
         Returns:
             One :class:`~loosefit.sequence.AnimatedGarment` per motion.
@@ -145,7 +147,8 @@ class Animator:
                                      "motion at a time)", type(self.model).__name__)  # fmt: skip
         avatar = self.model.avatar()
         ms = [motion_for(m, avatar, self.fps, frames, 0, seed + i) for i, m in enumerate(motions)]
-        results = self.model.animate_batch(ms, progress, stages=stages)
+        results = self.model.animate_batch(ms, progress, stages=stages, runtime=runtime,
+                                           collision=collision)  # fmt: skip
         shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
         return [AnimatedGarment(m, self.template, r.vertices, shape, f"loosefit model {self.path}")
                 for m, r in zip(ms, results, strict=True)]  # fmt: skip

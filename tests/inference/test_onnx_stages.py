@@ -123,3 +123,28 @@ def test_cli_animate_runtime_onnx(model, tmp_path, capsys, monkeypatch):
     assert main([*args, "--runtime", "onnx", "--out", str(tmp_path / "y.npz")]) == 2
     assert "pip install 'loosefit[onnx]'" in capsys.readouterr().err
     assert not (tmp_path / "y.npz").exists()
+
+
+@needs_ort
+def test_a_batch_through_onnx_gives_each_motion_its_torch_garment(model):
+    """``animate_batch(..., runtime="onnx")``: one onnxruntime call per frame for all the
+    characters, the garments PyTorch's batch gives; with ``collision="realtime"`` each
+    motion's garment is the one its own realtime ``animate`` gives."""
+    m = model.model
+    motions = [motion_for(spec, m.avatar(), model.fps, n, seed=3)
+               for spec, n in (("dance:4", 40), ("spin", 28))]  # fmt: skip
+    want = m.animate_batch(motions, stages=MOTION_ONLY)
+    got = m.animate_batch(motions, stages=MOTION_ONLY, runtime="onnx")
+    for w, g, motion in zip(want, got, motions, strict=True):
+        assert g.vertices.shape == (motion.num_frames, m.template.num_vertices, 3)
+        assert _gap(g.vertices, w.vertices).max() < 1e-4
+        np.testing.assert_allclose(g.codes, w.codes, atol=1e-4)
+    quick = m.animate_batch(motions, runtime="onnx", collision="realtime")
+    for q, motion in zip(quick, motions, strict=True):
+        alone = m.animate(motion, runtime="onnx", collision="realtime")
+        assert len(q.collisions) == motion.num_frames
+        # as test_batch_inference: rounding can move a few vertices by under 2 mm
+        off = _gap(q.vertices, alone.vertices)
+        assert (off > 2e-4).mean() < 1e-3 and off.max() < 2e-3
+    with pytest.raises(LoosefitInputError, match="runtime"):
+        m.animate_batch(motions, runtime="tensorrt")

@@ -253,21 +253,31 @@ class AnimationModel:
                        restart_every, detail, collide, stages.feedback,
                        stages.overlap, self.restorer(stages), step)  # fmt: skip
 
-    def animate_batch(self, motions: list[Motion], progress=None, stages: Stages | None = None):
+    def animate_batch(self, motions: list[Motion], progress=None, stages: Stages | None = None,
+                      runtime: str = "torch", collision: str = "full"):  # fmt: skip
         """N motions (N characters) at once: the motion stage batched
         (:func:`~loosefit.model.rollout.rollout_batch`, one network call per frame for all),
         then each motion's detail and collision handling (:func:`~loosefit.model.rollout.
-        refine`). The same garments as :meth:`animate` of each, within float rounding.
+        refine`). The same garments as :meth:`animate` of each, within float rounding;
+        ``runtime`` and ``collision`` as for :meth:`animate`.
 
         Returns:
             One :class:`~loosefit.model.rollout.RolloutResult` per motion.
         """
+        check_runtime(runtime)
+        setting = collision_setting(self.collision, collision)
+        if setting is not self.collision:
+            with self.configured(collision=setting):
+                return self.animate_batch(motions, progress, stages, runtime)
         for m in motions:
             self.check_motion(m)
         stages = stages or self.stages
-        results = rollout_batch(self.generative, self.encoder, motions, self.rest_state,
-                                self.floor_height, self.rollout_config, progress)  # fmt: skip
         detail = self.detail if stages.detail else None
+        step = None
+        if runtime == "onnx":
+            step, detail = self.onnx_stages().runners(detail, torch.get_num_threads())
+        results = rollout_batch(self.generative, self.encoder, motions, self.rest_state,
+                                self.floor_height, self.rollout_config, progress, step)  # fmt: skip
         for m, r in zip(motions, results, strict=True):
             collide = self.collider(m) if stages.collision else None
             refine(r, m, self.floor_height, self.rollout_config, detail, collide, self.device,

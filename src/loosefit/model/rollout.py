@@ -306,6 +306,7 @@ def rollout_batch(
     floor_height: float,
     config: RolloutConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
+    step: Callable | None = None,
 ) -> list[RolloutResult]:
     """The motion stage of :func:`rollout` for N motions at once (N characters): one network
     call per frame for all of them. Shorter motions are padded by holding their last frame
@@ -314,6 +315,9 @@ def rollout_batch(
     Args:
         motions: N motions on the encoder's skeleton, at one frame rate.
         rest_state, floor_height, config, progress: as for :func:`rollout`.
+        step: as for :func:`rollout`, on the batch: ``step(features (N, F), previous
+            (N, V, 3), hidden (N, G)) -> (Z_t (N, Z), hidden (N, G), garment (N, V, 3))``
+            (None: the encoder and the decoders in PyTorch).
 
     Returns:
         One :class:`RolloutResult` per motion (its ``seconds`` the batch's, shared).
@@ -351,8 +355,11 @@ def rollout_batch(
     for t in range(total):
         if t > 0:
             prev = change_frame(prev, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
-        z, hidden = encoder(feats[:, t], prev, hidden)
-        prev = generative.decode(z)["vertices"]
+        if step is None:
+            z, hidden = encoder(feats[:, t], prev, hidden)
+            prev = generative.decode(z)["vertices"]
+        else:
+            z, hidden, prev = step(feats[:, t], prev.contiguous(), hidden)
         far = prev.norm(dim=-1).amax(-1)  # (N,) m from the root, NaN where NaN
         bad = (~(far <= config.max_distance)).nonzero()
         if len(bad):  # the first character that diverged, said as rollout() says it
