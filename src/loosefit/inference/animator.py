@@ -237,21 +237,15 @@ class AnimationModel:
         before collision handling are PyTorch's within float rounding (micrometres).
         """
         check_runtime(runtime)
-        setting = collision_setting(self.collision, collision)
-        if setting is not self.collision:
-            with self.configured(collision=setting):
-                return self.animate(motion, progress, truth, restart_every, stages, runtime)
         self.check_motion(motion)
         stages = stages or self.stages
-        detail = self.detail if stages.detail else None
-        step = None
-        if runtime == "onnx":
-            step, detail = self.onnx_stages().runners(detail, torch.get_num_threads())
-        collide = self.collider(motion) if stages.collision else None
-        return rollout(self.generative, self.encoder, motion, self.rest_state,
-                       self.floor_height, self.rollout_config, progress, truth,
-                       restart_every, detail, collide, stages.feedback,
-                       stages.overlap, self.restorer(stages), step)  # fmt: skip
+        with self._collision_as(collision):
+            step, detail = self._learned(runtime, stages)
+            collide = self.collider(motion) if stages.collision else None
+            return rollout(self.generative, self.encoder, motion, self.rest_state,
+                           self.floor_height, self.rollout_config, progress, truth,
+                           restart_every, detail, collide, stages.feedback,
+                           stages.overlap, self.restorer(stages), step)  # fmt: skip
 
     def animate_batch(self, motions: list[Motion], progress=None, stages: Stages | None = None,
                       runtime: str = "torch", collision: str = "full"):  # fmt: skip
@@ -265,24 +259,39 @@ class AnimationModel:
             One :class:`~loosefit.model.rollout.RolloutResult` per motion.
         """
         check_runtime(runtime)
-        setting = collision_setting(self.collision, collision)
-        if setting is not self.collision:
-            with self.configured(collision=setting):
-                return self.animate_batch(motions, progress, stages, runtime)
         for m in motions:
             self.check_motion(m)
         stages = stages or self.stages
-        detail = self.detail if stages.detail else None
-        step = None
-        if runtime == "onnx":
-            step, detail = self.onnx_stages().runners(detail, torch.get_num_threads())
-        results = rollout_batch(self.generative, self.encoder, motions, self.rest_state,
-                                self.floor_height, self.rollout_config, progress, step)  # fmt: skip
-        for m, r in zip(motions, results, strict=True):
-            collide = self.collider(m) if stages.collision else None
-            refine(r, m, self.floor_height, self.rollout_config, detail, collide, self.device,
-                   self.restorer(stages))  # fmt: skip
+        with self._collision_as(collision):
+            step, detail = self._learned(runtime, stages)
+            results = rollout_batch(self.generative, self.encoder, motions, self.rest_state,
+                                    self.floor_height, self.rollout_config, progress,
+                                    step)  # fmt: skip
+            for m, r in zip(motions, results, strict=True):
+                collide = self.collider(m) if stages.collision else None
+                refine(r, m, self.floor_height, self.rollout_config, detail, collide,
+                       self.device, self.restorer(stages))  # fmt: skip
         return results
+
+    def _learned(self, runtime: str, stages: Stages) -> tuple:
+        """The motion stage's step (None: the networks in PyTorch) and the detail stage
+        (None where ``stages`` or the model has none) that ``runtime`` runs them in."""
+        detail = self.detail if stages.detail else None
+        if runtime != "onnx":
+            return None, detail
+        return self.onnx_stages().runners(detail, torch.get_num_threads())
+
+    @contextmanager
+    def _collision_as(self, collision: str):
+        """Within the block, collision handling as the setting ``collision`` says
+        (:func:`~loosefit.geometry.collision.collision_setting`): the model's own for
+        ``"full"``, its operators kept; otherwise :meth:`configured` with the setting's."""
+        setting = collision_setting(self.collision, collision)
+        if setting is self.collision:
+            yield
+        else:
+            with self.configured(collision=setting):
+                yield
 
     def carry_drape(self, motion: Motion, progress=None):
         """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""

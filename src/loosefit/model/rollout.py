@@ -359,7 +359,7 @@ def rollout_batch(
             z, hidden = encoder(feats[:, t], prev, hidden)
             prev = generative.decode(z)["vertices"]
         else:
-            z, hidden, prev = step(feats[:, t], prev.contiguous(), hidden)
+            z, hidden, prev = step(feats[:, t], prev, hidden)
         far = prev.norm(dim=-1).amax(-1)  # (N,) m from the root, NaN where NaN
         bad = (~(far <= config.max_distance)).nonzero()
         if len(bad):  # the first character that diverged, said as rollout() says it
