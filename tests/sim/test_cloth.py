@@ -302,6 +302,29 @@ def test_a_field_at_its_value_from_before_it_existed_stays_out_of_the_run_key(ti
     assert cloth._run_key(body, template, with_release) == cloth._run_key(body, template, config)
 
 
+def test_the_run_key_leaves_the_device_out_and_a_cpu_run_keeps_its_key(tmp_path):
+    """A clip begun with --device cuda:0 goes on from its resume file with --device cpu
+    (and back); a run saved on the CPU before the device left the key still resumes."""
+    import loosefit.sim.cloth as cloth
+    from loosefit.types import GarmentTemplate
+
+    v = np.arange(18, dtype=np.float32).reshape(6, 3) / 10
+    f = np.array([[0, 1, 2], [2, 3, 4], [3, 4, 5]])
+    template = GarmentTemplate(v, f, np.zeros((6, 2), np.float32) + 0.5, f, np.array([0, 1]))
+    body = np.arange(4 * 10 * 3, dtype=np.float32).reshape(4, 10, 3) / 100  # (T, Vb, 3)
+    on_gpu = cloth._run_key(body, template, ClothConfig(device="cuda:0"))
+    on_cpu = cloth._run_key(body, template, ClothConfig(device="cpu"))
+    assert on_gpu == on_cpu == "b6e1604ee06b5b4e5e3e21cb5cbdd8cc"  # the key before the change
+    tiny = ClothConfig.tiny(device="cuda:0")
+    assert cloth._run_key(body, template, tiny) == "1d2b5c13b1c0a98b4e23565967ce6374"
+    assert cloth._run_key(body, template, dataclasses.replace(tiny, iterations=9)) != on_cpu
+    # the resume file a GPU run saved is the CPU run's
+    path = tmp_path / "clip.npz"
+    cloth._write_resume(path, key=np.array(on_gpu), frame=np.int64(3), seconds=np.float64(1.0))
+    assert cloth._read_resume(path, on_cpu, total=10) is not None
+    assert cloth._read_resume(path, "another run", total=10) is None
+
+
 def test_resume_ignores_the_state_of_another_run(avatar, tiny, tmp_path):
     skirt, motion, result, done = tiny
     path = tmp_path / "run.npz"

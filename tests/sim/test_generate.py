@@ -30,6 +30,13 @@ def test_tiny_dataset_is_complete_and_readable(tiny_dataset):
     q = manifest["sequences"]["kick_000"]["quality"]
     assert q["inside_max"] <= 0.01 and q["nan_count"] == 0
     assert "kick_000" in gen.format_report(manifest)
+    # each clip notes its device and cloth configuration, the manifest's
+    from loosefit.garment.fingerprint import cloth_fingerprint
+
+    ours = cloth_fingerprint(manifest["config"]["cloth"])
+    assert {e["device"] for e in manifest["sequences"].values()} == {"cpu"}
+    assert {e["cloth_fingerprint"] for e in manifest["sequences"].values()} == {ours}
+    assert reader.training_clips("train") == ["kick_000"]
 
 
 def test_report_shows_the_inside_mean_and_the_poses_that_fold(tiny_dataset):
@@ -225,6 +232,53 @@ def test_a_dataset_made_before_a_field_existed_still_resumes(tiny_dataset, monke
         gen.generate(changed, out, workers=1, progress=False)
 
 
+def test_a_data_set_begun_on_a_gpu_goes_on_on_the_cpu(tmp_path):
+    """The device is no part of a data set's configuration: each clip's entry notes its
+    own, the manifest keeps the first run's; the cloth fingerprint leaves it out."""
+    from types import SimpleNamespace
+
+    out = tmp_path / "ds"
+    gpu = gen.preset("tiny")
+    gpu.cloth.device = "cuda:0"
+    manifest = gen._open_manifest(gpu, out)
+    job = gen.plan_jobs(gpu)[0]
+    motion = SimpleNamespace(num_frames=5, meta={})
+    manifest["sequences"][job.name] = gen._entry(gpu, job, motion, None, 1.0, "diverged")
+    out.mkdir()
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    cpu = gen.preset("tiny")
+    again = gen._open_manifest(cpu, out)  # taken, not "another dataset"
+    assert again["config"]["cloth"]["device"] == "cuda:0"  # the first run's
+    entry, on_cpu = again["sequences"][job.name], gen._entry(cpu, job, motion, None)
+    assert entry["device"] == "cuda:0" and on_cpu["device"] == "cpu"
+    assert entry["cloth_fingerprint"] == on_cpu["cloth_fingerprint"]
+    changed = gen.preset("tiny")
+    changed.cloth.iterations = 9  # any other change of the cloth is another data set
+    with pytest.raises(LoosefitInputError, match=r"another dataset.*cloth"):
+        gen._open_manifest(changed, out)
+    assert gen._entry(changed, job, motion, None)["cloth_fingerprint"] != entry["cloth_fingerprint"]
+
+
+def test_entries_keep_the_manifest_s_fingerprint_when_a_field_is_added(tmp_path):
+    """A data set written before a cloth field existed: its entries' fingerprint (of the
+    configuration without the field) becomes the one of the configuration with it."""
+    from loosefit.garment.fingerprint import cloth_fingerprint
+
+    out = tmp_path / "ds"
+    config = gen.preset("tiny")
+    manifest = gen._open_manifest(config, out)
+    del manifest["config"]["cloth"]["self_contact_rest_exclusion"]  # as if written before it
+    old = cloth_fingerprint(manifest["config"]["cloth"])
+    manifest["sequences"]["a"] = {"cloth_fingerprint": old}
+    manifest["sequences"]["b"] = {"cloth_fingerprint": "another one"}
+    out.mkdir()
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    again = gen._open_manifest(config, out)
+    now = cloth_fingerprint(again["config"]["cloth"])
+    assert now != old and again["sequences"]["a"]["cloth_fingerprint"] == now
+    assert again["sequences"]["b"]["cloth_fingerprint"] == "another one"
+
+
 @pytest.fixture
 def spied_copy(tiny_dataset, tmp_path, monkeypatch):
     """A copy of the tiny data set, and the list of the clips simulated into it from now on."""
@@ -249,6 +303,7 @@ def test_a_new_release_depth_keeps_the_clips_it_never_acts_on(spied_copy):
     manifest = gen.generate(cfg, out, workers=1, progress=False)
     assert simulated == [] and manifest["summary"]["clips_ok"] == 2
     assert {e["release_depth"] for e in manifest["sequences"].values()} == {0.02}
+    DatasetReader(out).check_uniform(["kick_000", "spin_001"])  # kept: of the new cloth
     # a clip the release acted on is simulated again without it
     manifest["sequences"]["spin_001"]["released_frames"] = 3
     (out / "manifest.json").write_text(json.dumps(manifest))
@@ -277,6 +332,7 @@ def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_
     assert simulated == ["sway_002"]
     assert manifest["split"] == {"train": ["kick_000", "sway_002"], "test": ["spin_001"]}
     assert manifest["sequences"]["kick_000"]["reused_from"] == str(source)
+    DatasetReader(tmp_path / "grown").check_uniform(["kick_000", "sway_002"])
     a, b = source / "sequences" / "kick_000.npz", tmp_path / "grown" / "sequences" / "kick_000.npz"
     assert a.read_bytes() == b.read_bytes()
     DatasetReader(tmp_path / "grown").read("sway_002")

@@ -1,4 +1,4 @@
-"""Which garment and avatar a data set or a checkpoint belongs to."""
+"""Which garment, avatar and cloth configuration a data set or a checkpoint belongs to."""
 
 from __future__ import annotations
 
@@ -46,3 +46,27 @@ def avatar_key(avatar: dict) -> tuple[str, tuple[tuple[str, float], ...]]:
 def avatar_fingerprint(avatar: dict) -> str:
     """A short hash of an avatar description (:func:`avatar_key`)."""
     return hashlib.sha256(json.dumps(avatar_key(avatar)).encode()).hexdigest()[:16]
+
+
+def cloth_fingerprint(cloth: dict) -> str:
+    """A short hash of a cloth configuration as a data set's manifest stores it (the
+    fields of :class:`~loosefit.sim.cloth.ClothConfig` as JSON), to tell the clips of one
+    data set simulated under another.
+
+    The device is normalised to ``"cpu"``: a clip simulated on a GPU is the same data as
+    one simulated on the CPU (up to rounding), and a data set may be begun on one and
+    finished on the other.
+    """
+    text = json.dumps(_canonical({**cloth, "device": "cpu"}), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _canonical(x):
+    """Numbers as floats (a config file's ``1`` is the default's ``1.0``), tuples as lists."""
+    if isinstance(x, dict):
+        return {str(k): _canonical(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_canonical(v) for v in x]
+    if isinstance(x, int) and not isinstance(x, bool):
+        return float(x)
+    return x

@@ -1028,7 +1028,8 @@ RUN_KEY_SINCE: dict[str, object] = {}
 
 
 def _run_key(body: np.ndarray, template: GarmentTemplate, config: ClothConfig) -> str:
-    """A fingerprint of everything that decides a simulation's frames."""
+    """A fingerprint of everything that decides a simulation's frames (but the device's
+    rounding)."""
     h = hashlib.sha256()
     for a in (body[:: max(len(body) // 64, 1)], template.vertices, template.faces, template.waist):
         h.update(np.ascontiguousarray(a).tobytes())
@@ -1036,7 +1037,10 @@ def _run_key(body: np.ndarray, template: GarmentTemplate, config: ClothConfig) -
         h.update(np.ascontiguousarray(template.rest_vertices).tobytes())
     # the release of trapped cloth does not enter it: a run it never changed is the same
     # (the resume checks that; see simulate_batch)
-    fields = asdict(replace(config, release_depth=None))
+    # Nor does the device: a clip begun on a GPU goes on from its saved state on the CPU and
+    # vice versa (the physics is the same; only the rounding differs). It is normalised to
+    # "cpu" rather than dropped, so that a run saved on the CPU keeps the key it had.
+    fields = asdict(replace(config, release_depth=None, device="cpu"))
     fields = {k: v for k, v in fields.items() if k not in RUN_KEY_SINCE or v != RUN_KEY_SINCE[k]}
     h.update(str((body.shape, sorted(fields.items()))).encode())
     return h.hexdigest()[:32]

@@ -38,6 +38,7 @@ from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.quality import PENETRATION_TOLERANCE
 from loosefit.garment.dress import DressConfig
+from loosefit.garment.fingerprint import cloth_fingerprint
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.sequence import AnimatedGarment
 from loosefit.sim.cloth import ClothConfig, SimulationError, simulate_batch
@@ -697,6 +698,10 @@ def _entry(config: DatasetConfig, job: Job, motion, result, seconds: float = 0.0
         "seed": job.seed,
         "frames": motion.num_frames,
         "test": job.test,
+        # where it was simulated (a data set may be begun on a GPU and finished on the CPU),
+        # and under which cloth configuration (DatasetReader.check_uniform)
+        "device": config.cloth.device,
+        "cloth_fingerprint": cloth_fingerprint(_normalized(asdict(config.cloth))),
     }
     if result is None:
         entry.update(status="flagged", reason=failure, seconds=seconds)
@@ -797,6 +802,17 @@ def _stored_config(manifest: dict) -> dict:
     return fill(stored, default)
 
 
+def _refresh_fingerprints(manifest: dict, cloth: dict) -> None:
+    """Entries of the manifest's cloth configuration as it was stored take its fingerprint
+    with the fields added since at the values they were made with (``cloth``, from
+    :func:`_stored_config`): the same configuration, which the manifest is about to store."""
+    before = cloth_fingerprint(manifest.get("config", {}).get("cloth", {}))
+    after = cloth_fingerprint(cloth)
+    for entry in manifest.get("sequences", {}).values():
+        if entry.get("cloth_fingerprint") == before:
+            entry["cloth_fingerprint"] = after
+
+
 def _open_manifest(config: DatasetConfig, out: Path) -> dict:
     """A new manifest, or the existing one of the same configuration (resume)."""
     mpath = out / "manifest.json"
@@ -804,6 +820,12 @@ def _open_manifest(config: DatasetConfig, out: Path) -> dict:
     if mpath.is_file():
         manifest = json.loads(mpath.read_text())
         old = _stored_config(manifest)
+        _refresh_fingerprints(manifest, old["cloth"])
+        # The device decides no more than the rounding: a data set begun on a GPU goes on on
+        # the CPU and vice versa. Each clip's entry notes its device; the manifest's
+        # configuration stays the first run's.
+        first_device = old["cloth"].get("device", cfg["cloth"]["device"])
+        old = {**old, "cloth": {**old["cloth"], "device": cfg["cloth"]["device"]}}
         # A change of the release of trapped cloth alone keeps the clips it never changed
         # (generate checks each; see _recheck_release).
         net = {k: old["cloth"].get(k) for k in RELEASE_FIELDS}
@@ -829,7 +851,7 @@ def _open_manifest(config: DatasetConfig, out: Path) -> dict:
                 f"another dataset (preset {manifest.get('preset')}; differs in {diff})",
                 hint="choose another --out folder",
             )
-        manifest["config"] = cfg
+        manifest["config"] = {**cfg, "cloth": {**cfg["cloth"], "device": first_device}}
         return manifest
     if out.exists() and any(out.iterdir()):
         raise LoosefitInputError(
@@ -879,6 +901,8 @@ def adopt_clips(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Pat
     other = json.loads(mpath.read_text())
     theirs = _stored_config(other)
     ours = _normalized(_config_dict(config))
+    their_device = theirs["cloth"].get("device")
+    theirs = {**theirs, "cloth": {**theirs["cloth"], "device": ours["cloth"]["device"]}}
     same = ("garment", "cloth", "unfold", "limits", "fps", "seed", "shape")
     clip = ("kind", "folder", "max_frames", "start_frame")
     differs = [k for k in same if theirs.get(k) != ours.get(k)]
@@ -910,7 +934,10 @@ def adopt_clips(config: DatasetConfig, jobs: list[Job], manifest: dict, out: Pat
         elif entry.get("status") != "flagged":
             continue  # neither finished nor flagged there: simulate it here
         # a flagged clip is taken as flagged: the simulation is deterministic
-        manifest["sequences"][job.name] = {**entry, "reused_from": str(source)}
+        manifest["sequences"][job.name] = {
+            **entry, "reused_from": str(source), "device": entry.get("device", their_device),
+            "cloth_fingerprint": cloth_fingerprint(ours["cloth"]),  # theirs, as compared above
+        }  # fmt: skip
         write_json_atomic(out / "manifest.json", manifest)
         taken.append(job.name)
     return taken
@@ -969,6 +996,7 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
     )
 
     depth, cloth = config.cloth.release_depth, config.cloth
+    fingerprint = cloth_fingerprint(_normalized(asdict(cloth)))  # a kept clip's
     built: dict = {}  # the collider's parts and meshes, for the first clip to replay
 
     def still_right(job: Job, entry: dict) -> bool:
@@ -994,7 +1022,7 @@ def _recheck_release(config: DatasetConfig, jobs: list[Job], manifest: dict, out
         stale=lambda entry: entry.get("release_depth", depth) != depth,
         still_right=still_right,
         keep=lambda entry: entry.update(release_depth=depth, released_frames=0,
-                                        released_vertices=0),
+                                        released_vertices=0, cloth_fingerprint=fingerprint),
     )  # fmt: skip
 
 
@@ -1253,6 +1281,12 @@ def summarize(manifest: dict) -> dict:
     }
 
 
+def _devices(manifest: dict) -> list[str]:
+    """The devices the clips were simulated on (an entry without one: the manifest's)."""
+    default = manifest.get("config", {}).get("cloth", {}).get("device", "cpu")
+    return sorted({e.get("device", default) for e in manifest["sequences"].values()} or {default})
+
+
 def format_report(manifest: dict) -> str:
     """A plain-text table of each clip's quality, for the end of a run.
 
@@ -1302,7 +1336,7 @@ def format_report(manifest: dict) -> str:
         lines.append(
             f"{s['seconds_per_frame_mean']:.3f} s per frame per clip, "
             f"{s['clips_per_hour']:.1f} clips per hour "
-            f"(device {manifest['config']['cloth']['device']})"
+            f"(device {', '.join(_devices(manifest))})"
         )
     if folding:
         lines.append(
