@@ -36,7 +36,11 @@ def _sequence(name: str, T: int, offset: float = 0.0) -> AnimatedGarment:
 
 @pytest.fixture
 def dataset(tmp_path):
-    root = tmp_path / "ds"
+    return make_dataset(tmp_path / "ds")
+
+
+def make_dataset(root):
+    """Three clips of the toy garment (10, 7 and 12 frames): s0, s1 to train, s2 to test."""
     (root / "sequences").mkdir(parents=True)
     _template().save(root / "template.npz")
     for name, T, off in (("s0", 10, 0.0), ("s1", 7, 1.0), ("s2", 12, 2.0)):
@@ -186,3 +190,35 @@ def test_incomplete_or_foreign_dataset_is_rejected(dataset, tmp_path):
     write_json_atomic(dataset / "manifest.json", m)
     with pytest.raises(LoosefitInputError, match="format"):
         DatasetReader(dataset)
+
+
+def _with_cloth(root, fingerprints: dict) -> dict:
+    """The manifest with a cloth configuration and clip entries of these fingerprints."""
+    from loosefit.garment.fingerprint import cloth_fingerprint
+
+    manifest = json.loads((root / "manifest.json").read_text())
+    manifest["config"] = {"cloth": {"substeps": 20, "device": "cuda:0"}}
+    ours = cloth_fingerprint(manifest["config"]["cloth"])
+    manifest["sequences"] = {n: ({"cloth_fingerprint": fp.replace("OURS", ours)} if fp else {})
+                             for n, fp in fingerprints.items()}  # fmt: skip
+    write_json_atomic(root / "manifest.json", manifest)
+    return manifest
+
+
+def test_a_clip_of_another_cloth_configuration_is_refused_for_training(dataset):
+    from loosefit.garment.fingerprint import cloth_fingerprint
+
+    ours = cloth_fingerprint({"substeps": 20, "device": "cpu"})  # the device left out
+    _with_cloth(dataset, {"s0": "OURS", "s1": None, "s2": "0123456789abcdef"})
+    reader = DatasetReader(dataset)
+    reader.check_uniform(["s0", "s1"])  # s1's entry predates the field: the manifest's
+    assert reader.training_clips("train") == ["s0", "s1"]
+    with pytest.raises(LoosefitInputError) as err:
+        reader.check_uniform(["s0", "s2"])
+    text = str(err.value)
+    assert "manifest.json" in text and "s2" in text and ours in text and "0123456789abcdef" in text
+    assert "one garment, avatar and cloth configuration" in text
+    with pytest.raises(LoosefitInputError, match="s2"):
+        reader.training_clips("test")
+    with pytest.raises(LoosefitInputError, match="s2"):
+        FrameDataset(reader, "all")

@@ -47,9 +47,7 @@ class _SplitData:
 
     def __init__(self, reader: DatasetReader, split: str) -> None:
         self.reader = reader
-        self.names = reader.split(split)
-        if not self.names:
-            raise LoosefitInputError(reader.root, f"split '{split}'", "sequences", "none")
+        self.names = reader.training_clips(split)
         self.sequences = [reader.read(n) for n in self.names]
         self.lengths = np.array([s.num_frames for s in self.sequences])
 

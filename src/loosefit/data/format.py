@@ -35,6 +35,7 @@ from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import (
     avatar_fingerprint,
     avatar_key,
+    cloth_fingerprint,
     garment_fingerprint,
     same_garment,
 )
@@ -200,6 +201,45 @@ class DatasetReader:
                 self.root / "manifest.json", "split", "train, test or all", repr(name)
             )
         return list(self.manifest["split"][name])
+
+    def check_uniform(self, names: list[str]) -> None:
+        """Refuse clips simulated under another cloth configuration than the manifest's.
+
+        Each clip's entry records its configuration's fingerprint (``cloth_fingerprint``,
+        the device left out); an entry without one (a data set made before it was
+        recorded) is taken as the manifest's configuration. The garment and the avatar are
+        checked as each clip is read (:func:`read_sequence`).
+
+        Raises:
+            LoosefitInputError: naming the manifest, the clip and both fingerprints.
+        """
+        mpath = self.root / "manifest.json"
+        cloth = self.manifest.get("config", {}).get("cloth")
+        ours = cloth_fingerprint(cloth) if isinstance(cloth, dict) else None
+        entries = self.manifest.get("sequences", {})
+        for name in names:
+            theirs = entries.get(name, {}).get("cloth_fingerprint")
+            if theirs is None:
+                continue
+            if ours is None:  # no configuration in the manifest: the first clip's
+                ours = theirs
+            elif theirs != ours:
+                raise LoosefitInputError(
+                    mpath, f"sequences.{name}.cloth_fingerprint",
+                    f"the data set's cloth configuration (fingerprint {ours})",
+                    f"clip {name} simulated under another one (fingerprint {theirs})",
+                    hint="a data set holds one garment, avatar and cloth configuration: "
+                    "simulate the other into its own",
+                )  # fmt: skip
+
+    def training_clips(self, split: str) -> list[str]:
+        """The clips of a split to train on: at least one, all of the data set's cloth
+        configuration (:meth:`check_uniform`)."""
+        names = self.split(split)
+        if not names:
+            raise LoosefitInputError(self.root, f"split '{split}'", "at least one clip", "none")
+        self.check_uniform(names)
+        return names
 
     def sequence_path(self, name: str) -> Path:
         return self.root / "sequences" / f"{name}.npz"

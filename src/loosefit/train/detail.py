@@ -163,9 +163,7 @@ def rollout_pairs(
 ) -> DetailPairs:
     """Roll every clip of a split out with the motion stage alone and pair each frame with
     the simulation (mirrored clips too with ``mirror``)."""
-    names = reader.split(split)
-    if not names:
-        raise LoosefitInputError(reader.root, f"split '{split}'", "at least one clip", "none")
+    names = reader.training_clips(split)
     twins = vertex_twins(reader.template.vertices) if mirror else None
     decoded, codes, target, clips = [], [], [], []
     for name in names:

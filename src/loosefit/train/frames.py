@@ -84,9 +84,7 @@ def prepare_split(
         :class:`PreparedFrames`.
     """
     skinning = skinning or InverseSkinningConfig()
-    names = reader.split(split)
-    if not names:
-        raise LoosefitInputError(reader.root, f"split '{split}'", "at least one clip", "none")
+    names = reader.training_clips(split)
     template = torch.from_numpy(reader.template.vertices)
     seeds = avatar.seed_points(skinning.num_seeds)
     weights = seed_weights(template, seeds.rest.float().cpu(), skinning.temperature)[None]

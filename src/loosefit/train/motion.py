@@ -318,9 +318,7 @@ def prepare_clips(
     the simulation of the mirrored motion, up to the body's own asymmetry (mm).
     ``joints`` names the joint set of the features (``MotionEncoderConfig.joints``).
     """
-    names = reader.split(split)
-    if not names:
-        raise LoosefitInputError(reader.root, f"split '{split}'", "at least one clip", "none")
+    names = reader.training_clips(split)
     twins = vertex_twins(reader.template.vertices) if mirror else None
     clips = []
     for name in names:
