@@ -7,6 +7,7 @@ Subcommands:
     inspect-motion  a motion file's joints, how they map onto the avatar, height, units
     garment  make a parametric skirt or import an OBJ, write OBJ + template (.npz)
     simulate simulate a garment dataset with Newton's VBD cloth solver
+    dataset  pack a data set small enough to share, or unpack one (verified)
     view     sequences in a 3D viewer in the browser (body, garment, colour by error)
     export-model  the learned runtime as ONNX (+ JSON) for a game engine
 """
@@ -547,6 +548,35 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     )  # fmt: skip
     print(format_report(manifest))
     _log(f"dataset in {args.out}")
+    return 0
+
+
+def cmd_dataset(args: argparse.Namespace) -> int:
+    mib = 2**20
+    if args.action == "pack":
+        from loosefit.data.pack import pack
+
+        bar = tqdm_bar(f"pack {args.folder}", "file")
+        try:
+            r = pack(args.folder, args.out, args.piece_mib, args.workers, progress=bar.progress)
+        finally:
+            bar.close()
+        where = str(r.paths[0]) + (f" ... {r.paths[-1].name}" if len(r.paths) > 1 else "")
+        print(f"{where}: {r.packed_bytes / mib:.1f} MiB in {len(r.paths)} file(s), "
+              f"{r.files} files ({r.clips} clips); {r.ratio:.1f}x smaller than the .npz files "
+              f"({r.npz_bytes / mib:.1f} MiB); vertices within {r.max_error * 1e3:.4f} mm of "
+              f"the data set's (at most {r.step * 500:g} mm), every other array exact")  # fmt: skip
+        return 0
+    from loosefit.data.pack import unpack
+
+    bar = tqdm_bar(f"unpack {args.pack}", "file")
+    try:
+        r = unpack(args.pack, args.dest, progress=bar.progress)
+    finally:
+        bar.close()
+    checked = "the pack's index" if r.indexed else "its manifest"
+    _log(f"unpacked {r.files} files ({r.clips} clips) from {len(r.pieces)} file(s) into "
+         f"{r.dest}, checked against {checked}")  # fmt: skip
     return 0
 
 
@@ -1252,6 +1282,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="take the clips this dataset shares with the one in FOLDER (simulated "
                    "alike) instead of simulating them again")  # fmt: skip
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("dataset", help="pack a data set small enough to share, or unpack one")
+    dsub = p.add_subparsers(dest="action", required=True)
+    d = dsub.add_parser("pack", help="a data set folder into one file or numbered pieces "
+                        "(garment vertices to 0.02 mm, all else exact), with an index of "
+                        "sizes and sha256")  # fmt: skip
+    d.add_argument("folder", help="the data set folder (manifest.json, template.npz, sequences/)")
+    d.add_argument("out", help="the pack's file (with --piece-mib: OUT.000, OUT.001, ...)")
+    d.add_argument("--piece-mib", type=float, default=None, metavar="N",
+                   help="cut the pack into pieces of at most N MiB")  # fmt: skip
+    d.add_argument("--workers", type=int, default=1, help="processes coding the clips")
+    d.set_defaults(func=cmd_dataset)
+    d = dsub.add_parser("unpack", help="a pack into a data set folder, verified before it "
+                        "appears")  # fmt: skip
+    d.add_argument("pack", help="the pack's file, a folder of its pieces, or their common "
+                   "prefix (e.g. ../shared/datasets/dance.lfz.)")  # fmt: skip
+    d.add_argument("dest", help="the data set folder to make (new or empty)")
+    d.set_defaults(func=cmd_dataset)
 
     p = sub.add_parser("train", help="train a learned stage (resumable)")
     p.add_argument(
