@@ -129,6 +129,7 @@ def measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
     for key, f in faces.items():
         share, deep = inside(x, body, f)
         out[f"inside_{key}_mean"] = float(share.mean())
+        out[f"inside_{key}_max"] = float(share.max())  # the worst frame's share
         out[f"deep_{key}_frames"] = int((deep > PENETRATION_TOLERANCE).sum())
         out[f"deepest_{key}_m"] = float(deep.max())
     out["rmse_cm"] = 100 * rmse(x, truth)

@@ -1,61 +1,95 @@
 #!/usr/bin/env bash
-# Issue 35: the committed set retrained on the dance corpus (salsa and ballet), then the
-# paper's claims measured again on it (docs/RESULTS.md). On the CPU, every step resumable:
-# rerun the script to go on after a kill or in the next session.
+# The committed dance set (checkpoints/dance) and the paper's claims measured on dance never
+# seen (docs/RESULTS.md), from the simulated `dance` corpus, on the CPU. Every step resumes:
+# a finished run is reused, a killed one goes on from its last checkpoint; rerun the script
+# to go on after a kill or in the next session.
 #
-#   bash scripts/dance_models.sh             # the data, the set, the results
-#   STEPS=data bash scripts/dance_models.sh  # only the data (about 10 core-hours on the CPU)
+#   bash scripts/dance_models.sh                   # the data, both sets, the choice, results
+#   STEPS=data,set bash scripts/dance_models.sh    # only some of the steps
 #
-# 1. The `dance` data (docs/DATASET.md): the salsa clips and held-out chain, and the 17
-#    ballet and modern dance clips of cmu-ballet beside the salsa folder, three held out.
-# 2. The committed salsa set (checkpoints/salsa) fine-tuned on it with issue 34's winning
-#    physics terms (docs/PHYSICS_ABLATION.md): the generative model with membrane, bending
-#    and collision (g-mbc), the motion stage on it with membrane and hem flare (m-mf,
-#    mirrored clips), the detail stage on that; packaged into checkpoints/dance. The salsa set
-#    stays reproducible by scripts/salsa_models.sh and scripts/physics_models.sh.
-# 3. scripts/results.sh on dance: the generative ablation (two seeds each), both baselines
-#    (two seeds each) and bench/results.py on the held-out chain and the ballet clips.
+# 1. data: the corpus, unpacked from ../shared/datasets (`loosefit dataset unpack`, about
+#    10 s) when it is there, else simulated (`loosefit simulate --preset dance`, about 10
+#    core-hours); a clip already in datasets/dance is never simulated again. The physical
+#    reference: the held-out chain's first 300 frames and ballet 05_10 simulated again from
+#    another seed (configs/reference_seed.yaml, about 20 CPU minutes).
+# 2. set: two candidate sets on the corpus's training clips, one core each, side by side:
+#    `ft`, the committed salsa set (checkpoints/salsa) fine-tuned (10 + 10 + 4 epochs), and
+#    `scratch`, trained from nothing (30 + 30 + 4 epochs), both with the physics terms of
+#    docs/PHYSICS_ABLATION.md (generative: membrane, bending, collision; motion: membrane,
+#    hem flare, mirrored clips). bench/compare_sets.py picks the one with the lower RMSE on
+#    the validation clips (simulated, left out of the split, never trained on; the held-out
+#    clips never decide) and it is packaged into checkpoints/dance.
+# 3. results: both baselines (two seeds each) and every method on the held-out chain and
+#    the three held-out ballet clips, with the physical reference row: docs/RESULTS.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${BIN:-.venv/bin}
-BVH=${BVH:-../shared/mocap/cmu-salsa}
+SHARED=${SHARED:-../shared}
+BVH=${BVH:-$SHARED/mocap/cmu-salsa}
 DATA=${DATA:-datasets/dance}
+REFERENCE=${REFERENCE:-datasets/dance-reference}
 RUNS=${RUNS:-runs/dance}
 BASE=${BASE:-checkpoints/salsa}
 SET=${SET:-checkpoints/dance}
 STEPS=${STEPS:-data,set,results}
-GEN_EPOCHS=${GEN_EPOCHS:-10}
-MOTION_EPOCHS=${MOTION_EPOCHS:-10}
-DETAIL_EPOCHS=${DETAIL_EPOCHS:-4}
 LR=${LR:-3e-4}
+export OMP_NUM_THREADS=1
 mkdir -p "$RUNS"
+step() { [[ ,$STEPS, == *,$1,* ]]; }
 
 # 1. the data
-"$BIN/loosefit" simulate --preset dance --bvh "$BVH" --out "$DATA" --workers 2
-[[ ,$STEPS, == *,set,* || ,$STEPS, == *,results,* ]] || exit 0
+if step data; then
+  if [ ! -f "$DATA/manifest.json" ] && [ -f "$SHARED/datasets/dance.lfz.000" ]; then
+    "$BIN/loosefit" dataset unpack "$SHARED/datasets/dance.lfz." "$DATA"
+  elif [ ! -f "$DATA/manifest.json" ] || ! grep -q '"complete": true' "$DATA/manifest.json"; then
+    "$BIN/loosefit" simulate --preset dance --bvh "$BVH" --out "$DATA" --workers 2
+  fi
+  "$BIN/loosefit" simulate --config configs/reference_seed.yaml --out "$REFERENCE" --workers 1 \
+      > "$RUNS/reference.log" 2>&1
+fi
 
 done_run() {  # a run whose report is written is finished
-  [ -f "$RUNS/$1/report.json" ] && echo "[dance_models] $1: done ($RUNS/$1/report.json)"
+  [ -f "$1/report.json" ] && echo "[dance_models] $1: done ($1/report.json)"
 }
-# 2. the set, each stage fine-tuned from the salsa set's
-if [[ ,$STEPS, == *,set,* ]]; then
-  done_run generative ||
-  "$BIN/loosefit" train generative --data "$DATA" --preset cpu --epochs "$GEN_EPOCHS" \
-      --lr "$LR" --init "$BASE/generative.pt" --membrane 1000 --bending 10 --collision 30 \
-      --out "$RUNS/generative" > "$RUNS/generative.log" 2>&1
-  done_run motion ||
-  "$BIN/loosefit" train motion --data "$DATA" --preset cpu --epochs "$MOTION_EPOCHS" \
-      --lr "$LR" --mirror --generative "$RUNS/generative/checkpoint.pt" \
-      --init "$BASE/motion.pt" --membrane 1000 --flare 1 \
-      --out "$RUNS/motion" > "$RUNS/motion.log" 2>&1
-  done_run detail ||
-  "$BIN/loosefit" train detail --data "$DATA" --preset cpu --epochs "$DETAIL_EPOCHS" \
-      --motion "$RUNS/motion/model.pt" --init "$BASE/detail.pt" \
-      --out "$RUNS/detail" > "$RUNS/detail.log" 2>&1
-  "$BIN/loosefit" package "$RUNS/motion/model.pt" --detail "$RUNS/detail/model.pt" --out "$SET"
+# one candidate set: generative, motion, detail, one thread; INIT: a set to start from or none
+candidate() {
+  local out=$1 gen_epochs=$2 motion_epochs=$3 init=$4 gen_init=() motion_init=() detail_init=()
+  if [ "$init" != none ]; then
+    gen_init=(--init "$init/generative.pt" --lr "$LR")
+    motion_init=(--init "$init/motion.pt" --lr "$LR")
+    detail_init=(--init "$init/detail.pt")
+  fi
+  mkdir -p "$out"
+  done_run "$out/generative" ||
+  "$BIN/loosefit" train generative --data "$DATA" --preset cpu --epochs "$gen_epochs" \
+      "${gen_init[@]}" --membrane 1000 --bending 10 --collision 30 --threads 1 \
+      --out "$out/generative" > "$out/generative.log" 2>&1
+  done_run "$out/motion" ||
+  "$BIN/loosefit" train motion --data "$DATA" --preset cpu --epochs "$motion_epochs" --mirror \
+      --generative "$out/generative/checkpoint.pt" "${motion_init[@]}" --membrane 1000 \
+      --flare 1 --threads 1 --out "$out/motion" > "$out/motion.log" 2>&1
+  done_run "$out/detail" ||
+  "$BIN/loosefit" train detail --data "$DATA" --preset cpu --epochs 4 \
+      --motion "$out/motion/model.pt" "${detail_init[@]}" --threads 1 \
+      --out "$out/detail" > "$out/detail.log" 2>&1
+  "$BIN/loosefit" package "$out/motion/model.pt" --detail "$out/detail/model.pt" \
+      --out "$out/set"
+}
+# 2. the two candidates, the choice, the committed set
+if step set; then
+  candidate "$RUNS/ft" 10 10 "$BASE" & ft=$!
+  candidate "$RUNS/scratch" 30 30 none & scratch=$!
+  wait "$ft" "$scratch"
+  "$BIN/python" bench/compare_sets.py --data "$DATA" --cache "$RUNS/compare_sets" \
+      --sets salsa="$BASE/motion.pt" ft="$RUNS/ft/set/motion.pt" \
+      scratch="$RUNS/scratch/set/motion.pt" --out docs/DANCE_SETS.md
+  winner=$("$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])")
+  [ "$winner" != salsa ] || { echo "[dance_models] the salsa set won: nothing to commit"; exit 1; }
+  "$BIN/loosefit" package "$RUNS/$winner/motion/model.pt" \
+      --detail "$RUNS/$winner/detail/model.pt" --out "$SET"
 fi
 # 3. the paper's claims on dance
-if [[ ,$STEPS, == *,results,* ]]; then
+if step results; then
   DATA=$DATA RUNS=$RUNS CHECKPOINT=$SET/motion.pt TABLE=docs/GENERATIVE_DANCE_TABLE.md \
-      bash scripts/results.sh
+      REFERENCE=$REFERENCE bash scripts/results.sh
 fi

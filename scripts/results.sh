@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # docs/RESULTS.md (issues 21, 35): the paper's baselines and the generative ablation on a data
 # set (salsa; DATA=datasets/dance RUNS=runs/dance CHECKPOINT=... for dance), trained and
-# compared with the committed model on its held-out clips, on the CPU. Needs the salsa data
-# (scripts/salsa_models.sh step 1) and checkpoints/salsa. Every step resumes where a killed run
-# stopped (finished runs are reused); rerun the script to go on.
+# compared with the committed model on its held-out clips, on the CPU; REFERENCE=DATASET adds
+# the physical reference row (held-out motion simulated again from another seed). Needs the
+# data (scripts/salsa_models.sh step 1, scripts/dance_models.sh step 1) and the set it
+# compares. Every step resumes where a killed run stopped (finished runs are reused); rerun
+# the script to go on.
 #
 #   bash scripts/results.sh
 set -euo pipefail
@@ -30,20 +32,25 @@ seed1=$!
 #    images) for its 40 epochs, cpu preset, two seeds each (the second in METHOD-s1):
 #    Santesteban et al. 2019 (5 min of training on one core) and Pan et al. 2022's virtual bones
 #    (a Dem Bones decomposition of the 8,438 training frames, 4 min, then 15 min of training),
-#    after the ablation's seeds.
+#    after the ablation's seeds; the two seeds side by side.
 wait "$seed0" "$seed1"
-for seed in 0 1; do
+baselines() {  # one seed of both baselines, one after the other
+  local seed=$1 run
   for method in santesteban virtual-bones; do
     run="$RUNS/baselines/$method"
     [ "$seed" = 0 ] || run="$run-s$seed"
+    [ -f "$run/report.json" ] && continue  # finished
     "$BIN/loosefit" train baseline --method "$method" --data "$DATA" --preset cpu --mirror \
         --epochs "$EPOCHS" --seed "$seed" --threads 1 --out "$run" > "$run.log" 2>&1
   done
-done
+}
+baselines 0 & b0=$!
+baselines 1 & b1=$!
+wait "$b0" "$b1"
 # 3. Every method rolled out on the held-out chain and scored, the ablation's table, the plot
 #    and the renders: docs/RESULTS.md (about 15 min).
 "$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$EPOCHS" \
     --seeds 0,1 --out "$RUNS/ablation" --table "$TABLE"
 "$BIN/python" bench/results.py --data "$DATA" --checkpoint "$CHECKPOINT" \
     --baselines "$RUNS/baselines" --ablation "$RUNS/ablation" --cache "$RUNS/results" \
-    --out docs/RESULTS.md
+    ${REFERENCE:+--reference "$REFERENCE"} --out docs/RESULTS.md
