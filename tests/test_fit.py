@@ -156,7 +156,11 @@ def test_the_garment_command_fits_and_says_what_it_did(other_dress, tmp_path, ca
     np.testing.assert_array_equal(back.rest_vertices, placed.vertices)  # kept in the file
     # without --fit it is refused; --fit wants a file
     assert main(argv[:2] + ["--kind", "dress", "--out", str(tmp_path / "x")]) == 2
-    assert "placement" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "placement" in err and "vertices inside it" in err
+    # the refusal names the fix first, as the command to run, then the import's options
+    fix = f"`loosefit garment {other_dress} --fit --kind dress`"
+    assert err.index(fix) < err.index("--units") < err.index("--offset"), err
     assert main(["garment", "flared", "--fit", "--out", str(tmp_path / "y")]) == 2
     assert "--fit" in capsys.readouterr().err and not (tmp_path / "y").exists()
 

@@ -174,8 +174,20 @@ def test_a_garment_that_cannot_hang_clear_of_the_body_says_where(dresses, tmp_pa
     path = _export(dresses["strapless"], tmp_path / "low.obj", "cm", "y")
     with pytest.raises(LoosefitInputError,
                        match=r"low\.obj.*placement.*vertices inside it, the deepest "
-                       r"\(vertex \d+.*cm in\) at height .* m in the \w+"):  # fmt: skip
+                       r"\(vertex \d+.*cm in\) at height .* m in the \w+") as caught:  # fmt: skip
         import_garment(path, avatar, kind="dress", offset=(0.0, 0.06, -0.1))
+    # the fix named first, as a command to run with the options this import was given;
+    # the import's own options after it
+    hint = caught.value.hint
+    command = f"loosefit garment {path} --fit --kind dress --offset=0,0.06,-0.1"
+    assert hint.index(command) < hint.index("--units") < hint.index("--offset X,Y,Z"), hint
+    assert min(hint.find(o) for o in ("--units", "--kind dress", "--offset")) > hint.find("--fit")
+    # deeper than --fit pushes (10 cm): the options come first, --fit's reach after them
+    from loosefit.dress import _fit_hint
+
+    deep = _fit_hint(path, import_garment(path, avatar, kind="dress", check=False)[0], avatar,
+                     0.25)  # fmt: skip
+    assert deep.index("--units") < deep.index("--fit") and "no deeper than 10 cm" in deep
 
 
 def test_a_closed_surface_has_no_up_axis_to_guess(tmp_path, avatar):

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from loosefit.body.avatar import Avatar, BodySequence
+from loosefit.body.avatar import DEFAULT_SHAPE, Avatar, BodySequence
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.dress import DRESS_SPECS, DressConfig, DressFit, make_dress
 from loosefit.garment.skirt import SkirtConfig, make_skirt, waist_fit_from_points
@@ -355,8 +355,33 @@ def check_clear_of_body(template: GarmentTemplate, avatar: Avatar, source="garme
         f"{len(inside)} of {template.num_vertices} vertices inside it, the deepest (vertex "
         f"{deepest}, {100 * hit.distance[deepest]:.1f} cm in) at height "
         f"{template.vertices[deepest, 2]:.3f} m in the {bone}",
-        hint="check --units and --kind, or move it with --offset X,Y,Z (metres)",
+        hint=_fit_hint(source, template, avatar, float(hit.distance[deepest])),
     )  # fmt: skip
+
+
+def _fit_hint(source, template: GarmentTemplate, avatar: Avatar, depth: float) -> str:
+    """What to do about a garment ``depth`` m inside the body: ``garment FILE --fit`` first
+    (the exact command: the options the import was given, the avatar's shape), when the push
+    can reach its deepest vertex; then the import's options."""
+    import shlex
+
+    from loosefit.fit import FitConfig
+
+    others = "check --units and --kind, or move it with --offset X,Y,Z (metres)"
+    reach = FitConfig().reach
+    if depth > reach:  # --fit would refuse it too: the options first
+        return f"{others} (--fit pushes out vertices no deeper than {100 * reach:.0f} cm)"
+    command = f"loosefit garment {shlex.quote(str(source))} --fit"
+    given = (template.meta or {}).get("import", {})
+    for key in ("units", "up", "kind"):
+        if key in given and not given[key]["guessed"]:
+            command += f" --{key} {given[key]['value']}"
+    if "offset_m" in given.get("placement", {}):
+        command += " --offset=" + ",".join(f"{t:g}" for t in given["placement"]["offset_m"])
+    if avatar.shape != DEFAULT_SHAPE:  # fitted to this body, not the default one
+        command += " --shape " + ",".join(f"{k}={v:g}" for k, v in avatar.shape.items())
+    return (f"made for another body? fit it to this one with `{command}` and use the .npz it "
+            f"writes; or {others}")  # fmt: skip
 
 
 # -- garments ---------------------------------------------------------------------------------
@@ -445,6 +470,8 @@ def import_garment(path, avatar: Avatar, units: str | None = None, up: str | Non
     report["kind"] = {"value": kind or detect_kind(mesh.faces), "guessed": kind is None}
     kind = report["kind"]["value"]
     v, report["placement"] = place_garment(v, mesh.faces, avatar, kind, offset)
+    if any(offset):
+        report["placement"]["offset_m"] = [float(t) for t in offset]  # the --offset given
     waist, how = attachment_of(v, mesh.faces, kind, attach)
     report["attachment"] = {"vertices": len(waist), "as": how}
     uvs, face_uvs, uv_source = garment_uvs(v, mesh.faces, mesh.uvs, mesh.face_uvs)
