@@ -165,6 +165,36 @@ def test_the_garment_command_fits_and_says_what_it_did(other_dress, tmp_path, ca
     assert "--fit" in capsys.readouterr().err and not (tmp_path / "y").exists()
 
 
+def test_the_garment_command_shows_the_fit_s_stages_and_writes_a_preview(other_dress, tmp_path,
+                                                                        capsys):  # fmt: skip
+    from PIL import Image
+
+    from loosefit.cli import main
+    from loosefit.fit import CHECK, DRAPE, PLACE, PUSH
+
+    out = tmp_path / "out"
+    argv = ["garment", str(other_dress), "--fit", "--kind", "dress", "--settle", "0.1"]
+    assert main([*argv, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    # every stage in order, the drape frame by frame (0.1 s at 30 fps), with its rate
+    at = [err.index(f"fit: {stage}") for stage in (PLACE, PUSH, DRAPE, CHECK)]
+    assert at == sorted(at), err
+    assert "3/3" in err and "frame/s" in err
+    if "no preview picture" in err:
+        pytest.skip("no headless OpenGL (EGL) context on this machine")
+    preview = out / "other.preview.png"
+    assert f"wrote {preview}" in err
+    image = np.asarray(Image.open(preview).convert("RGB")).astype(int)
+    assert image.shape == (480, 960, 3)  # front and side, 480 pixels each
+    background = image[2, image.shape[1] // 2]  # a top corner of the side view
+    assert (np.abs(image - background).sum(-1) > 30).mean() > 0.05  # a picture, not blank
+    # the garment (orange-red) in both views, the body (grey) too
+    red = (image[..., 0] > 150) & (image[..., 0] - image[..., 2] > 80)
+    grey = (np.ptp(image, axis=-1) < 20) & (image[..., 0] < 200) & (image[..., 0] > 90)
+    for half in (slice(0, 480), slice(480, 960)):
+        assert red[:, half].mean() > 0.02 and grey[:, half].mean() > 0.01
+
+
 def test_simulate_takes_the_avatar_s_shape_into_the_data_set():
     from loosefit.cli import build_parser, dataset_config
 

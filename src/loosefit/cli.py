@@ -289,6 +289,34 @@ class tqdm_bar:  # noqa: N801 - reads like the tqdm call it wraps
         self.bar.close()
 
 
+class StageBars:
+    """One tqdm bar per stage of a long job, fed by ``progress(stage, done, total)``
+    callbacks: a stage's bar opens when it starts (its count, rate and time to go) and stays
+    on screen, with its time, when the next one starts."""
+
+    def __init__(self, prefix: str, units: dict[str, str]) -> None:
+        self.prefix, self.units = prefix, units
+        self.stage, self.bar = None, None
+
+    def progress(self, stage: str, done: int, total: int) -> None:
+        from tqdm import tqdm
+
+        if stage != self.stage:
+            self.close()
+            self.stage = stage
+            one = "{desc}: done in {elapsed}" if total == 1 else None  # no rate for one step
+            self.bar = tqdm(total=total or None, desc=f"{self.prefix}: {stage}",
+                            unit=self.units.get(stage, "step"), bar_format=one)  # fmt: skip
+        if total and self.bar.total != total:
+            self.bar.total = total
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        self.stage, self.bar = None, None
+
+
 def _frame_range(args, num_frames: int) -> tuple[int, int | None]:
     """``--start-frame`` and ``--max-frames`` as a slice of a clip of ``num_frames``."""
     start = getattr(args, "start_frame", 0) or 0
@@ -404,18 +432,47 @@ def _offset(text: str | None) -> tuple[float, float, float]:
 def _fit_file(args: argparse.Namespace):
     """``garment FILE --fit``: the file fitted to the avatar (or, ``--shape auto``, to the
     anny body it fits best); the template, the import's report, the fit's, the avatar."""
-    from loosefit.fit import FitConfig, fit_garment
+    from loosefit.fit import STAGE_UNITS, FitConfig, fit_garment
 
     auto = args.shape.strip() == "auto"
     if auto:
         _log("--shape auto: searching anny's weight, height and proportions for the body the "
              "garment fits best")  # fmt: skip
-    template, fit, avatar = fit_garment(
-        args.source, "auto" if auto else None, FitConfig(settle_seconds=args.settle),
-        args.units, args.up, args.kind, _offset(args.offset), args.attach,
-        avatar=None if auto else _avatar(args),
-    )  # fmt: skip
+    bars = StageBars("fit", STAGE_UNITS)
+    try:
+        template, fit, avatar = fit_garment(
+            args.source, "auto" if auto else None, FitConfig(settle_seconds=args.settle),
+            args.units, args.up, args.kind, _offset(args.offset), args.attach,
+            avatar=None if auto else _avatar(args), progress=bars.progress,
+        )  # fmt: skip
+    finally:
+        bars.close()
     return template, template.meta["import"], fit, avatar
+
+
+def _fit_preview(path: Path, template, fit, avatar, size: int = 480) -> bool:
+    """A front and side picture of a fitted garment on the avatar's rest pose, standing on
+    the floor, written to ``path``; False (and why, logged) where nothing can render."""
+    import numpy as np
+
+    from loosefit.render.clip import render_still
+    from loosefit.render.renderer import RenderConfig, RenderMesh
+
+    up = np.array([0.0, 0.0, avatar.floor_height], np.float32)  # the rest pose's feet on z = 0
+    body = avatar.rest_vertices.float().cpu().numpy() + up
+    scene = [
+        RenderMesh(avatar.faces.cpu().numpy(), body, "body", name="body"),
+        RenderMesh(template.faces, template.vertices + up, "garment", name=template.name),
+    ]
+    title = (f"{template.name} fitted: {fit.inside_after} of {template.num_vertices} vertices "
+             f"inside the body, moved by at most {100 * fit.moved_max:.1f} cm")  # fmt: skip
+    config = RenderConfig(width=size, height=size, views=("front", "side"), frame_counter=False)
+    try:
+        render_still(scene, path, config, title)
+    except RuntimeError as exc:  # no OpenGL here: the garment is written all the same
+        _log(f"no preview picture: {exc}")
+        return False
+    return True
 
 
 def cmd_garment(args: argparse.Namespace) -> int:
@@ -468,6 +525,10 @@ def cmd_garment(args: argparse.Namespace) -> int:
         f"vertices, {len(template.faces)} faces, {len(template.waist)} attached vertices "
         f"(metres, Z up, on the avatar's rest pose)"
     )
+    if args.fit:
+        preview = out / f"{name}.preview.png"
+        if _fit_preview(preview, template, fit, avatar):
+            _log(f"wrote {preview}: the fitted garment on the avatar, front and side (check it)")
     return 0
 
 
@@ -1012,6 +1073,8 @@ def cmd_package(args: argparse.Namespace) -> int:
 
 
 def cmd_export_model(args: argparse.Namespace) -> int:
+    import json
+
     from loosefit.api import pretrained_checkpoint
     from loosefit.inference.animator import load_pipeline
     from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
@@ -1026,6 +1089,13 @@ def cmd_export_model(args: argparse.Namespace) -> int:
         f"wrote {onnx_path} ({onnx_path.stat().st_size / 1e6:.1f} MB), {json_path} and "
         f"{obj_path} (the garment's mesh)"
     )
+    check = json.loads(json_path.read_text()).get("check")  # what the export recorded
+    if check is None:
+        _log("not checked against PyTorch (--no-check)")
+    else:
+        _log(f"checked: onnxruntime {check['onnxruntime']} equals PyTorch within "
+             f"{check['max_difference_m']:.2g} m over {check['frames']} frames (the rest pose, "
+             f"then a bent one; {config.tolerance:g} m allowed)")  # fmt: skip
     return 0
 
 

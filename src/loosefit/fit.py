@@ -23,6 +23,7 @@ data set carries it on into training, the model and ``animate`` (its manifest's
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -33,6 +34,33 @@ from loosefit.errors import LoosefitInputError
 from loosefit.types import GarmentTemplate
 
 SHAPE_SEARCH = ("weight", "height", "proportions")  # the phenotypes --shape auto tries
+
+# The stages of a fit, in order, as ``progress(stage, done, total)`` names them, and what
+# each counts (total 0: not known beforehand). The search runs with ``shape="auto"`` only,
+# the drape with ``settle_seconds > 0``; the push runs again after a drape that left cloth
+# inside the body.
+SEARCH, PLACE, PUSH, DRAPE, CHECK = (
+    "search the body it fits",
+    "place on the avatar",
+    "push out of the body (Eq. 16)",
+    "drape on the avatar standing still",
+    "check what is left inside",
+)
+STAGE_UNITS = {SEARCH: "shape", PLACE: "step", PUSH: "step", DRAPE: "frame", CHECK: "step"}
+
+Progress = Callable[[str, int, int], None]  # progress(stage, done, total)
+
+
+def _stage(progress: Progress | None, stage: str, done: int, total: int = 1) -> None:
+    if progress is not None:
+        progress(stage, done, total)
+
+
+def _counter(progress: Progress | None, stage: str) -> Callable[[int, int], None] | None:
+    """``progress`` as the ``progress(done, total)`` of one stage's loop."""
+    if progress is None:
+        return None
+    return lambda done, total: progress(stage, done, total)
 
 
 @dataclass
@@ -131,7 +159,8 @@ def push_out(template: GarmentTemplate, avatar: Avatar, config: FitConfig) -> np
 
 
 def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | None = None,
-                 source="garment") -> tuple[GarmentTemplate, FitReport]:  # fmt: skip
+                 source="garment", progress: Progress | None = None
+                 ) -> tuple[GarmentTemplate, FitReport]:  # fmt: skip
     """A garment placed on the avatar's rest pose (perhaps partly inside the body) pushed
     out of it and draped there.
 
@@ -140,6 +169,8 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
         avatar: the body.
         config: the push and the drape.
         source: what errors name (the file).
+        progress: called as ``progress(stage, done, total)`` as each stage starts and as
+            it goes (:data:`STAGE_UNITS`: the push, every frame of the drape, the check).
 
     Returns:
         The fitted template (its ``meta["fit"]``: the report) and the :class:`FitReport`.
@@ -156,6 +187,7 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
 
     config = config or FitConfig()
     start = time.perf_counter()
+    _stage(progress, PUSH, 0)
     arms = collider_arms(template)
     v0 = template.vertices.astype(np.float64)
     inside_before, depth_before, dist = inside_of(v0, avatar, arms)
@@ -177,6 +209,7 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
             hint="a garment round the body, or deeper in it than "
             f"{100 * config.reach:.0f} cm, cannot be fitted: check --units and --kind",
         )  # fmt: skip
+    _stage(progress, PUSH, 1)
     fitted = pushed
     if config.settle_seconds > 0:
         from loosefit.sim.cloth import ClothConfig, settle
@@ -186,11 +219,18 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
         draped = GarmentTemplate(pushed.astype(np.float32), template.faces, template.uvs,
                                  template.face_uvs, template.waist, name=template.name,
                                  meta=dict(template.meta), rest_vertices=template.rest)  # fmt: skip
-        fitted = settle(avatar, draped, cloth, config.fps).astype(np.float64)
+        frames = int(round(cloth.settle_seconds * config.fps))  # as settle steps them
+        _stage(progress, DRAPE, 0, frames)
+        fitted = settle(avatar, draped, cloth, config.fps, _counter(progress, DRAPE))
+        fitted = fitted.astype(np.float64)
         if inside_of(fitted, avatar, arms)[1] > 0:  # the drape's contact left some: out again
+            _stage(progress, PUSH, 0)
             draped.vertices = fitted.astype(np.float32)
             fitted = push_out(draped, avatar, config)
+            _stage(progress, PUSH, 1)
+    _stage(progress, CHECK, 0)
     inside_after, depth_after, _ = inside_of(fitted, avatar, arms)
+    _stage(progress, CHECK, 1)
     push_d = np.linalg.norm(pushed - v0, axis=1)
     moved = np.linalg.norm(fitted - v0, axis=1)
     report = FitReport(
@@ -224,7 +264,8 @@ def shape_cost(template: GarmentTemplate, avatar: Avatar, ease: float = SHAPE_EA
     return float(depth.sum() + abs(hit.distance[template.waist].mean() - ease))
 
 
-def best_shape(place, start: dict | None = None, step: float = 0.2, rounds: int = 2
+def best_shape(place, start: dict | None = None, step: float = 0.2, rounds: int = 2,
+               progress: Callable[[int, int], None] | None = None
                ) -> tuple[dict, Avatar, int]:  # fmt: skip
     """The anny phenotype a garment fits best (:func:`shape_cost`), by coordinate descent
     over :data:`SHAPE_SEARCH` from ``start`` (default: the project's avatar), each value in
@@ -235,6 +276,8 @@ def best_shape(place, start: dict | None = None, step: float = 0.2, rounds: int 
         start: the phenotype to start from.
         step: the first round's step.
         rounds: rounds of the descent.
+        progress: called as ``progress(tried, 0)`` after each shape tried (0: the number
+            of shapes to try is not known beforehand).
 
     Returns:
         The shape, its avatar, and how many shapes were tried.
@@ -247,6 +290,8 @@ def best_shape(place, start: dict | None = None, step: float = 0.2, rounds: int 
         if key not in seen:
             avatar = Avatar(AvatarConfig(shape=dict(s)))
             seen[key] = (shape_cost(place(avatar), avatar), avatar)
+            if progress is not None:
+                progress(len(seen), 0)
         return seen[key][0]
 
     best = cost(shape)
@@ -266,7 +311,8 @@ def best_shape(place, start: dict | None = None, step: float = 0.2, rounds: int 
 
 def fit_garment(path, shape: dict | str | None = None, config: FitConfig | None = None,
                 units: str | None = None, up: str | None = None, kind: str | None = None,
-                offset=(0.0, 0.0, 0.0), attach="auto", avatar: Avatar | None = None
+                offset=(0.0, 0.0, 0.0), attach="auto", avatar: Avatar | None = None,
+                progress: Progress | None = None
                 ) -> tuple[GarmentTemplate, FitReport, Avatar]:  # fmt: skip
     """A garment file made for another body, fitted to the avatar's rest pose.
 
@@ -277,6 +323,8 @@ def fit_garment(path, shape: dict | str | None = None, config: FitConfig | None 
         config: the push and the drape.
         units, up, kind, offset, attach: as for :func:`~loosefit.dress.import_garment`.
         avatar: the body, already built (then ``shape`` must be None).
+        progress: called as ``progress(stage, done, total)`` as each of the fit's stages
+            (:data:`STAGE_UNITS`) starts and as it goes.
 
     Returns:
         The fitted template, the :class:`FitReport`, and the avatar (simulate on it).
@@ -306,10 +354,14 @@ def fit_garment(path, shape: dict | str | None = None, config: FitConfig | None 
 
     tried = 0
     if shape == "auto":
-        found, avatar, tried = best_shape(place)
+        _stage(progress, SEARCH, 0, 0)
+        found, avatar, tried = best_shape(place, progress=_counter(progress, SEARCH))
     elif avatar is None:
         avatar = Avatar(AvatarConfig(shape=dict(shape or {})))
-    template, report = fit_template(place(avatar), avatar, config, path)
+    _stage(progress, PLACE, 0)
+    placed = place(avatar)
+    _stage(progress, PLACE, 1)
+    template, report = fit_template(placed, avatar, config, path, progress)
     report.shape_tried, report.seconds = tried, time.perf_counter() - start
     template.meta["fit"] = asdict(report)
     return template, report, avatar

@@ -153,8 +153,14 @@ def test_cli_export_model_end_to_end(model, tmp_path, capsys):
     out = tmp_path / "engine" / "salsa.onnx"
     out.parent.mkdir()
     assert main(["export-model", str(out), "--no-detail"]) == 0
-    assert "wrote" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "wrote" in err
     meta = json.loads(out.with_suffix(".json").read_text())
+    # the check against PyTorch said, with the figures the JSON records
+    check = meta["check"]
+    said = (f"equals PyTorch within {check['max_difference_m']:.2g} m over {check['frames']} "
+            "frames")  # fmt: skip
+    assert said in err and check["max_difference_m"] < 1e-4, err
     assert "detail generator" not in meta["stages"]["in_graph"]
     motion = motion_for("kick", model.model.avatar(), model.fps, 20)
     want = model.model.animate(motion, stages=MOTION_ONLY).vertices

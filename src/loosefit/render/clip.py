@@ -1,4 +1,5 @@
-"""Render a whole animated scene to an MP4, chosen PNG frames and a contact sheet, in one pass."""
+"""Render a whole animated scene to an MP4, chosen PNG frames and a contact sheet, in one pass;
+or one frame of it to a PNG (:func:`render_still`)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from loosefit.atomic import atomic_path
 from loosefit.render.renderer import RenderConfig, Renderer, RenderMesh
 from loosefit.render.video import contact_sheet, write_video
 
@@ -82,3 +84,31 @@ def render_clip(
         sheet = out_dir / f"{name}_sheet.png"
         Image.fromarray(contact_sheet(sheet_images, cols=cols)).save(sheet)
     return ClipOutputs(video=Path(video), frames=pngs, sheet=sheet)
+
+
+def render_still(
+    scene: Sequence[RenderMesh],
+    path: str | Path,
+    config: RenderConfig | None = None,
+    title: str | None = None,
+    frame: int = 0,
+) -> np.ndarray:
+    """Render one frame of a scene from every view of ``config``, tiled side by side, and
+    write it as a PNG (atomically: a failed render leaves no file behind).
+
+    Args:
+        scene: meshes with T frames each (or static).
+        path: the PNG to write (its folder must exist).
+        config: how it looks (views, size, ...).
+        title: drawn top-left.
+        frame: which frame.
+
+    Returns:
+        The (H, N * W, 3) uint8 image written, N views.
+    """
+    config = config or RenderConfig(frame_counter=False)
+    with Renderer(config) as renderer:
+        image = next(iter(renderer.render_sequence(scene, title=title, frames=[frame])))
+    with atomic_path(Path(path)) as tmp:
+        Image.fromarray(image).save(tmp, format="PNG")
+    return image

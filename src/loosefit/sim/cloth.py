@@ -1422,7 +1422,11 @@ def simulate_batch(
 
 
 def settle(
-    avatar: Avatar, template: GarmentTemplate, config: ClothConfig | None = None, fps: float = 30.0
+    avatar: Avatar,
+    template: GarmentTemplate,
+    config: ClothConfig | None = None,
+    fps: float = 30.0,
+    progress: Callable[[int, int], None] | None = None,
 ) -> np.ndarray:
     """The garment draped on the rest pose: the settle phase of :func:`simulate` on its own.
 
@@ -1434,6 +1438,7 @@ def settle(
         template: the garment in the avatar's rest frame.
         config: the physics (``settle_seconds``, ``settle_damping``, ...).
         fps: the frame rate of the clips (the settle phase steps whole frames).
+        progress: called as ``progress(done, total)`` after every frame of the drape.
 
     Returns:
         (V, 3) float32 vertices in the rest pose's root frame (root joint at the
@@ -1458,4 +1463,6 @@ def settle(
     for k in range(n_settle - 1):
         sim.step_frame(body, body, config.settle_damping)
         _guard(sim.positions, body, config.max_distance, f"settle frame {k + 1}")
+        if progress is not None:
+            progress(k + 1, n_settle - 1)
     return (sim.positions - root.numpy()).astype(np.float32)
