@@ -48,7 +48,7 @@ def main() -> None:
             viewer.scale_max.value = args.scale
         width, height = (int(v) for v in args.size.split("x"))
         with Chromium(width=width, height=height, antialias=args.antialias) as browser:
-            browser.open(viewer.url, settle=3.0)
+            browser.open(viewer.url, settle=3.0, panel=viewer.panel_labels)  # all controls
             first = browser.settled_screenshot()
             viewer.set_frame(args.frame)
             shot = browser.settled_screenshot(first if args.frame else None)

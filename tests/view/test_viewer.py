@@ -70,7 +70,7 @@ def test_garment_is_drawn_and_moves(clips, chromium_binary, tmp_path):
     try:
         assert viewer.port > 0 and viewer.url.endswith(f":{viewer.port}")
         with Chromium(chromium_binary, width=800, height=600) as browser:
-            browser.open(viewer.url)
+            browser.open(viewer.url, panel=viewer.panel_labels)  # nothing arrives after
             first = browser.settled_screenshot()
             mask0, shot0 = _garment_mask(browser, viewer, 0, first)
             mask1, shot1 = _garment_mask(browser, viewer, 5, shot0)  # the hem swung out
@@ -82,6 +82,57 @@ def test_garment_is_drawn_and_moves(clips, chromium_binary, tmp_path):
         assert n0 > 500 and n1 > 500, f"garment pixels: {n0}, {n1} (see {tmp_path})"
         moved = int((mask0 ^ mask1).sum())
         assert moved > 0.1 * min(n0, n1), f"{moved} of {n0} garment pixels changed ({tmp_path})"
+    finally:
+        viewer.close()
+
+
+def test_the_panel_lists_the_controls_it_shows(clips):
+    a, still = clips
+    viewer = view([a], names=["clip a"], config=ViewerConfig(port=0, play=False))
+    try:  # one sequence, plain: no reference to pick, no scale
+        assert viewer.panel_labels == ["Playback", "Sequences", "Colour", "Play", "frame",
+                                       "speed", "camera follows", "loop", "layout", "bodies",
+                                       "clip a", "colour by"]  # fmt: skip
+    finally:
+        viewer.close()
+    viewer = view([a, still], names=["a", "still"],
+                  config=ViewerConfig(port=0, play=True, colouring="error"))  # fmt: skip
+    try:
+        labels = viewer.panel_labels
+        assert "Pause" in labels and {"a", "still", "reference", "scale max"} <= set(labels)
+    finally:
+        viewer.close()
+
+
+def test_a_screenshot_waits_for_the_whole_panel(clips, chromium_binary, tmp_path):
+    """The page loads at once and its panel arrives after, over the websocket: a screenshot
+    taken once the page held still showed it empty or half built, one time in four."""
+    from PIL import Image
+
+    from loosefit.view.headless import PANEL
+
+    a, still = clips
+    viewer = view([a, still], names=["a", "still"],
+                  config=ViewerConfig(port=0, play=False, colouring="error"))  # fmt: skip
+    try:
+        labels = viewer.panel_labels
+        with Chromium(chromium_binary, width=1000, height=800) as browser:
+            browser.open(viewer.url, settle=0.0, panel=labels)  # no time given it to settle
+            assert browser.panel_missing(labels) == []
+            shot = browser.settled_screenshot()
+            x, y, w, h = browser.evaluate(
+                f"(() => {{ const r = document.querySelector('{PANEL}').getBoundingClientRect();"
+                " return [r.x, r.y, r.width, r.height]; })()"
+            )
+            with pytest.raises(TimeoutError, match="lacks \\['no such control'\\]"):
+                browser.wait_for_panel([*labels, "no such control"], timeout=0.5)
+        Image.fromarray(shot).save(tmp_path / "viewer.png")
+        # the panel drawn: all three folders tall, text and the blue Play button in it
+        assert h > 400, f"the panel is {h} px high ({tmp_path})"
+        panel = shot[int(y) : int(y + h), int(x) : int(x + w)].astype(int)  # (h, w, 3)
+        dark = (panel.max(-1) < 120).mean()  # text, outlines
+        blue = ((panel[..., 2] > 180) & (panel[..., 0] < 80)).mean()
+        assert dark > 0.01 and blue > 0.005, f"dark {dark:.3f}, blue {blue:.3f} ({tmp_path})"
     finally:
         viewer.close()
 

@@ -89,6 +89,9 @@ INSTRUMENT = """
   window.Worker.prototype = Base.prototype;
 })();
 """.replace("BODY_BYTES", str(BODY_BYTES))
+# Viser's control panel in the page (its floating window; below 576 px wide viser shows a
+# sheet at the bottom instead, which carries no such mark: then the whole page is searched).
+PANEL = '[data-testid="floating-panel"]'
 # Viser's notice that WebGL runs in software (true here) would cover part of the view.
 HIDE_NOTICES = (
     "const s = document.createElement('style');"
@@ -205,13 +208,51 @@ class Chromium:
         result = self.call("Runtime.evaluate", expression=expression, returnByValue=True)
         return result.get("result", {}).get("value")
 
-    def open(self, url: str, settle: float = 2.0) -> None:
-        """Load ``url`` and wait until it has loaded and ``settle`` seconds more."""
+    def open(self, url: str, settle: float = 2.0, panel: Sequence[str] = ()) -> None:
+        """Load ``url`` and wait until it has loaded, its panel shows every label of
+        ``panel`` (:meth:`wait_for_panel`; a viewer's :attr:`~loosefit.view.server.Viewer.
+        panel_labels`) and ``settle`` seconds more."""
         self._events.clear()
         self.call("Page.navigate", url=url)
         self._wait_event("Page.loadEventFired")
         self.evaluate(HIDE_NOTICES)
+        if panel:
+            self.wait_for_panel(panel)
         time.sleep(settle)
+
+    def panel_missing(self, labels: Sequence[str]) -> list[str] | None:
+        """Those of ``labels`` not (yet) in the page's control panel (:data:`PANEL`, or the
+        whole page where there is none); None before the page has a body."""
+        script = (
+            f"(() => {{ const root = document.querySelector({json.dumps(PANEL)}) || document.body;"
+            " if (!root) return null; const text = root.textContent;"
+            f" return {json.dumps(list(labels))}.filter((s) => !text.includes(s)); }})()"
+        )
+        return self.evaluate(script)
+
+    def wait_for_panel(self, labels: Sequence[str], timeout: float | None = None) -> float:
+        """Wait until the page's control panel holds every one of ``labels`` (the page
+        loads at once; its panel arrives over the websocket after, control by control, and
+        a screenshot before then shows it empty or half built).
+
+        Returns:
+            The seconds waited.
+
+        Raises:
+            TimeoutError: naming the labels still missing after ``timeout`` s (default:
+                the browser's).
+        """
+        start = time.monotonic()
+        timeout = self.timeout if timeout is None else timeout
+        while True:
+            missing = self.panel_missing(labels)
+            if missing == []:
+                return time.monotonic() - start
+            if time.monotonic() - start > timeout:
+                lacks = list(labels) if missing is None else missing
+                raise TimeoutError(f"the viewer's panel still lacks {lacks} after "
+                                   f"{timeout:g} s")  # fmt: skip
+            time.sleep(0.1)
 
     def _wait_event(self, method: str) -> dict:
         deadline = time.monotonic() + self.timeout

@@ -38,6 +38,7 @@ BODY_COLOUR = (205, 200, 195)
 FLOOR_SIZE = 6.0  # m
 MAX_UPDATES_PER_S = 60.0  # faster playback skips frames rather than flood the browser
 PANEL_EVERY_S = 0.25  # while playing, the slider and figures follow this often
+PANEL_FOLDERS = ("Playback", "Sequences", "Colour")  # the panel's folders, top to bottom
 
 
 class Viewer:
@@ -46,6 +47,10 @@ class Viewer:
     Args:
         sequences: what to show (:func:`~loosefit.view.scene.from_animated`).
         config: how to serve and start.
+
+    The scene and the whole panel are built before the constructor returns: whatever
+    announces :attr:`url` (``loosefit view``'s line, :meth:`AnimatedGarment.view`) does so
+    once a browser opening it gets every control.
 
     Attributes:
         url: where a browser opens it.
@@ -159,18 +164,19 @@ class Viewer:
 
     def _build_panel(self) -> None:
         gui, c, T = self.server.gui, self.config, self.num_frames
-        with gui.add_folder("Playback"):
+        playback, sequences, colour = PANEL_FOLDERS
+        with gui.add_folder(playback):
             self.play_button = gui.add_button("Pause" if self.playing else "Play")
             self.slider = gui.add_slider("frame", 0, max(T - 1, 1), 1, 0, disabled=T == 1)
             self.speed = gui.add_slider("speed", 0.1, 4.0, 0.05, float(c.speed))
             self.follow_box = gui.add_checkbox("camera follows", c.follow)
             self.loop_box = gui.add_checkbox("loop", c.loop)
             self.time_text = gui.add_markdown("")
-        with gui.add_folder("Sequences"):
+        with gui.add_folder(sequences):
             self.layout = gui.add_dropdown("layout", LAYOUTS, initial_value=c.layout)
             self.body_box = gui.add_checkbox("bodies", True)
             self.seq_boxes = [gui.add_checkbox(s.name, True) for s in self.sequences]
-        with gui.add_folder("Colour"):
+        with gui.add_folder(colour):
             modes = [k for k in COLOURINGS if len(self.sequences) > 1 or k != "error"]
             self.mode = gui.add_dropdown("colour by", [COLOURINGS[k] for k in modes],
                                          initial_value=COLOURINGS[c.colouring])  # fmt: skip
@@ -183,6 +189,15 @@ class Viewer:
             self.stats = gui.add_markdown("")
         self._wire_panel()
         self._mode_changed()
+
+    @property
+    def panel_labels(self) -> list[str]:
+        """The labels a browser shows in the panel as it is now: the folders' and the shown
+        controls' (a headless screenshot waits for them: the panel has arrived)."""
+        controls = [self.play_button, self.slider, self.speed, self.follow_box, self.loop_box,
+                    self.layout, self.body_box, *self.seq_boxes, self.mode, self.reference,
+                    self.scale_max]  # fmt: skip
+        return list(PANEL_FOLDERS) + [c.label for c in controls if c.visible]
 
     def _wire_panel(self) -> None:
         @self.play_button.on_click
