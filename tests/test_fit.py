@@ -134,11 +134,14 @@ def test_a_fitted_template_refuses_another_avatar(fitted):
 
 def test_the_shape_search_finds_the_body_a_garment_was_made_for(other_dress):
     """From the project's avatar, one round of steps: the body is heavier and taller."""
+    calls = []
     shape, body, tried = best_shape(
-        lambda a: import_garment(other_dress, a, kind="dress", check=False)[0], rounds=1
-    )
+        lambda a: import_garment(other_dress, a, kind="dress", check=False)[0], rounds=1,
+        progress=lambda done, total: calls.append((done, total)),
+    )  # fmt: skip
     assert shape["weight"] > 0.5 and shape["height"] > 0.5, shape
     assert body.shape == shape and tried >= 4
+    assert calls == [(k, 0) for k in range(1, tried + 1)]  # shape by shape, no total known
 
 
 def test_the_garment_command_fits_and_says_what_it_did(other_dress, tmp_path, capsys):
