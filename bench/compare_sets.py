@@ -24,6 +24,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -119,6 +120,8 @@ def main() -> None:
     p.add_argument("--cache", default="runs/dance/compare_sets")
     p.add_argument("--out", default="docs/DANCE_SETS.md")
     p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--max-frames", type=int, default=None, help="each clip's first frames only "
+                   "(a quick look; the choice is made on whole clips)")  # fmt: skip
     args = p.parse_args()
     torch.set_num_threads(args.threads)
     reader = DatasetReader(args.data)
@@ -130,7 +133,12 @@ def main() -> None:
         model = load_pipeline(ckpt)
         for group, clips in groups.items():
             for clip in clips:
-                f = clip_figures(model, reader.read(clip), Path(args.cache, name, f"{clip}.json"))
+                seq = reader.read(clip)
+                if args.max_frames:
+                    n = args.max_frames
+                    seq = replace(seq, motion=seq.motion.slice(0, n),
+                                  garment_vertices=seq.garment_vertices[:n])  # fmt: skip
+                f = clip_figures(model, seq, Path(args.cache, name, f"{clip}.json"))
                 figures[group][name].append(f)
                 per_clip.setdefault(clip, {})[name] = f
                 print(f"{name} {group} {clip}: RMSE {f['row']['rmse_cm']:.2f} cm, edge change "
@@ -151,7 +159,7 @@ def main() -> None:
         "",
         "Sets: " + "; ".join(f"`{n}` = `{c}`" for n, c in sets.items()) + ".",
         "",
-        *table(groups, list(sets)),
+        *table(figures, list(sets)),
         "",
         f"**Chosen: `{winner}`**, the lowest validation RMSE ("
         + ", ".join(f"{n} {v:.2f} cm" for n, v in val.items())
