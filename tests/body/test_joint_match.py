@@ -304,3 +304,24 @@ def test_a_joint_map_template_is_filled_in_and_loads(avatar, dance, tmp_path):
     path.write_text(text)
     jmap = load_joint_map_file(path, half.joint_names)
     assert jmap.joints["Hips"] == "mixamorig:Hips" and "RightUpLeg" not in jmap.joints
+
+
+def test_a_nameless_rig_whose_zero_pose_does_not_stand_is_matched_on_its_frames(
+    avatar, dance, tmp_path
+):
+    # No names, every bone along X at zero pose, Z up (given), the dancer starting turned
+    # 150 degrees away: matched by structure on frame 0, sides told once the frame is
+    # turned to face -Y by its feet.
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_euler("z", 150, degrees=True).as_matrix().astype(np.float32)
+    rot = dance.rotations.copy()
+    rot[:, 0] = R @ rot[:, 0]
+    away = dataclasses.replace(dance, rotations=rot, root_translation=dance.root_translation @ R.T)
+    conv = dataclasses.replace(NAMELESS, bone_axis="x", orient_twist=29.0, up="+z", forward="-y")
+    clip = _write(tmp_path, "n.bvh", conv, avatar, away)
+    cfg = RetargetConfig(fps=None, source_up="+z")
+    match = resolve_joint_map(clip, cfg)
+    assert match.joint_map.joints == conv.joints
+    assert "turned to face -Y by its feet" in match.notes[-1]
+    assert _retarget_error(avatar, away, conv, clip, cfg)[0] < 1 * CM

@@ -103,7 +103,7 @@ class MotionInspection:
         if unused:
             lines.append(f"  source joints not used: {', '.join(unused)}")
         if jmap.align:
-            lines.append(f"  aligned at rest: {', '.join(jmap.align)}")
+            lines.append(f"  limbs matched bone by bone: {', '.join(jmap.align)}")
         lines += [f"  {n}" for n in self.match.notes]
         return "\n".join(lines)
 

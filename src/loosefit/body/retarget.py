@@ -167,16 +167,20 @@ def source_axes(
     are Y up); ``"auto"`` forward: :data:`FORWARD_FOR_UP` of the up axis.
 
     Returns:
-        (up, forward, how): e.g. ("+z", "-y", "found from the frames (feet to head)").
+        (up, forward, how): e.g. ("+z", "-y", "found from the frames (feet to head)"),
+        ("+y", "+z", "glTF's").
     """
     config = config or RetargetConfig()
     up = (jmap.source_up if jmap is not None else None) or config.source_up
     how = "given"
     if up == "auto":
-        found = None
-        if clip.meta.get("format") is None:  # a BVH file: its axes are its writer's choice
+        form = clip.meta.get("format")
+        if form is not None:  # glTF is Y up; SMPL clips are turned Y up as they are read
+            up, how = "+y", f"{form}'s"
+        else:  # a BVH file: its axes are its writer's choice
             found = guess_up(clip.joint_names, _kinematics(clip)[0])
-        up, how = (found, "found from the frames (feet to head)") if found else ("+y", "default")
+            up, how = (found, "found from the frames (feet to head)") if found else (
+                "+y", "default: no head and feet named")  # fmt: skip
     forward = (jmap.source_forward if jmap is not None else None) or config.source_forward
     if forward == "auto":
         forward = FORWARD_FOR_UP.get(up, "+z")
