@@ -28,9 +28,10 @@ from loosefit.body.avatar import Skeleton
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
 
-# The figures below are bench/pose_check_margins.py's: each procedural move (3 seeds),
-# three dances, and the CMU clips at their own 120 fps (the check runs at the clip's rate,
-# before resampling), retargeted as `loosefit animate` loads them.
+# The figures below are bench/pose_check_margins.py's (rerun it to see them; the dev
+# machine, 2 CPU cores, about 5 minutes): each procedural move (3 seeds), three dances,
+# and the CMU clips at their own 120 fps (the check runs at the clip's rate, before
+# resampling), retargeted as `loosefit animate` loads them.
 #
 # 1. Upright in at least MIN_UPRIGHT of the frames: the head above the hips by at least
 # STAND_MARGIN of its height above them at rest, and the hips above the lower ankle by
