@@ -173,3 +173,34 @@ def test_motion_commands_take_gltf_and_smpl_files(tmp_path, capsys, avatar):
     assert Motion.load(out).num_frames == 4  # 60 fps resampled to 30
     assert main(["inspect-motion", str(smpl)]) == 0
     assert "up: +y in the file's world (detected" in capsys.readouterr().out
+
+
+def test_inspect_motion_draws_the_capture_beside_the_avatar(tmp_path, capsys, avatar):
+    import numpy as np
+    from PIL import Image
+
+    from loosefit.body.joint_maps import load_joint_map_file
+    from loosefit.body.motions import load_motion
+    from loosefit.render.renderer import Renderer
+    from tests.body.bvh_conventions import STUDIO_X, write_convention_bvh
+
+    motion = load_motion("spin", avatar).slice(0, 20)
+    path = write_convention_bvh(tmp_path / "studio.bvh", STUDIO_X, avatar.skeleton, motion,
+                                avatar.floor_height)  # fmt: skip
+    mapping = tmp_path / "studio.yaml"
+    args = ["inspect-motion", str(path), "--write-joint-map", str(mapping)]
+    try:
+        Renderer().close()
+        sheet = tmp_path / "sheet.png"
+        args += ["--sheet", str(sheet), "--sheet-frames", "4"]
+    except RuntimeError:  # no headless OpenGL here: the report and the map only
+        sheet = None
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert "calibration: clip" in captured.out and "studio.yaml" in captured.err
+    assert load_joint_map_file(mapping).joints["LeftUpLeg"] == "UpperLeg_L"
+    if sheet is not None:
+        assert "pose check: passes" in captured.out
+        image = np.asarray(Image.open(sheet))
+        assert image.shape[0] > 300 and image.shape[1] > 1000  # 4 pictures, 3 to a row
+        assert "frames [0, 6, 13, 19]" in captured.err

@@ -125,6 +125,10 @@ def _add_bvh_args(p: argparse.ArgumentParser, units: tuple[str, ...]) -> None:
     p.add_argument("--smpl-up", default="auto", choices=("auto", "+x", "-x", "+y", "-y", "+z",
                    "-z"), help="an SMPL .npz's world up axis (AMASS: +z; default: found from "
                    "its root orientations)")  # fmt: skip
+    p.add_argument("--no-pose-check", action="store_true",
+                   help="let through a motion capture whose retargeted poses fail the pose "
+                   "check (the body standing, its feet meeting the floor, no joint turning "
+                   "faster than a body can; docs/INPUTS.md)")  # fmt: skip
 
 
 def _retarget_config(args: argparse.Namespace):
@@ -133,8 +137,8 @@ def _retarget_config(args: argparse.Namespace):
     from loosefit.body.retarget import RetargetConfig
 
     return RetargetConfig(units=args.units, scale=args.scale, joint_map=args.joint_map,
-                          animation=args.animation, skin=args.skin,
-                          smpl_up=args.smpl_up)  # fmt: skip
+                          animation=args.animation, skin=args.skin, smpl_up=args.smpl_up,
+                          check_pose=not args.no_pose_check)  # fmt: skip
 
 
 def _parse_shape(text: str) -> dict[str, float]:
@@ -410,12 +414,55 @@ def cmd_motion(args: argparse.Namespace) -> int:
 
 def cmd_inspect_motion(args: argparse.Namespace) -> int:
     from loosefit.body.inspect_motion import inspect_motion
+    from loosefit.body.joint_match import joint_map_template
 
-    report = inspect_motion(args.file, _retarget_config(args))
+    config = _retarget_config(args)
+    report = inspect_motion(args.file, config)
     print(report.format())
+    if args.write_joint_map:
+        out = Path(args.write_joint_map)
+        out.write_text(joint_map_template(report.clip.joint_names, report.match, str(args.file),
+                                          (report.up, report.forward)))  # fmt: skip
+        _log(f"wrote {out}: correct it and pass --joint-map {out}")
     if report.error is not None:
         raise report.error
+    if args.sheet:
+        _motion_sheet(args, report.clip, config)
     return 0
+
+
+def _motion_sheet(args: argparse.Namespace, clip, config) -> None:
+    """inspect-motion --sheet: retarget at the file's rate, check the poses, draw the sheet."""
+    import dataclasses
+
+    from PIL import Image
+
+    from loosefit.body.inspect_motion import sheet_inputs
+    from loosefit.body.pose_check import check_pose
+    from loosefit.body.retarget import retarget_bvh
+    from loosefit.render.skeleton_sheet import skeleton_sheet
+
+    avatar = _avatar(args)
+    # drawn whatever the checks say: the sheet is how to see why they fail
+    loose = dataclasses.replace(config, fps=None, check_pose=False, check_height=False)
+    motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height, loose)
+    refusal = None
+    try:
+        check_pose(motion, avatar.skeleton, avatar.floor_height, str(args.file))
+        print("pose check: passes (standing, feet on the floor, no joint too fast)")
+    except LoosefitInputError as exc:
+        print(f"pose check: fails: {exc.found}")
+        refusal = exc if config.check_pose else None
+    sheet = sheet_inputs(clip, motion, loose, args.sheet_frames)
+    body = avatar.pose_motion(sheet.motion).vertices.cpu().numpy()
+    image = skeleton_sheet(sheet.points, sheet.bones, body, avatar.faces.cpu().numpy(),
+                           sheet.frames)  # fmt: skip
+    out = Path(args.sheet)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(image).save(out)
+    _log(f"wrote {out}: the capture's skeleton (left) beside the avatar, frames {sheet.frames}")
+    if refusal is not None:
+        raise refusal
 
 
 def _offset(text: str | None) -> tuple[float, float, float]:
@@ -1619,6 +1666,19 @@ def build_parser() -> argparse.ArgumentParser:
                        "frames")  # fmt: skip
     p.add_argument("file", help="a .bvh, .gltf/.glb or SMPL .npz file")
     _add_bvh_args(p, BVH_UNITS)
+    p.add_argument("--sheet", metavar="PNG", default=None,
+                   help="also retarget it onto the avatar, run the pose check, and write a "
+                   "contact sheet: the capture's skeleton (sticks) beside the avatar at a few "
+                   "frames")  # fmt: skip
+    p.add_argument("--sheet-frames", type=int, default=6, help="frames on the --sheet")
+    p.add_argument(
+        "--write-joint-map",
+        metavar="YAML",
+        default=None,
+        help="write a joint map file filled in with what was matched (or, when "
+        "nothing could be, guessed by name), to correct and pass as --joint-map",
+    )
+    _add_avatar_args(p)
     p.set_defaults(func=cmd_inspect_motion)
 
     p = sub.add_parser("garment", help="make a skirt or a dress, or import a garment file onto "

@@ -7,6 +7,13 @@ arms down), in its units and with its channels, such that retargeting it back
 must give the motion again: each limb's rest pose is the avatar's carried by the
 smallest rotation onto the convention's bone direction (what retargeting undoes),
 and the joints a convention lacks hold still in the motion (:func:`reduced`).
+
+A convention with ``bone_axis`` set writes a rig whose zero pose does not stand: each
+joint's frame is turned (a constant "joint orient" per joint, twisted about the bone
+too) so that its bone lies along its own local axis, e.g. ``"x"``: the spine along
++X, the left leg along +X, the right leg along -X (the right side's bones along the
+negative axis); the standing orientation is carried by every frame's rotations, as
+game and studio rigs write it. Retargeting cannot lean on the zero pose there.
 """
 
 from __future__ import annotations
@@ -75,6 +82,10 @@ class Convention:
         six_channels: position and rotation channels on every joint.
         order: rotation channel order.
         up, forward: the file's up axis and the way the skeleton faces at rest.
+        bone_axis: None (the zero pose is the standing rest ``pose``), or "x"/"y": each
+            bone along its joint's own local axis at zero pose (see the module).
+        orient_twist: degrees the joint orients turn each joint about its bone, times
+            the joint's index (0: the smallest turn onto the axis).
     """
 
     name: str
@@ -86,6 +97,8 @@ class Convention:
     order: str = "ZXY"
     up: str = "+y"
     forward: str = "+z"
+    bone_axis: str | None = None
+    orient_twist: float = 0.0
 
 
 CMU_MB = Convention("cmu_mb", {n: n for n in (
@@ -142,6 +155,21 @@ NAMELESS = Convention("nameless", {n: f"node{i:02d}" for i, n in enumerate(
 
 CONVENTIONS = {c.name: c for c in (CMU_MB, DAZ, MIXAMO, UNREAL, STUDIO, SMPL, NAMELESS)}
 
+# The studio rig as game and studio exporters write it: every bone along its joint's
+# local X axis at zero pose (the left leg along +X, the right leg along -X), joint
+# orients twisted about the bones, the standing orientation in every frame.
+STUDIO_X = Convention(
+    "studio-x",
+    STUDIO.joints,
+    pose=tpose,
+    extras=STUDIO.extras,
+    units=100,
+    six_channels=True,
+    order="ZXY",
+    bone_axis="x",
+    orient_twist=37.0,
+)
+
 
 def reduced(motion: Motion, keep) -> Motion:
     """The motion with every joint not in ``keep`` held at its rest (identity) rotation."""
@@ -167,7 +195,8 @@ def joint_positions(skeleton: Skeleton, motion: Motion) -> np.ndarray:
     return pos
 
 
-def _world(skeleton: Skeleton, motion: Motion) -> np.ndarray:
+def world_rotations(skeleton: Skeleton, motion: Motion) -> np.ndarray:
+    """(T, J, 3, 3) world rotations of the avatar's joints in a motion."""
     T, J = motion.rotations.shape[:2]
     world = np.zeros((T, J, 3, 3))
     for j, p in enumerate(skeleton.parents):
@@ -221,16 +250,39 @@ def write_convention_bvh(
 
     # 2. World rotations of the source joints, then local ones.
     ref = reduced(motion, conv.joints)
-    W = _world(skeleton, ref)  # (T, J, 3, 3)
+    W = world_rotations(skeleton, ref)  # (T, J, 3, 3)
     Q = {a: C.T @ W[:, names.index(a)] @ A[names.index(a)].T @ C for a in kept}
-    local = {a: Q[a] if src_parent[a] is None else
-             np.swapaxes(Q[src_parent[a]], -1, -2) @ Q[a] for a in kept}  # fmt: skip
     T = motion.num_frames
     u = conv.units
+
+    # 2b. Joint orients (file axes): O[a] turns the joint's frame so that its bone lies
+    # along its own local axis; offsets are then written in the turned frames.
+    O = {a: np.eye(3) for a in kept}
+    if conv.bone_axis is not None:
+        axis = np.eye(3)["xyz".index(conv.bone_axis)]
+        for i, a in enumerate(kept):
+            j = names.index(a)
+            kids = [c for c in kept if src_parent[c] == a]
+            if kids:
+                c = min(kids, key=lambda c: np.linalg.norm(heads[names.index(c)] - tails[j]))
+                d = C.T @ (rest[names.index(c)] - rest[j])
+            else:  # an End Site or an extra joint along the avatar's bone
+                d = C.T @ A[j] @ (tails[j] - heads[j])
+            sign = -1.0 if a.startswith(("Right", "RHip")) else 1.0
+            R0 = rotation_between((sign * axis)[None], d[None])[0].astype(np.float64)
+            O[a] = Rotation.from_rotvec(np.radians(conv.orient_twist * i)
+                                        * d / np.linalg.norm(d)).as_matrix() @ R0  # fmt: skip
+    Ot = {a: O[a].T for a in kept}
+    local = {a: Q[a] @ O[a] if src_parent[a] is None else
+             Ot[src_parent[a]] @ np.swapaxes(Q[src_parent[a]], -1, -2) @ Q[a] @ O[a]
+             for a in kept}  # fmt: skip
 
     # 3. The hierarchy: (name, offset in file units, End Site or None, frame values).
     def to_file(v):
         return (C.T @ v) * u
+
+    def in_frame(a, v):  # a file-axes vector in joint a's turned frame
+        return Ot[a] @ v if a is not None else v
 
     root_extra = next((e for e in conv.extras if e[1] is None), None)
     hips_pos = to_file(ref.root_translation.astype(np.float64).T).T  # (T, 3)
@@ -269,7 +321,7 @@ def write_convention_bvh(
     def emit_avatar(a, depth, keyword="JOINT"):
         j = names.index(a)
         q = src_parent[a]
-        offset = to_file(rest[j] - rest[names.index(q)]) if q else np.zeros(3)
+        offset = in_frame(q, to_file(rest[j] - rest[names.index(q)])) if q else np.zeros(3)
         if a == "Hips" and root_extra:
             offset = to_file(np.array([0, 0, floor_height]))
         positions = None
@@ -279,14 +331,14 @@ def write_convention_bvh(
             positions = np.broadcast_to(offset, (T, 3))  # studio files repeat the offset
         mine = [e for e in conv.extras if e[1] == conv.joints[a]]
         leaf = a not in has_children
-        end = to_file(A[j] @ (tails[j] - heads[j])) if leaf else None
+        end = in_frame(a, to_file(A[j] @ (tails[j] - heads[j]))) if leaf else None
 
         def kids_fn(d):
             for c in children.get(a, []):
                 emit_avatar(c, d)
             for name, _, bone in mine:
                 b = names.index(bone)
-                off = to_file(A[b] @ (tails[b] - heads[b]))
+                off = in_frame(a, to_file(A[b] @ (tails[b] - heads[b])))
                 pos = np.broadcast_to(off, (T, 3)) if conv.six_channels else None
                 emit(name, off, eye, pos, off * 0.5, lambda d: None, d)
 

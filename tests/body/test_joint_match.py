@@ -135,6 +135,9 @@ def test_a_skeleton_with_made_up_names_and_z_up_maps_with_a_file(avatar, dance, 
         retarget_bvh(clip, avatar.skeleton, avatar.floor_height)
     text = str(err.value)
     assert "z.bvh" in text and "--joint-map" in text and "LeftUpLeg: my_thigh_L" in text
+    # ... after the zero pose, on the frames too; with the command that writes a map.
+    assert "tried the zero pose, then frames [0, 45, 22, 67]" in text
+    assert "loosefit inspect-motion z.bvh --write-joint-map my_map.yaml" in text
     # A YAML file: joints and axes.
     path = tmp_path / "map.yaml"
     path.write_text("# my rig\n" + "".join(f"{a}: {s}\n" for a, s in names.items())
@@ -270,3 +273,55 @@ def test_any_tree_is_matched_or_refused_clearly():
         except LoosefitInputError:
             continue
         assert len(set(jmap.joints.values())) == len(jmap.joints)
+
+
+def test_a_joint_map_template_is_filled_in_and_loads(avatar, dance, tmp_path):
+    from loosefit.body.joint_match import joint_map_template
+    from tests.body.bvh_conventions import STUDIO_X
+
+    # Matched (a studio rig whose zero pose lies along X, matched on its frames): the
+    # template is the match, and retargets as the match does.
+    clip = _write(tmp_path, "s.bvh", STUDIO_X, avatar, dance)
+    match = resolve_joint_map(clip)
+    path = tmp_path / "s.yaml"
+    path.write_text(joint_map_template(clip.joint_names, match, "s.bvh", ("+y", "+z")))
+    jmap = load_joint_map_file(path, clip.joint_names)
+    assert jmap.joints == match.joint_map.joints and jmap.source_up == "+y"
+    assert (
+        _retarget_error(
+            avatar, dance, STUDIO_X, clip, RetargetConfig(fps=None, joint_map=str(path))
+        )[0]
+        < 1 * CM
+    )
+    # Not matched (the right side gone): the left guessed by name, the right left to fill in.
+    keep = {a: s for a, s in CONVENTIONS["mixamo"].joints.items() if "Right" not in a}
+    half = _write(tmp_path, "h.bvh", dataclasses.replace(CONVENTIONS["mixamo"], joints=keep,
+                                                         extras=[]), avatar, dance)  # fmt: skip
+    text = joint_map_template(half.joint_names, None, "h.bvh")
+    assert "LeftUpLeg: 'mixamorig:LeftUpLeg'  # guessed by name" in text
+    assert "# RightUpLeg: ?   # thigh" in text and "# RightHand: ?   # wrist" in text
+    assert "# The file's joints: mixamorig:Hips," in text
+    path.write_text(text)
+    jmap = load_joint_map_file(path, half.joint_names)
+    assert jmap.joints["Hips"] == "mixamorig:Hips" and "RightUpLeg" not in jmap.joints
+
+
+def test_a_nameless_rig_whose_zero_pose_does_not_stand_is_matched_on_its_frames(
+    avatar, dance, tmp_path
+):
+    # No names, every bone along X at zero pose, Z up (given), the dancer starting turned
+    # 150 degrees away: matched by structure on frame 0, sides told once the frame is
+    # turned to face -Y by its feet.
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_euler("z", 150, degrees=True).as_matrix().astype(np.float32)
+    rot = dance.rotations.copy()
+    rot[:, 0] = R @ rot[:, 0]
+    away = dataclasses.replace(dance, rotations=rot, root_translation=dance.root_translation @ R.T)
+    conv = dataclasses.replace(NAMELESS, bone_axis="x", orient_twist=29.0, up="+z", forward="-y")
+    clip = _write(tmp_path, "n.bvh", conv, avatar, away)
+    cfg = RetargetConfig(fps=None, source_up="+z")
+    match = resolve_joint_map(clip, cfg)
+    assert match.joint_map.joints == conv.joints
+    assert "turned to face -Y by its feet" in match.notes[-1]
+    assert _retarget_error(avatar, away, conv, clip, cfg)[0] < 1 * CM

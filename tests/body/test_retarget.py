@@ -212,14 +212,31 @@ def test_salsa_clip_retargets_to_plausible_dance(avatar):
 BALLET = SALSA.parent / "cmu-ballet"
 
 
-def test_dancer_height_is_measured_from_the_legs(tmp_path):
-    # The T-pose's legs: 0.40 m thigh + 0.40 m shin, over LEG_TO_HEIGHT.
-    from loosefit.body.retarget import LEG_TO_HEIGHT, source_height
+def test_dancer_height_is_measured_standing_on_the_frames(tmp_path):
+    # The T-pose's head joint 0.48 m above the hips, its ankles 0.85 m below them: 1.33 m
+    # above the ankles at the most extended frame, over HEAD_ANKLE_TO_HEIGHT.
+    from loosefit.body.capture_measure import HEAD_ANKLE_TO_HEIGHT
+    from loosefit.body.retarget import measure_source_height, source_height
 
     clip = read_bvh(write_tpose(tmp_path / "t.bvh"), units="m")
-    height, how = source_height(clip)
-    assert height == pytest.approx(0.80 / LEG_TO_HEIGHT, rel=1e-5) and "legs" in how
-    assert source_height(read_bvh(tmp_path / "t.bvh", scale=0.5))[0] == pytest.approx(height / 2)
+    measure = measure_source_height(clip)
+    assert measure.height == pytest.approx(1.33 / HEAD_ANKLE_TO_HEIGHT, rel=1e-5)
+    assert measure.frame == 0 and "above the ankles at frame 0" in measure.how
+    assert source_height(read_bvh(tmp_path / "t.bvh", scale=0.5))[0] == pytest.approx(
+        measure.height / 2)  # fmt: skip
+
+
+def test_a_dancer_who_never_stands_straight_is_measured_by_the_legs(tmp_path):
+    from loosefit.body.capture_measure import LEG_TO_HEIGHT
+    from loosefit.body.retarget import measure_source_height
+
+    n = 6 + 3 * 20
+    crouch = [0.0] * n
+    crouch[6 + 3 * 0 + 1] = 80.0  # abdomen folds forward (Xrotation): the head comes down
+    clip = read_bvh(write_tpose(tmp_path / "c.bvh", [crouch, crouch]), units="m")
+    measure = measure_source_height(clip)
+    assert measure.height == pytest.approx(0.80 / LEG_TO_HEIGHT, rel=1e-4)
+    assert "never stands straight" in measure.how
 
 
 def test_a_dancer_read_in_the_wrong_unit_is_refused_with_height_and_options(avatar, tmp_path):
@@ -228,11 +245,40 @@ def test_a_dancer_read_in_the_wrong_unit_is_refused_with_height_and_options(avat
         retarget_bvh(read_bvh(path, units="mm"), avatar.skeleton, avatar.floor_height)
     text = str(err.value)
     assert "t.bvh" in text and "units" in text and "0.00 m" in text and "read in mm" in text
-    assert "--units" in text and "--scale" in text and "units:cm:" in text
+    assert "at frame 0" in text  # the frame it was measured on
+    # The unit that makes a dancer of it, named; no --scale where a unit does it.
+    assert "read in m it is 1.56 m: --units m" in text and "units:m:t.bvh" in text
+    assert "--scale" not in text
     # Read right, or with the check off, it goes through.
     retarget_bvh(read_bvh(path, units="m"), avatar.skeleton, avatar.floor_height)
     cfg = RetargetConfig(check_height=False)
     retarget_bvh(read_bvh(path, units="mm"), avatar.skeleton, avatar.floor_height, cfg)
+
+
+def test_a_height_only_a_scale_fixes_names_the_scale_and_none_names_neither(avatar, tmp_path):
+    import dataclasses
+
+    from loosefit.body.motions import load_motion
+    from tests.body.bvh_conventions import CONVENTIONS, write_convention_bvh
+
+    motion = load_motion("idle", avatar).slice(0, 8)
+
+    def refusal(units_per_metre: float) -> str:
+        conv = dataclasses.replace(CONVENTIONS["daz"], units=units_per_metre)
+        path = write_convention_bvh(tmp_path / "d.bvh", conv, avatar.skeleton, motion,
+                                    avatar.floor_height)  # fmt: skip
+        with pytest.raises(LoosefitInputError) as err:
+            retarget_bvh(read_bvh(path), avatar.skeleton, avatar.floor_height)
+        return str(err.value)
+
+    # In inches (63 units tall, guessed centimetres: a 0.6 m dancer): --scale 0.0254.
+    text = refusal(1 / 0.0254)
+    assert "read in cm" in text and "in inches it is 1.60 m: --scale 0.0254" in text
+    # Five units a metre: a 7.8 m giant in metres, 8 cm in centimetres; no unit, inches
+    # or feet make a dancer of it: neither --units nor --scale, but how to look.
+    text = refusal(5.0)
+    assert "--scale" not in text and "--units" not in text
+    assert "the measure itself may be wrong" in text and "--sheet" in text
 
 
 def test_motion_specs_set_a_bvh_files_unit(avatar, tmp_path):
@@ -251,19 +297,21 @@ def test_motion_specs_set_a_bvh_files_unit(avatar, tmp_path):
 @pytest.mark.skipif(not BALLET.is_dir(), reason="../shared/mocap/cmu-ballet is not present "
                     "beside the repository")  # fmt: skip
 def test_the_ballet_clips_units_are_right(avatar):
-    # cmu-ballet is in the converter's own unit. Its legs measure 82.2 units hip to
-    # ankle, and a dancer's legs are 0.8 m: the unit is the centimetre, which the guess
-    # finds. (The README's 1/128 m is the salsa files' rescaling: a 1.34 m dancer there.)
+    # cmu-ballet is in the converter's own unit. Its dancer stands with the head 141 units
+    # above the ankles (legs 82.2 units hip to ankle), and a dancer's legs are 0.8 m: the
+    # unit is the centimetre, which the guess finds. (The README's 1/128 m is the salsa
+    # files' rescaling: a 1.34 m dancer there.)
     from loosefit.body.motions import load_motion
     from loosefit.body.retarget import source_height
 
     clip = read_bvh(BALLET / "05_02.bvh")
     assert clip.units_scale == 0.01
-    assert 1.6 < source_height(clip)[0] < 1.8
-    with pytest.raises(LoosefitInputError, match=r"171\.\d\d m"):
+    assert 1.6 < source_height(clip)[0] < 1.8  # the head 1.41 m above the ankles at frame 0
+    with pytest.raises(LoosefitInputError, match=r"1\d\d\.\d\d m \(head 141 m above the ankles "
+                       r"at frame 0.*read in cm it is 1\.66 m: --units cm"):  # fmt: skip
         load_motion(f"units:m:{BALLET / '05_02.bvh'}", avatar)
     # Read in any accepted unit, the motion on the avatar is the same (legs set the scale).
     a = load_motion(str(BALLET / "05_02.bvh"), avatar, max_frames=20)
     b = load_motion(f"scale:0.0078125:{BALLET / '05_02.bvh'}", avatar, max_frames=20)
     np.testing.assert_allclose(a.root_translation, b.root_translation, atol=1e-5)
-    np.testing.assert_allclose(a.rotations, b.rotations, atol=1e-6)
+    np.testing.assert_allclose(a.rotations, b.rotations, atol=1e-5)  # float32 positions

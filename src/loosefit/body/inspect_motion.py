@@ -2,7 +2,9 @@
 inspect-motion``): BVH, glTF/GLB or an SMPL pose ``.npz``.
 
 The joints found, what drives each avatar joint and how it was decided, the
-dancer's height, the units and the frame rate, in one readable report.
+source's axes, how the bones are calibrated, the dancer's height, the units and the
+frame rate, in one readable report; and for ``--sheet``, the capture's skeleton beside
+the retargeted avatar (:func:`sheet_inputs`).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from loosefit.body.bone_directions import zero_pose_stands
 from loosefit.body.bvh import _UNIT_SCALES, BvhClip, rest_positions
 from loosefit.body.joint_maps import AVATAR_JOINTS
 from loosefit.body.joint_match import JointMatch
@@ -19,10 +22,14 @@ from loosefit.body.motion_files import read_clip
 from loosefit.body.retarget import (
     DANCER_HEIGHT_M,
     RetargetConfig,
+    axis_change,
     resolve_joint_map,
+    source_axes,
     source_height,
+    source_pose,
 )
 from loosefit.errors import LoosefitInputError
+from loosefit.types import Motion
 
 
 @dataclass
@@ -38,6 +45,10 @@ class MotionInspection:
         match: the joint map and the decision behind each avatar joint; None if there
             is none (then ``error`` says why).
         error: the error retargeting would raise for the joints, or None.
+        up, forward: the source's axes (:func:`~loosefit.body.retarget.source_axes`).
+        up_how: how up was decided ("given", "found from the frames ...", "default").
+        calibration: how the bones' turns are calibrated, and why
+            (:mod:`~loosefit.body.bone_directions`); "" without a joint map.
     """
 
     clip: BvhClip
@@ -46,6 +57,10 @@ class MotionInspection:
     height_how: str
     match: JointMatch | None
     error: LoosefitInputError | None
+    up: str = "+y"
+    forward: str = "+z"
+    up_how: str = "default"
+    calibration: str = ""
 
     def format(self) -> str:
         """The report as text, one fact a line."""
@@ -61,6 +76,9 @@ class MotionInspection:
         ok = low <= self.height <= high
         warn = "" if ok else f"; outside {low:g}-{high:g} m: set --units or --scale"
         lines.append(f"dancer: {self.height:.2f} m tall ({self.height_how}){warn}")
+        lines.append(f"axes: up {self.up} ({self.up_how}), forward {self.forward}")
+        if self.calibration:
+            lines.append(f"calibration: {self.calibration}")
         lines.append(f"joints ({clip.num_joints}):")
         depth = np.zeros(clip.num_joints, dtype=np.int64)
         for j, p in enumerate(clip.parents):
@@ -85,7 +103,7 @@ class MotionInspection:
         if unused:
             lines.append(f"  source joints not used: {', '.join(unused)}")
         if jmap.align:
-            lines.append(f"  aligned at rest: {', '.join(jmap.align)}")
+            lines.append(f"  limbs matched bone by bone: {', '.join(jmap.align)}")
         lines += [f"  {n}" for n in self.match.notes]
         return "\n".join(lines)
 
@@ -132,4 +150,66 @@ def inspect_motion(path: str | Path, config: RetargetConfig | None = None) -> Mo
         match = resolve_joint_map(clip, config)
     except LoosefitInputError as exc:
         error = exc
-    return MotionInspection(clip, _units(clip, config), height, how, match, error)
+    up, forward, up_how = source_axes(clip, config, match.joint_map if match else None)
+    calibration = ""
+    if match is not None:
+        names = list(clip.joint_names)
+        present = {a: names.index(s) for a, s in match.joint_map.joints.items() if s in names}
+        rest = source_pose(clip, axis_change(up, forward)).rest
+        stands, why = zero_pose_stands(rest, present)
+        if config.reference != "auto":
+            calibration = f"{config.reference} (given)"
+        elif stands:
+            calibration = "zero-pose: the zero pose stands as the avatar's rest does"
+        else:
+            calibration = (f"clip: the bones' directions and bends over the clip; the zero "
+                           f"pose does not stand ({why})")  # fmt: skip
+    return MotionInspection(clip, _units(clip, config), height, how, match, error, up, forward,
+                            up_how, calibration)  # fmt: skip
+
+
+@dataclass
+class SheetInputs:
+    """What ``inspect-motion --sheet`` draws: the capture and the avatar at a few frames.
+
+    Attributes:
+        frames: K frame numbers of the file.
+        points: (K, P, 3) the source's joints then End Sites, in the avatar's axes and
+            scale, its root over the avatar's.
+        bones: (a, b) pairs of ``points`` indices: the bones below the pelvis.
+        motion: the K frames of the retargeted motion (for the avatar's body).
+    """
+
+    frames: list[int]
+    points: np.ndarray
+    bones: list[tuple[int, int]]
+    motion: Motion
+
+
+def sheet_inputs(clip: BvhClip, motion: Motion, config: RetargetConfig,
+                 count: int = 6) -> SheetInputs:  # fmt: skip
+    """The source skeleton beside a motion retargeted from it at the file's own frame rate
+    (``RetargetConfig(fps=None)``), at ``count`` evenly spaced frames."""
+    match = resolve_joint_map(clip, config)
+    up, forward, _ = source_axes(clip, config, match.joint_map)
+    names = list(clip.joint_names)
+    root = names.index(match.joint_map.joints["Hips"])
+    pose = source_pose(clip, axis_change(up, forward), root)
+    ends = sorted(clip.end_offsets)
+    end_pts = [pose.positions[:, j] + pose.leaf[j][0] for j in ends]
+    points = np.concatenate([pose.positions, np.stack(end_pts, 1)], 1) if ends \
+        else pose.positions  # (T, P, 3)  # fmt: skip
+    scale = float(motion.meta.get("scale", 1.0))
+    points = points * scale
+    points += motion.root_translation[0] - points[0, root]  # the recentring and grounding
+    body = {root}  # the pelvis's subtree: joints above it (a scene root) are no bones
+    for j, p in enumerate(clip.parents):
+        if p in body:
+            body.add(j)
+    bones = [(int(p), j) for j, p in enumerate(clip.parents) if p in body and j in body]
+    bones += [(j, clip.num_joints + k) for k, j in enumerate(ends) if j in body]
+    T = min(motion.num_frames, clip.num_frames)
+    frames = sorted(set(np.linspace(0, T - 1, min(count, T)).round().astype(int).tolist()))
+    part = Motion(motion.joint_names, motion.rotations[frames], motion.root_translation[frames],
+                  motion.fps, motion.name)  # fmt: skip
+    return SheetInputs(frames, points[frames], bones, part)

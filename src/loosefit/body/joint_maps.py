@@ -8,7 +8,7 @@ YAML or TOML, one ``avatar joint: source joint`` line per joint::
     LeftUpLeg: thigh_jnt_L
     LeftLeg: knee_jnt_L
     # ... and optionally
-    align: [LeftUpLeg, LeftLeg]   # the limbs aligned at rest (default: every limb mapped)
+    align: [LeftUpLeg, LeftLeg]   # the limbs matched bone by bone (default: every limb mapped)
     source_up: +y                 # the file's up axis (default: RetargetConfig's)
     source_forward: +z            # the way the skeleton faces at rest
 
@@ -47,7 +47,9 @@ class JointMap:
     Attributes:
         name: the map's name ("daz", "cmu_mb", "auto-matched", or a map file's path).
         joints: avatar joint name -> source joint name.
-        align: avatar joints whose rest direction is aligned to the source's.
+        align: avatar joints matched bone by bone, the limbs: their bones follow the
+            source's directions (loosefit.body.bone_directions); the others turn with
+            their source joints, calibrated on the torso's landmarks.
         source_up: the source's up axis, when the map knows it (a map file); None:
             ``RetargetConfig.source_up``.
         source_forward: the way the source faces at rest, likewise.
@@ -156,7 +158,7 @@ def load_joint_map_file(
     """A joint map from a YAML (``.yaml``, ``.yml``) or TOML (``.toml``) file.
 
     The file maps avatar joints (:data:`AVATAR_JOINTS`) to source joints, with the
-    optional keys ``align`` (a list of avatar limbs aligned at rest; default: every
+    optional keys ``align`` (a list of avatar limbs matched bone by bone; default: every
     mapped limb of :data:`LIMBS`), ``source_up`` and ``source_forward`` (one of
     :data:`AXES`). ``Hips`` must be mapped, unless the file holds only the axes: then
     the joints are matched automatically in those axes (an empty ``joints``).

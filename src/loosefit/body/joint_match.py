@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -454,3 +455,89 @@ def _fail(
              "the joints; a skeleton not Y up and facing +Z: source_up and source_forward "
              "in a map file",
     )  # fmt: skip
+
+
+# What a template line guesses for each avatar joint from the names alone: (side, parts).
+_TEMPLATE_PARTS = {
+    "Hips": (None, ("root",)), "LowerBack": (None, ("spine",)), "Spine1": (None, ("spine",)),
+    "Neck": (None, ("neck",)), "Head": (None, ("head",)),
+    **{f"{S}{bone}": (S[0], parts) for S in ("Left", "Right") for bone, parts in (
+        ("UpLeg", ("thigh", "hip")), ("Leg", ("shin",)), ("Foot", ("foot",)),
+        ("ToeBase", ("toe",)), ("Shoulder", ("collar",)), ("Arm", ("upperarm", "shoulder")),
+        ("ForeArm", ("forearm",)), ("Hand", ("hand",)))},
+}  # fmt: skip
+_TEMPLATE_WORDS = {"UpLeg": "thigh", "Leg": "shin (knee)", "Foot": "ankle", "ToeBase": "toes",
+                   "Shoulder": "collar bone", "Arm": "upper arm", "ForeArm": "forearm (elbow)",
+                   "Hand": "wrist", "Hips": "pelvis, the legs' and spine's parent",
+                   "LowerBack": "lowest spine joint", "Spine1": "chest: the arms' parent",
+                   "Neck": "neck", "Head": "head"}  # fmt: skip
+
+
+def joint_map_template(
+    names: list[str] | tuple[str, ...],
+    match: JointMatch | None,
+    source: str,
+    axes: tuple[str, str] | None = None,
+) -> str:
+    """A joint map file (YAML) to correct by hand: what the matcher found, else guesses
+    by name, and the joints nothing was found for as commented lines to fill in.
+
+    Args:
+        names: the source's joint names.
+        match: the matcher's result, or None when it failed (then names alone).
+        source: the motion file, for the header.
+        axes: (up, forward) to write, or None.
+
+    Returns:
+        The file's text; :func:`~loosefit.body.joint_maps.load_joint_map_file` reads it.
+    """
+    names = list(names)
+    found = dict(match.joint_map.joints) if match is not None else {}
+    used = set(found.values())
+    parts = [classify_joint_name(n) for n in names]
+    for a, (side, want) in _TEMPLATE_PARTS.items():
+        if a in found:
+            continue
+        cands = [n for n, p in zip(names, parts, strict=True)
+                 if p.part in want and p.side == side and n not in used]  # fmt: skip
+        if a == "Spine1" and cands:  # the chest is the last spine joint, the lower back the first
+            cands = cands[-1:]
+        if cands:
+            found[a] = cands[0]
+            used.add(cands[0])
+    lines = [f"# Joint map for {Path(source).name}: 'avatar joint: source joint', one a line.",
+             "# Correct the guesses, fill in the commented lines (remove the '# '), and pass",
+             "# it as --joint-map FILE (or the motion spec joint-map:FILE:MOTION).",
+             f"# The file's joints: {', '.join(names)}"]  # fmt: skip
+    order = ("Hips", "LowerBack", "Spine", "Spine1", "Neck", "Neck1", "Head",
+             *(f"{S}{b}" for S in ("Left", "Right") for b in
+               ("HipJoint", "UpLeg", "Leg", "Foot", "ToeBase", "Shoulder", "Arm", "ForeArm",
+                "Hand")))  # fmt: skip
+    for a in order:
+        a = {"LeftHipJoint": "LHipJoint", "RightHipJoint": "RHipJoint"}.get(a, a)
+        bone = a.removeprefix("Left").removeprefix("Right")
+        word = _TEMPLATE_WORDS.get(bone, "")
+        how = match.how.get(a, "") if match is not None else ""
+        if a in found:
+            note = f"  # {how}" if how else ("  # guessed by name" if a in _TEMPLATE_PARTS
+                                             else "")  # fmt: skip
+            lines.append(f"{a}: {_yaml_name(found[a])}{note}")
+        elif a in _TEMPLATE_PARTS:
+            lines.append(f"# {a}: ?   # {word}")
+    if axes is not None:
+        lines += [f"source_up: '{axes[0]}'", f"source_forward: '{axes[1]}'"]
+    return "\n".join(lines) + "\n"
+
+
+def _yaml_name(name: str) -> str:
+    """A joint name as a YAML scalar (quoted when YAML would read it otherwise)."""
+    plain = re.fullmatch(r"[A-Za-z_][A-Za-z0-9_.\- ]*[A-Za-z0-9_]|[A-Za-z_]", name)
+    reserved = name.lower() in ("yes", "no", "on", "off", "true", "false", "null", "y", "n")
+    return name if plain and not reserved else "'" + name.replace("'", "''") + "'"
+
+
+def joint_map_template_hint(source: str) -> str:
+    """The command that writes a filled-in joint map for a motion file, for error hints."""
+    return (f"`loosefit inspect-motion {Path(source).name} --write-joint-map my_map.yaml` "
+            "writes one filled in with what was found and guessed by name, to correct and "
+            "pass as --joint-map my_map.yaml")  # fmt: skip

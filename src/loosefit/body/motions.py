@@ -64,7 +64,8 @@ def load_motion(
             ``frames:START:STOP:``, its frames START to STOP - 1 (at ``fps``, before
             ``start_frame`` and ``max_frames``); a BVH file behind ``units:UNIT:``
             (m, cm, mm) or ``scale:METRES_PER_UNIT:``, read in that unit (otherwise
-            guessed; a dancer outside 1.2-2.2 m is refused); a BVH file behind
+            guessed; a dancer outside 1.2-2.2 m is refused, and so is a capture whose
+            poses fail :func:`~loosefit.body.pose_check.check_pose`); a BVH file behind
             ``joint-map:MAP:`` (``auto``, ``daz``, ``cmu_mb`` or a ``.yaml``/``.toml``
             map file; see :func:`~loosefit.body.retarget.resolve_joint_map`), its joints
             mapped so; a glTF file behind ``animation:NAME:`` (a name or an index), that

@@ -1,40 +1,32 @@
-"""Retargeting motion capture to the avatar's skeleton by joint names.
-
-The method copies each mapped source joint's *world* rotation, measured from
-the source's zero pose, onto the avatar bone it maps to:
-
-    G_a(t) = C Q_b(t) C^T  A_a
-
-where ``Q_b(t)`` is the source joint's world rotation at frame t (identity at
-the BVH zero pose, normally a T-pose), ``C`` turns the source's axes into the
-avatar's (Z up, facing -Y), and ``A_a`` is the **rest-pose alignment**: the
-world rotation that carries the avatar bone from its own rest pose (anny's
-A-pose) to the pose of the source skeleton at zero rotation. For limbs (listed
-in the joint map's ``align``), ``A_a`` is the smallest rotation taking the
-avatar bone's direction onto the source bone's direction at rest, so a T-pose
-capture gives the avatar's T-pose; other bones (spine, neck, head) keep
-``A_a = A_parent``: the two skeletons are taken to stand alike there, and the
-avatar keeps its own posture. Unmapped avatar joints follow their parent
-rigidly. Local rotations are then ``R_a = G_parent^T G_a``.
-
-The root translation is the source root's position scaled by the ratio of the
-two skeletons' leg lengths, recentred to start at the origin in XY, and shifted
-in Z so the feet rest on the floor.
+"""Retargeting motion capture to the avatar's skeleton.
 
 Which source joint drives each avatar joint (:func:`resolve_joint_map`): a shipped
 map (:data:`JOINT_MAPS`) when one fits the clip, else the joint matcher
-(:mod:`loosefit.body.joint_match`, by name and by structure), or a map file the
-user writes (:func:`~loosefit.body.joint_maps.load_joint_map_file`).
+(:mod:`loosefit.body.joint_match`, by name and by structure, on the zero pose or, when
+that shows no legs, on the capture's frames), or a map file the user writes
+(:func:`~loosefit.body.joint_maps.load_joint_map_file`).
 
-Any rest pose works (a T-pose, an A-pose, arms down; bones along any axis): the
-limbs are aligned by their rest directions, and only the rotation channels of the
-joints and their OFFSETs (the rest pose) are read, except the root's path: the
-mapped root's world position, with the position channels of it and of the joints
-above it as :func:`~loosefit.body.bvh.read_bvh` reads them (added to the OFFSET).
-Position channels on the other joints (studio files write six channels on every
-joint, repeating the offset) are ignored. A studio file whose root joint channels
-repeat the offset moves the root path by a constant, which recentring and
-grounding remove.
+How the avatar moves (:func:`retarget_bvh`): from what the capture shows, its joints'
+world positions and orientations frame by frame (forward kinematics), bone by bone
+(:mod:`loosefit.body.bone_directions`): each mapped limb points where the source's
+bone points at every frame, and turns with the source joint about it; the pelvis,
+spine, neck and head turn with their source joints, calibrated on landmarks (the
+left-right axes of hips and shoulders, the trunk's line). A zero pose that stands as
+the avatar's rest does (a T-pose, an A-pose) is used as the calibration instead, as it
+always was; any other (bones along X or Y, joint orients baked into the rotations) is
+not needed. Unmapped avatar joints follow their parent rigidly. Local rotations are
+then ``R_a = G_parent^T G_a``.
+
+The source's axes (:func:`source_axes`): its up axis is found from the frames (the
+feet-to-head direction of the joints so named) unless given; a shipped or written map
+may give both. The dancer's height (:func:`source_height`) is measured on the frames,
+standing (:mod:`loosefit.body.capture_measure`).
+
+The root translation is the source root's position scaled by the ratio of the
+two skeletons' leg lengths, recentred to start at the origin in XY, and shifted
+in Z so the feet rest on the floor. Only the root's position channels (and those of
+the joints above it) move the body; studio files' six channels on every joint
+(repeating the offset) are read as the file says, which changes nothing.
 """
 
 from __future__ import annotations
@@ -44,7 +36,16 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from loosefit.body.avatar import Skeleton
+from loosefit.body.bone_directions import REFERENCES, SourcePose, solve_bone_rotations
 from loosefit.body.bvh import _UNIT_SCALES, BvhClip, forward_kinematics, rest_positions
+from loosefit.body.capture_measure import (
+    FORWARD_FOR_UP,
+    HeightMeasure,
+    face_forward,
+    guess_up,
+    matching_frames,
+    measure_height,
+)
 from loosefit.body.joint_maps import (  # noqa: F401 - JointMap, DAZ_MAP, CMU_MB_MAP re-exported
     CMU_MB_MAP,
     DAZ_MAP,
@@ -53,9 +54,9 @@ from loosefit.body.joint_maps import (  # noqa: F401 - JointMap, DAZ_MAP, CMU_MB
     is_map_file,
     load_joint_map_file,
 )
-from loosefit.body.joint_match import JointMatch, match_skeleton
+from loosefit.body.joint_match import JointMatch, joint_map_template_hint, match_skeleton
+from loosefit.body.pose_check import check_pose
 from loosefit.body.resample import filter_rotation_glitches, resample_motion
-from loosefit.body.rotations import rotation_between
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
 
@@ -72,8 +73,15 @@ class RetargetConfig:
     # a name in JOINT_MAPS; "auto": a shipped map that fits the clip, else the joint matcher
     # (loosefit.body.joint_match); or a .yaml/.yml/.toml map file (load_joint_map_file)
     joint_map: str = "auto"
-    source_up: str = "+y"  # the source's up axis (a map file's source_up overrides it)
-    source_forward: str = "+z"  # the direction the source skeleton faces at zero rotation
+    # the source's up axis, +x..-z; "auto": a BVH file's from its frames (feet to head),
+    # else +y (glTF, SMPL); a map file's source_up overrides it
+    source_up: str = "auto"
+    # the way the source faces; "auto": +z for a Y-up source, -y for a Z-up one (FORWARD_FOR_UP)
+    source_forward: str = "auto"
+    # how each bone's turn is calibrated (loosefit.body.bone_directions): "zero-pose" (the
+    # source's zero pose stands like the avatar's rest), "clip" (landmarks and bends over
+    # the clip; any zero pose), "auto" (zero-pose when it stands so, else clip)
+    reference: str = "auto"
     fps: float | None = 30.0  # resample to this rate (None keeps the source's)
     filter_glitches: bool = True  # remove single-frame rotation pops before retargeting
     recenter: bool = True  # start the root at x = y = 0
@@ -81,17 +89,17 @@ class RetargetConfig:
     units: str = "auto"  # the file's length unit: "m", "cm", "mm", or "auto" (read_bvh's guess)
     scale: float | None = None  # metres per file unit; overrides units
     check_height: bool = True  # refuse a dancer outside DANCER_HEIGHT_M (units read wrong)
+    check_pose: bool = True  # refuse a motion no dancer could dance (loosefit.body.pose_check)
     animation: str | None = None  # glTF: the animation's name or index (None: the first)
     skin: str | None = None  # glTF: the skin's name or index (None: the one animated most)
     smpl_up: str = "auto"  # SMPL .npz: its world's up axis, +z for AMASS ("auto": detected)
 
 
-# A dancer's standing height, estimated from the hip-to-ankle length of the legs (the
-# hip, knee and ankle joints) over this fraction of an adult's stature (anthropometric
-# tables give 0.47-0.49; the default avatar's is 0.485), must lie in this range (m): a
-# file read in the wrong unit is off by a factor of 10 or more.
-LEG_TO_HEIGHT = 0.48
+# A dancer's standing height (loosefit.body.capture_measure.measure_height) must lie in
+# this range (m): a file read in the wrong unit is off by a factor of 10 or more.
 DANCER_HEIGHT_M = (1.2, 2.2)
+# Units a file may be in that --units does not name: metres per unit.
+OTHER_UNITS = {"inches": 0.0254, "feet": 0.3048}
 
 
 def axis_change(up: str, forward: str) -> np.ndarray:
@@ -148,6 +156,73 @@ def choose_joint_map(
     )
 
 
+def source_axes(
+    clip: BvhClip, config: RetargetConfig | None = None, jmap: JointMap | None = None
+) -> tuple[str, str, str]:
+    """The source's up and forward axes, and how up was decided.
+
+    A map (file) that gives them, else ``config``; ``"auto"`` up: for a BVH file, the
+    signed axis from its feet to its head over the frames
+    (:func:`~loosefit.body.capture_measure.guess_up`), else ``+y`` (glTF and SMPL clips
+    are Y up); ``"auto"`` forward: :data:`FORWARD_FOR_UP` of the up axis.
+
+    Returns:
+        (up, forward, how): e.g. ("+z", "-y", "found from the frames (feet to head)"),
+        ("+y", "+z", "glTF's").
+    """
+    config = config or RetargetConfig()
+    up = (jmap.source_up if jmap is not None else None) or config.source_up
+    how = "given"
+    if up == "auto":
+        form = clip.meta.get("format")
+        if form is not None:  # glTF is Y up; SMPL clips are turned Y up as they are read
+            up, how = "+y", f"{form}'s"
+        else:  # a BVH file: its axes are its writer's choice
+            found = guess_up(clip.joint_names, _kinematics(clip)[0])
+            up, how = (found, "found from the frames (feet to head)") if found else (
+                "+y", "default: no head and feet named")  # fmt: skip
+    forward = (jmap.source_forward if jmap is not None else None) or config.source_forward
+    if forward == "auto":
+        forward = FORWARD_FOR_UP.get(up, "+z")
+    return up, forward, how
+
+
+def _match_on_frames(clip: BvhClip, C: np.ndarray) -> JointMatch:
+    """The joint matcher on the zero pose, else on the capture's frames (a rig whose zero
+    pose does not stand, e.g. every bone along X): the first frame that shows a pelvis
+    with legs below it and a spine with arms; sides decided by position are taken with
+    the frame turned to face -Y by its feet."""
+    names, parents, source = list(clip.joint_names), clip.parents, str(clip.path)
+    try:
+        return match_skeleton(names, parents, rest_positions(clip) @ C.T, source)
+    except LoosefitInputError as exc:
+        first = exc
+    frames = matching_frames(clip.num_frames)
+    positions = _kinematics(clip)[0].astype(np.float64) @ C.T  # (T, Js, 3)
+    for t in frames:
+        try:
+            match = match_skeleton(names, parents, positions[t], source)
+        except LoosefitInputError:
+            continue
+        note = f"matched on frame {t}: the zero pose shows no legs below the pelvis"
+        joints = match.joint_map.joints
+        if any("sides by structure" in n for n in match.notes):
+            fwd = [positions[t, names.index(joints[f"{S}ToeBase"])]
+                   - positions[t, names.index(joints[f"{S}Foot"])]
+                   for S in ("Left", "Right") if f"{S}ToeBase" in joints]  # fmt: skip
+            fwd = np.mean(fwd, axis=0) * [1, 1, 0] if fwd else np.zeros(3)
+            if np.linalg.norm(fwd) > 1e-6:  # the feet point forward
+                turned = face_forward(positions[t], fwd)
+                match = match_skeleton(names, parents, turned, source)
+                note += ", turned to face -Y by its feet"
+        return JointMatch(match.joint_map, match.how, (*match.notes, note))
+    raise LoosefitInputError(
+        first.source, first.field, first.expected,
+        f"{first.found}; tried the zero pose, then frames {frames}",
+        hint=first.hint,
+    )  # fmt: skip
+
+
 def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> JointMatch:
     """The joint map a clip is retargeted with, and how each avatar joint was matched.
 
@@ -155,8 +230,8 @@ def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> Jo
     (:func:`~loosefit.body.joint_maps.load_joint_map_file`, its joints checked against
     the clip's); ``"auto"``: the shipped maps first, the best covering one that fits the
     clip (so the CMU and DAZ files retarget as they always did), else the joint matcher
-    (:func:`~loosefit.body.joint_match.match_skeleton`) on the clip's names and rest
-    pose in the avatar's axes (``config.source_up``/``source_forward``).
+    (:func:`~loosefit.body.joint_match.match_skeleton`) in the avatar's axes
+    (:func:`source_axes`), on the zero pose, or when that shows no legs, on the frames.
 
     Raises:
         LoosefitInputError: an unknown map name, a bad map file, or a skeleton that no
@@ -185,14 +260,58 @@ def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> Jo
         if _fits(jmap, have):
             present = {a: s for a, s in jmap.joints.items() if s in have}
             return JointMatch(jmap, dict.fromkeys(present, f"map {jmap.name}"))
-    C = axis_change(config.source_up, config.source_forward)
-    return match_skeleton(names, clip.parents, rest_positions(clip) @ C.T, str(clip.path))
+    up, forward, _ = source_axes(clip, config)
+    try:
+        return _match_on_frames(clip, axis_change(up, forward))
+    except LoosefitInputError as exc:
+        raise LoosefitInputError(
+            exc.source, exc.field, exc.expected, exc.found,
+            hint=f"{exc.hint}; {joint_map_template_hint(str(clip.path))}",
+        ) from None  # fmt: skip
 
 
-def _axes(jmap: JointMap, config: RetargetConfig) -> np.ndarray:
-    """The axis change for a clip: a map file's axes, else the configuration's."""
-    up = jmap.source_up or config.source_up
-    return axis_change(up, jmap.source_forward or config.source_forward)
+def _axes(jmap: JointMap, config: RetargetConfig, clip: BvhClip) -> np.ndarray:
+    """The axis change for a clip (:func:`source_axes`)."""
+    return axis_change(*source_axes(clip, config, jmap)[:2])
+
+
+def _kinematics(clip: BvhClip, root: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """World positions (T, Js, 3) and rotations (T, Js, 3, 3) of a clip, in its own axes,
+    with only the position channels of ``root`` (default: the file's root) and the joints
+    above it: the others' (studio files write them on every joint, repeating the offset)
+    are left out, the bones keep their OFFSETs."""
+    translations = np.broadcast_to(clip.offsets, clip.local_translations.shape).copy()
+    j = 0 if root is None else root
+    while j >= 0:
+        translations[:, j] = clip.local_translations[:, j]
+        j = int(clip.parents[j])
+    return forward_kinematics(replace(clip, local_translations=translations))
+
+
+def source_pose(clip: BvhClip, C: np.ndarray, root: int | None = None) -> SourcePose:
+    """A clip's forward kinematics in the avatar's axes (``C`` from :func:`axis_change`),
+    moved by the position channels of ``root`` and the joints above it (:func:`_kinematics`)."""
+    pos, world = _kinematics(clip, root)  # (T, Js, 3), (T, Js, 3, 3)
+    pos, world = pos.astype(np.float64), world.astype(np.float64)
+    rest = rest_positions(clip).astype(np.float64)
+    kids: dict[int, list[int]] = {}
+    for j, p in enumerate(clip.parents):
+        kids.setdefault(int(p), []).append(j)
+    leaf = {}
+    for j in range(clip.num_joints):
+        if j in clip.end_offsets:
+            off = np.asarray(clip.end_offsets[j], np.float64)
+            leaf[j] = ((world[:, j] @ off) @ C.T, C @ off)
+        elif len(kids.get(j, [])) == 1:
+            k = kids[j][0]
+            leaf[j] = ((pos[:, k] - pos[:, j]) @ C.T, C @ (rest[k] - rest[j]))
+    return SourcePose(
+        positions=pos @ C.T,
+        rotations=C @ world @ C.T,
+        parents=np.asarray(clip.parents),
+        rest=rest @ C.T,
+        leaf=leaf,
+    )
 
 
 def _world_fk(skeleton: Skeleton, world: np.ndarray, root: np.ndarray) -> np.ndarray:
@@ -214,38 +333,62 @@ def _leg_length(positions: np.ndarray, names, hip: str, knee: str, ankle: str) -
     return float(np.linalg.norm(b - a) + np.linalg.norm(c - b))
 
 
-def source_height(clip: BvhClip, config: RetargetConfig | None = None) -> tuple[float, str]:
-    """The dancer's standing height in metres, as the clip was read, and how it was measured.
-
-    From the legs' hip-to-ankle length at rest over :data:`LEG_TO_HEIGHT` when the joint
-    map finds the left leg; otherwise the rest skeleton's extent (joints and End Sites)
-    along ``config.source_up``.
-    """
+def measure_source_height(clip: BvhClip, config: RetargetConfig | None = None) -> HeightMeasure:
+    """The dancer's standing height in metres, as the clip was read, measured on its frames
+    (:func:`~loosefit.body.capture_measure.measure_height`): the head above the ankles at
+    the most extended frame, or without a joint map, the skeleton's extent."""
     config = config or RetargetConfig()
     names = list(clip.joint_names)
     try:
         jmap = resolve_joint_map(clip, config).joint_map
     except LoosefitInputError:  # no legs found: measure the extent; retarget_bvh explains
         jmap = JointMap("none", {})
-    C = _axes(jmap, config)
-    rest = rest_positions(clip) @ C.T
-    legs = [jmap.joints.get(n) for n in ("LeftUpLeg", "LeftLeg", "LeftFoot")]
-    leg = _leg_length(rest, names, *legs) if all(n in names for n in legs) else None
-    if leg:
-        return leg / LEG_TO_HEIGHT, f"legs {leg:.3g} m hip to ankle"
-    ends = [rest[j] + C @ np.asarray(o) for j, o in clip.end_offsets.items()]
-    z = np.vstack([rest, *ends])[:, 2] if ends else rest[:, 2]
-    return float(z.max() - z.min()), "the rest skeleton's extent"
+    C = _axes(jmap, config, clip)
+    present = {a: names.index(s) for a, s in jmap.joints.items() if s in names}
+    pose = source_pose(clip, C, present.get("Hips"))
+    ends = [pose.positions[:, j] + d for j, (d, _) in pose.leaf.items() if j in clip.end_offsets]
+    extra = np.stack(ends, axis=1) if ends else None  # (T, E, 3)
+    return measure_height(pose.positions, present, extra)
+
+
+def source_height(clip: BvhClip, config: RetargetConfig | None = None) -> tuple[float, str]:
+    """The dancer's height in metres and how it was measured (:func:`measure_source_height`)."""
+    measure = measure_source_height(clip, config)
+    return measure.height, measure.how
+
+
+def _height_hint(clip: BvhClip, height: float) -> str:
+    """What would make a dancer of a height outside the range: a unit, a scale, or neither."""
+    low, high = DANCER_HEIGHT_M
+    spec = f"units:UNIT:{clip.path.name}" if clip.path is not None else "units:UNIT:FILE"
+    for unit, factor in _UNIT_SCALES.items():
+        h = height / clip.units_scale * factor
+        if factor != clip.units_scale and low <= h <= high:
+            return (f"read in {unit} it is {h:.2f} m: --units {unit} (`loosefit motion`, "
+                    f"`animate`, ...), or the motion spec {spec.replace('UNIT', unit)} (any "
+                    "command, a preset, the Python API)")  # fmt: skip
+    for unit, factor in OTHER_UNITS.items():
+        h = height / clip.units_scale * factor
+        if low <= h <= high:
+            return (
+                f"in {unit} it is {h:.2f} m: --scale {factor:g} (`loosefit motion`, "
+                f"`animate`, ...), or the motion spec scale:{factor:g}:{clip.path.name}"
+            )
+    return ("no unit makes a dancer of it, so the measure itself may be wrong: see how the "
+            f"joints map and what the frames show with `loosefit inspect-motion "
+            f"{clip.path.name} --sheet sheet.png`, and give --joint-map")  # fmt: skip
 
 
 def check_source_height(clip: BvhClip, config: RetargetConfig | None = None) -> float:
-    """The dancer's height (:func:`source_height`), refused outside :data:`DANCER_HEIGHT_M`.
+    """The dancer's height (:func:`measure_source_height`), refused outside
+    :data:`DANCER_HEIGHT_M`.
 
     Raises:
-        LoosefitInputError: naming the file, the measured height and how the units were
-            read, with the options that set them.
+        LoosefitInputError: naming the file, the measured height, the frame and how the
+            units were read, with the unit or scale that would fix it (when one would).
     """
-    height, how = source_height(clip, config)
+    measure = measure_source_height(clip, config)
+    height = measure.height
     low, high = DANCER_HEIGHT_M
     if not low <= height <= high:
         unit = {v: k for k, v in _UNIT_SCALES.items()}.get(clip.units_scale)
@@ -253,10 +396,8 @@ def check_source_height(clip: BvhClip, config: RetargetConfig | None = None) -> 
         raise LoosefitInputError(
             str(clip.path), "units",
             f"a dancer {low:g}-{high:g} m tall",
-            f"{height:.2f} m ({how}, {read})",
-            hint="give the file's length unit: --units m|cm|mm or --scale METRES_PER_UNIT "
-                 "(`loosefit motion`), or the motion spec units:cm:FILE.bvh or "
-                 "scale:F:FILE.bvh (any command, a preset, the Python API)",
+            f"{height:.2f} m ({measure.how}; {read})",
+            hint=_height_hint(clip, height),
         )  # fmt: skip
     return height
 
@@ -280,6 +421,11 @@ def retarget_bvh(
 
     Returns:
         The motion, resampled to ``config.fps``.
+
+    Raises:
+        LoosefitInputError: a skeleton it cannot map, a dancer of no human height
+            (``config.check_height``), a motion no dancer could dance
+            (``config.check_pose``, :func:`~loosefit.body.pose_check.check_pose`).
     """
     config = config or RetargetConfig()
     src_names = list(clip.joint_names)
@@ -306,57 +452,21 @@ def retarget_bvh(
             "them missing",
         )
 
+    if config.reference not in REFERENCES:
+        raise LoosefitInputError("RetargetConfig", "reference", f"one of {list(REFERENCES)}",
+                                 repr(config.reference))  # fmt: skip
     rotations = clip.rotations.astype(np.float64)
     if config.filter_glitches:
         rotations = filter_rotation_glitches(rotations, clip.fps)
-    C = _axes(jmap, config)
-    src_pos, src_world = forward_kinematics(
-        BvhClip(**{**clip.__dict__, "rotations": rotations})
-    )  # (T, Js, 3), (T, Js, 3, 3)
-    src_world = C @ src_world @ C.T
-    src_pos = src_pos @ C.T
-    src_rest = rest_positions(clip) @ C.T  # (Js, 3)
-    src_parents = np.asarray(clip.parents)
+    up, forward, _ = source_axes(clip, config, jmap)
+    C = axis_change(up, forward)
+    src = source_pose(replace(clip, rotations=rotations), C, present[root_name])
+    src_pos = src.positions  # (T, Js, 3)
+    src_rest = src.rest  # (Js, 3)
 
-    def is_descendant(b: int, ancestor: int) -> bool:
-        while b >= 0:
-            b = src_parents[b]
-            if b == ancestor:
-                return True
-        return False
-
-    # 1. Rest-pose alignment A_a of every avatar bone.
-    J = len(skeleton.names)
-    align = np.tile(np.eye(3), (J, 1, 1))
-    for a, an in enumerate(skeleton.names):
-        p = skeleton.parents[a]
-        align[a] = align[p] if p >= 0 else np.eye(3)
-        if an not in jmap.align or an not in present:
-            continue
-        b = present[an]
-        kids = [c for c in skeleton.children(a) if skeleton.names[c] in present]
-        kids = [c for c in kids if is_descendant(present[skeleton.names[c]], b)]
-        if kids:
-            c = min(kids, key=lambda c: np.linalg.norm(skeleton.heads[c] - skeleton.tails[a]))
-            d_av = skeleton.heads[c] - skeleton.heads[a]
-            d_src = src_rest[present[skeleton.names[c]]] - src_rest[b]
-        elif b in clip.end_offsets:
-            d_av = skeleton.tails[a] - skeleton.heads[a]
-            d_src = C @ clip.end_offsets[b]
-        else:
-            continue
-        if np.linalg.norm(d_src) > 1e-9 and np.linalg.norm(d_av) > 1e-9:
-            align[a] = rotation_between(d_av[None], d_src[None])[0].astype(np.float64)
-
-    # 2. World rotation deltas of the avatar's bones.
-    T = clip.rotations.shape[0]
-    world = np.zeros((T, J, 3, 3))
-    for a, an in enumerate(skeleton.names):
-        p = skeleton.parents[a]
-        if an in present:
-            world[:, a] = src_world[:, present[an]] @ align[a]
-        else:
-            world[:, a] = world[:, p] if p >= 0 else np.eye(3)
+    # 1-2. World rotations of the avatar's bones, from the source's, bone by bone.
+    bones = solve_bone_rotations(skeleton, src, present, jmap.align, config.reference)
+    world = bones.world  # (T, J, 3, 3)
 
     # 3. Local rotations.
     local = np.empty_like(world)
@@ -394,8 +504,12 @@ def retarget_bvh(
             "joint_map": jmap.name,
             "scale": scale,
             "units_scale": clip.units_scale,
+            "reference": bones.reference,
+            "axes": f"up {up}, forward {forward}",
         },
     )
+    if config.check_pose:  # at the capture's own rate: a joint's flip shows there
+        check_pose(motion, skeleton, floor_height, source)
     if config.fps is not None and abs(config.fps - clip.fps) > 1e-6:
         motion = resample_motion(motion, config.fps)
     return motion
