@@ -1,0 +1,51 @@
+"""Contact sheets of retargeting: a capture's skeleton beside the avatar, in three conventions.
+
+A procedural dance on the avatar is written as a BVH file in a rig convention of another
+tool (built in code by ``tests/body/bvh_conventions.py``: no outside file), read back as
+``loosefit animate`` reads it, without a joint map, and drawn by ``loosefit inspect-motion
+--sheet`` (the file's skeleton from its own forward kinematics, left; the retargeted avatar,
+right). The conventions: a studio rig whose every bone lies along its own local X axis at
+zero pose (centimetres, six channels a joint, joint orients twisted about the bones),
+Mixamo (``mixamorig:`` names, centimetres, Y up), and Unreal (``thigh_l``, A-pose)::
+
+    python bench/retarget_sheets.py --out docs/img
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from loosefit.body.avatar import Avatar  # noqa: E402
+from loosefit.body.motions import load_motion  # noqa: E402
+from loosefit.cli import main as cli  # noqa: E402
+from tests.body.bvh_conventions import MIXAMO, STUDIO_X, UNREAL, write_convention_bvh  # noqa: E402
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", default="docs/img")
+    p.add_argument("--motion", default="dance:3", help="a procedural motion on the avatar")
+    p.add_argument("--frames", type=int, default=3, help="pictures a sheet")
+    args = p.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    avatar = Avatar()
+    motion = load_motion(args.motion, avatar, seed=3)
+    for conv in (STUDIO_X, MIXAMO, UNREAL):
+        bvh = out / f".retarget_{conv.name}.bvh"
+        write_convention_bvh(bvh, conv, avatar.skeleton, motion, avatar.floor_height)
+        sheet = out / f"retarget_{conv.name}.png"
+        code = cli(["inspect-motion", str(bvh), "--sheet", str(sheet), "--sheet-frames",
+                    str(args.frames)])  # fmt: skip
+        bvh.unlink()
+        if code != 0:
+            raise SystemExit(f"{conv.name}: inspect-motion refused it (exit {code})")
+        print(f"{conv.name}: {sheet}")
+
+
+if __name__ == "__main__":
+    main()
