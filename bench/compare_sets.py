@@ -157,7 +157,8 @@ def main() -> None:
         "5 mm in the body in some frames; trained on by no set). **Held-out** (the record, "
         "never decides): " + ", ".join(f"`{c}`" for c in groups["held-out"]) + ".",
         "",
-        "Sets: " + "; ".join(f"`{n}` = `{c}`" for n, c in sets.items()) + ".",
+        "Sets: " + "; ".join(f"`{n}` = `{c}`" for n, c in sets.items()) + " (how each was "
+        "trained: `scripts/dance_models.sh`, whose `set` step runs this).",
         "",
         *table(figures, list(sets)),
         "",

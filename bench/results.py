@@ -531,11 +531,9 @@ def main() -> None:
         c, spin = clips[best], spins[best]
         plot_per_frame(img / f"results_rmse_per_frame_{key}.png", scores, names, spins,
                        f"{SET_TITLES[key]}: RMSE of each method per frame")  # fmt: skip
-        picks = {
-            "ours full": c["garments"]["ours-full"]["vertices"][spin],
-            "virtual bones": c["garments"]["virtual-bones"]["vertices"][spin],
-            "Santesteban + push-out": c["garments"]["santesteban-push"]["vertices"][spin],
-        }
+        picks = {label: c["garments"][k]["vertices"][spin] for label, k in (
+            ("ours full", "ours-full"), ("virtual bones", "virtual-bones"),
+            ("Santesteban + push-out", "santesteban-push")) if k in c["garments"]}  # fmt: skip
         renders(img / f"results_spin_{key}.jpg", spin, c["seq"].garment_vertices, picks,
                 c["body"], c["body_faces"], template.faces, 15.0, args.size,
                 where=c["name"])  # fmt: skip
@@ -679,7 +677,7 @@ def set_section(key: str, st: dict) -> list[str]:
               "", "| against | RMSE | Hausdorff | STED | paper, RMSE |",
               "|---|---:|---:|---:|---:|"]  # fmt: skip
     for method, base in (("santesteban-push", "santesteban"), ("virtual-bones", "virtual-bones")):
-        seeds = [m for m in (method, f"{method}-s1") if m in scores]
+        seeds = [m for m in (method, f"{method}-s1") if m in scores]  # none: not trained
         for m in seeds:
             b = scores[m]
             lines.append(f"| {METHODS[m][0]} | {ours['rmse_cm'] / b['rmse_cm']:.2f} | "

@@ -1,9 +1,9 @@
-"""The committed pretrained set, ``checkpoints/salsa`` (generative, motion and detail stages,
-trained on ``salsa``).
+"""The committed pretrained set, ``checkpoints/dance`` (generative, motion and detail stages,
+trained on the simulated ``dance`` corpus), the default of ``loosefit.load()``.
 
 A fresh clone must be able to animate with it: these tests load the committed files
 themselves (no training, no ../shared) and roll them out on a procedural motion that is
-not in the salsa data.
+not in the dance data.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 
 from tests.conftest import REPO
 
-PAIR = REPO / "checkpoints" / "salsa"
+PAIR = REPO / "checkpoints" / "dance"
 
 
 def test_the_pair_is_committed_whole_and_small():
@@ -59,6 +59,16 @@ def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
     drape = model.carry_drape(motion).vertices
     waist = model.template.waist
     assert np.abs(vertices[:, waist] - drape[:, waist]).max() < 0.05
+
+
+def test_the_default_set_says_it_was_trained_on_dance():
+    import loosefit
+    from loosefit.api import pretrained_checkpoint
+
+    assert pretrained_checkpoint().resolve() == (PAIR / "motion.pt").resolve()
+    text = loosefit.load().trained_on
+    assert text.startswith("the `dance` data set (16 clips, 5,656 frames, and their mirror")
+    assert "fine-tuned from the `salsa` set" in text
 
 
 def test_animate_without_a_checkpoint_takes_the_pretrained_pair(tmp_path):

@@ -19,6 +19,12 @@ print("SHAPE", result.vertices.shape)
 """
 
 
+def readme_example() -> str:
+    """The README's Python example, as a user copies it (its first ``python`` block)."""
+    text = (REPO / "README.md").read_text()
+    return text.split("```python\n", 1)[1].split("```", 1)[0]
+
+
 def _run(cmd: list, cwd: Path | None = None) -> str:
     run = subprocess.run([str(c) for c in cmd], cwd=cwd, capture_output=True, text=True)
     assert run.returncode == 0, f"{cmd}\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}"
@@ -51,6 +57,9 @@ def test_the_wheel_runs_the_api_and_the_demo_without_a_checkout(tmp_path):
     assert out["FILE"].startswith(str(site)), out  # the installed copy, not the checkout
     assert out["SHAPE"] == "(12, 2352, 3)"
     assert (empty / "kick.usda").is_file() and (empty / "kick.npz").is_file()
+    # the README's example itself, word for word, with no ../shared and no checkout
+    _run([python, "-c", readme_example()], cwd=empty)
+    assert (empty / "dance.usdc").is_file()
     _run([python, venv / "bin" / "loosefit", "demo", "--motion", "kick", "--max-frames", "15",
           "--size", "48", "--views", "front", "--out", "demo"], cwd=empty)  # fmt: skip
     for name in ("video.mp4", "demo.usdc", "demo.pc2", "sequence.npz"):

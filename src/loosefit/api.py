@@ -22,13 +22,25 @@ from loosefit.errors import LoosefitInputError
 from loosefit.sequence import AnimatedGarment
 from loosefit.types import GarmentTemplate, Motion
 
+PRETRAINED = "dance"  # the default set's folder under loosefit/pretrained
+
 
 def pretrained_checkpoint() -> Path:
     """The pretrained set's motion stage, shipped inside the package (``loosefit/pretrained/
-    salsa``, trained on salsa; ``checkpoints/salsa`` in a checkout)."""
+    dance``, trained on the simulated ``dance`` corpus: salsa, ballet and modern dance;
+    ``checkpoints/dance`` in a checkout)."""
     from importlib.resources import files
 
-    return Path(str(files("loosefit") / "pretrained" / "salsa" / "motion.pt"))
+    return Path(str(files("loosefit") / "pretrained" / PRETRAINED / "motion.pt"))
+
+
+def trained_on(path: str | Path) -> str:
+    """What a checkpoint's model was trained on, in words (see :attr:`Animator.trained_on`)."""
+    from loosefit.inference.checkpoints import load_torch
+    from loosefit.inference.package import describe_training
+
+    data = load_torch(Path(path))
+    return describe_training(data.get("trained_on") if isinstance(data, dict) else None)
 
 
 def motion_for(spec: str | Path | Motion, avatar, fps: float, frames: int | None = None,
@@ -88,6 +100,13 @@ class Animator:
     @property
     def fps(self) -> float:
         return float(self.model.fps)
+
+    @property
+    def trained_on(self) -> str:
+        """What the model was trained on, in words (a packaged set records it), e.g. "the
+        `dance` data set (16 clips, 5,656 frames, and their mirror images), fine-tuned from
+        the `salsa` set"."""
+        return trained_on(self.path)
 
     def animate(self, motion: str | Path | Motion, frames: int | None = None,
                 start_frame: int = 0, seed: int = 0, stages=None,

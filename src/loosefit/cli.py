@@ -222,6 +222,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
         path = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
         model = load_pipeline(path)
+        _trained_on_note(path)
         _physics_note(model, model.stages)
         avatar, template = model.avatar(), model.template
     else:
@@ -878,6 +879,7 @@ def _animate_inputs(args: argparse.Namespace) -> None:
             "no such file", hint="pass a checkpoint: loosefit animate CHECKPOINT MOTION",
         )  # fmt: skip
     _log(f"no checkpoint given: the pretrained default {args.checkpoint}")
+    _trained_on_note(args.checkpoint)
 
 
 def cmd_animate(args: argparse.Namespace) -> int:
@@ -1025,6 +1027,13 @@ def _render_worst(args, diag, parts, seq, body, body_faces, name: str, out: Path
             Image.fromarray(image).save(paths[-1], optimize=True)
             _log(f"wrote {paths[-1]}")
     return paths
+
+
+def _trained_on_note(path: Path) -> None:
+    """Say what a packaged set was trained on (the motion it knows)."""
+    from loosefit.api import trained_on
+
+    _log(f"model {Path(path).parent.name}: trained on {trained_on(path)}")
 
 
 def _physics_note(model, stages) -> None:
@@ -1511,8 +1520,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("animate", help="animate the garment on a motion with a trained model")
     p.add_argument(
         "inputs", nargs="+", metavar="[CHECKPOINT] MOTION",
-        help="a motion run's model.pt or checkpoint.pt (default: the pretrained pair in "
-        "checkpoints/salsa), then a .bvh, .gltf/.glb or .npz (loosefit or SMPL) motion, a "
+        help="a motion run's model.pt or checkpoint.pt (default: the pretrained set in "
+        "checkpoints/dance), then a .bvh, .gltf/.glb or .npz (loosefit or SMPL) motion, a "
         "procedural move, or dance:SECONDS "
         "(mirror:MOTION mirrors one left-right; A+B plays one after another)",
     )  # fmt: skip

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -238,6 +239,16 @@ def test_package_writes_a_pair_that_loads_and_animates_alike(trained, toy_datase
     assert set(mdata["model_config"]) == {"encoder", "rollout"}
     assert gdata["model_config"] == torch.load(generative, weights_only=False)["config"]["model"]
     assert torch.load(mout, weights_only=False)["generative"]["absolute"] is None
+    # it says what it was trained on: the data set's name and training clips, no path
+    reader = DatasetReader(toy_dataset)
+    record = mdata["trained_on"]
+    assert record["dataset"] == Path(toy_dataset).name and record["clips"] == reader.split("train")
+    assert record["frames"] == sum(reader.read(c).num_frames for c in reader.split("train"))
+    assert str(tmp_path) not in str(record)
+    from loosefit.api import trained_on
+
+    said = f"the `{Path(toy_dataset).name}` data set ({len(record['clips'])} clips"
+    assert trained_on(mout).startswith(said)
     # Moved anywhere, the pair still loads (relative path) and animates like the original.
     moved = tmp_path / "elsewhere"
     (tmp_path / "shared").rename(moved)

@@ -6,6 +6,7 @@ relative path (no path of the machine it was trained on), each holding its
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from loosefit.inference.animator import attach_detail, load_animation_model
@@ -35,6 +36,7 @@ _KEEP = {
         "cloth",
         "epoch",
         "physics_terms",
+        "trained_on",
     ),  # fmt: skip
     DETAIL_FORMAT: ("fingerprints", "motion_checkpoint", "epoch"),
 }
@@ -78,6 +80,9 @@ def package_model(
     save_atomic(packed(read_checkpoint_file(gpath, GENERATIVE_FORMAT)), gout)
     motion = packed(data)
     motion["generative"] = {**data["generative"], "relative": gout.name, "absolute": None}
+    record = training_record(data.get("dataset"), data.get("config", {}))
+    if record is not None:
+        motion["trained_on"] = record
     save_atomic(motion, mout)
     return gout, mout
 
@@ -93,3 +98,47 @@ def package_detail(path: str | Path, out: str | Path) -> Path:
     dout = out / "detail.pt"
     save_atomic(detail, dout)
     return dout
+
+
+def training_record(dataset: str | None, config: dict) -> dict | None:
+    """What a motion run was trained on, as a packaged set records it: the data set's name and
+    preset, its training clips and their frames, and whether mirrored copies were added (no
+    path of the machine it was trained on). None when the data set is not there to read.
+    """
+    if not dataset or not (Path(dataset) / "manifest.json").is_file():
+        return None
+    manifest = json.loads((Path(dataset) / "manifest.json").read_text())
+    clips = list(manifest.get("split", {}).get("train", []))
+    entries = manifest.get("sequences", {})
+    return {
+        "dataset": Path(dataset).name,
+        "preset": manifest.get("preset"),
+        "clips": clips,
+        "frames": sum(_frames(Path(dataset), c, entries.get(c, {})) for c in clips),
+        "mirrored": bool(config.get("mirror", False)),
+        # the set it was fine-tuned from (its folder's name), or None: trained from scratch
+        "started_from": Path(config["init"]).parent.name if config.get("init") else None,
+    }
+
+
+def _frames(dataset: Path, clip: str, entry: dict) -> int:
+    """A clip's frames: its manifest entry's, else its sequence file's motion."""
+    if isinstance(entry.get("frames"), int):
+        return entry["frames"]
+    import numpy as np
+
+    with np.load(dataset / "sequences" / f"{clip}.npz", allow_pickle=False) as data:
+        return int(data["rotations"].shape[0])
+
+
+def describe_training(record: dict | None) -> str:
+    """A packaged set's training record in words: "the `dance` data set (16 clips, 5,656
+    frames, and their mirror images), fine-tuned from the `salsa` set"; for a set packaged
+    before the record existed, that it does not say."""
+    if not record:
+        return "a data set it does not record"
+    mirrored = ", and their mirror images" if record.get("mirrored") else ""
+    start = record.get("started_from")
+    tuned = f", fine-tuned from the `{start}` set" if start else ""
+    return (f"the `{record['dataset']}` data set ({len(record['clips'])} clips, "
+            f"{record['frames']:,} frames{mirrored}){tuned}")  # fmt: skip
