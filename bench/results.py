@@ -46,6 +46,8 @@ METHODS = {
     "virtual-bones": ("Pan et al. 2022 style (virtual bones + residual)", "virtual-bones", RAW),
     "ours-motion": ("ours w/o detail and collision (motion stage)", "ours", MOTION_ONLY),
     "ours-full": ("ours full (detail + collision handling)", "ours", Stages()),
+    "ours-nodetail": ("ours w/o detail (edge lengths + collision handling)", "ours",
+                      Stages(detail=False)),
 }  # fmt: skip
 SEEDED = ("santesteban", "santesteban-push", "virtual-bones")  # trained with a second seed too
 for _key in SEEDED:  # the second seed's run (METHOD-s1), where it was trained
