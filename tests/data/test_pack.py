@@ -7,6 +7,7 @@ import importlib.util
 import io
 import json
 import tarfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -170,13 +171,19 @@ def _cuts(path) -> list[int]:
     return sorted(c for c in cuts if c < last.offset_data + last.size)
 
 
+def _packed(dataset: Path, tmp_path: Path, indexed: bool) -> Path:
+    """The data set packed with loosefit's index, or without it (as the shared corpus is)."""
+    path = tmp_path / "ds.lfz"
+    pack(dataset, path)
+    if indexed:
+        return path
+    _without_index(path, tmp_path / "legacy.lfz")
+    return tmp_path / "legacy.lfz"
+
+
 @pytest.mark.parametrize("indexed", [True, False], ids=["index", "no-index"])
 def test_a_truncated_pack_is_refused_and_leaves_nothing(dataset, tmp_path, indexed):
-    whole = tmp_path / "ds.lfz"
-    pack(dataset, whole)
-    if not indexed:
-        _without_index(whole, tmp_path / "legacy.lfz")
-        whole = tmp_path / "legacy.lfz"
+    whole = _packed(dataset, tmp_path, indexed)
     data = whole.read_bytes()
     cut = tmp_path / "cut.lfz"
     for n in _cuts(whole):
@@ -201,11 +208,7 @@ def test_a_pack_without_index_is_checked_against_its_manifest(dataset, tmp_path)
 
 @pytest.mark.parametrize("indexed", [True, False], ids=["index", "no-index"])
 def test_a_corrupted_member_is_refused(dataset, tmp_path, indexed):
-    path = tmp_path / "ds.lfz"
-    pack(dataset, path)
-    if not indexed:
-        _without_index(path, tmp_path / "legacy.lfz")
-        path = tmp_path / "legacy.lfz"
+    path = _packed(dataset, tmp_path, indexed)
     m = next(m for m in _members(path) if m.name == "sequences/walk.npz.lfv")
     data = bytearray(path.read_bytes())
     data[m.offset_data + m.size - 20] ^= 0xFF  # in the compressed garment
