@@ -326,7 +326,8 @@ def clip_renders(c: dict, img: Path, size: int, template) -> dict:
     """One clip rendered at its fastest turn and at its highest leg: simulation | ours |
     each baseline (seed 0), the whole body (arms too), coloured by error."""
     motion = c["seq"].motion
-    frames = {"turn": fastest_turn(motion), "leg": highest_leg(c["feet_z"])[0]}
+    leg, leg_height = highest_leg(c["feet_z"])
+    frames = {"turn": fastest_turn(motion), "leg": leg}
     for what, frame in frames.items():
         picks = {label: c["garments"][key]["vertices"][frame] for label, key in (
             ("ours full", "ours-full"), ("virtual bones", "virtual-bones"),
@@ -335,7 +336,7 @@ def clip_renders(c: dict, img: Path, size: int, template) -> dict:
         renders(path, frame, c["seq"].garment_vertices, picks, c["body"], c["body_faces"],
                 template.faces, 15.0, size, where=c["name"])  # fmt: skip
     return {"turn": frames["turn"], "leg": frames["leg"],
-            "leg_height_m": highest_leg(c["feet_z"])[1],
+            "leg_height_m": leg_height,
             "turn_rad_per_s": float(turn_rate(motion)[frames["turn"]])}  # fmt: skip
 
 
