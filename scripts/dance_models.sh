@@ -16,11 +16,20 @@
 #    `ft`, the committed salsa set (checkpoints/salsa) fine-tuned (10 + 10 + 4 epochs), and
 #    `scratch`, trained from nothing (30 + 30 + 4 epochs), both with the physics terms of
 #    docs/PHYSICS_ABLATION.md (generative: membrane, bending, collision; motion: membrane,
-#    hem flare, mirrored clips). bench/compare_sets.py picks the one with the lower RMSE on
+#    hem flare, mirrored clips). bench/compare_sets.py picks the one with the lowest RMSE on
 #    the validation clips (simulated, left out of the split, never trained on; the held-out
-#    clips never decide) and it is packaged into checkpoints/dance.
-# 3. results: both baselines (two seeds each) and every method on the held-out chain and
-#    the three held-out ballet clips, with the physical reference row: docs/RESULTS.md.
+#    clips never decide) among them and `ft` packaged without its detail stage, and it is
+#    packaged into checkpoints/dance.
+# 3. tables: Table 1 (the motion encoder with and without the previous state, the `scratch`
+#    candidate's configuration on its generative stage: the with-state run is that
+#    candidate's motion stage, 30 epochs, about 45 CPU minutes for the other) in
+#    docs/MOTION_DANCE_TABLE.md, and Table 2 (the shipped candidate's detail stage and the
+#    same training without its discriminator, 4 epochs, about 3 CPU minutes; each with and
+#    without collision handling, per held-out clip, about 20 minutes) in
+#    docs/DETAIL_DANCE_TABLE.md.
+# 4. results: the generative ablation (Fig. 4, 20 epochs, two seeds), both baselines (two
+#    seeds each) and every method on the held-out chain and the three held-out ballet
+#    clips, with the physical reference row: docs/RESULTS.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${BIN:-.venv/bin}
@@ -31,7 +40,7 @@ REFERENCE=${REFERENCE:-datasets/dance-reference}
 RUNS=${RUNS:-runs/dance}
 BASE=${BASE:-checkpoints/salsa}
 SET=${SET:-checkpoints/dance}
-STEPS=${STEPS:-data,set,results}
+STEPS=${STEPS:-data,set,tables,results}
 LR=${LR:-3e-4}
 export OMP_NUM_THREADS=1
 mkdir -p "$RUNS"
@@ -75,21 +84,44 @@ candidate() {
   "$BIN/loosefit" package "$out/motion/model.pt" --detail "$out/detail/model.pt" \
       --out "$out/set"
 }
-# 2. the two candidates, the choice, the committed set
+# 2. the two candidates (and the first without its detail stage), the choice, the committed set
 if step set; then
   candidate "$RUNS/ft" 10 10 "$BASE" & ft=$!
   candidate "$RUNS/scratch" 30 30 none & scratch=$!
   wait "$ft" "$scratch"
+  "$BIN/loosefit" package "$RUNS/ft/motion/model.pt" --out "$RUNS/ft-nodetail/set"
   "$BIN/python" bench/compare_sets.py --data "$DATA" --cache "$RUNS/compare_sets" \
       --sets salsa="$BASE/motion.pt" ft="$RUNS/ft/set/motion.pt" \
-      scratch="$RUNS/scratch/set/motion.pt" --out docs/DANCE_SETS.md
+      scratch="$RUNS/scratch/set/motion.pt" ft-nodetail="$RUNS/ft-nodetail/set/motion.pt" \
+      --out docs/DANCE_SETS.md
   winner=$("$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])")
   [ "$winner" != salsa ] || { echo "[dance_models] the salsa set won: nothing to commit"; exit 1; }
-  "$BIN/loosefit" package "$RUNS/$winner/motion/model.pt" \
-      --detail "$RUNS/$winner/detail/model.pt" --out "$SET"
+  run=${winner%-nodetail} detail=(--detail "$RUNS/${winner%-nodetail}/detail/model.pt")
+  [ "$winner" = "$run" ] || detail=()  # the winner is a candidate without its detail stage
+  rm -rf "$SET.new"  # packaged beside, then put in place: a failed packaging leaves the old set
+  "$BIN/loosefit" package "$RUNS/$run/motion/model.pt" "${detail[@]}" --out "$SET.new"
+  rm -rf "$SET" && mv "$SET.new" "$SET"
 fi
-# 3. the paper's claims on dance
+# 3. Tables 1 and 2 on dance
+if step tables; then
+  winner=$("$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])")
+  winner=${winner%-nodetail}  # the candidate whose detail stage Table 2 measures
+  mkdir -p "$RUNS/tables/motion-ablation"
+  ln -sfn "$(realpath "$RUNS/scratch/motion")" "$RUNS/tables/motion-ablation/ps-physics"
+  "$BIN/python" bench/motion_ablation.py --data "$DATA" --preset cpu --epochs 30 \
+      --generative "$RUNS/scratch/generative/checkpoint.pt" --runs ps-physics,nops-physics \
+      --threads 1 --out "$RUNS/tables/motion-ablation" --table docs/MOTION_DANCE_TABLE.md
+  done_run "$RUNS/tables/detail-nodisc" ||
+  "$BIN/loosefit" train detail --data "$DATA" --preset cpu --epochs 4 --no-discriminator \
+      --motion "$RUNS/$winner/motion/model.pt" --init "$BASE/detail.pt" --threads 1 \
+      --out "$RUNS/tables/detail-nodisc" > "$RUNS/tables/detail-nodisc.log" 2>&1
+  "$BIN/python" bench/detail_collision.py --checkpoint "$RUNS/$winner/set/motion.pt" \
+      --data "$DATA" --detail "$RUNS/$winner/detail/model.pt" \
+      --detail-nodisc "$RUNS/tables/detail-nodisc/model.pt" --no-part-a \
+      --out docs/DETAIL_DANCE_TABLE.md
+fi
+# 4. the paper's claims on dance
 if step results; then
   DATA=$DATA RUNS=$RUNS CHECKPOINT=$SET/motion.pt TABLE=docs/GENERATIVE_DANCE_TABLE.md \
-      REFERENCE=$REFERENCE bash scripts/results.sh
+      ABLATION_EPOCHS=20 REFERENCE=$REFERENCE bash scripts/results.sh
 fi

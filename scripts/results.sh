@@ -16,13 +16,14 @@ RUNS=${RUNS:-runs/salsa}
 CHECKPOINT=${CHECKPOINT:-checkpoints/salsa/motion.pt}   # ours
 TABLE=${TABLE:-docs/GENERATIVE_SALSA_TABLE.md}   # the ablation's own table
 EPOCHS=${EPOCHS:-40}   # the committed generative and motion stages' epochs
+ABLATION_EPOCHS=${ABLATION_EPOCHS:-$EPOCHS}   # the generative ablation's (each decoder's)
 mkdir -p "$RUNS/baselines" "$RUNS/ablation"
 
 # 1. The generative model's ablation (paper 4.2, Fig. 4) on salsa: the decomposed model, the
 #    single vertex decoder and the linear decoder on a skinning decomposition, cpu preset, two
 #    seeds each (the run-to-run noise); one thread per process, the two seeds side by side.
 #    About 75 min per seed on one core of dev-cpu (decomposed 15 min, vertex 20, ssdr 40).
-ABL=("$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$EPOCHS"
+ABL=("$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$ABLATION_EPOCHS"
      --out "$RUNS/ablation" --threads 1 --train-only)
 "${ABL[@]}" --seeds 0 > "$RUNS/ablation/seed0.log" 2>&1 &
 seed0=$!
@@ -49,7 +50,7 @@ baselines 1 & b1=$!
 wait "$b0" "$b1"
 # 3. Every method rolled out on the held-out chain and scored, the ablation's table, the plot
 #    and the renders: docs/RESULTS.md (about 15 min).
-"$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$EPOCHS" \
+"$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$ABLATION_EPOCHS" \
     --seeds 0,1 --out "$RUNS/ablation" --table "$TABLE"
 "$BIN/python" bench/results.py --data "$DATA" --checkpoint "$CHECKPOINT" \
     --baselines "$RUNS/baselines" --ablation "$RUNS/ablation" --cache "$RUNS/results" \

@@ -112,7 +112,7 @@ def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so
 
     # the same set with its record of the terms taken away, as a checkpoint written before
     # issue 34: it loads, animates, and says that it lacks them
-    for name in ("generative.pt", "motion.pt", "detail.pt"):
+    for name in ("generative.pt", "motion.pt"):
         data = load_torch(pretrained_checkpoint().parent / name)
         data.pop("physics_terms", None)
         torch.save(data, tmp_path / name)

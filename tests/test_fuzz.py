@@ -85,6 +85,7 @@ def _write(tmp_path: Path, name: str, data: str | bytes) -> Path:
 
 
 from tests.body.test_bvh import chain_bvh  # noqa: E402
+from tests.conftest import WITH_DETAIL  # noqa: E402
 
 BVH = chain_bvh("ZXY")
 
@@ -279,11 +280,10 @@ def test_manifest(tmp_path, toy_dataset, data):
 def test_checkpoints(tmp_path, data):
     import torch
 
-    from loosefit.api import pretrained_checkpoint
     from loosefit.inference.animator import load_pipeline
     from loosefit.inference.checkpoints import load_torch
 
-    root = pretrained_checkpoint().parent
+    root = WITH_DETAIL  # a committed set with all three stages
     stage = data.draw(st.sampled_from(["generative", "motion", "detail"]))
     saved = load_torch(root / f"{stage}.pt")
     key = data.draw(st.sampled_from(sorted(saved)))

@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from loosefit.errors import LoosefitInputError
+from tests.conftest import WITH_DETAIL
 
 
 def test_pc2_with_nan_and_a_missing_pc2(tmp_path):
@@ -107,11 +108,10 @@ def test_manifests_of_the_wrong_shape(tmp_path, toy_dataset, key, value):
                                                ("generative", "garment", [1, 2]),
                                                ("detail", "format", {"x": 1})])  # fmt: skip
 def test_checkpoint_fields_of_another_type(tmp_path, stage, key, value):
-    from loosefit.api import pretrained_checkpoint
     from loosefit.inference.animator import load_pipeline
     from loosefit.inference.checkpoints import load_torch
 
-    root = pretrained_checkpoint().parent
+    root = WITH_DETAIL  # a committed set with all three stages
     for name in ("generative", "motion", "detail"):
         (tmp_path / f"{name}.pt").write_bytes((root / f"{name}.pt").read_bytes())
     data = load_torch(root / f"{stage}.pt")

@@ -13,6 +13,7 @@ import pytest
 import torch
 
 from loosefit.errors import LoosefitInputError
+from tests.conftest import WITH_DETAIL
 
 
 class Payload:
@@ -103,15 +104,23 @@ def test_a_newer_format_version_asks_for_an_upgrade(tmp_path, skirt):
 
 
 def test_every_checkpoint_says_what_it_is():
-    """The packaged set: its format, the version that wrote it, the garment's fingerprint,
-    and the networks' configuration."""
+    """Every committed set (the shipped one and the salsa set, which has all three stages):
+    its format, the version that wrote it, the garment's fingerprint, and the networks'
+    configuration."""
     from loosefit.api import pretrained_checkpoint
     from loosefit.inference.checkpoints import load_torch
 
-    root = pretrained_checkpoint().parent
-    for name in ("generative", "motion", "detail"):
-        data = load_torch(root / f"{name}.pt")
-        assert data["format"] == f"loosefit.{name}/1" and data["loosefit_version"]
-        assert data["model_config"]
-        fingerprint = data["fingerprints"] if name == "detail" else data["garment"]
-        assert len(fingerprint["garment"] if name == "detail" else fingerprint["fingerprint"]) == 16
+    sets = {pretrained_checkpoint().parent: ("generative", "motion"),
+            WITH_DETAIL: ("generative", "motion", "detail")}  # fmt: skip
+    for root, names in sets.items():
+        assert sorted(p.stem for p in root.glob("*.pt")) == sorted(names)
+        for name in names:
+            data = load_torch(root / f"{name}.pt")
+            assert data["format"] == f"loosefit.{name}/1" and data["loosefit_version"]
+            assert data["model_config"]
+            garment = (
+                data["fingerprints"]["garment"]
+                if name == "detail"
+                else data["garment"]["fingerprint"]
+            )
+            assert len(garment) == 16

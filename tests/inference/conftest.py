@@ -1,4 +1,5 @@
-"""What the ONNX tests share: the pretrained model, a tiny untrained one, the skip mark."""
+"""What the ONNX tests share: a committed set with every stage, a tiny untrained model, the
+skip mark."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import pytest
 import torch
 
 import loosefit
+from tests.conftest import WITH_DETAIL
 
 needs_ort = pytest.mark.skipif(
     find_spec("onnxruntime") is None or find_spec("onnx") is None,
@@ -18,8 +20,9 @@ needs_ort = pytest.mark.skipif(
 
 @pytest.fixture(scope="module")
 def model():
-    """The pretrained set (an :class:`loosefit.api.Animator`)."""
-    return loosefit.load()
+    """The committed salsa set, whose detail stage the graphs carry (an
+    :class:`loosefit.api.Animator`; the default dance set has no detail stage)."""
+    return loosefit.load(WITH_DETAIL / "motion.pt")
 
 
 def tiny_model(skirt, avatar, decoder: str, previous_state: bool):

@@ -409,8 +409,9 @@ class _Later:
                 local = local + self.detail(local, codes[s:e].to(self.device))
                 out = from_root_frame(local, h, q).cpu()
             t1, c1 = time.perf_counter(), time.thread_time()
-            self.seconds["detail"] += t1 - t0
-            self.cpu_seconds["detail"] += c1 - c0
+            if self.detail is not None:  # a stage that did not run takes no time
+                self.seconds["detail"] += t1 - t0
+                self.cpu_seconds["detail"] += c1 - c0
             if self.lengths is not None:
                 out = self.lengths(out)
                 t0, t1, c0, c1 = t1, time.perf_counter(), c1, time.thread_time()
