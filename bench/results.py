@@ -45,9 +45,10 @@ METHODS = {
                          Stages(detail=False, lengths=False)),
     "virtual-bones": ("Pan et al. 2022 style (virtual bones + residual)", "virtual-bones", RAW),
     "ours-motion": ("ours w/o detail and collision (motion stage)", "ours", MOTION_ONLY),
-    "ours-full": ("ours full (detail + collision handling)", "ours", Stages()),
-    "ours-nodetail": ("ours w/o detail (edge lengths + collision handling)", "ours",
-                      Stages(detail=False)),
+    "ours-full": ("ours, the shipped pipeline (every stage of the set)", "ours", Stages()),
+    # the same motion stage with the detail stage trained for it (--with-detail: a set
+    # that has one), where the shipped set has none
+    "ours-detail": ("ours + the detail stage (trained, not shipped)", "ours-detail", Stages()),
 }  # fmt: skip
 SEEDED = ("santesteban", "santesteban-push", "virtual-bones")  # trained with a second seed too
 for _key in SEEDED:  # the second seed's run (METHOD-s1), where it was trained
@@ -64,11 +65,12 @@ def rollouts(args, reader: DatasetReader, name: str, cache: Path) -> dict:
     out = {}
     for key, (_, kind, stages) in METHODS.items():
         path = cache / f"{key}.npz"
-        if kind != "ours" and not Path(args.baselines, kind, "model.pt").is_file():
-            continue  # a baseline (or its second seed) not trained
+        ckpt = {"ours": args.checkpoint, "ours-detail": args.with_detail}.get(
+            kind, Path(args.baselines, kind, "model.pt"))  # fmt: skip
+        if ckpt is None or not Path(ckpt).is_file():
+            continue  # a baseline (or its second seed) not trained, or no --with-detail
         if not path.is_file():
             if kind not in models:
-                ckpt = args.checkpoint if kind == "ours" else Path(args.baselines, kind, "model.pt")
                 models[kind] = load_pipeline(ckpt)
             t0 = time.perf_counter()
             result = models[kind].animate(seq.motion, stages=stages)
@@ -330,7 +332,7 @@ def clip_renders(c: dict, img: Path, size: int, template) -> dict:
     frames = {"turn": fastest_turn(motion), "leg": leg}
     for what, frame in frames.items():
         picks = {label: c["garments"][key]["vertices"][frame] for label, key in (
-            ("ours full", "ours-full"), ("virtual bones", "virtual-bones"),
+            ("ours", "ours-full"), ("virtual bones", "virtual-bones"),
             ("Santesteban + push-out", "santesteban-push")) if key in c["garments"]}  # fmt: skip
         path = img / f"results_{c['name']}_{what}.jpg"
         renders(path, frame, c["seq"].garment_vertices, picks, c["body"], c["body_faces"],
@@ -476,6 +478,12 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", default="datasets/salsa")
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt", help="ours")
+    p.add_argument(
+        "--with-detail",
+        default=None,
+        help="ours with a detail stage, where the "
+        "shipped set has none: a packaged set of the same motion stage with one",
+    )
     p.add_argument("--baselines", default="runs/salsa/baselines")
     p.add_argument("--ablation", default="runs/salsa/ablation")
     p.add_argument("--cache", default="runs/salsa/results")
@@ -486,6 +494,10 @@ def main() -> None:
     p.add_argument("--reference", default=None,
                    help="a data set of held-out motion simulated again with another seed "
                    "(the physical reference row)")  # fmt: skip
+    p.add_argument("--table1", default=None, help="Table 1's Markdown (bench/motion_ablation.py "
+                   "--table), included as a section")  # fmt: skip
+    p.add_argument("--table2", default=None, help="Table 2's Markdown (bench/detail_collision.py "
+                   "--out), included as a section")  # fmt: skip
     args = p.parse_args()
     torch.set_num_threads(args.threads)
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
@@ -535,7 +547,7 @@ def main() -> None:
         plot_per_frame(img / f"results_rmse_per_frame_{key}.png", scores, names, spins,
                        f"{SET_TITLES[key]}: RMSE of each method per frame")  # fmt: skip
         picks = {label: c["garments"][k]["vertices"][spin] for label, k in (
-            ("ours full", "ours-full"), ("virtual bones", "virtual-bones"),
+            ("ours", "ours-full"), ("virtual bones", "virtual-bones"),
             ("Santesteban + push-out", "santesteban-push")) if k in c["garments"]}  # fmt: skip
         renders(img / f"results_spin_{key}.jpg", spin, c["seq"].garment_vertices, picks,
                 c["body"], c["body_faces"], template.faces, 15.0, args.size,
@@ -562,6 +574,7 @@ def main() -> None:
     extra = targets_section(sets) + clip_section(shown) + cloth_section(cloth)
     if args.reference:
         extra += reference_section(Path(args.reference), all_clips, cache, template)
+    extra += included_tables(args.table1, args.table2)
     text = markdown(args.data, sets, reports,
                     ablation_section(Path(args.ablation)) + ablation_verdict(Path(args.ablation))
                     + ablation_plots(ablation_per_frame, spin), started, extra)  # fmt: skip
@@ -584,7 +597,7 @@ def verdicts(scores: dict, turn: dict, clips: list[str], around: int = 30) -> li
         won = [m for m, k in (("RMSE", "rmse_cm"), ("Hausdorff", "hausdorff_cm"), ("STED", "sted"))
                if b[k] < ours[k]]  # fmt: skip
         verdict = f"**the baseline is better on {', '.join(won)}**" if won else (
-            "ours (full) is better on RMSE, Hausdorff and STED")  # fmt: skip
+            "ours is better on RMSE, Hausdorff and STED")  # fmt: skip
         theirs = np.concatenate([np.asarray(p) for p in b["rmse_per_frame_cm"]])
         a, t = np.asarray(ours["rmse_per_frame_cm"][i]), np.asarray(b["rmse_per_frame_cm"][i])
         lines.append(
@@ -675,8 +688,9 @@ def set_section(key: str, st: dict) -> list[str]:
             f"{METHODS[m][0]}: " + ", ".join(f"{v:.2f}" for v in s["rmse_per_clip_cm"])
             for m, s in scores.items()) + "."]  # fmt: skip
     ours = scores["ours-full"]
-    lines += ["", "Ours (full) against each baseline (ratio < 1: ours is better); the paper's "
-              "Table 3 gives 0.62 against Santesteban and 0.75 against virtual bones on RMSE:",
+    lines += ["", "Ours (the shipped pipeline) against each baseline (ratio < 1: ours is "
+              "better); the paper's Table 3 gives 0.62 against Santesteban and 0.75 "
+              "against virtual bones on RMSE:",
               "", "| against | RMSE | Hausdorff | STED | paper, RMSE |",
               "|---|---:|---:|---:|---:|"]  # fmt: skip
     for method, base in (("santesteban-push", "santesteban"), ("virtual-bones", "virtual-bones")):
@@ -722,12 +736,34 @@ def targets_section(sets: dict) -> list[str]:
     return lines + [""]
 
 
+def included_tables(table1: str | None, table2: str | None) -> list[str]:
+    """Tables 1 and 2 as their own scripts wrote them, each a section (their headings one
+    level down)."""
+    lines = []
+    for path, title, how in (
+        (table1, "Table 1: the motion encoder with and without the previous state",
+         "`bench/motion_ablation.py`: the motion stage alone, rolled out from each held-out "
+         "clip's first frame; iter-N is the RMSE over the first N frames"),
+        (table2, "Table 2: the detail module with and without its discriminator",
+         "`bench/detail_collision.py`: each variant rolled out whole on each held-out clip, "
+         "with and without collision handling"),
+    ):  # fmt: skip
+        if path is None:
+            continue
+        text = Path(path).read_text().splitlines()
+        body = [("#" + line if line.startswith("#") else line) for line in text
+                if not line.startswith("# ")]  # fmt: skip
+        lines += [f"## {title}", "", f"From [{Path(path).name}]({Path(path).name}) ({how}).",
+                  "", *body, ""]  # fmt: skip
+    return lines
+
+
 def clip_section(shown: dict) -> list[str]:
     """Each held-out ballet clip at its fastest turn and at its highest leg."""
     if not shown:
         return []
     lines = ["## Each held-out ballet clip at its fastest turn and its highest leg", "",
-             "Simulation | ours (full) | virtual bones | Santesteban + push-out (seed 0), the "
+             "Simulation | ours | virtual bones | Santesteban + push-out (seed 0), the "
              "whole body drawn, per-vertex distance to the simulation (0-15 cm).", ""]  # fmt: skip
     for name, f in shown.items():
         lines += [f"`{name}`: the fastest turn at frame {f['turn']} "
@@ -779,7 +815,7 @@ def markdown(data: str, sets: dict, reports: dict, ablation: list[str], started:
     lines += ["", "## The generative model's ablation (Fig. 4)", "",
               "Reconstruction (encode, decode the posterior mean) of the held-out clips by "
               "each decoder, trained on the data set's training clips (`bench/"
-              "generative_ablation.py`, cpu preset, the committed generative stage's epochs), "
+              "generative_ablation.py`, cpu preset, the same epochs for every decoder), "
               "two seeds each:", "", *ablation, ""]  # fmt: skip
     return "\n".join(lines)
 

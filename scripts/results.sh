@@ -2,7 +2,10 @@
 # docs/RESULTS.md (issues 21, 35): the paper's baselines and the generative ablation on a data
 # set (salsa; DATA=datasets/dance RUNS=runs/dance CHECKPOINT=... for dance), trained and
 # compared with the committed model on its held-out clips, on the CPU; REFERENCE=DATASET adds
-# the physical reference row (held-out motion simulated again from another seed). Needs the
+# the physical reference row (held-out motion simulated again from another seed);
+# WITH_DETAIL=SET/motion.pt adds ours with a detail stage where the compared set has none;
+# TABLE1, TABLE2: Markdown tables (bench/motion_ablation.py's, bench/detail_collision.py's)
+# included as sections. Needs the
 # data (scripts/salsa_models.sh step 1, scripts/dance_models.sh step 1) and the set it
 # compares. Every step resumes where a killed run stopped (finished runs are reused); rerun
 # the script to go on.
@@ -54,4 +57,5 @@ wait "$b0" "$b1"
     --seeds 0,1 --out "$RUNS/ablation" --table "$TABLE"
 "$BIN/python" bench/results.py --data "$DATA" --checkpoint "$CHECKPOINT" \
     --baselines "$RUNS/baselines" --ablation "$RUNS/ablation" --cache "$RUNS/results" \
-    ${REFERENCE:+--reference "$REFERENCE"} --out docs/RESULTS.md
+    ${REFERENCE:+--reference "$REFERENCE"} ${WITH_DETAIL:+--with-detail "$WITH_DETAIL"} \
+    ${TABLE1:+--table1 "$TABLE1"} ${TABLE2:+--table2 "$TABLE2"} --out docs/RESULTS.md
