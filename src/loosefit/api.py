@@ -106,7 +106,9 @@ class Animator:
         """What the model was trained on, in words (a packaged set records it), e.g. "the
         `dance` data set (16 clips, 5,656 frames, and their mirror images), fine-tuned from
         the `salsa` set"."""
-        return trained_on(self.path)
+        from loosefit.inference.package import describe_training
+
+        return describe_training(getattr(self.model, "trained_on", None))
 
     def animate(self, motion: str | Path | Motion, frames: int | None = None,
                 start_frame: int = 0, seed: int = 0, stages=None,

@@ -145,6 +145,7 @@ class AnimationModel:
     stages: Stages = field(default_factory=Stages)  # what animate() runs by default
     lengths: LengthConfig = field(default_factory=LengthConfig)  # edges back to rest length
     physics_terms: tuple[str, ...] = ()  # the physics terms the stages were trained with
+    trained_on: dict | None = None  # a packaged set's training record (package.training_record)
     _avatar: object = None
     _handler: CollisionHandler | None = None
     _restorer: LengthRestorer | None = None
@@ -356,6 +357,7 @@ def _animation_model(path: Path, data: dict, generative, device) -> AnimationMod
         tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
         dict(data["body"]), RolloutConfig(**config["rollout"]), path,
         arm_collision=arm_collision_of(data), physics_terms=terms_of(gdata, data),
+        trained_on=record if isinstance(record := data.get("trained_on"), dict) else None,
     )  # fmt: skip
 
 
