@@ -92,8 +92,8 @@ def main() -> None:
     p.add_argument("--out", default="docs/LENGTH_VARIANTS.md")
     args = p.parse_args()
 
-    from loosefit.cli import read_any_sequence
     from loosefit.data.format import DatasetReader
+    from loosefit.sequence import read_any_sequence
 
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)

@@ -270,8 +270,8 @@ def main() -> None:
     p.add_argument("--plot", default="docs/img/stage_account_flare.png")
     args = p.parse_args()
 
-    from loosefit.cli import read_any_sequence
     from loosefit.data.format import DatasetReader
+    from loosefit.sequence import read_any_sequence
 
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)

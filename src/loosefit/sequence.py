@@ -251,6 +251,21 @@ class AnimatedGarment:
             raise LoosefitInputError(path, "<fields>", "a loosefit sequence", str(exc)) from exc
 
 
+def read_any_sequence(path: str | Path, reader=None) -> AnimatedGarment:
+    """A sequence ``.npz``: an animated garment's file, or a data set's clip (a clip of an
+    earlier data set, without the sequence format, is read through its data set, or through
+    ``reader``, a :class:`~loosefit.data.format.DatasetReader`, where given)."""
+    from loosefit.data.format import DatasetReader  # it imports this module
+
+    path = Path(path)
+    root = path.parent.parent
+    if reader is None and path.parent.name == "sequences" and (root / "manifest.json").is_file():
+        reader = DatasetReader(root, allow_incomplete=True)
+    if reader is not None:
+        return reader.read(path.stem)
+    return AnimatedGarment.load(path)
+
+
 _FIELDS = (
     "joint_names rotations root_translation fps vertices faces uvs face_uvs waist "
     "garment_vertices avatar"

@@ -1,0 +1,212 @@
+"""``loosefit animate``: a trained model animates its garment on a motion; and the lines it
+(and ``demo``) logs about the model and the rollout."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+from loosefit.cli.common import (
+    add_bvh_args,
+    add_generative_arg,
+    add_render_args,
+    add_runtime_args,
+    add_stage_args,
+    log,
+    log_exported,
+    render,
+    retarget_config,
+    stages,
+)
+from loosefit.errors import LoosefitInputError
+from loosefit.progress import tqdm_bar
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("animate", help="animate the garment on a motion with a trained model")
+    p.add_argument(
+        "inputs",
+        nargs="+",
+        metavar="[CHECKPOINT] MOTION",
+        help="a motion run's model.pt or checkpoint.pt (default: the pretrained set in "
+        "checkpoints/dance), then a .bvh, .gltf/.glb or .npz (loosefit or SMPL) motion, a "
+        "procedural move, or dance:SECONDS "
+        "(mirror:MOTION mirrors one left-right; A+B plays one after another)",
+    )
+    add_generative_arg(p)
+    p.add_argument(
+        "--frames",
+        type=int,
+        default=None,
+        help="frames to animate (longer than the motion: it plays again)",
+    )
+    p.add_argument("--start-frame", type=int, default=0)
+    p.add_argument(
+        "--out",
+        default="out/animate",
+        help="the sequence .npz to write, or a folder for MOTION.npz",
+    )
+    p.add_argument("--render", action="store_true", help="also render a video and PNGs")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--export",
+        default=None,
+        metavar="PATH",
+        help="also export garment and body: .usd/.usdc/.usda (USD), .pc2 (point "
+        "caches + OBJ), or a folder (OBJ per frame)",
+    )
+    add_bvh_args(p)
+    add_stage_args(p)
+    add_runtime_args(p)
+    add_render_args(p, views="front,side")
+    p.set_defaults(func=run)
+
+
+def _checkpoint_and_motion(args: argparse.Namespace) -> None:
+    """``animate [CHECKPOINT] MOTION``: without a checkpoint, the pretrained default."""
+    from loosefit.api import pretrained_checkpoint
+
+    if len(args.inputs) not in (1, 2):
+        raise LoosefitInputError(
+            "animate",
+            "arguments",
+            "[CHECKPOINT] MOTION",
+            f"{len(args.inputs)} arguments: {args.inputs}",
+        )
+    if len(args.inputs) == 2:
+        args.checkpoint, args.motion = args.inputs
+        return
+    args.checkpoint, args.motion = pretrained_checkpoint(), args.inputs[0]
+    if not args.checkpoint.is_file():
+        raise LoosefitInputError(
+            args.checkpoint,
+            "checkpoint",
+            "the pretrained pair of a loosefit clone",
+            "no such file",
+            hint="pass a checkpoint: loosefit animate CHECKPOINT MOTION",
+        )
+    log(f"no checkpoint given: the pretrained default {args.checkpoint}")
+    trained_on_note(args.checkpoint)
+
+
+def run(args: argparse.Namespace) -> int:
+    _checkpoint_and_motion(args)
+    from loosefit.api import motion_for
+    from loosefit.inference.animator import load_pipeline
+    from loosefit.sequence import AnimatedGarment
+
+    model = load_pipeline(args.checkpoint, args.generative, args.detail)
+    on = stages(args)
+    physics_note(model, on)
+    avatar = model.avatar()
+    if args.frames is not None and args.frames < 1:
+        raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
+    motion = motion_for(
+        args.motion,
+        avatar,
+        model.fps,
+        args.frames,
+        args.start_frame,
+        args.seed,
+        retarget=retarget_config(args),
+    )
+    # the motion's own name (a chain's names all of its parts), safe as a file name
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", motion.name).strip("._") or "motion"
+    out = Path(args.out)
+    if out.suffix not in ("", ".npz") and not out.is_dir():
+        raise LoosefitInputError("--out", "out", "a .npz file or a folder", str(out))
+    path = out if out.suffix == ".npz" else out / f"{name}.npz"
+    if args.export:
+        from loosefit.export import check_export_path
+
+        check_export_path(args.export)  # before the work, not after
+    log(f"animating {motion.num_frames} frames of '{motion.name}'")
+    bar = tqdm_bar("rollout", unit="frame")
+    result = model.animate(
+        motion, bar.progress, stages=on, runtime=args.runtime, collision=args.collision
+    )
+    bar.close()
+    log(stage_line(model, on, result))
+    shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
+    source = f"loosefit model {Path(args.checkpoint).resolve()}"
+    seq = AnimatedGarment(motion, model.template, result.vertices, shape, source)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    seq.save(path)
+    log(f"{throughput(motion, result)}; wrote {path}")
+    if args.export:
+        log_exported(seq.export(args.export))
+    if args.render:
+        out = path.with_name(path.stem + "_render")
+        title = f"{motion.name} (loosefit rollout)"
+        render(args, avatar, motion, model.template, result.vertices, out, title)
+    return 0
+
+
+def trained_on_note(path: Path) -> None:
+    """Say what a packaged set was trained on (the motion it knows)."""
+    from loosefit.api import trained_on
+
+    log(f"model {Path(path).parent.name}: trained on {trained_on(path)}")
+
+
+def physics_note(model, stages) -> None:
+    """Say which physics loss terms (membrane, bending, ...: the garment's edge lengths and
+    angles held to rest) a model's stages were trained without."""
+    missing = getattr(model, "missing_physics_terms", ())
+    if missing:
+        fix = (
+            "the edge-length stage restores them"
+            if stages.lengths
+            else "--no-lengths leaves them so"
+        )
+        log(
+            f"this model was trained without the physics terms {', '.join(missing)}: "
+            f"its decoders give edges shorter than rest; {fix}"
+        )
+
+
+def throughput(motion, result) -> str:
+    """How long a rollout took, apart from the clip's own frame rate: "animated 274 frames
+    of a 30 fps clip (9.1 s) in 55.0 s (5 frames per second)"."""
+    extra = result.frames - motion.num_frames
+    preroll = f", {extra} frames of preroll more" if extra > 0 else ""
+    return (
+        f"animated {motion.num_frames} frames of a {motion.fps:g} fps clip "
+        f"({motion.num_frames / motion.fps:.1f} s) in {result.seconds:.1f} s "
+        f"({result.frames_per_second:.0f} frames per second{preroll})"
+    )
+
+
+def stage_line(model, stages, result) -> str:
+    """What ran after the decoders, and what collision handling did."""
+    from loosefit.eval.quality import PENETRATION_TOLERANCE
+
+    ran = ["motion"]
+    if stages.detail and model.detail is not None:
+        ran.append("detail")
+    elif stages.detail:
+        ran.append("(no detail stage in this checkpoint)")
+    if hasattr(model, "restorer") and model.restorer(stages) is not None:  # baselines: none
+        ran.append("edge lengths")
+    if stages.collision:
+        ran.append("collision")
+    line = "stages: " + " -> ".join(ran)
+    if result.collisions:
+        before = sum(c["inside_before"] > 0 for c in result.collisions)
+        after = [c for c in result.collisions if c["inside_after"] > 0]
+        deep = sum(c["depth_after"] > PENETRATION_TOLERANCE for c in result.collisions)
+        whole = model.collision.whole_body or model.arm_collision is True
+        body = "the body (arms and hands included)" if whole else "the body (without its arms)"
+        line += (
+            f"; collision handling: {before} of {len(result.collisions)} frames had cloth "
+            f"inside {body}, {len(after)} still do, {deep} deeper than "
+            f"{PENETRATION_TOLERANCE * 1000:.0f} mm"
+        )
+        if after:
+            worst = max(
+                range(len(result.collisions)), key=lambda k: result.collisions[k]["depth_after"]
+            )
+            depth = result.collisions[worst]["depth_after"]
+            line += f" (deepest: frame {worst}, {100 * depth:.2f} cm)"
+    return line

@@ -1,0 +1,173 @@
+"""``loosefit demo``: the main job, the pretrained model animating its skirt on a dance."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from loosefit.cli.animate import physics_note, stage_line, throughput, trained_on_note
+from loosefit.cli.common import (
+    add_avatar_args,
+    add_bvh_args,
+    add_render_args,
+    add_runtime_args,
+    build_avatar,
+    garment_template,
+    log,
+    log_exported,
+    render,
+    retarget_config,
+)
+from loosefit.cli.view import add_view_args, serve
+from loosefit.errors import LoosefitInputError
+from loosefit.progress import tqdm_bar
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "demo",
+        help="the main job: the pretrained model animates its skirt on "
+        "a 20 s dance (video, USD, PC2); --physics simulates instead",
+    )
+    p.add_argument("--out", default="out/demo", help="output folder")
+    p.add_argument(
+        "--motion",
+        default=None,
+        help="procedural move, dance:SECONDS, or a file (default: dance:20; with --physics: spin)",
+    )
+    p.add_argument(
+        "--max-frames",
+        type=int,
+        default=None,
+        help="frames of the motion to use (default: all; with --physics: 90)",
+    )
+    p.add_argument("--start-frame", type=int, default=0, help="first frame of the motion to use")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument(
+        "--physics",
+        action="store_true",
+        help="simulate the skirt with Newton's VBD solver (minutes) instead",
+    )
+    mode.add_argument("--no-physics", action="store_true", help="carry the skirt rigidly instead")
+    p.add_argument(
+        "--checkpoint",
+        default=None,
+        help="a model to animate with (default: the pretrained set)",
+    )
+    add_runtime_args(p)
+    p.add_argument("--sim-device", default="cpu", help="warp device for the simulation")
+    p.add_argument(
+        "--garment",
+        default=None,
+        help="--physics/--no-physics: skirt style (aline, flared, circle) or an OBJ "
+        "(default flared)",
+    )
+    p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--fps", type=float, default=30.0)
+    add_bvh_args(p)
+    add_avatar_args(p)
+    add_render_args(p)
+    p.add_argument(
+        "--view",
+        action="store_true",
+        help="then open the result in the browser viewer (as loosefit view)",
+    )
+    add_view_args(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """The main job: the pretrained model animating its skirt on a dance (``--physics``: the
+    simulator instead; ``--no-physics``: the skirt carried rigidly)."""
+    from loosefit.body.motions import load_motion
+    from loosefit.dress import carry_rigidly
+    from loosefit.sequence import AnimatedGarment
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    learned = not (args.physics or args.no_physics)
+    if learned and args.garment is not None:
+        raise LoosefitInputError(
+            "--garment",
+            "garment",
+            "no --garment: the pretrained model animates the skirt it was trained on (use "
+            "--physics to simulate another)",
+            repr(args.garment),
+        )
+    spec = args.motion or ("dance:20" if learned else "spin")
+    max_frames = args.max_frames if args.max_frames or learned else 90
+    model = None
+    if learned:
+        from loosefit.api import pretrained_checkpoint
+        from loosefit.inference.animator import load_pipeline
+
+        path = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
+        model = load_pipeline(path)
+        trained_on_note(path)
+        physics_note(model, model.stages)
+        avatar, template = model.avatar(), model.template
+    else:
+        avatar = build_avatar(args)
+        template = garment_template(args.garment or "flared", avatar, args.resolution)
+    motion = load_motion(
+        spec,
+        avatar,
+        fps=model.fps if model else args.fps,
+        seed=args.seed,
+        retarget=retarget_config(args),
+        max_frames=max_frames,
+        start_frame=args.start_frame,
+    )
+    log(f"motion '{motion.name}': {motion.num_frames} frames at {motion.fps:g} fps")
+    body = avatar.pose_motion(motion)
+    if model is not None:
+        bar = tqdm_bar("animate", unit="frame")
+        result = model.animate(
+            motion, progress=bar.progress, runtime=args.runtime, collision=args.collision
+        )
+        bar.close()
+        garment, source = result.vertices, f"loosefit model {path.parent.name}"
+        log(throughput(motion, result) + "; " + stage_line(model, model.stages, result))
+    elif args.no_physics:
+        garment = carry_rigidly(template, body, avatar).cpu().numpy()
+        source = "rigid"
+    else:
+        garment, source = _simulate(args, avatar, template, motion), "newton-vbd"
+    seq = AnimatedGarment(
+        motion, template, garment, {"rig": avatar.config.rig, "shape": avatar.shape}, source
+    )
+    seq.save(out / "sequence.npz")
+    log(f"wrote {out / 'sequence.npz'} ({source})")
+    if learned:  # the body posed above, once for both files
+        from loosefit.export import export_animation, garment_and_body
+
+        meshes = garment_and_body(
+            template, garment, body.vertices.cpu().numpy(), avatar.faces.cpu().numpy()
+        )
+        for suffix in (".usdc", ".pc2"):
+            log_exported(export_animation(out / f"demo{suffix}", meshes, motion.fps))
+    title = f"loosefit demo: {motion.name}" + (" (learned)" if learned else f" ({source})")
+    render(args, avatar, motion, template, garment, out, title, body=body)
+    if args.view:
+        serve([seq], [f"demo ({source})"], [str(out / "sequence.npz")], args)
+    return 0
+
+
+def _simulate(args: argparse.Namespace, avatar, template, motion):
+    """``demo --physics``: the skirt simulated with Newton's VBD solver, (T, V, 3)."""
+    from loosefit.dress import collider_arms
+    from loosefit.sim.cloth import ClothConfig, simulate
+
+    config = ClothConfig(
+        device=args.sim_device, seed=args.seed, arm_collision=collider_arms(template)
+    )
+    bar = tqdm_bar("simulate", unit="frame")
+    result = simulate(avatar, template, motion, config, progress=bar.progress)
+    bar.close()
+    q = result.quality
+    log(
+        f"simulated at {result.seconds_per_frame:.2f} s/frame; garment inside the body: "
+        f"{q['inside_max']:.4f} (worst frame), edge strain p99 {q['strain_p99']:.3f}"
+    )
+    return result.garment_vertices

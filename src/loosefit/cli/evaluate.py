@@ -1,0 +1,66 @@
+"""``loosefit evaluate``: roll out held-out clips and compare them with the simulation."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from loosefit.cli.common import add_generative_arg, add_stage_args, log, stages
+from loosefit.errors import LoosefitInputError
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("evaluate", help="roll out held-out clips and compare with the simulation")
+    p.add_argument("--checkpoint", required=True, help="a motion run's model.pt or checkpoint.pt")
+    add_generative_arg(p)
+    p.add_argument(
+        "--data",
+        nargs="+",
+        default=["datasets/salsa"],
+        help="a dataset folder, or sequence .npz files (the ground truth of their "
+        "motions, e.g. from loosefit.simulate)",
+    )
+    p.add_argument("--split", default="test", help="with a dataset: train, test or all")
+    p.add_argument("--horizons", default="100,500,1200", help="frames for iter-N errors")
+    p.add_argument("--max-frames", type=int, default=None, help="roll out at most this many")
+    p.add_argument("--rmse-only", action="store_true", help="skip Hausdorff and STED (faster)")
+    p.add_argument("--out", default="out/evaluate")
+    add_stage_args(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from loosefit.data.format import DatasetReader
+    from loosefit.eval.report import write_rollout_report
+    from loosefit.eval.rollouts import evaluate_rollouts
+    from loosefit.inference.animator import load_pipeline
+    from loosefit.sequence import read_any_sequence
+
+    model = load_pipeline(args.checkpoint, args.generative, args.detail)
+    if len(args.data) == 1 and Path(args.data[0]).is_dir():
+        reader = DatasetReader(args.data[0])
+        where = str(Path(args.data[0]).resolve())
+    else:  # sequences: the ground truth of each motion
+        reader = {Path(f).stem: read_any_sequence(f) for f in args.data}
+        where = [str(Path(f).resolve()) for f in args.data]
+    try:
+        horizons = tuple(int(h) for h in args.horizons.split(","))
+    except ValueError:
+        raise LoosefitInputError(
+            "--horizons", "horizons", "comma-separated frame counts", repr(args.horizons)
+        ) from None
+    result = evaluate_rollouts(
+        model,
+        reader,
+        args.split,
+        horizons,
+        surface=not args.rmse_only,
+        max_frames=args.max_frames,
+        stages=stages(args),
+    )
+    result["checkpoint"] = str(Path(args.checkpoint).resolve())
+    result["dataset"] = where
+    write_rollout_report(result, args.out, f"Rollouts of {Path(args.checkpoint).parent.name}")
+    print(Path(args.out, "evaluation.md").read_text())
+    log(f"wrote {args.out}/evaluation.{{md,csv,json}} and rmse_per_frame.png")
+    return 0

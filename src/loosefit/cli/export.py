@@ -1,0 +1,92 @@
+"""``loosefit export`` (a sequence to USD, PC2 or OBJ files) and ``loosefit export-model``
+(the learned runtime as ONNX for a game engine)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from loosefit.cli.common import add_generative_arg, log, log_exported
+from loosefit.errors import LoosefitInputError
+
+
+def add_export_parser(sub) -> None:
+    p = sub.add_parser("export", help="a sequence to USD, PC2 point caches or an OBJ sequence")
+    p.add_argument(
+        "sequence",
+        help="a sequence .npz (from animate, the API's save(), demo's sequence.npz, or a "
+        "dataset's sequences/NAME.npz)",
+    )
+    p.add_argument("out", help=".usd, .usdc, .usda, .pc2, or a folder for an OBJ sequence")
+    p.add_argument("--no-body", action="store_true", help="the garment only")
+    p.set_defaults(func=run_export)
+
+
+def add_export_model_parser(sub) -> None:
+    p = sub.add_parser(
+        "export-model",
+        help="the learned runtime as ONNX for an engine, with "
+        "a JSON of what its inputs mean (docs/ENGINE_EXPORT.md)",
+    )
+    p.add_argument(
+        "out",
+        help="the .onnx file to write (OUT.json and the garment's OUT.obj are written beside it)",
+    )
+    p.add_argument(
+        "--checkpoint",
+        default=None,
+        help="a motion-stage, detail or packaged checkpoint (default: the pretrained set)",
+    )
+    add_generative_arg(p)
+    p.add_argument("--detail", default=None, help="a detail stage's checkpoint to include")
+    p.add_argument("--no-detail", action="store_true", help="leave the detail stage out")
+    p.add_argument("--opset", type=int, default=17, help="ONNX opset (16-20)")
+    p.add_argument(
+        "--no-check",
+        action="store_true",
+        help="skip running a frame through onnxruntime against PyTorch",
+    )
+    p.set_defaults(func=run_export_model)
+
+
+def run_export(args: argparse.Namespace) -> int:
+    from loosefit.sequence import read_any_sequence
+
+    path = Path(args.sequence)
+    if path.suffix != ".npz":
+        raise LoosefitInputError(
+            path,
+            "<file>",
+            "a sequence .npz (from animate, the API, demo or a data set's sequences/)",
+            "another file",
+        )
+    log_exported(read_any_sequence(path).export(args.out, body=not args.no_body))
+    return 0
+
+
+def run_export_model(args: argparse.Namespace) -> int:
+    import json
+
+    from loosefit.api import pretrained_checkpoint
+    from loosefit.inference.animator import load_pipeline
+    from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
+
+    checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
+    model = load_pipeline(checkpoint, args.generative, args.detail)
+    config = OnnxExportConfig(opset=args.opset, detail=not args.no_detail, check=not args.no_check)
+    log(f"exporting {checkpoint} to ONNX (opset {config.opset})")
+    onnx_path, json_path, obj_path = export_onnx(model, args.out, config)
+    log(
+        f"wrote {onnx_path} ({onnx_path.stat().st_size / 1e6:.1f} MB), {json_path} and "
+        f"{obj_path} (the garment's mesh)"
+    )
+    check = json.loads(json_path.read_text()).get("check")  # what the export recorded
+    if check is None:
+        log("not checked against PyTorch (--no-check)")
+    else:
+        log(
+            f"checked: onnxruntime {check['onnxruntime']} equals PyTorch within "
+            f"{check['max_difference_m']:.2g} m over {check['frames']} frames (the rest pose, "
+            f"then a bent one; {config.tolerance:g} m allowed)"
+        )
+    return 0

@@ -1,0 +1,410 @@
+"""``loosefit train generative|motion|detail|baseline``: train a learned stage (resumable).
+
+Each stage is its own subcommand with only its own flags: ``add_common_args`` adds the
+ones every stage takes, the ``_add_*_args`` helpers the ones a few share. A flag of
+another stage is refused by name (``train motion --no-discriminator`` says that flag
+belongs to ``train detail``): ``_refuse_other_stages_flags`` gives every stage's parser a
+hidden entry for each flag the other stages have.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from loosefit.cli.common import log
+from loosefit.errors import LoosefitInputError
+
+STAGES = ("generative", "motion", "detail", "baseline")
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "train",
+        help="train a learned stage (resumable)",
+        description="Train a learned stage (resumable): loosefit train STAGE [flags]; "
+        "each stage's flags: loosefit train STAGE --help.",
+    )
+    stages = p.add_subparsers(dest="stage", required=True, metavar="STAGE")
+    parsers = {
+        "generative": _add_generative_parser(stages),
+        "motion": _add_motion_parser(stages),
+        "detail": _add_detail_parser(stages),
+        "baseline": _add_baseline_parser(stages),
+    }
+    _refuse_other_stages_flags(p, parsers)
+
+
+# --- the flags ----------------------------------------------------------------------------
+
+
+def add_common_args(p: argparse.ArgumentParser, out: str) -> None:
+    """The flags every stage takes; ``out``: the default run folder, as help text."""
+    p.add_argument("--data", default="datasets/demo", help="a dataset folder")
+    p.add_argument("--preset", default="cpu", help="cpu (about 20 CPU minutes) or full (GPU)")
+    p.add_argument("--out", default=None, help=f"run folder (default {out})")
+    p.add_argument("--epochs", type=int, default=None)
+    p.add_argument("--batch-size", type=int, default=None)
+    p.add_argument("--lr", type=float, default=None)
+    p.add_argument("--max-frames", type=int, default=None, help="frames per clip")
+    p.add_argument("--device", default="cpu", help="torch device")
+    p.add_argument("--seed", type=int, default=None, help="training seed (default 0)")
+    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
+
+
+def _add_precision_arg(p: argparse.ArgumentParser) -> None:
+    """``--precision`` (generative, motion; detail and baseline train in fp32)."""
+    p.add_argument(
+        "--precision",
+        default=None,
+        choices=("fp32", "bf16"),
+        help="the networks' forward pass in fp32 (default) or bf16 "
+        "(autocast; losses and optimiser stay fp32)",
+    )
+
+
+def _add_physics_args(p: argparse.ArgumentParser, *extra: str) -> None:
+    """The weights of the physics loss terms (generative, motion): ``--membrane``,
+    ``--bending``, and ``extra`` of ``collision`` (generative) and ``flare`` (motion)."""
+    terms = {
+        "membrane": "membrane term (edge lengths against rest",
+        "bending": "bending term (dihedral angles against rest",
+        "collision": "collision term (cloth outside the whole body",
+        "flare": "hem-flare term (the hem's mean distance from the root's vertical axis "
+        "against the simulation's",
+    }
+    for name in ("membrane", "bending", *extra):
+        p.add_argument(
+            f"--{name}",
+            type=float,
+            default=None,
+            metavar="W",
+            help=f"weight of the {terms[name]}; default 0)",
+        )
+
+
+def _add_init_arg(p: argparse.ArgumentParser) -> None:
+    """``--init`` (generative, motion, detail: a baseline trains from scratch)."""
+    p.add_argument(
+        "--init",
+        default=None,
+        metavar="CHECKPOINT",
+        help="start from this checkpoint's weights (a run's or a packaged set's, same "
+        "garment and configuration): fine-tuning",
+    )
+
+
+def _add_clip_args(p: argparse.ArgumentParser) -> None:
+    """``--mirror`` and ``--joints`` (motion, baseline): what the network trains on."""
+    p.add_argument(
+        "--mirror",
+        action="store_true",
+        help="also train on every clip mirrored left-right (twice the data, no "
+        "simulation; the garment must be mirror-symmetric)",
+    )
+    p.add_argument(
+        "--joints",
+        default=None,
+        choices=("all", "lower"),
+        help="the joints whose rotations the network sees: all (default) or lower "
+        "(spine and legs, what moves the skin a skirt touches)",
+    )
+
+
+def _add_generative_parser(stages) -> argparse.ArgumentParser:
+    p = stages.add_parser(
+        "generative",
+        help="the garment VAE (3.2)",
+        description="Train the generative model, the garment VAE (paper 3.2).",
+    )
+    p.add_argument("--decoder", default="decomposed", help="decomposed, vertex or ssdr")
+    add_common_args(p, "runs/generative-PRESET-DECODER")
+    _add_precision_arg(p)
+    _add_physics_args(p, "collision")
+    _add_init_arg(p)
+    p.set_defaults(func=run_generative)
+    return p
+
+
+def _add_motion_parser(stages) -> argparse.ArgumentParser:
+    p = stages.add_parser(
+        "motion",
+        help="the motion encoder (3.3)",
+        description="Train the motion encoder (paper 3.3) on a trained generative model.",
+    )
+    p.add_argument("--generative", default=None, help="the generative checkpoint")
+    p.add_argument(
+        "--no-previous-state",
+        action="store_true",
+        help="the 'w/o ps' ablation (no previous garment input)",
+    )
+    p.add_argument(
+        "--previous",
+        default=None,
+        choices=("scheduled", "teacher"),
+        help="previous states by scheduled sampling (default) or ground truth",
+    )
+    _add_clip_args(p)
+    add_common_args(p, "runs/motion-PRESET-ps, or -nops")
+    _add_precision_arg(p)
+    _add_physics_args(p, "flare")
+    _add_init_arg(p)
+    p.set_defaults(func=run_motion)
+    return p
+
+
+def _add_detail_parser(stages) -> argparse.ArgumentParser:
+    p = stages.add_parser(
+        "detail",
+        help="the detail enhancement module (3.4) on a trained motion stage's rollouts",
+        description="Train the detail enhancement module (paper 3.4) on a trained motion "
+        "stage's rollouts.",
+    )
+    p.add_argument("--motion", default=None, help="the motion stage's model.pt")
+    p.add_argument(
+        "--generative",
+        default=None,
+        help="the generative checkpoint (default: the one the motion stage records)",
+    )
+    p.add_argument(
+        "--no-discriminator",
+        action="store_true",
+        help="the ablation without the multi-scale discriminator (Table 2's middle row)",
+    )
+    p.add_argument(
+        "--edge-weight",
+        type=float,
+        default=None,
+        help="weight of an L1 edge-length term added to Eq. 13 (default 0, the paper's)",
+    )
+    add_common_args(p, "runs/detail-PRESET-full, -nodisc, -full-edge or -nodisc-edge")
+    _add_init_arg(p)
+    p.set_defaults(func=run_detail)
+    return p
+
+
+def _add_baseline_parser(stages) -> argparse.ArgumentParser:
+    p = stages.add_parser(
+        "baseline",
+        help="one of the paper's baselines (--method)",
+        description="Train one of the paper's baselines (--method).",
+    )
+    p.add_argument(
+        "--method",
+        default=None,
+        choices=("santesteban", "virtual-bones"),
+        help="Santesteban et al. 2019 (skinned to the body, GRU displacements, "
+        "push-out) or Pan et al. 2022 (virtual bones from a skinning decomposition)",
+    )
+    p.add_argument("--bones", type=int, default=None, help="virtual-bones: bones")
+    _add_clip_args(p)
+    add_common_args(p, "runs/baseline-PRESET-METHOD")
+    p.set_defaults(func=run_baseline)
+    return p
+
+
+class _OtherStagesFlag(argparse.Action):
+    """A hidden entry for a flag this parser lacks: refused, naming where it belongs.
+
+    On a stage's parser, ``owners`` are the stages that take the flag; on ``train``'s own
+    parser (a flag before the stage), every stage that takes it, and the error asks for
+    the stage first."""
+
+    def __init__(self, option_strings, dest, owners=(), stage=None, **kwargs):
+        super().__init__(
+            option_strings,
+            dest=argparse.SUPPRESS,
+            nargs="?",
+            default=argparse.SUPPRESS,
+            help=argparse.SUPPRESS,
+        )
+        self.owners, self.stage = owners, stage
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        names = [f"`loosefit train {s}`" for s in self.owners]
+        where = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+        if self.stage is None:
+            parser.error(
+                f"{option_string} belongs to {where}: name the stage first, "
+                f"`loosefit train STAGE {option_string} ...` (STAGE: {', '.join(STAGES)})"
+            )
+        parser.error(
+            f"{option_string} belongs to {where}, not to `loosefit train {self.stage}` "
+            f"(its flags: `loosefit train {self.stage} --help`)"
+        )
+
+
+def _refuse_other_stages_flags(train: argparse.ArgumentParser, parsers: dict) -> None:
+    """Every flag of a stage, on the other stages' parsers and on ``train``'s own (a flag
+    given before the stage), as an error that names the stages it belongs to."""
+    flags = {stage: _flags(p) for stage, p in parsers.items()}
+    owners: dict[str, list[str]] = {}
+    for stage, names in flags.items():
+        for name in names:
+            owners.setdefault(name, []).append(stage)
+    for stage, p in parsers.items():
+        for name in sorted(set(owners) - flags[stage]):
+            p.add_argument(name, action=_OtherStagesFlag, owners=owners[name], stage=stage)
+    for name in sorted(set(owners) - _flags(train)):
+        train.add_argument(name, action=_OtherStagesFlag, owners=owners[name])
+
+
+def _flags(p: argparse.ArgumentParser) -> set[str]:
+    return {s for a in p._actions for s in a.option_strings if s.startswith("--")}
+
+
+# --- the runs -----------------------------------------------------------------------------
+
+
+def _start(args: argparse.Namespace, stage: str) -> None:
+    """``--threads``; and, launched by torchrun (one process of several), the process
+    group and this process's GPU (the generative and motion stages only, so far)."""
+    import torch
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    if int(os.environ.get("WORLD_SIZE", "1")) <= 1:
+        return
+    if stage not in ("generative", "motion"):
+        raise LoosefitInputError(
+            "torchrun",
+            "stage",
+            "generative or motion (the stages that train on several processes so far)",
+            stage,
+        )
+    import torch.distributed as dist
+
+    if not dist.is_initialized():
+        dist.init_process_group("nccl" if args.device.startswith("cuda") else "gloo")
+    if args.device.startswith("cuda"):
+        args.device = f"cuda:{int(os.environ.get('LOCAL_RANK', '0'))}"
+
+
+def _physics_weights(loss, args: argparse.Namespace):
+    """A loss config with the physics weights given (``--membrane``, ``--bending``,
+    ``--collision``, ``--flare``: those the stage has), checked as the config checks its
+    weights."""
+    import dataclasses
+
+    given = {n: getattr(args, n, None) for n in ("membrane", "bending", "collision", "flare")}
+    return dataclasses.replace(loss, **{n: v for n, v in given.items() if v is not None})
+
+
+def _finish(out, report: dict, kept: str = "model") -> int:
+    """A finished training run: its report, and where the run and its ``kept``.pt are
+    (under torchrun, the first process's to say: the others return 0 quietly)."""
+    from loosefit.train.common import distributed
+
+    if distributed()[0] > 0:
+        return 0
+    print(Path(out, "report.md").read_text())
+    log(f"run in {out}; {kept} {Path(out, kept + '.pt')}")
+    return 0 if report else 1
+
+
+def run_generative(args: argparse.Namespace) -> int:
+    from loosefit.train.generative import TrainGenerativeConfig, train_generative
+
+    _start(args, "generative")
+    cfg = TrainGenerativeConfig.preset(
+        args.preset,
+        decoder=args.decoder,
+        epochs=args.epochs,
+        device=args.device,
+        max_frames=args.max_frames,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        seed=args.seed,
+        precision=args.precision,
+    )
+    cfg.loss = _physics_weights(cfg.loss, args)
+    cfg.init = args.init
+    out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
+    report = train_generative(args.data, out, cfg, log=log)
+    return _finish(out, report, "checkpoint")
+
+
+def run_motion(args: argparse.Namespace) -> int:
+    from loosefit.train.motion import TrainMotionConfig, train_motion
+
+    _start(args, "motion")
+    if not args.generative:
+        raise LoosefitInputError(
+            "loosefit train motion",
+            "--generative",
+            "the trained generative model's checkpoint",
+            "none",
+        )
+    cfg = TrainMotionConfig.preset(
+        args.preset,
+        epochs=args.epochs,
+        device=args.device,
+        max_frames=args.max_frames,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        previous=args.previous,
+        previous_state=False if args.no_previous_state else None,
+        mirror=True if args.mirror else None,
+        joints=args.joints,
+        seed=args.seed,
+        precision=args.precision,
+    )
+    cfg.loss = _physics_weights(cfg.loss, args)
+    cfg.init = args.init
+    kind = "ps" if cfg.model.previous_state else "nops"
+    out = args.out or f"runs/motion-{args.preset}-{kind}"
+    report = train_motion(args.data, args.generative, out, cfg, log=log)
+    return _finish(out, report)
+
+
+def run_detail(args: argparse.Namespace) -> int:
+    from loosefit.train.detail import TrainDetailConfig, train_detail
+
+    _start(args, "detail")
+    if not args.motion:
+        raise LoosefitInputError(
+            "loosefit train detail", "--motion", "the trained motion stage's model.pt", "none"
+        )
+    cfg = TrainDetailConfig.preset(
+        args.preset,
+        epochs=args.epochs,
+        device=args.device,
+        max_frames=args.max_frames,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        discriminator=False if args.no_discriminator else None,
+        seed=args.seed,
+    )
+    if args.edge_weight is not None:
+        cfg.loss.edge = args.edge_weight
+    cfg.init = args.init
+    kind = ("full" if cfg.discriminator else "nodisc") + ("-edge" if cfg.loss.edge else "")
+    out = args.out or f"runs/detail-{args.preset}-{kind}"
+    report = train_detail(args.data, args.motion, out, cfg, args.generative, log=log)
+    return _finish(out, report)
+
+
+def run_baseline(args: argparse.Namespace) -> int:
+    from loosefit.train.baseline import TrainBaselineConfig, train_baseline
+
+    _start(args, "baseline")
+    if not args.method:
+        raise LoosefitInputError(
+            "loosefit train baseline", "--method", "santesteban or virtual-bones", "none"
+        )
+    cfg = TrainBaselineConfig.preset(
+        args.preset,
+        method=args.method,
+        epochs=args.epochs,
+        device=args.device,
+        max_frames=args.max_frames,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        mirror=True if args.mirror else None,
+        joints=args.joints,
+        bones=args.bones,
+        seed=args.seed,
+    )
+    out = args.out or f"runs/baseline-{args.preset}-{args.method}"
+    return _finish(out, train_baseline(args.data, out, cfg, log=log))
