@@ -199,7 +199,8 @@ def test_the_garment_command_shows_the_fit_s_stages_and_writes_a_preview(other_d
 
 
 def test_simulate_takes_the_avatar_s_shape_into_the_data_set():
-    from loosefit.cli import build_parser, dataset_config
+    from loosefit.cli import build_parser
+    from loosefit.cli.simulate import dataset_config
 
     args = build_parser().parse_args(["simulate", "--preset", "tiny", "--shape", "weight=0.7"])
     assert dataset_config(args).shape == {"weight": 0.7}

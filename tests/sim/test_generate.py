@@ -422,7 +422,8 @@ def test_a_folder_of_mixed_motion_files_is_a_data_set_s_motions(tmp_path, avatar
     a clip named after its file, each read to the motion it was written from."""
     from loosefit.body.bvh import read_bvh
     from loosefit.body.motions import load_motion
-    from loosefit.cli import build_parser, dataset_config
+    from loosefit.cli import build_parser
+    from loosefit.cli.simulate import dataset_config
     from tests.body.bvh_conventions import CONVENTIONS, motion_error, write_convention_bvh
     from tests.body.gltf_writer import write_gltf
     from tests.body.test_smpl import SMPL_MAP, smpl_arrays

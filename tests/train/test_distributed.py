@@ -139,10 +139,10 @@ def test_torchrun_refuses_the_detail_and_baseline_stages(toy_dataset, tmp_path):
     import os
 
     env = {**os.environ, "WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0"}
+    own = {"detail": ["--motion", "x.pt"], "baseline": ["--method", "santesteban"]}
     for stage in ("detail", "baseline"):
         run = subprocess.run([sys.executable, "-m", "loosefit.cli", "train", stage, "--data",
-                              str(toy_dataset), "--motion", "x.pt", "--method", "santesteban",
-                              "--out", str(tmp_path / stage)],
+                              str(toy_dataset), *own[stage], "--out", str(tmp_path / stage)],
                              capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
         assert run.returncode == 2 and "torchrun" in run.stderr, run.stderr[-2000:]
         assert "generative or motion" in run.stderr
