@@ -18,7 +18,6 @@ from loosefit.cli.common import (
     stored_clip,
 )
 from loosefit.errors import LoosefitInputError
-from loosefit.sequence import read_any_sequence
 
 
 def add_parser(sub) -> None:
@@ -48,6 +47,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from loosefit.body.motions import load_motion
     from loosefit.dress import carry_rigidly
+    from loosefit.sequence import read_any_sequence
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
