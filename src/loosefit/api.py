@@ -132,7 +132,7 @@ class Animator:
             collision: ``"full"`` (default), or ``"realtime"``: one solve and one round of
                 the last projection and of the mending a frame, 1.3-2.2x faster collision
                 handling, a little more cloth left within a millimetre of the skin
-                (docs/BENCHMARKS.md, "Issue 37").
+                (docs/BENCHMARKS.md, "Collision handling: full and realtime").
 
         Returns:
             :class:`~loosefit.sequence.AnimatedGarment`, world positions.

@@ -88,11 +88,11 @@ class CollisionConfig:
     #   its default 2 costs a third more, same answers on salsa 60_01 and ballet 05_12; 0.5
     #   calls cloth centimetres outside inside)
     whole_body: bool = True  # collide with the whole body, arms and hands included, whatever
-    #   the simulation's collider was (issue 34: hands passed through the skirt)
-    fast: bool = True  # issue 37: the same answers in less time: each solve a banded
+    #   the simulation's collider was (without arms and hands, they passed through the skirt)
+    fast: bool = True  # the same answers in less time: each solve a banded
     #   Cholesky in a bandwidth-reducing order fixed once (not SuperLU), and "inside" the winding
     #   number counted along rays (``Surface.query(sign="rays")``: no solid-angle data to refit
-    #   each frame) instead of warp's fast winding number; False: as before issue 37
+    #   each frame) instead of warp's fast winding number; False: the slower path before it
     sticky: bool = True  # along a motion, cloth inside the body leaves it on the side it left
     #   by in the frame before, when its closest skin is now on the other side (the hem deep
     #   in a thigh, near its middle: pushed out to the front, then to the back, frame after
@@ -125,7 +125,7 @@ class CollisionConfig:
 
 
 # ``loosefit animate --collision realtime``: one solve, one round of the last projection and
-# of the mending a frame (issue 37). Against the default on 150 frames (bench/collision_pops.py,
+# of the mending a frame. Against the default on 150 frames (bench/collision_pops.py,
 # docs/BENCHMARKS.md): collision handling 1.3-2.2x faster, no frame deeper than the default's,
 # fewer jumps from frame to frame; more vertices left within eps of the skin or 1 mm inside
 # where body parts press together (60_01: 854 vertex-frames against 546)

@@ -298,7 +298,7 @@ class Surface:
         each crosses, by their side: exact on a closed mesh, overlapping parts included, and
         needs no solid-angle data, so the surface refits several times faster): a ray
         away from the closest skin that meets no face says outside; otherwise the majority
-        of three rays in fixed directions (issue 37, the fast path of collision handling).
+        of three rays in fixed directions (the fast path of collision handling).
         ``sign="winding"`` decides inside by the generalised winding number where the
         surface keeps it (``winding_number=True``; robust to small holes and to parts
         that overlap), otherwise by warp's vote of three rays; ``"normal"`` by the side
@@ -308,7 +308,7 @@ class Surface:
         away from its skin, 0.5 wrong by centimetres). ``hint``: (N,) a face of the mesh
         for each query (-1: none), e.g. its closest face of a query before: the search
         goes no farther than that face (the same answers, much faster where the hint is
-        near; issue 37).
+        near).
         """
         if sign not in ("winding", "normal", "rays"):
             raise ValueError(f"sign: expected 'winding', 'normal' or 'rays', found {sign!r}")

@@ -193,7 +193,7 @@ class AnimationModel:
 
     @property
     def missing_physics_terms(self) -> tuple[str, ...]:
-        """The physics terms (issue 34) the stages were not trained with."""
+        """The physics terms (membrane, bending, collision) the stages were not trained with."""
         return tuple(t for t in PHYSICS_TERMS if t not in self.physics_terms)
 
     def restorer(self, stages: Stages) -> LengthRestorer | None:

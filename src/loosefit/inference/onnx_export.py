@@ -1,4 +1,4 @@
-"""The learned runtime as one ONNX graph, for a game engine (issue 37, item 2).
+"""The learned runtime as one ONNX graph, for a game engine.
 
 One call of the graph is one frame of :func:`~loosefit.model.rollout.rollout` for B
 characters: the motion features of the frame (computed in the graph from the joints),

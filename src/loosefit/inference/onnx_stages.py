@@ -1,8 +1,8 @@
 """The animation pipeline's learned stages in onnxruntime: ``animate(..., runtime="onnx")``.
 
 :func:`~loosefit.model.rollout.rollout` runs the same timeline either way; with this
-runtime its two network calls go through onnxruntime instead of PyTorch (issue 37: the
-whole pipeline on one core):
+runtime its two network calls go through onnxruntime instead of PyTorch (faster
+on one core):
 
 * the motion stage's step (:class:`StepGraph`, one frame): the dynamic motion encoder
   (Eq. 9, its GRU state in and out) and the decoders with the UV sampling, garments in

@@ -270,7 +270,7 @@ class GenerativeLossConfig:
     # Positions are compared in centimetres (x100): in metres the squared errors are
     # ~1e-4 and the KL term at 1e-3 would drown them; the paper does not give its unit.
     length_scale: float = 100.0
-    # physics terms of the posed garment (issue 34; loosefit.model.physics), 0: off
+    # physics terms of the posed garment (loosefit.model.physics), 0: off
     membrane: float = 0.0  # edge lengths against rest
     bending: float = 0.0  # dihedral angles against rest
     collision: float = 0.0  # cloth outside the body (needs the body's contacts per frame)
@@ -303,7 +303,8 @@ def generative_loss(
     contacts: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> dict[str, torch.Tensor]:
     """Eqs. 6-8: geometry, Laplacian, unposed (inverse skinning), template, KL; and the
-    physics terms of the posed garment that ``weights`` turns on (issue 34).
+    physics terms of the posed garment that ``weights`` turns on (membrane, bending,
+    collision; :mod:`loosefit.model.physics`).
 
     Args:
         out: the model's output for B garments.

@@ -1,4 +1,4 @@
-"""Physics terms for learned garments: membrane, bending, collision (issue 34).
+"""Physics terms for learned garments: membrane, bending, collision.
 
 A network trained only on squared distances to a chaotic garment learns the mean of its
 possible states, and the mean of many fold configurations has shorter edges and a smaller
@@ -16,7 +16,7 @@ SNUG (Santesteban et al. 2022), Neural Cloth Simulation (Bertiche et al. 2022) a
 - **collision**: ``mean_v max(eps - n_v . (x_v - b_v), 0)^2``, every vertex at least
   ``eps`` outside the body along the body's normal ``n_v`` at its point ``b_v``.
 
-:class:`LengthRestorer` is the other way the issue names, an output that keeps its edge
+:class:`LengthRestorer` is the other way to the same end, an output that keeps its edge
 lengths by construction: a few local-global rounds of a mass-spring system (projective
 dynamics) that bring every edge back to its rest length with the waistband held and the
 shape kept, differentiable, batched.
@@ -53,7 +53,7 @@ def active_terms(weights) -> tuple[str, ...]:
 
 def terms_of(*checkpoints: dict) -> tuple[str, ...]:
     """The physics terms that stages' checkpoint dicts were trained with (their
-    ``physics_terms``; a checkpoint from before issue 34 has none)."""
+    ``physics_terms``; a checkpoint from before the physics terms existed has none)."""
     found = set()
     for data in checkpoints:
         terms = data.get("physics_terms") or []

@@ -37,7 +37,7 @@ class Stages:
     """Which stages run after the decoders (each can be switched off)."""
 
     detail: bool = True  # paper 3.4, when the model carries a detail stage
-    lengths: bool = True  # edges back to their rest lengths (issue 34; physics.LengthRestorer)
+    lengths: bool = True  # edges back to their rest lengths (physics.LengthRestorer)
     collision: bool = True  # paper 3.5
     feedback: bool = False  # the garment after them is the next frame's previous state
     overlap: bool = True  # without feedback: they run on a second thread beside the motion stage

@@ -73,7 +73,8 @@ def restore_training(saved: dict, states: dict, sampling: torch.Generator | None
 # Training fields added after runs were recorded without them, with the value such runs
 # had: their folders still resume (and rerun scripts still pass over them).
 ADDED_FIELDS = {"precision": "fp32", "init": None}
-# the same for the loss's fields (issue 34's physics terms: runs before had them off)
+# the same for the loss's fields (the physics terms: membrane, bending, collision, flare;
+# runs before them had them off)
 ADDED_LOSS_FIELDS = {"membrane": 0.0, "bending": 0.0, "collision": 0.0,
                      "collision_epsilon": 0.002, "flare": 0.0}  # fmt: skip
 

@@ -120,14 +120,14 @@ class MotionLossConfig:
     laplacian: float = 1.5  # lambda_4
     latent: float = 0.5  # lambda_5
     length_scale: float = 100.0  # metres to centimetres, as in the generative loss
-    # physics terms (issue 34; loosefit.model.physics), 0: off. The collision term needs
+    # physics terms (loosefit.model.physics), 0: off. The collision term needs
     # the body at every frame and is taken by the generative stage only
     membrane: float = 0.0  # edge lengths against rest
     bending: float = 0.0  # dihedral angles against rest
     collision: float = 0.0
     collision_epsilon: float = 0.002
     # the hem's flare (its mean distance from the root's vertical axis) against the
-    # simulation's, squared, in the length unit (issue 34: a network that averages fold
+    # simulation's, squared, in the length unit (a network that averages fold
     # configurations pulls the hem in); 0: off
     flare: float = 0.0
 
