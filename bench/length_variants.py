@@ -20,19 +20,16 @@ import argparse
 import json
 import os
 import platform
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
+from stage_account import clip_reference  # bench/, beside this file
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from stage_account import clip_reference  # noqa: E402
-
-from loosefit.inference.animator import load_pipeline  # noqa: E402
-from loosefit.model.physics import LengthConfig  # noqa: E402
-from loosefit.model.rollout import Stages  # noqa: E402
-from loosefit.train.common import machine  # noqa: E402
+from loosefit.inference.animator import load_pipeline
+from loosefit.model.physics import LengthConfig
+from loosefit.model.rollout import Stages
+from loosefit.train.common import machine
 
 VARIANTS = {  # label: the edge-length stage (None: as committed)
     "hanging edges (committed)": None,

@@ -406,7 +406,7 @@ class LengthRestorer:
         # on one core, where the dense float32 inverse this replaces took 16 ms; float64
         # blocks take 5 ms). Their relative error (~2e-7; condition number ~1.5e3 for the
         # skirt at tie 1e-3) falls on each round's change, not on the positions
-        # (restore_numpy; bench/length_solve.py)
+        # (restore_numpy; bench/notes/length_solve.py)
         narrow = width <= min(BAND_FRACTION * len(free), BANDED_UP_TO)
         self.banded = BlockBandedCholesky(system, np.float32) if narrow else None
         self._bf_t = bf.T.tocsr()  # (Vf, E)
