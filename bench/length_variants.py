@@ -9,7 +9,7 @@ and a stronger tie to the network's shape (``tie``), before and after collision 
 strain, edge change, flare at the fastest turn, inside the whole body, RMSE.
 
     .venv/bin/python bench/length_variants.py [--data datasets/account] \\
-        [--sequence out/chain_spin.npz] [--out docs/LENGTH_VARIANTS.md]
+        [--sequence out/chain_spin.npz] [--out docs/notes/LENGTH_VARIANTS.md]
 
 Writes the table (markdown) and the figures as JSON beside it. About 15 minutes on dev-cpu.
 """
@@ -86,7 +86,7 @@ def main() -> None:
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
     p.add_argument("--data", default="datasets/account")
     p.add_argument("--sequence", nargs="*", default=["out/chain_spin.npz"])
-    p.add_argument("--out", default="docs/LENGTH_VARIANTS.md")
+    p.add_argument("--out", default="docs/notes/LENGTH_VARIANTS.md")
     args = p.parse_args()
 
     from loosefit.cli import read_any_sequence
