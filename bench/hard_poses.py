@@ -22,21 +22,18 @@ import contextlib
 import dataclasses
 import json
 import platform
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
+from stage_account import inside  # bench/, beside this file
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from stage_account import inside  # noqa: E402
-
-from loosefit.eval.quality import PENETRATION_TOLERANCE  # noqa: E402
-from loosefit.garment.mesh_checks import unique_edges  # noqa: E402
-from loosefit.inference.animator import load_pipeline  # noqa: E402
-from loosefit.sim.generate import _resolve_spec, read_config_file, spec_name  # noqa: E402
-from loosefit.train.common import machine  # noqa: E402
+from loosefit.eval.quality import PENETRATION_TOLERANCE
+from loosefit.garment.mesh_checks import unique_edges
+from loosefit.inference.animator import load_pipeline
+from loosefit.sim.generate import _resolve_spec, read_config_file, spec_name
+from loosefit.train.common import machine
 
 ROOT = Path(__file__).resolve().parents[1]
 EXTRA = [  # beyond the regression set: (spec, first frame, frames)

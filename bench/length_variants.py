@@ -9,7 +9,7 @@ and a stronger tie to the network's shape (``tie``), before and after collision 
 strain, edge change, flare at the fastest turn, inside the whole body, RMSE.
 
     .venv/bin/python bench/length_variants.py [--data datasets/account] \\
-        [--sequence out/chain_spin.npz] [--out docs/LENGTH_VARIANTS.md]
+        [--sequence out/chain_spin.npz] [--out docs/notes/LENGTH_VARIANTS.md]
 
 Writes the table (markdown) and the figures as JSON beside it. About 15 minutes on dev-cpu.
 """
@@ -20,19 +20,16 @@ import argparse
 import json
 import os
 import platform
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
+from stage_account import clip_reference  # bench/, beside this file
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from stage_account import clip_reference  # noqa: E402
-
-from loosefit.inference.animator import load_pipeline  # noqa: E402
-from loosefit.model.physics import LengthConfig  # noqa: E402
-from loosefit.model.rollout import Stages  # noqa: E402
-from loosefit.train.common import machine  # noqa: E402
+from loosefit.inference.animator import load_pipeline
+from loosefit.model.physics import LengthConfig
+from loosefit.model.rollout import Stages
+from loosefit.train.common import machine
 
 VARIANTS = {  # label: the edge-length stage (None: as committed)
     "hanging edges (committed)": None,
@@ -89,7 +86,7 @@ def main() -> None:
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
     p.add_argument("--data", default="datasets/account")
     p.add_argument("--sequence", nargs="*", default=["out/chain_spin.npz"])
-    p.add_argument("--out", default="docs/LENGTH_VARIANTS.md")
+    p.add_argument("--out", default="docs/notes/LENGTH_VARIANTS.md")
     args = p.parse_args()
 
     from loosefit.data.format import DatasetReader

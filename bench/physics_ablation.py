@@ -24,19 +24,16 @@ import argparse
 import json
 import os
 import platform
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import torch
+from stage_account import clip_account  # bench/, beside this file
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from stage_account import clip_account  # noqa: E402
-
-from loosefit.inference.animator import load_pipeline  # noqa: E402
-from loosefit.inference.checkpoints import load_generative  # noqa: E402
-from loosefit.train.common import machine  # noqa: E402
+from loosefit.inference.animator import load_pipeline
+from loosefit.inference.checkpoints import load_generative
+from loosefit.train.common import machine
 
 COLUMNS = [  # key, header, format (means over the clips)
     ("strain_p50", "strain p50", "{:.3f}"),

@@ -43,8 +43,6 @@ import torch
 
 from loosefit.body.unfold import LimbTest, fastest_axis, world_rotations
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # penetration_regression
-
 ROOT = Path(__file__).resolve().parents[1]
 SALSA = ROOT.parent / "shared" / "mocap" / "cmu-salsa"
 # The lunges of configs/regression.yaml: 60_02's, the same mirrored, 60_01's crouch.

@@ -14,7 +14,7 @@
 #      g-mb     + membrane + bending
 #      g-mbc    + membrane + bending + collision (the whole body as an obstacle)
 #      g-m3x-bc the same with three times the membrane and bending weights
-#    (weights: docs/PHYSICS_PROBE.md, the probe on one clip, scripts/physics_probe.sh)
+#    (weights: docs/notes/PHYSICS_PROBE.md, the probe on one clip, scripts/physics_probe.sh)
 # 3. The motion stage fine-tuned from the committed motion.pt (mirrored clips, as the
 #    committed ps-mirror run) on the generative run GEN_ABLATION (default g-mbc), three runs:
 #      m-plain  the paper's terms only;  m-m  + membrane;  m-mf  + membrane + hem flare

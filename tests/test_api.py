@@ -94,7 +94,7 @@ def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so
     )
     from loosefit.model.rollout import Stages
 
-    # the committed set was trained with every physics term (issue 34)
+    # the committed set was trained with every physics term
     assert model.model.missing_physics_terms == ()
     t = model.template
     s = ClothStructure.from_template(t)
@@ -111,7 +111,7 @@ def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so
     assert -0.075 < median_change(without.vertices) < -0.02
 
     # the same set with its record of the terms taken away, as a checkpoint written before
-    # issue 34: it loads, animates, and says that it lacks them
+    # the physics terms: it loads, animates, and says that it lacks them
     for name in ("generative.pt", "motion.pt"):
         data = load_torch(pretrained_checkpoint().parent / name)
         data.pop("physics_terms", None)

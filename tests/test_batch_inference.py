@@ -1,4 +1,4 @@
-"""N characters at once (issue 25, item 4): the batched rollout gives each motion the garment
+"""N characters at once: the batched rollout gives each motion the garment
 its own rollout gives."""
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ PAIR = REPO / "checkpoints" / "dance"
 def test_the_pair_is_committed_whole_and_small():
     sizes = {p.name: p.stat().st_size for p in PAIR.glob("*.pt")}
     assert set(sizes) == {"generative.pt", "motion.pt"}
-    assert sum(sizes.values()) <= 25 * 2**20  # issues 5 and 20: 25 MB together at most
+    assert sum(sizes.values()) <= 25 * 2**20  # a shipped set: 25 MB together at most
 
 
 @pytest.fixture(scope="module")

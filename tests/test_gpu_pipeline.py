@@ -46,7 +46,7 @@ def test_the_pipeline_runs_in_budgeted_calls_and_brings_back_the_model(tmp_path)
 
 
 def test_the_dance_pipeline_trains_every_stage_and_brings_back_the_set(tmp_path, toy_dataset):
-    """Issue 35's set on a GPU (``--preset dance``), at toy size: the data comes from the toy
+    """The dance set on a GPU (``--preset dance``), at toy size: the data comes from the toy
     set (simulating is the step the paper pipeline's test runs), then the three stages, the
     package with its detail stage and both tables."""
     import shutil

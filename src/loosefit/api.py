@@ -43,8 +43,15 @@ def trained_on(path: str | Path) -> str:
     return describe_training(data.get("trained_on") if isinstance(data, dict) else None)
 
 
-def motion_for(spec: str | Path | Motion, avatar, fps: float, frames: int | None = None,
-               start_frame: int = 0, seed: int = 0, retarget=None) -> Motion:  # fmt: skip
+def motion_for(
+    spec: str | Path | Motion,
+    avatar,
+    fps: float,
+    frames: int | None = None,
+    start_frame: int = 0,
+    seed: int = 0,
+    retarget=None,
+) -> Motion:
     """A motion on the avatar's skeleton at ``fps``, ``frames`` long (played again if longer).
 
     Args:
@@ -65,12 +72,18 @@ def motion_for(spec: str | Path | Motion, avatar, fps: float, frames: int | None
     if isinstance(spec, Motion):
         avatar.check_motion(spec)
         if abs(spec.fps - fps) > 1e-6:
-            raise LoosefitInputError(f"motion '{spec.name}'", "fps", f"{fps:g} (the model's)",
-                                     f"{spec.fps:g}", hint="resample it")  # fmt: skip
+            raise LoosefitInputError(
+                f"motion '{spec.name}'",
+                "fps",
+                f"{fps:g} (the model's)",
+                f"{spec.fps:g}",
+                hint="resample it",
+            )
         motion = spec.slice(start_frame, spec.num_frames)
     else:
-        motion = load_motion(spec, avatar, fps=fps, seed=seed, retarget=retarget,
-                             start_frame=start_frame)  # fmt: skip
+        motion = load_motion(
+            spec, avatar, fps=fps, seed=seed, retarget=retarget, start_frame=start_frame
+        )
     if frames is not None:
         if frames < 1:
             raise LoosefitInputError("frames", "frames", "at least 1", frames)
@@ -110,10 +123,17 @@ class Animator:
 
         return describe_training(getattr(self.model, "trained_on", None))
 
-    def animate(self, motion: str | Path | Motion, frames: int | None = None,
-                start_frame: int = 0, seed: int = 0, stages=None,
-                progress: Callable[[int, int], None] | None = None,
-                runtime: str = "torch", collision: str = "full") -> AnimatedGarment:  # fmt: skip
+    def animate(
+        self,
+        motion: str | Path | Motion,
+        frames: int | None = None,
+        start_frame: int = 0,
+        seed: int = 0,
+        stages=None,
+        progress: Callable[[int, int], None] | None = None,
+        runtime: str = "torch",
+        collision: str = "full",
+    ) -> AnimatedGarment:
         """The garment through a motion.
 
         Args:
@@ -132,7 +152,7 @@ class Animator:
             collision: ``"full"`` (default), or ``"realtime"``: one solve and one round of
                 the last projection and of the mending a frame, 1.3-2.2x faster collision
                 handling, a little more cloth left within a millimetre of the skin
-                (docs/BENCHMARKS.md, "Issue 37").
+                (docs/BENCHMARKS.md, "Collision handling: full and realtime").
 
         Returns:
             :class:`~loosefit.sequence.AnimatedGarment`, world positions.
@@ -143,15 +163,24 @@ class Animator:
         """
         avatar = self.model.avatar()
         m = motion_for(motion, avatar, self.fps, frames, start_frame, seed)
-        result = self.model.animate(m, progress, stages=stages, runtime=runtime,
-                                    collision=collision)  # fmt: skip
+        result = self.model.animate(
+            m, progress, stages=stages, runtime=runtime, collision=collision
+        )
         shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
-        return AnimatedGarment(m, self.template, result.vertices, shape,
-                               f"loosefit model {self.path}")  # fmt: skip
+        return AnimatedGarment(
+            m, self.template, result.vertices, shape, f"loosefit model {self.path}"
+        )
 
-    def animate_batch(self, motions: list, frames: int | None = None, seed: int = 0, stages=None,
-                      progress=None, runtime: str = "torch", collision: str = "full"
-                      ) -> list[AnimatedGarment]:  # fmt: skip
+    def animate_batch(
+        self,
+        motions: list,
+        frames: int | None = None,
+        seed: int = 0,
+        stages=None,
+        progress=None,
+        runtime: str = "torch",
+        collision: str = "full",
+    ) -> list[AnimatedGarment]:
         """N motions (files, moves or :class:`~loosefit.types.Motion`) at once, N characters:
         the motion stage runs batched (one network call per frame for all of them). ``seed``
         seeds procedural motions (the i-th gets ``seed + i``); ``runtime`` and ``collision``
@@ -164,18 +193,24 @@ class Animator:
             LoosefitInputError: a motion on other joints, at another rate, or unreadable.
         """
         if not hasattr(self.model, "animate_batch"):
-            raise LoosefitInputError(self.path, "model", "our model (a baseline animates one "
-                                     "motion at a time)", type(self.model).__name__)  # fmt: skip
+            raise LoosefitInputError(
+                self.path,
+                "model",
+                "our model (a baseline animates one motion at a time)",
+                type(self.model).__name__,
+            )
         avatar = self.model.avatar()
         ms = [motion_for(m, avatar, self.fps, frames, 0, seed + i) for i, m in enumerate(motions)]
-        results = self.model.animate_batch(ms, progress, stages=stages, runtime=runtime,
-                                           collision=collision)  # fmt: skip
+        results = self.model.animate_batch(
+            ms, progress, stages=stages, runtime=runtime, collision=collision
+        )
         shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
-        return [AnimatedGarment(m, self.template, r.vertices, shape, f"loosefit model {self.path}")
-                for m, r in zip(ms, results, strict=True)]  # fmt: skip
+        return [
+            AnimatedGarment(m, self.template, r.vertices, shape, f"loosefit model {self.path}")
+            for m, r in zip(ms, results, strict=True)
+        ]
 
-    def export_onnx(self, path: str | Path, detail: bool = True, check: bool = True
-                    ) -> list[Path]:  # fmt: skip
+    def export_onnx(self, path: str | Path, detail: bool = True, check: bool = True) -> list[Path]:
         """The learned runtime (motion features, the motion encoder's step, the decoders, the
         detail generator) as one ONNX graph at ``path``, its GRU state and previous garment
         explicit inputs and outputs, a JSON beside it saying what they mean and the
@@ -210,15 +245,21 @@ def load(path: str | Path | None = None, device: str = "cpu") -> Animator:
 
     path = Path(path) if path is not None else pretrained_checkpoint()
     if not path.is_file():
-        raise LoosefitInputError(path, "checkpoint", "a trained model's checkpoint",
-                                 "no such file")  # fmt: skip
+        raise LoosefitInputError(path, "checkpoint", "a trained model's checkpoint", "no such file")
     return Animator(load_pipeline(path, device=device), path)
 
 
-def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flared",
-             frames: int | None = None, start_frame: int = 0, seed: int = 0, config=None,
-             shape: dict | None = None, progress=None,
-             unfold: bool = True) -> AnimatedGarment:  # fmt: skip
+def simulate(
+    motion: str | Path | Motion,
+    garment: str | GarmentTemplate = "flared",
+    frames: int | None = None,
+    start_frame: int = 0,
+    seed: int = 0,
+    config=None,
+    shape: dict | None = None,
+    progress=None,
+    unfold: bool = True,
+) -> AnimatedGarment:
     """Ground truth: the garment simulated on the avatar (Newton VBD; minutes per second of
     motion on a CPU).
 
@@ -258,6 +299,10 @@ def simulate(motion: str | Path | Motion, garment: str | GarmentTemplate = "flar
 
         m = unfold_motion(avatar, m, body_parts(avatar, arms=config.colliding_arms)).motion
     result = run(avatar, template, m, config, progress=progress)
-    return AnimatedGarment(m, template, result.garment_vertices,
-                           {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
-                           "newton-vbd")  # fmt: skip
+    return AnimatedGarment(
+        m,
+        template,
+        result.garment_vertices,
+        {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
+        "newton-vbd",
+    )

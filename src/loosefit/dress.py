@@ -109,8 +109,9 @@ def carry_rigidly(
     return (M[:, None, :3, :3] @ v[None, :, :, None])[..., 0] + M[:, None, :3, 3]
 
 
-def garment_for(spec: str, avatar: Avatar, resolution: str = "cpu",
-                length: float | None = None) -> GarmentTemplate | None:  # fmt: skip
+def garment_for(
+    spec: str, avatar: Avatar, resolution: str = "cpu", length: float | None = None
+) -> GarmentTemplate | None:
     """A garment on the avatar's rest pose from a style name or a file.
 
     Args:
@@ -143,8 +144,12 @@ def garment_for(spec: str, avatar: Avatar, resolution: str = "cpu",
         template = GarmentTemplate.load(spec)
         check_fitted_shape(template, avatar, spec)  # a --fit garment: on the body it was fitted to
         return template
-    raise LoosefitInputError("garment", "value", f"one of {STYLES + tuple(DRESS_SPECS)}, 'none', "
-                             "or a .obj/.gltf/.glb/.npz file", repr(spec))  # fmt: skip
+    raise LoosefitInputError(
+        "garment",
+        "value",
+        f"one of {STYLES + tuple(DRESS_SPECS)}, 'none', or a .obj/.gltf/.glb/.npz file",
+        repr(spec),
+    )
 
 
 # -- the body's landmarks -----------------------------------------------------------------------
@@ -154,12 +159,17 @@ def chest_height(avatar: Avatar, step: float = 0.005) -> float:
     """Height (rest frame) of the chest line under the arms: from the shoulders down, the
     first height where both arms hang :data:`ARMPIT_GAP` clear of the torso's sides."""
     v = avatar.rest_vertices.double().cpu().numpy()
-    torso = v[avatar.vertices_of_bones(("Spine1", "Spine", "LeftShoulder", "RightShoulder",
-                                        "LowerBack")).cpu().numpy()]  # fmt: skip
+    torso = v[
+        avatar.vertices_of_bones(("Spine1", "Spine", "LeftShoulder", "RightShoulder", "LowerBack"))
+        .cpu()
+        .numpy()
+    ]
     heads = _joint_heads(avatar)
     top, bottom = float(heads["LeftArm"][2]), float(heads["Spine"][2])
-    arms = [(v[avatar.vertices_of_bones((arm,)).cpu().numpy()], sign)
-            for arm, sign in (("LeftArm", 1.0), ("RightArm", -1.0))]  # fmt: skip
+    arms = [
+        (v[avatar.vertices_of_bones((arm,)).cpu().numpy()], sign)
+        for arm, sign in (("LeftArm", 1.0), ("RightArm", -1.0))
+    ]
     for z in np.arange(top, bottom, -step):
         gaps = []
         for arm, sign in arms:
@@ -224,8 +234,9 @@ def push_out_of(avatar: Avatar, arms: bool | str = "upper", clearance: float = 0
 # -- placement -------------------------------------------------------------------------------
 
 
-def place_garment(vertices: np.ndarray, faces: np.ndarray, avatar: Avatar, kind: str,
-                  offset=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, dict]:  # fmt: skip
+def place_garment(
+    vertices: np.ndarray, faces: np.ndarray, avatar: Avatar, kind: str, offset=(0.0, 0.0, 0.0)
+) -> tuple[np.ndarray, dict]:
     """Move a garment (V, 3), Z up and in metres, onto the avatar by the module's rules.
 
     Args:
@@ -248,8 +259,9 @@ def place_garment(vertices: np.ndarray, faces: np.ndarray, avatar: Avatar, kind:
     v = np.asarray(vertices, np.float64)
     top = top_opening(v, faces)
     if top is None:
-        raise LoosefitInputError("garment", "openings", "a top opening round the body (a "
-                                 "waistband, a neckline)", "none")  # fmt: skip
+        raise LoosefitInputError(
+            "garment", "openings", "a top opening round the body (a waistband, a neckline)", "none"
+        )
     ring = v[top]
     seg = np.linalg.norm(np.roll(ring, -1, 0) - ring, axis=1)
     centre = ((ring + np.roll(ring, -1, 0)) * 0.5 * seg[:, None]).sum(0) / seg.sum()
@@ -267,8 +279,9 @@ def place_garment(vertices: np.ndarray, faces: np.ndarray, avatar: Avatar, kind:
     return v + shift, {"rule": rule, "translation_m": shift.tolist()}
 
 
-def attachment_of(vertices: np.ndarray, faces: np.ndarray, kind: str,
-                  attach: str | np.ndarray = "auto") -> tuple[np.ndarray, str]:  # fmt: skip
+def attachment_of(
+    vertices: np.ndarray, faces: np.ndarray, kind: str, attach: str | np.ndarray = "auto"
+) -> tuple[np.ndarray, str]:
     """The vertices the simulation holds on the body, and how (``"loop"``: a closed band
     in order; ``"points"``).
 
@@ -287,10 +300,13 @@ def attachment_of(vertices: np.ndarray, faces: np.ndarray, kind: str,
     if isinstance(attach, str):
         if attach == "none":
             raise LoosefitInputError(
-                "--attach", "attach", "auto, top, or a file of vertex indices", "'none'",
+                "--attach",
+                "attach",
+                "auto, top, or a file of vertex indices",
+                "'none'",
                 hint="the simulation holds every garment by its attachment: a dress that only "
                 "hangs on the body is not supported yet",
-            )  # fmt: skip
+            )
         if attach not in ("auto", "top"):
             return attachment_of(vertices, faces, kind, read_indices(attach))
         straps = kind == "dress" and len(boundary_loops(faces)) > 2
@@ -298,16 +314,23 @@ def attachment_of(vertices: np.ndarray, faces: np.ndarray, kind: str,
             return np.flatnonzero(v[:, 2] >= v[:, 2].max() - ATTACH_DEPTH), "points"
         top = top_opening(v, faces)
         if top is None:
-            raise LoosefitInputError("garment", "openings", "a top opening to attach",
-                                     "none")  # fmt: skip
+            raise LoosefitInputError("garment", "openings", "a top opening to attach", "none")
         return np.asarray(top, np.int64), "loop"
     idx = np.asarray(attach)
     if idx.ndim != 1 or len(idx) == 0 or idx.dtype.kind not in "iu":
-        raise LoosefitInputError("--attach", "attach", "a non-empty list of vertex indices",
-                                 f"shape {idx.shape}, dtype {idx.dtype}")  # fmt: skip
+        raise LoosefitInputError(
+            "--attach",
+            "attach",
+            "a non-empty list of vertex indices",
+            f"shape {idx.shape}, dtype {idx.dtype}",
+        )
     if idx.min() < 0 or idx.max() >= len(v):
-        raise LoosefitInputError("--attach", "attach", f"vertex indices in [0, {len(v)})",
-                                 f"range [{idx.min()}, {idx.max()}]")  # fmt: skip
+        raise LoosefitInputError(
+            "--attach",
+            "attach",
+            f"vertex indices in [0, {len(v)})",
+            f"range [{idx.min()}, {idx.max()}]",
+        )
     return idx.astype(np.int64), "points"
 
 
@@ -351,12 +374,14 @@ def check_clear_of_body(template: GarmentTemplate, avatar: Avatar, source="garme
     weights = avatar.model.vertex_bone_weights[int(corner)]
     bone = avatar.joint_names[int(avatar.model.vertex_bone_indices[int(corner)][weights.argmax()])]
     raise LoosefitInputError(
-        source, "placement", "a garment hanging clear of the body",
+        source,
+        "placement",
+        "a garment hanging clear of the body",
         f"{len(inside)} of {template.num_vertices} vertices inside it, the deepest (vertex "
         f"{deepest}, {100 * hit.distance[deepest]:.1f} cm in) at height "
         f"{template.vertices[deepest, 2]:.3f} m in the {bone}",
         hint=_fit_hint(source, template, avatar, float(hit.distance[deepest])),
-    )  # fmt: skip
+    )
 
 
 def _fit_hint(source, template: GarmentTemplate, avatar: Avatar, depth: float) -> str:
@@ -380,8 +405,10 @@ def _fit_hint(source, template: GarmentTemplate, avatar: Avatar, depth: float) -
         command += " --offset=" + ",".join(f"{t:g}" for t in given["placement"]["offset_m"])
     if avatar.shape != DEFAULT_SHAPE:  # fitted to this body, not the default one
         command += " --shape " + ",".join(f"{k}={v:g}" for k, v in avatar.shape.items())
-    return (f"made for another body? fit it to this one with `{command}` and use the .npz it "
-            f"writes; or {others}")  # fmt: skip
+    return (
+        f"made for another body? fit it to this one with `{command}` and use the .npz it "
+        f"writes; or {others}"
+    )
 
 
 # -- garments ---------------------------------------------------------------------------------
@@ -393,11 +420,13 @@ def fit_dress(avatar: Avatar, config: DressConfig | None = None) -> GarmentTempl
     config = config or DressConfig.preset("cpu", "straps")
     height = chest_height(avatar)
     pts = avatar.rest_vertices[avatar.vertices_of_bones(DRESS_BONES)].double().cpu().numpy()
-    top = waist_fit_from_points(pts, height, max_radius=0.3,
-                                profile_depth=min(config.length, 1.0), profile_rows=48)  # fmt: skip
+    top = waist_fit_from_points(
+        pts, height, max_radius=0.3, profile_depth=min(config.length, 1.0), profile_rows=48
+    )
     strap_x, shoulder = _shoulders(avatar)
-    fit = DressFit(top, strap_x, shoulder + STRAP_CLEARANCE,
-                   push_out_of(avatar, "upper", STRAP_CLEARANCE))  # fmt: skip
+    fit = DressFit(
+        top, strap_x, shoulder + STRAP_CLEARANCE, push_out_of(avatar, "upper", STRAP_CLEARANCE)
+    )
     dress = make_dress(config, fit)
     placed, info = place_garment(dress.vertices, dress.faces, avatar, "dress")
     dress.vertices = placed.astype(np.float32)
@@ -405,10 +434,17 @@ def fit_dress(avatar: Avatar, config: DressConfig | None = None) -> GarmentTempl
     return dress
 
 
-def import_garment(path, avatar: Avatar, units: str | None = None, up: str | None = None,
-                   kind: str | None = None, offset=(0.0, 0.0, 0.0),
-                   attach: str | np.ndarray = "auto", name: str | None = None,
-                   check: bool = True) -> tuple[GarmentTemplate, dict]:  # fmt: skip
+def import_garment(
+    path,
+    avatar: Avatar,
+    units: str | None = None,
+    up: str | None = None,
+    kind: str | None = None,
+    offset=(0.0, 0.0, 0.0),
+    attach: str | np.ndarray = "auto",
+    name: str | None = None,
+    check: bool = True,
+) -> tuple[GarmentTemplate, dict]:
     """A user's garment file as a template on the avatar.
 
     Args:
@@ -449,21 +485,31 @@ def import_garment(path, avatar: Avatar, units: str | None = None, up: str | Non
 
     path = Path(path)
     mesh = read_garment_mesh(path)
-    report = {"source": str(path), "vertices": len(mesh.vertices), "faces": len(mesh.faces),
-              "dropped_vertices": mesh.dropped_vertices}  # fmt: skip
+    report = {
+        "source": str(path),
+        "vertices": len(mesh.vertices),
+        "faces": len(mesh.faces),
+        "dropped_vertices": mesh.dropped_vertices,
+    }
     if up is not None and up not in UP_AXES:
         raise LoosefitInputError("--up", "up", f"one of {UP_AXES}", repr(up))
     if units is not None and units not in UNITS:
         raise LoosefitInputError("--units", "units", f"one of {list(UNITS)}", repr(units))
     if kind is not None and kind not in KINDS:
         raise LoosefitInputError("--kind", "kind", f"one of {KINDS}", repr(kind))
-    report["up"] = {"value": up or detect_up(mesh.vertices, mesh.faces, path),
-                    "guessed": up is None}  # fmt: skip
+    report["up"] = {
+        "value": up or detect_up(mesh.vertices, mesh.faces, path),
+        "guessed": up is None,
+    }
     v = to_z_up(mesh.vertices, report["up"]["value"])
     if units is None:
         units, sizes = detect_units(v, path)
-        report["units"] = {"value": units, "guessed": True,
-                           "height_m": sizes[units][0], "width_m": sizes[units][1]}  # fmt: skip
+        report["units"] = {
+            "value": units,
+            "guessed": True,
+            "height_m": sizes[units][0],
+            "width_m": sizes[units][1],
+        }
     else:
         report["units"] = {"value": units, "guessed": False}
     v = v * UNITS[units]
@@ -477,8 +523,9 @@ def import_garment(path, avatar: Avatar, units: str | None = None, up: str | Non
     uvs, face_uvs, uv_source = garment_uvs(v, mesh.faces, mesh.uvs, mesh.face_uvs)
     report["uv_source"] = uv_source
     meta = {"kind": kind, "attachment": how, "import": report}
-    template = GarmentTemplate(v.astype(np.float32), mesh.faces, uvs, face_uvs, waist,
-                               name=name or path.stem, meta=meta)  # fmt: skip
+    template = GarmentTemplate(
+        v.astype(np.float32), mesh.faces, uvs, face_uvs, waist, name=name or path.stem, meta=meta
+    )
     if check:
         check_clear_of_body(template, avatar, path)
     return template, report

@@ -59,8 +59,9 @@ class AnimatedMesh:
     def __post_init__(self) -> None:
         src = f"mesh '{self.name}'"
         if not self.name.replace("_", "").isalnum() or self.name[0].isdigit():
-            raise LoosefitInputError(src, "name", "letters, digits and _ (not first a digit)",
-                                     repr(self.name))  # fmt: skip
+            raise LoosefitInputError(
+                src, "name", "letters, digits and _ (not first a digit)", repr(self.name)
+            )
         v = np.asarray(self.vertices, np.float32)
         if v.ndim != 3 or v.shape[-1] != 3 or len(v) == 0:
             raise LoosefitInputError(src, "vertices", "shape (T >= 1, V, 3)", f"{v.shape}")
@@ -69,8 +70,9 @@ class AnimatedMesh:
             raise LoosefitInputError(src, "vertices", "finite values", f"NaN/inf in frame {t}")
         f = np.asarray(self.faces, np.int64)
         if f.ndim != 2 or f.shape[1] != 3 or (len(f) and (f.min() < 0 or f.max() >= v.shape[1])):
-            raise LoosefitInputError(src, "faces", f"(F, 3) indices in [0, {v.shape[1]})",
-                                     f"shape {f.shape}")  # fmt: skip
+            raise LoosefitInputError(
+                src, "faces", f"(F, 3) indices in [0, {v.shape[1]})", f"shape {f.shape}"
+            )
         if (self.uvs is None) != (self.face_uvs is None):
             raise LoosefitInputError(src, "uvs, face_uvs", "both or neither", "only one")
         if self.uvs is not None:
@@ -91,8 +93,9 @@ def _check_meshes(meshes: list[AnimatedMesh], fps: float, where) -> int:
         raise LoosefitInputError(where, "meshes", "at least one animated mesh", "none")
     T = meshes[0].num_frames
     if any(m.num_frames != T for m in meshes):
-        raise LoosefitInputError(where, "meshes", f"{T} frames each",
-                                 str([m.num_frames for m in meshes]))  # fmt: skip
+        raise LoosefitInputError(
+            where, "meshes", f"{T} frames each", str([m.num_frames for m in meshes])
+        )
     if len({m.name for m in meshes}) != len(meshes):
         raise LoosefitInputError(where, "meshes", "distinct names", [m.name for m in meshes])
     if not (np.isfinite(fps) and fps > 0):
@@ -131,17 +134,22 @@ def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
         raise LoosefitInputError(path, "header", "POINTCACHE2 version 1", f"{magic!r} v{version}")
     want = PC2_HEADER.size + 12 * V * T
     if len(data) != want:
-        raise LoosefitInputError(path, "size", f"{want} bytes for {T} samples of {V} points",
-                                 f"{len(data)} bytes")  # fmt: skip
+        raise LoosefitInputError(
+            path, "size", f"{want} bytes for {T} samples of {V} points", f"{len(data)} bytes"
+        )
     v = np.frombuffer(data, "<f4", offset=PC2_HEADER.size).reshape(T, V, 3)
     for name, value in (("start frame", start), ("sample rate", rate)):
         if not np.isfinite(value):
             raise LoosefitInputError(path, name, "a finite number", repr(value))
     bad = ~np.isfinite(v)
     if bad.any():
-        raise LoosefitInputError(path, "points", "finite positions",
-                                 f"{int(bad.sum())} NaN/inf values, first at "
-                                 f"{tuple(int(i) for i in np.argwhere(bad)[0])}")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "points",
+            "finite positions",
+            f"{int(bad.sum())} NaN/inf values, first at "
+            f"{tuple(int(i) for i in np.argwhere(bad)[0])}",
+        )
     return v.astype(np.float32), float(start), float(rate)
 
 
@@ -186,8 +194,9 @@ def export_usd(path: Path, meshes: list[AnimatedMesh], fps: float) -> list[Path]
     try:
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
     except ImportError as exc:  # a dependency of loosefit; a clear message if it is missing
-        raise LoosefitInputError(path, "<format>", "usd-core installed (pip install usd-core)",
-                                 str(exc)) from exc  # fmt: skip
+        raise LoosefitInputError(
+            path, "<format>", "usd-core installed (pip install usd-core)", str(exc)
+        ) from exc
     T = _check_meshes(meshes, fps, path)
     with atomic_path(path) as tmp:
         stage = Usd.Stage.CreateNew(str(tmp))
@@ -263,8 +272,9 @@ def check_export_path(path: str | Path) -> Path:
     return path
 
 
-def garment_and_body(template, garment_vertices: np.ndarray, body_vertices=None,
-                     body_faces=None) -> list[AnimatedMesh]:  # fmt: skip
+def garment_and_body(
+    template, garment_vertices: np.ndarray, body_vertices=None, body_faces=None
+) -> list[AnimatedMesh]:
     """The meshes of a dressed animation: the garment (with its UVs) and, if given, the body.
 
     Args:
@@ -272,8 +282,9 @@ def garment_and_body(template, garment_vertices: np.ndarray, body_vertices=None,
         garment_vertices: (T, V, 3) the garment's positions.
         body_vertices: (T, Vb, 3) the posed body, and ``body_faces`` (Fb, 3), or None.
     """
-    meshes = [AnimatedMesh("garment", template.faces, garment_vertices, template.uvs,
-                           template.face_uvs)]  # fmt: skip
+    meshes = [
+        AnimatedMesh("garment", template.faces, garment_vertices, template.uvs, template.face_uvs)
+    ]
     if body_vertices is not None:
         meshes.append(AnimatedMesh("body", np.asarray(body_faces), body_vertices))
     return meshes

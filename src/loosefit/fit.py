@@ -88,8 +88,9 @@ class FitConfig:
         if not (isinstance(self.rings, int) and self.rings >= 1):
             raise LoosefitInputError("FitConfig", "rings", "an integer >= 1", repr(self.rings))
         if not (np.isfinite(self.settle_seconds) and self.settle_seconds >= 0):
-            raise LoosefitInputError("FitConfig", "settle_seconds", "a number >= 0",
-                                     repr(self.settle_seconds))  # fmt: skip
+            raise LoosefitInputError(
+                "FitConfig", "settle_seconds", "a number >= 0", repr(self.settle_seconds)
+            )
 
 
 @dataclass
@@ -151,16 +152,25 @@ def push_out(template: GarmentTemplate, avatar: Avatar, config: FitConfig) -> np
 
     faces = avatar.collider_faces(arms=collider_arms(template)).cpu().numpy()
     body = Surface(avatar.rest_vertices.float().cpu().numpy(), faces, winding_number=True)
-    collide = CollisionConfig(epsilon=config.clearance, rings=config.rings, reach=config.reach,
-                              finish_reach=config.reach, iterations=8)  # fmt: skip
+    collide = CollisionConfig(
+        epsilon=config.clearance,
+        rings=config.rings,
+        reach=config.reach,
+        finish_reach=config.reach,
+        iterations=8,
+    )
     handler = CollisionHandler(template.faces, template.num_vertices, collide, template.vertices)
     out = handler.resolve(torch.from_numpy(template.vertices.astype(np.float32)), body)
     return out.vertices.double().numpy()
 
 
-def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | None = None,
-                 source="garment", progress: Progress | None = None
-                 ) -> tuple[GarmentTemplate, FitReport]:  # fmt: skip
+def fit_template(
+    template: GarmentTemplate,
+    avatar: Avatar,
+    config: FitConfig | None = None,
+    source="garment",
+    progress: Progress | None = None,
+) -> tuple[GarmentTemplate, FitReport]:
     """A garment placed on the avatar's rest pose (perhaps partly inside the body) pushed
     out of it and draped there.
 
@@ -194,21 +204,26 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
     far = float(dist[template.waist].max())
     if far > config.attach_reach:
         raise LoosefitInputError(
-            source, "placement", f"a garment whose attached vertices (its top) lie within "
-            f"{100 * config.attach_reach:.0f} cm of the body", f"they are up to {100 * far:.1f} cm "
-            "from it", hint="--fit dresses a body with a garment made for another, not one "
+            source,
+            "placement",
+            f"a garment whose attached vertices (its top) lie within "
+            f"{100 * config.attach_reach:.0f} cm of the body",
+            f"they are up to {100 * far:.1f} cm from it",
+            hint="--fit dresses a body with a garment made for another, not one "
             "far from it: check --units and --kind, or move it with --offset X,Y,Z (metres)",
-        )  # fmt: skip
+        )
     pushed = push_out(template, avatar, config)
     left, deepest, _ = inside_of(pushed, avatar, arms)
     if deepest > config.tolerance:
         raise LoosefitInputError(
-            source, "placement", f"a garment that can be pushed off the body (no vertex more "
+            source,
+            "placement",
+            f"a garment that can be pushed off the body (no vertex more "
             f"than {1000 * config.tolerance:.0f} mm inside it after the push)",
             f"{left} vertices still inside, the deepest {1000 * deepest:.1f} mm",
             hint="a garment round the body, or deeper in it than "
             f"{100 * config.reach:.0f} cm, cannot be fitted: check --units and --kind",
-        )  # fmt: skip
+        )
     _stage(progress, PUSH, 1)
     fitted = pushed
     if config.settle_seconds > 0:
@@ -216,9 +231,16 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
 
         cloth = config.cloth or ClothConfig(arm_collision=arms)
         cloth = replace(cloth, settle_seconds=config.settle_seconds)
-        draped = GarmentTemplate(pushed.astype(np.float32), template.faces, template.uvs,
-                                 template.face_uvs, template.waist, name=template.name,
-                                 meta=dict(template.meta), rest_vertices=template.rest)  # fmt: skip
+        draped = GarmentTemplate(
+            pushed.astype(np.float32),
+            template.faces,
+            template.uvs,
+            template.face_uvs,
+            template.waist,
+            name=template.name,
+            meta=dict(template.meta),
+            rest_vertices=template.rest,
+        )
         frames = int(round(cloth.settle_seconds * config.fps))  # as settle steps them
         _stage(progress, DRAPE, 0, frames)
         fitted = settle(avatar, draped, cloth, config.fps, _counter(progress, DRAPE))
@@ -234,14 +256,28 @@ def fit_template(template: GarmentTemplate, avatar: Avatar, config: FitConfig | 
     push_d = np.linalg.norm(pushed - v0, axis=1)
     moved = np.linalg.norm(fitted - v0, axis=1)
     report = FitReport(
-        inside_before, depth_before, float(push_d.max()), float(push_d.mean()),
-        float(moved.max()), float(moved.mean()), inside_after, depth_after,
-        shape=dict(avatar.shape), seconds=time.perf_counter() - start,
-    )  # fmt: skip
+        inside_before,
+        depth_before,
+        float(push_d.max()),
+        float(push_d.mean()),
+        float(moved.max()),
+        float(moved.mean()),
+        inside_after,
+        depth_after,
+        shape=dict(avatar.shape),
+        seconds=time.perf_counter() - start,
+    )
     meta = {**template.meta, "fit": asdict(report)}
-    out = GarmentTemplate(fitted.astype(np.float32), template.faces, template.uvs,
-                          template.face_uvs, template.waist, name=template.name,
-                          meta=meta, rest_vertices=template.rest)  # fmt: skip
+    out = GarmentTemplate(
+        fitted.astype(np.float32),
+        template.faces,
+        template.uvs,
+        template.face_uvs,
+        template.waist,
+        name=template.name,
+        meta=meta,
+        rest_vertices=template.rest,
+    )
     return out, report
 
 
@@ -264,9 +300,13 @@ def shape_cost(template: GarmentTemplate, avatar: Avatar, ease: float = SHAPE_EA
     return float(depth.sum() + abs(hit.distance[template.waist].mean() - ease))
 
 
-def best_shape(place, start: dict | None = None, step: float = 0.2, rounds: int = 2,
-               progress: Callable[[int, int], None] | None = None
-               ) -> tuple[dict, Avatar, int]:  # fmt: skip
+def best_shape(
+    place,
+    start: dict | None = None,
+    step: float = 0.2,
+    rounds: int = 2,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[dict, Avatar, int]:
     """The anny phenotype a garment fits best (:func:`shape_cost`), by coordinate descent
     over :data:`SHAPE_SEARCH` from ``start`` (default: the project's avatar), each value in
     [0, 1], the step halved each round.
@@ -309,11 +349,18 @@ def best_shape(place, start: dict | None = None, step: float = 0.2, rounds: int 
     return shape, seen[key][1], len(seen)
 
 
-def fit_garment(path, shape: dict | str | None = None, config: FitConfig | None = None,
-                units: str | None = None, up: str | None = None, kind: str | None = None,
-                offset=(0.0, 0.0, 0.0), attach="auto", avatar: Avatar | None = None,
-                progress: Progress | None = None
-                ) -> tuple[GarmentTemplate, FitReport, Avatar]:  # fmt: skip
+def fit_garment(
+    path,
+    shape: dict | str | None = None,
+    config: FitConfig | None = None,
+    units: str | None = None,
+    up: str | None = None,
+    kind: str | None = None,
+    offset=(0.0, 0.0, 0.0),
+    attach="auto",
+    avatar: Avatar | None = None,
+    progress: Progress | None = None,
+) -> tuple[GarmentTemplate, FitReport, Avatar]:
     """A garment file made for another body, fitted to the avatar's rest pose.
 
     Args:
@@ -344,10 +391,13 @@ def fit_garment(path, shape: dict | str | None = None, config: FitConfig | None 
     path = Path(path)
     if not boundary_loops(read_garment_mesh(path).faces):
         raise LoosefitInputError(
-            path, "openings", "cloth with openings (a waistband, a neckline, a hem)",
-            "a closed surface", hint="--fit pushes a garment off the body and hangs it by its "
+            path,
+            "openings",
+            "cloth with openings (a waistband, a neckline, a hem)",
+            "a closed surface",
+            hint="--fit pushes a garment off the body and hangs it by its "
             "top opening: a closed surface round the body has none",
-        )  # fmt: skip
+        )
 
     def place(body: Avatar) -> GarmentTemplate:
         return import_garment(path, body, units, up, kind, offset, attach, check=False)[0]
@@ -376,6 +426,9 @@ def check_fitted_shape(template: GarmentTemplate, avatar: Avatar, source="garmen
     if any(abs(float(v) - mine.get(k, np.nan)) > 1e-6 for k, v in fitted.items()):
         given = ",".join(f"{k}={float(v):g}" for k, v in fitted.items())
         raise LoosefitInputError(
-            source, "fit.shape", f"the avatar it was fitted to ({given})",
-            ",".join(f"{k}={v:g}" for k, v in mine.items()), hint=f"simulate with --shape {given}",
-        )  # fmt: skip
+            source,
+            "fit.shape",
+            f"the avatar it was fitted to ({given})",
+            ",".join(f"{k}={v:g}" for k, v in mine.items()),
+            hint=f"simulate with --shape {given}",
+        )

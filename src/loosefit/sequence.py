@@ -96,8 +96,9 @@ class AnimatedGarment:
         on (its ``avatar`` description: the rig, default ``cmu_mb``, and the phenotype)."""
         from loosefit.body.avatar import AvatarConfig
 
-        return AvatarConfig(rig=self.avatar.get("rig", "cmu_mb"),
-                            shape=dict(self.avatar.get("shape", {})))  # fmt: skip
+        return AvatarConfig(
+            rig=self.avatar.get("rig", "cmu_mb"), shape=dict(self.avatar.get("shape", {}))
+        )
 
     def _pose_body(self) -> None:
         from loosefit.body.avatar import Avatar
@@ -126,13 +127,17 @@ class AnimatedGarment:
         (:func:`loosefit.export.export_animation`)."""
         from loosefit.export import export_animation, garment_and_body
 
-        meshes = garment_and_body(self.garment, self.garment_vertices,
-                                  self.body_vertices if body else None,
-                                  self.body_faces if body else None)  # fmt: skip
+        meshes = garment_and_body(
+            self.garment,
+            self.garment_vertices,
+            self.body_vertices if body else None,
+            self.body_faces if body else None,
+        )
         return export_animation(path, meshes, self.fps)
 
-    def view(self, *others: AnimatedGarment, names: list[str] | None = None,
-             wait: bool = True, **config):  # fmt: skip
+    def view(
+        self, *others: AnimatedGarment, names: list[str] | None = None, wait: bool = True, **config
+    ):
         """Open this sequence (and ``others`` of the same garment and frames, side by side)
         in the browser viewer (:mod:`loosefit.view`; ``pip install 'loosefit[viewer]'``).
 
@@ -211,14 +216,21 @@ class AnimatedGarment:
                     "a clip of a data set written before loosefit.sequence/1; read it "
                     "through its data set (DatasetReader, or loosefit render --dataset)"
                 )
-            raise LoosefitInputError(path, "format", repr(FORMAT),
-                                     "none" if fmt is None else repr(fmt), hint=hint)  # fmt: skip
+            raise LoosefitInputError(
+                path, "format", repr(FORMAT), "none" if fmt is None else repr(fmt), hint=hint
+            )
         missing = [k for k in _FIELDS if k not in d.files]
         if missing:
             raise LoosefitInputError(path, ", ".join(missing), "present", "missing")
         gv = d["garment_vertices"]
-        floats = ("rotations", "root_translation", "garment_vertices", "vertices", "uvs",
-                  "rest_vertices")  # fmt: skip
+        floats = (
+            "rotations",
+            "root_translation",
+            "garment_vertices",
+            "vertices",
+            "uvs",
+            "rest_vertices",
+        )
         for key in (k for k in floats if k in d.files):
             if d[key].dtype != np.float32:
                 raise LoosefitInputError(path, key, "dtype float32", f"dtype {d[key].dtype}")
@@ -228,8 +240,9 @@ class AnimatedGarment:
         except json.JSONDecodeError as exc:
             raise LoosefitInputError(path, "avatar/garment_meta", "JSON", str(exc)) from exc
         if not isinstance(avatar, dict):
-            raise LoosefitInputError(path, "avatar", '{"rig": ..., "shape": {...}}',
-                                     type(avatar).__name__)  # fmt: skip
+            raise LoosefitInputError(
+                path, "avatar", '{"rig": ..., "shape": {...}}', type(avatar).__name__
+            )
         try:
             motion = Motion(
                 npz_names(d, path, "joint_names"),
@@ -243,7 +256,7 @@ class AnimatedGarment:
                 name=npz_text(d, path, "garment_name", "garment"),
                 meta=meta if isinstance(meta, dict) else {},
                 rest_vertices=d["rest_vertices"] if "rest_vertices" in d.files else None,
-            )  # fmt: skip
+            )
             return cls(motion, garment, gv, avatar, npz_text(d, path, "source", "unknown"))
         except LoosefitInputError as exc:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found, exc.hint) from exc

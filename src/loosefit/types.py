@@ -65,8 +65,9 @@ def npz_names(data, path, field: str) -> tuple[str, ...]:
     """A field of names (a 1-D string array) of an ``.npz`` as a tuple of str."""
     a = np.asarray(data[field])
     if a.ndim != 1 or a.dtype.kind not in "US":
-        raise LoosefitInputError(path, field, "a 1-D array of names",
-                                 f"shape {a.shape}, dtype {a.dtype}")  # fmt: skip
+        raise LoosefitInputError(
+            path, field, "a 1-D array of names", f"shape {a.shape}, dtype {a.dtype}"
+        )
     return tuple(str(n) for n in a)
 
 
@@ -74,9 +75,14 @@ def npz_number(data, path, field: str) -> float:
     """A scalar number field of an ``.npz`` as a float (finite)."""
     a = np.asarray(data[field])
     if a.size != 1 or a.dtype.kind not in "fiu" or not np.isfinite(a).all():
-        raise LoosefitInputError(path, field, "one finite number",
-                                 f"shape {a.shape}, dtype {a.dtype}" if a.size != 1
-                                 or a.dtype.kind not in "fiu" else repr(a.item()))  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            field,
+            "one finite number",
+            f"shape {a.shape}, dtype {a.dtype}"
+            if a.size != 1 or a.dtype.kind not in "fiu"
+            else repr(a.item()),
+        )
     return float(a.reshape(()))
 
 

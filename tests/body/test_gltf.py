@@ -1,4 +1,4 @@
-"""glTF/GLB skins and animations as motions (issue 36, item 2)."""
+"""glTF/GLB skins and animations as motions."""
 
 import dataclasses
 import json

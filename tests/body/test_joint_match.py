@@ -1,4 +1,4 @@
-"""Any humanoid BVH skeleton, matched to the avatar without code (issue 36, item 1)."""
+"""Any humanoid BVH skeleton, matched to the avatar without code."""
 
 import dataclasses
 

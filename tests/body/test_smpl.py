@@ -1,4 +1,4 @@
-"""SMPL-family pose files (AMASS-style .npz) as motions (issue 36, item 2)."""
+"""SMPL-family pose files (AMASS-style .npz) as motions."""
 
 import numpy as np
 import pytest

@@ -40,7 +40,7 @@ def test_demo_animates_the_pretrained_model_and_exports_it(tmp_path, capsys):
     assert main(args) == 0
     seq = DressedSequence.load(out / "sequence.npz")
     assert seq.source.startswith("loosefit model") and seq.garment_vertices.shape[0] == 30
-    err = capsys.readouterr().err  # throughput apart from the clip's own rate (issue 36)
+    err = capsys.readouterr().err  # throughput apart from the clip's own rate
     assert "animated 30 frames of a 30 fps clip (1.0 s) in" in err and "frames per second" in err
     cache, _, _ = read_pc2(out / "demo.pc2")
     np.testing.assert_array_equal(cache, seq.garment_vertices)

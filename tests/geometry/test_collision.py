@@ -158,7 +158,7 @@ def test_a_deep_penetration_where_body_parts_overlap_is_walked_out_as_far_as_all
 
     # the last projection walks what is still inside out (here, with no limit on how far,
     # below 5 mm) at the cost of edges stretched over twice (2.7x to the next skin on each
-    # vertex's way; more than 5x by the doubling steps before issue 37's pops)
+    # vertex's way; more than 5x by the doubling steps before the flicker changes)
     far = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, finish_limit=1.0))
     walked = far.resolve(torch.from_numpy(v), surface).vertices.numpy()
     assert deepest(walked) < 0.005 and worst(walked) > 2.0
@@ -183,7 +183,7 @@ def test_cloth_pinched_between_body_parts_is_not_torn_out():
     worst = _stretch(v, f)
 
     # no longer torn by the pushes themselves: a point of a face that would send a vertex
-    # through the hand, against its own way out, is not followed (4x before issue 37's pops,
+    # through the hand, against its own way out, is not followed (4x before the flicker changes,
     # 1.3x now); the mending is there for what is left
     torn = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, relax=0))
     assert worst(torn.resolve(torch.from_numpy(v), surface).vertices.numpy()) < 3.0

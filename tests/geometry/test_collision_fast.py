@@ -1,4 +1,4 @@
-"""Collision handling's fast path (issue 37, ``CollisionConfig.fast``) against the path before it:
+"""Collision handling's fast path (``CollisionConfig.fast``) against the path before it:
 the same garments within 0.5 mm, no more of them inside the body."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from loosefit.geometry.query import Surface
 from tests.conftest import REPO, SALSA, needs_salsa
 from tests.geometry.test_collision import _sheet, _two_spheres
 
-TOLERANCE = 5e-4  # m: the fast path's garments against today's (issue 37)
+TOLERANCE = 5e-4  # m: the fast path's garments against the path before it
 
 
 def _sphere(radius: float = 0.3, subdivisions: int = 4) -> tuple[np.ndarray, np.ndarray]:

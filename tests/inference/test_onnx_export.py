@@ -1,4 +1,4 @@
-"""The ONNX export (issue 37, item 2): onnxruntime rolls out PyTorch's frames; the JSON says
+"""The ONNX export: onnxruntime rolls out PyTorch's frames; the JSON says
 what the inputs are; stages the graph cannot hold are refused by name."""
 
 from __future__ import annotations

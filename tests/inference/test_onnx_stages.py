@@ -1,4 +1,4 @@
-"""``animate(..., runtime="onnx")`` (issue 37): the learned stages in onnxruntime give
+"""``animate(..., runtime="onnx")``: the learned stages in onnxruntime give
 PyTorch's garments, the stages after them are the same, and what cannot run is refused by
 name."""
 

@@ -1,4 +1,4 @@
-"""Training on a GPU follows training on the CPU (issue 25, item 2): every tensor of a step on
+"""Training on a GPU follows training on the CPU: every tensor of a step on
 ``config.device``, every random draw from the CPU's generator (so both devices draw the same
 numbers). Run on a CUDA machine with ``pytest -m gpu tests/train/test_devices.py``."""
 

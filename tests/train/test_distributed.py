@@ -1,6 +1,6 @@
 """Training on several processes (``torchrun``, DDP): two CPU processes with the gloo
-backend follow the loss curve of one process on the same global batch (issue 25, items 2
-and 3): the generative stage and the motion stage."""
+backend follow the loss curve of one process on the same global batch: the
+generative stage and the motion stage."""
 
 from __future__ import annotations
 

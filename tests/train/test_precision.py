@@ -1,6 +1,6 @@
 """Mixed precision (``precision="bf16"``) of the generative and motion stages on the CPU: the
 networks' forward passes under bf16 autocast, everything the loss and the optimiser see in
-float32 (issue 25, item 3)."""
+float32."""
 
 from __future__ import annotations
 

@@ -384,8 +384,9 @@ class Avatar(torch.nn.Module):
         (see :func:`~loosefit.geometry.cap.cut_and_cap`).
         """
         if arms not in ARM_COLLISION:
-            raise LoosefitInputError("Avatar.collider_faces", "arms", f"one of {ARM_COLLISION}",
-                                     repr(arms))  # fmt: skip
+            raise LoosefitInputError(
+                "Avatar.collider_faces", "arms", f"one of {ARM_COLLISION}", repr(arms)
+            )
         if arms is True:
             return self.faces
         if arms not in self._cut_faces:
@@ -405,8 +406,9 @@ class Avatar(torch.nn.Module):
         (``ClothConfig.arm_friction``). Faces across the cut belong to both meshes.
         """
         if arms not in (False, "upper"):
-            raise LoosefitInputError("Avatar.cut_limb_faces", "arms", "false or 'upper'",
-                                     repr(arms))  # fmt: skip
+            raise LoosefitInputError(
+                "Avatar.cut_limb_faces", "arms", "false or 'upper'", repr(arms)
+            )
         key = ("limbs", arms)
         if key not in self._cut_faces:
             bones = ARM_BONES if arms is False else FOREARM_BONES

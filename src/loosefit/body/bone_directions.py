@@ -62,8 +62,7 @@ from loosefit.body.avatar import Skeleton
 from loosefit.body.rotations import rotation_between
 
 # Avatar joints calibrated by landmarks (pelvis, spine, neck, head), not bone by bone.
-TORSO = ("Hips", "LHipJoint", "RHipJoint", "LowerBack", "Spine", "Spine1", "Neck", "Neck1",
-         "Head")  # fmt: skip
+TORSO = ("Hips", "LHipJoint", "RHipJoint", "LowerBack", "Spine", "Spine1", "Neck", "Neck1", "Head")
 REFERENCES = ("auto", "zero-pose", "clip")  # what RetargetConfig.reference takes
 
 # A zero pose "stands" when each leg points down and the torso up within this angle of
@@ -190,10 +189,11 @@ def zero_pose_stands(rest: np.ndarray, present: dict[str, int]) -> tuple[bool, s
     checks = {
         "the left leg points down": cos("LeftUpLeg", "LeftFoot", 2, -1),
         "the right leg points down": cos("RightUpLeg", "RightFoot", 2, -1),
-        "the torso points up": cos("Hips", next((a for a in ("Head", "Neck", "Spine1")
-                                                 if a in present), "Head"), 2),
+        "the torso points up": cos(
+            "Hips", next((a for a in ("Head", "Neck", "Spine1") if a in present), "Head"), 2
+        ),
         "the left thigh is on the left": cos("RightUpLeg", "LeftUpLeg", 0),
-    }  # fmt: skip
+    }
     fails = [what for what, c in checks.items() if c is None or c < STANDING_COS]
     return (not fails, "not: " + ", ".join(fails) if fails else "")
 
@@ -277,11 +277,13 @@ def solve_bone_rotations(
         if not {a1, a2, b1, b2} <= mapped:
             return None
         h = {n: heads[names.index(n)] for n in (a1, a2, b1, b2)}
-        return ((h[b1] + h[b2] - h[a1] - h[a2]) / 2,
-                (src(b1) + src(b2) - src(a1) - src(a2)) / 2)  # fmt: skip
+        return ((h[b1] + h[b2] - h[a1] - h[a2]) / 2, (src(b1) + src(b2) - src(a1) - src(a2)) / 2)
 
-    arms = ("LeftArm", "RightArm") if {"LeftArm", "RightArm"} <= mapped else (
-        "LeftShoulder", "RightShoulder")  # fmt: skip
+    arms = (
+        ("LeftArm", "RightArm")
+        if {"LeftArm", "RightArm"} <= mapped
+        else ("LeftShoulder", "RightShoulder")
+    )
     lat_hips = pair("RightUpLeg", "LeftUpLeg")
     lat_arms = pair(arms[1], arms[0])
     trunk = mid_pair("LeftUpLeg", "RightUpLeg", *arms)
@@ -335,12 +337,17 @@ def solve_bone_rotations(
             c = _chain_child(skeleton, a, mapped)
             if c is not None and _is_below(source.parents, present[names[c]], b):
                 sc = present[names[c]]
-                primary = (heads[c] - heads[a], P[:, sc] - P[:, b],
-                           source.rest[sc] - source.rest[b])  # fmt: skip
+                primary = (
+                    heads[c] - heads[a],
+                    P[:, sc] - P[:, b],
+                    source.rest[sc] - source.rest[b],
+                )
             elif c is None and b in source.leaf:
                 primary = (tails[a] - heads[a], *source.leaf[b])
-            if primary is not None and min(np.linalg.norm(primary[0]),
-                                           np.linalg.norm(primary[2])) < 1e-9:  # fmt: skip
+            if (
+                primary is not None
+                and min(np.linalg.norm(primary[0]), np.linalg.norm(primary[2])) < 1e-9
+            ):
                 primary = None
 
         # 2. The calibration R_a.
@@ -357,15 +364,19 @@ def solve_bone_rotations(
             if np.linalg.norm(axis) < 0.5:
                 axis = _unit(primary[2][None])[0]
             R0 = rotation_between(primary[0][None], axis[None])[0].astype(np.float64)
-            cues = [(R0 @ v, _local(Qb, u), w) for (v, u), w in
-                    ((c, w) for c, w in limb_cues(an) if c is not None)]  # fmt: skip
+            cues = [
+                (R0 @ v, _local(Qb, u), w)
+                for (v, u), w in ((c, w) for c, w in limb_cues(an) if c is not None)
+            ]
             main = bool(cues)
             cues += [(R0 @ v, _local(Qb, u), 0.1 if main else 1.0) for v, u, _ in parent_cues]
             calib[a] = _axis_angle(axis, twist_angle(axis, cues)) @ R0
             how[an] = "bone and " + ("bend" if main else "its parent's twist")
         else:
-            cues = [(v, _local(Qb, u), w) for (v, u), w in
-                    ((c, w) for c, w in torso_cues.get(an, []) if c is not None)]  # fmt: skip
+            cues = [
+                (v, _local(Qb, u), w)
+                for (v, u), w in ((c, w) for c, w in torso_cues.get(an, []) if c is not None)
+            ]
             R = best_rotation(cues)
             if R is None and p >= 0:  # too few landmarks: the parent's frame
                 R = best_rotation([(v, _local(Qb, u), w) for v, u, w in parent_cues])

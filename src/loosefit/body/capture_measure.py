@@ -123,16 +123,24 @@ def measure_height(
         t = int(np.argmax(h))
         height = float(h[t]) / HEAD_ANKLE_TO_HEIGHT
         if by_legs is None or height >= STRAIGHT * by_legs:
-            return HeightMeasure(height, t, f"head {h[t]:.3g} m above the ankles at frame {t}, "
-                                 "the most extended")  # fmt: skip
-        return HeightMeasure(by_legs, None, f"legs {by_legs * LEG_TO_HEIGHT:.3g} m hip to "
-                             f"ankle; the head is {h[t]:.3g} m above the ankles at most "
-                             f"(frame {t}): the dancer never stands straight")  # fmt: skip
+            return HeightMeasure(
+                height, t, f"head {h[t]:.3g} m above the ankles at frame {t}, the most extended"
+            )
+        return HeightMeasure(
+            by_legs,
+            None,
+            f"legs {by_legs * LEG_TO_HEIGHT:.3g} m hip to "
+            f"ankle; the head is {h[t]:.3g} m above the ankles at most "
+            f"(frame {t}): the dancer never stands straight",
+        )
     if by_legs is not None:
         return HeightMeasure(by_legs, None, f"legs {by_legs * LEG_TO_HEIGHT:.3g} m hip to ankle")
     if extra is not None and extra.shape[1]:
         z = np.concatenate([z, extra[..., 2]], axis=1)
     extent = z.max(1) - z.min(1)  # (T,)
     t = int(np.argsort(extent)[len(extent) // 2])
-    return HeightMeasure(float(extent[t]), t, f"the skeleton's extent at frame {t}, the "
-                         "median frame; no head and feet found")  # fmt: skip
+    return HeightMeasure(
+        float(extent[t]),
+        t,
+        f"the skeleton's extent at frame {t}, the median frame; no head and feet found",
+    )

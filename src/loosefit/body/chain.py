@@ -57,8 +57,9 @@ def place_motion(motion: Motion, yaw: float, xy: np.ndarray) -> Motion:
     return Motion(motion.joint_names, rotations, root, motion.fps, motion.name, dict(motion.meta))
 
 
-def blend_frames(rot0: np.ndarray, root0: np.ndarray, rot1: np.ndarray, root1: np.ndarray,
-                 n: int) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def blend_frames(
+    rot0: np.ndarray, root0: np.ndarray, rot1: np.ndarray, root1: np.ndarray, n: int
+) -> tuple[np.ndarray, np.ndarray]:
     """The ``n`` frames strictly between two poses: local rotations slerped, the root lerped,
     smoothstep timing (the transitions of a chain and the blend before a rollout).
 
@@ -113,15 +114,17 @@ def preroll(
         if np.hypot(forward[0], forward[1]) > 1e-6:  # else the root looks straight up/down
             rest_rot[0] = _rot_z(math.atan2(forward[0], -forward[1]))
         rest_root[:2] = motion.root_translation[0, :2]
-    blend_rot, blend_root = blend_frames(rest_rot, rest_root, motion.rotations[0],
-                                         motion.root_translation[0], n_blend)  # fmt: skip
+    blend_rot, blend_root = blend_frames(
+        rest_rot, rest_root, motion.rotations[0], motion.root_translation[0], n_blend
+    )
     rotations = np.concatenate([np.broadcast_to(rest_rot, (n_settle, J, 3, 3)), blend_rot])
     root = np.concatenate([np.broadcast_to(rest_root, (n_settle, 3)), blend_root])
     return rotations.astype(np.float32), root.astype(np.float32), n_settle
 
 
-def rollout_timeline(motion: Motion, floor_height: float, warm_frames: int,
-                     blend_seconds: float) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
+def rollout_timeline(
+    motion: Motion, floor_height: float, warm_frames: int, blend_seconds: float
+) -> tuple[np.ndarray, np.ndarray, int]:
     """A rollout's frames: ``warm_frames`` of the rest pose, the blend into the motion's
     first frame over ``blend_seconds`` (:func:`preroll`), then the motion (what
     :func:`loosefit.model.rollout.timeline` and the ONNX reference loop run).
@@ -132,8 +135,11 @@ def rollout_timeline(motion: Motion, floor_height: float, warm_frames: int,
     """
     settle = max(warm_frames - 1, 0) / motion.fps
     rot, root, _ = preroll(motion, floor_height, settle, blend_seconds)
-    return (np.concatenate([rot, motion.rotations]),
-            np.concatenate([root, motion.root_translation]), len(rot))  # fmt: skip
+    return (
+        np.concatenate([rot, motion.rotations]),
+        np.concatenate([root, motion.root_translation]),
+        len(rot),
+    )
 
 
 def chain_motions(motions: list[Motion], blend_seconds: float = 0.5, name: str = "") -> Motion:
@@ -158,9 +164,11 @@ def chain_motions(motions: list[Motion], blend_seconds: float = 0.5, name: str =
     for m in motions[1:]:
         if m.joint_names != first.joint_names:
             raise LoosefitInputError(
-                f"motion '{m.name}'", "joint_names", f"the joints of '{first.name}'",
+                f"motion '{m.name}'",
+                "joint_names",
+                f"the joints of '{first.name}'",
                 f"{len(m.joint_names)} other joints",
-            )  # fmt: skip
+            )
         if abs(m.fps - first.fps) > 1e-6:
             raise LoosefitInputError(f"motion '{m.name}'", "fps", first.fps, m.fps)
     if not blend_seconds >= 0:

@@ -93,8 +93,7 @@ class MotionInspection:
         lines.append(f"  {'avatar joint':<{width}}  {'source joint':<{src_width}}  how")
         for a in AVATAR_JOINTS:
             if a in jmap.joints and a in self.match.how:
-                lines.append(f"  {a:<{width}}  {jmap.joints[a]:<{src_width}}  "
-                             f"{self.match.how[a]}")  # fmt: skip
+                lines.append(f"  {a:<{width}}  {jmap.joints[a]:<{src_width}}  {self.match.how[a]}")
         rest = [a for a in AVATAR_JOINTS if a not in self.match.how]
         if rest:
             lines.append(f"  not driven (they follow their parent): {', '.join(rest)}")
@@ -123,8 +122,10 @@ def _units(clip: BvhClip, config: RetargetConfig) -> str:
     ends = [rest[j] + o / clip.units_scale for j, o in clip.end_offsets.items()]
     points = np.vstack([rest, *ends]) if ends else rest
     extent = float((points.max(0) - points.min(0)).max())
-    return (f"{unit} (guessed: the rest skeleton spans {extent:.4g} file units; "
-            "--units or --scale to set)")  # fmt: skip
+    return (
+        f"{unit} (guessed: the rest skeleton spans {extent:.4g} file units; "
+        "--units or --scale to set)"
+    )
 
 
 def inspect_motion(path: str | Path, config: RetargetConfig | None = None) -> MotionInspection:
@@ -162,10 +163,13 @@ def inspect_motion(path: str | Path, config: RetargetConfig | None = None) -> Mo
         elif stands:
             calibration = "zero-pose: the zero pose stands as the avatar's rest does"
         else:
-            calibration = (f"clip: the bones' directions and bends over the clip; the zero "
-                           f"pose does not stand ({why})")  # fmt: skip
-    return MotionInspection(clip, _units(clip, config), height, how, match, error, up, forward,
-                            up_how, calibration)  # fmt: skip
+            calibration = (
+                f"clip: the bones' directions and bends over the clip; the zero "
+                f"pose does not stand ({why})"
+            )
+    return MotionInspection(
+        clip, _units(clip, config), height, how, match, error, up, forward, up_how, calibration
+    )
 
 
 @dataclass
@@ -186,8 +190,9 @@ class SheetInputs:
     motion: Motion
 
 
-def sheet_inputs(clip: BvhClip, motion: Motion, config: RetargetConfig,
-                 count: int = 6) -> SheetInputs:  # fmt: skip
+def sheet_inputs(
+    clip: BvhClip, motion: Motion, config: RetargetConfig, count: int = 6
+) -> SheetInputs:
     """The source skeleton beside a motion retargeted from it at the file's own frame rate
     (``RetargetConfig(fps=None)``), at ``count`` evenly spaced frames."""
     match = resolve_joint_map(clip, config)
@@ -197,8 +202,9 @@ def sheet_inputs(clip: BvhClip, motion: Motion, config: RetargetConfig,
     pose = source_pose(clip, axis_change(up, forward), root)
     ends = sorted(clip.end_offsets)
     end_pts = [pose.positions[:, j] + pose.leaf[j][0] for j in ends]
-    points = np.concatenate([pose.positions, np.stack(end_pts, 1)], 1) if ends \
-        else pose.positions  # (T, P, 3)  # fmt: skip
+    points = (
+        np.concatenate([pose.positions, np.stack(end_pts, 1)], 1) if ends else pose.positions
+    )  # (T, P, 3)
     scale = float(motion.meta.get("scale", 1.0))
     points = points * scale
     points += motion.root_translation[0] - points[0, root]  # the recentring and grounding
@@ -210,6 +216,11 @@ def sheet_inputs(clip: BvhClip, motion: Motion, config: RetargetConfig,
     bones += [(j, clip.num_joints + k) for k, j in enumerate(ends) if j in body]
     T = min(motion.num_frames, clip.num_frames)
     frames = sorted(set(np.linspace(0, T - 1, min(count, T)).round().astype(int).tolist()))
-    part = Motion(motion.joint_names, motion.rotations[frames], motion.root_translation[frames],
-                  motion.fps, motion.name)  # fmt: skip
+    part = Motion(
+        motion.joint_names,
+        motion.rotations[frames],
+        motion.root_translation[frames],
+        motion.fps,
+        motion.name,
+    )
     return SheetInputs(frames, points[frames], bones, part)

@@ -123,15 +123,17 @@ def is_map_file(name: str) -> bool:
 
 def _read_table(path: Path) -> dict:
     if not path.is_file():
-        raise LoosefitInputError(path, "<file>", "a joint map file (.yaml, .yml, .toml)",
-                                 "no such file")  # fmt: skip
+        raise LoosefitInputError(
+            path, "<file>", "a joint map file (.yaml, .yml, .toml)", "no such file"
+        )
     suffix = path.suffix.lower()
     if suffix == ".toml":
         try:
             import tomllib
         except ImportError:  # Python 3.10
-            raise LoosefitInputError(path, "suffix", ".yaml (TOML needs Python 3.11+)",
-                                     ".toml") from None  # fmt: skip
+            raise LoosefitInputError(
+                path, "suffix", ".yaml (TOML needs Python 3.11+)", ".toml"
+            ) from None
     try:
         text = path.read_text()
         if suffix == ".toml":
@@ -142,13 +144,21 @@ def _read_table(path: Path) -> dict:
             data = yaml.safe_load(text)
     except Exception as exc:  # noqa: BLE001 - yaml/toml parse errors of every kind
         what = "TOML" if suffix == ".toml" else "YAML"
-        raise LoosefitInputError(path, "<file>", f"valid {what}", str(exc).replace("\n", " "),
-                                 hint=f"one 'avatar joint: source joint' per line, e.g. "
-                                 f"{MAP_FILE_EXAMPLE}") from exc  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "<file>",
+            f"valid {what}",
+            str(exc).replace("\n", " "),
+            hint=f"one 'avatar joint: source joint' per line, e.g. {MAP_FILE_EXAMPLE}",
+        ) from exc
     if not isinstance(data, dict):
-        raise LoosefitInputError(path, "<file>", "a table of 'avatar joint: source joint'",
-                                 type(data).__name__,
-                                 hint=f"e.g. {MAP_FILE_EXAMPLE}")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "<file>",
+            "a table of 'avatar joint: source joint'",
+            type(data).__name__,
+            hint=f"e.g. {MAP_FILE_EXAMPLE}",
+        )
     return data
 
 
@@ -182,28 +192,40 @@ def load_joint_map_file(
         if key not in AVATAR_JOINTS:
             close = difflib.get_close_matches(key, AVATAR_JOINTS, n=3)
             raise LoosefitInputError(
-                path, key, f"an avatar joint ({', '.join(AVATAR_JOINTS)}) or one of "
-                f"{list(_RESERVED)}", repr(key),
+                path,
+                key,
+                f"an avatar joint ({', '.join(AVATAR_JOINTS)}) or one of {list(_RESERVED)}",
+                repr(key),
                 hint=f"did you mean {' or '.join(close)}?" if close else None,
-            )  # fmt: skip
+            )
         if not isinstance(value, str) or not value:
             raise LoosefitInputError(path, key, "a source joint's name", repr(value))
         if source_names is not None and value not in source_names:
             close = difflib.get_close_matches(value, list(source_names), n=3)
             raise LoosefitInputError(
-                path, key, "a joint of the motion file", repr(value),
-                hint=f"did you mean {' or '.join(map(repr, close))}?" if close
+                path,
+                key,
+                "a joint of the motion file",
+                repr(value),
+                hint=f"did you mean {' or '.join(map(repr, close))}?"
+                if close
                 else f"its joints: {', '.join(source_names)}",
-            )  # fmt: skip
+            )
         joints[key] = value
     only_axes = not joints and any(data.get(k) is not None for k in ("source_up", "source_forward"))
     if "Hips" not in joints and not only_axes:
-        raise LoosefitInputError(path, "Hips", "the source joint that drives the avatar's root",
-                                 "no Hips line", hint="e.g. Hips: pelvis")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "Hips",
+            "the source joint that drives the avatar's root",
+            "no Hips line",
+            hint="e.g. Hips: pelvis",
+        )
     twice = sorted({v for v in joints.values() if list(joints.values()).count(v) > 1})
     if twice:
-        raise LoosefitInputError(path, "<joints>", "each source joint mapped once",
-                                 f"{twice} mapped twice")  # fmt: skip
+        raise LoosefitInputError(
+            path, "<joints>", "each source joint mapped once", f"{twice} mapped twice"
+        )
     align = data.get("align")
     if align is None:
         align = tuple(a for a in LIMBS if a in joints)

@@ -43,8 +43,9 @@ from loosefit.body.joint_maps import LIMBS, MAP_FILE_EXAMPLE, JointMap
 from loosefit.errors import LoosefitInputError
 
 # Dropped from the front of a name (after any namespace "xxx:").
-_PREFIX = re.compile(r"^(mixamorig\d*[_:]?|joint[_\s.-]|jnt[_\s.-]|bip0?1[_\s.-]|def[_-]|b_|j_)",
-                     re.IGNORECASE)  # fmt: skip
+_PREFIX = re.compile(
+    r"^(mixamorig\d*[_:]?|joint[_\s.-]|jnt[_\s.-]|bip0?1[_\s.-]|def[_-]|b_|j_)", re.IGNORECASE
+)
 _SIDE_PATTERNS = (  # (regex, group holding the side); tried in order
     (re.compile(r"^(left|right)[_\s.-]?", re.IGNORECASE), 1),
     (re.compile(r"[_\s.-]?(left|right)$", re.IGNORECASE), 1),
@@ -310,8 +311,9 @@ def match_skeleton(
 
     # 1. The pelvis: a named root that branches (into the most named legs, then the
     # deepest: a scene's "root" above the "pelvis"), else the first joint that branches.
-    legged = [any(kinds[i] in ("thigh", "shin", "foot", "hip") for i in subtree[j])
-              for j in range(J)]  # fmt: skip
+    legged = [
+        any(kinds[i] in ("thigh", "shin", "foot", "hip") for i in subtree[j]) for j in range(J)
+    ]
     named_roots = [j for j in range(J) if kinds[j] == "root" and len(kids[j]) >= 2]
     pelvis = None
     if named_roots:
@@ -342,8 +344,14 @@ def match_skeleton(
     legs = sorted(named_legs if len(named_legs) >= 2 else legs, key=lambda c: low[c])[:2]
     leg_side, how_side = _two_sides(legs, subtree, parts, rest)
     found_legs = ", ".join(f"'{names[c]}' ({s})" for s, c in leg_side.items())
-    notes.append(f"torso: '{names[torso]}'; legs: " + (f"{found_legs}, sides by {how_side}"
-                 if found_legs else "none reach below the pelvis (axes wrong?)"))  # fmt: skip
+    notes.append(
+        f"torso: '{names[torso]}'; legs: "
+        + (
+            f"{found_legs}, sides by {how_side}"
+            if found_legs
+            else "none reach below the pelvis (axes wrong?)"
+        )
+    )
     for s, c in leg_side.items():
         S = "Left" if s == "L" else "Right"
         lowest = max(subtree[c], key=lambda j: (-rest[j, 2], depth[j]))
@@ -351,8 +359,13 @@ def match_skeleton(
         while len(kids[chain[-1]]) == 1:
             chain.append(kids[chain[-1]][0])
         roles = _leg_roles([kinds[j] for j in chain], rest[chain])
-        avatar = {"hipjoint": f"{s}HipJoint", "thigh": f"{S}UpLeg", "shin": f"{S}Leg",
-                  "foot": f"{S}Foot", "toe": f"{S}ToeBase"}  # fmt: skip
+        avatar = {
+            "hipjoint": f"{s}HipJoint",
+            "thigh": f"{S}UpLeg",
+            "shin": f"{S}Leg",
+            "foot": f"{S}Foot",
+            "toe": f"{S}ToeBase",
+        }
         for role, (i, h) in roles.items():
             found[avatar[role]], how[avatar[role]] = chain[i], h
 
@@ -368,16 +381,20 @@ def match_skeleton(
     spine_path = _path(parents, pelvis, head)
     on_path = set(spine_path)
     offshoots = [(s, c) for s in spine_path[:-1] for c in kids[s] if c not in on_path]
-    reach = {c: float(np.linalg.norm(rest[subtree[c]] - rest[s], axis=1).max())
-             for s, c in offshoots}  # fmt: skip
+    reach = {
+        c: float(np.linalg.norm(rest[subtree[c]] - rest[s], axis=1).max()) for s, c in offshoots
+    }
     arm_kinds = ("collar", "shoulder", "upperarm", "forearm", "hand")
     named_arms = [(s, c) for s, c in offshoots if any(kinds[j] in arm_kinds for j in subtree[c])]
     pool = named_arms if len(named_arms) >= 2 else offshoots
     arms = sorted(pool, key=lambda sc: -reach[sc[1]])[:2]
     arms = [(s, c) for s, c in arms if reach[c] > 0.15 * extent]
     arm_side, how_arm_side = _two_sides([c for _, c in arms], subtree, parts, rest)
-    notes.append("arms: " + (", ".join(f"'{names[c]}' ({s})" for s, c in arm_side.items())
-                             or "none") + f", sides by {how_arm_side}")  # fmt: skip
+    notes.append(
+        "arms: "
+        + (", ".join(f"'{names[c]}' ({s})" for s, c in arm_side.items()) or "none")
+        + f", sides by {how_arm_side}"
+    )
     for s, c in arm_side.items():
         S = "Left" if s == "L" else "Right"
         lengths = {c: 0.0}  # path length from the branch's first joint
@@ -387,8 +404,12 @@ def match_skeleton(
         tip = max(lengths, key=lambda j: (lengths[j], -depth[j]))
         chain = [c, *_path(parents, c, tip)]
         roles = _arm_roles([kinds[j] for j in chain], rest[chain])
-        avatar = {"collar": f"{S}Shoulder", "arm": f"{S}Arm", "forearm": f"{S}ForeArm",
-                  "hand": f"{S}Hand"}  # fmt: skip
+        avatar = {
+            "collar": f"{S}Shoulder",
+            "arm": f"{S}Arm",
+            "forearm": f"{S}ForeArm",
+            "hand": f"{S}Hand",
+        }
         for role, (i, h) in roles.items():
             found[avatar[role]], how[avatar[role]] = chain[i], h
 
@@ -411,10 +432,33 @@ def match_skeleton(
     missing = [a for a in REQUIRED if a not in found]
     if missing:
         _fail(source, names, parts, found, notes, missing)
-    order = ("Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase", "LowerBack",
-             "Spine", "Spine1", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand", "Neck",
-             "Neck1", "Head", "RightShoulder", "RightArm", "RightForeArm", "RightHand",
-             "RHipJoint", "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase")  # fmt: skip
+    order = (
+        "Hips",
+        "LHipJoint",
+        "LeftUpLeg",
+        "LeftLeg",
+        "LeftFoot",
+        "LeftToeBase",
+        "LowerBack",
+        "Spine",
+        "Spine1",
+        "LeftShoulder",
+        "LeftArm",
+        "LeftForeArm",
+        "LeftHand",
+        "Neck",
+        "Neck1",
+        "Head",
+        "RightShoulder",
+        "RightArm",
+        "RightForeArm",
+        "RightHand",
+        "RHipJoint",
+        "RightUpLeg",
+        "RightLeg",
+        "RightFoot",
+        "RightToeBase",
+    )
     joints = {a: names[found[a]] for a in order if a in found}
     jmap = JointMap("auto-matched", joints, tuple(a for a in LIMBS if a in joints))
     return JointMatch(jmap, {a: how[a] for a in joints}, tuple(notes))
@@ -435,26 +479,37 @@ def _fail(
         side = "L" if a.startswith("Left") else "R" if a.startswith("Right") else None
         bone = a.removeprefix("Left").removeprefix("Right")
         part = {"Hips": "root", **{k: v.replace(" ", "") for k, v in {**_LEG, **_ARM}.items()}}
-        want = {"root": ("root",), "thigh": ("thigh", "hip"), "shin": ("shin",),
-                "foot": ("foot",), "upperarm": ("upperarm", "shoulder"),
-                "forearm": ("forearm",), "hand": ("hand",)}[part[bone]]  # fmt: skip
-        cands = [n for n, p in zip(names, parts, strict=True)
-                 if p.part in want and (side is None or p.side in (side, None))]  # fmt: skip
-        what = (f"candidates {cands[:4]}" if cands
-                else f"no joint named like {_PART_WORDS[part[bone]]}")  # fmt: skip
+        want = {
+            "root": ("root",),
+            "thigh": ("thigh", "hip"),
+            "shin": ("shin",),
+            "foot": ("foot",),
+            "upperarm": ("upperarm", "shoulder"),
+            "forearm": ("forearm",),
+            "hand": ("hand",),
+        }[part[bone]]
+        cands = [
+            n
+            for n, p in zip(names, parts, strict=True)
+            if p.part in want and (side is None or p.side in (side, None))
+        ]
+        what = (
+            f"candidates {cands[:4]}" if cands else f"no joint named like {_PART_WORDS[part[bone]]}"
+        )
         details.append(f"{a}: {what}")
     raise LoosefitInputError(
-        source, "HIERARCHY",
+        source,
+        "HIERARCHY",
         "a humanoid skeleton the joint matcher can map: a pelvis with two legs (thigh, shin, "
         "foot) and a spine with two arms (upper arm, forearm, hand)",
         f"nothing for {missing} ({'; '.join(details)}; {'; '.join(notes)}; "
         f"its joints: {', '.join(names[:40])}{'...' if len(names) > 40 else ''})",
         hint=f"write a joint map file (YAML or TOML), one line 'avatar joint: your joint' per "
-             f"joint, e.g. '{MAP_FILE_EXAMPLE}', and pass --joint-map FILE (the motion spec "
-             "joint-map:FILE:CLIP.bvh elsewhere); `loosefit inspect-motion CLIP.bvh` lists "
-             "the joints; a skeleton not Y up and facing +Z: source_up and source_forward "
-             "in a map file",
-    )  # fmt: skip
+        f"joint, e.g. '{MAP_FILE_EXAMPLE}', and pass --joint-map FILE (the motion spec "
+        "joint-map:FILE:CLIP.bvh elsewhere); `loosefit inspect-motion CLIP.bvh` lists "
+        "the joints; a skeleton not Y up and facing +Z: source_up and source_forward "
+        "in a map file",
+    )
 
 
 # What a template line guesses for each avatar joint from the names alone: (side, parts).
@@ -498,29 +553,53 @@ def joint_map_template(
     for a, (side, want) in _TEMPLATE_PARTS.items():
         if a in found:
             continue
-        cands = [n for n, p in zip(names, parts, strict=True)
-                 if p.part in want and p.side == side and n not in used]  # fmt: skip
+        cands = [
+            n
+            for n, p in zip(names, parts, strict=True)
+            if p.part in want and p.side == side and n not in used
+        ]
         if a == "Spine1" and cands:  # the chest is the last spine joint, the lower back the first
             cands = cands[-1:]
         if cands:
             found[a] = cands[0]
             used.add(cands[0])
-    lines = [f"# Joint map for {Path(source).name}: 'avatar joint: source joint', one a line.",
-             "# Correct the guesses, fill in the commented lines (remove the '# '), and pass",
-             "# it as --joint-map FILE (or the motion spec joint-map:FILE:MOTION).",
-             f"# The file's joints: {', '.join(names)}"]  # fmt: skip
-    order = ("Hips", "LowerBack", "Spine", "Spine1", "Neck", "Neck1", "Head",
-             *(f"{S}{b}" for S in ("Left", "Right") for b in
-               ("HipJoint", "UpLeg", "Leg", "Foot", "ToeBase", "Shoulder", "Arm", "ForeArm",
-                "Hand")))  # fmt: skip
+    lines = [
+        f"# Joint map for {Path(source).name}: 'avatar joint: source joint', one a line.",
+        "# Correct the guesses, fill in the commented lines (remove the '# '), and pass",
+        "# it as --joint-map FILE (or the motion spec joint-map:FILE:MOTION).",
+        f"# The file's joints: {', '.join(names)}",
+    ]
+    order = (
+        "Hips",
+        "LowerBack",
+        "Spine",
+        "Spine1",
+        "Neck",
+        "Neck1",
+        "Head",
+        *(
+            f"{S}{b}"
+            for S in ("Left", "Right")
+            for b in (
+                "HipJoint",
+                "UpLeg",
+                "Leg",
+                "Foot",
+                "ToeBase",
+                "Shoulder",
+                "Arm",
+                "ForeArm",
+                "Hand",
+            )
+        ),
+    )
     for a in order:
         a = {"LeftHipJoint": "LHipJoint", "RightHipJoint": "RHipJoint"}.get(a, a)
         bone = a.removeprefix("Left").removeprefix("Right")
         word = _TEMPLATE_WORDS.get(bone, "")
         how = match.how.get(a, "") if match is not None else ""
         if a in found:
-            note = f"  # {how}" if how else ("  # guessed by name" if a in _TEMPLATE_PARTS
-                                             else "")  # fmt: skip
+            note = f"  # {how}" if how else ("  # guessed by name" if a in _TEMPLATE_PARTS else "")
             lines.append(f"{a}: {_yaml_name(found[a])}{note}")
         elif a in _TEMPLATE_PARTS:
             lines.append(f"# {a}: ?   # {word}")
@@ -538,6 +617,8 @@ def _yaml_name(name: str) -> str:
 
 def joint_map_template_hint(source: str) -> str:
     """The command that writes a filled-in joint map for a motion file, for error hints."""
-    return (f"`loosefit inspect-motion {Path(source).name} --write-joint-map my_map.yaml` "
-            "writes one filled in with what was found and guessed by name, to correct and "
-            "pass as --joint-map my_map.yaml")  # fmt: skip
+    return (
+        f"`loosefit inspect-motion {Path(source).name} --write-joint-map my_map.yaml` "
+        "writes one filled in with what was found and guessed by name, to correct and "
+        "pass as --joint-map my_map.yaml"
+    )

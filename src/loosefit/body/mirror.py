@@ -45,8 +45,12 @@ def mirror_permutation(joint_names: tuple[str, ...]) -> np.ndarray:
         if other is None:
             continue
         if other not in index:
-            raise LoosefitInputError("motion", "joint_names", f"'{other}', the twin of '{name}' "
-                                     "(to mirror the motion)", "no such joint")  # fmt: skip
+            raise LoosefitInputError(
+                "motion",
+                "joint_names",
+                f"'{other}', the twin of '{name}' (to mirror the motion)",
+                "no such joint",
+            )
         perm[i] = index[other]
     return perm
 

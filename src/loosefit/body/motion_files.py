@@ -71,8 +71,9 @@ def read_clip(path: str | Path, config: RetargetConfig | None = None) -> BvhClip
         raise LoosefitInputError(path, "suffix", f"one of {list(CLIP_READERS)}", repr(suffix))
     what, reader = CLIP_READERS[suffix]
     if not path.is_file():
-        raise LoosefitInputError(path, "<file>", f"an existing {what.split(' ', 1)[1]}",
-                                 "no such file")  # fmt: skip
+        raise LoosefitInputError(
+            path, "<file>", f"an existing {what.split(' ', 1)[1]}", "no such file"
+        )
     return reader(path, config)
 
 
@@ -94,24 +95,31 @@ def motion_files(folder: str | Path) -> list[Path]:
     want = f"a folder with motion files ({', '.join(MOTION_SUFFIXES)})"
     if not folder.is_dir():
         raise LoosefitInputError(folder, "<folder>", want, "no such folder")
-    files = sorted(f for f in folder.iterdir()
-                   if f.is_file() and f.suffix.lower() in MOTION_SUFFIXES)  # fmt: skip
+    files = sorted(
+        f for f in folder.iterdir() if f.is_file() and f.suffix.lower() in MOTION_SUFFIXES
+    )
     if not files:
         raise LoosefitInputError(folder, "<folder>", want, "no motion file")
     seen: dict[str, Path] = {}
     for f in files:
         if f.stem in seen:
             raise LoosefitInputError(
-                folder, f.stem, "one file per clip name (a clip is named after its file)",
-                f"{seen[f.stem].name} and {f.name}", hint="rename or move one of them",
-            )  # fmt: skip
+                folder,
+                f.stem,
+                "one file per clip name (a clip is named after its file)",
+                f"{seen[f.stem].name} and {f.name}",
+                hint="rename or move one of them",
+            )
         seen[f.stem] = f
         if f.suffix.lower() == ".npz":
             fields = npz_fields(f)
             if not (is_smpl_npz(fields) or "rotations" in fields):
                 raise LoosefitInputError(
-                    f, "poses", "an SMPL pose file (poses, trans, a frame rate) or a loosefit "
-                    "motion (rotations, ...)", f"fields {sorted(fields)}",
+                    f,
+                    "poses",
+                    "an SMPL pose file (poses, trans, a frame rate) or a loosefit "
+                    "motion (rotations, ...)",
+                    f"fields {sorted(fields)}",
                     hint="move files that are no motions out of the folder",
-                )  # fmt: skip
+                )
     return files

@@ -32,11 +32,17 @@ MIN_SPEED, MAX_SPEED = 0.1, 10.0
 # Motion specs that set one RetargetConfig field for the motion after them:
 # prefix -> (the field, the spec's form, what it takes)
 _SETTING_PREFIXES = {
-    "joint-map:": ("joint_map", "joint-map:MAP:MOTION",
-                   "auto, a joint map's name or a map file, and a motion"),
-    "animation:": ("animation", "animation:NAME:MOTION",
-                   "a glTF animation's name or index, and a motion"),
-}  # fmt: skip
+    "joint-map:": (
+        "joint_map",
+        "joint-map:MAP:MOTION",
+        "auto, a joint map's name or a map file, and a motion",
+    ),
+    "animation:": (
+        "animation",
+        "animation:NAME:MOTION",
+        "a glTF animation's name or index, and a motion",
+    ),
+}
 
 
 def load_motion(
@@ -88,9 +94,11 @@ def load_motion(
     if "+" in text and not path.exists():
         parts = [p for p in text.split("+") if p]
         motion = chain_motions(
-            [load_motion(p, avatar, fps, seed + i, retarget, None, start_frame)
-             for i, p in enumerate(parts)]
-        )  # fmt: skip
+            [
+                load_motion(p, avatar, fps, seed + i, retarget, None, start_frame)
+                for i, p in enumerate(parts)
+            ]
+        )
         return motion if max_frames is None else motion.slice(0, max_frames)
     setting = next((k for k in _SETTING_PREFIXES if text.startswith(k)), None)
     if setting is not None and not path.exists():
@@ -116,10 +124,13 @@ def load_motion(
             cfg = RetargetConfig(**{**cfg.__dict__, "scale": factor})
         if not (ok and inner):
             raise LoosefitInputError(
-                "motion", f"{key}:{'UNIT' if key == 'units' else 'METRES_PER_UNIT'}:MOTION",
-                "m, cm, mm or auto, and a motion" if key == "units"
-                else "a positive factor and a motion", repr(text),
-            )  # fmt: skip
+                "motion",
+                f"{key}:{'UNIT' if key == 'units' else 'METRES_PER_UNIT'}:MOTION",
+                "m, cm, mm or auto, and a motion"
+                if key == "units"
+                else "a positive factor and a motion",
+                repr(text),
+            )
         motion = load_motion(inner, avatar, fps, seed, cfg)
     elif text.startswith("mirror:") and not path.exists():
         motion = mirror_motion(load_motion(text[len("mirror:") :], avatar, fps, seed, retarget))
@@ -131,9 +142,11 @@ def load_motion(
             speed = float("nan")
         if not (inner and MIN_SPEED <= speed <= MAX_SPEED):
             raise LoosefitInputError(
-                "motion", "speed:FACTOR:MOTION",
-                f"a factor from {MIN_SPEED:g} to {MAX_SPEED:g} and a motion", repr(text),
-            )  # fmt: skip
+                "motion",
+                "speed:FACTOR:MOTION",
+                f"a factor from {MIN_SPEED:g} to {MAX_SPEED:g} and a motion",
+                repr(text),
+            )
         motion = retime_motion(load_motion(inner, avatar, fps, seed, retarget), speed)
     elif text.startswith("frames:") and not path.exists():
         start, _, rest = text[len("frames:") :].partition(":")
@@ -143,15 +156,21 @@ def load_motion(
         except ValueError:
             first = last = -1
         if not (inner and 0 <= first < last):
-            raise LoosefitInputError("motion", "frames:START:STOP:MOTION",
-                                     "0 <= START < STOP and a motion", repr(text))  # fmt: skip
+            raise LoosefitInputError(
+                "motion", "frames:START:STOP:MOTION", "0 <= START < STOP and a motion", repr(text)
+            )
         motion = load_motion(inner, avatar, fps, seed, retarget)
         if last > motion.num_frames:
-            raise LoosefitInputError(f"motion '{motion.name}'", "frames:START:STOP",
-                                     f"STOP <= {motion.num_frames} (its frames)", last)  # fmt: skip
+            raise LoosefitInputError(
+                f"motion '{motion.name}'",
+                "frames:START:STOP",
+                f"STOP <= {motion.num_frames} (its frames)",
+                last,
+            )
         motion = motion.slice(first, last)
-    elif path.suffix.lower() in CLIP_READERS and (path.suffix.lower() != ".npz"
-                                                  or is_capture_file(path)):  # fmt: skip
+    elif path.suffix.lower() in CLIP_READERS and (
+        path.suffix.lower() != ".npz" or is_capture_file(path)
+    ):
         cfg = retarget or RetargetConfig()
         cfg = RetargetConfig(**{**cfg.__dict__, "fps": fps})
         clip = read_clip(path, cfg)
@@ -160,10 +179,12 @@ def load_motion(
         fields = npz_fields(path) if path.is_file() else ["rotations"]  # Motion.load says
         if "rotations" not in fields:
             raise LoosefitInputError(
-                path, "rotations",
+                path,
+                "rotations",
                 "a loosefit motion (joint_names, rotations, root_translation, fps) or an SMPL "
-                "pose file (poses, trans, mocap_framerate)", f"fields {sorted(fields)}",
-            )  # fmt: skip
+                "pose file (poses, trans, mocap_framerate)",
+                f"fields {sorted(fields)}",
+            )
         motion = Motion.load(path)
         avatar.check_motion(motion)
         if abs(motion.fps - fps) > 1e-6:
@@ -176,9 +197,9 @@ def load_motion(
             except ValueError:
                 seconds = float("nan")
             if not 0 < seconds <= MAX_DANCE_SECONDS:
-                raise LoosefitInputError("motion", "dance:SECONDS",
-                                         f"seconds in (0, {MAX_DANCE_SECONDS:g}]",
-                                         repr(arg))  # fmt: skip
+                raise LoosefitInputError(
+                    "motion", "dance:SECONDS", f"seconds in (0, {MAX_DANCE_SECONDS:g}]", repr(arg)
+                )
             motion = random_dance(avatar.joint_names, avatar.floor_height, seconds, seed, fps)
         else:
             motion = named_motion(name, avatar.joint_names, avatar.floor_height, seed, fps)

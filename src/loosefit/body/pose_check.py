@@ -112,8 +112,9 @@ def measure_pose(motion: Motion, skeleton: Skeleton, floor_height: float) -> Pos
     heads = skeleton.heads.astype(np.float64)
     pos = np.zeros(rot.shape[:2] + (3,))  # (T, J, 3)
     for j, p in enumerate(skeleton.parents):
-        pos[:, j] = (motion.root_translation if p < 0
-                     else pos[:, p] + world[:, p] @ (heads[j] - heads[p]))  # fmt: skip
+        pos[:, j] = (
+            motion.root_translation if p < 0 else pos[:, p] + world[:, p] @ (heads[j] - heads[p])
+        )
     names = list(skeleton.names)
     z = pos[..., 2]
     feet = [names.index(n) for n in names if "Foot" in n or "Toe" in n]
@@ -129,10 +130,15 @@ def measure_pose(motion: Motion, skeleton: Skeleton, floor_height: float) -> Pos
     d /= np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
     cos = np.clip((d[1:] * d[:-1]).sum(-1), -1.0, 1.0)
     turn = np.degrees(np.arccos(cos)) * motion.fps  # (T - 1, J)
-    return PoseMeasures(head - hips > STAND_MARGIN * rest_torso,
-                        hips - lower_foot > STAND_MARGIN * rest_legs, sole, turn,
-                        float(motion.fps), (head - hips) / rest_torso,
-                        (hips - lower_foot) / rest_legs)  # fmt: skip
+    return PoseMeasures(
+        head - hips > STAND_MARGIN * rest_torso,
+        hips - lower_foot > STAND_MARGIN * rest_legs,
+        sole,
+        turn,
+        float(motion.fps),
+        (head - hips) / rest_torso,
+        (hips - lower_foot) / rest_legs,
+    )
 
 
 def _frames(idx: np.ndarray, limit: int = 6) -> str:
@@ -162,8 +168,10 @@ def pose_problems(measures: PoseMeasures, joint_names: tuple[str, ...]) -> list[
             )
             if not ok.all()
         ]
-        problems.append(f"the body does not stand in {1 - m.upright.mean():.0%} of the frames "
-                        f"(at most {1 - MIN_UPRIGHT:.0%} may): " + "; ".join(which))  # fmt: skip
+        problems.append(
+            f"the body does not stand in {1 - m.upright.mean():.0%} of the frames "
+            f"(at most {1 - MIN_UPRIGHT:.0%} may): " + "; ".join(which)
+        )
     contact = m.sole < CONTACT_M
     if contact.mean() < MIN_CONTACT:
         problems.append(
@@ -173,17 +181,24 @@ def pose_problems(measures: PoseMeasures, joint_names: tuple[str, ...]) -> list[
         )
     below = np.flatnonzero(m.sole < -MAX_BELOW_M)
     if len(below):
-        problems.append(f"a foot is {-m.sole.min():.2f} m below the floor (at most "
-                        f"{MAX_BELOW_M:g} m) in frames {_frames(below)}")  # fmt: skip
+        problems.append(
+            f"a foot is {-m.sole.min():.2f} m below the floor (at most "
+            f"{MAX_BELOW_M:g} m) in frames {_frames(below)}"
+        )
     fast = m.turn > MAX_TURN_DEG_S
     if fast.any():
         joints = [j for j in np.argsort(-m.turn.max(0)) if fast[:, j].any()]
-        worst = ", ".join(f"{joint_names[j]} {m.turn[:, j].max() / m.fps:.0f} degrees at frame "
-                          f"{int(np.argmax(m.turn[:, j]))}" for j in joints[:4])  # fmt: skip
-        problems.append(f"bones turn faster than a joint can (more than "
-                        f"{MAX_TURN_DEG_S / m.fps:.0f} degrees in one frame at {m.fps:g} fps, "
-                        f"{MAX_TURN_DEG_S:g} deg/s): {worst}, in frames "
-                        f"{_frames(np.flatnonzero(fast.any(1)))}")  # fmt: skip
+        worst = ", ".join(
+            f"{joint_names[j]} {m.turn[:, j].max() / m.fps:.0f} degrees at frame "
+            f"{int(np.argmax(m.turn[:, j]))}"
+            for j in joints[:4]
+        )
+        problems.append(
+            f"bones turn faster than a joint can (more than "
+            f"{MAX_TURN_DEG_S / m.fps:.0f} degrees in one frame at {m.fps:g} fps, "
+            f"{MAX_TURN_DEG_S:g} deg/s): {worst}, in frames "
+            f"{_frames(np.flatnonzero(fast.any(1)))}"
+        )
     return problems
 
 
@@ -208,13 +223,14 @@ def check_pose(
     problems = pose_problems(measures, tuple(skeleton.names))
     if problems:
         raise LoosefitInputError(
-            source or f"motion '{motion.name}'", "poses",
+            source or f"motion '{motion.name}'",
+            "poses",
             "a motion a dancer could dance: standing, feet on the floor, joints turning no "
             "faster than a body can",
             "; ".join(problems),
             hint="see what the capture shows beside what the avatar does with `loosefit "
-                 "inspect-motion FILE --sheet sheet.png`; a wrong joint map or up axis "
-                 "(--joint-map, a map file's source_up) is the usual cause; "
-                 "--no-pose-check (RetargetConfig(check_pose=False)) lets it through",
-        )  # fmt: skip
+            "inspect-motion FILE --sheet sheet.png`; a wrong joint map or up axis "
+            "(--joint-map, a map file's source_up) is the usual cause; "
+            "--no-pose-check (RetargetConfig(check_pose=False)) lets it through",
+        )
     return measures

@@ -144,10 +144,11 @@ def choose_joint_map(
             return load_joint_map_file(name, source_names)
         if name not in JOINT_MAPS:
             raise LoosefitInputError(
-                "RetargetConfig", "joint_map",
+                "RetargetConfig",
+                "joint_map",
                 f"one of {['auto', *JOINT_MAPS]} or a .yaml/.yml/.toml joint map file",
                 repr(name),
-            )  # fmt: skip
+            )
         return JOINT_MAPS[name]
     have = set(source_names)
     return max(
@@ -179,8 +180,11 @@ def source_axes(
             up, how = "+y", f"{form}'s"
         else:  # a BVH file: its axes are its writer's choice
             found = guess_up(clip.joint_names, _kinematics(clip)[0])
-            up, how = (found, "found from the frames (feet to head)") if found else (
-                "+y", "default: no head and feet named")  # fmt: skip
+            up, how = (
+                (found, "found from the frames (feet to head)")
+                if found
+                else ("+y", "default: no head and feet named")
+            )
     forward = (jmap.source_forward if jmap is not None else None) or config.source_forward
     if forward == "auto":
         forward = FORWARD_FOR_UP.get(up, "+z")
@@ -207,9 +211,12 @@ def _match_on_frames(clip: BvhClip, C: np.ndarray) -> JointMatch:
         note = f"matched on frame {t}: the zero pose shows no legs below the pelvis"
         joints = match.joint_map.joints
         if any("sides by structure" in n for n in match.notes):
-            fwd = [positions[t, names.index(joints[f"{S}ToeBase"])]
-                   - positions[t, names.index(joints[f"{S}Foot"])]
-                   for S in ("Left", "Right") if f"{S}ToeBase" in joints]  # fmt: skip
+            fwd = [
+                positions[t, names.index(joints[f"{S}ToeBase"])]
+                - positions[t, names.index(joints[f"{S}Foot"])]
+                for S in ("Left", "Right")
+                if f"{S}ToeBase" in joints
+            ]
             fwd = np.mean(fwd, axis=0) * [1, 1, 0] if fwd else np.zeros(3)
             if np.linalg.norm(fwd) > 1e-6:  # the feet point forward
                 turned = face_forward(positions[t], fwd)
@@ -217,10 +224,12 @@ def _match_on_frames(clip: BvhClip, C: np.ndarray) -> JointMatch:
                 note += ", turned to face -Y by its feet"
         return JointMatch(match.joint_map, match.how, (*match.notes, note))
     raise LoosefitInputError(
-        first.source, first.field, first.expected,
+        first.source,
+        first.field,
+        first.expected,
         f"{first.found}; tried the zero pose, then frames {frames}",
         hint=first.hint,
-    )  # fmt: skip
+    )
 
 
 def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> JointMatch:
@@ -246,8 +255,10 @@ def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> Jo
             how = "map file" if is_map_file(name) else f"map {jmap.name}"
             return JointMatch(jmap, dict.fromkeys(jmap.joints, how))
         # a map file with only the axes: matched automatically in them
-        axes = {"source_up": jmap.source_up or config.source_up,
-                "source_forward": jmap.source_forward or config.source_forward}  # fmt: skip
+        axes = {
+            "source_up": jmap.source_up or config.source_up,
+            "source_forward": jmap.source_forward or config.source_forward,
+        }
         match = resolve_joint_map(clip, replace(config, joint_map="auto", **axes))
         note = f"axes from {name}: up {axes['source_up']}, forward {axes['source_forward']}"
         return JointMatch(replace(match.joint_map, **axes), match.how, (*match.notes, note))
@@ -256,7 +267,7 @@ def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> Jo
         JOINT_MAPS.values(),
         key=lambda m: -sum(s in have for s in m.joints.values()) / len(m.joints),
     )
-    for jmap in by_cover:  # fmt: skip
+    for jmap in by_cover:
         if _fits(jmap, have):
             present = {a: s for a, s in jmap.joints.items() if s in have}
             return JointMatch(jmap, dict.fromkeys(present, f"map {jmap.name}"))
@@ -265,9 +276,12 @@ def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> Jo
         return _match_on_frames(clip, axis_change(up, forward))
     except LoosefitInputError as exc:
         raise LoosefitInputError(
-            exc.source, exc.field, exc.expected, exc.found,
+            exc.source,
+            exc.field,
+            exc.expected,
+            exc.found,
             hint=f"{exc.hint}; {joint_map_template_hint(str(clip.path))}",
-        ) from None  # fmt: skip
+        ) from None
 
 
 def _axes(jmap: JointMap, config: RetargetConfig, clip: BvhClip) -> np.ndarray:
@@ -364,9 +378,11 @@ def _height_hint(clip: BvhClip, height: float) -> str:
     for unit, factor in _UNIT_SCALES.items():
         h = height / clip.units_scale * factor
         if factor != clip.units_scale and low <= h <= high:
-            return (f"read in {unit} it is {h:.2f} m: --units {unit} (`loosefit motion`, "
-                    f"`animate`, ...), or the motion spec {spec.replace('UNIT', unit)} (any "
-                    "command, a preset, the Python API)")  # fmt: skip
+            return (
+                f"read in {unit} it is {h:.2f} m: --units {unit} (`loosefit motion`, "
+                f"`animate`, ...), or the motion spec {spec.replace('UNIT', unit)} (any "
+                "command, a preset, the Python API)"
+            )
     for unit, factor in OTHER_UNITS.items():
         h = height / clip.units_scale * factor
         if low <= h <= high:
@@ -374,9 +390,11 @@ def _height_hint(clip: BvhClip, height: float) -> str:
                 f"in {unit} it is {h:.2f} m: --scale {factor:g} (`loosefit motion`, "
                 f"`animate`, ...), or the motion spec scale:{factor:g}:{clip.path.name}"
             )
-    return ("no unit makes a dancer of it, so the measure itself may be wrong: see how the "
-            f"joints map and what the frames show with `loosefit inspect-motion "
-            f"{clip.path.name} --sheet sheet.png`, and give --joint-map")  # fmt: skip
+    return (
+        "no unit makes a dancer of it, so the measure itself may be wrong: see how the "
+        f"joints map and what the frames show with `loosefit inspect-motion "
+        f"{clip.path.name} --sheet sheet.png`, and give --joint-map"
+    )
 
 
 def check_source_height(clip: BvhClip, config: RetargetConfig | None = None) -> float:
@@ -394,11 +412,12 @@ def check_source_height(clip: BvhClip, config: RetargetConfig | None = None) -> 
         unit = {v: k for k, v in _UNIT_SCALES.items()}.get(clip.units_scale)
         read = f"read in {unit}" if unit else f"read at {clip.units_scale:g} m per unit"
         raise LoosefitInputError(
-            str(clip.path), "units",
+            str(clip.path),
+            "units",
             f"a dancer {low:g}-{high:g} m tall",
             f"{height:.2f} m ({measure.how}; {read})",
             hint=_height_hint(clip, height),
-        )  # fmt: skip
+        )
     return height
 
 
@@ -453,8 +472,9 @@ def retarget_bvh(
         )
 
     if config.reference not in REFERENCES:
-        raise LoosefitInputError("RetargetConfig", "reference", f"one of {list(REFERENCES)}",
-                                 repr(config.reference))  # fmt: skip
+        raise LoosefitInputError(
+            "RetargetConfig", "reference", f"one of {list(REFERENCES)}", repr(config.reference)
+        )
     rotations = clip.rotations.astype(np.float64)
     if config.filter_glitches:
         rotations = filter_rotation_glitches(rotations, clip.fps)

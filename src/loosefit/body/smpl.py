@@ -94,8 +94,9 @@ def template_from_skeleton(skeleton) -> tuple[np.ndarray, dict[int, np.ndarray]]
     tails = np.asarray(skeleton.tails, np.float64)
     to_smpl = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # Z up, -Y front
     pos = np.stack([heads[names.index(SMPL_FROM_AVATAR[j])] for j in SMPL_JOINTS])
-    ends = {j: tails[names.index(b)] - heads[names.index(b)]
-            for j, b in SMPL_END_FROM_AVATAR.items()}  # fmt: skip
+    ends = {
+        j: tails[names.index(b)] - heads[names.index(b)] for j, b in SMPL_END_FROM_AVATAR.items()
+    }
     for side, sign in (("left", 1.0), ("right", -1.0)):
         level = np.array([sign, 0.0, 0.0])  # the avatar's left is +X
         chain = [SMPL_JOINTS.index(f"{side}_{j}") for j in ("shoulder", "elbow", "wrist")]
@@ -261,11 +262,13 @@ def _finite(path: Path, name: str, a: np.ndarray) -> None:
     if bad.any():
         where = np.argwhere(bad)[0]
         raise LoosefitInputError(
-            path, name, "finite values",
+            path,
+            name,
+            "finite values",
             f"{a[tuple(where)]} at frame {where[0]}"
             + (f", column {where[1]}" if len(where) > 1 else "")
             + f" ({int(bad.sum())} in all)",
-        )  # fmt: skip
+        )
 
 
 def read_smpl_npz(path: str | Path, up: str = "auto") -> BvhClip:
@@ -283,28 +286,34 @@ def read_smpl_npz(path: str | Path, up: str = "auto") -> BvhClip:
     fields = npz_fields(path)
     for name in ("poses", "trans"):
         if name not in fields:
-            raise LoosefitInputError(path, name, f"a '{name}' array (an SMPL pose file)",
-                                     f"fields {sorted(fields)}")  # fmt: skip
+            raise LoosefitInputError(
+                path, name, f"a '{name}' array (an SMPL pose file)", f"fields {sorted(fields)}"
+            )
     rate_key = next((k for k in FRAME_RATE_KEYS if k in fields), None)
     if rate_key is None:
         raise LoosefitInputError(
-            path, "mocap_framerate", f"a frame rate: one of {list(FRAME_RATE_KEYS)}",
+            path,
+            "mocap_framerate",
+            f"a frame rate: one of {list(FRAME_RATE_KEYS)}",
             f"none (fields {sorted(fields)})",
             hint="add one, e.g. np.savez(..., mocap_framerate=120)",
-        )  # fmt: skip
+        )
     with np.load(path, allow_pickle=False) as z:
         poses, trans, rate = (_field(z, path, k) for k in ("poses", "trans", rate_key))
     if poses.ndim == 3 and poses.shape[2] == 3:  # (T, K, 3)
         poses = poses.reshape(len(poses), -1)
     if poses.ndim != 2 or poses.shape[1] not in POSE_WIDTHS or len(poses) < 1:
         raise LoosefitInputError(
-            path, "poses", f"shape (T, {' | '.join(map(str, POSE_WIDTHS))}) (SMPL, SMPL-H, "
-            "SMPL-X axis-angles)", f"{poses.shape}",
-        )  # fmt: skip
+            path,
+            "poses",
+            f"shape (T, {' | '.join(map(str, POSE_WIDTHS))}) (SMPL, SMPL-H, SMPL-X axis-angles)",
+            f"{poses.shape}",
+        )
     T = len(poses)
     if trans.shape != (T, 3):
-        raise LoosefitInputError(path, "trans", f"shape ({T}, 3) (one per frame of poses)",
-                                 f"{trans.shape}")  # fmt: skip
+        raise LoosefitInputError(
+            path, "trans", f"shape ({T}, 3) (one per frame of poses)", f"{trans.shape}"
+        )
     if rate.size != 1 or not np.isfinite(rate.ravel()[0]) or rate.ravel()[0] <= 0:
         raise LoosefitInputError(path, rate_key, "a positive frame rate", f"{rate.ravel()[:3]}")
     _finite(path, "poses", poses)

@@ -78,17 +78,23 @@ class UnfoldConfig:
             raise LoosefitInputError(src, "steps", "an integer from 1 to 30", repr(self.steps))
         deep = self.deep_degrees
         if deep is not None and not (
-            isinstance(deep, int | float) and not isinstance(deep, bool)
-            and math.isfinite(deep) and self.max_degrees <= deep <= 90
-        ):  # fmt: skip
-            raise LoosefitInputError(src, "deep_degrees",
-                                     f"None or a number from max_degrees ({self.max_degrees}) "
-                                     "to 90", repr(deep))  # fmt: skip
+            isinstance(deep, int | float)
+            and not isinstance(deep, bool)
+            and math.isfinite(deep)
+            and self.max_degrees <= deep <= 90
+        ):
+            raise LoosefitInputError(
+                src,
+                "deep_degrees",
+                f"None or a number from max_degrees ({self.max_degrees}) to 90",
+                repr(deep),
+            )
         self.deep_limbs = tuple(self.deep_limbs)
         unknown = [x for x in self.deep_limbs if x not in LIMB_ROOTS]
         if unknown:
-            raise LoosefitInputError(src, "deep_limbs", f"limbs among {list(LIMB_ROOTS)}",
-                                     repr(unknown))  # fmt: skip
+            raise LoosefitInputError(
+                src, "deep_limbs", f"limbs among {list(LIMB_ROOTS)}", repr(unknown)
+            )
 
 
 def motion_cap(config: UnfoldConfig, deepest: dict[str, float]) -> float:
@@ -219,8 +225,9 @@ def fold_depths(test: LimbTest, body: np.ndarray) -> tuple[np.ndarray, dict[int,
 CAP_FIELDS = ("max_degrees", "deep_degrees", "deep_depth", "deep_limbs")
 
 
-def same_correction(avatar, motion: Motion, parts: BodyParts, a: UnfoldConfig,
-                    b: UnfoldConfig) -> bool:  # fmt: skip
+def same_correction(
+    avatar, motion: Motion, parts: BodyParts, a: UnfoldConfig, b: UnfoldConfig
+) -> bool:
     """Whether :func:`unfold_motion` corrects ``motion`` the same under ``a`` and ``b``,
     without running either (the angle search is most of its time).
 
@@ -231,19 +238,24 @@ def same_correction(avatar, motion: Motion, parts: BodyParts, a: UnfoldConfig,
     """
     if not (a.enabled or b.enabled):
         return True
-    if any(getattr(a, f.name) != getattr(b, f.name) for f in fields(UnfoldConfig)
-           if f.name not in CAP_FIELDS):  # fmt: skip
+    if any(
+        getattr(a, f.name) != getattr(b, f.name)
+        for f in fields(UnfoldConfig)
+        if f.name not in CAP_FIELDS
+    ):
         return False
     avatar.check_motion(motion)
     rest = avatar.rest_vertices.double().cpu().numpy()
     with torch.no_grad():
-        posed = avatar.pose(torch.from_numpy(motion.rotations),
-                            torch.from_numpy(motion.root_translation))  # fmt: skip
+        posed = avatar.pose(
+            torch.from_numpy(motion.rotations), torch.from_numpy(motion.root_translation)
+        )
     body = posed.vertices.double().cpu().numpy()
     deepest = {
         limb: float(fold_depths(LimbTest(parts, limb, rest), body)[0].max(initial=0.0))
-        for limb in parts.limb_vertices if parts.limb_collides[limb]
-    }  # fmt: skip
+        for limb in parts.limb_vertices
+        if parts.limb_collides[limb]
+    }
     return not any(deepest.values()) or motion_cap(a, deepest) == motion_cap(b, deepest)
 
 
@@ -271,8 +283,10 @@ def unfold_motion(
 
     def pose(rot: np.ndarray, frames: np.ndarray):
         with torch.no_grad():
-            b = avatar.pose(torch.from_numpy(np.ascontiguousarray(rot, np.float32)),
-                            torch.from_numpy(motion.root_translation[frames]))  # fmt: skip
+            b = avatar.pose(
+                torch.from_numpy(np.ascontiguousarray(rot, np.float32)),
+                torch.from_numpy(motion.root_translation[frames]),
+            )
         return b.vertices.double().cpu().numpy(), b.joint_poses[:, :, :3, 3].double().cpu().numpy()
 
     R = motion.rotations.astype(np.float64)
@@ -284,8 +298,9 @@ def unfold_motion(
     tests, folds = {}, {}
     for limb in (limb for limb in parts.limb_vertices if parts.limb_collides[limb]):
         if limb not in LIMB_ROOTS:
-            raise LoosefitInputError("unfold_motion", "parts", f"limbs among {list(LIMB_ROOTS)}",
-                                     repr(limb))  # fmt: skip
+            raise LoosefitInputError(
+                "unfold_motion", "parts", f"limbs among {list(LIMB_ROOTS)}", repr(limb)
+            )
         tests[limb] = LimbTest(parts, limb, rest)
         folds[limb] = fold_depths(tests[limb], body)
         depth_before = np.maximum(depth_before, folds[limb][0])
@@ -298,8 +313,9 @@ def unfold_motion(
         G = world_rotations(R[folded], parents)  # (n, J, 3, 3)
         axes = np.zeros((T, 3))  # each folded frame's turn axis, in the parent joint's frame
         for i, t in enumerate(folded):
-            axes[t] = G[i, parents[j]].T @ fastest_axis(test, body[t], joints[t, j],
-                                                        config.clearance)  # fmt: skip
+            axes[t] = G[i, parents[j]].T @ fastest_axis(
+                test, body[t], joints[t, j], config.clearance
+            )
         # the smallest angle that clears, by bisection between 0 and the cap
         lo, hi = np.zeros(len(folded)), np.full(len(folded), cap)
         for _ in range(config.steps):
@@ -307,8 +323,12 @@ def unfold_motion(
             r = R[folded].copy()
             r[:, j] = axis_angle_to_matrix(axes[folded] * mid[:, None]) @ r[:, j]
             v, _ = pose(r, folded)
-            ok = np.array([_clears(test.signed(x)[0], buried[t], config.clearance)
-                           for x, t in zip(v, folded, strict=True)])  # fmt: skip
+            ok = np.array(
+                [
+                    _clears(test.signed(x)[0], buried[t], config.clearance)
+                    for x, t in zip(v, folded, strict=True)
+                ]
+            )
             lo, hi = np.where(ok, lo, mid), np.where(ok, mid, hi)
         angle = np.zeros(T)
         angle[folded] = hi
@@ -324,8 +344,14 @@ def unfold_motion(
 
     if not degrees.any():
         return Unfolded(motion, degrees, depth_before, depth_before.copy())
-    fixed = Motion(motion.joint_names, out.astype(np.float32), motion.root_translation,
-                   motion.fps, motion.name, dict(motion.meta))  # fmt: skip
+    fixed = Motion(
+        motion.joint_names,
+        out.astype(np.float32),
+        motion.root_translation,
+        motion.fps,
+        motion.name,
+        dict(motion.meta),
+    )
     # only the turned frames changed: measure those again
     turned = np.flatnonzero(degrees > 0)
     body, _ = pose(out[turned], turned)

@@ -49,16 +49,24 @@ def encode_vertices(garment: np.ndarray, step: float = STEP) -> tuple[dict, byte
             than 10 km from the origin (the quantised values would overflow int32).
     """
     if garment.dtype != np.float32 or garment.ndim != 3 or garment.shape[2] != 3:
-        raise LoosefitInputError("garment_vertices", "garment_vertices", "(T, V, 3) float32",
-                                 f"{garment.shape} {garment.dtype}")  # fmt: skip
+        raise LoosefitInputError(
+            "garment_vertices",
+            "garment_vertices",
+            "(T, V, 3) float32",
+            f"{garment.shape} {garment.dtype}",
+        )
     if garment.shape[0] < 1 or not np.isfinite(garment).all():
-        raise LoosefitInputError("garment_vertices", "garment_vertices",
-                                 "at least one frame, finite", "none or NaN/inf")  # fmt: skip
+        raise LoosefitInputError(
+            "garment_vertices", "garment_vertices", "at least one frame, finite", "none or NaN/inf"
+        )
     reach = float(np.abs(garment).max())
     if reach >= 2**29 * step:  # then the values and their differences fit int32
-        raise LoosefitInputError("garment_vertices", "garment_vertices",
-                                 f"positions within {2**29 * step / 1e3:.1f} km of the origin",
-                                 f"{reach:.3g} m")  # fmt: skip
+        raise LoosefitInputError(
+            "garment_vertices",
+            "garment_vertices",
+            f"positions within {2**29 * step / 1e3:.1f} km of the origin",
+            f"{reach:.3g} m",
+        )
     q = np.rint(garment.astype(np.float64) / step).astype(np.int64)  # (T, V, 3)
     d = np.diff(q, axis=0)  # (T - 1, V, 3)
     dd = np.diff(d, axis=0) if len(q) > 2 else np.zeros((0, *q.shape[1:]), np.int64)

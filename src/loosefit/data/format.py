@@ -67,8 +67,9 @@ def write_sequence(path: Path, seq: AnimatedGarment) -> Path:
     return seq.save(path)
 
 
-def read_sequence(path: Path, template: GarmentTemplate | None = None,
-                  avatar: dict | None = None) -> AnimatedGarment:  # fmt: skip
+def read_sequence(
+    path: Path, template: GarmentTemplate | None = None, avatar: dict | None = None
+) -> AnimatedGarment:
     """Read and validate one clip, named after its file; with ``template``, check that it
     is of that garment.
 
@@ -87,19 +88,22 @@ def read_sequence(path: Path, template: GarmentTemplate | None = None,
         seq = AnimatedGarment.load(path)
     if template is not None and not same_garment(seq.garment, template):
         raise LoosefitInputError(
-            path, "vertices, faces", f"the data set's garment ({template.num_vertices} "
+            path,
+            "vertices, faces",
+            f"the data set's garment ({template.num_vertices} "
             f"vertices, fingerprint {_garment_print(template)})",
             f"another garment ({seq.garment.num_vertices} vertices, fingerprint "
             f"{_garment_print(seq.garment)})",
             hint="a data set holds one garment: simulate each garment into its own",
-        )  # fmt: skip
+        )
     if avatar is not None and avatar_key(seq.avatar) != avatar_key(avatar):
         raise LoosefitInputError(
-            path, "avatar", f"the data set's avatar {avatar} (fingerprint "
-            f"{avatar_fingerprint(avatar)})",
+            path,
+            "avatar",
+            f"the data set's avatar {avatar} (fingerprint {avatar_fingerprint(avatar)})",
             f"another avatar {seq.avatar} (fingerprint {avatar_fingerprint(seq.avatar)})",
             hint="a data set holds one avatar: simulate each body into its own",
-        )  # fmt: skip
+        )
     seq.motion.name = path.stem  # its clip's name (validated already)
     return seq
 
@@ -171,8 +175,7 @@ class DatasetReader:
         except json.JSONDecodeError as exc:
             raise LoosefitInputError(mpath, "<file>", "valid JSON", str(exc)) from exc
         if not isinstance(self.manifest, dict):
-            raise LoosefitInputError(mpath, "<file>", "a JSON object",
-                                     type(self.manifest).__name__)  # fmt: skip
+            raise LoosefitInputError(mpath, "<file>", "a JSON object", type(self.manifest).__name__)
         fmt = self.manifest.get("format")
         if fmt != FORMAT:
             raise LoosefitInputError(mpath, "format", repr(FORMAT), repr(fmt))
@@ -225,12 +228,13 @@ class DatasetReader:
                 ours = theirs
             elif theirs != ours:
                 raise LoosefitInputError(
-                    mpath, f"sequences.{name}.cloth_fingerprint",
+                    mpath,
+                    f"sequences.{name}.cloth_fingerprint",
                     f"the data set's cloth configuration (fingerprint {ours})",
                     f"clip {name} simulated under another one (fingerprint {theirs})",
                     hint="a data set holds one garment, avatar and cloth configuration: "
                     "simulate the other into its own",
-                )  # fmt: skip
+                )
 
     def training_clips(self, split: str) -> list[str]:
         """The clips of a split to train on: at least one, all of the data set's cloth

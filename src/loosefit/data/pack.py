@@ -62,11 +62,16 @@ def _encode_file(path: Path, step: float) -> tuple[bytes, float, int]:
     gv = arrays["garment_vertices"]
     error = float(np.abs(back["garment_vertices"].astype(np.float64) - gv).max())
     bound = step / 2 + float(np.spacing(np.abs(gv).max()))  # float32's rounding on top
-    same = all(np.array_equal(back[k], v) and back[k].dtype == v.dtype
-               for k, v in arrays.items() if k != "garment_vertices")  # fmt: skip
+    same = all(
+        np.array_equal(back[k], v) and back[k].dtype == v.dtype
+        for k, v in arrays.items()
+        if k != "garment_vertices"
+    )
     if error > bound or not same or set(back) != set(arrays):  # (garment_vertices comes last)
-        raise RuntimeError(f"{path}: the packed clip does not decode to the simulated one "
-                           f"(vertex error {error:.3g} m, bound {bound:.3g} m)")  # fmt: skip
+        raise RuntimeError(
+            f"{path}: the packed clip does not decode to the simulated one "
+            f"(vertex error {error:.3g} m, bound {bound:.3g} m)"
+        )
     return blob, error, len(gv)
 
 
@@ -108,8 +113,12 @@ def dataset_files(root: Path) -> list[str]:
     names = []
     for p in sorted(Path(root).rglob("*")):
         rel = p.relative_to(root)
-        if (not p.is_file() or rel.parts[0] == "resume" or ".partial" in p.name
-                or rel.as_posix() == INDEX):  # fmt: skip
+        if (
+            not p.is_file()
+            or rel.parts[0] == "resume"
+            or ".partial" in p.name
+            or rel.as_posix() == INDEX
+        ):
             continue
         names.append(rel.as_posix())
     return names
@@ -200,8 +209,10 @@ def pack(
             shutil.copyfile(root / name, data[name])
             if progress is not None:
                 progress(len(clips) + k + 1, len(names))
-        members = [{"name": n, "size": p.stat().st_size, "sha256": _sha256(p)}
-                   for n, p in sorted(data.items())]  # fmt: skip
+        members = [
+            {"name": n, "size": p.stat().st_size, "sha256": _sha256(p)}
+            for n, p in sorted(data.items())
+        ]
         index = {"format": PACK_FORMAT, "step": step, "members": members}
         # 2. The tar: the index first, then the members as listed.
         writer = PieceWriter(work, limit)
@@ -255,15 +266,30 @@ class UnpackReport:
 
 
 # what a damaged member raises as it is decoded
-_DAMAGE = (ValueError, TypeError, KeyError, IndexError, EOFError, OSError, OverflowError,
-           lzma.LZMAError, zipfile.BadZipFile, zlib.error)  # fmt: skip
+_DAMAGE = (
+    ValueError,
+    TypeError,
+    KeyError,
+    IndexError,
+    EOFError,
+    OSError,
+    OverflowError,
+    lzma.LZMAError,
+    zipfile.BadZipFile,
+    zlib.error,
+)
 
 
 def _check_free(dest: Path) -> None:
     if dest.exists() and (not dest.is_dir() or any(dest.iterdir())):
         found = "a file" if not dest.is_dir() else f"{len(list(dest.iterdir()))} entries"
-        raise LoosefitInputError(dest, "<folder>", "a new or empty folder", found,
-                                 hint="choose another folder or remove it")  # fmt: skip
+        raise LoosefitInputError(
+            dest,
+            "<folder>",
+            "a new or empty folder",
+            found,
+            hint="choose another folder or remove it",
+        )
 
 
 def unpack(source: str | Path, dest: str | Path, progress: Progress | None = None) -> UnpackReport:
@@ -308,8 +334,9 @@ def _member_name(m: tarfile.TarInfo, piece: Path) -> str:
     """A member's name, if it is a regular file inside the data set folder."""
     parts = PurePosixPath(m.name).parts
     if not m.isfile() or not parts or m.name.startswith("/") or ".." in parts or "\\" in m.name:
-        raise LoosefitInputError(piece, m.name, "a file inside the data set",
-                                 "a link, folder or path outside it")  # fmt: skip
+        raise LoosefitInputError(
+            piece, m.name, "a file inside the data set", "a link, folder or path outside it"
+        )
     return m.name
 
 
@@ -321,8 +348,12 @@ def _extract(pieces: list[Path], work: Path, progress: Progress | None) -> tuple
         tar = tarfile.open(fileobj=io.BufferedReader(stream, 1 << 20), mode="r:")
     except tarfile.TarError as exc:
         stream.close()
-        raise LoosefitInputError(pieces[0], "<first member>", "a pack (a tar of a data set's "
-                                 "files)", f"none readable ({exc})") from None  # fmt: skip
+        raise LoosefitInputError(
+            pieces[0],
+            "<first member>",
+            "a pack (a tar of a data set's files)",
+            f"none readable ({exc})",
+        ) from None
     index: dict[str, dict] | None = None
     manifest: dict | None = None
     frames: dict[str, int] = {}  # each clip's decoded frame count
@@ -344,10 +375,12 @@ def _extract(pieces: list[Path], work: Path, progress: Progress | None) -> tuple
                 buf = tar.extractfile(m).read()
             except tarfile.TarError:
                 raise LoosefitInputError(
-                    stream.piece_at(stream.size), name, f"{m.size} bytes",
+                    stream.piece_at(stream.size),
+                    name,
+                    f"{m.size} bytes",
                     "fewer: the pack ends inside this member (truncated)",
                     hint="a piece may be missing or cut short",
-                ) from None  # fmt: skip
+                ) from None
             if name == INDEX:
                 index = _read_index(buf, piece)
                 total = len(index)
@@ -371,10 +404,13 @@ def _extract(pieces: list[Path], work: Path, progress: Progress | None) -> tuple
                         manifest = json.loads(buf)
                     target.write_bytes(buf)
             except _DAMAGE as exc:
-                raise LoosefitInputError(piece, name, "a member that decodes",
-                                         f"a damaged one ({type(exc).__name__}: {exc})",
-                                         hint="the pack is corrupted: fetch it again",
-                                         ) from None  # fmt: skip
+                raise LoosefitInputError(
+                    piece,
+                    name,
+                    "a member that decodes",
+                    f"a damaged one ({type(exc).__name__}: {exc})",
+                    hint="the pack is corrupted: fetch it again",
+                ) from None
             seen.append(name)
             if index is None and manifest is not None:
                 total = max(total, len(_needed(manifest)) + 2)
@@ -386,10 +422,12 @@ def _extract(pieces: list[Path], work: Path, progress: Progress | None) -> tuple
         missing = [n for n in index if n not in seen]
         if missing:
             raise LoosefitInputError(
-                last, missing[0], "every member the pack's index lists",
+                last,
+                missing[0],
+                "every member the pack's index lists",
                 f"{len(missing)} missing: the pack is truncated or damaged there",
                 hint="a piece may be missing or cut short",
-            )  # fmt: skip
+            )
     else:
         _check_by_manifest(manifest, seen, frames, last)
     return len(seen) - (index is not None), len(frames), index is not None
@@ -405,11 +443,13 @@ def _read_index(buf: bytes, piece: Path) -> dict[str, dict]:
             isinstance(m["size"], int) and isinstance(m["sha256"], str) for m in members.values()
         )
     except (ValueError, TypeError, KeyError, AttributeError) as exc:
-        raise LoosefitInputError(piece, INDEX, "the pack's index (JSON)",
-                                 f"a damaged one ({exc})") from exc  # fmt: skip
+        raise LoosefitInputError(
+            piece, INDEX, "the pack's index (JSON)", f"a damaged one ({exc})"
+        ) from exc
     if not ok:
-        raise LoosefitInputError(piece, INDEX, f"format {PACK_FORMAT!r}", repr(fmt),
-                                 hint="a newer loosefit may read it")  # fmt: skip
+        raise LoosefitInputError(
+            piece, INDEX, f"format {PACK_FORMAT!r}", repr(fmt), hint="a newer loosefit may read it"
+        )
     return members
 
 
@@ -420,10 +460,12 @@ def _check_member(index: dict[str, dict], name: str, buf: bytes, piece: Path) ->
     sha = hashlib.sha256(buf).hexdigest()
     if len(buf) != entry["size"] or sha != entry["sha256"]:
         raise LoosefitInputError(
-            piece, name, f"{entry['size']} bytes of sha256 {entry['sha256'][:16]}...",
+            piece,
+            name,
+            f"{entry['size']} bytes of sha256 {entry['sha256'][:16]}...",
             f"{len(buf)} bytes of sha256 {sha[:16]}...: the member is corrupted",
             hint="fetch the pack again",
-        )  # fmt: skip
+        )
 
 
 def _needed(manifest: dict) -> set[str]:
@@ -441,8 +483,9 @@ def _needed(manifest: dict) -> set[str]:
     return names
 
 
-def _check_by_manifest(manifest: dict | None, seen: list[str], frames: dict[str, int],
-                       last: Path) -> None:  # fmt: skip
+def _check_by_manifest(
+    manifest: dict | None, seen: list[str], frames: dict[str, int], last: Path
+) -> None:
     """A pack without an index is whole when its manifest's clips are all there, each with
     the frames its entry counts."""
     truncated = "missing: the pack is truncated or damaged"
@@ -455,11 +498,15 @@ def _check_by_manifest(manifest: dict | None, seen: list[str], frames: dict[str,
     for clip in sorted(_needed(manifest)):
         member = f"sequences/{clip}.npz"
         if clip not in frames and member not in seen:
-            raise LoosefitInputError(last, member + CODED, f"clip {clip}, which the "
-                                     "manifest lists", truncated)  # fmt: skip
+            raise LoosefitInputError(
+                last, member + CODED, f"clip {clip}, which the manifest lists", truncated
+            )
     for clip, count in sorted(frames.items()):
         want = entries.get(clip, {}).get("frames") if isinstance(entries.get(clip), dict) else None
         if isinstance(want, int) and want != count:
-            raise LoosefitInputError(last, f"sequences/{clip}.npz{CODED}",
-                                     f"{want} frames (the manifest's)",
-                                     f"{count}: the member is damaged")  # fmt: skip
+            raise LoosefitInputError(
+                last,
+                f"sequences/{clip}.npz{CODED}",
+                f"{want} frames (the manifest's)",
+                f"{count}: the member is damaged",
+            )

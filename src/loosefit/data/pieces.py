@@ -23,30 +23,47 @@ def find_pieces(source: str | Path) -> list[Path]:
     if p.is_file():
         return [p]
     if p.is_dir():
-        found = [(m.group(1), m.group(2), f) for f in p.iterdir()
-                 if not f.name.startswith(".") and f.is_file()
-                 and (m := re.fullmatch(r"(.*[.-])(\d+)", f.name))]  # fmt: skip
+        found = [
+            (m.group(1), m.group(2), f)
+            for f in p.iterdir()
+            if not f.name.startswith(".")
+            and f.is_file()
+            and (m := re.fullmatch(r"(.*[.-])(\d+)", f.name))
+        ]
     elif p.parent.is_dir():
-        found = [(p.name + m.group(1), m.group(2), f) for f in p.parent.iterdir()
-                 if f.name.startswith(p.name) and f.is_file()
-                 and (m := re.fullmatch(r"([.-]?)(\d+)", f.name[len(p.name) :]))]  # fmt: skip
+        found = [
+            (p.name + m.group(1), m.group(2), f)
+            for f in p.parent.iterdir()
+            if f.name.startswith(p.name)
+            and f.is_file()
+            and (m := re.fullmatch(r"([.-]?)(\d+)", f.name[len(p.name) :]))
+        ]
     else:
         found = []
     if not found:
-        raise LoosefitInputError(source, "<file>", "a pack file, a folder of its numbered "
-                                 "pieces, or the pieces' common prefix (e.g. dance.lfz.)",
-                                 "nothing there")  # fmt: skip
+        raise LoosefitInputError(
+            source,
+            "<file>",
+            "a pack file, a folder of its numbered "
+            "pieces, or the pieces' common prefix (e.g. dance.lfz.)",
+            "nothing there",
+        )
     prefixes = sorted({prefix for prefix, _, _ in found})
     if len(prefixes) > 1:
-        raise LoosefitInputError(source, "<pieces>", "the pieces of one pack",
-                                 f"pieces named {', '.join(prefixes)}")  # fmt: skip
+        raise LoosefitInputError(
+            source, "<pieces>", "the pieces of one pack", f"pieces named {', '.join(prefixes)}"
+        )
     found.sort(key=lambda x: int(x[1]))
     for k, (prefix, digits, f) in enumerate(found):
         if int(digits) != k:
             missing = f.parent / f"{prefix}{k:0{len(digits)}d}"
-            raise LoosefitInputError(missing, "<piece>", f"piece {k} of {len(found)}+ "
-                                     f"(the numbering runs 0, 1, ...)", "missing",
-                                     hint="every piece of the pack is needed")  # fmt: skip
+            raise LoosefitInputError(
+                missing,
+                "<piece>",
+                f"piece {k} of {len(found)}+ (the numbering runs 0, 1, ...)",
+                "missing",
+                hint="every piece of the pack is needed",
+            )
     return [f for _, _, f in found]
 
 

@@ -130,8 +130,12 @@ class BodyParts:
         if region.shape != (len(rest),) or not 0 <= region.min(initial=0) <= region.max(
             initial=0
         ) < len(names):
-            raise LoosefitInputError("BodyParts", "region", f"({len(rest)},) indices into "
-                                     f"{len(names)} names", f"shape {region.shape}")  # fmt: skip
+            raise LoosefitInputError(
+                "BodyParts",
+                "region",
+                f"({len(rest)},) indices into {len(names)} names",
+                f"shape {region.shape}",
+            )
         index = {n: i for i, n in enumerate(names)}
 
         def vertices_of(regions) -> np.ndarray:
@@ -213,8 +217,12 @@ def vertex_regions(
     out = bone_region[np.asarray(dominant_bone, np.int64)]
     if (out < 0).any():
         missing = sorted({joint_names[b] for b in np.asarray(dominant_bone)[out < 0]})
-        raise LoosefitInputError("vertex_regions", "regions", "every dominant bone in a "
-                                 "region", f"bones in none: {missing}")  # fmt: skip
+        raise LoosefitInputError(
+            "vertex_regions",
+            "regions",
+            "every dominant bone in a region",
+            f"bones in none: {missing}",
+        )
     return out
 
 

@@ -341,8 +341,9 @@ def sted(
     if T > 1:
         diameter = float(np.linalg.norm(g[0].max(0) - g[0].min(0)))
         if not diameter > 0:
-            raise LoosefitInputError("sted", "target", "a first frame of some size",
-                                     "all its vertices at one point")  # fmt: skip
+            raise LoosefitInputError(
+                "sted", "target", "a first frame of some size", "all its vertices at one point"
+            )
         tg = np.sqrt((np.diff(g, axis=0) ** 2).sum(-1) / diameter**2 + dt**2)  # (T - 1, V)
         tp = np.sqrt((np.diff(p, axis=0) ** 2).sum(-1) / diameter**2 + dt**2)
         csum = np.concatenate([np.zeros((1, V)), np.cumsum(tg, axis=0)])  # (T, V)
@@ -357,8 +358,9 @@ def sted(
     }
 
 
-def _spatial_deviation(p: np.ndarray, g: np.ndarray, f: np.ndarray, source: str
-                       ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def _spatial_deviation(
+    p: np.ndarray, g: np.ndarray, f: np.ndarray, source: str
+) -> tuple[np.ndarray, np.ndarray]:
     """(T, V_used) the weighted standard deviation of the relative edge differences over
     each used vertex's closed one-ring (:func:`sted`'s spatial part), and (V,) the used
     vertices."""

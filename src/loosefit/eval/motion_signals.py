@@ -113,8 +113,9 @@ def motion_signals(
     """
     b = np.asarray(body, np.float32)
     if b.ndim != 3 or b.shape[1:] != (len(parts.region), 3):
-        raise LoosefitInputError("motion_signals", "body", f"shape (T, {len(parts.region)}, 3)",
-                                 f"{b.shape}")  # fmt: skip
+        raise LoosefitInputError(
+            "motion_signals", "body", f"shape (T, {len(parts.region)}, 3)", f"{b.shape}"
+        )
     T = len(b)
     limbs = tuple(parts.limb_faces)
     tests = [parts.tested_vertices(limb) for limb in limbs]  # (vertices, collides) each
@@ -149,8 +150,9 @@ def motion_signals(
             depth[t, j] = d[k]
             count[t, j] = int((d > self_tolerance).sum())
             vertex[t, j] = tested[j][k]
-            region[t, j] = parts.face_region(s.faces, hit.faces[k : k + 1],
-                                             hit.barycentric[k : k + 1])[0]  # fmt: skip
+            region[t, j] = parts.face_region(
+                s.faces, hit.faces[k : k + 1], hit.barycentric[k : k + 1]
+            )[0]
         if progress is not None:
             progress(t + 1, T)
     return MotionSignals(

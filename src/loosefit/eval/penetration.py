@@ -82,8 +82,9 @@ def _check_sequences(garment: np.ndarray, body: np.ndarray) -> tuple[np.ndarray,
     if g.ndim != 3 or g.shape[2] != 3 or g.shape[0] < 1:
         raise LoosefitInputError("penetration", "garment", "shape (T, V, 3)", f"{g.shape}")
     if b.ndim != 3 or b.shape[0] != g.shape[0] or b.shape[2] != 3:
-        raise LoosefitInputError("penetration", "body", f"shape ({g.shape[0]}, Vb, 3)",
-                                 f"{b.shape}")  # fmt: skip
+        raise LoosefitInputError(
+            "penetration", "body", f"shape ({g.shape[0]}, Vb, 3)", f"{b.shape}"
+        )
     return g, b
 
 
@@ -112,8 +113,12 @@ def find_penetrations(
     """
     g, b = _check_sequences(garment, body)
     if len(parts.region) != b.shape[1]:
-        raise LoosefitInputError("penetration", "body", f"{len(parts.region)} vertices like "
-                                 "the body parts", f"{b.shape[1]}")  # fmt: skip
+        raise LoosefitInputError(
+            "penetration",
+            "body",
+            f"{len(parts.region)} vertices like the body parts",
+            f"{b.shape[1]}",
+        )
     T, V = g.shape[:2]
     surface = Surface(b[0], parts.collider_faces)
     inside, deep, max_depth = np.zeros(T), np.zeros(T), np.zeros(T)
@@ -288,8 +293,12 @@ def diagnose(
     """
     T = len(pen.deep_fraction)
     if len(signals.spin) != T or len(body) != T or len(garment) != T:
-        raise LoosefitInputError("diagnose", "signals, body, garment", f"{T} frames each",
-                                 f"{len(signals.spin)}, {len(body)}, {len(garment)}")  # fmt: skip
+        raise LoosefitInputError(
+            "diagnose",
+            "signals, body, garment",
+            f"{T} frames each",
+            f"{len(signals.spin)}, {len(body)}, {len(garment)}",
+        )
     events = []
     for start, stop in find_events(pen.deep_fraction > 0, merge_gap):
         rows = np.flatnonzero((pen.frame >= start) & (pen.frame < stop))
@@ -309,11 +318,18 @@ def diagnose(
                 t = worst  # where the cloth is deepest, if the limb is buried there too
             v = signals.self_vertex[t, j]
             buried = buried_vertices(parts, limb, body[t], signals.self_tolerance)
-            selfs.append(SelfIntersection(
-                limb, parts.names[parts.region[v]], parts.names[signals.self_region[t, j]],
-                float(signals.self_depth[t, j]), float(signals.self_depth[start:stop, j].max()),
-                t, signals.limb_collides[j], _site_distance(body[t, buried], garment[t, deep]),
-            ))  # fmt: skip
+            selfs.append(
+                SelfIntersection(
+                    limb,
+                    parts.names[parts.region[v]],
+                    parts.names[signals.self_region[t, j]],
+                    float(signals.self_depth[t, j]),
+                    float(signals.self_depth[start:stop, j].max()),
+                    t,
+                    signals.limb_collides[j],
+                    _site_distance(body[t, buried], garment[t, deep]),
+                )
+            )
         event = PenetrationEvent(
             start=start,
             stop=stop,
@@ -352,16 +368,20 @@ def explain(event: PenetrationEvent) -> tuple[list[str], list[str]]:
     for s in event.self_intersections:
         if s.site >= HAND_SITE:
             continue  # elsewhere on the body: in the event's figures only
-        text = (f"self-intersecting body: the {s.part} {100 * s.depth:.1f} cm inside the "
-                f"{s.region} (frame {s.frame}, {100 * s.site:.0f} cm from the deepest "
-                "cloth)")  # fmt: skip
+        text = (
+            f"self-intersecting body: the {s.part} {100 * s.depth:.1f} cm inside the "
+            f"{s.region} (frame {s.frame}, {100 * s.site:.0f} cm from the deepest "
+            "cloth)"
+        )
         if s.collides:
             causes.append(text)
         else:
             notes.append(text + "; the cloth does not collide with it")
     if event.hand_hip < HAND_PRESS and event.hand_site < HAND_SITE:
-        text = (f"the {event.hand} on the body ({100 * event.hand_hip:.1f} cm from the hips, "
-                f"{100 * event.hand_site:.1f} cm from the deepest cloth)")  # fmt: skip
+        text = (
+            f"the {event.hand} on the body ({100 * event.hand_hip:.1f} cm from the hips, "
+            f"{100 * event.hand_site:.1f} cm from the deepest cloth)"
+        )
         if event.hands_collide:
             causes.append(text.replace(" on the body", " pressing the cloth onto the body"))
         else:
@@ -370,12 +390,14 @@ def explain(event: PenetrationEvent) -> tuple[list[str], list[str]]:
     if event.thigh_gap < THIGHS_CLOSED and any(r in legs for r in event.regions):
         causes.append(f"the thighs closing on the cloth (gap {100 * event.thigh_gap:.1f} cm)")
     if event.skin_speed > FAST_SKIN:
-        causes.append(f"the {event.skin_part} moving fast into the cloth "
-                      f"({event.skin_speed:.1f} m/s)")  # fmt: skip
+        causes.append(
+            f"the {event.skin_part} moving fast into the cloth ({event.skin_speed:.1f} m/s)"
+        )
     if event.spin > FAST_SPIN:
         causes.append(f"a fast spin ({event.spin:.1f} rad/s)")
-    return causes or ["unexplained: no spin, hand, thigh, skin speed or self-intersection "
-                      "test fires"], notes  # fmt: skip
+    return causes or [
+        "unexplained: no spin, hand, thigh, skin speed or self-intersection test fires"
+    ], notes
 
 
 # -- the whole clip -----------------------------------------------------------------------------
@@ -405,37 +427,43 @@ class Diagnosis:
     def summary(self) -> str:
         """One line: frames, share of cloth inside (mean, p99), deep share and depth at worst."""
         pen = self.penetrations
-        return (f"{len(pen.deep_fraction)} frames; cloth inside the body: "
-                f"{100 * pen.inside_fraction.mean():.2f} % of vertices on average (p99 "
-                f"{100 * np.percentile(pen.inside_fraction, 99):.2f} %); deeper than "
-                f"{1000 * pen.tolerance:.0f} mm: {100 * pen.deep_fraction.max():.2f} % in the "
-                f"worst frame; deepest {100 * pen.max_depth.max():.2f} cm; "
-                f"{len(self.events)} events")  # fmt: skip
+        return (
+            f"{len(pen.deep_fraction)} frames; cloth inside the body: "
+            f"{100 * pen.inside_fraction.mean():.2f} % of vertices on average (p99 "
+            f"{100 * np.percentile(pen.inside_fraction, 99):.2f} %); deeper than "
+            f"{1000 * pen.tolerance:.0f} mm: {100 * pen.deep_fraction.max():.2f} % in the "
+            f"worst frame; deepest {100 * pen.max_depth.max():.2f} cm; "
+            f"{len(self.events)} events"
+        )
 
     def to_json(self) -> dict:
         """A JSON-ready summary: per-event figures and per-frame curves (lengths in m;
         None where a figure has no value, e.g. a body without hands)."""
         pen, sig = self.penetrations, self.signals
-        return _json_safe({
-            "tolerance_m": pen.tolerance,
-            "frames": len(pen.deep_fraction),
-            "fps": self.fps,
-            "inside_mean": float(pen.inside_fraction.mean()),
-            "inside_p99": float(np.percentile(pen.inside_fraction, 99)),
-            "deep_max": float(pen.deep_fraction.max()),
-            "depth_max_m": float(pen.max_depth.max()),
-            "events": [asdict(e) for e in self.events],
-            "per_frame": {
-                "inside_fraction": pen.inside_fraction.round(5).tolist(),
-                "deep_fraction": pen.deep_fraction.round(5).tolist(),
-                "max_depth_m": pen.max_depth.round(5).tolist(),
-                "spin_rad_s": sig.spin.round(3).tolist(),
-                "hand_hip_m": sig.hand_hip.round(4).tolist(),
-                "thigh_gap_m": sig.thigh_gap.round(4).tolist(),
-                "self_depth_m": {limb: sig.self_depth[:, j].round(4).tolist()
-                                 for j, limb in enumerate(sig.limbs)},  # fmt: skip
-            },
-        })  # fmt: skip
+        return _json_safe(
+            {
+                "tolerance_m": pen.tolerance,
+                "frames": len(pen.deep_fraction),
+                "fps": self.fps,
+                "inside_mean": float(pen.inside_fraction.mean()),
+                "inside_p99": float(np.percentile(pen.inside_fraction, 99)),
+                "deep_max": float(pen.deep_fraction.max()),
+                "depth_max_m": float(pen.max_depth.max()),
+                "events": [asdict(e) for e in self.events],
+                "per_frame": {
+                    "inside_fraction": pen.inside_fraction.round(5).tolist(),
+                    "deep_fraction": pen.deep_fraction.round(5).tolist(),
+                    "max_depth_m": pen.max_depth.round(5).tolist(),
+                    "spin_rad_s": sig.spin.round(3).tolist(),
+                    "hand_hip_m": sig.hand_hip.round(4).tolist(),
+                    "thigh_gap_m": sig.thigh_gap.round(4).tolist(),
+                    "self_depth_m": {
+                        limb: sig.self_depth[:, j].round(4).tolist()
+                        for j, limb in enumerate(sig.limbs)
+                    },
+                },
+            }
+        )
 
 
 @dataclass
@@ -499,10 +527,14 @@ def format_events(events: list[PenetrationEvent], tolerance: float) -> str:
     deepest vertex, and whether a part the cloth collides with is buried in the body.
     """
     deep = f">{1000 * tolerance:.0f}mm"
-    head = (f"{'frames':>11} {'region':<24} {'deepest':>7} {deep:>6} {'spin':>6} "
-            f"{'hand-hip':>8} {'thighs':>6} {'skin':>5} {'self-int':>8}")  # fmt: skip
-    units = (f"{'':>11} {'':<24} {'cm':>7} {'%':>6} {'rad/s':>6} {'cm':>8} {'cm':>6} "
-             f"{'m/s':>5} {'body':>8}")  # fmt: skip
+    head = (
+        f"{'frames':>11} {'region':<24} {'deepest':>7} {deep:>6} {'spin':>6} "
+        f"{'hand-hip':>8} {'thighs':>6} {'skin':>5} {'self-int':>8}"
+    )
+    units = (
+        f"{'':>11} {'':<24} {'cm':>7} {'%':>6} {'rad/s':>6} {'cm':>8} {'cm':>6} "
+        f"{'m/s':>5} {'body':>8}"
+    )
     lines = [head, units, "-" * len(head)]
     for e in events:
         regions = "+".join(list(e.regions)[:2])
@@ -513,8 +545,9 @@ def format_events(events: list[PenetrationEvent], tolerance: float) -> str:
             f"{'yes' if e.self_intersecting else 'no':>8}"
         )
     for e in events:
-        lines.append(f"frames {e.start}-{e.stop - 1} (worst {e.worst_frame}): "
-                     + "; ".join(e.causes))  # fmt: skip
+        lines.append(
+            f"frames {e.start}-{e.stop - 1} (worst {e.worst_frame}): " + "; ".join(e.causes)
+        )
         lines += [f"    note: {n}" for n in e.notes]
     return "\n".join(lines) if events else "no frame with cloth deeper than the tolerance"
 

@@ -22,17 +22,23 @@ def _sequences(model, data, split: str) -> Iterator[tuple[str, AnimatedGarment]]
     model's garment."""
     if isinstance(data, DatasetReader):
         if not same_garment(model.template, data.template):
-            raise LoosefitInputError(data.root / "template.npz", "garment",
-                                     f"the garment {model.path.name} was trained on",
-                                     "another garment")  # fmt: skip
+            raise LoosefitInputError(
+                data.root / "template.npz",
+                "garment",
+                f"the garment {model.path.name} was trained on",
+                "another garment",
+            )
         for name in data.split(split):
             yield name, data.read(name)
         return
     for name, seq in data.items():
         if not same_garment(model.template, seq.template):
-            raise LoosefitInputError(name, "garment", f"the garment {model.path.name} was "
-                                     f"trained on ('{model.template.name}')",
-                                     f"'{seq.template.name}'")  # fmt: skip
+            raise LoosefitInputError(
+                name,
+                "garment",
+                f"the garment {model.path.name} was trained on ('{model.template.name}')",
+                f"'{seq.template.name}'",
+            )
         yield name, seq
 
 
@@ -84,8 +90,7 @@ def evaluate_rollouts(
         elif oracle:
             result = model.reconstruct(motion, true)
         elif restart_every is not None:
-            result = model.animate(motion, truth=true, restart_every=restart_every,
-                                   stages=stages)  # fmt: skip
+            result = model.animate(motion, truth=true, restart_every=restart_every, stages=stages)
         else:
             result = model.animate(motion, stages=stages)
         pred = result.vertices
@@ -95,11 +100,12 @@ def evaluate_rollouts(
             "rmse_cm": float(np.sqrt(np.mean(per_frame**2))),
             "horizons": {
                 str(h): float(np.sqrt(np.mean(per_frame[:h] ** 2)))
-                for h in horizons if len(pred) >= h
+                for h in horizons
+                if len(pred) >= h
             },
             "rmse_per_frame_cm": per_frame.tolist(),
             "frames_per_second": result.frames_per_second,
-        }  # fmt: skip
+        }
         if surface:
             entry["hausdorff_cm"] = 100 * float(hausdorff(pred, true, faces).mean())
             entry["sted"] = sted(pred, true, faces)["sted"] if len(pred) > 1 else 0.0
@@ -109,14 +115,19 @@ def evaluate_rollouts(
     def mean(key: str) -> float:
         return float((np.array([c[key] for c in clips.values()]) * n).sum() / n.sum())
 
-    summary = {"frames": int(n.sum()), "rmse_cm": float(np.sqrt(
-        sum(c["rmse_cm"] ** 2 * c["frames"] for c in clips.values()) / n.sum()))}  # fmt: skip
+    summary = {
+        "frames": int(n.sum()),
+        "rmse_cm": float(
+            np.sqrt(sum(c["rmse_cm"] ** 2 * c["frames"] for c in clips.values()) / n.sum())
+        ),
+    }
     if surface:
         summary.update(hausdorff_cm=mean("hausdorff_cm"), sted=mean("sted"))
     summary["horizons"] = {}
     for h in horizons:
         have = [c for c in clips.values() if str(h) in c["horizons"]]
         if have:
-            summary["horizons"][str(h)] = float(np.sqrt(np.mean([c["horizons"][str(h)] ** 2
-                                                                 for c in have])))  # fmt: skip
+            summary["horizons"][str(h)] = float(
+                np.sqrt(np.mean([c["horizons"][str(h)] ** 2 for c in have]))
+            )
     return {"split": split, "clips": clips, **summary}

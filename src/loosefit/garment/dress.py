@@ -90,8 +90,9 @@ class DressConfig:
                 repr(resolution),
             )
         rings, segments, rows, columns = DRESS_RESOLUTIONS[resolution]
-        kwargs = dict(style=style, rings=rings, segments=segments, strap_rows=rows,
-                      strap_columns=columns)  # fmt: skip
+        kwargs = dict(
+            style=style, rings=rings, segments=segments, strap_rows=rows, strap_columns=columns
+        )
         kwargs.update(overrides)
         return cls(**kwargs)
 
@@ -115,8 +116,9 @@ class DressFit:
     push_out: Callable[[np.ndarray], np.ndarray] | None = None
 
 
-def _strap(ring: np.ndarray, columns: int, side: float, fit: DressFit, rows: int
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+def _strap(
+    ring: np.ndarray, columns: int, side: float, fit: DressFit, rows: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One strap: the front and back top-band columns it starts and ends on, and the
     positions of its inner rows.
 
@@ -139,9 +141,9 @@ def _strap(ring: np.ndarray, columns: int, side: float, fit: DressFit, rows: int
             if cost < best_cost:
                 best, best_cost = cols, cost
         if best is None:
-            raise LoosefitInputError("DressConfig", "strap_columns",
-                                     "fewer columns than a side of the top band",
-                                     columns)  # fmt: skip
+            raise LoosefitInputError(
+                "DressConfig", "strap_columns", "fewer columns than a side of the top band", columns
+            )
         ends.append(best[np.argsort(x[best])])
     front, back = ends
     F, B = ring[front], ring[back]  # (C, 3) each
@@ -150,8 +152,11 @@ def _strap(ring: np.ndarray, columns: int, side: float, fit: DressFit, rows: int
     half = 0.5 * (B - F)
     lift = fit.strap_top - 0.5 * (F[:, 2] + B[:, 2])  # (C,)
     inner = mid - np.cos(theta) * half  # (rows - 2, C, 3): front to back along y (and x)
-    inner[..., 2] = (F[:, 2] + (B[:, 2] - F[:, 2]) * (1 - np.cos(theta[..., 0])) / 2
-                     + lift * np.sin(theta[..., 0]))  # fmt: skip
+    inner[..., 2] = (
+        F[:, 2]
+        + (B[:, 2] - F[:, 2]) * (1 - np.cos(theta[..., 0])) / 2
+        + lift * np.sin(theta[..., 0])
+    )
     if fit.push_out is not None:
         inner = fit.push_out(inner.reshape(-1, 3)).reshape(inner.shape)
     return front, back, inner
@@ -166,9 +171,16 @@ def make_dress(config: DressConfig, fit: DressFit) -> GarmentTemplate:
         ``meta`` the config, the fit, and ``kind: "dress"``.
     """
     R, S = config.rings, config.segments
-    skirt_like = SkirtConfig(style="aline", length=config.length, flare=config.flare, rings=R,
-                             segments=S, waist_ease=config.top_ease, hip_ease=config.body_ease,
-                             uv_margin=config.uv_margin)  # fmt: skip
+    skirt_like = SkirtConfig(
+        style="aline",
+        length=config.length,
+        flare=config.flare,
+        rings=R,
+        segments=S,
+        waist_ease=config.top_ease,
+        hip_ease=config.body_ease,
+        uv_margin=config.uv_margin,
+    )
     rings, info = rest_rings(skirt_like, fit.top)  # (R, S, 3), x, y about the centre
     rings[..., :2] += fit.top.center[:2]
     vertices = [rings.reshape(-1, 3)]
@@ -189,11 +201,16 @@ def make_dress(config: DressConfig, fit: DressFit) -> GarmentTemplate:
             n_v += (rows - 2) * C
             r, c = np.meshgrid(np.arange(rows - 1), np.arange(C - 1), indexing="ij")
             a, b, cc, d = ids[r, c], ids[r, c + 1], ids[r + 1, c], ids[r + 1, c + 1]
-            tri = np.concatenate([np.stack([a, cc, d], -1).reshape(-1, 3),
-                                  np.stack([a, d, b], -1).reshape(-1, 3)])  # fmt: skip
+            tri = np.concatenate(
+                [np.stack([a, cc, d], -1).reshape(-1, 3), np.stack([a, d, b], -1).reshape(-1, 3)]
+            )
             # the strap's edge along the top band runs against the bodice's there
-            body_edges = {(int(f[i]), int(f[(i + 1) % 3])) for f in faces[0] for i in range(3)
-                          if f[i] in front and f[(i + 1) % 3] in front}  # fmt: skip
+            body_edges = {
+                (int(f[i]), int(f[(i + 1) % 3]))
+                for f in faces[0]
+                for i in range(3)
+                if f[i] in front and f[(i + 1) % 3] in front
+            }
             strap_edges = {(int(f[i]), int(f[(i + 1) % 3])) for f in tri for i in range(3)}
             flip = bool(body_edges & strap_edges)
             faces.append(tri[:, ::-1] if flip else tri)
@@ -205,8 +222,12 @@ def make_dress(config: DressConfig, fit: DressFit) -> GarmentTemplate:
             uvs.append(np.stack([uu, vv], -1).reshape(-1, 2))
             n_uv += rows * C
             ua, ub, uc, ud = uid[r, c], uid[r, c + 1], uid[r + 1, c], uid[r + 1, c + 1]
-            ftri = np.concatenate([np.stack([ua, uc, ud], -1).reshape(-1, 3),
-                                   np.stack([ua, ud, ub], -1).reshape(-1, 3)])  # fmt: skip
+            ftri = np.concatenate(
+                [
+                    np.stack([ua, uc, ud], -1).reshape(-1, 3),
+                    np.stack([ua, ud, ub], -1).reshape(-1, 3),
+                ]
+            )
             ftri = ftri[:, ::-1] if flip else ftri
             chart = uvs[-1]
             e1, e2 = (
@@ -229,7 +250,7 @@ def make_dress(config: DressConfig, fit: DressFit) -> GarmentTemplate:
             "center": fit.top.center.tolist(),
             "radii": fit.top.radii.tolist(),
             "height": fit.top.height,
-        },  # fmt: skip
+        },
         "strap_x": fit.strap_x,
         "strap_top": fit.strap_top,
         "uv_layout": f"body: v in [{BODY_UV_BOTTOM}, 1 - margin] round from the back seam; "

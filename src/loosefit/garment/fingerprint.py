@@ -19,8 +19,12 @@ def same_garment(a: GarmentTemplate, b: GarmentTemplate, tolerance: float = 1.0e
     """
     va, vb = np.asarray(a.vertices), np.asarray(b.vertices)
     fa, fb = np.asarray(a.faces), np.asarray(b.faces)
-    return (va.shape == vb.shape and fa.shape == fb.shape and bool(np.array_equal(fa, fb))
-            and float(np.abs(va - vb).max(initial=0.0)) <= tolerance)  # fmt: skip
+    return (
+        va.shape == vb.shape
+        and fa.shape == fb.shape
+        and bool(np.array_equal(fa, fb))
+        and float(np.abs(va - vb).max(initial=0.0)) <= tolerance
+    )
 
 
 def garment_fingerprint(vertices: np.ndarray, faces: np.ndarray) -> str:
@@ -39,8 +43,10 @@ def avatar_key(avatar: dict) -> tuple[str, tuple[tuple[str, float], ...]]:
     from loosefit.body.avatar import DEFAULT_SHAPE
 
     shape = {**DEFAULT_SHAPE, **(avatar.get("shape", {}) or {})}
-    return (str(avatar.get("rig", "cmu_mb")),
-            tuple(sorted((str(k), round(float(v), 6)) for k, v in shape.items())))  # fmt: skip
+    return (
+        str(avatar.get("rig", "cmu_mb")),
+        tuple(sorted((str(k), round(float(v), 6)) for k, v in shape.items())),
+    )
 
 
 def avatar_fingerprint(avatar: dict) -> str:

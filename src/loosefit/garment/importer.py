@@ -81,9 +81,12 @@ def _read_trimesh(path: Path) -> GarmentMesh:
         offset += len(m.vertices)
     have_uvs = all(u is not None for u in uvs)
     f = np.concatenate(faces)
-    return GarmentMesh(np.concatenate(vertices), f,
-                       np.concatenate(uvs).astype(np.float32) if have_uvs else None,
-                       f.copy() if have_uvs else None)  # fmt: skip
+    return GarmentMesh(
+        np.concatenate(vertices),
+        f,
+        np.concatenate(uvs).astype(np.float32) if have_uvs else None,
+        f.copy() if have_uvs else None,
+    )
 
 
 def read_garment_mesh(path: str | Path) -> GarmentMesh:
@@ -105,8 +108,13 @@ def read_garment_mesh(path: str | Path) -> GarmentMesh:
     suffix = path.suffix.lower()
     if suffix == ".obj":
         obj = read_obj(path, compute_uvs_if_missing=False)
-        mesh = GarmentMesh(obj.vertices.astype(np.float64), obj.faces, obj.uvs, obj.face_uvs,
-                           face_lines=obj.face_lines)  # fmt: skip
+        mesh = GarmentMesh(
+            obj.vertices.astype(np.float64),
+            obj.faces,
+            obj.uvs,
+            obj.face_uvs,
+            face_lines=obj.face_lines,
+        )
     elif suffix in (".gltf", ".glb"):
         mesh = _read_trimesh(path)
     else:
@@ -118,8 +126,12 @@ def read_garment_mesh(path: str | Path) -> GarmentMesh:
     out = (mesh.faces < 0) | (mesh.faces >= len(mesh.vertices))
     if out.any():
         f = int(np.flatnonzero(out.any(1))[0])
-        raise LoosefitInputError(path, "faces", f"vertex indices below {len(mesh.vertices)}",
-                                 f"triangle {f} with {mesh.faces[f].tolist()}")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "faces",
+            f"vertex indices below {len(mesh.vertices)}",
+            f"triangle {f} with {mesh.faces[f].tolist()}",
+        )
     if (
         mesh.face_uvs is not None
         and mesh.uvs is not None
@@ -154,18 +166,21 @@ def read_garment_mesh(path: str | Path) -> GarmentMesh:
     if len(nonmanifold):
         a, b = (int(k) for k in nonmanifold[0])
         raise LoosefitInputError(
-            path, "faces", "a manifold surface (each edge shared by at most 2 triangles)",
-            f"{len(nonmanifold)} non-manifold edges, first between vertices {a} and {b} "
-            "(0-based)",
-        )  # fmt: skip
+            path,
+            "faces",
+            "a manifold surface (each edge shared by at most 2 triangles)",
+            f"{len(nonmanifold)} non-manifold edges, first between vertices {a} and {b} (0-based)",
+        )
     sizes = component_sizes(mesh.faces, len(mesh.vertices))
     if len(sizes) > 1:
         raise LoosefitInputError(
-            path, "faces", "one connected piece of cloth",
+            path,
+            "faces",
+            "one connected piece of cloth",
             f"{len(sizes)} disconnected pieces of {', '.join(map(str, sizes[:8]))}"
             f"{' ...' if len(sizes) > 8 else ''} vertices",
             hint="sew the pieces together in the garment tool, or export the one piece",
-        )  # fmt: skip
+        )
     return mesh
 
 
@@ -216,14 +231,19 @@ def detect_up(vertices: np.ndarray, faces: np.ndarray, source: str | Path = "gar
     """
     loops = boundary_loops(faces)
     if len(loops) < 2:
-        raise LoosefitInputError(source, "up", "a garment with openings (waist and hem) to "
-                                 "tell its up axis by", f"{len(loops)} opening(s)",
-                                 hint="say it with --up y or --up z")  # fmt: skip
+        raise LoosefitInputError(
+            source,
+            "up",
+            "a garment with openings (waist and hem) to tell its up axis by",
+            f"{len(loops)} opening(s)",
+            hint="say it with --up y or --up z",
+        )
     v = np.asarray(vertices, np.float64)
     centres = np.array([v[loop].mean(0) for loop in loops])  # (L, 3)
     thickness = np.array([np.ptp(v[loop], axis=0) for loop in loops]).mean(0)  # (3,)
-    score = {a: float(np.ptp(centres[:, k]) / (thickness[k] + 1e-9))
-             for a, k in (("y", 1), ("z", 2))}  # fmt: skip
+    score = {
+        a: float(np.ptp(centres[:, k]) / (thickness[k] + 1e-9)) for a, k in (("y", 1), ("z", 2))
+    }
     axis = max(score, key=score.get)
     k = 1 if axis == "y" else 2
     perimeters = [np.linalg.norm(np.roll(v[loop], -1, 0) - v[loop], axis=1).sum() for loop in loops]
@@ -257,11 +277,13 @@ def detect_units(vertices: np.ndarray, source: str | Path = "garment") -> tuple[
     }
     if not plausible:
         raise LoosefitInputError(
-            source, "units", f"a size that fits a person in one of {list(UNITS)}",
+            source,
+            "units",
+            f"a size that fits a person in one of {list(UNITS)}",
             f"a garment {height:.4g} high and {width:.4g} wide in the file's units "
             f"({', '.join(f'{h:.3g} m high in {u}' for u, (h, _) in sizes.items())})",
             hint="say the unit with --units (m, dm, cm, mm or in)",
-        )  # fmt: skip
+        )
     return min(plausible, key=plausible.get), sizes
 
 

@@ -83,9 +83,11 @@ def _resolve(path: Path, line_no: int, token: str, what: str, index: str, define
         )
     if k < 0 and defined + k < 0:
         raise LoosefitInputError(
-            path, f"f (line {line_no})", f"relative {what} indices within the {defined} defined "
-            "so far", repr(token),
-        )  # fmt: skip
+            path,
+            f"f (line {line_no})",
+            f"relative {what} indices within the {defined} defined so far",
+            repr(token),
+        )
     return k - 1 if k > 0 else defined + k
 
 
@@ -138,9 +140,11 @@ def read_obj(path: str | os.PathLike, *, compute_uvs_if_missing: bool = True) ->
                 parts = token.split("/")
                 if len(parts) > 3 or parts[0] == "":
                     raise LoosefitInputError(
-                        path, f"f (line {line_no})", "corners v, v/vt, v//vn or v/vt/vn",
+                        path,
+                        f"f (line {line_no})",
+                        "corners v, v/vt, v//vn or v/vt/vn",
                         repr(token),
-                    )  # fmt: skip
+                    )
                 corners.append(_resolve(path, line_no, token, "vertex", parts[0], len(vertices)))
                 has_uv = len(parts) > 1 and parts[1] != ""
                 corner_uvs.append(
@@ -148,9 +152,11 @@ def read_obj(path: str | os.PathLike, *, compute_uvs_if_missing: bool = True) ->
                 )
             if any(c is None for c in corner_uvs) and not all(c is None for c in corner_uvs):
                 raise LoosefitInputError(
-                    path, f"f (line {line_no})", "UV indices on every corner or on none",
+                    path,
+                    f"f (line {line_no})",
+                    "UV indices on every corner or on none",
                     repr(raw.strip()),
-                )  # fmt: skip
+                )
             for k in range(1, len(corners) - 1):  # fan: (0, k, k + 1)
                 faces.append([corners[0], corners[k], corners[k + 1]])
                 face_uvs.append(
@@ -170,37 +176,45 @@ def read_obj(path: str | os.PathLike, *, compute_uvs_if_missing: bool = True) ->
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
         raise LoosefitInputError(
-            path, f"v (line {vertex_lines[first]})", "finite coordinates",
+            path,
+            f"v (line {vertex_lines[first]})",
+            "finite coordinates",
             f"{int(bad.sum())} vertices with NaN/inf, first {verts[first].tolist()}",
-        )  # fmt: skip
+        )
     tri = np.asarray(faces, dtype=np.int64)  # (F, 3)
     lines = np.asarray(face_lines, dtype=np.int64)
     out = (tri < 0) | (tri >= V)
     if out.any():
         f = int(np.flatnonzero(out.any(axis=1))[0])
         raise LoosefitInputError(
-            path, f"f (line {lines[f]})", f"vertex indices within the {V} vertices defined",
+            path,
+            f"f (line {lines[f]})",
+            f"vertex indices within the {V} vertices defined",
             f"index {int(tri[f][out[f]][0]) + 1}",
-        )  # fmt: skip
+        )
 
     with_uv = np.array([c is not None for c in face_uvs])
     mesh_uvs = mesh_face_uvs = None
     if with_uv.any() and not with_uv.all():
         first_without = int(lines[np.flatnonzero(~with_uv)[0]])
         raise LoosefitInputError(
-            path, "f (vt)", "UV indices on every face or on none",
+            path,
+            "f (vt)",
+            "UV indices on every face or on none",
             f"{int(with_uv.sum())} triangles with and {int((~with_uv).sum())} without, "
             f"first without on line {first_without}",
-        )  # fmt: skip
+        )
     if with_uv.all():
         mesh_face_uvs = np.asarray(face_uvs, dtype=np.int64)
         out = (mesh_face_uvs < 0) | (mesh_face_uvs >= U)
         if out.any():
             f = int(np.flatnonzero(out.any(axis=1))[0])
             raise LoosefitInputError(
-                path, f"f (line {lines[f]})", f"vt indices within the {U} UVs defined",
+                path,
+                f"f (line {lines[f]})",
+                f"vt indices within the {U} UVs defined",
                 f"index {int(mesh_face_uvs[f][out[f]][0]) + 1}",
-            )  # fmt: skip
+            )
         mesh_uvs = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
         with np.errstate(over="ignore"):
             bad = ~np.isfinite(mesh_uvs.astype(np.float32)).all(axis=1)
@@ -253,9 +267,11 @@ def _check_write(
             )
         if len(face_uvs) and (face_uvs.min() < 0 or face_uvs.max() >= len(uvs)):
             raise LoosefitInputError(
-                src, "face_uvs", f"indices in [0, {len(uvs)})",
+                src,
+                "face_uvs",
+                f"indices in [0, {len(uvs)})",
                 f"[{face_uvs.min()}, {face_uvs.max()}]",
-            )  # fmt: skip
+            )
 
 
 def write_obj(
@@ -378,9 +394,13 @@ def _first_face(mesh: ObjMesh, f: int) -> str:
     return f"triangle {f}{line} with vertices {corners} (1-based, as in the file)"
 
 
-def garment_uvs(vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None,
-                face_uvs: np.ndarray | None, margin: float = 0.02
-                ) -> tuple[np.ndarray, np.ndarray, str]:  # fmt: skip
+def garment_uvs(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    uvs: np.ndarray | None,
+    face_uvs: np.ndarray | None,
+    margin: float = 0.02,
+) -> tuple[np.ndarray, np.ndarray, str]:
     """A garment's UVs in the unit square: the file's (``uvs`` (U, 2), ``face_uvs`` (F, 3)),
     scaled into it (aspect kept) when they leave it, or an xatlas atlas when it has none.
 
@@ -431,20 +451,25 @@ def load_garment_obj(
     degenerate = degenerate_faces(mesh.vertices, mesh.faces)
     if len(degenerate):
         raise LoosefitInputError(
-            path, "f", "triangles with non-zero area",
+            path,
+            "f",
+            "triangles with non-zero area",
             f"{len(degenerate)} zero-area triangles, first: {_first_face(mesh, degenerate[0])}",
-        )  # fmt: skip
+        )
     nonmanifold = nonmanifold_edges(mesh.faces)
     if len(nonmanifold):
         a, b = (int(k) + 1 for k in nonmanifold[0])
         raise LoosefitInputError(
-            path, "f", "each edge shared by at most 2 triangles",
+            path,
+            "f",
+            "each edge shared by at most 2 triangles",
             f"{len(nonmanifold)} non-manifold edges, first between vertices {a} and {b} "
             "(1-based, as in the file)",
-        )  # fmt: skip
+        )
 
-    uvs, face_uvs, uv_source = garment_uvs(mesh.vertices, mesh.faces, mesh.uvs, mesh.face_uvs,
-                                           uv_margin)  # fmt: skip
+    uvs, face_uvs, uv_source = garment_uvs(
+        mesh.vertices, mesh.faces, mesh.uvs, mesh.face_uvs, uv_margin
+    )
 
     V = len(mesh.vertices)
     if isinstance(waist, str):
@@ -461,14 +486,18 @@ def load_garment_obj(
         waist_idx = np.asarray(waist)
         if waist_idx.ndim != 1 or len(waist_idx) == 0 or waist_idx.dtype.kind not in "iu":
             raise LoosefitInputError(
-                path, "waist", "a non-empty 1-D integer index array",
+                path,
+                "waist",
+                "a non-empty 1-D integer index array",
                 f"shape {waist_idx.shape}, dtype {waist_idx.dtype}",
-            )  # fmt: skip
+            )
         if waist_idx.min() < 0 or waist_idx.max() >= V:
             raise LoosefitInputError(
-                path, "waist", f"vertex indices in [0, {V})",
+                path,
+                "waist",
+                f"vertex indices in [0, {V})",
                 f"range [{waist_idx.min()}, {waist_idx.max()}]",
-            )  # fmt: skip
+            )
 
     flipped = int((uv_triangle_areas(uvs, face_uvs) < 0).sum())
     return GarmentTemplate(

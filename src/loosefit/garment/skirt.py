@@ -136,9 +136,11 @@ class SkirtConfig:
         """
         if resolution not in SKIRT_RESOLUTIONS:
             raise LoosefitInputError(
-                "SkirtConfig.preset", "resolution", f"one of {tuple(SKIRT_RESOLUTIONS)}",
+                "SkirtConfig.preset",
+                "resolution",
+                f"one of {tuple(SKIRT_RESOLUTIONS)}",
                 repr(resolution),
-            )  # fmt: skip
+            )
         if style not in STYLES:
             raise LoosefitInputError("SkirtConfig.preset", "style", f"one of {STYLES}", repr(style))
         rings, segments = SKIRT_RESOLUTIONS[resolution][style]
@@ -326,9 +328,13 @@ def waist_fit_from_points(
     profile = None
     if profile_depth > 0:
         profile = hip_profile_from_points(
-            points, height, height - profile_depth, profile_rows,
-            center=center_xy, max_radius=max_radius,
-        )  # fmt: skip
+            points,
+            height,
+            height - profile_depth,
+            profile_rows,
+            center=center_xy,
+            max_radius=max_radius,
+        )
     return WaistFit(center=center, radii=np.asarray(radii), height=height, profile=profile)
 
 

@@ -88,11 +88,11 @@ class CollisionConfig:
     #   its default 2 costs a third more, same answers on salsa 60_01 and ballet 05_12; 0.5
     #   calls cloth centimetres outside inside)
     whole_body: bool = True  # collide with the whole body, arms and hands included, whatever
-    #   the simulation's collider was (issue 34: hands passed through the skirt)
-    fast: bool = True  # issue 37: the same answers in less time: each solve a banded
+    #   the simulation's collider was (without arms and hands, they passed through the skirt)
+    fast: bool = True  # the same answers in less time: each solve a banded
     #   Cholesky in a bandwidth-reducing order fixed once (not SuperLU), and "inside" the winding
     #   number counted along rays (``Surface.query(sign="rays")``: no solid-angle data to refit
-    #   each frame) instead of warp's fast winding number; False: as before issue 37
+    #   each frame) instead of warp's fast winding number; False: the slower path before it
     sticky: bool = True  # along a motion, cloth inside the body leaves it on the side it left
     #   by in the frame before, when its closest skin is now on the other side (the hem deep
     #   in a thigh, near its middle: pushed out to the front, then to the back, frame after
@@ -103,8 +103,17 @@ class CollisionConfig:
     sticky_slack: float = 0.005  # m
 
     def __post_init__(self) -> None:
-        for name in ("epsilon", "anchor", "reach", "face_reach", "finish_reach", "finish_limit",
-                     "winding_accuracy", "sticky_factor", "sticky_slack"):  # fmt: skip
+        for name in (
+            "epsilon",
+            "anchor",
+            "reach",
+            "face_reach",
+            "finish_reach",
+            "finish_limit",
+            "winding_accuracy",
+            "sticky_factor",
+            "sticky_slack",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise LoosefitInputError("CollisionConfig", name, "a positive number", value)
@@ -120,12 +129,13 @@ class CollisionConfig:
             raise LoosefitInputError("CollisionConfig", "finish", "an integer >= 0", self.finish)
         for name in ("whole_body", "fast", "sticky"):
             if not isinstance(getattr(self, name), bool):
-                raise LoosefitInputError("CollisionConfig", name, "true or false",
-                                         getattr(self, name))  # fmt: skip
+                raise LoosefitInputError(
+                    "CollisionConfig", name, "true or false", getattr(self, name)
+                )
 
 
 # ``loosefit animate --collision realtime``: one solve, one round of the last projection and
-# of the mending a frame (issue 37). Against the default on 150 frames (bench/collision_pops.py,
+# of the mending a frame. Against the default on 150 frames (bench/collision_pops.py,
 # docs/BENCHMARKS.md): collision handling 1.3-2.2x faster, no frame deeper than the default's,
 # fewer jumps from frame to frame; more vertices left within eps of the skin or 1 mm inside
 # where body parts press together (60_01: 854 vertex-frames against 546)
@@ -183,8 +193,13 @@ class CollisionHandler:
             (None: each frame's input).
     """
 
-    def __init__(self, faces: np.ndarray, num_vertices: int, config: CollisionConfig | None = None,
-                 rest: np.ndarray | None = None):  # fmt: skip
+    def __init__(
+        self,
+        faces: np.ndarray,
+        num_vertices: int,
+        config: CollisionConfig | None = None,
+        rest: np.ndarray | None = None,
+    ):
         self.config = config or CollisionConfig()
         self.num_vertices = V = num_vertices
         L = laplacian_matrix(faces, V, "uniform", dtype=torch.float64)
@@ -202,10 +217,15 @@ class CollisionHandler:
         e, _ = unique_edges(f)
         self.edges = e  # (E, 2)
         if rest is not None and np.shape(rest) != (V, 3):
-            raise LoosefitInputError("CollisionHandler", "rest", f"({V}, 3) positions",
-                                     f"{np.shape(rest)}")  # fmt: skip
-        self.rest_lengths = (None if rest is None else  # (E,) or None: the edges of the input
-                             np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1))  # fmt: skip
+            raise LoosefitInputError(
+                "CollisionHandler", "rest", f"({V}, 3) positions", f"{np.shape(rest)}"
+            )
+        self.rest_lengths = (
+            None
+            if rest is None
+            # (E,) or None: the edges of the input
+            else np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1)
+        )
         adj = sp.coo_matrix((np.ones(len(e), np.float32), (e[:, 0], e[:, 1])), shape=(V, V))
         self.adjacency = (adj + adj.T).tocsr()
         # points inside each face that must stay out too (a body edge between three
@@ -237,8 +257,9 @@ class CollisionHandler:
             out = np.maximum(out, (self.adjacency @ out > 0).astype(np.float32))
         return out > 0
 
-    def resolve(self, garment: torch.Tensor, body: Surface, previous: np.ndarray | None = None
-                ) -> CollisionResult:  # fmt: skip
+    def resolve(
+        self, garment: torch.Tensor, body: Surface, previous: np.ndarray | None = None
+    ) -> CollisionResult:
         """One frame: the garment pushed out of the body (Eq. 16).
 
         Only the vertices within ``reach`` of the body are ever moved, and after each
@@ -257,16 +278,18 @@ class CollisionHandler:
         cfg = self.config
         V = self.num_vertices
         if garment.shape != (V, 3):
-            raise LoosefitInputError("CollisionHandler.resolve", "garment", f"({V}, 3)",
-                                     f"{tuple(garment.shape)}")  # fmt: skip
+            raise LoosefitInputError(
+                "CollisionHandler.resolve", "garment", f"({V}, 3)", f"{tuple(garment.shape)}"
+            )
         x0 = garment.detach().cpu().double().numpy()
         d = np.zeros_like(x0)
         active = np.zeros(V, dtype=bool)
         region = np.zeros(V, dtype=bool)
         way = previous if cfg.sticky and previous is not None else None
         if way is not None and np.shape(way) != (V, 3):
-            raise LoosefitInputError("CollisionHandler.resolve", "previous", f"({V}, 3)",
-                                     f"{np.shape(way)}")  # fmt: skip
+            raise LoosefitInputError(
+                "CollisionHandler.resolve", "previous", f"({V}, 3)", f"{np.shape(way)}"
+            )
         n, ds = self._signed(x0, body, cfg.reach, slice(None))
         n, ds = self._stick(x0, n, ds, way, body)
         iterations = 1
@@ -323,8 +346,9 @@ class CollisionHandler:
             laplacian_change=float(np.sqrt((lap**2).sum(-1).mean())),
         )
 
-    def _finish(self, x: np.ndarray, ds: np.ndarray, body: Surface
-                ) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
+    def _finish(
+        self, x: np.ndarray, ds: np.ndarray, body: Surface
+    ) -> tuple[np.ndarray, np.ndarray, int]:
         """The last projection: every vertex near the body that the winding number puts
         inside it (a crease, two body parts pressed together, an arm in the torso, where
         the closest face's side misleads the solve) moved straight to ``eps`` beyond its
@@ -395,8 +419,9 @@ class CollisionHandler:
                 left = cfg.finish_limit - np.linalg.norm(x[w] - start[w], axis=1)  # (Kw,)
                 t, face = body.first_hits(x[w], went[w], float(max(left.max(), 0.0)))
                 go = (face >= 0) & (t + cfg.epsilon <= left)
-                step[on_inner] = np.where(go[:, None], x[w] + (t + cfg.epsilon)[:, None]
-                                          * went[w], x[w])  # fmt: skip
+                step[on_inner] = np.where(
+                    go[:, None], x[w] + (t + cfg.epsilon)[:, None] * went[w], x[w]
+                )
                 stuck[on_inner] = ~go
             x[idx] = step
             went[idx] = np.where(on_inner[:, None], went[idx], out)
@@ -407,8 +432,9 @@ class CollisionHandler:
                 passes += 1
         return x, ds, passes
 
-    def _relax(self, x0: np.ndarray, x: np.ndarray, ds: np.ndarray, body: Surface
-               ) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
+    def _relax(
+        self, x0: np.ndarray, x: np.ndarray, ds: np.ndarray, body: Surface
+    ) -> tuple[np.ndarray, np.ndarray, int]:
         """Tears mended: pushes out along the normals of two body parts pressed together (a
         hand on the hip, a thigh on the belly in a crouch) send neighbouring vertices to
         either side and stretch the edge between to many times its length. Every edge
@@ -473,8 +499,9 @@ class CollisionHandler:
             ds[idx] = _signed(hit)
         return x, ds, passes
 
-    def _stick(self, x: np.ndarray, n: np.ndarray, ds: np.ndarray, way: np.ndarray | None,
-               body: Surface) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    def _stick(
+        self, x: np.ndarray, n: np.ndarray, ds: np.ndarray, way: np.ndarray | None, body: Surface
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``sticky``: the vertices at ``x`` (N, 3) inside the body (``ds < 0``) whose closest
         skin is now against the way they were moved out in the frame before (``way``, (N, 3)
         unit or 0) leave along that way instead, to where its ray first meets the skin, if
@@ -510,14 +537,22 @@ class CollisionHandler:
             self._closest[idx] = hit.points
         return hit
 
-    def _signed(self, x: np.ndarray, body: Surface, reach: float, idx
-                ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    def _signed(
+        self, x: np.ndarray, body: Surface, reach: float, idx
+    ) -> tuple[np.ndarray, np.ndarray]:
         """:func:`signed_distances` of the vertices ``idx`` at ``x`` (N, 3), with the fast
         path's hints (see :meth:`_ask`)."""
         return _normals(x, body, self._ask(x, body, idx, "normal", reach))
 
-    def _face_pushes(self, x: np.ndarray, ds: np.ndarray, body: Surface, short: np.ndarray,
-                     push: np.ndarray, moved: np.ndarray | None = None) -> bool:  # fmt: skip
+    def _face_pushes(
+        self,
+        x: np.ndarray,
+        ds: np.ndarray,
+        body: Surface,
+        short: np.ndarray,
+        push: np.ndarray,
+        moved: np.ndarray | None = None,
+    ) -> bool:
         """Check points inside the faces near the body (centroid, edge midpoints); where
         one is closer than ``0.75 eps``, the face's vertices that span it take its push
         (moving them all by it moves the point by it) when it is larger than their own.
@@ -542,8 +577,9 @@ class CollisionHandler:
         deepest = float(np.clip(-ds[fv].min(), 0.0, None))
         # the fast path's hints: the closest face of a vertex each point depends on
         hint = self._face[np.r_[fv[:, 0], ev[:, 0]]] if cfg.fast else None
-        hit = body.query(pts, min(cfg.reach, deepest + 2 * cfg.face_reach), sign="normal",
-                         hint=hint)  # fmt: skip
+        hit = body.query(
+            pts, min(cfg.reach, deepest + 2 * cfg.face_reach), sign="normal", hint=hint
+        )
         n, dp = _normals(pts, body, hit)
         bad = np.flatnonzero(dp < 0.75 * cfg.epsilon)
         if not len(bad):
@@ -629,24 +665,28 @@ class PushOutHandler:
         reach: m, vertices farther from the body are not queried.
     """
 
-    def __init__(self, faces: np.ndarray, num_vertices: int, epsilon: float = 1.0e-3,
-                 reach: float = 0.1) -> None:  # fmt: skip
+    def __init__(
+        self, faces: np.ndarray, num_vertices: int, epsilon: float = 1.0e-3, reach: float = 0.1
+    ) -> None:
         if not (np.isfinite(epsilon) and epsilon > 0 and np.isfinite(reach) and reach > 0):
-            raise LoosefitInputError("PushOutHandler", "epsilon, reach", "positive numbers",
-                                     (epsilon, reach))  # fmt: skip
+            raise LoosefitInputError(
+                "PushOutHandler", "epsilon, reach", "positive numbers", (epsilon, reach)
+            )
         self.num_vertices, self.epsilon, self.reach = num_vertices, float(epsilon), float(reach)
         L = laplacian_matrix(faces, num_vertices, "uniform", dtype=torch.float64)
         (li, lj), lv = L.indices().numpy(), L.values().numpy()
         self.lap = sp.csr_matrix((lv, (li, lj)), shape=(num_vertices, num_vertices))
 
-    def resolve(self, garment: torch.Tensor, body: Surface, previous: np.ndarray | None = None
-                ) -> CollisionResult:  # fmt: skip
+    def resolve(
+        self, garment: torch.Tensor, body: Surface, previous: np.ndarray | None = None
+    ) -> CollisionResult:
         """One frame: the garment (V, 3), world positions, with close vertices pushed out
         (each frame on its own: ``previous`` is not used)."""
         V = self.num_vertices
         if garment.shape != (V, 3):
-            raise LoosefitInputError("PushOutHandler.resolve", "garment", f"({V}, 3)",
-                                     f"{tuple(garment.shape)}")  # fmt: skip
+            raise LoosefitInputError(
+                "PushOutHandler.resolve", "garment", f"({V}, 3)", f"{tuple(garment.shape)}"
+            )
         x0 = garment.detach().cpu().double().numpy()
         n, ds = signed_distances(x0, body, self.reach)
         short = np.clip(self.epsilon - ds, 0.0, None)  # (V,), 0 beyond reach
@@ -690,8 +730,9 @@ def _on_skin(x: np.ndarray, body: Surface, hit, inside: np.ndarray, reach: float
     return (side > 0) & (hit.distance[inside] < reach)
 
 
-def _beyond_skin(x: np.ndarray, hit, inside: np.ndarray, epsilon: float
-                 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def _beyond_skin(
+    x: np.ndarray, hit, inside: np.ndarray, epsilon: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The points ``x`` (K, 3), the answers ``hit`` of whose ``inside`` (N,) bool mask are
     theirs, moved to ``epsilon`` beyond their closest skin; and the unit directions (K, 3)
     from each toward that skin."""
@@ -700,8 +741,7 @@ def _beyond_skin(x: np.ndarray, hit, inside: np.ndarray, epsilon: float
     return p + epsilon * out, out
 
 
-def signed_distances(x: np.ndarray, body: Surface, reach: float
-                      ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def signed_distances(x: np.ndarray, body: Surface, reach: float) -> tuple[np.ndarray, np.ndarray]:
     """Normals n (N, 3) and signed distances ``ds = n.(x - b)`` (N,) of points x (N, 3),
     b their closest body points; ``ds`` is +inf (and n 0) beyond ``reach`` of the body. ``n`` is the
     distance's gradient, so ``ds = +-|x - b|`` (minus inside, by the closest face's
@@ -745,9 +785,16 @@ class BodyCollider:
             a last projection that asks it (not the fast path's rays).
     """
 
-    def __init__(self, handler: CollisionHandler | PushOutHandler, body_faces: np.ndarray,
-                 pose, num_frames: int, chunk: int = 64, device: str = "cpu",
-                 winding_number: bool | None = None) -> None:  # fmt: skip
+    def __init__(
+        self,
+        handler: CollisionHandler | PushOutHandler,
+        body_faces: np.ndarray,
+        pose,
+        num_frames: int,
+        chunk: int = 64,
+        device: str = "cpu",
+        winding_number: bool | None = None,
+    ) -> None:
         self.handler = handler
         if winding_number is None:
             winding_number = getattr(handler, "inside_test", None) == "winding" and bool(

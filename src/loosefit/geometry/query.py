@@ -262,8 +262,13 @@ class Surface:
         faces: (F, 3) int64.
     """
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, device: str = "cpu",
-                 winding_number: bool = False) -> None:  # fmt: skip
+    def __init__(
+        self,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        device: str = "cpu",
+        winding_number: bool = False,
+    ) -> None:
         self.device = device
         self.winding_number = winding_number
         self.num_vertices = len(vertices)
@@ -275,8 +280,9 @@ class Surface:
         self._indices = wp.array(
             np.ascontiguousarray(faces, np.int32).ravel(), dtype=wp.int32, device=device
         )
-        self.mesh = wp.Mesh(points=self._points, indices=self._indices,
-                            support_winding_number=winding_number)  # fmt: skip
+        self.mesh = wp.Mesh(
+            points=self._points, indices=self._indices, support_winding_number=winding_number
+        )
         self._buffers: tuple | None = None  # the queries' in and out arrays, grown as needed
         self._views: tuple | None = None  # their numpy views (CPU)
 
@@ -289,16 +295,20 @@ class Surface:
         self.mesh.refit()
 
     def query(
-        self, queries: np.ndarray, max_distance: float = 1.0e3, sign: str = "winding",
-        accuracy: float = 2.0, hint: np.ndarray | None = None,
-    ) -> ClosestPoints:  # fmt: skip
+        self,
+        queries: np.ndarray,
+        max_distance: float = 1.0e3,
+        sign: str = "winding",
+        accuracy: float = 2.0,
+        hint: np.ndarray | None = None,
+    ) -> ClosestPoints:
         """Closest surface points of queries (N, 3) and an inside test; see :func:`closest_points`.
 
         ``sign="rays"`` decides inside by the winding number counted along rays (the faces
         each crosses, by their side: exact on a closed mesh, overlapping parts included, and
         needs no solid-angle data, so the surface refits several times faster): a ray
         away from the closest skin that meets no face says outside; otherwise the majority
-        of three rays in fixed directions (issue 37, the fast path of collision handling).
+        of three rays in fixed directions (the fast path of collision handling).
         ``sign="winding"`` decides inside by the generalised winding number where the
         surface keeps it (``winding_number=True``; robust to small holes and to parts
         that overlap), otherwise by warp's vote of three rays; ``"normal"`` by the side
@@ -308,7 +318,7 @@ class Surface:
         away from its skin, 0.5 wrong by centimetres). ``hint``: (N,) a face of the mesh
         for each query (-1: none), e.g. its closest face of a query before: the search
         goes no farther than that face (the same answers, much faster where the hint is
-        near; issue 37).
+        near).
         """
         if sign not in ("winding", "normal", "rays"):
             raise ValueError(f"sign: expected 'winding', 'normal' or 'rays', found {sign!r}")
@@ -323,8 +333,9 @@ class Surface:
             if num_hints:
                 views[5][:n] = hint
         else:
-            q = wp.array(np.ascontiguousarray(queries, np.float32), dtype=wp.vec3,
-                         device=self.device)  # fmt: skip
+            q = wp.array(
+                np.ascontiguousarray(queries, np.float32), dtype=wp.vec3, device=self.device
+            )
             if num_hints:
                 hints = wp.array(np.asarray(hint, np.int32), dtype=wp.int32, device=self.device)
         tail = [hints, num_hints, len(self.faces)]
@@ -362,8 +373,9 @@ class Surface:
             distance=np.linalg.norm(points - np.asarray(queries, np.float32), axis=-1),
         )
 
-    def inside_by_rays(self, points: np.ndarray, closest: np.ndarray, faces: np.ndarray
-                       ) -> np.ndarray:  # fmt: skip
+    def inside_by_rays(
+        self, points: np.ndarray, closest: np.ndarray, faces: np.ndarray
+    ) -> np.ndarray:
         """``query(sign="rays")``'s inside test alone, for points (N, 3) whose closest surface
         points (N, 3) and faces (N,) (-1: none near, then outside) a query gave already: the
         same answers without walking the BVH for the closest points again.
@@ -373,19 +385,24 @@ class Surface:
         """
         n = len(points)
         if np.shape(closest) != (n, 3) or np.shape(faces) != (n,):
-            raise ValueError(f"closest, faces: expected ({n}, 3) and ({n},), found "
-                             f"{np.shape(closest)} and {np.shape(faces)}")  # fmt: skip
+            raise ValueError(
+                f"closest, faces: expected ({n}, 3) and ({n},), found "
+                f"{np.shape(closest)} and {np.shape(faces)}"
+            )
         if not n:
             return np.zeros(0, dtype=bool)
-        p, c = (wp.array(np.ascontiguousarray(a, np.float32), dtype=wp.vec3, device=self.device)
-                for a in (points, closest))  # fmt: skip
+        p, c = (
+            wp.array(np.ascontiguousarray(a, np.float32), dtype=wp.vec3, device=self.device)
+            for a in (points, closest)
+        )
         f = wp.array(np.asarray(faces, np.int32), dtype=wp.int32, device=self.device)
         sign = wp.zeros(n, dtype=float, device=self.device)
         wp.launch(_rays_kernel, dim=n, inputs=[self.mesh.id, p, c, f, sign], device=self.device)
         return sign.numpy() < 0
 
-    def first_hits(self, origins: np.ndarray, directions: np.ndarray, max_t: float
-                   ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    def first_hits(
+        self, origins: np.ndarray, directions: np.ndarray, max_t: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Where the rays ``origins + t directions`` (N, 3) each, directions of unit length)
         first meet the surface, ``0 < t <= max_t``.
 
@@ -399,10 +416,16 @@ class Surface:
         t = wp.zeros(max(n, 1), dtype=float, device=self.device)
         faces = wp.zeros(max(n, 1), dtype=wp.int32, device=self.device)
         if n:
-            o, d = (wp.array(np.ascontiguousarray(a, np.float32), dtype=wp.vec3, device=self.device)
-                    for a in (origins, directions))  # fmt: skip
-            wp.launch(_ray_kernel, dim=n, inputs=[self.mesh.id, o, d, float(max_t), t, faces],
-                      device=self.device)  # fmt: skip
+            o, d = (
+                wp.array(np.ascontiguousarray(a, np.float32), dtype=wp.vec3, device=self.device)
+                for a in (origins, directions)
+            )
+            wp.launch(
+                _ray_kernel,
+                dim=n,
+                inputs=[self.mesh.id, o, d, float(max_t), t, faces],
+                device=self.device,
+            )
         return t.numpy()[:n], faces.numpy()[:n].astype(np.int64)
 
     def _arrays(self, n: int) -> tuple:
@@ -420,8 +443,7 @@ class Surface:
             )
             # on the CPU, numpy views of the same memory, made once (a view per query
             # cost ~0.1 ms a query, 1-2 ms of a frame of collision handling)
-            self._views = (tuple(a.numpy() for a in self._buffers)
-                           if device == "cpu" else None)  # fmt: skip
+            self._views = tuple(a.numpy() for a in self._buffers) if device == "cpu" else None
         return self._buffers
 
 

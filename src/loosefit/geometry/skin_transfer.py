@@ -58,8 +58,9 @@ def diffuse_weights(weights: np.ndarray, faces: np.ndarray, known: np.ndarray) -
     if known.shape != (V,):
         raise LoosefitInputError("diffuse_weights", "known", f"shape ({V},)", f"{known.shape}")
     e, _ = unique_edges(np.asarray(faces))
-    adj = sp.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
-                        shape=(V, V)).tocsr()  # fmt: skip
+    adj = sp.coo_matrix(
+        (np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(V, V)
+    ).tocsr()
     n_comp, label = sp.csgraph.connected_components(adj, directed=False)
     anchored = np.zeros(n_comp, bool)
     anchored[np.unique(label[known])] = True
@@ -102,8 +103,9 @@ def garment_skin_weights(
     known = distance <= near
     if not known.any():
         raise LoosefitInputError(
-            "garment_skin_weights", "garment", f"a vertex within {near} m of the body "
-            "(the garment worn at the body's rest pose)",
+            "garment_skin_weights",
+            "garment",
+            f"a vertex within {near} m of the body (the garment worn at the body's rest pose)",
             f"the nearest {float(distance.min()):.3f} m away",
-        )  # fmt: skip
+        )
     return diffuse_weights(w, garment_faces, known).astype(np.float32)

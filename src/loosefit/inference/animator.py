@@ -69,8 +69,7 @@ RUNTIMES = ("torch", "onnx")  # what runs the learned stages: PyTorch, or onnxru
 def check_runtime(runtime: str, source: str = "animate") -> None:
     """A clear error for a runtime other than :data:`RUNTIMES`."""
     if runtime not in RUNTIMES:
-        raise LoosefitInputError(source, "runtime", " or ".join(map(repr, RUNTIMES)),
-                                 repr(runtime))  # fmt: skip
+        raise LoosefitInputError(source, "runtime", " or ".join(map(repr, RUNTIMES)), repr(runtime))
 
 
 def check_motion_joints(motion: Motion, joint_names: tuple[str, ...], path: Path) -> None:
@@ -78,19 +77,25 @@ def check_motion_joints(motion: Motion, joint_names: tuple[str, ...], path: Path
     if tuple(motion.joint_names) != tuple(joint_names):
         missing = [j for j in joint_names if j not in motion.joint_names]
         raise LoosefitInputError(
-            f"motion '{motion.name}'", "joint_names",
+            f"motion '{motion.name}'",
+            "joint_names",
             f"the {len(joint_names)} joints the checkpoint {Path(path).name} was "
             "trained on, in its order",
-            f"{len(motion.joint_names)} joints" + (f", missing {missing[:5]}" if missing
-                                                   else ", in another order"),
-        )  # fmt: skip
+            f"{len(motion.joint_names)} joints"
+            + (f", missing {missing[:5]}" if missing else ", in another order"),
+        )
     if not np.isfinite(motion.rotations).all() or not np.isfinite(motion.root_translation).all():
-        raise LoosefitInputError(f"motion '{motion.name}'", "rotations/root_translation",
-                                 "finite numbers", "NaN or infinity")  # fmt: skip
+        raise LoosefitInputError(
+            f"motion '{motion.name}'",
+            "rotations/root_translation",
+            "finite numbers",
+            "NaN or infinity",
+        )
 
 
-def body_collider(avatar, handler, motion: Motion, arm_collision: bool | str, device: torch.device
-                  ) -> BodyCollider:  # fmt: skip
+def body_collider(
+    avatar, handler, motion: Motion, arm_collision: bool | str, device: torch.device
+) -> BodyCollider:
     """``handler`` (Eq. 16's, or a baseline's push-out) along ``motion``'s posed body, the
     simulation's collider (the arms in it only with ``arm_collision``)."""
     rot = torch.from_numpy(motion.rotations)
@@ -162,8 +167,9 @@ class AnimationModel:
         return self._avatar
 
     @contextmanager
-    def configured(self, collision: CollisionConfig | None = None,
-                   lengths: LengthConfig | None = None):  # fmt: skip
+    def configured(
+        self, collision: CollisionConfig | None = None, lengths: LengthConfig | None = None
+    ):
         """Within the block, collision handling and the edge-length stage configured as given
         (None: as they are), their operators built anew; after it, the model's own
         configurations and operators come back (a comparison of settings, in one model)."""
@@ -193,7 +199,7 @@ class AnimationModel:
 
     @property
     def missing_physics_terms(self) -> tuple[str, ...]:
-        """The physics terms (issue 34) the stages were not trained with."""
+        """The physics terms (membrane, bending, collision) the stages were not trained with."""
         return tuple(t for t in PHYSICS_TERMS if t not in self.physics_terms)
 
     def restorer(self, stages: Stages) -> LengthRestorer | None:
@@ -204,8 +210,9 @@ class AnimationModel:
             t, cfg = self.template, self.lengths
             structure = ClothStructure.from_template(t)
             if cfg.edges == "hanging":
-                structure = structure.with_edges(hanging_edges(t.vertices, structure.edges,
-                                                               cfg.min_vertical))  # fmt: skip
+                structure = structure.with_edges(
+                    hanging_edges(t.vertices, structure.edges, cfg.min_vertical)
+                )
             self._restorer = LengthRestorer(structure, cfg)
         return self._restorer
 
@@ -219,9 +226,16 @@ class AnimationModel:
             self._onnx = OnnxStages(self)
         return self._onnx
 
-    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
-                stages: Stages | None = None, runtime: str = "torch",
-                collision: str = "full"):  # fmt: skip
+    def animate(
+        self,
+        motion: Motion,
+        progress=None,
+        truth=None,
+        restart_every=None,
+        stages: Stages | None = None,
+        runtime: str = "torch",
+        collision: str = "full",
+    ):
         """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first) through the
         motion stage, then the detail stage (if the model has one) and collision handling,
         as ``stages`` (default ``self.stages``) says.
@@ -243,13 +257,32 @@ class AnimationModel:
         with self._collision_as(collision):
             step, detail = self._learned(runtime, stages)
             collide = self.collider(motion) if stages.collision else None
-            return rollout(self.generative, self.encoder, motion, self.rest_state,
-                           self.floor_height, self.rollout_config, progress, truth,
-                           restart_every, detail, collide, stages.feedback,
-                           stages.overlap, self.restorer(stages), step)  # fmt: skip
+            return rollout(
+                self.generative,
+                self.encoder,
+                motion,
+                self.rest_state,
+                self.floor_height,
+                self.rollout_config,
+                progress,
+                truth,
+                restart_every,
+                detail,
+                collide,
+                stages.feedback,
+                stages.overlap,
+                self.restorer(stages),
+                step,
+            )
 
-    def animate_batch(self, motions: list[Motion], progress=None, stages: Stages | None = None,
-                      runtime: str = "torch", collision: str = "full"):  # fmt: skip
+    def animate_batch(
+        self,
+        motions: list[Motion],
+        progress=None,
+        stages: Stages | None = None,
+        runtime: str = "torch",
+        collision: str = "full",
+    ):
         """N motions (N characters) at once: the motion stage batched
         (:func:`~loosefit.model.rollout.rollout_batch`, one network call per frame for all),
         then each motion's detail and collision handling (:func:`~loosefit.model.rollout.
@@ -265,13 +298,28 @@ class AnimationModel:
         stages = stages or self.stages
         with self._collision_as(collision):
             step, detail = self._learned(runtime, stages)
-            results = rollout_batch(self.generative, self.encoder, motions, self.rest_state,
-                                    self.floor_height, self.rollout_config, progress,
-                                    step)  # fmt: skip
+            results = rollout_batch(
+                self.generative,
+                self.encoder,
+                motions,
+                self.rest_state,
+                self.floor_height,
+                self.rollout_config,
+                progress,
+                step,
+            )
             for m, r in zip(motions, results, strict=True):
                 collide = self.collider(m) if stages.collision else None
-                refine(r, m, self.floor_height, self.rollout_config, detail, collide,
-                       self.device, self.restorer(stages))  # fmt: skip
+                refine(
+                    r,
+                    m,
+                    self.floor_height,
+                    self.rollout_config,
+                    detail,
+                    collide,
+                    self.device,
+                    self.restorer(stages),
+                )
         return results
 
     def _learned(self, runtime: str, stages: Stages) -> tuple:
@@ -302,8 +350,9 @@ class AnimationModel:
     def reconstruct(self, motion: Motion, truth: np.ndarray):
         """:func:`~loosefit.model.rollout.reconstruction`: the floor under the encoder's error."""
         self.check_motion(motion)
-        return reconstruction(self.generative, motion, truth, self.floor_height,
-                              self.rollout_config)  # fmt: skip
+        return reconstruction(
+            self.generative, motion, truth, self.floor_height, self.rollout_config
+        )
 
 
 def load_animation_model(
@@ -330,42 +379,63 @@ def load_animation_model(
 
 def _animation_model(path: Path, data: dict, generative, device) -> AnimationModel:
     g = data["generative"]
-    gpath = recorded_checkpoint(path, g, generative, "generative",
-                                "the generative checkpoint it was trained on",
-                                "pass --generative FILE")  # fmt: skip
+    gpath = recorded_checkpoint(
+        path,
+        g,
+        generative,
+        "generative",
+        "the generative checkpoint it was trained on",
+        "pass --generative FILE",
+    )
     gmodel, gdata = load_generative(gpath, device=device)
     found = model_fingerprint(gmodel)
     if found != g["fingerprint"]:
         raise LoosefitInputError(
-            gpath, "model", f"the generative model {path.name} was trained on "
-            f"(fingerprint {g['fingerprint']})", f"another one (fingerprint {found})",
-        )  # fmt: skip
+            gpath,
+            "model",
+            f"the generative model {path.name} was trained on (fingerprint {g['fingerprint']})",
+            f"another one (fingerprint {found})",
+        )
     config = model_config(data)
     template = template_from_dict(data["garment"]["template"])
-    encoder = DynamicMotionEncoder(gmodel, data["num_features"],
-                                   MotionEncoderConfig(**config["encoder"])).to(device)  # fmt: skip
+    encoder = DynamicMotionEncoder(
+        gmodel, data["num_features"], MotionEncoderConfig(**config["encoder"])
+    ).to(device)
     load_weights(encoder, data["model"], path, "this motion encoder's configuration")
     for p in gmodel.parameters():
         p.requires_grad_(False)
     rest = torch.as_tensor(data["rest_state"]).float()
     if rest.shape != (template.num_vertices, 3) or not torch.isfinite(rest).all():
-        raise LoosefitInputError(path, "rest_state", f"({template.num_vertices}, 3) finite "
-                                 "positions", f"shape {tuple(rest.shape)}")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "rest_state",
+            f"({template.num_vertices}, 3) finite positions",
+            f"shape {tuple(rest.shape)}",
+        )
     return AnimationModel(
-        gmodel.eval(), encoder.eval(), template,
+        gmodel.eval(),
+        encoder.eval(),
+        template,
         rest.to(device),
-        tuple(data["joint_names"]), float(data["floor_height"]), float(data["fps"]),
-        dict(data["body"]), RolloutConfig(**config["rollout"]), path,
-        arm_collision=arm_collision_of(data), physics_terms=terms_of(gdata, data),
+        tuple(data["joint_names"]),
+        float(data["floor_height"]),
+        float(data["fps"]),
+        dict(data["body"]),
+        RolloutConfig(**config["rollout"]),
+        path,
+        arm_collision=arm_collision_of(data),
+        physics_terms=terms_of(gdata, data),
         trained_on=record if isinstance(record := data.get("trained_on"), dict) else None,
-    )  # fmt: skip
+    )
 
 
 def stage_fingerprints(model: AnimationModel) -> dict:
     """What a detail stage is tied to: the motion stage's weights and the garment."""
     t = model.template
-    return {"motion": model_fingerprint(model.encoder),
-            "garment": garment_fingerprint(t.vertices, t.faces)}  # fmt: skip
+    return {
+        "motion": model_fingerprint(model.encoder),
+        "garment": garment_fingerprint(t.vertices, t.faces),
+    }
 
 
 def attach_detail(model: AnimationModel, path: str | Path) -> AnimationModel:
@@ -386,13 +456,18 @@ def _attach(model: AnimationModel, path: Path, data: dict) -> AnimationModel:
     for key, what in (("garment", "garment"), ("motion", "motion stage")):
         if data["fingerprints"][key] != have[key]:
             raise LoosefitInputError(
-                path, f"fingerprints.{key}", f"the {what} of {model.path.name} "
-                f"(fingerprint {have[key]})",
+                path,
+                f"fingerprints.{key}",
+                f"the {what} of {model.path.name} (fingerprint {have[key]})",
                 f"a detail stage trained on another {what} "
                 f"(fingerprint {data['fingerprints'][key]})",
-            )  # fmt: skip
-    g = DetailGenerator(model.template.faces, model.template.num_vertices,
-                        model.encoder.latent, DetailConfig(**model_config(data)))  # fmt: skip
+            )
+    g = DetailGenerator(
+        model.template.faces,
+        model.template.num_vertices,
+        model.encoder.latent,
+        DetailConfig(**model_config(data)),
+    )
     g = g.to(model.device)
     load_weights(g, data["model"], path, "this detail configuration")
     model.detail = g.eval()
@@ -411,8 +486,13 @@ def load_detail_model(
     path = Path(path)
     data = read_checkpoint_file(path, DETAIL_FORMAT, "cpu")
     with checkpoint_fields(path, "detail checkpoint"):
-        mpath = recorded_checkpoint(path, data["motion_checkpoint"], motion, "motion",
-                                    "the motion checkpoint it was trained on")  # fmt: skip
+        mpath = recorded_checkpoint(
+            path,
+            data["motion_checkpoint"],
+            motion,
+            "motion",
+            "the motion checkpoint it was trained on",
+        )
     model = load_animation_model(mpath, generative, device)
     return attach_detail(model, path)
 
@@ -465,9 +545,16 @@ class BaselineModel:
     def check_motion(self, motion: Motion) -> None:
         check_motion_joints(motion, self.joint_names, self.path)
 
-    def animate(self, motion: Motion, progress=None, truth=None, restart_every=None,
-                stages: Stages | None = None, runtime: str = "torch",
-                collision: str = "full"):  # fmt: skip
+    def animate(
+        self,
+        motion: Motion,
+        progress=None,
+        truth=None,
+        restart_every=None,
+        stages: Stages | None = None,
+        runtime: str = "torch",
+        collision: str = "full",
+    ):
         """The garment through ``motion`` (T, V, 3) world positions, a
         :class:`~loosefit.model.rollout.RolloutResult`; then the post-process where the
         method has one and ``stages.collision``. ``truth``/``restart_every`` do not
@@ -476,17 +563,26 @@ class BaselineModel:
         (its post-process has no rounds to cut)."""
         check_runtime(runtime)
         if collision != "full":
-            raise LoosefitInputError(self.path, "collision", "'full' (the "
-                                     f"'{self.method}' baseline's own post-process)",
-                                     repr(collision))  # fmt: skip
+            raise LoosefitInputError(
+                self.path,
+                "collision",
+                f"'full' (the '{self.method}' baseline's own post-process)",
+                repr(collision),
+            )
         if runtime != "torch":
-            raise LoosefitInputError(self.path, "runtime", "'torch' (a baseline has no ONNX "
-                                     f"graphs; the '{self.method}' baseline)",
-                                     repr(runtime))  # fmt: skip
+            raise LoosefitInputError(
+                self.path,
+                "runtime",
+                f"'torch' (a baseline has no ONNX graphs; the '{self.method}' baseline)",
+                repr(runtime),
+            )
         if restart_every is not None:
-            raise LoosefitInputError("BaselineModel.animate", "restart_every",
-                                     "None (a baseline never sees the previous garment)",
-                                     restart_every)  # fmt: skip
+            raise LoosefitInputError(
+                "BaselineModel.animate",
+                "restart_every",
+                "None (a baseline never sees the previous garment)",
+                restart_every,
+            )
         self.check_motion(motion)
         stages = stages or self.stages
         pose = None
@@ -498,16 +594,20 @@ class BaselineModel:
             def pose(s: int, e: int) -> torch.Tensor:
                 return avatar.pose(rot[s:e], root[s:e]).joint_transforms
 
-        result = baseline_rollout(self.network, motion, self.floor_height, self.rollout_config,
-                                  pose, progress)  # fmt: skip
+        result = baseline_rollout(
+            self.network, motion, self.floor_height, self.rollout_config, pose, progress
+        )
         result.stage_seconds = {"motion": result.seconds}
         if stages.collision and self.post_process:
             t0 = time.perf_counter()
-            handler = PushOutHandler(self.template.faces, self.template.num_vertices,
-                                     self.collision.epsilon, self.collision.reach)  # fmt: skip
+            handler = PushOutHandler(
+                self.template.faces,
+                self.template.num_vertices,
+                self.collision.epsilon,
+                self.collision.reach,
+            )
             arms = True if self.collision.whole_body else self.arm_collision
-            collide = body_collider(self.avatar(), handler, motion, arms,
-                                    self.device)  # fmt: skip
+            collide = body_collider(self.avatar(), handler, motion, arms, self.device)
             result.decoded = result.vertices.copy()
             result.collisions = []
             for t in range(motion.num_frames):
@@ -527,9 +627,14 @@ def load_baseline(path: str | Path, device="cpu") -> BaselineModel:
             configuration it records.
     """
     path = Path(path)
-    data = read_checkpoint_file(path, BASELINE_FORMAT, device, {
-        MOTION_FORMAT: "this is our motion stage; load it with load_pipeline",
-    })  # fmt: skip
+    data = read_checkpoint_file(
+        path,
+        BASELINE_FORMAT,
+        device,
+        {
+            MOTION_FORMAT: "this is our motion stage; load it with load_pipeline",
+        },
+    )
     with checkpoint_fields(path, "baseline checkpoint"):
         return _baseline(path, data, device)
 
@@ -538,21 +643,35 @@ def _baseline(path: Path, data: dict, device) -> BaselineModel:
     config = model_config(data)
     template = template_from_dict(data["garment"]["template"])
     V, K = template.num_vertices, int(data["influences"])
-    network = BaselineNetwork(BaselineConfig(**config["network"]), int(data["num_features"]),
-                              torch.zeros(V, 3), torch.zeros(V, K))  # fmt: skip
+    network = BaselineNetwork(
+        BaselineConfig(**config["network"]),
+        int(data["num_features"]),
+        torch.zeros(V, 3),
+        torch.zeros(V, K),
+    )
     load_weights(network, data["model"], path, "this baseline's configuration")
     return BaselineModel(
-        network.to(device).eval(), template, tuple(data["joint_names"]),
-        float(data["floor_height"]), float(data["fps"]), dict(data["body"]),
-        RolloutConfig(**config["rollout"]), path, arm_collision=arm_collision_of(data),
-    )  # fmt: skip
+        network.to(device).eval(),
+        template,
+        tuple(data["joint_names"]),
+        float(data["floor_height"]),
+        float(data["fps"]),
+        dict(data["body"]),
+        RolloutConfig(**config["rollout"]),
+        path,
+        arm_collision=arm_collision_of(data),
+    )
 
 
 # -- any checkpoint ---------------------------------------------------------------------------
 
 
-def load_pipeline(path: str | Path, generative: str | Path | None = None,
-                  detail: str | Path | None = None, device="cpu"):  # fmt: skip
+def load_pipeline(
+    path: str | Path,
+    generative: str | Path | None = None,
+    detail: str | Path | None = None,
+    device="cpu",
+):
     """Every learned stage for ``loosefit animate`` / ``evaluate`` from one checkpoint.
 
     ``path`` is a motion-stage checkpoint (a packaged set's ``motion.pt`` takes the

@@ -51,8 +51,9 @@ def _numpy_globals() -> list:
     """What a numpy array in a checkpoint unpickles through (arrays of plain numbers only:
     an object array needs more and is refused)."""
     core = getattr(np, "_core", None) or np.core  # numpy 2 / numpy 1
-    dtypes = [getattr(np.dtypes, n) for n in dir(np.dtypes) if n.endswith("DType")
-              and n != "ObjectDType"]  # fmt: skip
+    dtypes = [
+        getattr(np.dtypes, n) for n in dir(np.dtypes) if n.endswith("DType") and n != "ObjectDType"
+    ]
     return [core.multiarray._reconstruct, np.ndarray, np.dtype, *dtypes]
 
 
@@ -70,8 +71,11 @@ def load_torch(path: str | Path, device="cpu"):
     except Exception as exc:  # noqa: BLE001 - any unreadable file is the same error for the user
         text = str(exc).strip().splitlines()
         unsafe = next((t for t in text if "Unsupported global" in t or "GLOBAL" in t), None)
-        found = (f"a file that would run code to load ({unsafe.strip()})" if unsafe
-                 else (text[0] if text else type(exc).__name__))  # fmt: skip
+        found = (
+            f"a file that would run code to load ({unsafe.strip()})"
+            if unsafe
+            else (text[0] if text else type(exc).__name__)
+        )
         raise LoosefitInputError(
             path,
             "<file>",
@@ -115,11 +119,14 @@ def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict |
         from loosefit import __version__
 
         raise LoosefitInputError(
-            path, "format", f"{fmt!r} (what loosefit {__version__} reads)",
+            path,
+            "format",
+            f"{fmt!r} (what loosefit {__version__} reads)",
             f"{found!r}, written by loosefit {data.get('loosefit_version', 'of another version')}",
-            hint="upgrade loosefit to read it" if newer else "retrain or repackage it with "
-            "this version",
-        )  # fmt: skip
+            hint="upgrade loosefit to read it"
+            if newer
+            else "retrain or repackage it with this version",
+        )
     if found != fmt:
         found = found if isinstance(found, str) else None if found is None else repr(found)
         hint = (hints or {}).get(found)
@@ -138,12 +145,18 @@ def checkpoint_fields(path: str | Path, what: str):
     except LoosefitInputError:
         raise
     except KeyError as exc:
-        raise LoosefitInputError(path, str(exc.args[0]) if exc.args else "<field>", "present",
-                                 "missing", hint=f"not a whole {what}") from exc  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            str(exc.args[0]) if exc.args else "<field>",
+            "present",
+            "missing",
+            hint=f"not a whole {what}",
+        ) from exc
     except (TypeError, ValueError, IndexError, AttributeError, RuntimeError) as exc:
         detail = str(exc).splitlines()[0] if str(exc) else ""
-        raise LoosefitInputError(path, "<fields>", f"a {what}",
-                                 f"{type(exc).__name__}: {detail}") from exc  # fmt: skip
+        raise LoosefitInputError(
+            path, "<fields>", f"a {what}", f"{type(exc).__name__}: {detail}"
+        ) from exc
 
 
 def checkpoint_format(path: str | Path) -> str | None:
@@ -181,9 +194,14 @@ def model_config(data: dict) -> dict:
 def template_dict(t: GarmentTemplate) -> dict:
     """A garment template as plain arrays (its ``meta`` as JSON), for a checkpoint."""
     out = {
-        "vertices": t.vertices, "faces": t.faces, "uvs": t.uvs, "face_uvs": t.face_uvs,
-        "waist": t.waist, "name": t.name, "meta": json.dumps(t.meta or {}, default=_plain),
-    }  # fmt: skip
+        "vertices": t.vertices,
+        "faces": t.faces,
+        "uvs": t.uvs,
+        "face_uvs": t.face_uvs,
+        "waist": t.waist,
+        "name": t.name,
+        "meta": json.dumps(t.meta or {}, default=_plain),
+    }
     if t.rest_vertices is not None:
         out["rest_vertices"] = t.rest_vertices
     return out
@@ -192,9 +210,16 @@ def template_dict(t: GarmentTemplate) -> dict:
 def template_from_dict(g: dict) -> GarmentTemplate:
     """The inverse of :func:`template_dict` (a checkpoint from before ``meta`` or
     ``rest_vertices``: none)."""
-    return GarmentTemplate(g["vertices"], g["faces"], g["uvs"], g["face_uvs"], g["waist"],
-                           g["name"], meta=json.loads(g.get("meta") or "{}"),
-                           rest_vertices=g.get("rest_vertices"))  # fmt: skip
+    return GarmentTemplate(
+        g["vertices"],
+        g["faces"],
+        g["uvs"],
+        g["face_uvs"],
+        g["waist"],
+        g["name"],
+        meta=json.loads(g.get("meta") or "{}"),
+        rest_vertices=g.get("rest_vertices"),
+    )
 
 
 def garment_record(t: GarmentTemplate) -> dict:
@@ -202,8 +227,14 @@ def garment_record(t: GarmentTemplate) -> dict:
     return {"fingerprint": garment_fingerprint(t.vertices, t.faces), "template": template_dict(t)}
 
 
-def recorded_checkpoint(path: Path, recorded: dict, given: str | Path | None, field: str,
-                        what: str, hint: str | None = None) -> Path:  # fmt: skip
+def recorded_checkpoint(
+    path: Path,
+    recorded: dict,
+    given: str | Path | None,
+    field: str,
+    what: str,
+    hint: str | None = None,
+) -> Path:
     """The checkpoint a checkpoint was trained on: ``given``, or the one it records
     (``recorded["relative"]`` to ``path``'s folder first, then ``recorded["absolute"]``).
 
@@ -227,8 +258,11 @@ def model_fingerprint(model: torch.nn.Module) -> str:
     h = hashlib.sha256()
     for k, v in sorted(model.state_dict().items()):
         h.update(k.encode())
-        h.update(v.detach().cpu().half().numpy().tobytes() if v.is_floating_point()
-                 else v.detach().cpu().numpy().tobytes())  # fmt: skip
+        h.update(
+            v.detach().cpu().half().numpy().tobytes()
+            if v.is_floating_point()
+            else v.detach().cpu().numpy().tobytes()
+        )
     return h.hexdigest()[:16]
 
 
@@ -251,8 +285,9 @@ def load_weights(module: torch.nn.Module, weights: dict, path: Path, what: str) 
     try:
         module.load_state_dict(float_weights(weights))
     except RuntimeError as exc:
-        raise LoosefitInputError(path, "model", f"weights of {what}",
-                                 str(exc).splitlines()[0]) from exc  # fmt: skip
+        raise LoosefitInputError(
+            path, "model", f"weights of {what}", str(exc).splitlines()[0]
+        ) from exc
 
 
 # -- the generative stage (paper 3.2) ---------------------------------------------------------
@@ -272,17 +307,19 @@ def read_generative(path: str | Path, template: GarmentTemplate | None = None, d
     if template is not None and not same_garment(template, stored):
         want = garment_fingerprint(template.vertices, template.faces)
         raise LoosefitInputError(
-            path, "garment", f"the garment '{template.name}' ({template.num_vertices} "
-            f"vertices, fingerprint {want})",
+            path,
+            "garment",
+            f"the garment '{template.name}' ({template.num_vertices} vertices, fingerprint {want})",
             f"'{stored.name}' ({stored.num_vertices} vertices, fingerprint "
             f"{data['garment']['fingerprint']})",
             hint="train a model on this garment's dataset",
-        )  # fmt: skip
+        )
     return data, stored
 
 
-def load_generative(path: str | Path, template: GarmentTemplate | None = None, device="cpu"
-                    ) -> tuple[GarmentGenerativeModel, dict]:  # fmt: skip
+def load_generative(
+    path: str | Path, template: GarmentTemplate | None = None, device="cpu"
+) -> tuple[GarmentGenerativeModel, dict]:
     """A trained generative model (eval mode) and its checkpoint's dict.
 
     Raises:
@@ -297,8 +334,11 @@ def load_generative(path: str | Path, template: GarmentTemplate | None = None, d
         if config.decoder == "ssdr":
             m = data["model"]
             B = m["ssdr_weights"].shape[1]
-            ssdr = (m["ssdr_rest"].float().cpu(), m["ssdr_weights"].float().cpu(),
-                    torch.zeros(B, 3, 4))  # fmt: skip
+            ssdr = (
+                m["ssdr_rest"].float().cpu(),
+                m["ssdr_weights"].float().cpu(),
+                torch.zeros(B, 3, 4),
+            )
         model = GarmentGenerativeModel(stored, config, ssdr=ssdr).to(device)
         load_weights(model, data["model"], path, "this generative configuration")
     return model.eval(), data

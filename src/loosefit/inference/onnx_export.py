@@ -1,4 +1,4 @@
-"""The learned runtime as one ONNX graph, for a game engine (issue 37, item 2).
+"""The learned runtime as one ONNX graph, for a game engine.
 
 One call of the graph is one frame of :func:`~loosefit.model.rollout.rollout` for B
 characters: the motion features of the frame (computed in the graph from the joints),
@@ -62,10 +62,23 @@ from loosefit.model.motion_features import (
 from loosefit.model.uvmap import UVMap
 
 FORMAT = "loosefit-onnx-step/1"  # the JSON's "format"; a change of the graph's inputs bumps it
-INPUTS = ("joint_rotations", "root_translation", "start", "previous_garment", "hidden",
-          "previous_root_rotation", "previous_root_translation")  # fmt: skip
-OUTPUTS = ("garment", "next_garment", "next_hidden", "next_root_rotation",
-           "next_root_translation", "latent")  # fmt: skip
+INPUTS = (
+    "joint_rotations",
+    "root_translation",
+    "start",
+    "previous_garment",
+    "hidden",
+    "previous_root_rotation",
+    "previous_root_translation",
+)
+OUTPUTS = (
+    "garment",
+    "next_garment",
+    "next_hidden",
+    "next_root_rotation",
+    "next_root_translation",
+    "latent",
+)
 SUPPORTED_DECODERS = frozenset({"decomposed", "vertex", "ssdr"})  # GenerativeConfig.decoder
 STATE = {  # output -> the input it becomes on the next frame
     "next_garment": "previous_garment",
@@ -86,8 +99,9 @@ class OnnxExportConfig:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.opset, int) and 16 <= self.opset <= 20):
-            raise LoosefitInputError("OnnxExportConfig", "opset", "an integer in 16-20",
-                                     repr(self.opset))  # fmt: skip
+            raise LoosefitInputError(
+                "OnnxExportConfig", "opset", "an integer in 16-20", repr(self.opset)
+            )
 
 
 # -- what can be exported ---------------------------------------------------------------------
@@ -105,21 +119,31 @@ def check_exportable(model) -> None:
     if not isinstance(model, AnimationModel):
         what = getattr(model, "method", type(model).__name__)
         raise LoosefitInputError(
-            source, "stage", "the paper's motion stage (a motion-stage, detail or packaged "
-            "checkpoint)", f"the '{what}' baseline ({type(model).__name__}), which has no "
-            "ONNX export", hint="export-model exports the motion encoder, the decoders and "
-            "the detail generator",
-        )  # fmt: skip
+            source,
+            "stage",
+            "the paper's motion stage (a motion-stage, detail or packaged checkpoint)",
+            f"the '{what}' baseline ({type(model).__name__}), which has no ONNX export",
+            hint="export-model exports the motion encoder, the decoders and the detail generator",
+        )
     decoder = model.generative.config.decoder
     if decoder not in SUPPORTED_DECODERS:
-        raise LoosefitInputError(source, "stage: generative.decoder",
-                                 f"one of {sorted(SUPPORTED_DECODERS)}", repr(decoder))  # fmt: skip
+        raise LoosefitInputError(
+            source,
+            "stage: generative.decoder",
+            f"one of {sorted(SUPPORTED_DECODERS)}",
+            repr(decoder),
+        )
     if model.detail is not None and not isinstance(model.detail, DetailGenerator):
-        raise LoosefitInputError(source, "stage: detail", "a DetailGenerator (paper 3.4)",
-                                 type(model.detail).__name__)  # fmt: skip
+        raise LoosefitInputError(
+            source, "stage: detail", "a DetailGenerator (paper 3.4)", type(model.detail).__name__
+        )
     if model.encoder.config.joints not in JOINT_SETS:
-        raise LoosefitInputError(source, "stage: encoder.joints", f"one of {list(JOINT_SETS)}",
-                                 repr(model.encoder.config.joints))  # fmt: skip
+        raise LoosefitInputError(
+            source,
+            "stage: encoder.joints",
+            f"one of {list(JOINT_SETS)}",
+            repr(model.encoder.config.joints),
+        )
 
 
 # -- the graph --------------------------------------------------------------------------------
@@ -150,8 +174,9 @@ class GatherSample(nn.Module):
         """UV maps (B, C, H, W) to per-vertex values (B, V, C), bilinear."""
         B, C = maps.shape[:2]
         grid = self.grid.expand(B, -1, -1, -1)
-        s = nn.functional.grid_sample(maps, grid, mode="bilinear", padding_mode="border",
-                                      align_corners=False)  # fmt: skip
+        s = nn.functional.grid_sample(
+            maps, grid, mode="bilinear", padding_mode="border", align_corners=False
+        )
         s = s[:, :, 0].transpose(1, 2)  # (B, N, C)
         s = torch.cat([s, torch.zeros_like(s[:, :1])], 1)  # (B, N + 1, C)
         V, K = self.table.shape
@@ -159,8 +184,9 @@ class GatherSample(nn.Module):
         return picked.sum(2) / self.count
 
 
-def decode(generative: GarmentGenerativeModel, sample: GatherSample, z: torch.Tensor
-           ) -> torch.Tensor:  # fmt: skip
+def decode(
+    generative: GarmentGenerativeModel, sample: GatherSample, z: torch.Tensor
+) -> torch.Tensor:
     """:meth:`GarmentGenerativeModel.decode`'s ``vertices`` (B, V, 3) of codes (B, latent),
     the UV maps read by ``sample``."""
     g, B, V = generative, z.shape[0], generative.num_vertices
@@ -193,8 +219,16 @@ class RuntimeStep(nn.Module):
         self.joints = feature_joints(model.joint_names, model.encoder.config.joints)
         self.register_buffer("rest_state", model.rest_state.float().clone(), persistent=False)
 
-    def forward(self, joint_rotations, root_translation, start, previous_garment, hidden,
-                previous_root_rotation, previous_root_translation):  # fmt: skip
+    def forward(
+        self,
+        joint_rotations,
+        root_translation,
+        start,
+        previous_garment,
+        hidden,
+        previous_root_rotation,
+        previous_root_translation,
+    ):
         """The inputs and outputs of the module docstring, in that order."""
         root_rotation = joint_rotations[:, 0]  # (B, 3, 3)
         first = start[:, None, None]  # (B, 1, 1)
@@ -257,15 +291,21 @@ def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
     inputs = {
         "joint_rotations": io(["B", J, 3, 3], f32, "this frame's local joint rotations"),
         "root_translation": io(["B", 3], f32, "this frame's root joint position, world"),
-        "start": io(["B"], "bool", "true on a character's first frame: the state inputs "
-                    "are then not read (settled drape, zero GRU state, no velocity)"),
+        "start": io(
+            ["B"],
+            "bool",
+            "true on a character's first frame: the state inputs "
+            "are then not read (settled drape, zero GRU state, no velocity)",
+        ),
         "previous_garment": io(["B", V, 3], f32, "next_garment of the frame before"),
         "hidden": io(["B", G], f32, "next_hidden of the frame before"),
-        "previous_root_rotation": io(["B", 3, 3], f32, "next_root_rotation of the frame "
-                                     "before (the root's joint_rotations[:, 0])"),
-        "previous_root_translation": io(["B", 3], f32, "next_root_translation of the "
-                                        "frame before"),
-    }  # fmt: skip
+        "previous_root_rotation": io(
+            ["B", 3, 3],
+            f32,
+            "next_root_rotation of the frame before (the root's joint_rotations[:, 0])",
+        ),
+        "previous_root_translation": io(["B", 3], f32, "next_root_translation of the frame before"),
+    }
     state = dict(STATE)
     if not model.encoder.config.previous_state:  # the "w/o ps" ablation: no E_s, no input
         del inputs["previous_garment"], state["next_garment"]
@@ -294,7 +334,7 @@ def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
                 "edge lengths (loosefit.model.physics.LengthRestorer)",
                 "collision handling (paper 3.5): the engine's collider",
             ],
-        },  # fmt: skip
+        },
         "inputs": inputs,
         "outputs": {
             "garment": io(
@@ -316,7 +356,7 @@ def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
                 ["B", 3], f32, "the next frame's previous_root_translation"
             ),
             "latent": io(["B", Z], f32, "Z_t, the motion encoder's code"),
-        },  # fmt: skip
+        },
         "state": state,
         "motion_features": {
             "where": "computed in the graph from joint_rotations, root_translation and the "
@@ -332,7 +372,7 @@ def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
                 {"name": "root velocity in the heading frame (m/s)", "size": 3},
                 {"name": "heading turn rate (rad/s)", "size": 1},
                 {"name": "root height above floor_height (m)", "size": 1},
-            ],  # fmt: skip
+            ],
             "size": int(model.encoder.num_features),
             "heading": "yaw about +Z of the root's forward direction (-Y at rest): "
             "atan2(f_x, -f_y) with f = -R_root[:, 1]",
@@ -365,9 +405,11 @@ def needs_package(module: str, source: str = "export-model") -> None:
         __import__(module)
     except ImportError:
         raise LoosefitInputError(
-            source, "<dependencies>", f"the {module} package (pip install "
-            "'loosefit[onnx]')", "not installed",
-        ) from None  # fmt: skip
+            source,
+            "<dependencies>",
+            f"the {module} package (pip install 'loosefit[onnx]')",
+            "not installed",
+        ) from None
 
 
 def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None) -> list[Path]:
@@ -402,12 +444,16 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
     example = {k: torch.from_numpy(v) for k, v in example_inputs(model, 2).items()}
     meta = export_metadata(model, path.name, detail, config.opset)
     json_path, obj_path = path.with_suffix(".json"), path.with_suffix(".obj")
-    with atomic_path(path) as tmp, atomic_path(json_path) as tmp_json, \
-            atomic_path(obj_path) as tmp_obj:  # fmt: skip
+    with (
+        atomic_path(path) as tmp,
+        atomic_path(json_path) as tmp_json,
+        atomic_path(obj_path) as tmp_obj,
+    ):
         t = model.template
         write_obj(tmp_obj, t.vertices, t.faces, t.uvs, t.face_uvs)
-        trace_graph(step, tuple(example[k] for k in INPUTS), str(tmp), INPUTS, OUTPUTS,
-                    config.opset)  # fmt: skip
+        trace_graph(
+            step, tuple(example[k] for k in INPUTS), str(tmp), INPUTS, OUTPUTS, config.opset
+        )
         _set_metadata(tmp, meta)
         if config.check:
             meta["check"] = check_first_frame(step, tmp, model, config.tolerance)
@@ -422,10 +468,15 @@ def trace_graph(module: nn.Module, example: tuple, target, inputs, outputs, opse
     with torch.no_grad(), warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the legacy exporter's deprecation, trace notes
         torch.onnx.export(
-            module, example, target, dynamo=False, opset_version=opset,
-            input_names=list(inputs), output_names=list(outputs),
+            module,
+            example,
+            target,
+            dynamo=False,
+            opset_version=opset,
+            input_names=list(inputs),
+            output_names=list(outputs),
             dynamic_axes={k: {0: "B"} for k in (*inputs, *outputs)},
-        )  # fmt: skip
+        )
 
 
 def _set_metadata(path: Path, meta: dict) -> None:
@@ -465,6 +516,10 @@ def check_first_frame(step: RuntimeStep, path: Path, model, tolerance: float) ->
         feed["joint_rotations"][0, 1:] = bent
         feed["root_translation"] = feed["root_translation"] + np.float32([0.01, 0.0, 0.0])
     if not worst <= tolerance:
-        raise LoosefitInputError(path, "graph", f"onnxruntime within {tolerance} m of "
-                                 "PyTorch on two frames", f"{worst:.3g} m")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "graph",
+            f"onnxruntime within {tolerance} m of PyTorch on two frames",
+            f"{worst:.3g} m",
+        )
     return {"frames": 2, "max_difference_m": worst, "onnxruntime": ort.__version__}

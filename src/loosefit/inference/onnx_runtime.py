@@ -45,8 +45,12 @@ def read_metadata(path: str | Path) -> dict:
     """
     meta_path = Path(path).with_suffix(".json")
     if not meta_path.is_file():
-        raise LoosefitInputError(meta_path, "<file>", "the JSON written beside the .onnx "
-                                 "by loosefit export-model", "no such file")  # fmt: skip
+        raise LoosefitInputError(
+            meta_path,
+            "<file>",
+            "the JSON written beside the .onnx by loosefit export-model",
+            "no such file",
+        )
     try:
         meta = json.loads(meta_path.read_text())
     except (OSError, ValueError) as exc:
@@ -72,23 +76,28 @@ class OnnxRuntime:
         try:
             import onnxruntime as ort
         except ImportError:
-            raise LoosefitInputError(path, "<dependencies>", "onnxruntime (pip install "
-                                     "'loosefit[onnx]')", "not installed") from None  # fmt: skip
+            raise LoosefitInputError(
+                path,
+                "<dependencies>",
+                "onnxruntime (pip install 'loosefit[onnx]')",
+                "not installed",
+            ) from None
         self.path = Path(path)
         if not self.path.is_file():
-            raise LoosefitInputError(self.path, "<file>", "an exported .onnx graph",
-                                     "no such file")  # fmt: skip
+            raise LoosefitInputError(self.path, "<file>", "an exported .onnx graph", "no such file")
         self.meta = read_metadata(self.path)
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
-        self.session = ort.InferenceSession(str(self.path), options,
-                                            providers=["CPUExecutionProvider"])  # fmt: skip
+        self.session = ort.InferenceSession(
+            str(self.path), options, providers=["CPUExecutionProvider"]
+        )
         self.outputs = [o.name for o in self.session.get_outputs()]
         self.inputs = [i.name for i in self.session.get_inputs()]
         if self.inputs != list(self.meta["inputs"]):
-            raise LoosefitInputError(self.path, "inputs", f"the JSON's {list(self.meta['inputs'])}",
-                                     str(self.inputs))  # fmt: skip
+            raise LoosefitInputError(
+                self.path, "inputs", f"the JSON's {list(self.meta['inputs'])}", str(self.inputs)
+            )
         self.state_of = dict(self.meta["state"])  # output -> input
 
     @property
@@ -141,12 +150,15 @@ def check_diverged(garment: np.ndarray, root: np.ndarray, limit: float, where: s
     than ``limit`` m from its root (B, 3)."""
     far = np.linalg.norm(garment - root[:, None], axis=-1).max()
     if not far <= limit:
-        raise OnnxDivergedError(f"rollout diverged at {where}: a vertex is {far:.2f} m from "
-                                f"the root (limit {limit} m) or NaN")  # fmt: skip
+        raise OnnxDivergedError(
+            f"rollout diverged at {where}: a vertex is {far:.2f} m from "
+            f"the root (limit {limit} m) or NaN"
+        )
 
 
-def rollout_onnx(runtime: OnnxRuntime, motion: Motion,
-                 progress: Callable[[int, int], None] | None = None) -> np.ndarray:  # fmt: skip
+def rollout_onnx(
+    runtime: OnnxRuntime, motion: Motion, progress: Callable[[int, int], None] | None = None
+) -> np.ndarray:
     """The garment through ``motion`` as :func:`loosefit.model.rollout.rollout` computes it
     without detail-stage feedback, edge lengths or collision handling: the rest pose, the
     blend into the motion (the JSON's ``start_of_motion``), then one graph call per frame.
@@ -166,12 +178,20 @@ def rollout_onnx(runtime: OnnxRuntime, motion: Motion,
     """
     meta = runtime.meta
     if list(motion.joint_names) != runtime.joint_names:
-        raise LoosefitInputError(f"motion '{motion.name}'", "joint_names",
-                                 f"the graph's {len(runtime.joint_names)} joints, in order",
-                                 f"{len(motion.joint_names)} joints")  # fmt: skip
+        raise LoosefitInputError(
+            f"motion '{motion.name}'",
+            "joint_names",
+            f"the graph's {len(runtime.joint_names)} joints, in order",
+            f"{len(motion.joint_names)} joints",
+        )
     if abs(motion.fps - runtime.fps) > 1e-6:
-        raise LoosefitInputError(f"motion '{motion.name}'", "fps", f"{runtime.fps:g}",
-                                 f"{motion.fps:g}", hint="resample it")  # fmt: skip
+        raise LoosefitInputError(
+            f"motion '{motion.name}'",
+            "fps",
+            f"{runtime.fps:g}",
+            f"{motion.fps:g}",
+            hint="resample it",
+        )
     start = meta["start_of_motion"]
     rot, root, P = rollout_timeline(
         motion,

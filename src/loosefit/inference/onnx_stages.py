@@ -1,8 +1,8 @@
 """The animation pipeline's learned stages in onnxruntime: ``animate(..., runtime="onnx")``.
 
 :func:`~loosefit.model.rollout.rollout` runs the same timeline either way; with this
-runtime its two network calls go through onnxruntime instead of PyTorch (issue 37: the
-whole pipeline on one core):
+runtime its two network calls go through onnxruntime instead of PyTorch (faster
+on one core):
 
 * the motion stage's step (:class:`StepGraph`, one frame): the dynamic motion encoder
   (Eq. 9, its GRU state in and out) and the decoders with the UV sampling, garments in
@@ -87,8 +87,9 @@ class StepGraph(nn.Module):
         self.generative, self.encoder = model.generative, model.encoder
         self.sample = GatherSample(model.generative.uv)
 
-    def forward(self, features: torch.Tensor, previous: torch.Tensor, hidden: torch.Tensor
-                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:  # fmt: skip
+    def forward(
+        self, features: torch.Tensor, previous: torch.Tensor, hidden: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Features (B, F), the previous garment (B, V, 3) and the GRU state (B, G) to
         Z_t (B, Z), the next GRU state (B, G) and the decoded garment (B, V, 3)."""
         z, hidden = self.encoder(features, previous, hidden)
@@ -124,8 +125,9 @@ class OnnxStep:
         # an input the graph does not read (previous, for the "w/o ps" encoder) is not in it
         self.inputs = [i.name for i in session.get_inputs()]
 
-    def __call__(self, features: torch.Tensor, previous: torch.Tensor, hidden: torch.Tensor
-                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:  # fmt: skip
+    def __call__(
+        self, features: torch.Tensor, previous: torch.Tensor, hidden: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         feed = {"features": features, "previous": previous, "hidden": hidden}
         feed = {k: np.ascontiguousarray(feed[k].numpy(), np.float32) for k in self.inputs}
         z, hidden, garment = self.session.run(None, feed)
@@ -143,9 +145,12 @@ class OnnxDetail:
     def __call__(self, vertices: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
         x = np.ascontiguousarray(vertices.numpy(), np.float32)  # (B, V, 3)
         c = np.ascontiguousarray(z.numpy(), np.float32)  # (B, Z)
-        parts = [self.session.run(None, {"garment": x[s : s + DETAIL_BATCH],
-                                         "latent": c[s : s + DETAIL_BATCH]})[0]
-                 for s in range(0, len(x), DETAIL_BATCH)]  # fmt: skip
+        parts = [
+            self.session.run(
+                None, {"garment": x[s : s + DETAIL_BATCH], "latent": c[s : s + DETAIL_BATCH]}
+            )[0]
+            for s in range(0, len(x), DETAIL_BATCH)
+        ]
         return torch.from_numpy(np.concatenate(parts) if len(parts) != 1 else parts[0])
 
 
@@ -166,9 +171,13 @@ class OnnxStages:
         needs_package("onnxruntime", SOURCE)
         needs_package("onnx", SOURCE)  # torch.onnx.export writes through it
         if model.device.type != "cpu":
-            raise LoosefitInputError(SOURCE, "device", "a model on the CPU (onnxruntime runs "
-                                     "there)", str(model.device),
-                                     hint="use runtime='torch' on a GPU")  # fmt: skip
+            raise LoosefitInputError(
+                SOURCE,
+                "device",
+                "a model on the CPU (onnxruntime runs there)",
+                str(model.device),
+                hint="use runtime='torch' on a GPU",
+            )
         check_exportable(model)
         self.source = model.path
         self.encoder, self.generative = model.encoder, model.generative
@@ -188,8 +197,7 @@ class OnnxStages:
         """Whether these graphs are of ``model``'s encoder and generative model."""
         return self.encoder is model.encoder and self.generative is model.generative
 
-    def runners(self, detail: nn.Module | None, threads: int
-                ) -> tuple[OnnxStep, OnnxDetail | None]:  # fmt: skip
+    def runners(self, detail: nn.Module | None, threads: int) -> tuple[OnnxStep, OnnxDetail | None]:
         """The step and (when ``detail`` is given) the detail stage, each in a session with
         ``threads`` intra-op threads (exported and made once)."""
         step = OnnxStep(self._session("step", threads))
@@ -214,9 +222,12 @@ class OnnxStages:
     def _check(self, what: str, got: torch.Tensor, want: torch.Tensor) -> None:
         worst = float((got - want).abs().max())
         if not worst <= TOLERANCE:
-            raise LoosefitInputError(self.source, f"onnx graph: {what}", f"onnxruntime within "
-                                     f"{TOLERANCE} m of PyTorch on a frame",
-                                     f"{worst:.3g} m")  # fmt: skip
+            raise LoosefitInputError(
+                self.source,
+                f"onnx graph: {what}",
+                f"onnxruntime within {TOLERANCE} m of PyTorch on a frame",
+                f"{worst:.3g} m",
+            )
 
     def _check_step(self) -> None:
         got = OnnxStep(self._session("step", 1))(*self.example)

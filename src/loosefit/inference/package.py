@@ -37,7 +37,7 @@ _KEEP = {
         "epoch",
         "physics_terms",
         "trained_on",
-    ),  # fmt: skip
+    ),
     DETAIL_FORMAT: ("fingerprints", "motion_checkpoint", "epoch"),
 }
 
@@ -72,9 +72,14 @@ def package_model(
     path, out = Path(path), Path(out)
     load_animation_model(path, generative)  # checks the pair belongs together
     data = read_checkpoint_file(path, MOTION_FORMAT)
-    gpath = recorded_checkpoint(path, data["generative"], generative, "generative",
-                                "the generative checkpoint it was trained on",
-                                "pass --generative FILE")  # fmt: skip
+    gpath = recorded_checkpoint(
+        path,
+        data["generative"],
+        generative,
+        "generative",
+        "the generative checkpoint it was trained on",
+        "pass --generative FILE",
+    )
     out.mkdir(parents=True, exist_ok=True)
     gout, mout = out / "generative.pt", out / "motion.pt"
     save_atomic(packed(read_checkpoint_file(gpath, GENERATIVE_FORMAT)), gout)
@@ -140,5 +145,7 @@ def describe_training(record: dict | None) -> str:
     mirrored = ", and their mirror images" if record.get("mirrored") else ""
     start = record.get("started_from")
     tuned = f", fine-tuned from the `{start}` set" if start else ""
-    return (f"the `{record['dataset']}` data set ({len(record['clips'])} clips, "
-            f"{record['frames']:,} frames{mirrored}){tuned}")  # fmt: skip
+    return (
+        f"the `{record['dataset']}` data set ({len(record['clips'])} clips, "
+        f"{record['frames']:,} frames{mirrored}){tuned}"
+    )

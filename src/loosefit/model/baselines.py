@@ -54,8 +54,9 @@ class BaselineConfig:
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
-            raise LoosefitInputError("BaselineConfig", "method", f"one of {METHODS}",
-                                     repr(self.method))  # fmt: skip
+            raise LoosefitInputError(
+                "BaselineConfig", "method", f"one of {METHODS}", repr(self.method)
+            )
         joint_set(self.joints)
         for name in ("motion_fc", "gru", "head_hidden", "bones"):
             v = getattr(self, name)
@@ -119,8 +120,9 @@ class BaselineNetwork(nn.Module):
             with torch.no_grad():
                 start = torch.zeros(K, 3, 4) if bone_mean is None else torch.as_tensor(bone_mean)
                 if start.shape != (K, 3, 4):
-                    raise LoosefitInputError("BaselineNetwork", "bone_mean", f"({K}, 3, 4)",
-                                             tuple(start.shape))  # fmt: skip
+                    raise LoosefitInputError(
+                        "BaselineNetwork", "bone_mean", f"({K}, 3, 4)", tuple(start.shape)
+                    )
                 self.bone_layer.bias.copy_(start.float().reshape(-1))
             self.residual = _mlp((cfg.gru + 12 * K, cfg.head_hidden, 3 * V))
 
@@ -132,8 +134,9 @@ class BaselineNetwork(nn.Module):
         """(1, B, gru) zeros: the GRU's state before a timeline's first frame."""
         return torch.zeros(1, batch, self.config.gru, device=device)
 
-    def encode(self, features: torch.Tensor, hidden: torch.Tensor
-               ) -> tuple[torch.Tensor, torch.Tensor]:  # fmt: skip
+    def encode(
+        self, features: torch.Tensor, hidden: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """The trunk over a stretch of frames.
 
         Args:
@@ -144,8 +147,9 @@ class BaselineNetwork(nn.Module):
             h (B, T, gru), the GRU's output per frame, and the state after the last (1, B, gru).
         """
         if features.ndim != 3 or features.shape[-1] != self.num_features:
-            raise LoosefitInputError("BaselineNetwork", "features", f"(B, T, {self.num_features})",
-                                     tuple(features.shape))  # fmt: skip
+            raise LoosefitInputError(
+                "BaselineNetwork", "features", f"(B, T, {self.num_features})", tuple(features.shape)
+            )
         x = (features - self.feature_mean) / self.feature_std
         return self.gru(nn.functional.leaky_relu(self.motion_fc(x), 0.2), hidden)
 
@@ -165,8 +169,9 @@ class BaselineNetwork(nn.Module):
         if self.method == "santesteban":
             if joints is None or joints.shape != (*lead, self.influences, 3, 4):
                 found = None if joints is None else tuple(joints.shape)
-                raise LoosefitInputError("BaselineNetwork.decode", "joints",
-                                         f"{(*lead, self.influences, 3, 4)}", found)  # fmt: skip
+                raise LoosefitInputError(
+                    "BaselineNetwork.decode", "joints", f"{(*lead, self.influences, 3, 4)}", found
+                )
             unposed = self.rest + self.displacement(h).view(*lead, V, 3)
             return {"vertices": linear_blend_skinning(unposed, self.skin_weights, joints)}
         bones = self.bone_layer(h)  # (..., 12 B)
@@ -184,8 +189,9 @@ def body_joint_weights(avatar) -> np.ndarray:
     from loosefit.geometry.skinning import dense_weights
 
     m = avatar.model
-    w = dense_weights(m.vertex_bone_weights.double().cpu(), m.vertex_bone_indices.cpu(),
-                      avatar.num_joints)  # fmt: skip
+    w = dense_weights(
+        m.vertex_bone_weights.double().cpu(), m.vertex_bone_indices.cpu(), avatar.num_joints
+    )
     return w.numpy()
 
 
@@ -240,9 +246,12 @@ def baseline_rollout(
     T = motion.num_frames
     out = torch.empty(T, network.num_vertices, 3)
     if network.method == "santesteban" and pose_joints is None:
-        raise LoosefitInputError("baseline_rollout", "pose_joints",
-                                 "the avatar's joint transforms (Santesteban skins to them)",
-                                 "None")  # fmt: skip
+        raise LoosefitInputError(
+            "baseline_rollout",
+            "pose_joints",
+            "the avatar's joint transforms (Santesteban skins to them)",
+            "None",
+        )
     for s in range(0, T, chunk):
         e = min(s + chunk, T)
         g = None

@@ -48,14 +48,17 @@ class DetailConfig:
         self.patches = tuple(int(c) for c in self.patches)
         self.disc_channels = tuple(int(c) for c in self.disc_channels)
         if not self.edge_channels or min(self.edge_channels) < 1:
-            raise LoosefitInputError("DetailConfig", "edge_channels", "positive widths",
-                                     self.edge_channels)  # fmt: skip
+            raise LoosefitInputError(
+                "DetailConfig", "edge_channels", "positive widths", self.edge_channels
+            )
         if len(self.global_hidden) != 2 or min(self.global_hidden) < 1:
-            raise LoosefitInputError("DetailConfig", "global_hidden", "two positive widths",
-                                     self.global_hidden)  # fmt: skip
+            raise LoosefitInputError(
+                "DetailConfig", "global_hidden", "two positive widths", self.global_hidden
+            )
         if len(self.disc_channels) != 3:
-            raise LoosefitInputError("DetailConfig", "disc_channels", "three widths",
-                                     self.disc_channels)  # fmt: skip
+            raise LoosefitInputError(
+                "DetailConfig", "disc_channels", "three widths", self.disc_channels
+            )
         for s in self.patches:
             if s < 16 or s & (s - 1):
                 raise LoosefitInputError("DetailConfig", "patches", "powers of two >= 16", s)
@@ -80,8 +83,9 @@ def neighbour_table(edge_index: torch.Tensor, num_vertices: int) -> torch.Tensor
     count = torch.bincount(dst, minlength=num_vertices)  # (V,)
     if int(count.min()) == 0:
         lonely = int(torch.nonzero(count == 0)[0])
-        raise LoosefitInputError("garment mesh", "faces", "every vertex in a triangle",
-                                 f"vertex {lonely} in none")  # fmt: skip
+        raise LoosefitInputError(
+            "garment mesh", "faces", "every vertex in a triangle", f"vertex {lonely} in none"
+        )
     K = int(count.max())
     start = torch.cumsum(count, 0) - count  # (V,)
     slot = torch.arange(len(dst)) - start[dst]  # position of each edge in its row
@@ -132,8 +136,9 @@ class DetailGenerator(nn.Module):
         config: the sizes.
     """
 
-    def __init__(self, faces: np.ndarray, num_vertices: int, latent: int,
-                 config: DetailConfig | None = None) -> None:  # fmt: skip
+    def __init__(
+        self, faces: np.ndarray, num_vertices: int, latent: int, config: DetailConfig | None = None
+    ) -> None:
         super().__init__()
         self.config = cfg = config or DetailConfig()
         self.num_vertices = num_vertices
@@ -147,8 +152,12 @@ class DetailGenerator(nn.Module):
             cin = cout
         self.convs = nn.ModuleList(convs)
         h1, h2 = cfg.global_hidden
-        self.globals = nn.Sequential(nn.Linear(latent, h1), nn.LeakyReLU(cfg.slope),
-                                     nn.Linear(h1, h2), nn.LeakyReLU(cfg.slope))  # fmt: skip
+        self.globals = nn.Sequential(
+            nn.Linear(latent, h1),
+            nn.LeakyReLU(cfg.slope),
+            nn.Linear(h1, h2),
+            nn.LeakyReLU(cfg.slope),
+        )
         self.out = nn.Linear(cin + h2, 3)
         nn.init.zeros_(self.out.weight)
         nn.init.zeros_(self.out.bias)
@@ -157,11 +166,13 @@ class DetailGenerator(nn.Module):
         """Garments (B, V, 3) in their root frames and codes (B, latent) to offsets (B, V, 3)."""
         B, V = vertices.shape[0], self.num_vertices
         if vertices.ndim != 3 or vertices.shape[1:] != (V, 3):
-            raise LoosefitInputError("DetailGenerator", "vertices", f"(B, {V}, 3)",
-                                     f"{tuple(vertices.shape)}")  # fmt: skip
+            raise LoosefitInputError(
+                "DetailGenerator", "vertices", f"(B, {V}, 3)", f"{tuple(vertices.shape)}"
+            )
         if z.shape != (B, self.latent):
-            raise LoosefitInputError("DetailGenerator", "z", f"({B}, {self.latent})",
-                                     f"{tuple(z.shape)}")  # fmt: skip
+            raise LoosefitInputError(
+                "DetailGenerator", "z", f"({B}, {self.latent})", f"{tuple(z.shape)}"
+            )
         h = vertices * self.config.scale  # (B, V, 3)
         for conv in self.convs:
             h = conv(h)  # (B, V, C)
@@ -180,11 +191,16 @@ class PatchDiscriminator(nn.Module):
         super().__init__()
         c1, c2, c3 = channels
         self.net = nn.Sequential(
-            nn.Conv2d(3, c1, 4, 2, 1), nn.LeakyReLU(slope),
-            nn.Conv2d(c1, c2, 4, 2, 1), nn.InstanceNorm2d(c2, affine=True), nn.LeakyReLU(slope),
-            nn.Conv2d(c2, c3, 4, 2, 1), nn.InstanceNorm2d(c3, affine=True), nn.LeakyReLU(slope),
+            nn.Conv2d(3, c1, 4, 2, 1),
+            nn.LeakyReLU(slope),
+            nn.Conv2d(c1, c2, 4, 2, 1),
+            nn.InstanceNorm2d(c2, affine=True),
+            nn.LeakyReLU(slope),
+            nn.Conv2d(c2, c3, 4, 2, 1),
+            nn.InstanceNorm2d(c3, affine=True),
+            nn.LeakyReLU(slope),
             nn.Conv2d(c3, 1, 4, 2, 1),
-        )  # fmt: skip
+        )
 
     def forward(self, patches: torch.Tensor) -> torch.Tensor:
         return self.net(patches)
@@ -220,8 +236,9 @@ class MultiScaleDiscriminator(nn.Module):
                     f"sizes dividing the {uv_size}-texel map",
                     s,
                 )
-        self.nets = nn.ModuleList(PatchDiscriminator(cfg.disc_channels, cfg.slope)
-                                  for _ in cfg.patches)  # fmt: skip
+        self.nets = nn.ModuleList(
+            PatchDiscriminator(cfg.disc_channels, cfg.slope) for _ in cfg.patches
+        )
 
     def forward(self, maps: torch.Tensor) -> list[torch.Tensor]:
         """UV maps (B, 3, H, W) of garments (m) to one score tensor per scale,
@@ -236,9 +253,12 @@ class MultiScaleDiscriminator(nn.Module):
 
 
 def detail_geometry_loss(
-    pred: torch.Tensor, target: torch.Tensor, laplacian, length_scale: float = 100.0,
+    pred: torch.Tensor,
+    target: torch.Tensor,
+    laplacian,
+    length_scale: float = 100.0,
     laplacian_weight: float = 1.0,
-) -> tuple[torch.Tensor, torch.Tensor]:  # fmt: skip
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Eq. 13: mean L1 of positions and of Laplacians, in ``1/length_scale`` m (cm).
 
     Args:

@@ -179,10 +179,11 @@ class GarmentGenerativeModel(nn.Module):
             B = weights.shape[1]
             if rest.shape != (V, 3) or weights.shape != (V, B) or mean.shape != (B, 3, 4):
                 raise LoosefitInputError(
-                    "GarmentGenerativeModel", "ssdr", f"rest ({V}, 3), weights ({V}, B), "
-                    "mean transforms (B, 3, 4)",
+                    "GarmentGenerativeModel",
+                    "ssdr",
+                    f"rest ({V}, 3), weights ({V}, B), mean transforms (B, 3, 4)",
                     f"{tuple(rest.shape)}, {tuple(weights.shape)}, {tuple(mean.shape)}",
-                )  # fmt: skip
+                )
             self.register_buffer("ssdr_rest", rest)
             self.register_buffer("ssdr_weights", weights)
             self.bones = nn.Linear(cfg.latent, 12 * B)
@@ -196,9 +197,11 @@ class GarmentGenerativeModel(nn.Module):
         """Garments (B, V, 3), root frame, to the posterior's mu and logvar, (B, latent) each."""
         if vertices.ndim != 3 or vertices.shape[1:] != (self.num_vertices, 3):
             raise LoosefitInputError(
-                "GarmentGenerativeModel.encode", "vertices", f"(B, {self.num_vertices}, 3)",
+                "GarmentGenerativeModel.encode",
+                "vertices",
+                f"(B, {self.num_vertices}, 3)",
                 f"{tuple(vertices.shape)}",
-            )  # fmt: skip
+            )
         h = self.encoder(self.uv.encode(vertices))
         mu, logvar = h.chunk(2, dim=-1)
         return mu, logvar.clamp(-20.0, 10.0)
@@ -222,22 +225,31 @@ class GarmentGenerativeModel(nn.Module):
         """The posterior means (N, latent) of many garments (N, V, 3), ``chunk`` per call,
         on the model's device; returned on the CPU."""
         dev = next(self.parameters()).device
-        return torch.cat([self.encode(vertices[s : s + chunk].to(dev))[0].cpu()
-                          for s in range(0, len(vertices), chunk)])  # fmt: skip
+        return torch.cat(
+            [
+                self.encode(vertices[s : s + chunk].to(dev))[0].cpu()
+                for s in range(0, len(vertices), chunk)
+            ]
+        )
 
     @torch.no_grad()
     def decode_all(self, z: torch.Tensor, chunk: int = 128) -> torch.Tensor:
         """The garments (N, V, 3) of many codes (N, latent), ``chunk`` per call; on the CPU."""
         dev = next(self.parameters()).device
-        return torch.cat([self.decode(z[s : s + chunk].to(dev))["vertices"].cpu()
-                          for s in range(0, len(z), chunk)])  # fmt: skip
+        return torch.cat(
+            [
+                self.decode(z[s : s + chunk].to(dev))["vertices"].cpu()
+                for s in range(0, len(z), chunk)
+            ]
+        )
 
     def reconstruct_all(self, vertices: torch.Tensor, chunk: int = 128) -> torch.Tensor:
         """Encode and decode (the posterior mean) many garments (N, V, 3); on the CPU."""
         return self.decode_all(self.encode_all(vertices, chunk), chunk)
 
-    def forward(self, vertices: torch.Tensor, sample: bool | None = None,
-                noise: torch.Tensor | None = None) -> GenerativeOutput:  # fmt: skip
+    def forward(
+        self, vertices: torch.Tensor, sample: bool | None = None, noise: torch.Tensor | None = None
+    ) -> GenerativeOutput:
         """Encode and decode garments (B, V, 3); ``sample`` defaults to ``self.training``;
         ``noise`` (B, latent) is the standard normal draw of the sampling (default: drawn
         here), so that a batch split across processes samples as it would whole."""
@@ -270,7 +282,7 @@ class GenerativeLossConfig:
     # Positions are compared in centimetres (x100): in metres the squared errors are
     # ~1e-4 and the KL term at 1e-3 would drown them; the paper does not give its unit.
     length_scale: float = 100.0
-    # physics terms of the posed garment (issue 34; loosefit.model.physics), 0: off
+    # physics terms of the posed garment (loosefit.model.physics), 0: off
     membrane: float = 0.0  # edge lengths against rest
     bending: float = 0.0  # dihedral angles against rest
     collision: float = 0.0  # cloth outside the body (needs the body's contacts per frame)
@@ -303,7 +315,8 @@ def generative_loss(
     contacts: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> dict[str, torch.Tensor]:
     """Eqs. 6-8: geometry, Laplacian, unposed (inverse skinning), template, KL; and the
-    physics terms of the posed garment that ``weights`` turns on (issue 34).
+    physics terms of the posed garment that ``weights`` turns on (membrane, bending,
+    collision; :mod:`loosefit.model.physics`).
 
     Args:
         out: the model's output for B garments.

@@ -96,9 +96,11 @@ class DynamicMotionEncoder(nn.Module):
         """E_m for one frame: features (B, F) and hidden (B, gru) to the new hidden (B, gru)."""
         if features.ndim != 2 or features.shape[1] != self.num_features:
             raise LoosefitInputError(
-                "DynamicMotionEncoder", "features", f"(B, {self.num_features})",
+                "DynamicMotionEncoder",
+                "features",
+                f"(B, {self.num_features})",
                 f"{tuple(features.shape)}",
-            )  # fmt: skip
+            )
         x = (features - self.feature_mean) / self.feature_std
         return self.gru(nn.functional.leaky_relu(self.motion_fc(x), 0.2), hidden)
 

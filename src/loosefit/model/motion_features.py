@@ -58,8 +58,9 @@ def joint_set(wanted: str) -> tuple[str, ...] | None:
         LoosefitInputError: an unknown set.
     """
     if wanted not in JOINT_SETS:
-        raise LoosefitInputError("MotionEncoderConfig", "joints", f"one of {list(JOINT_SETS)}",
-                                 repr(wanted))  # fmt: skip
+        raise LoosefitInputError(
+            "MotionEncoderConfig", "joints", f"one of {list(JOINT_SETS)}", repr(wanted)
+        )
     return JOINT_SETS[wanted]
 
 
@@ -82,8 +83,12 @@ def feature_joints(joint_names: tuple[str, ...] | list[str], wanted: str) -> lis
     index = {n: i for i, n in enumerate(joint_names)}
     missing = [n for n in names if n not in index]
     if missing:
-        raise LoosefitInputError("motion", "joint_names", f"the joints of the '{wanted}' set",
-                                 f"a skeleton without {missing}")  # fmt: skip
+        raise LoosefitInputError(
+            "motion",
+            "joint_names",
+            f"the joints of the '{wanted}' set",
+            f"a skeleton without {missing}",
+        )
     return sorted(index[n] for n in names if index[n] != 0)
 
 
@@ -193,8 +198,7 @@ def motion_features(
     root = root_translation.double()
     before = torch.cat([rotations[:1, 0], rotations[:-1, 0]])  # (T, 3, 3): frame 0 its own
     root_before = torch.cat([root[:1], root[:-1]])  # (T, 3)
-    return frame_features(rotations, root, before, root_before, fps, floor_height,
-                          joints).float()  # fmt: skip
+    return frame_features(rotations, root, before, root_before, fps, floor_height, joints).float()
 
 
 def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -212,8 +216,10 @@ def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.T
 def motion_root_frames_of(motion) -> tuple[torch.Tensor, torch.Tensor]:
     """:func:`root_frames` of a :class:`~loosefit.types.Motion`'s frames: float32 H (T, 3, 3)
     and p (T, 3), computed in double precision."""
-    H, p = root_frames(torch.from_numpy(motion.rotations).double(),
-                       torch.from_numpy(motion.root_translation).double())  # fmt: skip
+    H, p = root_frames(
+        torch.from_numpy(motion.rotations).double(),
+        torch.from_numpy(motion.root_translation).double(),
+    )
     return H.float(), p.float()
 
 

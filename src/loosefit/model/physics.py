@@ -1,4 +1,4 @@
-"""Physics terms for learned garments: membrane, bending, collision (issue 34).
+"""Physics terms for learned garments: membrane, bending, collision.
 
 A network trained only on squared distances to a chaotic garment learns the mean of its
 possible states, and the mean of many fold configurations has shorter edges and a smaller
@@ -16,7 +16,7 @@ SNUG (Santesteban et al. 2022), Neural Cloth Simulation (Bertiche et al. 2022) a
 - **collision**: ``mean_v max(eps - n_v . (x_v - b_v), 0)^2``, every vertex at least
   ``eps`` outside the body along the body's normal ``n_v`` at its point ``b_v``.
 
-:class:`LengthRestorer` is the other way the issue names, an output that keeps its edge
+:class:`LengthRestorer` is the other way to the same end, an output that keeps its edge
 lengths by construction: a few local-global rounds of a mass-spring system (projective
 dynamics) that bring every edge back to its rest length with the waistband held and the
 shape kept, differentiable, batched.
@@ -53,7 +53,7 @@ def active_terms(weights) -> tuple[str, ...]:
 
 def terms_of(*checkpoints: dict) -> tuple[str, ...]:
     """The physics terms that stages' checkpoint dicts were trained with (their
-    ``physics_terms``; a checkpoint from before issue 34 has none)."""
+    ``physics_terms``; a checkpoint from before the physics terms existed has none)."""
     found = set()
     for data in checkpoints:
         terms = data.get("physics_terms") or []
@@ -102,8 +102,9 @@ class LengthConfig:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.iterations, int) and self.iterations >= 0):
-            raise LoosefitInputError("LengthConfig", "iterations", "an integer >= 0",
-                                     self.iterations)  # fmt: skip
+            raise LoosefitInputError(
+                "LengthConfig", "iterations", "an integer >= 0", self.iterations
+            )
         if self.edges not in ("hanging", "all"):
             raise LoosefitInputError("LengthConfig", "edges", "'hanging' or 'all'", self.edges)
         v = self.min_vertical
@@ -113,8 +114,9 @@ class LengthConfig:
         if not (isinstance(t, (int, float)) and np.isfinite(t) and t > 0):
             raise LoosefitInputError("LengthConfig", "tie", "a positive number", t)
         if not isinstance(self.compression_only, bool):
-            raise LoosefitInputError("LengthConfig", "compression_only", "true or false",
-                                     self.compression_only)  # fmt: skip
+            raise LoosefitInputError(
+                "LengthConfig", "compression_only", "true or false", self.compression_only
+            )
 
 
 @dataclass
@@ -140,8 +142,13 @@ class ClothStructure:
     fixed: torch.Tensor
 
     @classmethod
-    def from_mesh(cls, vertices: np.ndarray, faces: np.ndarray, waist: np.ndarray | None = None,
-                  name: str = "garment") -> ClothStructure:  # fmt: skip
+    def from_mesh(
+        cls,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        waist: np.ndarray | None = None,
+        name: str = "garment",
+    ) -> ClothStructure:
         """The structure of a rest mesh.
 
         Args:
@@ -164,10 +171,11 @@ class ClothStructure:
         if len(zero):
             i, j = edges[zero[0]]
             raise LoosefitInputError(
-                f"garment '{name}'", "vertices",
+                f"garment '{name}'",
+                "vertices",
                 "edges of positive rest length (no two corners of a face at one place)",
                 f"{len(zero)} zero-length edges, first between vertices {i} and {j}",
-            )  # fmt: skip
+            )
         keep = ~np.isin(edges, waist).all(1)
         hinges = mesh_hinges(f)
         if len(hinges):
@@ -201,8 +209,14 @@ class ClothStructure:
 
     def with_edges(self, keep: torch.Tensor) -> ClothStructure:
         """The same structure with only the edges ``keep`` (E,) bool."""
-        return ClothStructure(self.edges[keep], self.rest_lengths[keep], self.hinges,
-                              self.rest_angles, self.hinge_weights, self.fixed)  # fmt: skip
+        return ClothStructure(
+            self.edges[keep],
+            self.rest_lengths[keep],
+            self.hinges,
+            self.rest_angles,
+            self.hinge_weights,
+            self.fixed,
+        )
 
 
 def hanging_edges(vertices: np.ndarray, edges: torch.Tensor, min_vertical: float) -> torch.Tensor:
@@ -274,8 +288,9 @@ def dihedral_angles(x: torch.Tensor, hinges: torch.Tensor) -> torch.Tensor:
     return torch.atan2(sin, cos)
 
 
-def bending_energy(x: torch.Tensor, hinges: torch.Tensor, rest_angles: torch.Tensor,
-                   weights: torch.Tensor) -> torch.Tensor:  # fmt: skip
+def bending_energy(
+    x: torch.Tensor, hinges: torch.Tensor, rest_angles: torch.Tensor, weights: torch.Tensor
+) -> torch.Tensor:
     """(..., V, 3) -> (...): the weighted mean over hinges of ``(theta - Theta)^2``.
 
     The angle difference is wrapped into (-pi, pi], so a pair folded through flat the
@@ -286,8 +301,9 @@ def bending_energy(x: torch.Tensor, hinges: torch.Tensor, rest_angles: torch.Ten
     return (weights * d.pow(2)).sum(-1) / weights.sum().clamp_min(1e-12)
 
 
-def collision_energy(x: torch.Tensor, points: torch.Tensor, normals: torch.Tensor,
-                     epsilon: float) -> torch.Tensor:  # fmt: skip
+def collision_energy(
+    x: torch.Tensor, points: torch.Tensor, normals: torch.Tensor, epsilon: float
+) -> torch.Tensor:
     """(..., V, 3) -> (...): the mean over vertices of ``max(eps - n . (x - b), 0)^2``.
 
     Args:
@@ -301,9 +317,13 @@ def collision_energy(x: torch.Tensor, points: torch.Tensor, normals: torch.Tenso
     return (torch.relu(epsilon - ds) * near).pow(2).mean(-1)
 
 
-def physics_terms(x: torch.Tensor, structure: ClothStructure, weights,
-                  contacts: tuple[torch.Tensor, torch.Tensor] | None = None,
-                  length_scale: float = 100.0) -> dict[str, torch.Tensor]:  # fmt: skip
+def physics_terms(
+    x: torch.Tensor,
+    structure: ClothStructure,
+    weights,
+    contacts: tuple[torch.Tensor, torch.Tensor] | None = None,
+    length_scale: float = 100.0,
+) -> dict[str, torch.Tensor]:
     """The weighted physics terms of garments (..., V, 3), each (...,): those of ``weights``
     (any object with ``membrane``, ``bending``, ``collision`` and ``collision_epsilon``)
     above 0. ``contacts``: the body's points and normals (..., V, 3) each, needed by the
@@ -311,17 +331,20 @@ def physics_terms(x: torch.Tensor, structure: ClothStructure, weights,
     errors are."""
     out = {}
     if weights.membrane > 0:
-        out["membrane"] = weights.membrane * membrane_energy(x, structure.edges,
-                                                             structure.rest_lengths)  # fmt: skip
+        out["membrane"] = weights.membrane * membrane_energy(
+            x, structure.edges, structure.rest_lengths
+        )
     if weights.bending > 0:
         out["bending"] = weights.bending * bending_energy(
-            x, structure.hinges, structure.rest_angles, structure.hinge_weights)  # fmt: skip
+            x, structure.hinges, structure.rest_angles, structure.hinge_weights
+        )
     if weights.collision > 0:
         if contacts is None:
             raise ValueError("the collision term needs the body's points and normals")
         s = length_scale
         out["collision"] = weights.collision * collision_energy(
-            s * x, s * contacts[0], contacts[1], s * weights.collision_epsilon)  # fmt: skip
+            s * x, s * contacts[0], contacts[1], s * weights.collision_epsilon
+        )
     return out
 
 
@@ -365,8 +388,9 @@ class LengthRestorer:
         fixed = structure.fixed.cpu().numpy()
         V, E = len(fixed), len(edges)
         rows = np.r_[np.arange(E), np.arange(E)]
-        inc = sp.csr_matrix((np.r_[np.ones(E), -np.ones(E)], (rows, edges.T.reshape(-1))),
-                            shape=(E, V))  # fmt: skip
+        inc = sp.csr_matrix(
+            (np.r_[np.ones(E), -np.ones(E)], (rows, edges.T.reshape(-1))), shape=(E, V)
+        )
         free = np.flatnonzero(~fixed)
         tie = cfg.tie * sp.identity(len(free))
         bf = inc[:, free]
@@ -382,7 +406,7 @@ class LengthRestorer:
         # on one core, where the dense float32 inverse this replaces took 16 ms; float64
         # blocks take 5 ms). Their relative error (~2e-7; condition number ~1.5e3 for the
         # skirt at tie 1e-3) falls on each round's change, not on the positions
-        # (restore_numpy; bench/length_solve.py)
+        # (restore_numpy; bench/notes/length_solve.py)
         narrow = width <= min(BAND_FRACTION * len(free), BANDED_UP_TO)
         self.banded = BlockBandedCholesky(system, np.float32) if narrow else None
         self._bf_t = bf.T.tocsr()  # (Vf, E)
@@ -472,7 +496,8 @@ class LengthRestorer:
                 target = torch.where(length < rest, target, d)
             t = target.permute(1, 0, 2).reshape(len(edges), -1)  # (E, B*3)
             rhs = torch.sparse.mm(bf_t, t - held_part) + cfg.tie * x0f.permute(1, 0, 2).reshape(
-                len(self.free), -1)  # fmt: skip
+                len(self.free), -1
+            )
             sol = _SparseSolve.apply(rhs, self._lu).reshape(len(self.free), B, 3).permute(1, 0, 2)
             cur = flat.index_copy(1, free, sol)
         return cur.reshape(*lead, V, 3)

@@ -37,7 +37,7 @@ class Stages:
     """Which stages run after the decoders (each can be switched off)."""
 
     detail: bool = True  # paper 3.4, when the model carries a detail stage
-    lengths: bool = True  # edges back to their rest lengths (issue 34; physics.LengthRestorer)
+    lengths: bool = True  # edges back to their rest lengths (physics.LengthRestorer)
     collision: bool = True  # paper 3.5
     feedback: bool = False  # the garment after them is the next frame's previous state
     overlap: bool = True  # without feedback: they run on a second thread beside the motion stage
@@ -68,8 +68,7 @@ def timeline(
         rotations (P + T, J, 3, 3) float32, root translations (P + T, 3) float32,
         and P, the number of frames before the motion's first.
     """
-    rot, root, P = rollout_timeline(motion, floor_height, config.warm_frames,
-                                    config.blend_seconds)  # fmt: skip
+    rot, root, P = rollout_timeline(motion, floor_height, config.warm_frames, config.blend_seconds)
     return torch.from_numpy(rot), torch.from_numpy(root), P
 
 
@@ -224,8 +223,10 @@ def rollout(
         if truth is None or restart_every < 1:
             raise ValueError("restart_every needs truth and must be at least 1")
         if truth.shape != (motion.num_frames, encoder.num_vertices, 3):
-            raise ValueError(f"truth: expected {(motion.num_frames, encoder.num_vertices, 3)}, "
-                             f"found {truth.shape}")  # fmt: skip
+            raise ValueError(
+                f"truth: expected {(motion.num_frames, encoder.num_vertices, 3)}, "
+                f"found {truth.shape}"
+            )
         truth_t = torch.as_tensor(truth, dtype=torch.float32, device=device)
     refine = detail is not None or collide is not None or lengths is not None
     codes = torch.empty(motion.num_frames, encoder.latent)
@@ -280,8 +281,9 @@ def rollout(
         finally:
             if pool is not None:
                 pool.shutdown(cancel_futures=True)
-        parts += [later(decoded, codes, s, min(s + later.chunk, T))
-                  for s in range(done, T, later.chunk)]  # fmt: skip
+        parts += [
+            later(decoded, codes, s, min(s + later.chunk, T)) for s in range(done, T, later.chunk)
+        ]
         for s, (part, records) in zip(range(0, T, later.chunk), parts, strict=True):
             out[s : s + len(part)] = part
             if collisions is not None:
@@ -291,10 +293,16 @@ def rollout(
             stage[k] += later.seconds[k]
             cpu[k] += later.cpu_seconds[k]
     seconds = time.perf_counter() - start if pool is not None else sum(stage.values())
-    return RolloutResult(out.numpy(), seconds, total, codes.numpy(),
-                         decoded.numpy() if refine else None, collisions,
-                         {k: v for k, v in stage.items() if v > 0},
-                         {k: v for k, v in cpu.items() if stage[k] > 0})  # fmt: skip
+    return RolloutResult(
+        out.numpy(),
+        seconds,
+        total,
+        codes.numpy(),
+        decoded.numpy() if refine else None,
+        collisions,
+        {k: v for k, v in stage.items() if v > 0},
+        {k: v for k, v in cpu.items() if stage[k] > 0},
+    )
 
 
 @torch.no_grad()
@@ -340,8 +348,12 @@ def rollout_batch(
         return torch.cat([x, x[-1:].expand(total - len(x), *x.shape[1:])]) if len(x) < total else x
 
     joints = feature_joints(motions[0].joint_names, encoder.config.joints)
-    feats = torch.stack([padded(motion_features(rot, root, m.fps, floor_height, joints))
-                         for (rot, root, _), m in zip(lines, motions, strict=True)])  # fmt: skip
+    feats = torch.stack(
+        [
+            padded(motion_features(rot, root, m.fps, floor_height, joints))
+            for (rot, root, _), m in zip(lines, motions, strict=True)
+        ]
+    )
     frames = [root_frames(rot.double(), root.double()) for rot, root, _ in lines]
     H = torch.stack([padded(h) for h, _ in frames]).float().to(device)  # (N, total, 3, 3)
     p = torch.stack([padded(q) for _, q in frames]).float().to(device)  # (N, total, 3)
@@ -365,17 +377,27 @@ def rollout_batch(
         if len(bad):  # the first character that diverged, said as rollout() says it
             i = int(bad[0, 0])
             where = f"motion frame {t - P}" if t >= P else f"preroll frame {t}"
-            check_garment(prev[i : i + 1], config.max_distance,
-                          f"{where} of motion {i} ('{motions[i].name}')")  # fmt: skip
+            check_garment(
+                prev[i : i + 1], config.max_distance, f"{where} of motion {i} ('{motions[i].name}')"
+            )
         if t >= P:
             out[:, t - P] = from_root_frame(prev, H[:, t], p[:, t]).cpu()
             codes[:, t - P] = z.cpu()
         if progress is not None:
             progress(t + 1, total)
     seconds = time.perf_counter() - start
-    return [RolloutResult(out[i, : m.num_frames].numpy(), seconds, P + m.num_frames,
-                          codes[i, : m.num_frames].numpy(), None, None, {"motion": seconds})
-            for i, m in enumerate(motions)]  # fmt: skip
+    return [
+        RolloutResult(
+            out[i, : m.num_frames].numpy(),
+            seconds,
+            P + m.num_frames,
+            codes[i, : m.num_frames].numpy(),
+            None,
+            None,
+            {"motion": seconds},
+        )
+        for i, m in enumerate(motions)
+    ]
 
 
 def collision_record(result) -> dict:
@@ -396,8 +418,9 @@ class _Later:
         self.seconds = {"detail": 0.0, "lengths": 0.0, "collision": 0.0}
         self.cpu_seconds = dict.fromkeys(self.seconds, 0.0)  # thread CPU time, the same
 
-    def __call__(self, decoded: torch.Tensor, codes: torch.Tensor, s: int, e: int
-                 ) -> tuple[torch.Tensor, list[dict]]:  # fmt: skip
+    def __call__(
+        self, decoded: torch.Tensor, codes: torch.Tensor, s: int, e: int
+    ) -> tuple[torch.Tensor, list[dict]]:
         """Motion frames [s, e) of decoded (T, V, 3) world garments and their codes
         (T, latent): the refined garments (e - s, V, 3) and collision records."""
         with torch.no_grad():  # grad mode is per thread
@@ -428,8 +451,16 @@ class _Later:
         return out, records
 
 
-def refine(result: RolloutResult, motion: Motion, floor_height: float, config: RolloutConfig,
-           detail=None, collide=None, device="cpu", lengths=None) -> RolloutResult:  # fmt: skip
+def refine(
+    result: RolloutResult,
+    motion: Motion,
+    floor_height: float,
+    config: RolloutConfig,
+    detail=None,
+    collide=None,
+    device="cpu",
+    lengths=None,
+) -> RolloutResult:
     """Detail enhancement and collision handling (as :func:`rollout` runs them after the
     motion stage) of a motion-stage result, e.g. one of :func:`rollout_batch`'s, in place:
     ``decoded`` keeps the decoders' garments, ``vertices`` gets the refined ones."""
@@ -446,8 +477,10 @@ def refine(result: RolloutResult, motion: Motion, floor_height: float, config: R
         records.extend(rec)
     result.decoded, result.vertices = result.vertices, torch.cat(parts).numpy()
     result.collisions = records if collide is not None else None
-    result.stage_seconds = {**(result.stage_seconds or {}),
-                            **{k: v for k, v in later.seconds.items() if v > 0}}  # fmt: skip
+    result.stage_seconds = {
+        **(result.stage_seconds or {}),
+        **{k: v for k, v in later.seconds.items() if v > 0},
+    }
     return result
 
 

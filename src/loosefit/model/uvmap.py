@@ -111,10 +111,12 @@ def rasterize_uv(uvs: np.ndarray, face_uvs: np.ndarray, size: int, source: str =
             w_other = _barycentric(p[inside][k : k + 1], *tri[other])[0]
             if (w_other > 1e-4).all():
                 raise LoosefitInputError(
-                    source, "face_uvs", "non-overlapping UV triangles",
+                    source,
+                    "face_uvs",
+                    "non-overlapping UV triangles",
                     f"faces {other} and {f} overlap at uv {p[inside][k].round(4).tolist()}",
                     hint="give every triangle its own place in the UV square (e.g. xatlas)",
-                )  # fmt: skip
+                )
         owner[r, c] = f
         bary[r, c] = w[inside]
     covered = owner >= 0
@@ -167,9 +169,11 @@ class UVMap(torch.nn.Module):
         if (count == 0).any():
             bad = int(np.nonzero(count == 0)[0][0])
             raise LoosefitInputError(
-                f"garment '{template.name}'", "faces", "every vertex in a triangle",
+                f"garment '{template.name}'",
+                "faces",
+                "every vertex in a triangle",
                 f"vertex {bad} in none",
-            )  # fmt: skip
+            )
         self.register_buffer("sample_grid", grid, persistent=False)
         self.register_buffer("sample_vertex", torch.from_numpy(pairs[:, 0]), persistent=False)
         self.register_buffer("sample_count", torch.from_numpy(count), persistent=False)
@@ -193,8 +197,9 @@ class UVMap(torch.nn.Module):
         maps = maps.double() if maps.dtype == torch.float64 else maps.float()
         with torch.autocast(maps.device.type, enabled=False):
             grid = self.sample_grid.to(maps.dtype).expand(B, -1, -1, -1)
-            s = F.grid_sample(maps, grid, mode="bilinear", padding_mode="border",
-                              align_corners=False)  # fmt: skip
+            s = F.grid_sample(
+                maps, grid, mode="bilinear", padding_mode="border", align_corners=False
+            )
         s = s[:, :, 0].transpose(1, 2)  # (B, N, C)
         out = torch.zeros(B, self.num_vertices, C, dtype=s.dtype, device=s.device)
         out.index_add_(1, self.sample_vertex, s)

@@ -32,8 +32,12 @@ def closeup_camera(
     of ``radius`` metres: (view (4, 4), proj (4, 4)) for :meth:`Renderer.render_frame`."""
     d = np.asarray(direction, np.float64)
     if not np.isfinite(d).all() or np.linalg.norm(d) < 1e-9 or radius <= 0:
-        raise LoosefitInputError("closeup_camera", "direction, radius", "a non-zero direction "
-                                 "and radius > 0", f"{d}, {radius}")  # fmt: skip
+        raise LoosefitInputError(
+            "closeup_camera",
+            "direction, radius",
+            "a non-zero direction and radius > 0",
+            f"{d}, {radius}",
+        )
     d /= np.linalg.norm(d)
     distance = radius / math.sin(math.radians(fov_y_deg) / 2)
     eye = np.asarray(target, np.float64) + distance * d
@@ -63,8 +67,10 @@ def clearest_direction(
         for azimuth in range(0, 360, 45):
             a, e = np.radians(azimuth), np.radians(elevation)
             candidates.append(np.array([np.sin(a) * np.cos(e), -np.cos(a) * np.cos(e), np.sin(e)]))
-    seen = [_red_pixels(renderer.render_frame(scene, camera=closeup_camera(target, d, radius)))
-            for d in candidates]  # fmt: skip
+    seen = [
+        _red_pixels(renderer.render_frame(scene, camera=closeup_camera(target, d, radius)))
+        for d in candidates
+    ]
     return candidates[int(np.argmax(seen))]
 
 
@@ -121,8 +127,13 @@ def render_penetration(
     garment = np.asarray(garment_vertices, np.float32)
     body_faces = np.asarray(body_faces, np.int64)
     body_colors = _colors(len(body), BODY, muted, MUTED)
-    cloth = RenderMesh(garment_faces, garment, "garment", name="garment",
-                       vertex_colors=_colors(len(garment), GARMENT, deep, DEEP))  # fmt: skip
+    cloth = RenderMesh(
+        garment_faces,
+        garment,
+        "garment",
+        name="garment",
+        vertex_colors=_colors(len(garment), GARMENT, deep, DEEP),
+    )
     whole = [RenderMesh(body_faces, body, "body", name="body", vertex_colors=body_colors), cloth]
     cut = body_faces
     gone = np.zeros(len(body), bool)
@@ -135,8 +146,9 @@ def render_penetration(
         opened.insert(0, RenderMesh(cut, body, "body", name="body", vertex_colors=body_colors))
     own = renderer is None
     if own:
-        renderer = Renderer(RenderConfig(width=size, height=size, labels=False,
-                                         frame_counter=False))  # fmt: skip
+        renderer = Renderer(
+            RenderConfig(width=size, height=size, labels=False, frame_counter=False)
+        )
     try:
         if search:
             direction = clearest_direction(renderer, opened, target, radius, direction)
@@ -149,8 +161,10 @@ def render_penetration(
             closeup_camera(target, direction, radius),
             closeup_camera(target, direction, radius),
         ]
-        images = [renderer.render_frame(scene, camera=cam)
-                  for scene, cam in zip((whole, whole, opened), cameras, strict=True)]  # fmt: skip
+        images = [
+            renderer.render_frame(scene, camera=cam)
+            for scene, cam in zip((whole, whole, opened), cameras, strict=True)
+        ]
     finally:
         if own:
             renderer.close()
@@ -165,19 +179,24 @@ def render_penetration(
     return _label(np.concatenate(images, axis=1), labels, title, width, mark)
 
 
-def _label(image: np.ndarray, labels: list[str], title: str, width: int,
-           mark: tuple[float, float]) -> np.ndarray:  # fmt: skip
+def _label(
+    image: np.ndarray, labels: list[str], title: str, width: int, mark: tuple[float, float]
+) -> np.ndarray:
     """Labels under each view, the title, and a red ring at ``mark`` (x, y) pixels."""
     pil = Image.fromarray(image)
     draw = ImageDraw.Draw(pil)
     font = ImageFont.load_default(size=max(11, width // 28))
     pad = max(4, width // 60)
     r = width / 16
-    draw.ellipse((mark[0] - r, mark[1] - r, mark[0] + r, mark[1] + r),
-                 outline=tuple(int(255 * c) for c in DEEP), width=max(2, width // 150))  # fmt: skip
+    draw.ellipse(
+        (mark[0] - r, mark[1] - r, mark[0] + r, mark[1] + r),
+        outline=tuple(int(255 * c) for c in DEEP),
+        width=max(2, width // 150),
+    )
     for i, text in enumerate(labels):
-        draw.text((i * width + pad, image.shape[0] - pad), text, fill=(40, 40, 45), font=font,
-                  anchor="ld")  # fmt: skip
+        draw.text(
+            (i * width + pad, image.shape[0] - pad), text, fill=(40, 40, 45), font=font, anchor="ld"
+        )
     if title:
         draw.text((pad, pad), title, fill=(40, 40, 45), font=font, anchor="la")
     return np.asarray(pil)

@@ -84,13 +84,21 @@ def skeleton_sheet(
     """
     faces, sticks = bone_sticks(source_points, bones)
     shift = np.array([-gap, 0.0, 0.0], np.float32)
-    config = RenderConfig(width=int(size * 1.5), height=size, views=("front",), labels=False,
-                          frame_counter=False, shadow_map_size=1024)  # fmt: skip
+    config = RenderConfig(
+        width=int(size * 1.5),
+        height=size,
+        views=("front",),
+        labels=False,
+        frame_counter=False,
+        shadow_map_size=1024,
+    )
     images, labels = [], []
     with Renderer(config) as renderer:
         for k, frame in enumerate(frames):
-            scene = [RenderMesh(faces, sticks[k] + shift, "other", name="capture"),
-                     RenderMesh(body_faces, body_vertices[k], "body", name="avatar")]  # fmt: skip
+            scene = [
+                RenderMesh(faces, sticks[k] + shift, "other", name="capture"),
+                RenderMesh(body_faces, body_vertices[k], "body", name="avatar"),
+            ]
             images.append(renderer.render_frame(scene, "front"))
             labels.append(f"frame {frame}: capture | avatar")
     return contact_sheet(images, cols=min(cols, len(images)), labels=labels)

@@ -119,7 +119,7 @@ def write_video(
                                 preset,
                                 "-movflags",
                                 "+faststart",
-                            ],  # fmt: skip
+                            ],
                         )
                         writer.send(None)  # start ffmpeg
                     writer.send(_pad_even(frame))
@@ -271,8 +271,10 @@ def comparison_sheet(
     tiles = {}
     with Renderer(config) as renderer:
         for label, garment in columns.items():
-            scene = [RenderMesh(body_faces, body, "body", name="body"),
-                     RenderMesh(garment_faces, garment, "garment", name=label)]  # fmt: skip
+            scene = [
+                RenderMesh(body_faces, body, "body", name="body"),
+                RenderMesh(garment_faces, garment, "garment", name=label),
+            ]
             tiles[label] = list(renderer.render_sequence(scene))
     images, labels = [], []
     for i, frame in enumerate(frames):

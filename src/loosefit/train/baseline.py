@@ -88,8 +88,14 @@ class TrainBaselineConfig:
         if name == "full":
             cfg = cls(model=BaselineConfig(**model))
         elif name == "cpu":
-            cfg = cls(model=BaselineConfig(**model), epochs=40, batch_size=16, lr=1.0e-3,
-                      checkpoint_every=2, eval_every=10)  # fmt: skip
+            cfg = cls(
+                model=BaselineConfig(**model),
+                epochs=40,
+                batch_size=16,
+                lr=1.0e-3,
+                checkpoint_every=2,
+                eval_every=10,
+            )
         else:
             raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
         return apply_overrides(cfg, overrides)
@@ -111,8 +117,7 @@ class TrainBaselineConfig:
 
 def save_checkpoint(path: Path, network: BaselineNetwork, meta: dict, **state) -> None:
     """Write a checkpoint atomically."""
-    save_atomic({"format": BASELINE_FORMAT, **meta, "model": network.state_dict(), **state},
-                path)  # fmt: skip
+    save_atomic({"format": BASELINE_FORMAT, **meta, "model": network.state_dict(), **state}, path)
 
 
 # -- the data ---------------------------------------------------------------------------------
@@ -125,8 +130,15 @@ def clip_joints(avatar, clip: Clip) -> torch.Tensor:
     return root_frame_transforms(world, clip.heading[P:], clip.origin[P:])
 
 
-def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip],
-                   config: TrainBaselineConfig, cache: Path, log=print):  # fmt: skip
+def skinning_setup(
+    method: str,
+    reader: DatasetReader,
+    avatar,
+    clips: list[Clip],
+    config: TrainBaselineConfig,
+    cache: Path,
+    log=print,
+):
     """The rest shape, weights (and mean bone transforms) a baseline skins with.
 
     Santesteban: the template on the avatar's joints
@@ -143,9 +155,14 @@ def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip]
         from loosefit.geometry.skin_transfer import garment_skin_weights
 
         faces = avatar.collider_faces(arms=False).cpu().numpy()
-        weights = garment_skin_weights(template.vertices, template.faces,
-                                       avatar.rest_vertices.double().cpu().numpy(), faces,
-                                       body_joint_weights(avatar), config.near)  # fmt: skip
+        weights = garment_skin_weights(
+            template.vertices,
+            template.faces,
+            avatar.rest_vertices.double().cpu().numpy(),
+            faces,
+            body_joint_weights(avatar),
+            config.near,
+        )
         extra = [clip_joints(avatar, c) for c in clips]
         return torch.from_numpy(template.vertices), torch.from_numpy(weights), None, extra
     from loosefit.model.ssdr import SkinningDecomposition, SSDRConfig, decompose
@@ -154,12 +171,22 @@ def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip]
     decomp = SkinningDecomposition.load(cache) if cache.is_file() else None
     if decomp is None or len(decomp.frame_index) != len(frames):
         t0 = time.perf_counter()
-        decomp = decompose(frames, template.vertices, SSDRConfig(
-            bones=config.model.bones, iterations=config.ssdr_iterations, max_frames=None,
-            seed=config.seed), faces=template.faces)  # fmt: skip
+        decomp = decompose(
+            frames,
+            template.vertices,
+            SSDRConfig(
+                bones=config.model.bones,
+                iterations=config.ssdr_iterations,
+                max_frames=None,
+                seed=config.seed,
+            ),
+            faces=template.faces,
+        )
         decomp.save(cache)
-        log(f"skinning decomposition of {len(frames)} frames: {decomp.bones} bones, RMSE "
-            f"{100 * decomp.rmse:.2f} cm in {time.perf_counter() - t0:.0f} s")  # fmt: skip
+        log(
+            f"skinning decomposition of {len(frames)} frames: {decomp.bones} bones, RMSE "
+            f"{100 * decomp.rmse:.2f} cm in {time.perf_counter() - t0:.0f} s"
+        )
     ends = np.cumsum([0] + [len(c.target) for c in clips])
     bones = torch.from_numpy(decomp.transforms)  # (N, B, 3, 4) rigid, every frame in order
     extra = [bones[a:b] for a, b in zip(ends[:-1], ends[1:], strict=True)]
@@ -180,8 +207,9 @@ def stack_clips(clips: list[Clip], extra: list[torch.Tensor]) -> dict[str, torch
     }
 
 
-def run_window(network: BaselineNetwork, batch: dict, start: int, stop: int,
-               hidden: torch.Tensor, loss) -> tuple[dict | None, torch.Tensor]:  # fmt: skip
+def run_window(
+    network: BaselineNetwork, batch: dict, start: int, stop: int, hidden: torch.Tensor, loss
+) -> tuple[dict | None, torch.Tensor]:
     """Timeline frames ``start:stop`` of stacked clips (:func:`stack_clips`, on the network's
     device): the loss over their motion frames (None if the window holds none) and the GRU
     state after them (detached)."""
@@ -204,9 +232,12 @@ def run_window(network: BaselineNetwork, batch: dict, start: int, stop: int,
 
 
 def train_baseline(
-    data: str | Path, out: str | Path, config: TrainBaselineConfig, log=print,
+    data: str | Path,
+    out: str | Path,
+    config: TrainBaselineConfig,
+    log=print,
     progress: bool = True,
-) -> dict:  # fmt: skip
+) -> dict:
     """Train (or resume) a baseline on a dataset and report its held-out rollout errors.
 
     Args:
@@ -233,20 +264,32 @@ def train_baseline(
     floor = float(reader.body["floor_height"])
     avatar = avatar_for(reader)
     t0 = time.perf_counter()
-    clips = prepare_clips(reader, "train", None, floor, config.rollout, config.max_frames,
-                          config.mirror, config.model.joints)  # fmt: skip
-    rest, weights, bone_mean, extra = skinning_setup(method, reader, avatar, clips, config,
-                                                     out / "ssdr.npz", log)  # fmt: skip
-    log(f"prepared {len(clips)} train clips ({sum(c.length for c in clips)} frames) "
-        f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
+    clips = prepare_clips(
+        reader,
+        "train",
+        None,
+        floor,
+        config.rollout,
+        config.max_frames,
+        config.mirror,
+        config.model.joints,
+    )
+    rest, weights, bone_mean, extra = skinning_setup(
+        method, reader, avatar, clips, config, out / "ssdr.npz", log
+    )
+    log(
+        f"prepared {len(clips)} train clips ({sum(c.length for c in clips)} frames) "
+        f"in {time.perf_counter() - t0:.1f} s"
+    )
     feats = torch.cat([c.features for c in clips])
     joint_names = clips[0].motion.joint_names
     F = feats.shape[1]
     expected = num_features(len(feature_joints(joint_names, config.model.joints)) + 1)
     if F != expected:
         raise LoosefitInputError(reader.root, "features", expected, F)
-    network = BaselineNetwork(config.model, F, rest, weights, feats.mean(0), feats.std(0),
-                              bone_mean).to(config.device)  # fmt: skip
+    network = BaselineNetwork(
+        config.model, F, rest, weights, feats.mean(0), feats.std(0), bone_mean
+    ).to(config.device)
     optim = torch.optim.Adam(network.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     meta = {
         "model_config": {"network": asdict(config.model), "rollout": asdict(config.rollout)},
@@ -270,13 +313,26 @@ def train_baseline(
     arms = arm_collision_of(meta)
 
     def current() -> BaselineModel:
-        return BaselineModel(network, template, tuple(joint_names), floor, meta["fps"],
-                             dict(reader.body), config.rollout, ckpt_path,
-                             arm_collision=arms)  # fmt: skip
+        return BaselineModel(
+            network,
+            template,
+            tuple(joint_names),
+            floor,
+            meta["fps"],
+            dict(reader.body),
+            config.rollout,
+            ckpt_path,
+            arm_collision=arms,
+        )
 
     writer = SummaryWriter(str(out))
-    bar = tqdm(total=config.epochs, initial=epoch, desc=f"train {method}", unit="epoch",
-               disable=not progress)  # fmt: skip
+    bar = tqdm(
+        total=config.epochs,
+        initial=epoch,
+        desc=f"train {method}",
+        unit="epoch",
+        disable=not progress,
+    )
     t_start, epochs_run = time.perf_counter(), 0
     while epoch < config.epochs:
         network.train()
@@ -285,14 +341,16 @@ def train_baseline(
         steps = 0
         for b in range(0, len(order), config.batch_size):
             pick = order[b : b + config.batch_size]
-            batch = {k: v.to(config.device)
-                     for k, v in stack_clips([clips[i] for i in pick],
-                                             [extra[i] for i in pick]).items()}  # fmt: skip
+            batch = {
+                k: v.to(config.device)
+                for k, v in stack_clips([clips[i] for i in pick], [extra[i] for i in pick]).items()
+            }
             hidden = network.initial_hidden(len(pick), config.device)
             L = int(batch["length"].max())
             for start in range(0, L, config.window):
-                terms, hidden = run_window(network, batch, start, min(start + config.window, L),
-                                           hidden, config.loss)  # fmt: skip
+                terms, hidden = run_window(
+                    network, batch, start, min(start + config.window, L), hidden, config.loss
+                )
                 if terms is None:
                     continue
                 optimizer_step(optim, network.parameters(), terms, config.grad_clip, sums)
@@ -306,9 +364,16 @@ def train_baseline(
         bar.set_postfix(loss=f"{sums.get('total', float('nan')):.3g}")
         bar.update(1)
         if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
-            save_checkpoint(ckpt_path, network, meta, optimizer=optim.state_dict(), epoch=epoch,
-                            history=history, rng=torch.get_rng_state(),
-                            sampling_rng=gen.get_state())  # fmt: skip
+            save_checkpoint(
+                ckpt_path,
+                network,
+                meta,
+                optimizer=optim.state_dict(),
+                epoch=epoch,
+                history=history,
+                rng=torch.get_rng_state(),
+                sampling_rng=gen.get_state(),
+            )
         if epoch % config.eval_every == 0 or epoch == config.epochs:
             raw = Stages(detail=False, lengths=False, collision=False)
             err = evaluate_rollouts(current(), reader, "test", surface=False, stages=raw)
@@ -330,7 +395,7 @@ def train_baseline(
         "final_loss": history[-1] if history else None,
         "test": evaluate_rollouts(
             model, reader, "test", stages=Stages(detail=False, lengths=False, collision=False)
-        ),  # fmt: skip
+        ),
     }
     write_json_atomic(out / "report.json", report)
     (out / "report.md").write_text(format_report(report))
@@ -342,11 +407,19 @@ def format_report(report: dict) -> str:
     """A Markdown summary of a baseline run's report."""
     t = report["test"]
     spe = report.get("seconds_per_epoch")
-    return "\n".join([
-        f"# Baseline `{report['method']}`, {report['epochs']} epochs", "",
-        "Held-out rollouts (no post-process):", "",
-        "| frames | RMSE (cm) | Hausdorff (cm) | STED |", "|---:|---:|---:|---:|",
-        f"| {t['frames']} | {t['rmse_cm']:.3f} | {t['hausdorff_cm']:.3f} | {t['sted']:.4f} |", "",
-        f"{report['parameters']:,} parameters; " + (f"{spe:.2f} s per epoch; " if spe else "")
-        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.", "",
-    ])  # fmt: skip
+    return "\n".join(
+        [
+            f"# Baseline `{report['method']}`, {report['epochs']} epochs",
+            "",
+            "Held-out rollouts (no post-process):",
+            "",
+            "| frames | RMSE (cm) | Hausdorff (cm) | STED |",
+            "|---:|---:|---:|---:|",
+            f"| {t['frames']} | {t['rmse_cm']:.3f} | {t['hausdorff_cm']:.3f} | {t['sted']:.4f} |",
+            "",
+            f"{report['parameters']:,} parameters; "
+            + (f"{spe:.2f} s per epoch; " if spe else "")
+            + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+            "",
+        ]
+    )

@@ -18,8 +18,14 @@ from loosefit.data.format import write_json_atomic
 from loosefit.errors import LoosefitInputError
 
 
-def optimizer_step(optim: torch.optim.Optimizer, parameters, terms: dict, grad_clip: float,
-                   sums: dict[str, float], world: int = 1) -> None:  # fmt: skip
+def optimizer_step(
+    optim: torch.optim.Optimizer,
+    parameters,
+    terms: dict,
+    grad_clip: float,
+    sums: dict[str, float],
+    world: int = 1,
+) -> None:
     """Backpropagate ``terms["total"]``, clip the gradient norm to ``grad_clip``, step, and
     add every term's value into ``sums`` (the epoch's running totals).
 
@@ -57,8 +63,9 @@ def apply_overrides(config, overrides: dict):
     return config
 
 
-def restore_training(saved: dict, states: dict, sampling: torch.Generator | None = None
-                     ) -> tuple[int, list]:  # fmt: skip
+def restore_training(
+    saved: dict, states: dict, sampling: torch.Generator | None = None
+) -> tuple[int, list]:
     """Resume from a training checkpoint: ``states`` maps its keys to the modules and
     optimisers to load; torch's RNG (and ``sampling``'s) are put back. Returns the
     epoch reached and the loss history."""
@@ -73,9 +80,15 @@ def restore_training(saved: dict, states: dict, sampling: torch.Generator | None
 # Training fields added after runs were recorded without them, with the value such runs
 # had: their folders still resume (and rerun scripts still pass over them).
 ADDED_FIELDS = {"precision": "fp32", "init": None}
-# the same for the loss's fields (issue 34's physics terms: runs before had them off)
-ADDED_LOSS_FIELDS = {"membrane": 0.0, "bending": 0.0, "collision": 0.0,
-                     "collision_epsilon": 0.002, "flare": 0.0}  # fmt: skip
+# the same for the loss's fields (the physics terms: membrane, bending, collision, flare;
+# runs before them had them off)
+ADDED_LOSS_FIELDS = {
+    "membrane": 0.0,
+    "bending": 0.0,
+    "collision": 0.0,
+    "collision_epsilon": 0.002,
+    "flare": 0.0,
+}
 
 
 def open_run(out: Path, stored: dict) -> None:
@@ -98,9 +111,12 @@ def open_run(out: Path, stored: dict) -> None:
                 recorded["train"]["loss"] = {**added, **loss}
         if recorded != current:
             raise LoosefitInputError(
-                cfg_path, "train", "the configuration of this command", "another run's",
+                cfg_path,
+                "train",
+                "the configuration of this command",
+                "another run's",
                 hint="use another --out folder, or delete this one to start over",
-            )  # fmt: skip
+            )
     else:
         write_json_atomic(cfg_path, stored)
     (out / "report.json").unlink(missing_ok=True)  # a report only once the run is complete
@@ -108,8 +124,10 @@ def open_run(out: Path, stored: dict) -> None:
 
 def machine(device: str) -> str:
     """The machine a run ran on, for reports."""
-    return (f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
-            f"{torch.get_num_threads()} threads, {device}")  # fmt: skip
+    return (
+        f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
+        f"{torch.get_num_threads()} threads, {device}"
+    )
 
 
 # -- precision -------------------------------------------------------------------------------
@@ -133,10 +151,17 @@ def check_device_precision(precision: str, device: torch.device) -> None:
     Raises:
         LoosefitInputError: ``precision`` "bf16" on such a GPU.
     """
-    if (precision == "bf16" and device.type == "cuda"
-            and not torch.cuda.is_bf16_supported(including_emulation=False)):  # fmt: skip
-        raise LoosefitInputError("--precision", "precision", "fp32 on this GPU (bf16 needs "
-                                 "compute capability 8.0 or above)", "bf16")  # fmt: skip
+    if (
+        precision == "bf16"
+        and device.type == "cuda"
+        and not torch.cuda.is_bf16_supported(including_emulation=False)
+    ):
+        raise LoosefitInputError(
+            "--precision",
+            "precision",
+            "fp32 on this GPU (bf16 needs compute capability 8.0 or above)",
+            "bf16",
+        )
 
 
 def autocast(precision: str, device: torch.device):

@@ -98,8 +98,9 @@ class TrainDetailConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.discriminator, bool):
-            raise LoosefitInputError("TrainDetailConfig", "discriminator", "true or false",
-                                     repr(self.discriminator))  # fmt: skip
+            raise LoosefitInputError(
+                "TrainDetailConfig", "discriminator", "true or false", repr(self.discriminator)
+            )
         for name in ("epochs", "batch_size", "checkpoint_every"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
@@ -114,8 +115,9 @@ class TrainDetailConfig:
         if name == "full":
             cfg = cls()
         elif name == "cpu":
-            cfg = cls(epochs=12, batch_size=16, lr=5.0e-4,
-                      model=DetailConfig(disc_channels=(16, 32, 64)))  # fmt: skip
+            cfg = cls(
+                epochs=12, batch_size=16, lr=5.0e-4, model=DetailConfig(disc_channels=(16, 32, 64))
+            )
         else:
             raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
         apply_overrides(cfg, overrides).__post_init__()
@@ -220,14 +222,21 @@ def train_detail(
     model = load_animation_model(mpath, generative, config.device)
     fingerprints = stage_fingerprints(model)
     if not same_garment(model.template, reader.template):
-        raise LoosefitInputError(reader.root, "template", f"the garment {mpath.name} was "
-                                 "trained on", "another garment")  # fmt: skip
+        raise LoosefitInputError(
+            reader.root, "template", f"the garment {mpath.name} was trained on", "another garment"
+        )
     mirror = config.mirror
     if mirror is None:  # as the motion stage was trained (a packaged one: not mirrored)
         trained = training_config(mpath)
         mirror = bool(trained is not None and trained.mirror)
-    open_run(out, {"dataset": str(Path(data).resolve()), "motion": fingerprints["motion"],
-                   "train": config.to_dict()})  # fmt: skip
+    open_run(
+        out,
+        {
+            "dataset": str(Path(data).resolve()),
+            "motion": fingerprints["motion"],
+            "train": config.to_dict(),
+        },
+    )
     torch.manual_seed(config.seed)
     gen = torch.Generator().manual_seed(config.seed)
 
@@ -260,7 +269,7 @@ def train_detail(
         "motion_checkpoint": {
             "relative": os.path.relpath(mpath, out.resolve()),
             "absolute": str(mpath),
-        },  # fmt: skip
+        },
         "dataset": str(Path(data).resolve()),
     }
     epoch, history = 0, []
@@ -269,20 +278,22 @@ def train_detail(
             read_checkpoint_file(ckpt_path, DETAIL_FORMAT, dev),
             {"model": G, "discriminator": D, "optimizer": opt_g, "optimizer_discriminator": opt_d},
             gen,
-        )  # fmt: skip
+        )
         log(f"resumed {ckpt_path} at epoch {epoch}")
     elif config.init:
         saved = read_checkpoint_file(config.init, DETAIL_FORMAT, dev)
         load_weights(G, saved["model"], Path(config.init), "this detail configuration")
         if "discriminator" in saved:
-            load_weights(D, saved["discriminator"], Path(config.init),
-                         "this discriminator configuration")  # fmt: skip
+            load_weights(
+                D, saved["discriminator"], Path(config.init), "this discriminator configuration"
+            )
         log(f"started from the weights of {config.init}")
 
     # 3. the loop
     writer = SummaryWriter(str(out))
-    bar = tqdm(total=config.epochs, initial=epoch, desc="train detail", unit="epoch",
-               disable=not progress)  # fmt: skip
+    bar = tqdm(
+        total=config.epochs, initial=epoch, desc="train detail", unit="epoch", disable=not progress
+    )
     t_start, epochs_run = time.perf_counter(), 0
     cl = config.loss
     while epoch < config.epochs:
@@ -296,8 +307,9 @@ def train_detail(
             v = pairs.decoded[idx].to(dev)  # (B, V, 3): data, no gradient into the motion stage
             z, target = pairs.codes[idx].to(dev), pairs.target[idx].to(dev)
             final = v + G(v, z)
-            position, laplacian = detail_geometry_loss(final, target, lap, cl.length_scale,
-                                                       cl.laplacian)  # fmt: skip
+            position, laplacian = detail_geometry_loss(
+                final, target, lap, cl.length_scale, cl.laplacian
+            )
             terms = {"position": position, "laplacian": laplacian}
             loss = position + laplacian
             if cl.edge > 0:
@@ -319,8 +331,9 @@ def train_detail(
             steps += 1
             for k, val in terms.items():
                 sums[k] = sums.get(k, 0.0) + float(val.detach())
-            bar.set_postfix(step=f"{steps}/{-(-N // config.batch_size)}",
-                            l1=f"{sums['position'] / steps:.3f}")  # fmt: skip
+            bar.set_postfix(
+                step=f"{steps}/{-(-N // config.batch_size)}", l1=f"{sums['position'] / steps:.3f}"
+            )
         sums = {k: val / max(steps, 1) for k, val in sums.items()}
         if not np.isfinite(sums["total"]):
             raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {sums['total']}")
@@ -331,16 +344,27 @@ def train_detail(
             writer.add_scalar(f"loss/{k}", val, epoch)
         bar.update(1)
         if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
-            save_atomic({"format": CHECKPOINT_FORMAT, **meta, "model": G.state_dict(),
-                         "discriminator": D.state_dict(), "optimizer": opt_g.state_dict(),
-                         "optimizer_discriminator": opt_d.state_dict(), "epoch": epoch,
-                         "history": history, "rng": torch.get_rng_state(),
-                         "sampling_rng": gen.get_state()}, ckpt_path)  # fmt: skip
+            save_atomic(
+                {
+                    "format": CHECKPOINT_FORMAT,
+                    **meta,
+                    "model": G.state_dict(),
+                    "discriminator": D.state_dict(),
+                    "optimizer": opt_g.state_dict(),
+                    "optimizer_discriminator": opt_d.state_dict(),
+                    "epoch": epoch,
+                    "history": history,
+                    "rng": torch.get_rng_state(),
+                    "sampling_rng": gen.get_state(),
+                },
+                ckpt_path,
+            )
     bar.close()
     seconds = time.perf_counter() - t_start
     weights = {k: v.half() for k, v in G.state_dict().items()}
-    save_atomic({"format": CHECKPOINT_FORMAT, **meta, "model": weights, "epoch": epoch},
-                out / "model.pt")  # fmt: skip
+    save_atomic(
+        {"format": CHECKPOINT_FORMAT, **meta, "model": weights, "epoch": epoch}, out / "model.pt"
+    )
 
     # 4. the report: the held-out clips before and after the module (no collision handling)
     from loosefit.train.motion import evaluate_rollouts
@@ -360,14 +384,14 @@ def train_detail(
         "history": history,
         "test_without": evaluate_rollouts(
             trained, reader, "test", surface=False, stages=MOTION_ONLY
-        ),  # fmt: skip
+        ),
         "test_with": evaluate_rollouts(
             trained,
             reader,
             "test",
             surface=False,
             stages=Stages(detail=True, lengths=False, collision=False),
-        ),  # fmt: skip
+        ),
     }
     write_json_atomic(out / "report.json", report)
     (out / "report.md").write_text(format_report(report))
@@ -379,17 +403,19 @@ def format_report(report: dict) -> str:
     """A Markdown summary of a detail run's report."""
     a, b = report["test_without"], report["test_with"]
     spe = report.get("seconds_per_epoch")
-    return "\n".join([
-        f"# Detail module ({'with' if report['discriminator'] else 'w/o'} D_ms), "
-        f"{report['epochs']} epochs on {report['pairs']} rollout frames",
-        "",
-        "| held-out rollouts | RMSE (cm) |",
-        "|---|---:|",
-        f"| motion stage alone | {a['rmse_cm']:.3f} |",
-        f"| with the detail module | {b['rmse_cm']:.3f} |",
-        "",
-        f"{report['parameters']:,} generator parameters; "
-        + (f"{spe:.1f} s per epoch; " if spe else "")
-        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
-        "",
-    ])  # fmt: skip
+    return "\n".join(
+        [
+            f"# Detail module ({'with' if report['discriminator'] else 'w/o'} D_ms), "
+            f"{report['epochs']} epochs on {report['pairs']} rollout frames",
+            "",
+            "| held-out rollouts | RMSE (cm) |",
+            "|---|---:|",
+            f"| motion stage alone | {a['rmse_cm']:.3f} |",
+            f"| with the detail module | {b['rmse_cm']:.3f} |",
+            "",
+            f"{report['parameters']:,} generator parameters; "
+            + (f"{spe:.1f} s per epoch; " if spe else "")
+            + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+            "",
+        ]
+    )

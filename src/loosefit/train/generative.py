@@ -115,14 +115,16 @@ class TrainGenerativeConfig:
         elif name == "cpu":
             cfg = cls(
                 model=GenerativeConfig(
-                    uv_size=64, channels=(16, 32, 64, 128), rec_hidden=(256, 512, 512),
+                    uv_size=64,
+                    channels=(16, 32, 64, 128),
+                    rec_hidden=(256, 512, 512),
                     **model_overrides,
                 ),
                 epochs=300,
                 lr=1.0e-3,
                 checkpoint_every=10,
                 eval_every=50,
-            )  # fmt: skip
+            )
         else:
             raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
         apply_overrides(cfg, overrides).__post_init__()
@@ -143,8 +145,13 @@ class TrainGenerativeConfig:
 # -- checkpoints -----------------------------------------------------------------
 
 
-def save_checkpoint(path: Path, model: GarmentGenerativeModel, template: GarmentTemplate,
-                    config: TrainGenerativeConfig, **state) -> None:  # fmt: skip
+def save_checkpoint(
+    path: Path,
+    model: GarmentGenerativeModel,
+    template: GarmentTemplate,
+    config: TrainGenerativeConfig,
+    **state,
+) -> None:
     """Write a checkpoint atomically (a temporary file, then a rename): the model's
     configuration and weights, the garment, and the training configuration (to resume)."""
     data = {
@@ -177,15 +184,23 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
     """
     model, data = load_generative(path, template, device)
     if "config" not in data:
-        raise LoosefitInputError(path, "config", "a training run's configuration",
-                                 "none (a packaged model)",
-                                 hint="load it with loosefit.inference.checkpoints."
-                                 "load_generative")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "config",
+            "a training run's configuration",
+            "none (a packaged model)",
+            hint="load it with loosefit.inference.checkpoints.load_generative",
+        )
     return model, TrainGenerativeConfig.from_dict(data["config"]), data
 
 
-def warm_start(model: GarmentGenerativeModel, path: str | Path, template: GarmentTemplate,
-               config: GenerativeConfig, device="cpu") -> None:  # fmt: skip
+def warm_start(
+    model: GarmentGenerativeModel,
+    path: str | Path,
+    template: GarmentTemplate,
+    config: GenerativeConfig,
+    device="cpu",
+) -> None:
     """Load another generative checkpoint's weights into ``model`` (fine-tuning).
 
     Raises:
@@ -195,9 +210,13 @@ def warm_start(model: GarmentGenerativeModel, path: str | Path, template: Garmen
     source, data = load_generative(path, template, device)
     mine, theirs = (json.loads(json.dumps(asdict(c))) for c in (config, source.config))
     if mine != theirs:
-        raise LoosefitInputError(path, "model_config", str(mine), str(theirs),
-                                 hint="warm-start from a model of this run's --preset and "
-                                 "--decoder")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "model_config",
+            str(mine),
+            str(theirs),
+            hint="warm-start from a model of this run's --preset and --decoder",
+        )
     model.load_state_dict(source.state_dict())
 
 
@@ -258,10 +277,11 @@ def _ssdr_init(frames: PreparedFrames, template: GarmentTemplate, cfg: TrainGene
     from loosefit.model.ssdr import SSDRConfig, decompose
 
     d = decompose(
-        frames.posed.numpy(), template.vertices,
+        frames.posed.numpy(),
+        template.vertices,
         SSDRConfig(bones=cfg.model.ssdr_bones, iterations=cfg.ssdr_iterations, seed=cfg.seed),
         faces=template.faces,
-    )  # fmt: skip
+    )
     return d.rest, d.weights, d.transforms.mean(0)
 
 
@@ -307,18 +327,23 @@ def train_generative(
     contacts = config.loss.collision > 0  # the collision term's body points, per frame
     train = prepare_split(reader, "train", avatar, config.skinning, config.max_frames, contacts)
     test = prepare_split(reader, "test", avatar, config.skinning, config.max_frames)
-    log(f"prepared {len(train)} train and {len(test)} test frames "
-        f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
+    log(
+        f"prepared {len(train)} train and {len(test)} test frames "
+        f"in {time.perf_counter() - t0:.1f} s"
+    )
 
     ssdr = None
     if config.model.decoder == "ssdr":
         t0 = time.perf_counter()
         ssdr = _ssdr_init(train, template, config)
-        log(f"skinning decomposition: {config.model.ssdr_bones} bones "
-            f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
+        log(
+            f"skinning decomposition: {config.model.ssdr_bones} bones "
+            f"in {time.perf_counter() - t0:.1f} s"
+        )
     model = GarmentGenerativeModel(template, config.model, ssdr=ssdr).to(device)
-    lap = Laplacian(template.faces, template.num_vertices, kind=config.laplacian,
-                    vertices=template.vertices).to(device)  # fmt: skip
+    lap = Laplacian(
+        template.faces, template.num_vertices, kind=config.laplacian, vertices=template.vertices
+    ).to(device)
     optim = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     epoch, history = 0, []
     if ckpt_path.is_file():
@@ -339,8 +364,13 @@ def train_generative(
     writer = SummaryWriter(str(out)) if main else None
     n = len(train)
     steps = max(1, (n + config.batch_size - 1) // config.batch_size)
-    bar = tqdm(total=config.epochs, initial=epoch, desc=f"train {config.model.decoder}",
-               unit="epoch", disable=not progress)  # fmt: skip
+    bar = tqdm(
+        total=config.epochs,
+        initial=epoch,
+        desc=f"train {config.model.decoder}",
+        unit="epoch",
+        disable=not progress,
+    )
     t_start = time.perf_counter()
     epochs_run = 0
     while epoch < config.epochs:
@@ -357,8 +387,16 @@ def train_generative(
                 out_ = net(posed[idx[mine]], noise=noise[mine])
             rows = idx[mine]
             touch = (points[rows], normals[rows]) if contacts else None
-            terms = generative_loss(_float32(out_), posed[rows], unposed[rows],
-                                    model.template, lap, config.loss, structure, touch)  # fmt: skip
+            terms = generative_loss(
+                _float32(out_),
+                posed[rows],
+                unposed[rows],
+                model.template,
+                lap,
+                config.loss,
+                structure,
+                touch,
+            )
             optim.zero_grad(set_to_none=True)
             (terms["total"] * share * world).backward()  # DDP averages: the batch's mean
             optim.step()
@@ -377,8 +415,16 @@ def train_generative(
             writer.add_scalar(f"loss/{k}", v, epoch)
         # the checkpoint first: a kill during an evaluation loses no training
         if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
-            save_checkpoint(ckpt_path, model, template, config, optimizer=optim.state_dict(),
-                            epoch=epoch, history=history, rng=torch.get_rng_state())  # fmt: skip
+            save_checkpoint(
+                ckpt_path,
+                model,
+                template,
+                config,
+                optimizer=optim.state_dict(),
+                epoch=epoch,
+                history=history,
+                rng=torch.get_rng_state(),
+            )
         if epoch % config.eval_every == 0 and epoch < config.epochs:  # the last: the report's
             err = evaluate(model, test, template.faces)
             writer.add_scalar("test/rmse_cm", err["rmse_cm"], epoch)
@@ -421,8 +467,10 @@ def format_report(report: dict) -> str:
     ]
     for split in ("train", "test"):
         r = report[split]
-        lines.append(f"| {split} | {r['frames']} | {r['rmse_cm']:.3f} | "
-                     f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} |")  # fmt: skip
+        lines.append(
+            f"| {split} | {r['frames']} | {r['rmse_cm']:.3f} | "
+            f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} |"
+        )
     spe = report.get("seconds_per_epoch")
     lines += [
         "",

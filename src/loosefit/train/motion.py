@@ -120,14 +120,14 @@ class MotionLossConfig:
     laplacian: float = 1.5  # lambda_4
     latent: float = 0.5  # lambda_5
     length_scale: float = 100.0  # metres to centimetres, as in the generative loss
-    # physics terms (issue 34; loosefit.model.physics), 0: off. The collision term needs
+    # physics terms (loosefit.model.physics), 0: off. The collision term needs
     # the body at every frame and is taken by the generative stage only
     membrane: float = 0.0  # edge lengths against rest
     bending: float = 0.0  # dihedral angles against rest
     collision: float = 0.0
     collision_epsilon: float = 0.002
     # the hem's flare (its mean distance from the root's vertical axis) against the
-    # simulation's, squared, in the length unit (issue 34: a network that averages fold
+    # simulation's, squared, in the length unit (a network that averages fold
     # configurations pulls the hem in); 0: off
     flare: float = 0.0
 
@@ -135,9 +135,12 @@ class MotionLossConfig:
         if not (isinstance(self.flare, (int, float)) and self.flare >= 0):
             raise LoosefitInputError("MotionLossConfig", "flare", "a weight >= 0", self.flare)
         if self.collision:
-            raise LoosefitInputError("MotionLossConfig", "collision",
-                                     "0 (the motion stage takes membrane and bending)",
-                                     self.collision)  # fmt: skip
+            raise LoosefitInputError(
+                "MotionLossConfig",
+                "collision",
+                "0 (the motion stage takes membrane and bending)",
+                self.collision,
+            )
         PhysicsLossConfig(self.membrane, self.bending, self.collision, self.collision_epsilon)
 
 
@@ -182,19 +185,25 @@ class TrainMotionConfig:
     def __post_init__(self) -> None:
         check_precision("TrainMotionConfig", self.precision)
         if self.previous not in ("scheduled", "teacher"):
-            raise LoosefitInputError("TrainMotionConfig", "previous", "scheduled or teacher",
-                                     repr(self.previous))  # fmt: skip
+            raise LoosefitInputError(
+                "TrainMotionConfig", "previous", "scheduled or teacher", repr(self.previous)
+            )
         if not (0.0 <= self.teacher_end <= self.teacher_start <= 1.0):
-            raise LoosefitInputError("TrainMotionConfig", "teacher_start, teacher_end",
-                                     "0 <= teacher_end <= teacher_start <= 1",
-                                     (self.teacher_start, self.teacher_end))  # fmt: skip
+            raise LoosefitInputError(
+                "TrainMotionConfig",
+                "teacher_start, teacher_end",
+                "0 <= teacher_end <= teacher_start <= 1",
+                (self.teacher_start, self.teacher_end),
+            )
         for name in ("unroll", "mirror"):
             if not isinstance(getattr(self, name), bool):
-                raise LoosefitInputError("TrainMotionConfig", name, "true or false",
-                                         repr(getattr(self, name)))  # fmt: skip
+                raise LoosefitInputError(
+                    "TrainMotionConfig", name, "true or false", repr(getattr(self, name))
+                )
         if not self.previous_noise >= 0:
-            raise LoosefitInputError("TrainMotionConfig", "previous_noise", "metres >= 0",
-                                     self.previous_noise)  # fmt: skip
+            raise LoosefitInputError(
+                "TrainMotionConfig", "previous_noise", "metres >= 0", self.previous_noise
+            )
         if not (isinstance(self.window, int) and self.window >= 1):
             raise LoosefitInputError("TrainMotionConfig", "window", "an integer >= 1", self.window)
 
@@ -243,8 +252,13 @@ class TrainMotionConfig:
         return float(a + (b - a) * epoch / span)
 
 
-def warm_start(encoder: DynamicMotionEncoder, path: str | Path, config: MotionEncoderConfig,
-               num_features: int, device="cpu") -> None:  # fmt: skip
+def warm_start(
+    encoder: DynamicMotionEncoder,
+    path: str | Path,
+    config: MotionEncoderConfig,
+    num_features: int,
+    device="cpu",
+) -> None:
     """Load another motion checkpoint's encoder weights (feature statistics included) into
     ``encoder`` (fine-tuning).
 
@@ -256,12 +270,21 @@ def warm_start(encoder: DynamicMotionEncoder, path: str | Path, config: MotionEn
     recorded = (saved.get("model_config") or {}).get("encoder")
     mine = json.loads(json.dumps(asdict(config)))
     if recorded is not None and {**mine, **recorded} != mine:
-        raise LoosefitInputError(path, "model_config.encoder", str(mine), str(recorded),
-                                 hint="warm-start from an encoder of this run's "
-                                 "configuration")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "model_config.encoder",
+            str(mine),
+            str(recorded),
+            hint="warm-start from an encoder of this run's configuration",
+        )
     if saved.get("num_features") != num_features:
-        raise LoosefitInputError(path, "num_features", num_features, saved.get("num_features"),
-                                 hint="the same --joints as the run it starts from")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "num_features",
+            num_features,
+            saved.get("num_features"),
+            hint="the same --joints as the run it starts from",
+        )
     load_weights(encoder, saved["model"], Path(path), "this encoder configuration")
 
 
@@ -327,19 +350,30 @@ def prepare_clips(
         garment = seq.garment_vertices[: motion.num_frames]
         versions = [(name, motion, garment)]
         if mirror:
-            versions.append((f"{name}~mirror", mirror_motion(motion),
-                             mirror_garment(garment, twins)))  # fmt: skip
+            versions.append(
+                (f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins))
+            )
         for label, m, v in versions:
             rot, root, P = timeline(m, floor_height, config)
             H, p = (a.float() for a in root_frames(rot.double(), root.double()))
-            target = to_root_frame(torch.from_numpy(np.ascontiguousarray(v, np.float32)),
-                                   H[P:], p[P:])  # fmt: skip
-            feats = motion_features(rot, root, m.fps, floor_height,
-                                    feature_joints(m.joint_names, joints))  # fmt: skip
-            clips.append(Clip(label, m, feats,
-                              H, p, target,
-                              None if generative is None else latent_codes(generative, target),
-                              P))  # fmt: skip
+            target = to_root_frame(
+                torch.from_numpy(np.ascontiguousarray(v, np.float32)), H[P:], p[P:]
+            )
+            feats = motion_features(
+                rot, root, m.fps, floor_height, feature_joints(m.joint_names, joints)
+            )
+            clips.append(
+                Clip(
+                    label,
+                    m,
+                    feats,
+                    H,
+                    p,
+                    target,
+                    None if generative is None else latent_codes(generative, target),
+                    P,
+                )
+            )
     return clips
 
 
@@ -350,9 +384,12 @@ def rest_state_for(reader: DatasetReader, fps: float) -> torch.Tensor:
     cloth = reader.manifest.get("config", {}).get("cloth")
     if cloth is None:
         raise LoosefitInputError(
-            reader.root / "manifest.json", "config.cloth", "the cloth configuration of the "
-            "simulation (to settle the garment where rollouts start)", "none",
-        )  # fmt: skip
+            reader.root / "manifest.json",
+            "config.cloth",
+            "the cloth configuration of the "
+            "simulation (to settle the garment where rollouts start)",
+            "none",
+        )
     cloth = dict(cloth)
     cloth["device"] = "cpu"
     return torch.from_numpy(settle(avatar_for(reader), reader.template, ClothConfig(**cloth), fps))
@@ -361,8 +398,9 @@ def rest_state_for(reader: DatasetReader, fps: float) -> torch.Tensor:
 # -- checkpoints -----------------------------------------------------------------------
 
 
-def save_checkpoint(path: Path, encoder: DynamicMotionEncoder, meta: dict, half: bool = False,
-                    **state) -> None:  # fmt: skip
+def save_checkpoint(
+    path: Path, encoder: DynamicMotionEncoder, meta: dict, half: bool = False, **state
+) -> None:
     """Write a checkpoint atomically; ``half`` stores floating weights in half precision."""
     weights = half_weights(encoder.state_dict()) if half else encoder.state_dict()
     save_atomic({"format": MOTION_FORMAT, **meta, "model": weights, **state}, path)
@@ -431,8 +469,9 @@ class BatchPart:
         return int((last - first).clamp(min=0).sum())
 
 
-def share_batch(clips: list[Clip], rank: int, world: int, device: torch.device
-                ) -> tuple[dict[str, torch.Tensor], BatchPart]:  # fmt: skip
+def share_batch(
+    clips: list[Clip], rank: int, world: int, device: torch.device
+) -> tuple[dict[str, torch.Tensor], BatchPart]:
     """This process's clips of a batch, stacked (padded to the whole batch's frames) on
     ``device``, and where they sit in the batch."""
     mine, share = shard(len(clips), rank, world)
@@ -539,8 +578,10 @@ def run_window(
                     gt = gt + noise * jitter[part.rows].to(device)
                 previous = torch.where(use[part.rows].to(device)[:, None, None], gt, previous)
     count = max(part.count(start, stop), 1)
-    terms = {k: v / count if torch.is_tensor(v) else torch.tensor(v, device=device)
-             for k, v in sums.items()}  # fmt: skip
+    terms = {
+        k: v / count if torch.is_tensor(v) else torch.tensor(v, device=device)
+        for k, v in sums.items()
+    }
     terms["total"] = sum(terms.values())
     return terms, hidden.detach(), previous.detach()
 
@@ -591,8 +632,14 @@ def train_motion(
     rank, world = distributed()
     main = rank == 0
     if main:
-        open_run(out, {"dataset": str(Path(data).resolve()), "generative": gmeta["fingerprint"],
-                       "train": config.to_dict()})  # fmt: skip
+        open_run(
+            out,
+            {
+                "dataset": str(Path(data).resolve()),
+                "generative": gmeta["fingerprint"],
+                "train": config.to_dict(),
+            },
+        )
     else:
         log, progress = (lambda *_: None), False
     barrier()
@@ -601,8 +648,16 @@ def train_motion(
     gen = torch.Generator().manual_seed(config.seed)  # every random draw of the loop
     floor = float(reader.body["floor_height"])
     t0 = time.perf_counter()
-    train = prepare_clips(reader, "train", gmodel, floor, config.rollout, config.max_frames,
-                          config.mirror, config.model.joints)  # fmt: skip
+    train = prepare_clips(
+        reader,
+        "train",
+        gmodel,
+        floor,
+        config.rollout,
+        config.max_frames,
+        config.mirror,
+        config.model.joints,
+    )
     fps = train[0].motion.fps
     rest_path = out / "rest_state.npy"
     if rest_state is None and main and not rest_path.is_file():
@@ -612,8 +667,10 @@ def train_motion(
         rest = torch.as_tensor(rest_state).float()
     else:
         rest = torch.from_numpy(np.load(rest_path, allow_pickle=False))
-    log(f"prepared {len(train)} train clips ({sum(c.length for c in train)} frames) "
-        f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
+    log(
+        f"prepared {len(train)} train clips ({sum(c.length for c in train)} frames) "
+        f"in {time.perf_counter() - t0:.1f} s"
+    )
     all_feats = torch.cat([c.features for c in train])
     F = all_feats.shape[1]
     joint_names = train[0].motion.joint_names
@@ -657,8 +714,13 @@ def train_motion(
     rest_device = rest.to(device)
 
     writer = SummaryWriter(str(out)) if main else None
-    bar = tqdm(total=config.epochs, initial=epoch, desc="train motion encoder", unit="epoch",
-               disable=not progress)  # fmt: skip
+    bar = tqdm(
+        total=config.epochs,
+        initial=epoch,
+        desc="train motion encoder",
+        unit="epoch",
+        disable=not progress,
+    )
     t_start, epochs_run = time.perf_counter(), 0
     while epoch < config.epochs:
         encoder.train()
@@ -675,10 +737,24 @@ def train_motion(
             L = max(c.length for c in clips)
             for start in range(0, L, config.window):
                 terms, hidden, previous = run_window(
-                    net, gmodel, lap, batch, start, min(start + config.window, L), hidden,
-                    previous, teacher, config.loss, gen, config.previous_noise, config.unroll,
-                    part, config.precision, structure, hem,
-                )  # fmt: skip
+                    net,
+                    gmodel,
+                    lap,
+                    batch,
+                    start,
+                    min(start + config.window, L),
+                    hidden,
+                    previous,
+                    teacher,
+                    config.loss,
+                    gen,
+                    config.previous_noise,
+                    config.unroll,
+                    part,
+                    config.precision,
+                    structure,
+                    hem,
+                )
                 if not terms["total"].requires_grad:
                     continue  # a window with no motion frame in the batch (all preroll)
                 optimizer_step(optim, encoder.parameters(), terms, config.grad_clip, sums, world)
@@ -695,13 +771,29 @@ def train_motion(
             writer.add_scalar(f"loss/{k}", v, epoch)
         writer.add_scalar("train/teacher_probability", teacher, epoch)
         if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
-            save_checkpoint(ckpt_path, encoder, meta, optimizer=optim.state_dict(), epoch=epoch,
-                            history=history, rng=torch.get_rng_state(),
-                            sampling_rng=gen.get_state())  # fmt: skip
+            save_checkpoint(
+                ckpt_path,
+                encoder,
+                meta,
+                optimizer=optim.state_dict(),
+                epoch=epoch,
+                history=history,
+                rng=torch.get_rng_state(),
+                sampling_rng=gen.get_state(),
+            )
         if epoch % config.eval_every == 0 or epoch == config.epochs:
-            current = AnimationModel(gmodel, encoder, template, rest_device,
-                                     tuple(joint_names), floor, fps, dict(reader.body),
-                                     config.rollout, ckpt_path)  # fmt: skip
+            current = AnimationModel(
+                gmodel,
+                encoder,
+                template,
+                rest_device,
+                tuple(joint_names),
+                floor,
+                fps,
+                dict(reader.body),
+                config.rollout,
+                ckpt_path,
+            )
             err = evaluate_rollouts(current, reader, "test", surface=False, stages=MOTION_ONLY)
             writer.add_scalar("test/rollout_rmse_cm", err["rmse_cm"], epoch)
             history[-1]["test_rollout_rmse_cm"] = err["rmse_cm"]
@@ -750,9 +842,12 @@ def format_report(report: dict) -> str:
     ]
     for name, c in t["clips"].items():
         cells = [f"{c['horizons'][h]:.3f}" if h in c["horizons"] else "-" for h in hs]
-        lines.append(f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | " + " | ".join(cells)
-                     + f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f} | "
-                     f"{c['frames_per_second']:.0f} |")  # fmt: skip
+        lines.append(
+            f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | "
+            + " | ".join(cells)
+            + f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f} | "
+            f"{c['frames_per_second']:.0f} |"
+        )
     spe = report.get("seconds_per_epoch")
     lines += [
         "",

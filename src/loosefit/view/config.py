@@ -60,19 +60,35 @@ class ViewerConfig:
         """Raises LoosefitInputError naming the field that is out of range."""
         checks = (
             ("layout", self.layout in LAYOUTS, f"one of {LAYOUTS}", self.layout),
-            ("colouring", self.colouring in COLOURINGS, f"one of {tuple(COLOURINGS)}",
-             self.colouring),
-            ("colouring", self.colouring != "error" or num_sequences > 1,
-             "a second sequence to measure the distance to", "one sequence"),
-            ("reference", 0 <= self.reference < num_sequences,
-             f"0 to {num_sequences - 1} (one of the {num_sequences} sequences)", self.reference),
+            (
+                "colouring",
+                self.colouring in COLOURINGS,
+                f"one of {tuple(COLOURINGS)}",
+                self.colouring,
+            ),
+            (
+                "colouring",
+                self.colouring != "error" or num_sequences > 1,
+                "a second sequence to measure the distance to",
+                "one sequence",
+            ),
+            (
+                "reference",
+                0 <= self.reference < num_sequences,
+                f"0 to {num_sequences - 1} (one of the {num_sequences} sequences)",
+                self.reference,
+            ),
             ("bins", 2 <= self.bins <= 64, "2 to 64", self.bins),
             ("speed", 0 < self.speed <= 4, "more than 0, at most 4", self.speed),
             ("spacing", self.spacing >= 0, "0 m or more", self.spacing),
             ("port", 0 <= self.port < 65536, "0 to 65535", self.port),
-            ("pixel_ratio", self.pixel_ratio is None or 0.1 <= self.pixel_ratio <= 4,
-             "None or 0.1 to 4", self.pixel_ratio),
-        )  # fmt: skip
+            (
+                "pixel_ratio",
+                self.pixel_ratio is None or 0.1 <= self.pixel_ratio <= 4,
+                "None or 0.1 to 4",
+                self.pixel_ratio,
+            ),
+        )
         for name, ok, expected, found in checks:
             if not ok:
                 raise LoosefitInputError("viewer", name, expected, repr(found))

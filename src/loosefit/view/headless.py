@@ -109,8 +109,14 @@ def find_chromium() -> str | None:
     return None
 
 
-def command(binary: str, profile: Path, width: int, height: int, antialias: bool = False,
-            flags: Sequence[str] = ()) -> list[str]:  # fmt: skip
+def command(
+    binary: str,
+    profile: Path,
+    width: int,
+    height: int,
+    antialias: bool = False,
+    flags: Sequence[str] = (),
+) -> list[str]:
     """The command line of a headless Chromium (:class:`Chromium`'s arguments)."""
     size = f"--window-size={width},{height}"
     quality = () if antialias else NO_ANTIALIAS
@@ -155,9 +161,16 @@ class Chromium:
         scripts: JavaScript run in every page before its own (after the counters').
     """
 
-    def __init__(self, binary: str | None = None, width: int = 1280, height: int = 800,
-                 timeout: float = 60.0, antialias: bool = False, flags: Sequence[str] = (),
-                 scripts: Sequence[str] = ()) -> None:  # fmt: skip
+    def __init__(
+        self,
+        binary: str | None = None,
+        width: int = 1280,
+        height: int = 800,
+        timeout: float = 60.0,
+        antialias: bool = False,
+        flags: Sequence[str] = (),
+        scripts: Sequence[str] = (),
+    ) -> None:
         from websockets.sync.client import connect
 
         binary = binary or find_chromium()
@@ -165,13 +178,15 @@ class Chromium:
             raise FileNotFoundError(f"no Chromium: none of {BINARIES} on PATH")
         self.timeout = timeout
         # the browser's helpers may still write there as it quits: cleaned up as they can be
-        self._profile = tempfile.TemporaryDirectory(prefix="loosefit-chromium-",
-                                                    ignore_cleanup_errors=True)  # fmt: skip
+        self._profile = tempfile.TemporaryDirectory(
+            prefix="loosefit-chromium-", ignore_cleanup_errors=True
+        )
         profile = Path(self._profile.name)
         self.process = subprocess.Popen(
             command(binary, profile, width, height, antialias, flags),
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )  # fmt: skip
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         port_file = profile / "DevToolsActivePort"
         deadline = time.monotonic() + timeout
         while not (port_file.is_file() and port_file.read_text().strip()):
@@ -182,8 +197,7 @@ class Chromium:
         port = int(port_file.read_text().split()[0])
         with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as r:
             pages = [t for t in json.load(r) if t.get("type") == "page"]
-        self._ws = connect(pages[0]["webSocketDebuggerUrl"], max_size=None,
-                           open_timeout=timeout)  # fmt: skip
+        self._ws = connect(pages[0]["webSocketDebuggerUrl"], max_size=None, open_timeout=timeout)
         self._ids = itertools.count(1)
         self._events: list[dict] = []
         self.call("Page.enable")
@@ -250,8 +264,7 @@ class Chromium:
                 return time.monotonic() - start
             if time.monotonic() - start > timeout:
                 lacks = list(labels) if missing is None else missing
-                raise TimeoutError(f"the viewer's panel still lacks {lacks} after "
-                                   f"{timeout:g} s")  # fmt: skip
+                raise TimeoutError(f"the viewer's panel still lacks {lacks} after {timeout:g} s")
             time.sleep(0.1)
 
     def _wait_event(self, method: str) -> dict:
@@ -273,8 +286,9 @@ class Chromium:
         data = base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
         return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
 
-    def settled_screenshot(self, before: np.ndarray | None = None, timeout: float = 30.0,
-                           pause: float = 0.5) -> np.ndarray:  # fmt: skip
+    def settled_screenshot(
+        self, before: np.ndarray | None = None, timeout: float = 30.0, pause: float = 0.5
+    ) -> np.ndarray:
         """A screenshot once the page has changed from ``before`` (if given) and then holds
         still between two screenshots ``pause`` apart (the browser has drawn an update)."""
         deadline = time.monotonic() + timeout
@@ -296,8 +310,13 @@ class Chromium:
         time.sleep(seconds)
         draws, new = self.evaluate(count)
         got = np.array(self.evaluate("window.__received") or [], np.float64).reshape(-1, 2)
-        return Received(seconds, got[:, 1].astype(np.int64), got[:, 0] / 1000.0,
-                        int(draws - draws0), int(new - new0))  # fmt: skip
+        return Received(
+            seconds,
+            got[:, 1].astype(np.int64),
+            got[:, 0] / 1000.0,
+            int(draws - draws0),
+            int(new - new0),
+        )
 
     def close(self) -> None:
         """Quit the browser and remove its profile."""

@@ -64,18 +64,27 @@ def check_together(sequences: Sequence[AnimatedGarment], sources: Sequence[str])
     for seq, src in zip(sequences[1:], sources[1:], strict=True):
         where = f"{src0} and {src}"
         if seq.num_frames != first.num_frames:
-            raise LoosefitInputError(where, "garment_vertices", f"{first.num_frames} frames "
-                                     f"(as {src0})", f"{seq.num_frames} frames in {src}",
-                                     hint=hint)  # fmt: skip
+            raise LoosefitInputError(
+                where,
+                "garment_vertices",
+                f"{first.num_frames} frames (as {src0})",
+                f"{seq.num_frames} frames in {src}",
+                hint=hint,
+            )
         if abs(seq.fps - first.fps) > 1e-6:
-            raise LoosefitInputError(where, "fps", f"{first.fps:g} (as {src0})",
-                                     f"{seq.fps:g} in {src}", hint=hint)  # fmt: skip
+            raise LoosefitInputError(
+                where, "fps", f"{first.fps:g} (as {src0})", f"{seq.fps:g} in {src}", hint=hint
+            )
         if not same_garment(seq.garment, first.garment):
             raise LoosefitInputError(
-                where, "vertices, faces", f"the garment of {src0} ('{first.garment.name}', "
-                f"{first.garment.num_vertices} vertices)", f"another garment in {src} "
-                f"('{seq.garment.name}', {seq.garment.num_vertices} vertices)", hint=hint,
-            )  # fmt: skip
+                where,
+                "vertices, faces",
+                f"the garment of {src0} ('{first.garment.name}', "
+                f"{first.garment.num_vertices} vertices)",
+                f"another garment in {src} "
+                f"('{seq.garment.name}', {seq.garment.num_vertices} vertices)",
+                hint=hint,
+            )
 
 
 def pose_bodies(
@@ -155,9 +164,10 @@ def from_animated(
 
 
 def read_sequences(
-    paths: Sequence[str | Path] = (), data: str | Path | None = None,
+    paths: Sequence[str | Path] = (),
+    data: str | Path | None = None,
     clip: str | None = None,
-) -> tuple[list[AnimatedGarment], list[str], list[str]]:  # fmt: skip
+) -> tuple[list[AnimatedGarment], list[str], list[str]]:
     """Sequence files, and a data set's clip, read and validated.
 
     Args:
@@ -173,8 +183,12 @@ def read_sequences(
 
     seqs, labels, sources = [], [], []
     if (data is None) != (clip is None):
-        raise LoosefitInputError("--data/--clip", "clip", "both --data DATASET and --clip "
-                                 "NAME, or neither", f"data={data!r}, clip={clip!r}")  # fmt: skip
+        raise LoosefitInputError(
+            "--data/--clip",
+            "clip",
+            "both --data DATASET and --clip NAME, or neither",
+            f"data={data!r}, clip={clip!r}",
+        )
     if data is not None:
         reader = DatasetReader(data, allow_incomplete=True)
         seqs.append(reader.read(clip))
@@ -186,8 +200,9 @@ def read_sequences(
         labels.append(p.stem)
         sources.append(str(p))
     if not seqs:
-        raise LoosefitInputError("view", "SEQUENCE", "a sequence .npz or --data and --clip",
-                                 "nothing to view")  # fmt: skip
+        raise LoosefitInputError(
+            "view", "SEQUENCE", "a sequence .npz or --data and --clip", "nothing to view"
+        )
     return seqs, _unique(labels), sources
 
 

@@ -63,9 +63,12 @@ class Viewer:
         try:
             import viser
         except ImportError as exc:  # the optional extra
-            raise LoosefitInputError("loosefit view", "viser", "the viewer's library "
-                                     "(pip install 'loosefit[viewer]')", "not installed"
-                                     ) from exc  # fmt: skip
+            raise LoosefitInputError(
+                "loosefit view",
+                "viser",
+                "the viewer's library (pip install 'loosefit[viewer]')",
+                "not installed",
+            ) from exc
         self.config = config = config or ViewerConfig()
         config.validate(len(sequences))
         self.sequences = list(sequences)
@@ -80,8 +83,9 @@ class Viewer:
         self._follow_at: np.ndarray | None = None
         self.visible = [True] * len(self.sequences)  # the panel's checkboxes
         self.bodies_on = True  # the panel's "bodies"
-        self.server = viser.ViserServer(host=config.host, port=config.port, verbose=False,
-                                        label="loosefit")  # fmt: skip
+        self.server = viser.ViserServer(
+            host=config.host, port=config.port, verbose=False, label="loosefit"
+        )
         self.server.gui.configure_theme(show_share_button=False)  # no tunnel off the machine
         self.port = int(self.server.get_port())
         shown = "localhost" if config.host in ("0.0.0.0", "127.0.0.1", "::") else config.host
@@ -91,8 +95,7 @@ class Viewer:
         self._build_scene()
         self._build_panel()
         self.set_frame(0)
-        self._thread = threading.Thread(target=self._play_loop, name="loosefit-view",
-                                        daemon=True)  # fmt: skip
+        self._thread = threading.Thread(target=self._play_loop, name="loosefit-view", daemon=True)
         self._thread.start()
 
     # -- the scene ------------------------------------------------------------------------
@@ -111,29 +114,57 @@ class Viewer:
         scene.add_light_directional("/lights/key", intensity=2.0, position=(1.5, -3.0, 4.0))
         scene.add_light_directional("/lights/back", intensity=0.8, position=(-1.0, 3.0, 2.0))
         floor = float(min(s.body[0, :, 2].min() for s in self.sequences))
-        self.floor = scene.add_grid("/floor", width=FLOOR_SIZE, height=FLOOR_SIZE,
-                                    position=(0.0, 0.0, floor), cell_size=0.25,
-                                    section_size=1.0)  # fmt: skip
+        self.floor = scene.add_grid(
+            "/floor",
+            width=FLOOR_SIZE,
+            height=FLOOR_SIZE,
+            position=(0.0, 0.0, floor),
+            cell_size=0.25,
+            section_size=1.0,
+        )
         bins = self.config.bins
         self.nodes, self.bodies, self.garments, self.bin_meshes, self.labels = [], [], [], [], []
         self._label_z: list[float] = []
         for i, seq in enumerate(self.sequences):
             node = scene.add_frame(f"/seq{i}", show_axes=False)
             self.nodes.append(node)
-            self.bodies.append(scene.add_mesh_simple(
-                f"/seq{i}/body", seq.body[0], seq.body_faces, color=BODY_COLOUR,
-                cast_shadow=False, receive_shadow=False))  # fmt: skip
-            colour = GARMENT_COLOURS[i % len(GARMENT_COLOURS)]
-            self.garments.append(scene.add_mesh_simple(
-                f"/seq{i}/garment", seq.garment[0], seq.template.faces, color=colour,
-                side="double", cast_shadow=False, receive_shadow=False))  # fmt: skip
-            self.bin_meshes.append([
+            self.bodies.append(
                 scene.add_mesh_simple(
-                    f"/seq{i}/colour/{k}", np.zeros((3, 3), np.float32),
-                    np.array([[0, 1, 2]], np.uint32), color=tuple(int(c) for c in rgb),
-                    side="double", cast_shadow=False, receive_shadow=False, visible=False)
-                for k, rgb in enumerate(colouring.bin_colours("viridis", bins))
-            ])  # fmt: skip
+                    f"/seq{i}/body",
+                    seq.body[0],
+                    seq.body_faces,
+                    color=BODY_COLOUR,
+                    cast_shadow=False,
+                    receive_shadow=False,
+                )
+            )
+            colour = GARMENT_COLOURS[i % len(GARMENT_COLOURS)]
+            self.garments.append(
+                scene.add_mesh_simple(
+                    f"/seq{i}/garment",
+                    seq.garment[0],
+                    seq.template.faces,
+                    color=colour,
+                    side="double",
+                    cast_shadow=False,
+                    receive_shadow=False,
+                )
+            )
+            self.bin_meshes.append(
+                [
+                    scene.add_mesh_simple(
+                        f"/seq{i}/colour/{k}",
+                        np.zeros((3, 3), np.float32),
+                        np.array([[0, 1, 2]], np.uint32),
+                        color=tuple(int(c) for c in rgb),
+                        side="double",
+                        cast_shadow=False,
+                        receive_shadow=False,
+                        visible=False,
+                    )
+                    for k, rgb in enumerate(colouring.bin_colours("viridis", bins))
+                ]
+            )
             self._label_z.append(float(seq.body[:, :, 2].max()) + 0.2)
             self.labels.append(scene.add_label(f"/seq{i}/label", seq.name))
         self._place()
@@ -178,12 +209,13 @@ class Viewer:
             self.seq_boxes = [gui.add_checkbox(s.name, True) for s in self.sequences]
         with gui.add_folder(colour):
             modes = [k for k in COLOURINGS if len(self.sequences) > 1 or k != "error"]
-            self.mode = gui.add_dropdown("colour by", [COLOURINGS[k] for k in modes],
-                                         initial_value=COLOURINGS[c.colouring])  # fmt: skip
+            self.mode = gui.add_dropdown(
+                "colour by", [COLOURINGS[k] for k in modes], initial_value=COLOURINGS[c.colouring]
+            )
             names = [s.name for s in self.sequences]
-            self.reference = gui.add_dropdown("reference", names,
-                                              initial_value=names[c.reference],
-                                              visible=len(names) > 1)  # fmt: skip
+            self.reference = gui.add_dropdown(
+                "reference", names, initial_value=names[c.reference], visible=len(names) > 1
+            )
             self.scale_max = gui.add_number("scale max", 1.0, min=1e-6, step=0.1)
             self.colour_bar = gui.add_html("")
             self.stats = gui.add_markdown("")
@@ -194,9 +226,19 @@ class Viewer:
     def panel_labels(self) -> list[str]:
         """The labels a browser shows in the panel as it is now: the folders' and the shown
         controls' (a headless screenshot waits for them: the panel has arrived)."""
-        controls = [self.play_button, self.slider, self.speed, self.follow_box, self.loop_box,
-                    self.layout, self.body_box, *self.seq_boxes, self.mode, self.reference,
-                    self.scale_max]  # fmt: skip
+        controls = [
+            self.play_button,
+            self.slider,
+            self.speed,
+            self.follow_box,
+            self.loop_box,
+            self.layout,
+            self.body_box,
+            *self.seq_boxes,
+            self.mode,
+            self.reference,
+            self.scale_max,
+        ]
         return list(PANEL_FOLDERS) + [c.label for c in controls if c.visible]
 
     def _wire_panel(self) -> None:
@@ -267,8 +309,7 @@ class Viewer:
         update the panel's slider and figures (playback does it a few times a second: the
         browser redraws the whole panel for each)."""
         if not 0 <= t < self.num_frames:
-            raise LoosefitInputError("Viewer.set_frame", "t", f"0 to {self.num_frames - 1}",
-                                     str(t))  # fmt: skip
+            raise LoosefitInputError("Viewer.set_frame", "t", f"0 to {self.num_frames - 1}", str(t))
         with self._lock, self.server.atomic():
             self.frame = int(t)
             self._show(self.frame, panel)
@@ -342,8 +383,9 @@ class Viewer:
     def _follow_point(self) -> np.ndarray:
         """The middle of the shown bodies' hips at the current frame, in the scene."""
         shown = [i for i in range(len(self.sequences)) if self.visible[i]] or [0]
-        points = [self.sequences[i].body[self.frame].mean(0) + self.nodes[i].position
-                  for i in shown]  # fmt: skip
+        points = [
+            self.sequences[i].body[self.frame].mean(0) + self.nodes[i].position for i in shown
+        ]
         return np.mean(points, axis=0)
 
     def _follow(self, t: int) -> None:
