@@ -22,20 +22,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import torch
+from stage_account import clip_reference
 
 from loosefit.data.format import DatasetReader
 from loosefit.inference.animator import load_pipeline
 from loosefit.train.common import machine
-
-sys.path.insert(0, str(Path(__file__).parent))
-from stage_account import clip_reference  # noqa: E402
 
 EXPLODED_STRAIN_P99 = 1.0  # a flagged clip whose simulation tore: no ground truth
 COLUMNS = [  # key, header, format, scale

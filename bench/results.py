@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -220,7 +219,6 @@ def plot_per_frame(path: Path, scores: dict, clips: list[str], spins: list[int],
 
 def ablation_section(ablation: Path) -> list[str]:
     """The generative ablation's table (bench/generative_ablation.py's), from its runs."""
-    sys.path.insert(0, str(Path(__file__).parent))
     from generative_ablation import DECODERS, format_table
 
     rows: dict[str, list[dict]] = {}
@@ -242,7 +240,6 @@ def ablation_figures(ablation: Path, cache: Path, reader, seq, body, body_faces,
     Returns:
         Per decoder: the RMSE of every frame (cm).
     """
-    sys.path.insert(0, str(Path(__file__).parent))
     from generative_ablation import DECODERS
 
     from loosefit.inference.checkpoints import load_generative
@@ -359,7 +356,6 @@ def cloth_figures(ours, c: dict, cache: Path) -> dict:
     path = cache / c["name"] / "cloth.json"
     if path.is_file():
         return json.loads(path.read_text())
-    sys.path.insert(0, str(Path(__file__).parent))
     from stage_account import clip_reference
 
     measure, turn, window = clip_reference(ours, c["seq"])
