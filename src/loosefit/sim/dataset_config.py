@@ -46,7 +46,8 @@ class MotionSource:
 class QualityLimits:
     """Thresholds beyond which a simulated clip is flagged and excluded from the split."""
 
-    # garment vertices more than cloth.PENETRATION_TOLERANCE (5 mm) inside the body, worst frame
+    # garment vertices more than eval.quality.PENETRATION_TOLERANCE (5 mm) inside the body,
+    # worst frame
     max_penetration_fraction: float = 0.01
     max_inside_depth: float = 0.03  # m, no vertex deeper inside the body than this
     max_strain_p99: float = 0.25  # 99th percentile of |edge length / rest - 1|, worst frame
@@ -214,9 +215,6 @@ def config_from_dict(d: dict, source: str | Path = "dataset config") -> DatasetC
     parts = {k: build(cls, d.pop(k, {}), k) for k, cls in sub.items()}
     garment = build(GARMENT_TYPES[kind], g, "garment")
     return build(DatasetConfig, {**d, **parts, "garment": garment}, "")
-
-
-# -- workers -------------------------------------------------------------------------
 
 
 def read_config_file(path: str | Path) -> DatasetConfig:

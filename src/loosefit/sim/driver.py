@@ -72,7 +72,6 @@ class SimResult:
     stats: dict = field(default_factory=dict)
 
 
-# -- warp kernels ---------------------------------------------------------------
 def attached_loop(template: GarmentTemplate) -> bool:
     """Whether a garment is held by a closed band (a waistband: ``meta["attachment"]``
     "loop", the default) or by separate points ("points": a dress's straps)."""
@@ -114,7 +113,6 @@ def _frame_name(k: int, n_settle: int, n_pre: int) -> str:
     return f"motion frame {k - n_pre}"
 
 
-# ClothConfig fields added after 2026-11-26, with the value that does what the solver did
 def simulate(
     avatar: Avatar,
     template: GarmentTemplate,

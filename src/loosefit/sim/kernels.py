@@ -59,8 +59,6 @@ def pin_waist_kernel(
 
 @wp.kernel
 def damp_kernel(factor: wp.array(dtype=float), qd: wp.array(dtype=wp.vec3)):
+    """Velocities scaled by ``factor[0]``: the air's (or the settling's) damping over a substep."""
     i = wp.tid()
     qd[i] = qd[i] * factor[0]
-
-
-# -- the simulator ----------------------------------------------------------------

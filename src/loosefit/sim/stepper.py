@@ -232,10 +232,9 @@ class ClothSimulator:
 
         cfg = self.config
         K, V = self.worlds, self.num_vertices
-        # 2. The cloth, with a seeded jitter that breaks the template's exact symmetry, and
-        #    3. the body: one static mesh shape per clip. Newton mixes contact materials as the
-        #    mean of ke and kd and the geometric mean of mu, so the shape's mu is chosen to
-        #    give sqrt(self_friction * shape_mu) = body_friction.
+        # Newton mixes contact materials as the mean of ke and kd and the geometric mean of
+        # mu, so the body shape's mu is chosen to give sqrt(self_friction * shape_mu) =
+        # body_friction (and the arms' to give arm_friction).
         builder = newton.ModelBuilder(gravity=(0.0, 0.0, cfg.gravity))
         shape_mu = cfg.body_friction**2 / cfg.self_friction if cfg.self_friction > 0 else 0.0
 
@@ -314,8 +313,8 @@ class ClothSimulator:
         model.soft_contact_mu = cfg.self_friction
         if cfg.flat_rest:
             model.edge_rest_angle.zero_()
-        # The shapes' cached boxes are the starting bodies': widen them to the whole motion.
-        #    Every shape of a clip (the body, and the arms if they are a mesh of their own).
+        # The shapes' cached boxes are the starting bodies': widen them to the whole motion,
+        # for every shape of a clip (the body, and the arms if they are a mesh of their own).
         per_world = len(self._body_meshes[0])
         if model.shape_collision_aabb_lower.shape[0] != K * per_world:  # assign would truncate
             raise RuntimeError(
@@ -448,9 +447,6 @@ class ClothSimulator:
         for state in (self.state_0, self.state_1):
             state.particle_q.assign(np.ascontiguousarray(q))
             state.particle_qd.assign(np.ascontiguousarray(qd))
-
-
-# -- driving it with a motion -----------------------------------------------------
 
 
 def _pin_particles(model, pinned: np.ndarray) -> None:
