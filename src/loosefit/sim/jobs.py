@@ -21,10 +21,10 @@ if TYPE_CHECKING:
 class Job:
     """One clip to simulate."""
 
-    name: str
+    name: str  # the clip's name: its sequence file's and its manifest entry's
     spec: str  # a load_motion spec: a .bvh path, a move name or dance:SECONDS
-    seed: int
-    test: bool
+    seed: int  # seeds its motion (a dance) and its cloth's jitter
+    test: bool  # held out for testing
 
 
 def plan_jobs(config: DatasetConfig) -> list[Job]:
