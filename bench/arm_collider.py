@@ -25,8 +25,9 @@ from loosefit.data.format import write_sequence
 from loosefit.dress import fit_skirt
 from loosefit.eval.quality import quality
 from loosefit.sequence import AnimatedGarment
-from loosefit.sim.cloth import simulate
-from loosefit.sim.generate import job_motion, plan_jobs, preset
+from loosefit.sim.driver import simulate
+from loosefit.sim.jobs import job_motion, plan_jobs
+from loosefit.sim.presets import preset
 
 
 def _assignments(items: list[str], flag: str) -> dict[str, float]:

@@ -97,7 +97,8 @@ def main() -> None:
     torch.set_num_threads(args.threads)
 
     from loosefit.body.motions import load_motion
-    from loosefit.sim.generate import job_motion, plan_jobs, preset
+    from loosefit.sim.jobs import job_motion, plan_jobs
+    from loosefit.sim.presets import preset
 
     model = load_pipeline(args.checkpoint)  # with the detail stage packaged beside it, if any
     rows = dict(ROWS, **(DETAIL_ROWS if model.detail is not None else {}))

@@ -40,7 +40,9 @@ from loosefit.fit import FitConfig, FitReport, fit_garment
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.obj import write_obj
 from loosefit.progress import tqdm_bar
-from loosefit.sim.cloth import ClothConfig, collider_meshes, simulate
+from loosefit.sim.cloth_config import ClothConfig
+from loosefit.sim.driver import simulate
+from loosefit.sim.timeline import collider_meshes
 from loosefit.types import GarmentTemplate
 
 OTHER_BODY = {"weight": 0.8, "height": 0.9, "proportions": 0.0}  # as tests/test_fit.py

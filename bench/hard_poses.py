@@ -32,7 +32,8 @@ from stage_account import inside  # bench/, beside this file
 from loosefit.eval.quality import PENETRATION_TOLERANCE
 from loosefit.garment.mesh_checks import unique_edges
 from loosefit.inference.animator import load_pipeline
-from loosefit.sim.generate import _resolve_spec, read_config_file, spec_name
+from loosefit.sim.dataset_config import read_config_file, resolve_spec
+from loosefit.sim.jobs import spec_name
 from loosefit.train.common import machine
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,7 +51,7 @@ def motions(config: Path) -> list[tuple[str, str, int, int | None]]:
     cfg = read_config_file(config)
     out = [(spec_name(s), s, 0, None) for s in cfg.motions.specs]
     for spec, start, frames in EXTRA:
-        resolved = _resolve_spec(spec, ROOT)
+        resolved = resolve_spec(spec, ROOT)
         name = Path(spec).stem + (f"_{start}-{start + frames}" if frames else "")
         out.append((name, resolved, start, frames))
     return out

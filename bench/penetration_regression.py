@@ -38,7 +38,9 @@ import torch
 
 from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.eval.quality import PENETRATION_TOLERANCE, quality
-from loosefit.sim import generate as gen
+from loosefit.sim.dataset_config import QualityLimits, read_config_file
+from loosefit.sim.generate import generate
+from loosefit.sim.manifest import LEGACY_CLOTH
 
 ROOT = Path(__file__).resolve().parents[1]
 VARIANTS = {
@@ -68,11 +70,11 @@ def judge(folder: Path) -> dict:
     reader = DatasetReader(folder, allow_incomplete=True)
     avatar = avatar_for(reader)
     # a data set made before a cloth field existed was made with LEGACY_CLOTH's value
-    cloth = {**gen.LEGACY_CLOTH, **reader.manifest["config"]["cloth"]}
+    cloth = {**LEGACY_CLOTH, **reader.manifest["config"]["cloth"]}
     arms = cloth.get("arm_collision", False)
     faces = avatar.collider_faces(arms=arms).cpu().numpy()
     parts = body_parts(avatar, arms=arms)
-    limits = gen.QualityLimits(**reader.manifest["config"].get("limits", {}))
+    limits = QualityLimits(**reader.manifest["config"].get("limits", {}))
     rows = {}
     for name, entry in reader.manifest["sequences"].items():
         if "quality" not in entry:
@@ -153,7 +155,7 @@ def main() -> int:
         if variant not in VARIANTS:
             print(f"unknown variant {variant!r}: expected one of {list(VARIANTS)}")
             return 2
-        config = gen.read_config_file(args.config)
+        config = read_config_file(args.config)
         change = VARIANTS[variant]
         config.cloth = dataclasses.replace(config.cloth, **change.get("cloth", {}))
         config.unfold = dataclasses.replace(config.unfold, **change.get("unfold", {}))
@@ -162,7 +164,7 @@ def main() -> int:
             config.motions.specs = tuple(x for x in config.motions.specs if args.only in x)
         folder = Path(args.out) / variant
         t0 = time.perf_counter()
-        gen.generate(config, folder, workers=args.workers, progress=True)
+        generate(config, folder, workers=args.workers, progress=True)
         print(f"{variant}: simulated in {time.perf_counter() - t0:.0f} s", flush=True)
         results[variant] = judge(folder)
     print(f"machine: {platform.platform()}, {os.cpu_count()} CPUs; tolerance "

@@ -170,7 +170,8 @@ def simulate_pair(avatar, parts, spec: str, clearance: float, cap: float, out: P
 
     from loosefit.body.motions import load_motion
     from loosefit.body.unfold import UnfoldConfig, unfold_motion
-    from loosefit.sim import generate as gen
+    from loosefit.sim.dataset_config import read_config_file
+    from loosefit.sim.generate import generate
 
     motion = load_motion(spec, avatar, fps=30.0)
     unfolded = unfold_motion(avatar, motion, parts, UnfoldConfig(clearance=clearance,
@@ -179,11 +180,11 @@ def simulate_pair(avatar, parts, spec: str, clearance: float, cap: float, out: P
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"corrected_{cap:g}deg.npz"
     fixed.save(path)
-    config = gen.read_config_file(ROOT / "configs" / "regression.yaml")
+    config = read_config_file(ROOT / "configs" / "regression.yaml")
     config.preset = "pose-correction"
     config.unfold = UnfoldConfig(enabled=False)  # the two motions as they are
     config.motions.specs = (spec, str(path))
-    gen.generate(config, out / "simulated", workers=workers, progress=True)
+    generate(config, out / "simulated", workers=workers, progress=True)
     rows = regression.judge(out / "simulated")
     names = avatar.joint_names
     with torch.no_grad():

@@ -26,7 +26,8 @@ import numpy as np
 
 from loosefit.errors import LoosefitInputError
 from loosefit.sim.cluster import ClusterConfig, preflight
-from loosefit.sim.generate import generate, preset
+from loosefit.sim.generate import generate
+from loosefit.sim.presets import preset
 
 
 def _free_port() -> int:

@@ -33,7 +33,7 @@ from loosefit.eval.quality import edge_strain
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import heading_yaw
 from loosefit.model.rollout import MOTION_ONLY, Stages
-from loosefit.sim.generate import BALLET_CLIPS
+from loosefit.sim.presets import BALLET_CLIPS
 from loosefit.train.common import machine
 
 RAW = Stages(detail=False, lengths=False, collision=False)

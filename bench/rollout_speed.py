@@ -139,7 +139,8 @@ def _name(spec: str, start_frame: int) -> str:
 
 
 def time_simulation(model, avatar, motion, device: str, cloth: dict) -> dict:
-    from loosefit.sim.cloth import ClothConfig, simulate
+    from loosefit.sim.cloth_config import ClothConfig
+    from loosefit.sim.driver import simulate
 
     cloth = dict(cloth)
     cloth["device"] = device

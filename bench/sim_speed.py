@@ -26,7 +26,8 @@ from loosefit.body.avatar import Avatar
 from loosefit.body.motions import load_motion
 from loosefit.dress import fit_skirt
 from loosefit.garment.skirt import SkirtConfig
-from loosefit.sim.cloth import ClothConfig, simulate, simulate_batch
+from loosefit.sim.cloth_config import ClothConfig
+from loosefit.sim.driver import simulate, simulate_batch
 
 
 def main() -> None:

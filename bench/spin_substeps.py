@@ -31,8 +31,9 @@ from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.dress import fit_skirt
 from loosefit.eval.quality import edge_strain
 from loosefit.sequence import DressedSequence
-from loosefit.sim.cloth import simulate
-from loosefit.sim.generate import job_motion, plan_jobs, preset
+from loosefit.sim.driver import simulate
+from loosefit.sim.jobs import job_motion, plan_jobs
+from loosefit.sim.presets import preset
 
 
 def main() -> None:

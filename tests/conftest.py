@@ -63,7 +63,7 @@ def toy_dataset(avatar, skirt, tmp_path_factory):
         )
     from dataclasses import asdict
 
-    from loosefit.sim.cloth import ClothConfig
+    from loosefit.sim.cloth_config import ClothConfig
 
     manifest = {
         "format": FORMAT,

@@ -122,7 +122,7 @@ def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so
 
 
 def test_simulate_gives_ground_truth_of_one_motion(skirt):
-    from loosefit.sim.cloth import ClothConfig
+    from loosefit.sim.cloth_config import ClothConfig
 
     result = loosefit.simulate("sway", skirt, frames=3, config=ClothConfig.tiny())
     assert result.source == "newton-vbd" and result.vertices.shape == (3, skirt.num_vertices, 3)

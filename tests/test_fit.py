@@ -18,7 +18,8 @@ from loosefit.errors import LoosefitInputError
 from loosefit.fit import FitConfig, best_shape, check_fitted_shape, fit_garment, fit_template
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.obj import write_obj
-from loosefit.sim.cloth import ClothConfig, simulate
+from loosefit.sim.cloth_config import ClothConfig
+from loosefit.sim.driver import simulate
 
 OTHER_BODY = {"weight": 0.8, "height": 0.9, "proportions": 0.0}
 COARSE = {"rings": 12, "segments": 24, "strap_rows": 3, "strap_columns": 3}

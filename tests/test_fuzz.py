@@ -128,7 +128,8 @@ CONFIG = "garment: {type: dress, style: straps}\ncloth: {substeps: 8}\nmotions: 
 
 @given(text=broken_text(CONFIG))
 def test_dataset_config_file(tmp_path, text):
-    from loosefit.sim.generate import plan_jobs, read_config_file
+    from loosefit.sim.dataset_config import read_config_file
+    from loosefit.sim.jobs import plan_jobs
 
     config = accepts(lambda: read_config_file(_write(tmp_path, "d.yaml", text)))
     if config is not None:

@@ -41,7 +41,7 @@ def test_an_obj_coordinate_beyond_float32(tmp_path):
     ("cloth: {self_contact: 1}\n", "cloth.self_contact"),
 ])  # fmt: skip
 def test_config_values_of_the_wrong_kind(tmp_path, text, field):
-    from loosefit.sim.generate import read_config_file
+    from loosefit.sim.dataset_config import read_config_file
 
     (tmp_path / "c.yaml").write_text(text)
     with pytest.raises(LoosefitInputError, match=rf"c\.yaml.*field '{field}'"):

@@ -86,11 +86,11 @@ def test_npz_files_with_a_pickled_object_are_refused(tmp_path, marker, skirt):
 
 
 def test_the_simulation_s_resume_file_is_never_unpickled(tmp_path, marker):
-    from loosefit.sim.cloth import _read_resume
+    from loosefit.sim.resume import read_resume
 
     path = _npz_with_payload(tmp_path / "resume.npz", marker, key=np.array("k"),
                              frame=np.array(1))  # fmt: skip
-    assert _read_resume(path, "k", 10) is None  # an unreadable state: the run starts over
+    assert read_resume(path, "k", 10) is None  # an unreadable state: the run starts over
 
 
 def test_a_newer_format_version_asks_for_an_upgrade(tmp_path, skirt):

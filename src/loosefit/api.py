@@ -269,7 +269,7 @@ def simulate(
             ``dress-strapless``, a garment file (``.obj``, ``.gltf``, ``.glb``: imported
             onto the avatar), or a :class:`~loosefit.types.GarmentTemplate` on its rest pose.
         frames, start_frame, seed: as for :meth:`Animator.animate`.
-        config: the physics (:class:`~loosefit.sim.cloth.ClothConfig`; default settings,
+        config: the physics (:class:`~loosefit.sim.cloth_config.ClothConfig`; default settings,
             the upper arms in the collider for a dress).
         shape: the avatar's phenotype (anny's names); default the project's avatar.
         progress: called as ``progress(done, total)``.
@@ -279,7 +279,7 @@ def simulate(
     """
     from loosefit.body.avatar import Avatar, AvatarConfig
     from loosefit.dress import garment_for
-    from loosefit.sim.cloth import simulate as run
+    from loosefit.sim.driver import simulate as run
 
     avatar = Avatar(AvatarConfig(shape=dict(shape or {})) if shape else None)
     template = garment if isinstance(garment, GarmentTemplate) else garment_for(garment, avatar)
@@ -290,7 +290,7 @@ def simulate(
     m = motion_for(motion, avatar, 30.0, frames, start_frame, seed)
     if config is None:  # a dress's bodice reaches the upper arms: they collide
         from loosefit.dress import collider_arms
-        from loosefit.sim.cloth import ClothConfig
+        from loosefit.sim.cloth_config import ClothConfig
 
         config = ClothConfig(arm_collision=collider_arms(template))
     if unfold:

@@ -8,7 +8,7 @@ avatar's rest body. :func:`fit_garment` takes it anyway, in three steps:
    project's collision handling, which keeps the mesh's Laplacian (paper Eq. 16,
    :class:`~loosefit.geometry.collision.CollisionHandler`): a dent, not a spike;
 2. it drapes on the avatar standing still in the simulator (the settle phase every
-   clip starts with, :func:`~loosefit.sim.cloth.settle`), so its top sits on the body;
+   clip starts with, :func:`~loosefit.sim.driver.settle`), so its top sits on the body;
 3. the largest and mean displacement (the placed input to the fitted garment) and what is
    left inside the body are reported (:class:`FitReport`).
 
@@ -227,7 +227,8 @@ def fit_template(
     _stage(progress, PUSH, 1)
     fitted = pushed
     if config.settle_seconds > 0:
-        from loosefit.sim.cloth import ClothConfig, settle
+        from loosefit.sim.cloth_config import ClothConfig
+        from loosefit.sim.driver import settle
 
         cloth = config.cloth or ClothConfig(arm_collision=arms)
         cloth = replace(cloth, settle_seconds=config.settle_seconds)

@@ -20,9 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import loosefit.sim.generate as gen
 from loosefit.cli import main
-from loosefit.data.format import DatasetReader
+from loosefit.data.format import DatasetReader, write_json_atomic
 from loosefit.errors import LoosefitInputError
 from loosefit.sim.cluster import (
     ClusterConfig,
@@ -32,6 +31,9 @@ from loosefit.sim.cluster import (
     import_ray,
     split_address,
 )
+from loosefit.sim.generate import generate
+from loosefit.sim.manifest import package_versions
+from loosefit.sim.presets import preset
 
 needs_ray = pytest.mark.skipif(
     importlib.util.find_spec("ray") is None,
@@ -89,7 +91,7 @@ def head():
 def local_tiny(tmp_path_factory, avatar):
     """The tiny data set as the local runner makes it (one process, uninterrupted)."""
     out = tmp_path_factory.mktemp("local") / "tiny"
-    gen.generate(gen.preset("tiny"), out, workers=1, progress=False)
+    generate(preset("tiny"), out, workers=1, progress=False)
     return out
 
 
@@ -181,7 +183,7 @@ def run_with_kill(head, out: Path, clip: str, cluster: ClusterConfig):
     killer.start()
     error = None
     try:
-        gen.generate(gen.preset("tiny"), out, progress=False, resume_every=2, cluster=cluster)
+        generate(preset("tiny"), out, progress=False, resume_every=2, cluster=cluster)
     except ClusterError as exc:
         error = exc
     finally:
@@ -222,7 +224,7 @@ def test_a_clip_whose_task_dies_for_good_is_missing_until_the_rerun_goes_on_from
     with pytest.raises(LoosefitInputError, match="unfinished"):
         DatasetReader(out)
     saved = int(np.load(out / "resume" / "spin_001.npz")["frame"])
-    manifest = gen.generate(gen.preset("tiny"), out, progress=False, resume_every=2,
+    manifest = generate(preset("tiny"), out, progress=False, resume_every=2,
                             cluster=ClusterConfig(head[1]))  # fmt: skip
     assert manifest["sequences"]["spin_001"]["resumed_frame"] == saved
     assert_same_data_set(out, local_tiny)
@@ -233,11 +235,11 @@ def test_an_address_where_no_cluster_answers_fails_at_once_naming_it(tmp_path, c
     port = free_port()  # nothing listens there
     for address in (f"127.0.0.1:{port}", "no-such-host.invalid:6379"):
         with pytest.raises(LoosefitInputError, match=f"nothing answering at {address}"):
-            gen.generate(gen.preset("tiny"), tmp_path / "a", progress=False,
+            generate(preset("tiny"), tmp_path / "a", progress=False,
                          cluster=ClusterConfig(address, connect_timeout=2.0))  # fmt: skip
     assert not (tmp_path / "a").exists()  # no data set begun
     with pytest.raises(LoosefitInputError, match="HOST:PORT"):
-        gen.generate(gen.preset("tiny"), tmp_path / "a", progress=False,
+        generate(preset("tiny"), tmp_path / "a", progress=False,
                      cluster=ClusterConfig("head:port"))  # fmt: skip
     # the command line: an error naming the address, no traceback
     out = tmp_path / "b"
@@ -277,7 +279,7 @@ def test_without_ray_the_error_says_how_to_install_it(monkeypatch, tmp_path):
     with pytest.raises(LoosefitInputError, match=r"pip install 'loosefit\[cluster\]'"):
         import_ray()
     with pytest.raises(LoosefitInputError, match="not installed"):
-        gen.generate(gen.preset("tiny"), tmp_path / "a", progress=False, cluster=ClusterConfig())
+        generate(preset("tiny"), tmp_path / "a", progress=False, cluster=ClusterConfig())
     assert not (tmp_path / "a").exists()
 
 
@@ -292,8 +294,8 @@ def test_addresses_are_read_as_ray_reads_them():
 
 
 def test_a_node_that_does_not_see_the_data_set_or_runs_other_packages_says_so(tmp_path):
-    gen.write_json_atomic(tmp_path / "manifest.json", {"created": "2026-11-26T20:00:00+00:00"})
-    versions = gen.package_versions()
+    write_json_atomic(tmp_path / "manifest.json", {"created": "2026-11-26T20:00:00+00:00"})
+    versions = package_versions()
     check_node(tmp_path, "2026-11-26T20:00:00+00:00", versions)  # the driver's: fine
     with pytest.raises(LoosefitInputError, match="storage the nodes share.*none on node"):
         check_node(tmp_path / "elsewhere", "2026-11-26T20:00:00+00:00", versions)
@@ -311,7 +313,9 @@ def test_without_ray_option_the_local_runner_runs(monkeypatch, tmp_path):
         seen.update(kw)
         raise SystemExit(0)
 
-    monkeypatch.setattr(gen, "generate", fake)
+    import loosefit.sim.generate  # where loosefit.cli takes it from
+
+    monkeypatch.setattr(loosefit.sim.generate, "generate", fake)
     with pytest.raises(SystemExit):
         main(["simulate", "--preset", "tiny", "--out", str(tmp_path / "x")])
     assert seen["cluster"] is None and seen["resume_every"] == 50

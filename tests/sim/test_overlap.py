@@ -51,9 +51,11 @@ def test_a_leg_pushed_into_the_body_is_pressed_back_onto_its_surface(avatar, par
 
 def test_a_data_set_made_before_flattening_was_made_without_it(tmp_path):
 
-    import loosefit.sim.generate as gen
+    from loosefit.sim.dataset_config import config_dict, normalized
+    from loosefit.sim.manifest import stored_config
+    from loosefit.sim.presets import preset
 
-    stored = gen._normalized(gen._config_dict(gen.preset("tiny")))
+    stored = normalized(config_dict(preset("tiny")))
     del stored["cloth"]["flatten_overlaps"]
-    assert gen._stored_config({"config": stored})["cloth"]["flatten_overlaps"] is False
-    assert gen.preset("salsa").cloth.flatten_overlaps is True  # new data: the fix
+    assert stored_config({"config": stored})["cloth"]["flatten_overlaps"] is False
+    assert preset("salsa").cloth.flatten_overlaps is True  # new data: the fix

@@ -8,10 +8,11 @@ import dataclasses
 import numpy as np
 
 import loosefit
-import loosefit.sim.generate as gen
 from loosefit.model.generative import GenerativeConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.rollout import RolloutConfig
+from loosefit.sim.generate import generate
+from loosefit.sim.presets import preset
 from loosefit.train.generative import TrainGenerativeConfig, train_generative
 from loosefit.train.motion import TrainMotionConfig, train_motion
 from tests.train.conftest import SMALL
@@ -19,7 +20,7 @@ from tests.train.conftest import SMALL
 
 def test_a_dress_trains_and_animates_a_motion_it_never_saw(tmp_path, avatar):
     data = tmp_path / "dress"
-    gen.generate(gen.preset("dress-tiny"), data, workers=1, progress=False)
+    generate(preset("dress-tiny"), data, workers=1, progress=False)
     quiet = dict(log=lambda *_: None, progress=False)
     gcfg = TrainGenerativeConfig(model=GenerativeConfig(**SMALL), epochs=6, batch_size=8,
                                  lr=2e-3, eval_every=1000, checkpoint_every=3)  # fmt: skip

@@ -117,8 +117,9 @@ def test_a_killed_training_resumes_to_the_same_weights(stage, toy_dataset, gener
 
 SIMULATE = """
 import sys
-import loosefit.sim.generate as gen
-gen.generate(gen.preset("tiny"), sys.argv[1], workers=1, progress=False)
+from loosefit.sim.generate import generate
+from loosefit.sim.presets import preset
+generate(preset("tiny"), sys.argv[1], workers=1, progress=False)
 """
 
 

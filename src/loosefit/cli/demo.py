@@ -157,7 +157,8 @@ def run(args: argparse.Namespace) -> int:
 def _simulate(args: argparse.Namespace, avatar, template, motion):
     """``demo --physics``: the skirt simulated with Newton's VBD solver, (T, V, 3)."""
     from loosefit.dress import collider_arms
-    from loosefit.sim.cloth import ClothConfig, simulate
+    from loosefit.sim.cloth_config import ClothConfig
+    from loosefit.sim.driver import simulate
 
     config = ClothConfig(
         device=args.sim_device, seed=args.seed, arm_collision=collider_arms(template)

@@ -122,7 +122,8 @@ def dataset_config(args: argparse.Namespace):
     """The data set ``simulate`` makes: ``--config FILE`` or ``--preset``, then
     ``--garment``, ``--motions``, ``--test``, ``--device``, ``--shape``, ``--max-frames``,
     ``--keep-poses`` over it."""
-    from loosefit.sim.generate import MotionSource, preset, read_config_file
+    from loosefit.sim.dataset_config import MotionSource, read_config_file
+    from loosefit.sim.presets import preset
 
     config = read_config_file(args.config) if args.config else preset(args.preset, args.bvh)
     if args.garment:
@@ -154,7 +155,7 @@ def _set_garment(config, args: argparse.Namespace) -> None:
     """``--garment``: a skirt style, a dress, or a garment file, in place of the preset's."""
     from loosefit.garment.dress import DRESS_SPECS, DressConfig
     from loosefit.garment.skirt import STYLES, SkirtConfig
-    from loosefit.sim.generate import GarmentFile
+    from loosefit.sim.dataset_config import GarmentFile
 
     g = args.garment
     if g in STYLES:
@@ -176,7 +177,9 @@ def _set_garment(config, args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from loosefit.sim.generate import format_report, generate, write_config_file
+    from loosefit.sim.dataset_config import write_config_file
+    from loosefit.sim.generate import generate
+    from loosefit.sim.report import format_report
 
     config = dataset_config(args)
     if args.write_config:

@@ -56,7 +56,7 @@ def avatar_fingerprint(avatar: dict) -> str:
 
 def cloth_fingerprint(cloth: dict) -> str:
     """A short hash of a cloth configuration as a data set's manifest stores it (the
-    fields of :class:`~loosefit.sim.cloth.ClothConfig` as JSON), to tell the clips of one
+    fields of :class:`~loosefit.sim.cloth_config.ClothConfig` as JSON), to tell the clips of one
     data set simulated under another.
 
     The device is normalised to ``"cpu"``: a clip simulated on a GPU is the same data as

@@ -3,7 +3,7 @@
 A rollout starts as the simulator does: the body stands in the rest pose for
 a few frames (``warm_frames``, which also warm the GRU up), then blends into
 the motion's first frame (``blend_seconds``), and the garment starts from its
-settled drape on the rest pose (:func:`loosefit.sim.cloth.settle`). From then
+settled drape on the rest pose (:func:`loosefit.sim.driver.settle`). From then
 on each frame's garment is decoded from ``Z_t = E(M_t, V_{t-1})`` and fed back
 as the next frame's previous state. Training runs the same timeline, so the
 encoder has seen every kind of frame it meets here.

@@ -2,7 +2,7 @@
 
 :func:`run_on_ray` is the executor :func:`loosefit.sim.generate.generate` uses when it is
 given a :class:`ClusterConfig` instead of running its own processes. Each unit of work (a
-clip, or a ``batch`` of clips) runs :func:`loosefit.sim.generate.run_clips` as a Ray task
+clip, or a ``batch`` of clips) runs :func:`loosefit.sim.workers.run_clips` as a Ray task
 on some node: the same function a local worker runs, so it simulates and writes the same
 clip into the data set folder. The driver gathers the manifest as ``--workers`` does.
 
@@ -30,7 +30,10 @@ from pathlib import Path
 from tqdm import tqdm
 
 from loosefit.errors import LoosefitInputError
-from loosefit.sim.generate import DatasetConfig, Job, package_versions, run_clips, unit_name
+from loosefit.sim.dataset_config import DatasetConfig
+from loosefit.sim.jobs import Job, unit_name
+from loosefit.sim.manifest import package_versions
+from loosefit.sim.workers import run_clips
 
 GCS_PORT = 6379  # a head's port when its address names none (ray start --head's default)
 CLIENT_PORT = 10001  # the same for a Ray Client address (ray://HOST)
@@ -57,8 +60,12 @@ def import_ray():
     try:
         import ray
     except ImportError:
-        raise LoosefitInputError("--ray", "ray", "the ray package: pip install 'loosefit[cluster]'",
-                                 "it is not installed") from None  # fmt: skip
+        raise LoosefitInputError(
+            "--ray",
+            "ray",
+            "the ray package: pip install 'loosefit[cluster]'",
+            "it is not installed",
+        ) from None
     return ray
 
 
@@ -77,8 +84,9 @@ def split_address(address: str) -> tuple[str, int]:
     except ValueError:
         host = port = None
     if not host or "/" in rest.rstrip("/"):
-        raise LoosefitInputError("--ray", "address", "HOST:PORT of a Ray head (or ray://HOST:PORT)",
-                                 repr(address))  # fmt: skip
+        raise LoosefitInputError(
+            "--ray", "address", "HOST:PORT of a Ray head (or ray://HOST:PORT)", repr(address)
+        )
     return host, port or (CLIENT_PORT if client else GCS_PORT)
 
 
@@ -95,8 +103,10 @@ def check_reachable(address: str, timeout: float) -> None:
         LoosefitInputError: naming the address and what answered there, if anything.
     """
     host, port = split_address(address)
-    expected = ("the address of a running Ray cluster's head (`ray start --head` prints it; "
-                "docs/CLUSTER.md)")  # fmt: skip
+    expected = (
+        "the address of a running Ray cluster's head (`ray start --head` prints it; "
+        "docs/CLUSTER.md)"
+    )
     try:
         with socket.create_connection((host, port), timeout=timeout) as conn:
             conn.settimeout(timeout)
@@ -105,13 +115,20 @@ def check_reachable(address: str, timeout: float) -> None:
             while len(head) < 4 and (chunk := conn.recv(9 - len(head))):
                 head += chunk
     except OSError as exc:
-        raise LoosefitInputError("--ray", "address", expected,
-                                 f"nothing answering at {host}:{port} within {timeout:g} s "
-                                 f"({exc or 'timed out'})") from None  # fmt: skip
+        raise LoosefitInputError(
+            "--ray",
+            "address",
+            expected,
+            f"nothing answering at {host}:{port} within {timeout:g} s ({exc or 'timed out'})",
+        ) from None
     if len(head) < 4 or head[3] != 4:
-        raise LoosefitInputError("--ray", "address", expected,
-                                 f"something at {host}:{port} that does not answer as a Ray "
-                                 f"head (no gRPC server) within {timeout:g} s")  # fmt: skip
+        raise LoosefitInputError(
+            "--ray",
+            "address",
+            expected,
+            f"something at {host}:{port} that does not answer as a Ray "
+            f"head (no gRPC server) within {timeout:g} s",
+        )
 
 
 def preflight(cluster: ClusterConfig) -> None:
@@ -184,13 +201,20 @@ def connect(cluster: ClusterConfig, local_cpus: int | None = None) -> bool:
         with _env_default("RAY_gcs_server_port_wait_time_s", "1"):
             ray.init(address=address, **options)
     except ConnectionError as exc:
-        auth = any("InvalidAuthToken" in str(e) or "AuthenticationError" in type(e).__name__
-                   for e in _chain(exc))  # fmt: skip
+        auth = any(
+            "InvalidAuthToken" in str(e) or "AuthenticationError" in type(e).__name__
+            for e in _chain(exc)
+        )
         raise LoosefitInputError(
-            "--ray", "address", "a Ray cluster that accepts this machine", f"{address}: {exc}",
+            "--ray",
+            "address",
+            "a Ray cluster that accepts this machine",
+            f"{address}: {exc}",
             hint="it asks for a token: set RAY_AUTH_MODE=token and put the head's token "
-            "(`ray get-auth-token` there) in ~/.ray/auth_token" if auth else None,
-        ) from exc  # fmt: skip
+            "(`ray get-auth-token` there) in ~/.ray/auth_token"
+            if auth
+            else None,
+        ) from exc
     return True
 
 
@@ -200,7 +224,7 @@ def check_node(out_dir: Path, created: str, versions: dict[str, str]) -> None:
     Args:
         out_dir: the data set folder, as the driver names it.
         created: the ``created`` stamp of the driver's manifest there.
-        versions: the driver's :func:`~loosefit.sim.generate.package_versions`.
+        versions: the driver's :func:`~loosefit.sim.manifest.package_versions`.
 
     Raises:
         LoosefitInputError: naming the node: no such data set at that path (the folder is
@@ -217,26 +241,35 @@ def check_node(out_dir: Path, created: str, versions: dict[str, str]) -> None:
         time.sleep(0.2 * (attempt + 1))
     if found != created:
         raise LoosefitInputError(
-            out_dir, "manifest.json",
+            out_dir,
+            "manifest.json",
             f"the driver's data set (created {created}) at this path on every node: --out "
             "on storage the nodes share",
             f"{'none' if found is None else f'another one (created {found})'} on node {node}",
-        )  # fmt: skip
+        )
     mine = package_versions()
     differ = sorted(k for k in versions if mine.get(k) != versions[k])
     if differ:
         raise LoosefitInputError(
-            f"node {node}", "package versions",
+            f"node {node}",
+            "package versions",
             ", ".join(f"{k} {versions[k]}" for k in differ) + " (the driver's)",
             ", ".join(f"{k} {mine.get(k)}" for k in differ),
             hint="install the same loosefit, torch, newton and warp-lang on every node",
-        )  # fmt: skip
+        )
 
 
-def simulate_on_node(config: DatasetConfig, jobs: list[Job], out_dir: str, resume_every: int,
-                     created: str, versions: dict[str, str], cwd: str,
-                     progress) -> list[dict]:  # fmt: skip
-    """A Ray task: :func:`check_node`, then :func:`~loosefit.sim.generate.run_clips` in
+def simulate_on_node(
+    config: DatasetConfig,
+    jobs: list[Job],
+    out_dir: str,
+    resume_every: int,
+    created: str,
+    versions: dict[str, str],
+    cwd: str,
+    progress,
+) -> list[dict]:
+    """A Ray task: :func:`check_node`, then :func:`~loosefit.sim.workers.run_clips` in
     the command's working directory ``cwd`` where the node has it (as a local worker
     runs), so that the configuration's relative paths name the same files."""
     check_node(Path(out_dir), created, versions)
@@ -332,8 +365,10 @@ def run_on_ray(
         if started:
             ray.shutdown()
     if failed:
-        lines = [f"{unit_name(g)}: {type(e).__name__}: {str(e).strip().splitlines()[0][:200]}"
-                 for g, e in failed]  # fmt: skip
+        lines = [
+            f"{unit_name(g)}: {type(e).__name__}: {str(e).strip().splitlines()[0][:200]}"
+            for g, e in failed
+        ]
         raise ClusterError(
             f"{len(failed)} of {len(groups)} unit(s) of work failed on the cluster:\n  "
             + "\n  ".join(lines)

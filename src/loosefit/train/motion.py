@@ -379,7 +379,8 @@ def prepare_clips(
 
 def rest_state_for(reader: DatasetReader, fps: float) -> torch.Tensor:
     """(V, 3) the settled drape of the dataset's garment (its cloth configuration)."""
-    from loosefit.sim.cloth import ClothConfig, settle
+    from loosefit.sim.cloth_config import ClothConfig
+    from loosefit.sim.driver import settle
 
     cloth = reader.manifest.get("config", {}).get("cloth")
     if cloth is None:

@@ -1,0 +1,166 @@
+"""A data set's clips: the jobs a configuration makes, their names, and their motions."""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from loosefit.errors import LoosefitInputError
+from loosefit.sim.dataset_config import DatasetConfig
+
+if TYPE_CHECKING:
+    from loosefit.eval.body_regions import BodyParts
+    from loosefit.types import Motion
+
+
+@dataclass
+class Job:
+    """One clip to simulate."""
+
+    name: str  # the clip's name: its sequence file's and its manifest entry's
+    spec: str  # a load_motion spec: a .bvh path, a move name or dance:SECONDS
+    seed: int  # seeds its motion (a dance) and its cloth's jitter
+    test: bool  # held out for testing
+
+
+def plan_jobs(config: DatasetConfig) -> list[Job]:
+    """The clips of a dataset, in a fixed order."""
+    m = config.motions
+    jobs: list[Job] = []
+    folder_stems: set[str] = set()  # the clips of a bvh folder
+    if m.kind == "bvh" or config.preset == "paper":
+        from loosefit.body.motion_files import motion_files
+
+        files = motion_files(m.folder)  # .bvh, .gltf, .glb, .npz
+        jobs += [
+            Job(f.stem, str(f), config.seed + i, f.stem in m.test)
+            for i, f in enumerate(files)
+            if not (m.chain_test and f.stem in m.test)
+        ]
+        folder_stems = {f.stem for f in files}
+        held_out = [f for f in files if f.stem in m.test]
+        if m.chain_test and held_out:
+            # One long held-out sequence, so that rollouts can be judged over 1,200+ frames.
+            name = "chain_" + "_".join(f.stem for f in held_out)
+            jobs.append(Job(name, "+".join(str(f) for f in held_out), config.seed + 500, True))
+        for k, speed in enumerate(m.speeds):
+            if not (np.isfinite(speed) and speed > 0 and speed != 1.0):
+                raise LoosefitInputError(
+                    "MotionSource", "speeds", "positive factors other than 1", m.speeds
+                )
+            jobs += [
+                Job(
+                    f"{f.stem}_x{speed:g}",
+                    f"speed:{speed:g}:{f}",
+                    config.seed + 100 * (k + 1) + i,
+                    False,
+                )
+                for i, f in enumerate(files)
+                if f.stem not in m.test
+            ]
+    if m.kind == "procedural" and m.moves:
+        for i, move in enumerate(m.moves):
+            test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
+            jobs.append(Job(f"{move}_{i:03d}", move, config.seed + 1000 + i, test))
+    elif m.kind == "procedural" or config.preset == "paper":
+        for i in range(m.count):
+            seed = config.seed + 1000 + i
+            test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
+            jobs.append(Job(f"dance_{i:03d}", f"dance:{m.seconds}", seed, test))
+    if m.kind == "specs" or (m.kind == "bvh" and m.specs):  # bvh: more clips beside the folder
+        if not m.specs:
+            raise LoosefitInputError("MotionSource", "specs", "at least one motion", "none")
+        names = [spec_name(spec) for spec in m.specs]
+        taken = [j.name for j in jobs] + names
+        if len(set(taken)) != len(taken):
+            dup = next(n for n in taken if taken.count(n) > 1)
+            raise LoosefitInputError(
+                "MotionSource", "specs", "motions with distinct names", f"two named '{dup}'"
+            )
+        unknown = sorted(set(m.test) - set(names) - folder_stems)
+        if unknown:
+            raise LoosefitInputError(
+                "MotionSource",
+                "test",
+                f"names of the motions {sorted(set(names) | folder_stems)}",
+                repr(unknown),
+            )
+        jobs += [
+            Job(n, spec, config.seed + 2000 + i, n in m.test)
+            for i, (n, spec) in enumerate(zip(names, m.specs, strict=True))
+        ]
+    if m.kind not in ("bvh", "procedural", "specs"):
+        raise LoosefitInputError("MotionSource", "kind", "bvh, procedural or specs", repr(m.kind))
+    return jobs
+
+
+def spec_name(spec: str) -> str:
+    """A clip's name for a motion spec: its file stems and words, safe as a file name
+    (``mirror:../a/61_01.bvh`` -> ``mirror_61_01``)."""
+    parts = [
+        re.sub(r"\.(bvh|npz|gltf|glb)$", "", re.sub(r"[^:+]*/", "", p)) for p in spec.split("+")
+    ]
+    parts = [re.sub(r"(units|scale):[^:]*:", "", p) for p in parts]  # how it is read, not what
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", "+".join(parts)).strip("._") or "motion"
+
+
+def short_spec(spec: str) -> str:
+    """A job's motion spec without folders: ``speed:1.25:/x/a.bvh`` -> ``speed:1.25:a.bvh``."""
+    return "+".join(re.sub(r"[^:+]*/", "", part) for part in spec.split("+"))
+
+
+def job_motion(
+    config: DatasetConfig, job: Job, avatar, unfold: bool = True, parts: BodyParts | None = None
+) -> Motion:
+    """The motion a job simulates, on ``avatar``'s skeleton at the dataset's frame rate:
+    with ``unfold`` (and ``config.unfold.enabled``) the poses that fold into the body
+    turned out of it (:func:`~loosefit.body.unfold.unfold_motion`; the correction's
+    figures in ``motion.meta["unfold"]``); without, as loaded (the same frame count).
+
+    Args:
+        parts: the body parts the pose correction tests (:func:`limb_parts`); built here
+            when needed and not given (a few seconds: pass them when looping over jobs).
+    """
+    from loosefit.body.motions import load_motion
+
+    m = config.motions
+    motion = load_motion(
+        job.spec,
+        avatar,
+        fps=config.fps,
+        seed=job.seed,
+        max_frames=m.max_frames,
+        start_frame=m.start_frame,
+    )
+    if not (unfold and config.unfold.enabled):
+        return motion
+    from loosefit.body.unfold import unfold_motion
+
+    parts = parts if parts is not None else limb_parts(config, avatar)
+    done = unfold_motion(avatar, motion, parts, config.unfold)
+    done.motion.meta["unfold"] = done.stats()
+    return done.motion
+
+
+def limb_parts(config: DatasetConfig, avatar) -> BodyParts:
+    """The body parts the pose correction tests: the avatar's, with the arms the cloth
+    meets (``config.cloth.colliding_arms``)."""
+    from loosefit.eval.body_regions import body_parts
+
+    return body_parts(avatar, arms=config.cloth.colliding_arms)
+
+
+def group_name(jobs: list[Job]) -> str:
+    """A batch's name (its resume file's): a fingerprint of its clips' names and seeds."""
+    text = ";".join(f"{j.name}:{j.seed}" for j in jobs)
+    return f"batch-{hashlib.sha256(text.encode()).hexdigest()[:12]}"
+
+
+def unit_name(jobs: list[Job]) -> str:
+    """A unit of work's name (its progress reports' and resume file's): a clip's own, or
+    its batch's (:func:`group_name`)."""
+    return jobs[0].name if len(jobs) == 1 else group_name(jobs)

@@ -1,0 +1,169 @@
+"""The workers of a data set run: a process that builds the body and the garment once,
+then simulates units of work (a clip, or a batch of clips) and writes them.
+
+A :class:`Worker` holds what every unit needs; it is built in the process that runs the
+units and passed to them, so nothing is kept between runs in module state:
+
+* in the driver's own process (``--workers 1``): :meth:`Worker.build`, then
+  :meth:`Worker.run` for each unit;
+* in a pool of processes (``--workers N``): :func:`serve` in each, which builds one
+  worker and runs the units it takes from a queue until it takes ``None``;
+* as a Ray task (:mod:`loosefit.sim.cluster`): :func:`run_clips`, which builds the
+  worker for its unit.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from loosefit.data.format import write_sequence
+from loosefit.sequence import AnimatedGarment
+from loosefit.sim.dataset_config import DatasetConfig, make_garment
+from loosefit.sim.driver import SimulationError, simulate_batch
+from loosefit.sim.jobs import Job, job_motion, limb_parts, unit_name
+from loosefit.sim.manifest import clip_entry
+
+if TYPE_CHECKING:
+    from loosefit.body.avatar import Avatar
+    from loosefit.eval.body_regions import BodyParts
+    from loosefit.types import GarmentTemplate
+
+
+def exit_with_parent(poll_seconds: float = 2.0) -> None:
+    """In a worker process: exit when the parent dies (a killed run leaves no orphans)."""
+    import threading
+
+    parent = os.getppid()
+
+    def watch() -> None:
+        while True:
+            time.sleep(poll_seconds)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
+@contextlib.contextmanager
+def one_torch_thread():
+    """Run the block on one torch thread, as every simulation worker does, then give the
+    caller back its own count. The avatar's rest shape, and so the garment fitted to it,
+    differs in a float's last bit between thread counts (torch's reductions split the work
+    differently): built on one thread, the data set's ``template.npz`` is the garment its
+    clips were simulated with, whatever the caller's threads."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
+@dataclass
+class Worker:
+    """What a worker process builds once for a data set, and runs its units of work with."""
+
+    config: DatasetConfig  # the data set's configuration
+    avatar: Avatar  # the body, with the data set's shape
+    template: GarmentTemplate  # the data set's garment, fitted to the avatar
+    progress: object = None  # anything with put((name, frame, total)), or None
+    # the body parts the pose correction tests (jobs.limb_parts), built for the first clip
+    parts: BodyParts | None = None
+
+    @classmethod
+    def build(cls, config: DatasetConfig, progress=None) -> Worker:
+        """Build the avatar and the garment on one torch thread (as every worker runs)."""
+        import torch
+
+        from loosefit.body.avatar import Avatar, AvatarConfig
+
+        torch.set_num_threads(1)
+        avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
+        return cls(config, avatar, make_garment(config.garment, avatar), progress)
+
+    def motion(self, job: Job):
+        """The motion ``job`` simulates (:func:`~loosefit.sim.jobs.job_motion`)."""
+        if self.parts is None and self.config.unfold.enabled:
+            self.parts = limb_parts(self.config, self.avatar)
+        return job_motion(self.config, job, self.avatar, parts=self.parts)
+
+    def run(self, jobs: list[Job], out_dir: str, resume_every: int = 50) -> list[dict]:
+        """Simulate clips together (one clip, or a batch: :func:`simulate_batch`) and write
+        them; returns their manifest entries. The run saves its state in ``out_dir/resume``
+        every ``resume_every`` frames and goes on from there when run again after a kill.
+        A batch in which one clip diverges is run again clip by clip, so that only that clip
+        is flagged."""
+        config, avatar, template, q = self.config, self.avatar, self.template, self.progress
+        motions = [self.motion(job) for job in jobs]
+        name = unit_name(jobs)
+        t0 = time.perf_counter()
+
+        def progress(done: int, total: int) -> None:
+            if q is not None:
+                q.put((name, done, total))
+
+        resume_dir = Path(out_dir) / "resume"
+        resume_dir.mkdir(exist_ok=True)
+        try:
+            results = simulate_batch(
+                avatar,
+                template,
+                motions,
+                config.cloth,
+                progress=progress,
+                resume=resume_dir / f"{name}.npz",
+                resume_every=resume_every,
+                seeds=[job.seed for job in jobs],
+            )
+        except SimulationError as exc:
+            if len(jobs) > 1:
+                return [e for job in jobs for e in self.run([job], out_dir, resume_every)]
+            elapsed = time.perf_counter() - t0
+            return [clip_entry(config, jobs[0], motions[0], None, elapsed, str(exc))]
+        for job, motion, result in zip(jobs, motions, results, strict=True):
+            write_sequence(
+                Path(out_dir) / "sequences" / f"{job.name}.npz",
+                AnimatedGarment(
+                    dataclasses.replace(motion, name=job.name),
+                    template,
+                    result.garment_vertices,
+                    {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
+                    "newton-vbd",
+                ),
+            )
+        return [clip_entry(config, j, m, r) for j, m, r in zip(jobs, motions, results, strict=True)]
+
+
+def serve(config: DatasetConfig, units, results, progress) -> None:
+    """A pool process's loop: exit with the parent, build one :class:`Worker`, then run
+    each ``(index, jobs, out_dir, resume_every)`` taken from ``units`` until ``None``,
+    putting ``(index, entries)`` in ``results``. An error ends the loop and is raised to
+    whoever waits on this process's task."""
+    exit_with_parent()
+    worker = Worker.build(config, progress)
+    for index, jobs, out_dir, resume_every in iter(units.get, None):
+        results.put((index, worker.run(jobs, out_dir, resume_every)))
+
+
+def run_clips(
+    config: DatasetConfig,
+    jobs: list[Job],
+    out_dir: str,
+    resume_every: int = 50,
+    progress_queue=None,
+) -> list[dict]:
+    """Simulate and write one unit of work in any process (:meth:`Worker.run`, with a
+    worker built for it): what a Ray task runs (:mod:`loosefit.sim.cluster`).
+
+    Args:
+        progress_queue: anything with ``put((name, frame, total))``, or None.
+    """
+    return Worker.build(config, progress_queue).run(jobs, out_dir, resume_every)

@@ -1,0 +1,119 @@
+"""A data set's clips (loosefit.sim.jobs): their names, splits and motions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from loosefit.errors import LoosefitInputError
+from loosefit.sim.dataset_config import DatasetConfig, MotionSource, read_config_file
+from loosefit.sim.jobs import job_motion, plan_jobs, spec_name
+from loosefit.sim.presets import preset
+from tests.conftest import needs_salsa
+
+
+def test_motions_as_specs_are_named_and_held_out_by_name(tmp_path):
+    config = preset("tiny")
+    config.motions = MotionSource(kind="specs", specs=("spin", "mirror:kick", "dance:2"),
+                                      test=("mirror_kick",))  # fmt: skip
+    jobs = plan_jobs(config)
+    assert [(j.name, j.spec, j.test) for j in jobs] == [
+        ("spin", "spin", False), ("mirror_kick", "mirror:kick", True),
+        ("dance_2", "dance:2", False)]  # fmt: skip
+    assert spec_name("speed:1.25:/data/mocap/61_01.bvh") == "speed_1.25_61_01"
+    config.motions.test = ("nope",)
+    with pytest.raises(LoosefitInputError, match="test.*names of the motions"):
+        plan_jobs(config)
+    config.motions = MotionSource(kind="specs", specs=("spin", "spin"))
+    with pytest.raises(LoosefitInputError, match="distinct names"):
+        plan_jobs(config)
+
+
+def test_a_folder_of_mixed_motion_files_is_a_data_set_s_motions(tmp_path, avatar):
+    """BVH, GLB, SMPL .npz and loosefit .npz files side by side, from the command line: each
+    a clip named after its file, each read to the motion it was written from."""
+    from loosefit.body.bvh import read_bvh
+    from loosefit.body.motions import load_motion
+    from loosefit.cli import build_parser
+    from loosefit.cli.simulate import dataset_config
+    from tests.body.bvh_conventions import CONVENTIONS, motion_error, write_convention_bvh
+    from tests.body.gltf_writer import write_gltf
+    from tests.body.test_smpl import SMPL_MAP, smpl_arrays
+
+    dance = load_motion("dance:2", avatar, seed=3)
+    folder = tmp_path / "mocap"
+    folder.mkdir()
+    daz = CONVENTIONS["daz"]
+    write_convention_bvh(folder / "a_studio.bvh", daz, avatar.skeleton, dance,
+                         avatar.floor_height)  # fmt: skip
+    write_gltf(folder / "b_blender.glb", read_bvh(folder / "a_studio.bvh"))
+    poses, trans = smpl_arrays(avatar, dance)
+    np.savez(folder / "c_amass.npz", poses=poses, trans=trans, mocap_framerate=np.array(30.0))
+    dance.save(folder / "d_loosefit.npz")
+    (folder / "notes.txt").write_text("not a motion")
+    args = build_parser().parse_args(["simulate", "--preset", "tiny", "--motions", str(folder),
+                                      "--test", "c_amass"])  # fmt: skip
+    jobs = plan_jobs(dataset_config(args))
+    assert [(j.name, j.test) for j in jobs] == [
+        ("a_studio", False),
+        ("b_blender", False),
+        ("c_amass", True),
+        ("d_loosefit", False),
+    ]
+    cm = 0.01
+    for job, joints in zip(jobs, (daz.joints, daz.joints, SMPL_MAP, None), strict=True):
+        back = load_motion(job.spec, avatar)
+        assert back.num_frames == dance.num_frames, job.name
+        if joints is None:
+            np.testing.assert_allclose(back.rotations, dance.rotations, atol=1e-6)
+        else:
+            mean, _ = motion_error(avatar, dance, back, joints)
+            assert mean < 1 * cm, (job.name, mean)
+    # refused, naming the files: one clip name twice, an .npz that is no motion
+    dance.save(folder / "a_studio.npz")
+    with pytest.raises(LoosefitInputError, match=r"a_studio.*a_studio\.bvh and a_studio\.npz"):
+        plan_jobs(dataset_config(args))
+    (folder / "a_studio.npz").unlink()
+    np.savez(folder / "e_points.npz", positions=np.zeros((3, 3)))
+    with pytest.raises(LoosefitInputError, match=r"e_points\.npz.*poses.*fields \['positions'\]"):
+        plan_jobs(dataset_config(args))
+
+
+@needs_salsa
+@pytest.mark.parametrize("name, clips", [
+    ("regression.yaml", {"frames_290_370_60_02": 80, "frames_290_370_mirror_60_02": 80,
+                         "speed_1.5_frames_290_370_60_02": 53, "frames_150_220_60_01": 70,
+                         "speed_1.5_spin": 86}),
+    ("salsa_takes.yaml", {"60_01": 551, "60_02": 515, "speed_1.25_mirror_60_02": 410,
+                          "speed_1.5_dance_20": 389}),
+    ("salsa_turned.yaml", {"61_01": 551, "61_02": 515}),
+])  # fmt: skip
+def test_the_committed_penetration_sets_load_every_motion(name, clips, avatar):
+    # bench/penetration_regression.py runs these (docs/PENETRATION.md): each spec must still
+    # name a clip of ../shared and a window inside it, with the frame counts of the tables.
+    # The pose correction keeps the frame count (job_motion's docstring) and is tested on its
+    # own (tests/body/test_unfold.py): left out here, where it took most of CI's time.
+    from pathlib import Path
+
+    config = read_config_file(Path(__file__).parents[2] / "configs" / name)
+    jobs = plan_jobs(config)
+    assert [j.name for j in jobs] == list(clips)
+    for job in jobs:
+        motion = job_motion(config, job, avatar, unfold=False)
+        assert motion.num_frames == clips[job.name], job.name
+
+
+@needs_salsa
+def test_a_job_simulates_the_squat_of_60_02_turned_out_of_the_belly(avatar):
+    from tests.conftest import SALSA
+
+    spec = f"frames:326:336:{SALSA / '60_02.bvh'}"  # the deepest of the squat
+    config = DatasetConfig(motions=MotionSource(kind="specs", specs=(spec,)))
+    job = plan_jobs(config)[0]
+    motion = job_motion(config, job, avatar)
+    record = motion.meta["unfold"]
+    assert record["unfold_frames"] == 10 and record["unfold_degrees_max"] == pytest.approx(10.0)
+    assert record["fold_depth_before"] > 0.03 > record["fold_depth_after"] > 0.01
+    captured = job_motion(config, job, avatar, unfold=False)
+    assert "unfold" not in captured.meta and captured.num_frames == motion.num_frames
+    assert not np.array_equal(captured.rotations, motion.rotations)

@@ -1,0 +1,79 @@
+"""The named data sets (loosefit.sim.presets) and the clips they make."""
+
+from __future__ import annotations
+
+import pytest
+
+from loosefit.errors import LoosefitInputError
+from loosefit.sim.dataset_config import read_config_file, write_config_file
+from loosefit.sim.jobs import plan_jobs, short_spec
+from loosefit.sim.presets import BALLET_CLIPS, PRESETS, preset
+
+
+def test_unknown_preset_and_empty_bvh_folder(tmp_path):
+    expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, paper"
+    with pytest.raises(LoosefitInputError, match=expected):
+        preset("huge")
+    with pytest.raises(LoosefitInputError, match=r"motion files \(\.bvh, \.gltf, \.glb, \.npz\)"
+                       r".*no motion file"):  # fmt: skip
+        plan_jobs(preset("salsa", bvh_folder=str(tmp_path)))
+
+
+def test_salsa_holds_out_its_test_clips_as_one_long_sequence(tmp_path):
+    for name in ("60_01", "60_03", "61_03", "60_02"):
+        (tmp_path / f"{name}.bvh").write_text("")
+    cfg = preset("salsa", bvh_folder=str(tmp_path))
+    jobs = plan_jobs(cfg)
+    assert [(j.name, j.test) for j in jobs] == [
+        ("60_01", False), ("60_02", False), ("chain_60_03_61_03", True),
+    ]  # fmt: skip
+    assert jobs[-1].spec == f"{tmp_path / '60_03.bvh'}+{tmp_path / '61_03.bvh'}"
+
+
+def test_dance_is_salsa_and_the_ballet_clips_with_three_held_out(tmp_path):
+    salsa = tmp_path / "cmu-salsa"
+    salsa.mkdir()
+    for name in ("60_01", "60_03", "61_03", "60_02", "60_07", "61_07"):
+        (salsa / f"{name}.bvh").write_text("")
+    plain = plan_jobs(preset("salsa", bvh_folder=str(salsa)))
+    cfg = preset("dance", bvh_folder=str(salsa))
+    jobs = plan_jobs(cfg)
+    assert jobs[: len(plain)] == plain  # the salsa clips and their held-out chain, as in salsa
+    ballet = jobs[len(plain) :]
+    assert [j.name for j in ballet] == list(BALLET_CLIPS)
+    assert [j.name for j in ballet if j.test] == ["05_02", "05_10", "05_12"]
+    assert ballet[0].spec == str(tmp_path / "cmu-ballet" / "05_01.bvh")
+    assert len({j.seed for j in jobs}) == len(jobs)
+    # the arms collide, as simulate's defaults do; salsa keeps them out as its data was made
+    assert cfg.cloth.arm_friction == 0.0 and preset("salsa").cloth.arm_friction is None
+    cfg.motions.test = (*cfg.motions.test, "05_99")
+    with pytest.raises(LoosefitInputError, match="05_99"):
+        plan_jobs(cfg)
+
+
+def test_salsa_speed_adds_faster_training_clips_only(tmp_path):
+    for name in ("60_01", "60_03", "61_03", "60_02"):
+        (tmp_path / f"{name}.bvh").write_text("")
+    plain = plan_jobs(preset("salsa", bvh_folder=str(tmp_path)))
+    jobs = plan_jobs(preset("salsa-speed", bvh_folder=str(tmp_path)))
+    assert jobs[: len(plain)] == plain  # the salsa clips, unchanged
+    extra = jobs[len(plain) :]
+    assert [(j.name, j.test) for j in extra] == [("60_01_x1.25", False), ("60_02_x1.25", False)]
+    assert extra[0].spec == f"speed:1.25:{tmp_path / '60_01.bvh'}"
+    assert short_spec(extra[0].spec) == "speed:1.25:60_01.bvh"
+    assert len({j.seed for j in jobs}) == len(jobs)
+    both = plan_jobs(preset("salsa-speeds", bvh_folder=str(tmp_path)))
+    assert both[: len(jobs)] == jobs  # salsa-speed's clips, same seeds: --reuse takes them
+    assert [j.name for j in both[len(jobs) :]] == ["60_01_x1.5", "60_02_x1.5"]
+    assert len({j.seed for j in both}) == len(both)
+    cfg = preset("salsa", bvh_folder=str(tmp_path))
+    cfg.motions.speeds = (1.0,)
+    with pytest.raises(LoosefitInputError, match="speeds"):
+        plan_jobs(cfg)
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_every_preset_is_a_configuration_file(name, tmp_path):
+    config = preset(name, bvh_folder=str(tmp_path))
+    path = write_config_file(config, tmp_path / f"{name}.yaml")
+    assert read_config_file(path) == config
