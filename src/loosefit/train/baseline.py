@@ -251,7 +251,7 @@ class BaselineStage(Stage):
         write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
         return {"test/rollout_rmse_cm": err["rmse_cm"]}
 
-    def report(self, common: dict, writer, epoch: int) -> dict:
+    def report(self, common: dict, writer, epoch: int, history: list) -> dict:
         path = self.run.out / "model.pt"
         save_atomic(
             {"format": BASELINE_FORMAT, **self.meta, "model": self.model.state_dict(),

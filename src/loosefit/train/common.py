@@ -6,15 +6,11 @@ Checkpoint files are :mod:`loosefit.inference.checkpoints`'s.
 from __future__ import annotations
 
 import contextlib
-import json
-import math
 import os
 import platform
-from pathlib import Path
 
 import torch
 
-from loosefit.data.format import write_json_atomic
 from loosefit.errors import LoosefitInputError
 
 

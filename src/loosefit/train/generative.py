@@ -309,7 +309,7 @@ class GenerativeStage(Stage):
         err = evaluate(self.model, self.test, self.template.faces)
         return {"test/rmse_cm": err["rmse_cm"], "test/hausdorff_cm": err["hausdorff_cm"]}
 
-    def report(self, common: dict, writer, epoch: int) -> dict:
+    def report(self, common: dict, writer, epoch: int, history: list) -> dict:
         test = evaluate(self.model, self.test, self.template.faces)
         writer.add_scalar("test/rmse_cm", test["rmse_cm"], epoch)
         writer.add_scalar("test/hausdorff_cm", test["hausdorff_cm"], epoch)

@@ -274,9 +274,10 @@ class Stage:
         epoch's history record, to note results in; ``write``: a line under the bar)."""
         return {}
 
-    def report(self, common: dict, writer, epoch: int) -> dict:
-        """The final report: ``common`` (dataset, epochs, parameters, timings, machine,
-        final loss) and the stage's own results."""
+    def report(self, common: dict, writer, epoch: int, history: list) -> dict:
+        """The final report after ``epoch`` epochs (``history``: their records): ``common``
+        (dataset, epochs, parameters, timings, machine, final loss) and the stage's own
+        results."""
         raise NotImplementedError
 
     def format_report(self, report: dict) -> str:
@@ -367,7 +368,7 @@ def train(stage: Stage, run: Run, dataset: str) -> dict:
         "machine": machine(config.device),
         "final_loss": history[-1] if history else None,
     }
-    report = stage.report(common, writer, epoch)
+    report = stage.report(common, writer, epoch, history)
     write_json_atomic(out / "report.json", report)
     (out / "report.md").write_text(stage.format_report(report))
     writer.close()
