@@ -91,8 +91,15 @@ def clip_joints(avatar, clip: Clip) -> torch.Tensor:
     return root_frame_transforms(world, clip.heading[P:], clip.origin[P:])
 
 
-def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip],
-                   config: TrainBaselineConfig, cache: Path, log=print):  # fmt: skip
+def skinning_setup(
+    method: str,
+    reader: DatasetReader,
+    avatar,
+    clips: list[Clip],
+    config: TrainBaselineConfig,
+    cache: Path,
+    log=print,
+):
     """The rest shape, weights (and mean bone transforms) a baseline skins with.
 
     Santesteban: the template on the avatar's joints
@@ -109,9 +116,14 @@ def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip]
         from loosefit.geometry.skin_transfer import garment_skin_weights
 
         faces = avatar.collider_faces(arms=False).cpu().numpy()
-        weights = garment_skin_weights(template.vertices, template.faces,
-                                       avatar.rest_vertices.double().cpu().numpy(), faces,
-                                       body_joint_weights(avatar), config.near)  # fmt: skip
+        weights = garment_skin_weights(
+            template.vertices,
+            template.faces,
+            avatar.rest_vertices.double().cpu().numpy(),
+            faces,
+            body_joint_weights(avatar),
+            config.near,
+        )
         extra = [clip_joints(avatar, c) for c in clips]
         return torch.from_numpy(template.vertices), torch.from_numpy(weights), None, extra
     from loosefit.model.ssdr import SkinningDecomposition, SSDRConfig, decompose
@@ -120,12 +132,22 @@ def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip]
     decomp = SkinningDecomposition.load(cache) if cache.is_file() else None
     if decomp is None or len(decomp.frame_index) != len(frames):
         t0 = time.perf_counter()
-        decomp = decompose(frames, template.vertices, SSDRConfig(
-            bones=config.model.bones, iterations=config.ssdr_iterations, max_frames=None,
-            seed=config.seed), faces=template.faces)  # fmt: skip
+        decomp = decompose(
+            frames,
+            template.vertices,
+            SSDRConfig(
+                bones=config.model.bones,
+                iterations=config.ssdr_iterations,
+                max_frames=None,
+                seed=config.seed,
+            ),
+            faces=template.faces,
+        )
         decomp.save(cache)
-        log(f"skinning decomposition of {len(frames)} frames: {decomp.bones} bones, RMSE "
-            f"{100 * decomp.rmse:.2f} cm in {time.perf_counter() - t0:.0f} s")  # fmt: skip
+        log(
+            f"skinning decomposition of {len(frames)} frames: {decomp.bones} bones, RMSE "
+            f"{100 * decomp.rmse:.2f} cm in {time.perf_counter() - t0:.0f} s"
+        )
     ends = np.cumsum([0] + [len(c.target) for c in clips])
     bones = torch.from_numpy(decomp.transforms)  # (N, B, 3, 4) rigid, every frame in order
     extra = [bones[a:b] for a, b in zip(ends[:-1], ends[1:], strict=True)]
@@ -136,8 +158,9 @@ def skinning_setup(method: str, reader: DatasetReader, avatar, clips: list[Clip]
 # -- the step ---------------------------------------------------------------------------------
 
 
-def run_window(network: BaselineNetwork, batch: dict, start: int, stop: int,
-               hidden: torch.Tensor, loss) -> tuple[dict | None, torch.Tensor]:  # fmt: skip
+def run_window(
+    network: BaselineNetwork, batch: dict, start: int, stop: int, hidden: torch.Tensor, loss
+) -> tuple[dict | None, torch.Tensor]:
     """Timeline frames ``start:stop`` of stacked clips (:func:`stack_clips`, on the network's
     device): the loss over their motion frames (None if the window holds none) and the GRU
     state after them (detached)."""
@@ -172,9 +195,15 @@ class BaselineStage(Stage):
         avatar = avatar_for(reader)
         t0 = time.perf_counter()
         self.clips = clips = prepare_clips(
-            reader, "train", None, floor, config.rollout, config.max_frames, config.mirror,
+            reader,
+            "train",
+            None,
+            floor,
+            config.rollout,
+            config.max_frames,
+            config.mirror,
             config.model.joints,
-        )  # fmt: skip
+        )
         rest, weights, bone_mean, self.extra = skinning_setup(
             config.model.method, reader, avatar, clips, config, run.out / "ssdr.npz", run.log
         )
@@ -236,10 +265,16 @@ class BaselineStage(Stage):
     def current(self, path: Path) -> BaselineModel:
         """The network being trained as a model to roll out."""
         return BaselineModel(
-            self.model, self.template, self.joint_names, self.floor, self.meta["fps"],
-            dict(self.reader.body), self.config.rollout, path,
+            self.model,
+            self.template,
+            self.joint_names,
+            self.floor,
+            self.meta["fps"],
+            dict(self.reader.body),
+            self.config.rollout,
+            path,
             arm_collision=arm_collision_of(self.meta),
-        )  # fmt: skip
+        )
 
     def evaluate_now(self, epoch: int) -> bool:
         return epoch % self.config.eval_every == 0 or epoch == self.config.epochs
@@ -254,10 +289,14 @@ class BaselineStage(Stage):
     def report(self, common: dict, writer, epoch: int, history: list) -> dict:
         path = self.run.out / "model.pt"
         save_atomic(
-            {"format": BASELINE_FORMAT, **self.meta, "model": self.model.state_dict(),
-             "epoch": epoch},
+            {
+                "format": BASELINE_FORMAT,
+                **self.meta,
+                "model": self.model.state_dict(),
+                "epoch": epoch,
+            },
             path,
-        )  # fmt: skip
+        )
         model = load_baseline(path, self.config.device)
         test = evaluate_rollouts(model, self.reader, "test", stages=RAW)
         return {"method": self.config.model.method, **common, "test": test}
@@ -267,9 +306,12 @@ class BaselineStage(Stage):
 
 
 def train_baseline(
-    data: str | Path, out: str | Path, config: TrainBaselineConfig, log=print,
+    data: str | Path,
+    out: str | Path,
+    config: TrainBaselineConfig,
+    log=print,
     progress: bool = True,
-) -> dict:  # fmt: skip
+) -> dict:
     """Train (or resume) a baseline on a dataset and report its held-out rollout errors.
 
     Args:
@@ -292,11 +334,19 @@ def format_report(report: dict) -> str:
     """A Markdown summary of a baseline run's report."""
     t = report["test"]
     spe = report.get("seconds_per_epoch")
-    return "\n".join([
-        f"# Baseline `{report['method']}`, {report['epochs']} epochs", "",
-        "Held-out rollouts (no post-process):", "",
-        "| frames | RMSE (cm) | Hausdorff (cm) | STED |", "|---:|---:|---:|---:|",
-        f"| {t['frames']} | {t['rmse_cm']:.3f} | {t['hausdorff_cm']:.3f} | {t['sted']:.4f} |", "",
-        f"{report['parameters']:,} parameters; " + (f"{spe:.2f} s per epoch; " if spe else "")
-        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.", "",
-    ])  # fmt: skip
+    return "\n".join(
+        [
+            f"# Baseline `{report['method']}`, {report['epochs']} epochs",
+            "",
+            "Held-out rollouts (no post-process):",
+            "",
+            "| frames | RMSE (cm) | Hausdorff (cm) | STED |",
+            "|---:|---:|---:|---:|",
+            f"| {t['frames']} | {t['rmse_cm']:.3f} | {t['hausdorff_cm']:.3f} | {t['sted']:.4f} |",
+            "",
+            f"{report['parameters']:,} parameters; "
+            + (f"{spe:.2f} s per epoch; " if spe else "")
+            + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+            "",
+        ]
+    )

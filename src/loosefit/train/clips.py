@@ -84,19 +84,30 @@ def prepare_clips(
         garment = seq.garment_vertices[: motion.num_frames]
         versions = [(name, motion, garment)]
         if mirror:
-            versions.append((f"{name}~mirror", mirror_motion(motion),
-                             mirror_garment(garment, twins)))  # fmt: skip
+            versions.append(
+                (f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins))
+            )
         for label, m, v in versions:
             rot, root, P = timeline(m, floor_height, config)
             H, p = (a.float() for a in root_frames(rot.double(), root.double()))
-            target = to_root_frame(torch.from_numpy(np.ascontiguousarray(v, np.float32)),
-                                   H[P:], p[P:])  # fmt: skip
-            feats = motion_features(rot, root, m.fps, floor_height,
-                                    feature_joints(m.joint_names, joints))  # fmt: skip
-            clips.append(Clip(label, m, feats,
-                              H, p, target,
-                              None if generative is None else latent_codes(generative, target),
-                              P))  # fmt: skip
+            target = to_root_frame(
+                torch.from_numpy(np.ascontiguousarray(v, np.float32)), H[P:], p[P:]
+            )
+            feats = motion_features(
+                rot, root, m.fps, floor_height, feature_joints(m.joint_names, joints)
+            )
+            clips.append(
+                Clip(
+                    label,
+                    m,
+                    feats,
+                    H,
+                    p,
+                    target,
+                    None if generative is None else latent_codes(generative, target),
+                    P,
+                )
+            )
     return clips
 
 
@@ -105,9 +116,9 @@ def pad_frames(x: torch.Tensor, n: int) -> torch.Tensor:
     return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
 
 
-
-def feature_statistics(reader: DatasetReader, clips: list[Clip], joints: str
-                       ) -> tuple[int, torch.Tensor, torch.Tensor]:  # fmt: skip
+def feature_statistics(
+    reader: DatasetReader, clips: list[Clip], joints: str
+) -> tuple[int, torch.Tensor, torch.Tensor]:
     """The number F of motion features of the clips, and their mean and std (F,) each.
 
     Raises:

@@ -14,8 +14,14 @@ import torch
 from loosefit.errors import LoosefitInputError
 
 
-def optimizer_step(optim: torch.optim.Optimizer, parameters, terms: dict, grad_clip: float,
-                   sums: dict[str, float], world: int = 1) -> None:  # fmt: skip
+def optimizer_step(
+    optim: torch.optim.Optimizer,
+    parameters,
+    terms: dict,
+    grad_clip: float,
+    sums: dict[str, float],
+    world: int = 1,
+) -> None:
     """Backpropagate ``terms["total"]``, clip the gradient norm to ``grad_clip``, step, and
     add every term's value into ``sums`` (the epoch's running totals).
 
@@ -41,8 +47,10 @@ def epoch_means(sums: dict[str, float], steps: int) -> dict[str, float]:
 
 def machine(device: str) -> str:
     """The machine a run ran on, for reports."""
-    return (f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
-            f"{torch.get_num_threads()} threads, {device}")  # fmt: skip
+    return (
+        f"{platform.machine()}, {os.cpu_count()} CPUs, torch {torch.__version__}, "
+        f"{torch.get_num_threads()} threads, {device}"
+    )
 
 
 # -- precision -------------------------------------------------------------------------------
@@ -66,10 +74,17 @@ def check_device_precision(precision: str, device: torch.device) -> None:
     Raises:
         LoosefitInputError: ``precision`` "bf16" on such a GPU.
     """
-    if (precision == "bf16" and device.type == "cuda"
-            and not torch.cuda.is_bf16_supported(including_emulation=False)):  # fmt: skip
-        raise LoosefitInputError("--precision", "precision", "fp32 on this GPU (bf16 needs "
-                                 "compute capability 8.0 or above)", "bf16")  # fmt: skip
+    if (
+        precision == "bf16"
+        and device.type == "cuda"
+        and not torch.cuda.is_bf16_supported(including_emulation=False)
+    ):
+        raise LoosefitInputError(
+            "--precision",
+            "precision",
+            "fp32 on this GPU (bf16 needs compute capability 8.0 or above)",
+            "bf16",
+        )
 
 
 def autocast(precision: str, device: torch.device):

@@ -310,11 +310,13 @@ class DetailStage(Stage):
             "pairs": len(self.pairs.codes),
             **common,
             "history": history,
-            "test_without": evaluate_rollouts(trained, self.reader, "test", stages=MOTION_ONLY,
-                                              **test),
-            "test_with": evaluate_rollouts(trained, self.reader, "test", stages=with_detail,
-                                           **test),
-        }  # fmt: skip
+            "test_without": evaluate_rollouts(
+                trained, self.reader, "test", stages=MOTION_ONLY, **test
+            ),
+            "test_with": evaluate_rollouts(
+                trained, self.reader, "test", stages=with_detail, **test
+            ),
+        }
 
     def format_report(self, report: dict) -> str:
         return format_report(report)
@@ -366,17 +368,19 @@ def format_report(report: dict) -> str:
     """A Markdown summary of a detail run's report."""
     a, b = report["test_without"], report["test_with"]
     spe = report.get("seconds_per_epoch")
-    return "\n".join([
-        f"# Detail module ({'with' if report['discriminator'] else 'w/o'} D_ms), "
-        f"{report['epochs']} epochs on {report['pairs']} rollout frames",
-        "",
-        "| held-out rollouts | RMSE (cm) |",
-        "|---|---:|",
-        f"| motion stage alone | {a['rmse_cm']:.3f} |",
-        f"| with the detail module | {b['rmse_cm']:.3f} |",
-        "",
-        f"{report['parameters']:,} generator parameters; "
-        + (f"{spe:.1f} s per epoch; " if spe else "")
-        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
-        "",
-    ])  # fmt: skip
+    return "\n".join(
+        [
+            f"# Detail module ({'with' if report['discriminator'] else 'w/o'} D_ms), "
+            f"{report['epochs']} epochs on {report['pairs']} rollout frames",
+            "",
+            "| held-out rollouts | RMSE (cm) |",
+            "|---|---:|",
+            f"| motion stage alone | {a['rmse_cm']:.3f} |",
+            f"| with the detail module | {b['rmse_cm']:.3f} |",
+            "",
+            f"{report['parameters']:,} generator parameters; "
+            + (f"{spe:.1f} s per epoch; " if spe else "")
+            + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+            "",
+        ]
+    )

@@ -88,8 +88,9 @@ def prepare_split(
     template = torch.from_numpy(reader.template.vertices)
     seeds = avatar.seed_points(skinning.num_seeds)
     weights = seed_weights(template, seeds.rest.float().cpu(), skinning.temperature)[None]
-    out: dict[str, list] = {k: [] for k in ("clip", "frame", "posed", "unposed", "H", "p",
-                                            "cp", "cn")}  # fmt: skip
+    out: dict[str, list] = {
+        k: [] for k in ("clip", "frame", "posed", "unposed", "H", "p", "cp", "cn")
+    }
     faces = avatar.collider_faces(arms=True).cpu().numpy() if contacts else None
     fps = None
     for i, name in enumerate(names):
@@ -130,8 +131,9 @@ def prepare_split(
     )
 
 
-def body_contacts(garment: np.ndarray, body: np.ndarray, faces: np.ndarray, reach: float = 0.1
-                  ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def body_contacts(
+    garment: np.ndarray, body: np.ndarray, faces: np.ndarray, reach: float = 0.1
+) -> tuple[np.ndarray, np.ndarray]:
     """Each garment vertex's closest body point and the body's outward normal there.
 
     Args:

@@ -117,15 +117,23 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
     """
     model, data = load_generative(path, template, device)
     if "config" not in data:
-        raise LoosefitInputError(path, "config", "a training run's configuration",
-                                 "none (a packaged model)",
-                                 hint="load it with loosefit.inference.checkpoints."
-                                 "load_generative")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "config",
+            "a training run's configuration",
+            "none (a packaged model)",
+            hint="load it with loosefit.inference.checkpoints.load_generative",
+        )
     return model, TrainGenerativeConfig.from_dict(data["config"]), data
 
 
-def warm_start(model: GarmentGenerativeModel, path: str | Path, template: GarmentTemplate,
-               config: GenerativeConfig, device="cpu") -> None:  # fmt: skip
+def warm_start(
+    model: GarmentGenerativeModel,
+    path: str | Path,
+    template: GarmentTemplate,
+    config: GenerativeConfig,
+    device="cpu",
+) -> None:
     """Load another generative checkpoint's weights into ``model`` (fine-tuning).
 
     Raises:
@@ -135,9 +143,13 @@ def warm_start(model: GarmentGenerativeModel, path: str | Path, template: Garmen
     source, data = load_generative(path, template, device)
     mine, theirs = (json.loads(json.dumps(asdict(c))) for c in (config, source.config))
     if mine != theirs:
-        raise LoosefitInputError(path, "model_config", str(mine), str(theirs),
-                                 hint="warm-start from a model of this run's --preset and "
-                                 "--decoder")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "model_config",
+            str(mine),
+            str(theirs),
+            hint="warm-start from a model of this run's --preset and --decoder",
+        )
     model.load_state_dict(source.state_dict())
 
 
@@ -198,10 +210,11 @@ def _ssdr_init(frames: PreparedFrames, template: GarmentTemplate, cfg: TrainGene
     from loosefit.model.ssdr import SSDRConfig, decompose
 
     d = decompose(
-        frames.posed.numpy(), template.vertices,
+        frames.posed.numpy(),
+        template.vertices,
         SSDRConfig(bones=cfg.model.ssdr_bones, iterations=cfg.ssdr_iterations, seed=cfg.seed),
         faces=template.faces,
-    )  # fmt: skip
+    )
     return d.rest, d.weights, d.transforms.mean(0)
 
 
@@ -360,8 +373,10 @@ def format_report(report: dict) -> str:
     ]
     for split in ("train", "test"):
         r = report[split]
-        lines.append(f"| {split} | {r['frames']} | {r['rmse_cm']:.3f} | "
-                     f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} |")  # fmt: skip
+        lines.append(
+            f"| {split} | {r['frames']} | {r['rmse_cm']:.3f} | "
+            f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} |"
+        )
     spe = report.get("seconds_per_epoch")
     lines += [
         "",

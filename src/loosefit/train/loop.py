@@ -285,8 +285,7 @@ class Stage:
         raise NotImplementedError
 
 
-def restore(saved: dict, states: dict, sampling: torch.Generator | None = None
-            ) -> tuple[int, list]:  # fmt: skip
+def restore(saved: dict, states: dict, sampling: torch.Generator | None = None) -> tuple[int, list]:
     """Resume from a training checkpoint: ``states`` maps its keys to the modules and
     optimisers to load; torch's RNG (and ``sampling``'s) are put back. Returns the epoch
     reached and the loss history."""
@@ -328,8 +327,9 @@ def train(stage: Stage, run: Run, dataset: str) -> dict:
         )
 
     writer = SummaryWriter(str(out)) if run.main else None
-    bar = tqdm(total=config.epochs, initial=epoch, desc=stage.label, unit="epoch",
-               disable=not run.progress)  # fmt: skip
+    bar = tqdm(
+        total=config.epochs, initial=epoch, desc=stage.label, unit="epoch", disable=not run.progress
+    )
     t_start, epochs_run = time.perf_counter(), 0
     while epoch < config.epochs:
         terms, extra = stage.train_epoch(epoch, net, bar)

@@ -120,9 +120,12 @@ class MotionLossConfig:
         if not (isinstance(self.flare, (int, float)) and self.flare >= 0):
             raise LoosefitInputError("MotionLossConfig", "flare", "a weight >= 0", self.flare)
         if self.collision:
-            raise LoosefitInputError("MotionLossConfig", "collision",
-                                     "0 (the motion stage takes membrane and bending)",
-                                     self.collision)  # fmt: skip
+            raise LoosefitInputError(
+                "MotionLossConfig",
+                "collision",
+                "0 (the motion stage takes membrane and bending)",
+                self.collision,
+            )
         PhysicsLossConfig(self.membrane, self.bending, self.collision, self.collision_epsilon)
 
 
@@ -165,26 +168,37 @@ class TrainMotionConfig(StageConfig):
     # windows are the paper's. ``previous_state`` and ``joints`` overrides go to the encoder.
     PRESETS: ClassVar[dict[str, dict]] = {
         "full": {},
-        "cpu": {"epochs": 60, "batch_size": 16, "lr": 1.0e-3, "checkpoint_every": 2,
-                "eval_every": 10},
-    }  # fmt: skip
+        "cpu": {
+            "epochs": 60,
+            "batch_size": 16,
+            "lr": 1.0e-3,
+            "checkpoint_every": 2,
+            "eval_every": 10,
+        },
+    }
 
     def validate(self) -> None:
         check_precision("TrainMotionConfig", self.precision)
         if self.previous not in ("scheduled", "teacher"):
-            raise LoosefitInputError("TrainMotionConfig", "previous", "scheduled or teacher",
-                                     repr(self.previous))  # fmt: skip
+            raise LoosefitInputError(
+                "TrainMotionConfig", "previous", "scheduled or teacher", repr(self.previous)
+            )
         if not (0.0 <= self.teacher_end <= self.teacher_start <= 1.0):
-            raise LoosefitInputError("TrainMotionConfig", "teacher_start, teacher_end",
-                                     "0 <= teacher_end <= teacher_start <= 1",
-                                     (self.teacher_start, self.teacher_end))  # fmt: skip
+            raise LoosefitInputError(
+                "TrainMotionConfig",
+                "teacher_start, teacher_end",
+                "0 <= teacher_end <= teacher_start <= 1",
+                (self.teacher_start, self.teacher_end),
+            )
         for name in ("unroll", "mirror"):
             if not isinstance(getattr(self, name), bool):
-                raise LoosefitInputError("TrainMotionConfig", name, "true or false",
-                                         repr(getattr(self, name)))  # fmt: skip
+                raise LoosefitInputError(
+                    "TrainMotionConfig", name, "true or false", repr(getattr(self, name))
+                )
         if not self.previous_noise >= 0:
-            raise LoosefitInputError("TrainMotionConfig", "previous_noise", "metres >= 0",
-                                     self.previous_noise)  # fmt: skip
+            raise LoosefitInputError(
+                "TrainMotionConfig", "previous_noise", "metres >= 0", self.previous_noise
+            )
         if not (isinstance(self.window, int) and self.window >= 1):
             raise LoosefitInputError("TrainMotionConfig", "window", "an integer >= 1", self.window)
 
@@ -199,8 +213,13 @@ class TrainMotionConfig(StageConfig):
         return float(a + (b - a) * epoch / span)
 
 
-def warm_start(encoder: DynamicMotionEncoder, path: str | Path, config: MotionEncoderConfig,
-               num_features: int, device="cpu") -> None:  # fmt: skip
+def warm_start(
+    encoder: DynamicMotionEncoder,
+    path: str | Path,
+    config: MotionEncoderConfig,
+    num_features: int,
+    device="cpu",
+) -> None:
     """Load another motion checkpoint's encoder weights (feature statistics included) into
     ``encoder`` (fine-tuning).
 
@@ -212,12 +231,21 @@ def warm_start(encoder: DynamicMotionEncoder, path: str | Path, config: MotionEn
     recorded = (saved.get("model_config") or {}).get("encoder")
     mine = json.loads(json.dumps(asdict(config)))
     if recorded is not None and {**mine, **recorded} != mine:
-        raise LoosefitInputError(path, "model_config.encoder", str(mine), str(recorded),
-                                 hint="warm-start from an encoder of this run's "
-                                 "configuration")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "model_config.encoder",
+            str(mine),
+            str(recorded),
+            hint="warm-start from an encoder of this run's configuration",
+        )
     if saved.get("num_features") != num_features:
-        raise LoosefitInputError(path, "num_features", num_features, saved.get("num_features"),
-                                 hint="the same --joints as the run it starts from")  # fmt: skip
+        raise LoosefitInputError(
+            path,
+            "num_features",
+            num_features,
+            saved.get("num_features"),
+            hint="the same --joints as the run it starts from",
+        )
     load_weights(encoder, saved["model"], Path(path), "this encoder configuration")
 
 
@@ -260,8 +288,9 @@ class BatchPart:
         return int((last - first).clamp(min=0).sum())
 
 
-def share_batch(clips: list[Clip], rank: int, world: int, device: torch.device
-                ) -> tuple[dict[str, torch.Tensor], BatchPart]:  # fmt: skip
+def share_batch(
+    clips: list[Clip], rank: int, world: int, device: torch.device
+) -> tuple[dict[str, torch.Tensor], BatchPart]:
     """This process's clips of a batch, stacked (padded to the whole batch's frames) on
     ``device``, and where they sit in the batch."""
     mine, share = shard(len(clips), rank, world)
@@ -368,8 +397,10 @@ def run_window(
                     gt = gt + noise * jitter[part.rows].to(device)
                 previous = torch.where(use[part.rows].to(device)[:, None, None], gt, previous)
     count = max(part.count(start, stop), 1)
-    terms = {k: v / count if torch.is_tensor(v) else torch.tensor(v, device=device)
-             for k, v in sums.items()}  # fmt: skip
+    terms = {
+        k: v / count if torch.is_tensor(v) else torch.tensor(v, device=device)
+        for k, v in sums.items()
+    }
     terms["total"] = sum(terms.values())
     return terms, hidden.detach(), previous.detach()
 
@@ -387,9 +418,15 @@ class MotionStage(Stage):
     ddp_buffers = False
     tags: ClassVar[dict[str, str]] = {"teacher": "train/teacher_probability"}
 
-    def __init__(self, reader: DatasetReader, generative: GarmentGenerativeModel,
-                 gmeta: dict, config: TrainMotionConfig, run: Run,
-                 rest_state: torch.Tensor | None):  # fmt: skip
+    def __init__(
+        self,
+        reader: DatasetReader,
+        generative: GarmentGenerativeModel,
+        gmeta: dict,
+        config: TrainMotionConfig,
+        run: Run,
+        rest_state: torch.Tensor | None,
+    ):
         self.config, self.run, self.reader = config, run, reader
         self.generative, self.gmeta = generative, gmeta
         self.template = template = reader.template
@@ -399,9 +436,15 @@ class MotionStage(Stage):
         self.floor = floor = float(reader.body["floor_height"])
         t0 = time.perf_counter()
         self.clips = clips = prepare_clips(
-            reader, "train", generative, floor, config.rollout, config.max_frames, config.mirror,
+            reader,
+            "train",
+            generative,
+            floor,
+            config.rollout,
+            config.max_frames,
+            config.mirror,
             config.model.joints,
-        )  # fmt: skip
+        )
         self.fps = clips[0].motion.fps
         rest = self.rest_drape(rest_state)
         run.log(
@@ -475,10 +518,24 @@ class MotionStage(Stage):
             L = max(c.length for c in clips)
             for start in range(0, L, cfg.window):
                 terms, hidden, previous = run_window(
-                    net, self.generative, self.lap, batch, start, min(start + cfg.window, L),
-                    hidden, previous, teacher, cfg.loss, self.sampling, cfg.previous_noise,
-                    cfg.unroll, part, cfg.precision, self.structure, self.hem,
-                )  # fmt: skip
+                    net,
+                    self.generative,
+                    self.lap,
+                    batch,
+                    start,
+                    min(start + cfg.window, L),
+                    hidden,
+                    previous,
+                    teacher,
+                    cfg.loss,
+                    self.sampling,
+                    cfg.previous_noise,
+                    cfg.unroll,
+                    part,
+                    cfg.precision,
+                    self.structure,
+                    self.hem,
+                )
                 if not terms["total"].requires_grad:
                     continue  # a window with no motion frame in the batch (all preroll)
                 optimizer_step(
@@ -492,10 +549,17 @@ class MotionStage(Stage):
 
     def evaluate(self, epoch: int, record: dict, write) -> dict[str, float]:
         current = AnimationModel(
-            self.generative, self.model, self.template, self.rest, self.joint_names,
-            self.floor, self.fps, dict(self.reader.body), self.config.rollout,
+            self.generative,
+            self.model,
+            self.template,
+            self.rest,
+            self.joint_names,
+            self.floor,
+            self.fps,
+            dict(self.reader.body),
+            self.config.rollout,
             self.run.checkpoint,
-        )  # fmt: skip
+        )
         err = evaluate_rollouts(current, self.reader, "test", surface=False, stages=MOTION_ONLY)
         record["test_rollout_rmse_cm"] = err["rmse_cm"]
         write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
@@ -579,9 +643,12 @@ def format_report(report: dict) -> str:
     ]
     for name, c in t["clips"].items():
         cells = [f"{c['horizons'][h]:.3f}" if h in c["horizons"] else "-" for h in hs]
-        lines.append(f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | " + " | ".join(cells)
-                     + f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f} | "
-                     f"{c['frames_per_second']:.0f} |")  # fmt: skip
+        lines.append(
+            f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | "
+            + " | ".join(cells)
+            + f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f} | "
+            f"{c['frames_per_second']:.0f} |"
+        )
     spe = report.get("seconds_per_epoch")
     lines += [
         "",
