@@ -43,7 +43,7 @@ from loosefit.model.rollout import RolloutConfig, Stages
 from loosefit.train.clips import Clip, feature_statistics, prepare_clips, stack_clips
 from loosefit.train.common import epoch_means, optimizer_step
 from loosefit.train.frames import avatar_for
-from loosefit.train.loop import Run, Stage, StageConfig, train
+from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
 
 CHECKPOINT_FORMAT = BASELINE_FORMAT
 RAW = Stages(detail=False, lengths=False, collision=False)  # the network's own output
@@ -215,9 +215,7 @@ class BaselineStage(Stage):
         # 2. the network
         self.model = BaselineNetwork(config.model, F, rest, weights, mean, std, bone_mean)
         self.model.to(config.device)
-        self.optim = torch.optim.Adam(
-            self.model.parameters(), lr=config.lr, weight_decay=config.weight_decay
-        )
+        self.optim = adam(self.model, config)
         self.states = {"model": self.model, "optimizer": self.optim}
         self.joint_names = tuple(clips[0].motion.joint_names)
         self.meta = {
@@ -333,7 +331,6 @@ def train_baseline(
 def format_report(report: dict) -> str:
     """A Markdown summary of a baseline run's report."""
     t = report["test"]
-    spe = report.get("seconds_per_epoch")
     return "\n".join(
         [
             f"# Baseline `{report['method']}`, {report['epochs']} epochs",
@@ -344,9 +341,7 @@ def format_report(report: dict) -> str:
             "|---:|---:|---:|---:|",
             f"| {t['frames']} | {t['rmse_cm']:.3f} | {t['hausdorff_cm']:.3f} | {t['sted']:.4f} |",
             "",
-            f"{report['parameters']:,} parameters; "
-            + (f"{spe:.2f} s per epoch; " if spe else "")
-            + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+            cost_line(report),
             "",
         ]
     )

@@ -5,6 +5,7 @@ garment in the root frame (and, given a generative model, that garment's codes).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +55,26 @@ class Clip:
         return int(self.features.shape[0])
 
 
+def clip_versions(
+    reader: DatasetReader, split: str, max_frames: int | None = None, mirror: bool = False
+) -> Iterator[tuple[str, Motion, np.ndarray]]:
+    """Every clip of a split as (name, motion, simulated garment (T, V, 3), world frame),
+    each followed, with ``mirror``, by itself mirrored left-right (``NAME~mirror``): the
+    motion by :func:`~loosefit.body.mirror.mirror_motion`, the garment reflected about
+    X = 0 onto its twin vertices (:func:`~loosefit.body.mirror.vertex_twins`; the garment
+    must be mirror-symmetric). Physics has no handedness, so that is the simulation of the
+    mirrored motion, up to the body's own asymmetry (mm). ``max_frames``: the first frames
+    of each clip only."""
+    twins = vertex_twins(reader.template.vertices) if mirror else None
+    for name in reader.training_clips(split):
+        seq = reader.read(name)
+        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
+        garment = seq.garment_vertices[: motion.num_frames]
+        yield name, motion, garment
+        if mirror:
+            yield f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins)
+
+
 @torch.no_grad()
 def prepare_clips(
     reader: DatasetReader,
@@ -68,46 +89,19 @@ def prepare_clips(
     """Every clip of a split on the rollout timeline, with its targets (and, given a
     generative model, their latent codes).
 
-    ``mirror`` adds each clip mirrored left-right (``NAME~mirror``): the motion by
-    :func:`~loosefit.body.mirror.mirror_motion`, the simulated garment reflected
-    about X = 0 onto its twin vertices (:func:`~loosefit.body.mirror.vertex_twins`;
-    the garment must be mirror-symmetric). Physics has no handedness, so that is
-    the simulation of the mirrored motion, up to the body's own asymmetry (mm).
+    ``mirror`` adds each clip mirrored left-right (:func:`clip_versions`).
     ``joints`` names the joint set of the features (``MotionEncoderConfig.joints``).
     """
-    names = reader.training_clips(split)
-    twins = vertex_twins(reader.template.vertices) if mirror else None
     clips = []
-    for name in names:
-        seq = reader.read(name)
-        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        garment = seq.garment_vertices[: motion.num_frames]
-        versions = [(name, motion, garment)]
-        if mirror:
-            versions.append(
-                (f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins))
-            )
-        for label, m, v in versions:
-            rot, root, P = timeline(m, floor_height, config)
-            H, p = (a.float() for a in root_frames(rot.double(), root.double()))
-            target = to_root_frame(
-                torch.from_numpy(np.ascontiguousarray(v, np.float32)), H[P:], p[P:]
-            )
-            feats = motion_features(
-                rot, root, m.fps, floor_height, feature_joints(m.joint_names, joints)
-            )
-            clips.append(
-                Clip(
-                    label,
-                    m,
-                    feats,
-                    H,
-                    p,
-                    target,
-                    None if generative is None else latent_codes(generative, target),
-                    P,
-                )
-            )
+    for label, m, v in clip_versions(reader, split, max_frames, mirror):
+        rot, root, P = timeline(m, floor_height, config)
+        H, p = (a.float() for a in root_frames(rot.double(), root.double()))
+        target = to_root_frame(torch.from_numpy(np.ascontiguousarray(v, np.float32)), H[P:], p[P:])
+        feats = motion_features(
+            rot, root, m.fps, floor_height, feature_joints(m.joint_names, joints)
+        )
+        latent = None if generative is None else latent_codes(generative, target)  # (T, Z)
+        clips.append(Clip(label, m, feats, H, p, target, latent, P))
     return clips
 
 

@@ -31,7 +31,6 @@ from typing import ClassVar
 import numpy as np
 import torch
 
-from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
@@ -61,8 +60,9 @@ from loosefit.model.detail import (
 )
 from loosefit.model.motion_features import to_root_frame
 from loosefit.model.rollout import MOTION_ONLY, Stages, motion_root_frames
+from loosefit.train.clips import clip_versions
 from loosefit.train.common import epoch_means
-from loosefit.train.loop import Run, Stage, StageConfig, train
+from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
 from loosefit.train.motion import training_config
 
 CHECKPOINT_FORMAT = DETAIL_FORMAT
@@ -150,25 +150,16 @@ def rollout_pairs(
 ) -> DetailPairs:
     """Roll every clip of a split out with the motion stage alone and pair each frame with
     the simulation (mirrored clips too with ``mirror``)."""
-    names = reader.training_clips(split)
-    twins = vertex_twins(reader.template.vertices) if mirror else None
     decoded, codes, target, clips = [], [], [], []
-    for name in names:
-        seq = reader.read(name)
-        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        truth = seq.garment_vertices[: motion.num_frames]
-        versions = [(name, motion, truth)]
-        if mirror:
-            versions.append((f"{name}~mirror", mirror_motion(motion), mirror_garment(truth, twins)))
-        for label, m, v in versions:
-            t0 = time.perf_counter()
-            result = model.animate(m, stages=MOTION_ONLY)
-            H, p, _ = motion_root_frames(m, model.floor_height, model.rollout_config)
-            decoded.append(to_root_frame(torch.from_numpy(result.vertices), H, p))
-            target.append(to_root_frame(torch.as_tensor(np.asarray(v, np.float32)), H, p))
-            codes.append(torch.from_numpy(result.codes))
-            clips.append(label)
-            log(f"rolled out {label}: {m.num_frames} frames in {time.perf_counter() - t0:.1f} s")
+    for label, m, v in clip_versions(reader, split, max_frames, mirror):
+        t0 = time.perf_counter()
+        result = model.animate(m, stages=MOTION_ONLY)
+        H, p, _ = motion_root_frames(m, model.floor_height, model.rollout_config)
+        decoded.append(to_root_frame(torch.from_numpy(result.vertices), H, p))
+        target.append(to_root_frame(torch.as_tensor(np.asarray(v, np.float32)), H, p))
+        codes.append(torch.from_numpy(result.codes))
+        clips.append(label)
+        log(f"rolled out {label}: {m.num_frames} frames in {time.perf_counter() - t0:.1f} s")
     return DetailPairs(torch.cat(decoded), torch.cat(codes), torch.cat(target), clips)
 
 
@@ -215,9 +206,7 @@ class DetailStage(Stage):
         self.uv = model.generative.uv
         self.lap = Laplacian(t.faces, t.num_vertices).to(dev)
         self.edges = torch.from_numpy(unique_edges(t.faces)[0]).t().to(dev)  # (2, E) each once
-        adam = {"lr": config.lr, "weight_decay": config.weight_decay}
-        self.opt_g = torch.optim.Adam(self.model.parameters(), **adam)
-        self.opt_d = torch.optim.Adam(self.disc.parameters(), **adam)
+        self.opt_g, self.opt_d = adam(self.model, config), adam(self.disc, config)
         self.states = {
             "model": self.model,
             "discriminator": self.disc,
@@ -367,7 +356,6 @@ def train_detail(
 def format_report(report: dict) -> str:
     """A Markdown summary of a detail run's report."""
     a, b = report["test_without"], report["test_with"]
-    spe = report.get("seconds_per_epoch")
     return "\n".join(
         [
             f"# Detail module ({'with' if report['discriminator'] else 'w/o'} D_ms), "
@@ -378,9 +366,7 @@ def format_report(report: dict) -> str:
             f"| motion stage alone | {a['rmse_cm']:.3f} |",
             f"| with the detail module | {b['rmse_cm']:.3f} |",
             "",
-            f"{report['parameters']:,} generator parameters; "
-            + (f"{spe:.1f} s per epoch; " if spe else "")
-            + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+            cost_line(report, "generator parameters", digits=1),
             "",
         ]
     )

@@ -51,7 +51,7 @@ from loosefit.model.generative import (
 from loosefit.model.physics import ClothStructure, active_terms
 from loosefit.train.common import all_mean, autocast, check_device_precision, check_precision, shard
 from loosefit.train.frames import PreparedFrames, avatar_for, prepare_split
-from loosefit.train.loop import Run, Stage, StageConfig, train
+from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
 from loosefit.types import GarmentTemplate
 
 CHECKPOINT_FORMAT = GENERATIVE_FORMAT
@@ -96,64 +96,31 @@ class TrainGenerativeConfig(StageConfig):
         check_precision("TrainGenerativeConfig", self.precision)
 
 
-# -- checkpoints -----------------------------------------------------------------
+# -- the data: the train split's frames (loosefit.train.frames); the ssdr decoder's start
 
 
-def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
-    """A generative run's checkpoint: the model and its training configuration.
+def _ssdr_init(frames: PreparedFrames, template: GarmentTemplate, cfg: TrainGenerativeConfig):
+    from loosefit.model.ssdr import SSDRConfig, decompose
 
-    Args:
-        path: the ``checkpoint.pt`` of a run.
-        template: if given, the garment the model must have been trained on.
-        device: where to put the model.
-
-    Returns:
-        (model in eval mode, its :class:`TrainGenerativeConfig`, the raw checkpoint dict).
-
-    Raises:
-        LoosefitInputError: not a generative-model checkpoint, another garment, weights
-            that do not fit, or no training configuration (a packaged ``generative.pt``:
-            :func:`~loosefit.inference.checkpoints.load_generative` reads those).
-    """
-    model, data = load_generative(path, template, device)
-    if "config" not in data:
-        raise LoosefitInputError(
-            path,
-            "config",
-            "a training run's configuration",
-            "none (a packaged model)",
-            hint="load it with loosefit.inference.checkpoints.load_generative",
-        )
-    return model, TrainGenerativeConfig.from_dict(data["config"]), data
+    d = decompose(
+        frames.posed.numpy(),
+        template.vertices,
+        SSDRConfig(bones=cfg.model.ssdr_bones, iterations=cfg.ssdr_iterations, seed=cfg.seed),
+        faces=template.faces,
+    )
+    return d.rest, d.weights, d.transforms.mean(0)
 
 
-def warm_start(
-    model: GarmentGenerativeModel,
-    path: str | Path,
-    template: GarmentTemplate,
-    config: GenerativeConfig,
-    device="cpu",
-) -> None:
-    """Load another generative checkpoint's weights into ``model`` (fine-tuning).
-
-    Raises:
-        LoosefitInputError: not a generative checkpoint, another garment than
-            ``template``'s, or another model configuration than ``config``.
-    """
-    source, data = load_generative(path, template, device)
-    mine, theirs = (json.loads(json.dumps(asdict(c))) for c in (config, source.config))
-    if mine != theirs:
-        raise LoosefitInputError(
-            path,
-            "model_config",
-            str(mine),
-            str(theirs),
-            hint="warm-start from a model of this run's --preset and --decoder",
-        )
-    model.load_state_dict(source.state_dict())
+# -- the step ---------------------------------------------------------------------------------
 
 
-# -- evaluation ---------------------------------------------------------------------
+def _float32(out: GenerativeOutput) -> GenerativeOutput:
+    """The model's output with every tensor in float32 (after a bf16 forward pass)."""
+    values = {f.name: getattr(out, f.name) for f in fields(out)}
+    return GenerativeOutput(**{k: None if v is None else v.float() for k, v in values.items()})
+
+
+# -- the evaluation ---------------------------------------------------------------------------
 
 
 @torch.no_grad()
@@ -197,25 +164,29 @@ def evaluate(model: GarmentGenerativeModel, frames: PreparedFrames, faces: np.nd
     }
 
 
-# -- training ------------------------------------------------------------------------
+def format_report(report: dict) -> str:
+    """A Markdown summary of a run's report."""
+    lines = [
+        f"# Generative model ({report['decoder']} decoder), {report['epochs']} epochs",
+        "",
+        "| split | frames | RMSE (cm) | Hausdorff (cm) | STED |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for split in ("train", "test"):
+        r = report[split]
+        lines.append(
+            f"| {split} | {r['frames']} | {r['rmse_cm']:.3f} | "
+            f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} |"
+        )
+    lines += [
+        "",
+        cost_line(report),
+        "",
+    ]
+    return "\n".join(lines)
 
 
-def _float32(out: GenerativeOutput) -> GenerativeOutput:
-    """The model's output with every tensor in float32 (after a bf16 forward pass)."""
-    values = {f.name: getattr(out, f.name) for f in fields(out)}
-    return GenerativeOutput(**{k: None if v is None else v.float() for k, v in values.items()})
-
-
-def _ssdr_init(frames: PreparedFrames, template: GarmentTemplate, cfg: TrainGenerativeConfig):
-    from loosefit.model.ssdr import SSDRConfig, decompose
-
-    d = decompose(
-        frames.posed.numpy(),
-        template.vertices,
-        SSDRConfig(bones=cfg.model.ssdr_bones, iterations=cfg.ssdr_iterations, seed=cfg.seed),
-        faces=template.faces,
-    )
-    return d.rest, d.weights, d.transforms.mean(0)
+# -- the stage --------------------------------------------------------------------------------
 
 
 class GenerativeStage(Stage):
@@ -253,9 +224,7 @@ class GenerativeStage(Stage):
         self.lap = Laplacian(
             template.faces, template.num_vertices, kind=config.laplacian, vertices=template.vertices
         ).to(device)
-        self.optim = torch.optim.Adam(
-            self.model.parameters(), lr=config.lr, weight_decay=config.weight_decay
-        )
+        self.optim = adam(self.model, config)
         self.states = {"model": self.model, "optimizer": self.optim}
         # 3. the tensors a step reads, on the device
         self.posed, self.unposed = self.train.posed.to(device), self.train.unposed.to(device)
@@ -363,26 +332,58 @@ def train_generative(
     return train(GenerativeStage(reader, config, run), run, dataset)
 
 
-def format_report(report: dict) -> str:
-    """A Markdown summary of a run's report."""
-    lines = [
-        f"# Generative model ({report['decoder']} decoder), {report['epochs']} epochs",
-        "",
-        "| split | frames | RMSE (cm) | Hausdorff (cm) | STED |",
-        "|---|---:|---:|---:|---:|",
-    ]
-    for split in ("train", "test"):
-        r = report[split]
-        lines.append(
-            f"| {split} | {r['frames']} | {r['rmse_cm']:.3f} | "
-            f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} |"
+# -- a run's checkpoint, a warm start ---------------------------------------------------------
+
+
+def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
+    """A generative run's checkpoint: the model and its training configuration.
+
+    Args:
+        path: the ``checkpoint.pt`` of a run.
+        template: if given, the garment the model must have been trained on.
+        device: where to put the model.
+
+    Returns:
+        (model in eval mode, its :class:`TrainGenerativeConfig`, the raw checkpoint dict).
+
+    Raises:
+        LoosefitInputError: not a generative-model checkpoint, another garment, weights
+            that do not fit, or no training configuration (a packaged ``generative.pt``:
+            :func:`~loosefit.inference.checkpoints.load_generative` reads those).
+    """
+    model, data = load_generative(path, template, device)
+    if "config" not in data:
+        raise LoosefitInputError(
+            path,
+            "config",
+            "a training run's configuration",
+            "none (a packaged model)",
+            hint="load it with loosefit.inference.checkpoints.load_generative",
         )
-    spe = report.get("seconds_per_epoch")
-    lines += [
-        "",
-        f"{report['parameters']:,} parameters; "
-        + (f"{spe:.2f} s per epoch; " if spe else "")
-        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
-        "",
-    ]
-    return "\n".join(lines)
+    return model, TrainGenerativeConfig.from_dict(data["config"]), data
+
+
+def warm_start(
+    model: GarmentGenerativeModel,
+    path: str | Path,
+    template: GarmentTemplate,
+    config: GenerativeConfig,
+    device="cpu",
+) -> None:
+    """Load another generative checkpoint's weights into ``model`` (fine-tuning).
+
+    Raises:
+        LoosefitInputError: not a generative checkpoint, another garment than
+            ``template``'s, or another model configuration than ``config``.
+    """
+    source, data = load_generative(path, template, device)
+    mine, theirs = (json.loads(json.dumps(asdict(c))) for c in (config, source.config))
+    if mine != theirs:
+        raise LoosefitInputError(
+            path,
+            "model_config",
+            str(mine),
+            str(theirs),
+            hint="warm-start from a model of this run's --preset and --decoder",
+        )
+    model.load_state_dict(source.state_dict())

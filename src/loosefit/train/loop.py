@@ -375,6 +375,22 @@ def train(stage: Stage, run: Run, dataset: str) -> dict:
     return report
 
 
+def adam(module: torch.nn.Module, config: StageConfig) -> torch.optim.Adam:
+    """The optimiser of every stage: Adam with the configuration's rate and weight decay."""
+    return torch.optim.Adam(module.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+
+
+def cost_line(report: dict, parameters: str = "parameters", digits: int = 2) -> str:
+    """A report's last Markdown line: parameters, seconds per epoch (``digits`` decimals),
+    peak memory, machine."""
+    spe = report.get("seconds_per_epoch")
+    return (
+        f"{report['parameters']:,} {parameters}; "
+        + (f"{spe:.{digits}f} s per epoch; " if spe else "")
+        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}."
+    )
+
+
 def _checkpoint(stage: Stage, epoch: int, history: list) -> dict:
     """A training checkpoint: the stage's fields, its states, where the loop stands."""
     data = {**stage.checkpoint_fields()}

@@ -93,7 +93,7 @@ from loosefit.train.common import (
     optimizer_step,
     shard,
 )
-from loosefit.train.loop import Run, Stage, StageConfig, train
+from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
 
 CHECKPOINT_FORMAT = MOTION_FORMAT
 
@@ -211,48 +211,6 @@ class TrainMotionConfig(StageConfig):
             return float(self.teacher_end)
         a, b = self.teacher_start, self.teacher_end
         return float(a + (b - a) * epoch / span)
-
-
-def warm_start(
-    encoder: DynamicMotionEncoder,
-    path: str | Path,
-    config: MotionEncoderConfig,
-    num_features: int,
-    device="cpu",
-) -> None:
-    """Load another motion checkpoint's encoder weights (feature statistics included) into
-    ``encoder`` (fine-tuning).
-
-    Raises:
-        LoosefitInputError: not a motion checkpoint, another encoder configuration than
-            ``config``, another number of motion features, or weights that do not fit.
-    """
-    saved = read_checkpoint_file(path, MOTION_FORMAT, device)
-    recorded = (saved.get("model_config") or {}).get("encoder")
-    mine = json.loads(json.dumps(asdict(config)))
-    if recorded is not None and {**mine, **recorded} != mine:
-        raise LoosefitInputError(
-            path,
-            "model_config.encoder",
-            str(mine),
-            str(recorded),
-            hint="warm-start from an encoder of this run's configuration",
-        )
-    if saved.get("num_features") != num_features:
-        raise LoosefitInputError(
-            path,
-            "num_features",
-            num_features,
-            saved.get("num_features"),
-            hint="the same --joints as the run it starts from",
-        )
-    load_weights(encoder, saved["model"], Path(path), "this encoder configuration")
-
-
-def training_config(path: str | Path) -> TrainMotionConfig | None:
-    """The training configuration a motion-stage checkpoint records (None: a packaged one)."""
-    data = read_checkpoint_file(path, MOTION_FORMAT)
-    return TrainMotionConfig.from_dict(data["config"]) if "config" in data else None
 
 
 # -- the data and the step -------------------------------------------------------------
@@ -405,6 +363,40 @@ def run_window(
     return terms, hidden.detach(), previous.detach()
 
 
+# -- the evaluation: held-out rollouts (loosefit.eval.rollouts) ------------------------------
+
+
+def format_report(report: dict) -> str:
+    """A Markdown summary of a run's report."""
+    t = report["test"]
+    hs = list(t["horizons"])
+    lines = [
+        f"# Dynamic motion encoder ({'with' if report['previous_state'] else 'w/o'} previous "
+        f"state), {report['epochs']} epochs",
+        "",
+        "Rollouts of the held-out clips from their first frame; lengths in centimetres.",
+        "",
+        "| clip | frames | RMSE | "
+        + " | ".join(f"iter-{h}" for h in hs)
+        + " | Hausdorff | STED | rollout fps |",
+        "|---|---:|---:|" + "---:|" * len(hs) + "---:|---:|---:|",
+    ]
+    for name, c in t["clips"].items():
+        cells = [f"{c['horizons'][h]:.3f}" if h in c["horizons"] else "-" for h in hs]
+        lines.append(
+            f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | "
+            + " | ".join(cells)
+            + f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f} | "
+            f"{c['frames_per_second']:.0f} |"
+        )
+    lines += [
+        "",
+        cost_line(report, digits=1),
+        "",
+    ]
+    return "\n".join(lines)
+
+
 # -- the stage ---------------------------------------------------------------------------------
 
 
@@ -457,9 +449,7 @@ class MotionStage(Stage):
         self.lap = Laplacian(template.faces, template.num_vertices).to(device)
         self.structure = ClothStructure.from_template(template).to(device)
         self.hem = torch.from_numpy(hem_loop(template.vertices, template.faces)).to(device)
-        self.optim = torch.optim.Adam(
-            self.model.parameters(), lr=config.lr, weight_decay=config.weight_decay
-        )
+        self.optim = adam(self.model, config)
         self.states = {"model": self.model, "optimizer": self.optim}
         self.joint_names = tuple(clips[0].motion.joint_names)
         self.meta = {
@@ -626,35 +616,46 @@ def train_motion(
     return train(MotionStage(reader, gmodel, gmeta, config, run, rest_state), run, dataset)
 
 
-def format_report(report: dict) -> str:
-    """A Markdown summary of a run's report."""
-    t = report["test"]
-    hs = list(t["horizons"])
-    lines = [
-        f"# Dynamic motion encoder ({'with' if report['previous_state'] else 'w/o'} previous "
-        f"state), {report['epochs']} epochs",
-        "",
-        "Rollouts of the held-out clips from their first frame; lengths in centimetres.",
-        "",
-        "| clip | frames | RMSE | "
-        + " | ".join(f"iter-{h}" for h in hs)
-        + " | Hausdorff | STED | rollout fps |",
-        "|---|---:|---:|" + "---:|" * len(hs) + "---:|---:|---:|",
-    ]
-    for name, c in t["clips"].items():
-        cells = [f"{c['horizons'][h]:.3f}" if h in c["horizons"] else "-" for h in hs]
-        lines.append(
-            f"| {name} | {c['frames']} | {c['rmse_cm']:.3f} | "
-            + " | ".join(cells)
-            + f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f} | "
-            f"{c['frames_per_second']:.0f} |"
+# -- a warm start, a run's configuration ------------------------------------------------------
+
+
+def warm_start(
+    encoder: DynamicMotionEncoder,
+    path: str | Path,
+    config: MotionEncoderConfig,
+    num_features: int,
+    device="cpu",
+) -> None:
+    """Load another motion checkpoint's encoder weights (feature statistics included) into
+    ``encoder`` (fine-tuning).
+
+    Raises:
+        LoosefitInputError: not a motion checkpoint, another encoder configuration than
+            ``config``, another number of motion features, or weights that do not fit.
+    """
+    saved = read_checkpoint_file(path, MOTION_FORMAT, device)
+    recorded = (saved.get("model_config") or {}).get("encoder")
+    mine = json.loads(json.dumps(asdict(config)))
+    if recorded is not None and {**mine, **recorded} != mine:
+        raise LoosefitInputError(
+            path,
+            "model_config.encoder",
+            str(mine),
+            str(recorded),
+            hint="warm-start from an encoder of this run's configuration",
         )
-    spe = report.get("seconds_per_epoch")
-    lines += [
-        "",
-        f"{report['parameters']:,} parameters; "
-        + (f"{spe:.1f} s per epoch; " if spe else "")
-        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
-        "",
-    ]
-    return "\n".join(lines)
+    if saved.get("num_features") != num_features:
+        raise LoosefitInputError(
+            path,
+            "num_features",
+            num_features,
+            saved.get("num_features"),
+            hint="the same --joints as the run it starts from",
+        )
+    load_weights(encoder, saved["model"], Path(path), "this encoder configuration")
+
+
+def training_config(path: str | Path) -> TrainMotionConfig | None:
+    """The training configuration a motion-stage checkpoint records (None: a packaged one)."""
+    data = read_checkpoint_file(path, MOTION_FORMAT)
+    return TrainMotionConfig.from_dict(data["config"]) if "config" in data else None
