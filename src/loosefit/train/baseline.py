@@ -40,7 +40,13 @@ from loosefit.model.baselines import (
     body_joint_weights,
 )
 from loosefit.model.rollout import RolloutConfig, Stages
-from loosefit.train.clips import Clip, feature_statistics, prepare_clips, stack_clips
+from loosefit.train.clips import (
+    Clip,
+    feature_statistics,
+    prepare_clips,
+    rollout_evaluation,
+    stack_clips,
+)
 from loosefit.train.common import epoch_means, optimizer_step
 from loosefit.train.frames import avatar_for
 from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
@@ -279,10 +285,7 @@ class BaselineStage(Stage):
 
     def evaluate(self, epoch: int, record: dict, write) -> dict[str, float]:
         model = self.current(self.run.checkpoint)
-        err = evaluate_rollouts(model, self.reader, "test", surface=False, stages=RAW)
-        record["test_rollout_rmse_cm"] = err["rmse_cm"]
-        write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
-        return {"test/rollout_rmse_cm": err["rmse_cm"]}
+        return rollout_evaluation(model, self.reader, RAW, epoch, record, write)
 
     def report(self, common: dict, writer, epoch: int, history: list) -> dict:
         path = self.run.out / "model.pt"
@@ -314,10 +317,10 @@ def train_baseline(
 
     Args:
         data: a dataset folder.
-        out: the run folder; an existing run with the same configuration resumes.
+        out: the run folder (:class:`~loosefit.train.loop.Run`): a run of this configuration
+            there resumes, a run of another is refused.
         config: the run (``config.model.method`` picks the baseline).
-        log: where progress lines go.
-        progress: show a tqdm bar.
+        log, progress: where progress lines go; whether to show a tqdm bar.
 
     Returns:
         The report (also written to ``out/report.json`` and ``out/report.md``).

@@ -14,6 +14,7 @@ import torch
 from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
+from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_features import (
     feature_joints,
@@ -148,3 +149,16 @@ def stack_clips(
     if extra is not None:
         batch["extra"] = torch.stack([pad_frames(x, T) for x in extra])  # (B, T, ...)
     return batch
+
+
+def rollout_evaluation(
+    model, reader: DatasetReader, stages, epoch: int, record: dict, write
+) -> dict[str, float]:
+    """The held-out clips rolled out by ``model`` (the network being trained, through
+    ``stages``) and scored against the simulation, as the motion stage and the baselines
+    check themselves during training: the RMSE noted in the epoch's history ``record``,
+    written under the progress bar (``write``), and returned as a TensorBoard scalar."""
+    err = evaluate_rollouts(model, reader, "test", surface=False, stages=stages)
+    record["test_rollout_rmse_cm"] = err["rmse_cm"]
+    write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
+    return {"test/rollout_rmse_cm": err["rmse_cm"]}

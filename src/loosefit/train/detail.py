@@ -325,11 +325,11 @@ def train_detail(
     Args:
         data: the dataset the motion stage was trained on.
         motion: the motion stage's checkpoint (``model.pt``; frozen here).
-        out: the run folder; an existing run with the same configuration resumes.
+        out: the run folder (:class:`~loosefit.train.loop.Run`): a run of this configuration
+            there resumes, a run of another is refused.
         config: the run.
         generative: the generative checkpoint, if not the one the motion stage records.
-        log: where progress lines go.
-        progress: show a tqdm bar.
+        log, progress: where progress lines go; whether to show a tqdm bar.
 
     Returns:
         The report (also ``out/report.json`` and ``out/report.md``).

@@ -318,10 +318,10 @@ def train_generative(
 
     Args:
         data: a dataset folder (``loosefit simulate``).
-        out: the run folder; an existing run with the same configuration resumes.
+        out: the run folder (:class:`~loosefit.train.loop.Run`): a run of this configuration
+            there resumes, a run of another is refused.
         config: the run.
-        log: where progress lines go.
-        progress: show a tqdm bar.
+        log, progress: where progress lines go; whether to show a tqdm bar.
 
     Returns:
         The report (also written to ``out/report.json`` and ``out/report.md``).

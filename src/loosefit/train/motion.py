@@ -83,7 +83,13 @@ from loosefit.model.physics import (
     physics_terms,
 )
 from loosefit.model.rollout import MOTION_ONLY, RolloutConfig, change_frame
-from loosefit.train.clips import Clip, feature_statistics, prepare_clips, stack_clips
+from loosefit.train.clips import (
+    Clip,
+    feature_statistics,
+    prepare_clips,
+    rollout_evaluation,
+    stack_clips,
+)
 from loosefit.train.common import (
     autocast,
     barrier,
@@ -550,10 +556,7 @@ class MotionStage(Stage):
             self.config.rollout,
             self.run.checkpoint,
         )
-        err = evaluate_rollouts(current, self.reader, "test", surface=False, stages=MOTION_ONLY)
-        record["test_rollout_rmse_cm"] = err["rmse_cm"]
-        write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
-        return {"test/rollout_rmse_cm": err["rmse_cm"]}
+        return rollout_evaluation(current, self.reader, MOTION_ONLY, epoch, record, write)
 
     def report(self, common: dict, writer, epoch: int, history: list) -> dict:
         path = self.run.out / "model.pt"
@@ -587,10 +590,10 @@ def train_motion(
     Args:
         data: a dataset folder.
         generative: the trained generative model's checkpoint (frozen here).
-        out: the run folder; an existing run with the same configuration resumes.
+        out: the run folder (:class:`~loosefit.train.loop.Run`): a run of this configuration
+            there resumes, a run of another is refused.
         config: the run.
-        log: where progress lines go.
-        progress: show a tqdm bar.
+        log, progress: where progress lines go; whether to show a tqdm bar.
         rest_state: (V, 3) the garment's settled drape in the rest pose's root frame;
             by default settled with the data set's cloth configuration
             (:func:`~loosefit.data.rest_drape.settled_rest_drape`, kept in the run folder).
