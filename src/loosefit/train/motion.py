@@ -115,8 +115,8 @@ class MotionLossConfig:
     # the body at every frame and is taken by the generative stage only
     membrane: float = 0.0  # edge lengths against rest
     bending: float = 0.0  # dihedral angles against rest
-    collision: float = 0.0
-    collision_epsilon: float = 0.002
+    collision: float = 0.0  # must stay 0 here (it needs the body: the generative stage's)
+    collision_epsilon: float = 0.002  # m; the collision term's margin (unused while it is 0)
     # the hem's flare (its mean distance from the root's vertical axis) against the
     # simulation's, squared, in the length unit (a network that averages fold
     # configurations pulls the hem in); 0: off
