@@ -10,6 +10,7 @@ import pytest
 import torch
 
 import loosefit.inference.animator as inf
+import loosefit.train.loop as loop
 import loosefit.train.motion as tm
 from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
@@ -21,6 +22,7 @@ from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import feature_joints, num_features
 from loosefit.model.rollout import RolloutConfig
 from loosefit.sequence import AnimatedGarment
+from loosefit.train.clips import prepare_clips, stack_clips
 from loosefit.types import Motion
 
 
@@ -75,9 +77,9 @@ def _windows(trained, toy_dataset, skirt):
     """The trained toy model, its training clips stacked (features differentiable), a Laplacian."""
     model = inf.load_animation_model(trained[0] / "model.pt")
     reader = DatasetReader(toy_dataset)
-    clips = tm.prepare_clips(reader, "train", model.generative, model.floor_height,
+    clips = prepare_clips(reader, "train", model.generative, model.floor_height,
                              model.rollout_config)  # fmt: skip
-    batch = tm._stack(clips)
+    batch = stack_clips(clips)
     batch["features"] = batch["features"].clone().requires_grad_(True)
     model.encoder.train()
     return model, batch, Laplacian(skirt.faces, skirt.num_vertices)
@@ -100,7 +102,7 @@ def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, ski
 def test_resume_after_a_kill_gives_the_same_model(toy_dataset, generative, skirt, tmp_path,
                                                   monkeypatch, trained):  # fmt: skip
     saves = []
-    real = tm.save_checkpoint
+    real = loop.save_checkpoint
 
     def dying(path, *a, **kw):
         real(path, *a, **kw)
@@ -108,10 +110,10 @@ def test_resume_after_a_kill_gives_the_same_model(toy_dataset, generative, skirt
         if len(saves) == 5:
             raise KeyboardInterrupt  # killed right after the 5th epoch's checkpoint
 
-    monkeypatch.setattr(tm, "save_checkpoint", dying)
+    monkeypatch.setattr(loop, "save_checkpoint", dying)
     with pytest.raises(KeyboardInterrupt):
         _train(toy_dataset, generative, skirt, tmp_path / "run")
-    monkeypatch.setattr(tm, "save_checkpoint", real)
+    monkeypatch.setattr(loop, "save_checkpoint", real)
     assert not (tmp_path / "run" / "report.json").exists()  # nothing that looks finished
     lines = []
     tm.train_motion(toy_dataset, generative, tmp_path / "run", _config(), log=lines.append,
@@ -294,7 +296,7 @@ def test_oracle_scores_the_generative_models_own_code_of_the_truth(trained, toy_
     oracle = evaluate_rollouts(model, reader, "test", surface=False, oracle=True)
     # The same thing in the root frame, from the training targets (Z* decoded): RMSE is
     # rigid-invariant, so the world-frame score must match.
-    (clip,) = tm.prepare_clips(reader, "test", model.generative, model.floor_height,
+    (clip,) = prepare_clips(reader, "test", model.generative, model.floor_height,
                                model.rollout_config)  # fmt: skip
     with torch.no_grad():
         decoded = model.generative.decode(clip.latent)["vertices"]
@@ -389,7 +391,7 @@ def test_mirrored_clips_are_the_clips_mirrored(trained, toy_dataset):
     model = inf.load_animation_model(out / "model.pt")
     reader = DatasetReader(toy_dataset)
     args = (reader, "train", model.generative, model.floor_height, model.rollout_config)
-    plain, both = tm.prepare_clips(*args), tm.prepare_clips(*args, mirror=True)
+    plain, both = prepare_clips(*args), prepare_clips(*args, mirror=True)
     assert [c.name for c in both] == [n for c in plain for n in (c.name, f"{c.name}~mirror")]
     twins = vertex_twins(reader.template.vertices)
     for c, m in zip(both[::2], both[1::2], strict=True):

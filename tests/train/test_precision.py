@@ -18,6 +18,7 @@ from loosefit.inference.animator import load_animation_model
 from loosefit.model.generative import GenerativeConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.rollout import RolloutConfig
+from loosefit.train.clips import prepare_clips, stack_clips
 from loosefit.train.generative import TrainGenerativeConfig, _float32, train_generative
 
 from .conftest import SMALL
@@ -115,9 +116,9 @@ def test_bf16_motion_training_follows_fp32(toy_dataset, generative, skirt, tmp_p
     assert all(torch.isfinite(p).all() for p in model.encoder.parameters())
 
     # one window of the same weights: float32 state carried on, terms close to fp32's
-    clips = tm.prepare_clips(DatasetReader(toy_dataset), "train", model.generative,
+    clips = prepare_clips(DatasetReader(toy_dataset), "train", model.generative,
                              model.floor_height, model.rollout_config)  # fmt: skip
-    batch = tm._stack(clips)
+    batch = stack_clips(clips)
     lap = Laplacian(skirt.faces, skirt.num_vertices)
     terms = {}
     for precision in ("fp32", "bf16"):
@@ -136,7 +137,7 @@ def test_bf16_motion_training_follows_fp32(toy_dataset, generative, skirt, tmp_p
 def test_runs_from_before_the_precision_field_resume_as_fp32(tmp_path):
     import json
 
-    from loosefit.train.common import open_run
+    from loosefit.train.loop import open_run
 
     cfg = _motion_config()
     assert tm.TrainMotionConfig.from_dict(cfg.to_dict()) == cfg

@@ -12,9 +12,9 @@ from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import garment_fingerprint
 from loosefit.model.rollout import RolloutConfig
 from loosefit.sequence import AnimatedGarment
+from loosefit.train.clips import prepare_clips
 from loosefit.train.detail import rollout_pairs
 from loosefit.train.frames import prepare_split
-from loosefit.train.motion import prepare_clips
 from tests.data.test_format import _sequence, _template, make_dataset
 
 # How each stage reads the clips it trains on (nothing else is needed to be refused).

@@ -6,15 +6,11 @@ Checkpoint files are :mod:`loosefit.inference.checkpoints`'s.
 from __future__ import annotations
 
 import contextlib
-import json
-import math
 import os
 import platform
-from pathlib import Path
 
 import torch
 
-from loosefit.data.format import write_json_atomic
 from loosefit.errors import LoosefitInputError
 
 
@@ -43,83 +39,10 @@ def optimizer_step(
         sums[k] = sums.get(k, 0.0) + float(v)
 
 
-def epoch_means(sums: dict[str, float], steps: int, epoch: int) -> dict[str, float]:
-    """The epoch's mean terms per step.
-
-    Raises:
-        RuntimeError: the total loss is not finite (training diverged at ``epoch + 1``).
-    """
-    means = {k: v / max(steps, 1) for k, v in sums.items()}
-    if not math.isfinite(means.get("total", 0.0)):
-        raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {means['total']}")
-    return means
-
-
-def apply_overrides(config, overrides: dict):
-    """Set the ``overrides`` that are not None on ``config``; returns it."""
-    for k, v in overrides.items():
-        if v is not None:
-            setattr(config, k, v)
-    return config
-
-
-def restore_training(
-    saved: dict, states: dict, sampling: torch.Generator | None = None
-) -> tuple[int, list]:
-    """Resume from a training checkpoint: ``states`` maps its keys to the modules and
-    optimisers to load; torch's RNG (and ``sampling``'s) are put back. Returns the
-    epoch reached and the loss history."""
-    for key, obj in states.items():
-        obj.load_state_dict(saved[key])
-    torch.set_rng_state(saved["rng"].cpu())  # read onto the training device: RNGs are CPU's
-    if sampling is not None:
-        sampling.set_state(saved["sampling_rng"].cpu())
-    return saved["epoch"], saved["history"]
-
-
-# Training fields added after runs were recorded without them, with the value such runs
-# had: their folders still resume (and rerun scripts still pass over them).
-ADDED_FIELDS = {"precision": "fp32", "init": None}
-# the same for the loss's fields (the physics terms: membrane, bending, collision, flare;
-# runs before them had them off)
-ADDED_LOSS_FIELDS = {
-    "membrane": 0.0,
-    "bending": 0.0,
-    "collision": 0.0,
-    "collision_epsilon": 0.002,
-    "flare": 0.0,
-}
-
-
-def open_run(out: Path, stored: dict) -> None:
-    """Create a run folder or check that it holds a run of the same configuration (a
-    recorded ``train`` configuration without a field of :data:`ADDED_FIELDS` had its value).
-
-    Raises:
-        LoosefitInputError: ``out/config.json`` records another configuration.
-    """
-    out.mkdir(parents=True, exist_ok=True)
-    cfg_path = out / "config.json"
-    if cfg_path.is_file():
-        recorded, current = json.loads(cfg_path.read_text()), json.loads(json.dumps(stored))
-        if isinstance(recorded.get("train"), dict) and isinstance(current.get("train"), dict):
-            added = {k: v for k, v in ADDED_FIELDS.items() if k in current["train"]}
-            recorded["train"] = {**added, **recorded["train"]}
-            loss, now = recorded["train"].get("loss"), current["train"].get("loss")
-            if isinstance(loss, dict) and isinstance(now, dict):
-                added = {k: v for k, v in ADDED_LOSS_FIELDS.items() if k in now}
-                recorded["train"]["loss"] = {**added, **loss}
-        if recorded != current:
-            raise LoosefitInputError(
-                cfg_path,
-                "train",
-                "the configuration of this command",
-                "another run's",
-                hint="use another --out folder, or delete this one to start over",
-            )
-    else:
-        write_json_atomic(cfg_path, stored)
-    (out / "report.json").unlink(missing_ok=True)  # a report only once the run is complete
+def epoch_means(sums: dict[str, float], steps: int) -> dict[str, float]:
+    """The epoch's mean terms per step (the training scaffold refuses a total that is not
+    finite)."""
+    return {k: v / max(steps, 1) for k, v in sums.items()}
 
 
 def machine(device: str) -> str:

@@ -14,25 +14,26 @@ close to the truth and meet rollouts 2-3 times as far off at inference.
 gradient: nothing flows back into the frozen stages); per step the discriminator
 takes one step on Eq. 14 (real: ``S*``, fake: ``S_f`` detached), then the generator
 on Eq. 13 plus ``adversarial`` times its side of Eq. 14. ``adversarial=False`` drops
-the discriminator (Table 2's middle row). A run is a folder (``config.json``,
-``checkpoint.pt`` written atomically every epoch and resumed, ``model.pt``: the
-generator alone in half precision, ``report.json/.md``).
+the discriminator (Table 2's middle row). A run is a folder of the training scaffold
+(:mod:`loosefit.train.loop`: ``config.json``, ``checkpoint.pt`` written atomically
+every epoch and resumed, ``report.json/.md``) plus ``pairs.pt`` and ``model.pt``: the
+generator alone in half precision.
 """
 
 from __future__ import annotations
 
 import os
-import resource
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import torch
 
-from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
-from loosefit.data.format import DatasetReader, write_json_atomic
+from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
+from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.garment.fingerprint import same_garment
 from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.laplacian import Laplacian
@@ -59,7 +60,9 @@ from loosefit.model.detail import (
 )
 from loosefit.model.motion_features import to_root_frame
 from loosefit.model.rollout import MOTION_ONLY, Stages, motion_root_frames
-from loosefit.train.common import apply_overrides, machine, open_run, restore_training
+from loosefit.train.clips import clip_versions
+from loosefit.train.common import epoch_means
+from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
 from loosefit.train.motion import training_config
 
 CHECKPOINT_FORMAT = DETAIL_FORMAT
@@ -76,27 +79,36 @@ class DetailLossConfig:
 
 
 @dataclass
-class TrainDetailConfig:
-    """One training run of the detail module."""
+class TrainDetailConfig(StageConfig):
+    """One training run of the detail module (the shared fields: :class:`StageConfig`)."""
 
-    model: DetailConfig = field(default_factory=DetailConfig)
-    loss: DetailLossConfig = field(default_factory=DetailLossConfig)
-    discriminator: bool = True  # False: the ablation without D_ms (Table 2's middle row)
-    epochs: int = 100
-    batch_size: int = 8
-    lr: float = 2.0e-4
-    weight_decay: float = 1.0e-3  # the paper's Adam weight decay, for every network
-    mirror: bool | None = None  # also the mirrored training clips; None: as the motion stage
-    max_frames: int | None = None  # per clip, for quick runs
+    epochs: int = 100  # the paper's
+    batch_size: int = 8  # pairs per step, the paper's
+    lr: float = 2.0e-4  # the paper's, for both networks
     checkpoint_every: int = 1  # epochs
-    seed: int = 0
-    device: str = "cpu"
+    model: DetailConfig = field(default_factory=DetailConfig)  # the generator, discriminator
+    loss: DetailLossConfig = field(default_factory=DetailLossConfig)  # Eqs. 13-15's weights
+    discriminator: bool = True  # False: the ablation without D_ms (Table 2's middle row)
+    mirror: bool | None = None  # also the mirrored training clips; None: as the motion stage
     # warm start: a detail checkpoint (a run's, or a packaged detail.pt) of the same
     # configuration whose generator (and discriminator, where it has one) the run starts
     # from, whatever motion stage it was trained on (fine-tuning to a new one)
     init: str | None = None
 
-    def __post_init__(self) -> None:
+    # ``full``: the paper's (100 epochs, batch 8, lr 2e-4); ``cpu``: 12 epochs of batch 16 at
+    # lr 5e-4 with a discriminator of half the width (16, 32, 64 channels: its convolutions
+    # are most of a step's time on a CPU), under an hour on salsa's rollouts on one core
+    PRESETS: ClassVar[dict[str, dict]] = {
+        "full": {},
+        "cpu": {
+            "epochs": 12,
+            "batch_size": 16,
+            "lr": 5.0e-4,
+            "model": DetailConfig(disc_channels=(16, 32, 64)),
+        },
+    }
+
+    def validate(self) -> None:
         if not isinstance(self.discriminator, bool):
             raise LoosefitInputError(
                 "TrainDetailConfig", "discriminator", "true or false", repr(self.discriminator)
@@ -105,33 +117,6 @@ class TrainDetailConfig:
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
                 raise LoosefitInputError("TrainDetailConfig", name, "an integer >= 1", v)
-
-    @classmethod
-    def preset(cls, name: str, **overrides) -> TrainDetailConfig:
-        """``full``: the paper's (100 epochs, batch 8, lr 2e-4); ``cpu``: 12 epochs of batch 16
-        at lr 5e-4 with a discriminator of half the width (16, 32, 64 channels: its
-        convolutions are most of a step's time on a CPU), under an hour on salsa's
-        rollouts on one core."""
-        if name == "full":
-            cfg = cls()
-        elif name == "cpu":
-            cfg = cls(
-                epochs=12, batch_size=16, lr=5.0e-4, model=DetailConfig(disc_channels=(16, 32, 64))
-            )
-        else:
-            raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
-        apply_overrides(cfg, overrides).__post_init__()
-        return cfg
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> TrainDetailConfig:
-        d = dict(d)
-        d["model"] = DetailConfig(**d["model"])
-        d["loss"] = DetailLossConfig(**d["loss"])
-        return cls(**d)
 
 
 # -- the data: the frozen motion stage's rollouts ----------------------------------------
@@ -165,29 +150,165 @@ def rollout_pairs(
 ) -> DetailPairs:
     """Roll every clip of a split out with the motion stage alone and pair each frame with
     the simulation (mirrored clips too with ``mirror``)."""
-    names = reader.training_clips(split)
-    twins = vertex_twins(reader.template.vertices) if mirror else None
     decoded, codes, target, clips = [], [], [], []
-    for name in names:
-        seq = reader.read(name)
-        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        truth = seq.garment_vertices[: motion.num_frames]
-        versions = [(name, motion, truth)]
-        if mirror:
-            versions.append((f"{name}~mirror", mirror_motion(motion), mirror_garment(truth, twins)))
-        for label, m, v in versions:
-            t0 = time.perf_counter()
-            result = model.animate(m, stages=MOTION_ONLY)
-            H, p, _ = motion_root_frames(m, model.floor_height, model.rollout_config)
-            decoded.append(to_root_frame(torch.from_numpy(result.vertices), H, p))
-            target.append(to_root_frame(torch.as_tensor(np.asarray(v, np.float32)), H, p))
-            codes.append(torch.from_numpy(result.codes))
-            clips.append(label)
-            log(f"rolled out {label}: {m.num_frames} frames in {time.perf_counter() - t0:.1f} s")
+    for label, m, v in clip_versions(reader, split, max_frames, mirror):
+        t0 = time.perf_counter()
+        result = model.animate(m, stages=MOTION_ONLY)
+        H, p, _ = motion_root_frames(m, model.floor_height, model.rollout_config)
+        decoded.append(to_root_frame(torch.from_numpy(result.vertices), H, p))
+        target.append(to_root_frame(torch.as_tensor(np.asarray(v, np.float32)), H, p))
+        codes.append(torch.from_numpy(result.codes))
+        clips.append(label)
+        log(f"rolled out {label}: {m.num_frames} frames in {time.perf_counter() - t0:.1f} s")
     return DetailPairs(torch.cat(decoded), torch.cat(codes), torch.cat(target), clips)
 
 
-# -- training --------------------------------------------------------------------------------
+# -- the stage -------------------------------------------------------------------------------
+
+
+class DetailStage(Stage):
+    """The detail module's training: the frozen motion stage's rollouts as pairs, a
+    discriminator step and a generator step per batch, held-out rollouts with and without
+    the module."""
+
+    label = "train detail"
+
+    def __init__(
+        self,
+        reader: DatasetReader,
+        model: AnimationModel,
+        fingerprints: dict,
+        mpath: Path,
+        generative: str | Path | None,
+        config: TrainDetailConfig,
+        run: Run,
+        mirror: bool,
+    ):
+        self.config, self.run, self.reader = config, run, reader
+        self.motion, self.mpath, self.generative = model, mpath, generative
+        self.sampling = torch.Generator().manual_seed(config.seed)  # every draw of the loop
+        # 1. the pairs: the frozen motion stage's rollouts of the training clips (cached)
+        path = run.out / "pairs.pt"
+        if path.is_file():
+            saved = torch.load(path, weights_only=True)
+            self.pairs = DetailPairs(
+                saved["decoded"], saved["codes"], saved["target"], saved["clips"]
+            )
+        else:
+            self.pairs = rollout_pairs(model, reader, "train", mirror, config.max_frames, run.log)
+            save_atomic(asdict(self.pairs), path)
+        run.log(f"{len(self.pairs.codes)} training pairs from {len(self.pairs.clips)} rollouts")
+        # 2. the networks
+        t, dev = model.template, config.device
+        self.model = DetailGenerator(t.faces, t.num_vertices, model.encoder.latent, config.model)
+        self.model.to(dev)
+        self.disc = MultiScaleDiscriminator(model.generative.config.uv_size, config.model).to(dev)
+        self.uv = model.generative.uv
+        self.lap = Laplacian(t.faces, t.num_vertices).to(dev)
+        self.edges = torch.from_numpy(unique_edges(t.faces)[0]).t().to(dev)  # (2, E) each once
+        self.opt_g, self.opt_d = adam(self.model, config), adam(self.disc, config)
+        self.states = {
+            "model": self.model,
+            "discriminator": self.disc,
+            "optimizer": self.opt_g,
+            "optimizer_discriminator": self.opt_d,
+        }
+        self.meta = {
+            "model_config": asdict(config.model),
+            "config": config.to_dict(),
+            "fingerprints": fingerprints,
+            "motion_checkpoint": {
+                "relative": os.path.relpath(mpath, run.out.resolve()),
+                "absolute": str(mpath),
+            },
+            "dataset": str(Path(reader.root).resolve()),
+        }
+
+    def read_checkpoint(self, path: Path) -> dict:
+        return read_checkpoint_file(path, DETAIL_FORMAT, self.config.device)
+
+    def warm_start(self, path: str) -> None:
+        saved = read_checkpoint_file(path, DETAIL_FORMAT, self.config.device)
+        load_weights(self.model, saved["model"], Path(path), "this detail configuration")
+        if "discriminator" in saved:
+            load_weights(
+                self.disc, saved["discriminator"], Path(path), "this discriminator configuration"
+            )
+
+    def checkpoint_fields(self) -> dict:
+        return {"format": DETAIL_FORMAT, **self.meta}
+
+    def train_epoch(self, epoch: int, net, bar) -> tuple[dict, dict]:
+        """Batches of pairs in a random order: per batch a discriminator step on Eq. 14,
+        then a generator step on Eq. 13 and its side of Eq. 14."""
+        cfg, dev, cl, pairs = self.config, self.config.device, self.config.loss, self.pairs
+        self.model.train()
+        self.disc.train()
+        N = len(pairs.codes)
+        order = torch.randperm(N, generator=self.sampling)
+        sums: dict[str, float] = {}
+        steps = 0
+        for b in range(0, N, cfg.batch_size):
+            idx = order[b : b + cfg.batch_size]
+            v = pairs.decoded[idx].to(dev)  # (B, V, 3): data, no gradient into the motion stage
+            z, target = pairs.codes[idx].to(dev), pairs.target[idx].to(dev)
+            final = v + net(v, z)
+            position, laplacian = detail_geometry_loss(
+                final, target, self.lap, cl.length_scale, cl.laplacian
+            )
+            terms = {"position": position, "laplacian": laplacian}
+            loss = position + laplacian
+            if cl.edge > 0:
+                edge = edge_length_loss(final, target, self.edges, cl.length_scale)
+                terms["edge"] = cl.edge * edge
+                loss = loss + terms["edge"]
+            if cfg.discriminator:
+                fake, real = self.uv.encode(final), self.uv.encode(target)  # (B, 3, H, W)
+                d_loss = lsgan_discriminator_loss(self.disc(real), self.disc(fake.detach()))
+                self.opt_d.zero_grad(set_to_none=True)
+                d_loss.backward()
+                self.opt_d.step()
+                g_adv = lsgan_generator_loss(self.disc(fake))
+                loss = loss + cl.adversarial * g_adv
+                terms.update(discriminator=d_loss, adversarial=g_adv)
+            self.opt_g.zero_grad(set_to_none=True)
+            loss.backward()
+            self.opt_g.step()
+            terms["total"] = loss
+            steps += 1
+            for k, val in terms.items():
+                sums[k] = sums.get(k, 0.0) + float(val.detach())
+            bar.set_postfix(
+                step=f"{steps}/{-(-N // cfg.batch_size)}", l1=f"{sums['position'] / steps:.3f}"
+            )
+        return epoch_means(sums, steps), {}
+
+    def report(self, common: dict, writer, epoch: int, history: list) -> dict:
+        """The held-out clips before and after the module (no collision handling)."""
+        path = self.run.out / "model.pt"
+        weights = {k: v.half() for k, v in self.model.state_dict().items()}
+        save_atomic({"format": DETAIL_FORMAT, **self.meta, "model": weights, "epoch": epoch}, path)
+        trained = load_detail_model(path, self.mpath, self.generative, self.config.device)
+        with_detail = Stages(detail=True, lengths=False, collision=False)
+        test = {"surface": False}
+        return {
+            "discriminator": self.config.discriminator,
+            "dataset": common["dataset"],
+            "motion": str(self.mpath),
+            "epochs": common["epochs"],
+            "pairs": len(self.pairs.codes),
+            **common,
+            "history": history,
+            "test_without": evaluate_rollouts(
+                trained, self.reader, "test", stages=MOTION_ONLY, **test
+            ),
+            "test_with": evaluate_rollouts(
+                trained, self.reader, "test", stages=with_detail, **test
+            ),
+        }
+
+    def format_report(self, report: dict) -> str:
+        return format_report(report)
 
 
 def train_detail(
@@ -204,23 +325,19 @@ def train_detail(
     Args:
         data: the dataset the motion stage was trained on.
         motion: the motion stage's checkpoint (``model.pt``; frozen here).
-        out: the run folder; an existing run with the same configuration resumes.
+        out: the run folder (:class:`~loosefit.train.loop.Run`): a run of this configuration
+            there resumes, a run of another is refused.
         config: the run.
         generative: the generative checkpoint, if not the one the motion stage records.
-        log: where progress lines go.
-        progress: show a tqdm bar.
+        log, progress: where progress lines go; whether to show a tqdm bar.
 
     Returns:
         The report (also ``out/report.json`` and ``out/report.md``).
     """
-    from torch.utils.tensorboard import SummaryWriter
-    from tqdm import tqdm
-
-    out = Path(out)
     reader = DatasetReader(data)
+    dataset = str(Path(data).resolve())
     mpath = Path(motion).resolve()
     model = load_animation_model(mpath, generative, config.device)
-    fingerprints = stage_fingerprints(model)
     if not same_garment(model.template, reader.template):
         raise LoosefitInputError(
             reader.root, "template", f"the garment {mpath.name} was trained on", "another garment"
@@ -229,180 +346,16 @@ def train_detail(
     if mirror is None:  # as the motion stage was trained (a packaged one: not mirrored)
         trained = training_config(mpath)
         mirror = bool(trained is not None and trained.mirror)
-    open_run(
-        out,
-        {
-            "dataset": str(Path(data).resolve()),
-            "motion": fingerprints["motion"],
-            "train": config.to_dict(),
-        },
-    )
-    torch.manual_seed(config.seed)
-    gen = torch.Generator().manual_seed(config.seed)
-
-    # 1. the pairs: the frozen motion stage's rollouts of the training clips (cached)
-    pairs_path = out / "pairs.pt"
-    if pairs_path.is_file():
-        saved = torch.load(pairs_path, weights_only=True)
-        pairs = DetailPairs(saved["decoded"], saved["codes"], saved["target"], saved["clips"])
-    else:
-        pairs = rollout_pairs(model, reader, "train", mirror, config.max_frames, log)
-        save_atomic(asdict(pairs), pairs_path)
-    N = len(pairs.codes)
-    log(f"{N} training pairs from {len(pairs.clips)} rollouts")
-
-    # 2. the networks
-    t = model.template
-    dev = config.device
-    G = DetailGenerator(t.faces, t.num_vertices, model.encoder.latent, config.model).to(dev)
-    D = MultiScaleDiscriminator(model.generative.config.uv_size, config.model).to(dev)
-    uv = model.generative.uv
-    lap = Laplacian(t.faces, t.num_vertices).to(dev)
-    edges = torch.from_numpy(unique_edges(t.faces)[0]).t().to(dev)  # (2, E) each edge once
-    opt_g = torch.optim.Adam(G.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    opt_d = torch.optim.Adam(D.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    ckpt_path = out / "checkpoint.pt"
-    meta = {
-        "model_config": asdict(config.model),
-        "config": config.to_dict(),
-        "fingerprints": fingerprints,
-        "motion_checkpoint": {
-            "relative": os.path.relpath(mpath, out.resolve()),
-            "absolute": str(mpath),
-        },
-        "dataset": str(Path(data).resolve()),
-    }
-    epoch, history = 0, []
-    if ckpt_path.is_file():
-        epoch, history = restore_training(
-            read_checkpoint_file(ckpt_path, DETAIL_FORMAT, dev),
-            {"model": G, "discriminator": D, "optimizer": opt_g, "optimizer_discriminator": opt_d},
-            gen,
-        )
-        log(f"resumed {ckpt_path} at epoch {epoch}")
-    elif config.init:
-        saved = read_checkpoint_file(config.init, DETAIL_FORMAT, dev)
-        load_weights(G, saved["model"], Path(config.init), "this detail configuration")
-        if "discriminator" in saved:
-            load_weights(
-                D, saved["discriminator"], Path(config.init), "this discriminator configuration"
-            )
-        log(f"started from the weights of {config.init}")
-
-    # 3. the loop
-    writer = SummaryWriter(str(out))
-    bar = tqdm(
-        total=config.epochs, initial=epoch, desc="train detail", unit="epoch", disable=not progress
-    )
-    t_start, epochs_run = time.perf_counter(), 0
-    cl = config.loss
-    while epoch < config.epochs:
-        G.train()
-        D.train()
-        order = torch.randperm(N, generator=gen)
-        sums: dict[str, float] = {}
-        steps = 0
-        for b in range(0, N, config.batch_size):
-            idx = order[b : b + config.batch_size]
-            v = pairs.decoded[idx].to(dev)  # (B, V, 3): data, no gradient into the motion stage
-            z, target = pairs.codes[idx].to(dev), pairs.target[idx].to(dev)
-            final = v + G(v, z)
-            position, laplacian = detail_geometry_loss(
-                final, target, lap, cl.length_scale, cl.laplacian
-            )
-            terms = {"position": position, "laplacian": laplacian}
-            loss = position + laplacian
-            if cl.edge > 0:
-                terms["edge"] = cl.edge * edge_length_loss(final, target, edges, cl.length_scale)
-                loss = loss + terms["edge"]
-            if config.discriminator:
-                fake, real = uv.encode(final), uv.encode(target)  # (B, 3, H, W)
-                d_loss = lsgan_discriminator_loss(D(real), D(fake.detach()))
-                opt_d.zero_grad(set_to_none=True)
-                d_loss.backward()
-                opt_d.step()
-                g_adv = lsgan_generator_loss(D(fake))
-                loss = loss + cl.adversarial * g_adv
-                terms.update(discriminator=d_loss, adversarial=g_adv)
-            opt_g.zero_grad(set_to_none=True)
-            loss.backward()
-            opt_g.step()
-            terms["total"] = loss
-            steps += 1
-            for k, val in terms.items():
-                sums[k] = sums.get(k, 0.0) + float(val.detach())
-            bar.set_postfix(
-                step=f"{steps}/{-(-N // config.batch_size)}", l1=f"{sums['position'] / steps:.3f}"
-            )
-        sums = {k: val / max(steps, 1) for k, val in sums.items()}
-        if not np.isfinite(sums["total"]):
-            raise RuntimeError(f"training diverged at epoch {epoch + 1}: loss {sums['total']}")
-        epoch += 1
-        epochs_run += 1
-        history.append({"epoch": epoch, **sums})
-        for k, val in sums.items():
-            writer.add_scalar(f"loss/{k}", val, epoch)
-        bar.update(1)
-        if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
-            save_atomic(
-                {
-                    "format": CHECKPOINT_FORMAT,
-                    **meta,
-                    "model": G.state_dict(),
-                    "discriminator": D.state_dict(),
-                    "optimizer": opt_g.state_dict(),
-                    "optimizer_discriminator": opt_d.state_dict(),
-                    "epoch": epoch,
-                    "history": history,
-                    "rng": torch.get_rng_state(),
-                    "sampling_rng": gen.get_state(),
-                },
-                ckpt_path,
-            )
-    bar.close()
-    seconds = time.perf_counter() - t_start
-    weights = {k: v.half() for k, v in G.state_dict().items()}
-    save_atomic(
-        {"format": CHECKPOINT_FORMAT, **meta, "model": weights, "epoch": epoch}, out / "model.pt"
-    )
-
-    # 4. the report: the held-out clips before and after the module (no collision handling)
-    from loosefit.train.motion import evaluate_rollouts
-
-    trained = load_detail_model(out / "model.pt", mpath, generative, dev)
-    report = {
-        "discriminator": config.discriminator,
-        "dataset": str(Path(data).resolve()),
-        "motion": str(mpath),
-        "epochs": config.epochs,
-        "pairs": N,
-        "parameters": sum(p.numel() for p in G.parameters()),
-        "seconds_per_epoch": seconds / epochs_run if epochs_run else None,
-        "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-        "machine": machine(dev),
-        "final_loss": history[-1] if history else None,
-        "history": history,
-        "test_without": evaluate_rollouts(
-            trained, reader, "test", surface=False, stages=MOTION_ONLY
-        ),
-        "test_with": evaluate_rollouts(
-            trained,
-            reader,
-            "test",
-            surface=False,
-            stages=Stages(detail=True, lengths=False, collision=False),
-        ),
-    }
-    write_json_atomic(out / "report.json", report)
-    (out / "report.md").write_text(format_report(report))
-    writer.close()
-    return report
+    fingerprints = stage_fingerprints(model)
+    stored = {"dataset": dataset, "motion": fingerprints["motion"], "train": config.to_dict()}
+    run = Run.open(out, stored, config.seed, log, progress)
+    stage = DetailStage(reader, model, fingerprints, mpath, generative, config, run, mirror)
+    return train(stage, run, dataset)
 
 
 def format_report(report: dict) -> str:
     """A Markdown summary of a detail run's report."""
     a, b = report["test_without"], report["test_with"]
-    spe = report.get("seconds_per_epoch")
     return "\n".join(
         [
             f"# Detail module ({'with' if report['discriminator'] else 'w/o'} D_ms), "
@@ -413,9 +366,7 @@ def format_report(report: dict) -> str:
             f"| motion stage alone | {a['rmse_cm']:.3f} |",
             f"| with the detail module | {b['rmse_cm']:.3f} |",
             "",
-            f"{report['parameters']:,} generator parameters; "
-            + (f"{spe:.1f} s per epoch; " if spe else "")
-            + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+            cost_line(report, "generator parameters", digits=1),
             "",
         ]
     )

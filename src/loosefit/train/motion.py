@@ -1,8 +1,11 @@
 """Training the dynamic motion encoder (paper 3.3, Eqs. 10-12) on a frozen generative model.
 
-A run is a folder like the generative model's (``config.json``,
-``checkpoint.pt`` written atomically, TensorBoard events, ``report.json/.md``)
-plus ``model.pt``: the trained encoder alone, half precision, for sharing.
+A run is a folder of the training scaffold (:mod:`loosefit.train.loop`: ``config.json``,
+``checkpoint.pt`` written atomically, TensorBoard events, ``report.json/.md``) plus
+``model.pt``: the trained encoder alone, half precision, for sharing, and
+``rest_state.npy``: the garment's settled drape, where every rollout starts (given, or
+settled once from the data set's cloth configuration:
+:func:`~loosefit.data.rest_drape.settled_rest_drape`).
 
 **The previous state.** At inference a rollout feeds the encoder its own
 outputs for thousands of frames, while ground-truth previous frames (teacher
@@ -45,16 +48,16 @@ from __future__ import annotations
 
 import json
 import os
-import resource
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 import torch
 
-from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
-from loosefit.data.format import DatasetReader, write_json_atomic
+from loosefit.data.format import DatasetReader
+from loosefit.data.rest_drape import settled_rest_drape
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.garment.mesh_checks import hem_loop
@@ -72,13 +75,6 @@ from loosefit.inference.checkpoints import (
 )
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
-from loosefit.model.motion_features import (
-    feature_joints,
-    motion_features,
-    num_features,
-    root_frames,
-    to_root_frame,
-)
 from loosefit.model.physics import (
     ClothStructure,
     PhysicsLossConfig,
@@ -86,29 +82,24 @@ from loosefit.model.physics import (
     hem_radius,
     physics_terms,
 )
-from loosefit.model.rollout import (
-    MOTION_ONLY,
-    RolloutConfig,
-    change_frame,
-    latent_codes,
-    timeline,
+from loosefit.model.rollout import MOTION_ONLY, RolloutConfig, change_frame
+from loosefit.train.clips import (
+    Clip,
+    feature_statistics,
+    prepare_clips,
+    rollout_evaluation,
+    stack_clips,
 )
 from loosefit.train.common import (
-    apply_overrides,
     autocast,
     barrier,
     check_device_precision,
     check_precision,
-    distributed,
     epoch_means,
-    machine,
-    open_run,
     optimizer_step,
-    restore_training,
     shard,
 )
-from loosefit.train.frames import avatar_for
-from loosefit.types import Motion
+from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
 
 CHECKPOINT_FORMAT = MOTION_FORMAT
 
@@ -124,8 +115,8 @@ class MotionLossConfig:
     # the body at every frame and is taken by the generative stage only
     membrane: float = 0.0  # edge lengths against rest
     bending: float = 0.0  # dihedral angles against rest
-    collision: float = 0.0
-    collision_epsilon: float = 0.002
+    collision: float = 0.0  # must stay 0 here (it needs the body: the generative stage's)
+    collision_epsilon: float = 0.002  # m; the collision term's margin (unused while it is 0)
     # the hem's flare (its mean distance from the root's vertical axis) against the
     # simulation's, squared, in the length unit (a network that averages fold
     # configurations pulls the hem in); 0: off
@@ -145,17 +136,16 @@ class MotionLossConfig:
 
 
 @dataclass
-class TrainMotionConfig:
-    """One training run of the dynamic motion encoder."""
+class TrainMotionConfig(StageConfig):
+    """One training run of the dynamic motion encoder (the shared fields: :class:`StageConfig`)."""
 
-    model: MotionEncoderConfig = field(default_factory=MotionEncoderConfig)
-    loss: MotionLossConfig = field(default_factory=MotionLossConfig)
-    rollout: RolloutConfig = field(default_factory=RolloutConfig)
-    epochs: int = 300
+    epochs: int = 300  # the paper's
     batch_size: int = 1  # clips run side by side
+    checkpoint_every: int = 5  # epochs
+    model: MotionEncoderConfig = field(default_factory=MotionEncoderConfig)  # the encoder
+    loss: MotionLossConfig = field(default_factory=MotionLossConfig)  # Eqs. 10-12's weights
+    rollout: RolloutConfig = field(default_factory=RolloutConfig)  # the timeline of a clip
     window: int = 50  # frames of truncated backpropagation through time
-    lr: float = 1.0e-4
-    weight_decay: float = 1.0e-3
     grad_clip: float = 10.0  # max gradient norm per step
     previous: str = "scheduled"  # "scheduled" (sampling, see the module) or "teacher"
     teacher_start: float = 1.0  # probability of a ground-truth previous state at epoch 0
@@ -171,18 +161,29 @@ class TrainMotionConfig:
     # m, std of Gaussian noise on every vertex of a ground-truth previous state (0: none):
     # teaches the encoder to use a previous state that is close to, but not, the truth
     previous_noise: float = 0.0
-    checkpoint_every: int = 5  # epochs
     eval_every: int = 10  # epochs; held-out rollout errors into TensorBoard
-    max_frames: int | None = None  # per clip, for quick runs
-    seed: int = 0
-    device: str = "cpu"
     precision: str = "fp32"  # the forward passes': "fp32", or "bf16" (autocast; see the module)
     # warm start: a motion checkpoint (a run's model.pt or checkpoint.pt, or a packaged
     # motion.pt) of the same encoder configuration and features whose weights the run
     # starts from (a fresh optimiser); its generative model may be another (fine-tuning)
     init: str | None = None
 
-    def __post_init__(self) -> None:
+    # ``full``: the paper's (300 epochs, batch 1, lr 1e-4); ``cpu``: up to 16 clips side by
+    # side (all of salsa's 10 training clips: on a CPU a step of 10 costs about what a step
+    # of 3 does) with a 10x learning rate (1e-3) for 60 epochs; the encoder, the loss and the
+    # windows are the paper's. ``previous_state`` and ``joints`` overrides go to the encoder.
+    PRESETS: ClassVar[dict[str, dict]] = {
+        "full": {},
+        "cpu": {
+            "epochs": 60,
+            "batch_size": 16,
+            "lr": 1.0e-3,
+            "checkpoint_every": 2,
+            "eval_every": 10,
+        },
+    }
+
+    def validate(self) -> None:
         check_precision("TrainMotionConfig", self.precision)
         if self.previous not in ("scheduled", "teacher"):
             raise LoosefitInputError(
@@ -207,40 +208,6 @@ class TrainMotionConfig:
         if not (isinstance(self.window, int) and self.window >= 1):
             raise LoosefitInputError("TrainMotionConfig", "window", "an integer >= 1", self.window)
 
-    @classmethod
-    def preset(cls, name: str, **overrides) -> TrainMotionConfig:
-        """``full``: the paper's (300 epochs, batch 1, lr 1e-4); ``cpu``: fewer, batched epochs.
-
-        ``cpu`` runs up to 16 clips side by side (all of salsa's 10 training clips:
-        on a CPU a step of 10 costs about what a step of 3 does) with a 10x learning
-        rate (1e-3) for 60 epochs; the encoder, the loss and the windows are the paper's.
-        """
-        prev = overrides.pop("previous_state", None)
-        joints = overrides.pop("joints", None)
-        if name == "full":
-            cfg = cls()
-        elif name == "cpu":
-            cfg = cls(epochs=60, batch_size=16, lr=1.0e-3, checkpoint_every=2, eval_every=10)
-        else:
-            raise LoosefitInputError("--preset", "preset", "full or cpu", repr(name))
-        if prev is not None:
-            cfg.model.previous_state = bool(prev)
-        if joints is not None:
-            cfg.model = replace(cfg.model, joints=joints)  # validated
-        apply_overrides(cfg, overrides).__post_init__()
-        return cfg
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> TrainMotionConfig:
-        d = dict(d)
-        d["model"] = MotionEncoderConfig(**d["model"])
-        d["loss"] = MotionLossConfig(**d["loss"])
-        d["rollout"] = RolloutConfig(**d["rollout"])
-        return cls(**d)
-
     def teacher_probability(self, epoch: int) -> float:
         """The chance of a ground-truth previous state during epoch ``epoch`` (0-based)."""
         if self.previous == "teacher":
@@ -252,192 +219,7 @@ class TrainMotionConfig:
         return float(a + (b - a) * epoch / span)
 
 
-def warm_start(
-    encoder: DynamicMotionEncoder,
-    path: str | Path,
-    config: MotionEncoderConfig,
-    num_features: int,
-    device="cpu",
-) -> None:
-    """Load another motion checkpoint's encoder weights (feature statistics included) into
-    ``encoder`` (fine-tuning).
-
-    Raises:
-        LoosefitInputError: not a motion checkpoint, another encoder configuration than
-            ``config``, another number of motion features, or weights that do not fit.
-    """
-    saved = read_checkpoint_file(path, MOTION_FORMAT, device)
-    recorded = (saved.get("model_config") or {}).get("encoder")
-    mine = json.loads(json.dumps(asdict(config)))
-    if recorded is not None and {**mine, **recorded} != mine:
-        raise LoosefitInputError(
-            path,
-            "model_config.encoder",
-            str(mine),
-            str(recorded),
-            hint="warm-start from an encoder of this run's configuration",
-        )
-    if saved.get("num_features") != num_features:
-        raise LoosefitInputError(
-            path,
-            "num_features",
-            num_features,
-            saved.get("num_features"),
-            hint="the same --joints as the run it starts from",
-        )
-    load_weights(encoder, saved["model"], Path(path), "this encoder configuration")
-
-
-# -- the data ------------------------------------------------------------------------
-
-
-@dataclass
-class Clip:
-    """One clip on the rollout timeline (P frames before the motion, then T).
-
-    Attributes:
-        name: the clip.
-        motion: the body motion (T frames).
-        features: (P + T, F) motion features.
-        heading: (P + T, 3, 3) and ``origin`` (P + T, 3): the root frames.
-        target: (T, V, 3) simulated garment, root frame.
-        latent: (T, latent) the generative encoder's code of ``target`` (Z*), or None
-            when prepared without a generative model (the baselines').
-        preroll: P.
-    """
-
-    name: str
-    motion: Motion
-    features: torch.Tensor
-    heading: torch.Tensor
-    origin: torch.Tensor
-    target: torch.Tensor
-    latent: torch.Tensor | None
-    preroll: int
-
-    @property
-    def length(self) -> int:
-        return int(self.features.shape[0])
-
-
-@torch.no_grad()
-def prepare_clips(
-    reader: DatasetReader,
-    split: str,
-    generative: GarmentGenerativeModel | None,
-    floor_height: float,
-    config: RolloutConfig,
-    max_frames: int | None = None,
-    mirror: bool = False,
-    joints: str = "all",
-) -> list[Clip]:
-    """Every clip of a split on the rollout timeline, with its targets (and, given a
-    generative model, their latent codes).
-
-    ``mirror`` adds each clip mirrored left-right (``NAME~mirror``): the motion by
-    :func:`~loosefit.body.mirror.mirror_motion`, the simulated garment reflected
-    about X = 0 onto its twin vertices (:func:`~loosefit.body.mirror.vertex_twins`;
-    the garment must be mirror-symmetric). Physics has no handedness, so that is
-    the simulation of the mirrored motion, up to the body's own asymmetry (mm).
-    ``joints`` names the joint set of the features (``MotionEncoderConfig.joints``).
-    """
-    names = reader.training_clips(split)
-    twins = vertex_twins(reader.template.vertices) if mirror else None
-    clips = []
-    for name in names:
-        seq = reader.read(name)
-        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        garment = seq.garment_vertices[: motion.num_frames]
-        versions = [(name, motion, garment)]
-        if mirror:
-            versions.append(
-                (f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins))
-            )
-        for label, m, v in versions:
-            rot, root, P = timeline(m, floor_height, config)
-            H, p = (a.float() for a in root_frames(rot.double(), root.double()))
-            target = to_root_frame(
-                torch.from_numpy(np.ascontiguousarray(v, np.float32)), H[P:], p[P:]
-            )
-            feats = motion_features(
-                rot, root, m.fps, floor_height, feature_joints(m.joint_names, joints)
-            )
-            clips.append(
-                Clip(
-                    label,
-                    m,
-                    feats,
-                    H,
-                    p,
-                    target,
-                    None if generative is None else latent_codes(generative, target),
-                    P,
-                )
-            )
-    return clips
-
-
-def rest_state_for(reader: DatasetReader, fps: float) -> torch.Tensor:
-    """(V, 3) the settled drape of the dataset's garment (its cloth configuration)."""
-    from loosefit.sim.cloth_config import ClothConfig
-    from loosefit.sim.driver import settle
-
-    cloth = reader.manifest.get("config", {}).get("cloth")
-    if cloth is None:
-        raise LoosefitInputError(
-            reader.root / "manifest.json",
-            "config.cloth",
-            "the cloth configuration of the "
-            "simulation (to settle the garment where rollouts start)",
-            "none",
-        )
-    cloth = dict(cloth)
-    cloth["device"] = "cpu"
-    return torch.from_numpy(settle(avatar_for(reader), reader.template, ClothConfig(**cloth), fps))
-
-
-# -- checkpoints -----------------------------------------------------------------------
-
-
-def save_checkpoint(
-    path: Path, encoder: DynamicMotionEncoder, meta: dict, half: bool = False, **state
-) -> None:
-    """Write a checkpoint atomically; ``half`` stores floating weights in half precision."""
-    weights = half_weights(encoder.state_dict()) if half else encoder.state_dict()
-    save_atomic({"format": MOTION_FORMAT, **meta, "model": weights, **state}, path)
-
-
-def training_config(path: str | Path) -> TrainMotionConfig | None:
-    """The training configuration a motion-stage checkpoint records (None: a packaged one)."""
-    data = read_checkpoint_file(path, MOTION_FORMAT)
-    return TrainMotionConfig.from_dict(data["config"]) if "config" in data else None
-
-
-# -- training --------------------------------------------------------------------------
-
-
-def pad_frames(x: torch.Tensor, n: int) -> torch.Tensor:
-    """Frames (T, ...) padded to ``n`` by repeating the last (clips stacked side by side)."""
-    return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
-
-
-def _stack(clips: list[Clip], longest: list[Clip] | None = None) -> dict[str, torch.Tensor]:
-    """Clips side by side, padded by repeating their last frame to the longest of
-    ``longest`` (the whole batch, when ``clips`` is one process's part of it; default
-    ``clips``)."""
-    longest = clips if longest is None else longest
-    L = max(c.length for c in longest)
-    T = max(c.target.shape[0] for c in longest)
-
-    return {
-        "features": torch.stack([pad_frames(c.features, L) for c in clips]),  # (B, L, F)
-        "heading": torch.stack([pad_frames(c.heading, L) for c in clips]),
-        "origin": torch.stack([pad_frames(c.origin, L) for c in clips]),
-        "target": torch.stack([pad_frames(c.target, T) for c in clips]),  # (B, T, V, 3)
-        "latent": torch.stack([pad_frames(c.latent, T) for c in clips]),
-        "preroll": torch.tensor([c.preroll for c in clips]),
-        "length": torch.tensor([c.length for c in clips]),
-    }
+# -- the data and the step -------------------------------------------------------------
 
 
 @dataclass
@@ -476,7 +258,7 @@ def share_batch(
     """This process's clips of a batch, stacked (padded to the whole batch's frames) on
     ``device``, and where they sit in the batch."""
     mine, share = shard(len(clips), rank, world)
-    batch = _stack([clips[i] for i in mine.tolist()], clips)
+    batch = stack_clips([clips[i] for i in mine.tolist()], clips)
     preroll, length = (torch.tensor([getattr(c, a) for c in clips]) for a in ("preroll", "length"))
     part = BatchPart(mine, preroll, length, 1.0 if share > 0 else 0.0)
     return {k: v.to(device) for k, v in batch.items()}, part
@@ -506,7 +288,7 @@ def run_window(
     Args:
         encoder, generative, laplacian: the networks (the generative one frozen; the
             encoder may be wrapped in DDP).
-        batch: :func:`_stack` of b clips, on the networks' device.
+        batch: :func:`~loosefit.train.clips.stack_clips` of b clips, on the networks' device.
         start, stop: the window, on the rollout timeline.
         hidden: (b, gru) the GRU state after frame ``start - 1`` (detached here).
         previous: (b, V, 3) the garment of frame ``start - 1`` in its root frame.
@@ -587,243 +369,7 @@ def run_window(
     return terms, hidden.detach(), previous.detach()
 
 
-def train_motion(
-    data: str | Path,
-    generative: str | Path,
-    out: str | Path,
-    config: TrainMotionConfig,
-    log=print,
-    progress: bool = True,
-    rest_state: torch.Tensor | None = None,
-) -> dict:
-    """Train (or resume) the dynamic motion encoder on a dataset and report rollout errors.
-
-    Args:
-        data: a dataset folder.
-        generative: the trained generative model's checkpoint (frozen here).
-        out: the run folder; an existing run with the same configuration resumes.
-        config: the run.
-        log: where progress lines go.
-        progress: show a tqdm bar.
-        rest_state: (V, 3) the garment's settled drape in the rest pose's root frame;
-            by default simulated with the dataset's cloth configuration
-            (:func:`rest_state_for`, cached in the run folder).
-
-    Returns:
-        The report (also ``out/report.json`` and ``out/report.md``).
-    """
-    from torch.utils.tensorboard import SummaryWriter
-    from tqdm import tqdm
-
-    out = Path(out)
-    reader = DatasetReader(data)
-    template = reader.template
-    device = torch.device(config.device)
-    check_device_precision(config.precision, device)
-    gpath = Path(generative).resolve()
-    gmodel, _ = load_generative(gpath, template, device)
-    for prm in gmodel.parameters():
-        prm.requires_grad_(False)
-    gmeta = {
-        "relative": os.path.relpath(gpath, out.resolve()),
-        "absolute": str(gpath),
-        "fingerprint": model_fingerprint(gmodel),
-    }
-    ckpt_path = out / "checkpoint.pt"
-    rank, world = distributed()
-    main = rank == 0
-    if main:
-        open_run(
-            out,
-            {
-                "dataset": str(Path(data).resolve()),
-                "generative": gmeta["fingerprint"],
-                "train": config.to_dict(),
-            },
-        )
-    else:
-        log, progress = (lambda *_: None), False
-    barrier()
-
-    torch.manual_seed(config.seed)
-    gen = torch.Generator().manual_seed(config.seed)  # every random draw of the loop
-    floor = float(reader.body["floor_height"])
-    t0 = time.perf_counter()
-    train = prepare_clips(
-        reader,
-        "train",
-        gmodel,
-        floor,
-        config.rollout,
-        config.max_frames,
-        config.mirror,
-        config.model.joints,
-    )
-    fps = train[0].motion.fps
-    rest_path = out / "rest_state.npy"
-    if rest_state is None and main and not rest_path.is_file():
-        np.save(rest_path, rest_state_for(reader, fps).numpy())  # settled once, by the first
-    barrier()
-    if rest_state is not None:
-        rest = torch.as_tensor(rest_state).float()
-    else:
-        rest = torch.from_numpy(np.load(rest_path, allow_pickle=False))
-    log(
-        f"prepared {len(train)} train clips ({sum(c.length for c in train)} frames) "
-        f"in {time.perf_counter() - t0:.1f} s"
-    )
-    all_feats = torch.cat([c.features for c in train])
-    F = all_feats.shape[1]
-    joint_names = train[0].motion.joint_names
-    expected = num_features(len(feature_joints(joint_names, config.model.joints)) + 1)
-    if F != expected:
-        raise LoosefitInputError(reader.root, "features", expected, F)
-    encoder = DynamicMotionEncoder(gmodel, F, config.model, all_feats.mean(0), all_feats.std(0))
-    encoder.to(device)
-    lap = Laplacian(template.faces, template.num_vertices).to(device)
-    structure = ClothStructure.from_template(template).to(device)
-    hem = torch.from_numpy(hem_loop(template.vertices, template.faces)).to(device)
-    optim = torch.optim.Adam(encoder.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    meta = {
-        "model_config": {"encoder": asdict(config.model), "rollout": asdict(config.rollout)},
-        "config": config.to_dict(),
-        "generative": gmeta,
-        "garment": garment_record(template),
-        "num_features": F,
-        "joint_names": list(joint_names),
-        "floor_height": floor,
-        "fps": fps,
-        "body": dict(reader.body),
-        "rest_state": rest.numpy(),
-        "cloth": reader.manifest.get("config", {}).get("cloth"),  # the physics of the data
-        "physics_terms": list(active_terms(config.loss)),
-        "dataset": str(Path(data).resolve()),
-    }
-    epoch, history = 0, []
-    if ckpt_path.is_file():  # every process resumes from the same checkpoint
-        saved = read_checkpoint_file(ckpt_path, MOTION_FORMAT, device)
-        epoch, history = restore_training(saved, {"model": encoder, "optimizer": optim}, gen)
-        log(f"resumed {ckpt_path} at epoch {epoch}")
-    elif config.init:
-        warm_start(encoder, config.init, config.model, F, device)
-        log(f"started from the weights of {config.init}")
-    net = encoder
-    if world > 1:  # torchrun: each process a share of every batch's clips, gradients averaged
-        # (the encoder runs once per frame before a window's backward: DDP's hooks fire once
-        # per weight; its buffers are fixed, no need to broadcast them at every frame)
-        net = torch.nn.parallel.DistributedDataParallel(encoder, broadcast_buffers=False)
-    rest_device = rest.to(device)
-
-    writer = SummaryWriter(str(out)) if main else None
-    bar = tqdm(
-        total=config.epochs,
-        initial=epoch,
-        desc="train motion encoder",
-        unit="epoch",
-        disable=not progress,
-    )
-    t_start, epochs_run = time.perf_counter(), 0
-    while epoch < config.epochs:
-        encoder.train()
-        teacher = config.teacher_probability(epoch)
-        order = torch.randperm(len(train), generator=gen).tolist()
-        sums: dict[str, float] = {}
-        steps = 0
-        for b in range(0, len(order), config.batch_size):
-            clips = [train[i] for i in order[b : b + config.batch_size]]
-            batch, part = share_batch(clips, rank, world, device)  # this process's clips
-            n = len(part.rows)
-            hidden = encoder.initial_hidden(n, device)
-            previous = rest_device[None].expand(n, -1, -1).clone()  # (n, V, 3)
-            L = max(c.length for c in clips)
-            for start in range(0, L, config.window):
-                terms, hidden, previous = run_window(
-                    net,
-                    gmodel,
-                    lap,
-                    batch,
-                    start,
-                    min(start + config.window, L),
-                    hidden,
-                    previous,
-                    teacher,
-                    config.loss,
-                    gen,
-                    config.previous_noise,
-                    config.unroll,
-                    part,
-                    config.precision,
-                    structure,
-                    hem,
-                )
-                if not terms["total"].requires_grad:
-                    continue  # a window with no motion frame in the batch (all preroll)
-                optimizer_step(optim, encoder.parameters(), terms, config.grad_clip, sums, world)
-                steps += 1
-        sums = epoch_means(sums, steps, epoch)
-        epoch += 1
-        epochs_run += 1
-        history.append({"epoch": epoch, "teacher": teacher, **sums})
-        bar.set_postfix(loss=f"{sums.get('total', float('nan')):.3g}", teacher=f"{teacher:.2f}")
-        bar.update(1)
-        if not main:
-            continue
-        for k, v in sums.items():
-            writer.add_scalar(f"loss/{k}", v, epoch)
-        writer.add_scalar("train/teacher_probability", teacher, epoch)
-        if epoch % config.checkpoint_every == 0 or epoch == config.epochs:
-            save_checkpoint(
-                ckpt_path,
-                encoder,
-                meta,
-                optimizer=optim.state_dict(),
-                epoch=epoch,
-                history=history,
-                rng=torch.get_rng_state(),
-                sampling_rng=gen.get_state(),
-            )
-        if epoch % config.eval_every == 0 or epoch == config.epochs:
-            current = AnimationModel(
-                gmodel,
-                encoder,
-                template,
-                rest_device,
-                tuple(joint_names),
-                floor,
-                fps,
-                dict(reader.body),
-                config.rollout,
-                ckpt_path,
-            )
-            err = evaluate_rollouts(current, reader, "test", surface=False, stages=MOTION_ONLY)
-            writer.add_scalar("test/rollout_rmse_cm", err["rmse_cm"], epoch)
-            history[-1]["test_rollout_rmse_cm"] = err["rmse_cm"]
-            bar.write(f"epoch {epoch}: held-out rollout RMSE {err['rmse_cm']:.2f} cm")
-    bar.close()
-    seconds = time.perf_counter() - t_start
-    barrier()
-    if not main:  # the model, the report and its evaluation are the first process's
-        return {"history": history}
-    save_checkpoint(out / "model.pt", encoder, meta, half=True, epoch=epoch)
-
-    model = load_animation_model(out / "model.pt", gpath, device)
-    report = {
-        "previous_state": config.model.previous_state,
-        "previous": config.previous,
-        "dataset": str(Path(data).resolve()),
-        "generative": str(gpath),
-        "epochs": config.epochs,
-        "parameters": sum(p.numel() for p in encoder.parameters()),
-        "seconds_per_epoch": seconds / epochs_run if epochs_run else None,
-        "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-        "machine": machine(config.device),
-        "final_loss": history[-1] if history else None,
-        "test": evaluate_rollouts(model, reader, "test", stages=MOTION_ONLY),
-    }
-    write_json_atomic(out / "report.json", report)
-    (out / "report.md").write_text(format_report(report))
-    writer.close()
-    return report
+# -- the evaluation: held-out rollouts (loosefit.eval.rollouts) ------------------------------
 
 
 def format_report(report: dict) -> str:
@@ -849,12 +395,270 @@ def format_report(report: dict) -> str:
             + f" | {c['hausdorff_cm']:.3f} | {c['sted']:.4f} | "
             f"{c['frames_per_second']:.0f} |"
         )
-    spe = report.get("seconds_per_epoch")
     lines += [
         "",
-        f"{report['parameters']:,} parameters; "
-        + (f"{spe:.1f} s per epoch; " if spe else "")
-        + f"peak memory {report['peak_memory_mb']:.0f} MB; {report['machine']}.",
+        cost_line(report, digits=1),
         "",
     ]
     return "\n".join(lines)
+
+
+# -- the stage ---------------------------------------------------------------------------------
+
+
+class MotionStage(Stage):
+    """The motion encoder's training on a frozen generative model: its clips, its windows,
+    its rollout evaluation."""
+
+    label = "train motion encoder"
+    # the encoder runs once per frame before a window's backward: DDP's hooks fire once per
+    # weight; its buffers are fixed, no need to broadcast them at every frame
+    ddp_buffers = False
+    tags: ClassVar[dict[str, str]] = {"teacher": "train/teacher_probability"}
+
+    def __init__(
+        self,
+        reader: DatasetReader,
+        generative: GarmentGenerativeModel,
+        gmeta: dict,
+        config: TrainMotionConfig,
+        run: Run,
+        rest_state: torch.Tensor | None,
+    ):
+        self.config, self.run, self.reader = config, run, reader
+        self.generative, self.gmeta = generative, gmeta
+        self.template = template = reader.template
+        self.device = device = torch.device(config.device)
+        self.sampling = torch.Generator().manual_seed(config.seed)  # every draw of the loop
+        # 1. the clips, their codes, and the drape every rollout starts from
+        self.floor = floor = float(reader.body["floor_height"])
+        t0 = time.perf_counter()
+        self.clips = clips = prepare_clips(
+            reader,
+            "train",
+            generative,
+            floor,
+            config.rollout,
+            config.max_frames,
+            config.mirror,
+            config.model.joints,
+        )
+        self.fps = clips[0].motion.fps
+        rest = self.rest_drape(rest_state)
+        run.log(
+            f"prepared {len(clips)} train clips ({sum(c.length for c in clips)} frames) "
+            f"in {time.perf_counter() - t0:.1f} s"
+        )
+        F, mean, std = feature_statistics(reader, clips, config.model.joints)
+        # 2. the encoder and what its loss reads
+        self.model = DynamicMotionEncoder(generative, F, config.model, mean, std).to(device)
+        self.lap = Laplacian(template.faces, template.num_vertices).to(device)
+        self.structure = ClothStructure.from_template(template).to(device)
+        self.hem = torch.from_numpy(hem_loop(template.vertices, template.faces)).to(device)
+        self.optim = adam(self.model, config)
+        self.states = {"model": self.model, "optimizer": self.optim}
+        self.joint_names = tuple(clips[0].motion.joint_names)
+        self.meta = {
+            "model_config": {"encoder": asdict(config.model), "rollout": asdict(config.rollout)},
+            "config": config.to_dict(),
+            "generative": gmeta,
+            "garment": garment_record(template),
+            "num_features": F,
+            "joint_names": list(self.joint_names),
+            "floor_height": floor,
+            "fps": self.fps,
+            "body": dict(reader.body),
+            "rest_state": rest.numpy(),
+            "cloth": reader.manifest.get("config", {}).get("cloth"),  # the physics of the data
+            "physics_terms": list(active_terms(config.loss)),
+            "dataset": str(Path(reader.root).resolve()),
+        }
+        self.rest = rest.to(device)
+
+    def rest_drape(self, given: torch.Tensor | None) -> torch.Tensor:
+        """(V, 3) the settled drape: ``given``, or the run folder's ``rest_state.npy``,
+        settled once by the first process (:func:`settled_rest_drape`)."""
+        path = self.run.out / "rest_state.npy"
+        if given is None and self.run.main and not path.is_file():
+            np.save(path, settled_rest_drape(self.reader, self.fps).numpy())
+        barrier()
+        if given is not None:
+            return torch.as_tensor(given).float()
+        return torch.from_numpy(np.load(path, allow_pickle=False))
+
+    def read_checkpoint(self, path: Path) -> dict:
+        return read_checkpoint_file(path, MOTION_FORMAT, self.device)
+
+    def warm_start(self, path: str) -> None:
+        F = self.meta["num_features"]
+        warm_start(self.model, path, self.config.model, F, self.device)
+
+    def checkpoint_fields(self) -> dict:
+        return {"format": MOTION_FORMAT, **self.meta}
+
+    def train_epoch(self, epoch: int, net, bar) -> tuple[dict, dict]:
+        """Batches of clips in a random order, each run in windows along its timeline, the
+        previous state drawn per frame (the teacher probability of the epoch)."""
+        cfg, device, run = self.config, self.device, self.run
+        self.model.train()
+        teacher = cfg.teacher_probability(epoch)
+        order = torch.randperm(len(self.clips), generator=self.sampling).tolist()
+        sums: dict[str, float] = {}
+        steps = 0
+        for b in range(0, len(order), cfg.batch_size):
+            clips = [self.clips[i] for i in order[b : b + cfg.batch_size]]
+            batch, part = share_batch(clips, run.rank, run.world, device)  # this process's
+            n = len(part.rows)
+            hidden = self.model.initial_hidden(n, device)
+            previous = self.rest[None].expand(n, -1, -1).clone()  # (n, V, 3)
+            L = max(c.length for c in clips)
+            for start in range(0, L, cfg.window):
+                terms, hidden, previous = run_window(
+                    net,
+                    self.generative,
+                    self.lap,
+                    batch,
+                    start,
+                    min(start + cfg.window, L),
+                    hidden,
+                    previous,
+                    teacher,
+                    cfg.loss,
+                    self.sampling,
+                    cfg.previous_noise,
+                    cfg.unroll,
+                    part,
+                    cfg.precision,
+                    self.structure,
+                    self.hem,
+                )
+                if not terms["total"].requires_grad:
+                    continue  # a window with no motion frame in the batch (all preroll)
+                optimizer_step(
+                    self.optim, self.model.parameters(), terms, cfg.grad_clip, sums, run.world
+                )
+                steps += 1
+        return epoch_means(sums, steps), {"teacher": teacher}
+
+    def evaluate_now(self, epoch: int) -> bool:
+        return epoch % self.config.eval_every == 0 or epoch == self.config.epochs
+
+    def evaluate(self, epoch: int, record: dict, write) -> dict[str, float]:
+        current = AnimationModel(
+            self.generative,
+            self.model,
+            self.template,
+            self.rest,
+            self.joint_names,
+            self.floor,
+            self.fps,
+            dict(self.reader.body),
+            self.config.rollout,
+            self.run.checkpoint,
+        )
+        return rollout_evaluation(current, self.reader, MOTION_ONLY, epoch, record, write)
+
+    def report(self, common: dict, writer, epoch: int, history: list) -> dict:
+        path = self.run.out / "model.pt"
+        weights = half_weights(self.model.state_dict())  # for sharing
+        save_atomic({"format": MOTION_FORMAT, **self.meta, "model": weights, "epoch": epoch}, path)
+        model = load_animation_model(path, self.gmeta["absolute"], self.device)
+        return {
+            "previous_state": self.config.model.previous_state,
+            "previous": self.config.previous,
+            "dataset": common["dataset"],
+            "generative": self.gmeta["absolute"],
+            **common,
+            "test": evaluate_rollouts(model, self.reader, "test", stages=MOTION_ONLY),
+        }
+
+    def format_report(self, report: dict) -> str:
+        return format_report(report)
+
+
+def train_motion(
+    data: str | Path,
+    generative: str | Path,
+    out: str | Path,
+    config: TrainMotionConfig,
+    log=print,
+    progress: bool = True,
+    rest_state: torch.Tensor | None = None,
+) -> dict:
+    """Train (or resume) the dynamic motion encoder on a dataset and report rollout errors.
+
+    Args:
+        data: a dataset folder.
+        generative: the trained generative model's checkpoint (frozen here).
+        out: the run folder (:class:`~loosefit.train.loop.Run`): a run of this configuration
+            there resumes, a run of another is refused.
+        config: the run.
+        log, progress: where progress lines go; whether to show a tqdm bar.
+        rest_state: (V, 3) the garment's settled drape in the rest pose's root frame;
+            by default settled with the data set's cloth configuration
+            (:func:`~loosefit.data.rest_drape.settled_rest_drape`, kept in the run folder).
+
+    Returns:
+        The report (also ``out/report.json`` and ``out/report.md``).
+    """
+    reader = DatasetReader(data)
+    dataset = str(Path(data).resolve())
+    device = torch.device(config.device)
+    check_device_precision(config.precision, device)
+    gpath = Path(generative).resolve()
+    gmodel, _ = load_generative(gpath, reader.template, device)
+    for prm in gmodel.parameters():
+        prm.requires_grad_(False)
+    gmeta = {
+        "relative": os.path.relpath(gpath, Path(out).resolve()),
+        "absolute": str(gpath),
+        "fingerprint": model_fingerprint(gmodel),
+    }
+    stored = {"dataset": dataset, "generative": gmeta["fingerprint"], "train": config.to_dict()}
+    run = Run.open(out, stored, config.seed, log, progress)
+    return train(MotionStage(reader, gmodel, gmeta, config, run, rest_state), run, dataset)
+
+
+# -- a warm start, a run's configuration ------------------------------------------------------
+
+
+def warm_start(
+    encoder: DynamicMotionEncoder,
+    path: str | Path,
+    config: MotionEncoderConfig,
+    num_features: int,
+    device="cpu",
+) -> None:
+    """Load another motion checkpoint's encoder weights (feature statistics included) into
+    ``encoder`` (fine-tuning).
+
+    Raises:
+        LoosefitInputError: not a motion checkpoint, another encoder configuration than
+            ``config``, another number of motion features, or weights that do not fit.
+    """
+    saved = read_checkpoint_file(path, MOTION_FORMAT, device)
+    recorded = (saved.get("model_config") or {}).get("encoder")
+    mine = json.loads(json.dumps(asdict(config)))
+    if recorded is not None and {**mine, **recorded} != mine:
+        raise LoosefitInputError(
+            path,
+            "model_config.encoder",
+            str(mine),
+            str(recorded),
+            hint="warm-start from an encoder of this run's configuration",
+        )
+    if saved.get("num_features") != num_features:
+        raise LoosefitInputError(
+            path,
+            "num_features",
+            num_features,
+            saved.get("num_features"),
+            hint="the same --joints as the run it starts from",
+        )
+    load_weights(encoder, saved["model"], Path(path), "this encoder configuration")
+
+
+def training_config(path: str | Path) -> TrainMotionConfig | None:
+    """The training configuration a motion-stage checkpoint records (None: a packaged one)."""
+    data = read_checkpoint_file(path, MOTION_FORMAT)
+    return TrainMotionConfig.from_dict(data["config"]) if "config" in data else None
