@@ -22,8 +22,8 @@ import torch
 
 from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.data.format import write_sequence
-from loosefit.dress import fit_skirt
-from loosefit.eval.quality import quality
+from loosefit.garment.quality import quality
+from loosefit.placement.place import fit_skirt
 from loosefit.sequence import AnimatedGarment
 from loosefit.sim.driver import simulate
 from loosefit.sim.jobs import job_motion, plan_jobs

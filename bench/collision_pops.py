@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from loosefit.body.motions import load_motion
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.geometry.edges import unique_edges
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import Stages
 

@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
-from loosefit.eval.quality import edge_strain
+from loosefit.garment.quality import edge_strain
 from loosefit.inference.animator import attach_detail, load_pipeline
 from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.train.common import machine

@@ -33,12 +33,12 @@ import torch
 from loosefit.api import motion_for
 from loosefit.atomic import atomic_path
 from loosefit.body.avatar import Avatar, AvatarConfig
-from loosefit.dress import fit_dress, import_garment
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.quality import PENETRATION_TOLERANCE, quality
 from loosefit.fit import FitConfig, FitReport, fit_garment
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.obj import write_obj
+from loosefit.garment.quality import PENETRATION_TOLERANCE, quality
+from loosefit.placement.place import fit_dress, import_garment
 from loosefit.progress import tqdm_bar
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.driver import simulate

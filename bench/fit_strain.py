@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.body.avatar import Avatar, AvatarConfig
-from loosefit.dress import fit_dress, import_garment
 from loosefit.fit import FitConfig, fit_garment
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.obj import write_obj
+from loosefit.placement.place import fit_dress, import_garment
 from loosefit.types import GarmentTemplate
 
 OTHER_BODY = {"weight": 0.8, "height": 0.9, "proportions": 0.0}

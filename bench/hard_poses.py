@@ -29,8 +29,8 @@ import numpy as np
 import torch
 from stage_account import inside  # bench/, beside this file
 
-from loosefit.eval.quality import PENETRATION_TOLERANCE
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.garment.quality import PENETRATION_TOLERANCE
+from loosefit.geometry.edges import unique_edges
 from loosefit.inference.animator import load_pipeline
 from loosefit.sim.dataset_config import read_config_file, resolve_spec
 from loosefit.sim.jobs import spec_name

@@ -20,7 +20,7 @@ from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import inside_fraction, rmse_per_frame
-from loosefit.eval.quality import edge_strain
+from loosefit.garment.quality import edge_strain
 from loosefit.inference.animator import load_animation_model
 
 

@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 from loosefit.data.format import DatasetReader, write_json_atomic
-from loosefit.eval.quality import PENETRATION_TOLERANCE, quality
+from loosefit.garment.quality import PENETRATION_TOLERANCE, quality
 from loosefit.sim.dataset_config import QualityLimits, read_config_file
 from loosefit.sim.generate import generate
 from loosefit.sim.manifest import LEGACY_CLOTH
@@ -62,7 +62,7 @@ def judge(folder: Path) -> dict:
     is flattened in: :func:`~loosefit.sim.overlap.flatten_overlaps`), and the inside mean
     measured against that flattened collider, the body the cloth actually met.
     """
-    from loosefit.eval.body_regions import body_parts
+    from loosefit.body.regions import body_parts
     from loosefit.geometry.query import closest_points
     from loosefit.sim.overlap import flatten_overlaps
     from loosefit.train.frames import avatar_for

@@ -88,8 +88,7 @@ def main() -> None:
     p.add_argument("--out", default="docs/PHYSICS_ABLATION.md")
     args = p.parse_args()
 
-    from loosefit.data.format import DatasetReader
-    from loosefit.sequence import read_any_sequence
+    from loosefit.data.format import DatasetReader, read_any_sequence
 
     torch.set_num_threads(1)
     seqs = {}

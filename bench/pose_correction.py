@@ -297,7 +297,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)  # fmt: skip
     from loosefit.body.avatar import Avatar
-    from loosefit.eval.body_regions import body_parts
+    from loosefit.body.regions import body_parts
 
     if args.motions is None and args.survey is None and not SALSA.is_dir():
         print(f"no salsa clips at {SALSA}: pass --motions", file=sys.stderr)

@@ -29,7 +29,7 @@ import torch
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
-from loosefit.eval.quality import edge_strain
+from loosefit.garment.quality import edge_strain
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import heading_yaw
 from loosefit.model.rollout import MOTION_ONLY, Stages

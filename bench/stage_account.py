@@ -47,8 +47,8 @@ import numpy as np
 import torch
 
 from loosefit.eval.metrics import hausdorff, rmse, sted
-from loosefit.eval.quality import PENETRATION_TOLERANCE
 from loosefit.garment.mesh_checks import hem_loop
+from loosefit.garment.quality import PENETRATION_TOLERANCE
 from loosefit.geometry.collision import CollisionConfig
 from loosefit.geometry.query import Surface
 from loosefit.inference.animator import load_pipeline
@@ -270,8 +270,7 @@ def main() -> None:
     p.add_argument("--plot", default="docs/img/stage_account_flare.png")
     args = p.parse_args()
 
-    from loosefit.data.format import DatasetReader
-    from loosefit.sequence import read_any_sequence
+    from loosefit.data.format import DatasetReader, read_any_sequence
 
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)

@@ -44,8 +44,7 @@ def main() -> None:
     p.add_argument("--out", required=True)
     args = p.parse_args()
 
-    from loosefit.data.format import DatasetReader
-    from loosefit.sequence import read_any_sequence
+    from loosefit.data.format import DatasetReader, read_any_sequence
 
     if args.sequence:
         seq = read_any_sequence(args.sequence)

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from loosefit.data.format import DatasetReader
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.laplacian import laplacian_matrix
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.rollout import MOTION_ONLY

@@ -31,8 +31,8 @@ def avatar():
 @pytest.fixture(scope="session")
 def skirt(avatar):
     """A coarse skirt (96 vertices) for the learned stages' tests."""
-    from loosefit.dress import fit_skirt
     from loosefit.garment.skirt import SkirtConfig
+    from loosefit.placement.place import fit_skirt
 
     return fit_skirt(avatar, SkirtConfig(style="aline", rings=6, segments=16))
 
@@ -44,7 +44,7 @@ def toy_dataset(avatar, skirt, tmp_path_factory):
 
     from loosefit.body.motions import load_motion
     from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
-    from loosefit.dress import carry_rigidly
+    from loosefit.placement.place import carry_rigidly
     from loosefit.sequence import AnimatedGarment
 
     root = tmp_path_factory.mktemp("toy") / "ds"

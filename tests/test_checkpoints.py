@@ -35,7 +35,7 @@ def model():
 def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
     from loosefit.body.motions import load_motion
     from loosefit.eval.metrics import inside_fraction
-    from loosefit.eval.quality import edge_strain
+    from loosefit.garment.quality import edge_strain
 
     motion = load_motion("spin", avatar, fps=model.fps).slice(0, 40)
     result = model.animate(motion)  # every stage it has: motion, edge lengths, collision

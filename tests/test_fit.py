@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from loosefit.body.avatar import Avatar, AvatarConfig
-from loosefit.dress import fit_dress, import_garment
 from loosefit.errors import LoosefitInputError
-from loosefit.fit import FitConfig, best_shape, check_fitted_shape, fit_garment, fit_template
+from loosefit.fit import FitConfig, best_shape, fit_garment, fit_template
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.obj import write_obj
+from loosefit.placement.place import check_fitted_shape, fit_dress, import_garment
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.driver import simulate
 

@@ -196,7 +196,7 @@ def _arrays(draw, like: np.ndarray):
 
 @pytest.fixture(scope="module")
 def sequence_file(tmp_path_factory, avatar, skirt):
-    from loosefit.dress import carry_rigidly
+    from loosefit.placement.place import carry_rigidly
     from loosefit.sequence import AnimatedGarment
 
     motion = avatar.rest_motion(3)

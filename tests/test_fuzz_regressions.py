@@ -58,7 +58,7 @@ def test_motion_specs_that_ask_for_unbounded_memory(avatar, spec):
 
 
 def test_npz_fields_of_another_kind(tmp_path, avatar, skirt):
-    from loosefit.dress import carry_rigidly
+    from loosefit.placement.place import carry_rigidly
     from loosefit.sequence import AnimatedGarment
     from loosefit.types import GarmentTemplate, Motion
 

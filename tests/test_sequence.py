@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from loosefit.dress import carry_rigidly, fit_skirt
 from loosefit.errors import LoosefitInputError
+from loosefit.placement.place import carry_rigidly, fit_skirt
 from loosefit.sequence import DressedSequence
 
 

@@ -18,7 +18,7 @@ __all__ = ["AnimatedGarment", "Animator", "fit_garment", "load", "simulate", "__
 
 def __getattr__(name: str):
     """The API, imported on first use (``import loosefit`` stays light)."""
-    if name in ("load", "simulate", "Animator"):
+    if name in ("load", "simulate", "Animator", "AnimatedGarment"):
         from loosefit import api
 
         return getattr(api, name)
@@ -26,8 +26,4 @@ def __getattr__(name: str):
         from loosefit.fit import fit_garment
 
         return fit_garment
-    if name == "AnimatedGarment":
-        from loosefit.sequence import AnimatedGarment
-
-        return AnimatedGarment
     raise AttributeError(f"module 'loosefit' has no attribute {name!r}")

@@ -18,11 +18,41 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
+from loosefit import sequence
 from loosefit.errors import LoosefitInputError
-from loosefit.sequence import AnimatedGarment
 from loosefit.types import GarmentTemplate, Motion
 
 PRETRAINED = "dance"  # the default set's folder under loosefit/pretrained
+
+
+class AnimatedGarment(sequence.AnimatedGarment):
+    """An animated garment as the API returns it (``loosefit.AnimatedGarment``): the
+    sequence of :mod:`loosefit.sequence` (its fields, file, export) and :meth:`view`, the
+    browser viewer, which sits in a layer above the sequence's and is reached from here.
+    :meth:`load` reads a file as one of these."""
+
+    def view(
+        self,
+        *others: sequence.AnimatedGarment,
+        names: list[str] | None = None,
+        wait: bool = True,
+        **config,
+    ):
+        """Open this sequence (and ``others`` of the same garment and frames, side by side)
+        in the browser viewer (:mod:`loosefit.view`; ``pip install 'loosefit[viewer]'``).
+
+        Prints the URL; with ``wait`` serves until Ctrl-C, otherwise returns the running
+        :class:`~loosefit.view.server.Viewer` at once (``close()`` it). ``config``:
+        :class:`~loosefit.view.ViewerConfig` fields, e.g. ``port=8081``,
+        ``colouring="error"``, ``layout="overlaid"``.
+        """
+        from loosefit.view import ViewerConfig, view
+
+        viewer = view([self, *others], names, ViewerConfig(**config))
+        print(f"loosefit viewer: {viewer.url}", flush=True)
+        if wait:
+            viewer.wait()
+        return viewer
 
 
 def pretrained_checkpoint() -> Path:
@@ -278,24 +308,24 @@ def simulate(
             simulated); False simulates the motion exactly as given.
     """
     from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.dress import garment_for
+    from loosefit.placement.place import garment_for
     from loosefit.sim.driver import simulate as run
 
     avatar = Avatar(AvatarConfig(shape=dict(shape or {})) if shape else None)
     template = garment if isinstance(garment, GarmentTemplate) else garment_for(garment, avatar)
     if isinstance(garment, GarmentTemplate):  # one fitted to a body (fit_garment): that body
-        from loosefit.fit import check_fitted_shape
+        from loosefit.placement.place import check_fitted_shape
 
         check_fitted_shape(template, avatar, "garment")
     m = motion_for(motion, avatar, 30.0, frames, start_frame, seed)
     if config is None:  # a dress's bodice reaches the upper arms: they collide
-        from loosefit.dress import collider_arms
+        from loosefit.placement.place import collider_arms
         from loosefit.sim.cloth_config import ClothConfig
 
         config = ClothConfig(arm_collision=collider_arms(template))
     if unfold:
+        from loosefit.body.regions import body_parts
         from loosefit.body.unfold import unfold_motion
-        from loosefit.eval.body_regions import body_parts
 
         m = unfold_motion(avatar, m, body_parts(avatar, arms=config.colliding_arms)).motion
     result = run(avatar, template, m, config, progress=progress)

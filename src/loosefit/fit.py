@@ -1,10 +1,10 @@
 """A garment made for another body, fitted to the avatar (``loosefit garment FILE --fit``).
 
-:func:`~loosefit.dress.import_garment` refuses a garment whose vertices are inside the
+:func:`~loosefit.placement.place.import_garment` refuses a garment whose vertices are inside the
 avatar's rest body. :func:`fit_garment` takes it anyway, in three steps:
 
 1. it is placed as any garment file is (units, axes, the placement rules of
-   :mod:`loosefit.dress`), then every vertex is pushed out of the rest body by the
+   :mod:`loosefit.placement.place`), then every vertex is pushed out of the rest body by the
    project's collision handling, which keeps the mesh's Laplacian (paper Eq. 16,
    :class:`~loosefit.geometry.collision.CollisionHandler`): a dent, not a spike;
 2. it drapes on the avatar standing still in the simulator (the settle phase every
@@ -31,6 +31,7 @@ import torch
 
 from loosefit.body.avatar import DEFAULT_SHAPE, Avatar, AvatarConfig
 from loosefit.errors import LoosefitInputError
+from loosefit.placement.place import FIT_REACH
 from loosefit.types import GarmentTemplate
 
 SHAPE_SEARCH = ("weight", "height", "proportions")  # the phenotypes --shape auto tries
@@ -71,7 +72,8 @@ class FitConfig:
     #   simulator's body_contact_distance, so the drape starts without a contact force)
     rings: int = 8  # Eq. 16: a push moves the cloth within this many edges of it (4 in
     #   rollouts; a garment's whole panel may be too small, not one vertex)
-    reach: float = 0.1  # m, the deepest a vertex may be inside the body and be pushed out
+    reach: float = FIT_REACH  # m, the deepest a vertex may be inside the body and be pushed
+    #   out
     attach_reach: float = 0.1  # m, the farthest the garment's attached vertices (its top)
     #   may be from the body: farther, it was not made for a body like this one
     tolerance: float = 0.005  # m, after the push no vertex may be deeper inside than this
@@ -146,9 +148,9 @@ def inside_of(template_vertices: np.ndarray, avatar: Avatar, arms) -> tuple[int,
 def push_out(template: GarmentTemplate, avatar: Avatar, config: FitConfig) -> np.ndarray:
     """(V, 3) the template's vertices pushed out of the avatar's rest body, ``clearance``
     outside it, keeping the mesh's Laplacian (Eq. 16)."""
-    from loosefit.dress import collider_arms
     from loosefit.geometry.collision import CollisionConfig, CollisionHandler
     from loosefit.geometry.query import Surface
+    from loosefit.placement.place import collider_arms
 
     faces = avatar.collider_faces(arms=collider_arms(template)).cpu().numpy()
     body = Surface(avatar.rest_vertices.float().cpu().numpy(), faces, winding_number=True)
@@ -175,7 +177,8 @@ def fit_template(
     out of it and draped there.
 
     Args:
-        template: the garment as placed (:func:`~loosefit.dress.import_garment`, unchecked).
+        template: the garment as placed
+            (:func:`~loosefit.placement.place.import_garment`, unchecked).
         avatar: the body.
         config: the push and the drape.
         source: what errors name (the file).
@@ -193,7 +196,7 @@ def fit_template(
             garment far from it), or vertices still deeper than ``tolerance`` inside it
             after the push.
     """
-    from loosefit.dress import collider_arms
+    from loosefit.placement.place import collider_arms
 
     config = config or FitConfig()
     start = time.perf_counter()
@@ -291,8 +294,8 @@ def shape_cost(template: GarmentTemplate, avatar: Avatar, ease: float = SHAPE_EA
     """How badly a placed garment fits a body (m): the depth of its vertices inside it,
     summed, plus how far its attached vertices (its top) are from ``ease`` off the skin,
     on average."""
-    from loosefit.dress import collider_arms
     from loosefit.geometry.query import closest_points
+    from loosefit.placement.place import collider_arms
 
     body = avatar.rest_vertices.double().cpu().numpy()
     faces = avatar.collider_faces(arms=collider_arms(template)).cpu().numpy()
@@ -365,11 +368,12 @@ def fit_garment(
     """A garment file made for another body, fitted to the avatar's rest pose.
 
     Args:
-        path: ``.obj``, ``.gltf`` or ``.glb`` (see :func:`~loosefit.dress.import_garment`).
+        path: ``.obj``, ``.gltf`` or ``.glb``
+            (see :func:`~loosefit.placement.place.import_garment`).
         shape: the avatar's phenotype (anny's names; None: the project's avatar), or
             ``"auto"``: the one the garment fits best (:func:`best_shape`).
         config: the push and the drape.
-        units, up, kind, offset, attach: as for :func:`~loosefit.dress.import_garment`.
+        units, up, kind, offset, attach: as for :func:`~loosefit.placement.place.import_garment`.
         avatar: the body, already built (then ``shape`` must be None).
         progress: called as ``progress(stage, done, total)`` as each of the fit's stages
             (:data:`STAGE_UNITS`) starts and as it goes.
@@ -384,9 +388,9 @@ def fit_garment(
     """
     from pathlib import Path
 
-    from loosefit.dress import import_garment
     from loosefit.garment.importer import read_garment_mesh
     from loosefit.garment.mesh_checks import boundary_loops
+    from loosefit.placement.place import import_garment
 
     start = time.perf_counter()
     path = Path(path)
@@ -416,20 +420,3 @@ def fit_garment(
     report.shape_tried, report.seconds = tried, time.perf_counter() - start
     template.meta["fit"] = asdict(report)
     return template, report, avatar
-
-
-def check_fitted_shape(template: GarmentTemplate, avatar: Avatar, source="garment") -> None:
-    """Raise if ``template`` was fitted to another body than ``avatar`` (its ``meta["fit"]``)."""
-    fitted = (template.meta or {}).get("fit", {}).get("shape")
-    if not fitted:
-        return
-    mine = {k: float(v) for k, v in avatar.shape.items()}
-    if any(abs(float(v) - mine.get(k, np.nan)) > 1e-6 for k, v in fitted.items()):
-        given = ",".join(f"{k}={float(v):g}" for k, v in fitted.items())
-        raise LoosefitInputError(
-            source,
-            "fit.shape",
-            f"the avatar it was fitted to ({given})",
-            ",".join(f"{k}={v:g}" for k, v in mine.items()),
-            hint=f"simulate with --shape {given}",
-        )

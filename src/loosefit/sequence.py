@@ -135,25 +135,6 @@ class AnimatedGarment:
         )
         return export_animation(path, meshes, self.fps)
 
-    def view(
-        self, *others: AnimatedGarment, names: list[str] | None = None, wait: bool = True, **config
-    ):
-        """Open this sequence (and ``others`` of the same garment and frames, side by side)
-        in the browser viewer (:mod:`loosefit.view`; ``pip install 'loosefit[viewer]'``).
-
-        Prints the URL; with ``wait`` serves until Ctrl-C, otherwise returns the running
-        :class:`~loosefit.view.server.Viewer` at once (``close()`` it). ``config``:
-        :class:`~loosefit.view.ViewerConfig` fields, e.g. ``port=8081``,
-        ``colouring="error"``, ``layout="overlaid"``.
-        """
-        from loosefit.view import ViewerConfig, view
-
-        viewer = view([self, *others], names, ViewerConfig(**config))
-        print(f"loosefit viewer: {viewer.url}", flush=True)
-        if wait:
-            viewer.wait()
-        return viewer
-
     def __post_init__(self) -> None:
         gv = np.asarray(self.garment_vertices)
         if np.issubdtype(gv.dtype, np.floating):
@@ -262,21 +243,6 @@ class AnimatedGarment:
             raise LoosefitInputError(path, exc.field, exc.expected, exc.found, exc.hint) from exc
         except (TypeError, ValueError) as exc:
             raise LoosefitInputError(path, "<fields>", "a loosefit sequence", str(exc)) from exc
-
-
-def read_any_sequence(path: str | Path, reader=None) -> AnimatedGarment:
-    """A sequence ``.npz``: an animated garment's file, or a data set's clip (a clip of an
-    earlier data set, without the sequence format, is read through its data set, or through
-    ``reader``, a :class:`~loosefit.data.format.DatasetReader`, where given)."""
-    from loosefit.data.format import DatasetReader  # it imports this module
-
-    path = Path(path)
-    root = path.parent.parent
-    if reader is None and path.parent.name == "sequences" and (root / "manifest.json").is_file():
-        reader = DatasetReader(root, allow_incomplete=True)
-    if reader is not None:
-        return reader.read(path.stem)
-    return AnimatedGarment.load(path)
 
 
 _FIELDS = (

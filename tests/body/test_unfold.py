@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from loosefit.body.regions import body_parts
 from loosefit.body.rotations import axis_angle_to_matrix, rotation_angle
 from loosefit.body.unfold import (
     LimbTest,
@@ -17,7 +18,6 @@ from loosefit.body.unfold import (
     world_rotations,
 )
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.body_regions import body_parts
 from loosefit.types import Motion
 
 

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
+from loosefit.body.regions import BodyParts
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.body_regions import BodyParts
 from loosefit.eval.motion_signals import SELF_INTERSECTION_TOLERANCE, motion_signals, spin_rate
 from loosefit.eval.penetration import (
     FAST_SPIN,
@@ -18,7 +18,7 @@ from loosefit.eval.penetration import (
     find_penetrations,
     format_events,
 )
-from loosefit.eval.quality import quality
+from loosefit.garment.quality import quality
 from loosefit.types import GarmentTemplate
 from tests.meshes import cube
 
@@ -182,7 +182,7 @@ def test_hands_that_do_not_collide_are_noted_not_blamed(body):
 
 
 def test_regions_of_the_avatar(avatar):
-    from loosefit.eval.body_regions import REGIONS, body_parts
+    from loosefit.body.regions import REGIONS, body_parts
 
     parts = body_parts(avatar, arms=False)  # a skirt's collider: no arms
     names = [parts.names[r] for r in parts.region]

@@ -75,7 +75,7 @@ def test_far_vertices_get_the_harmonic_blend_of_the_near_ones():
     np.testing.assert_allclose(out[known], w[known])
     # harmonic: every free vertex is the mean of its neighbours; weights grow left to right
     assert (np.diff(out[np.argsort(v[:, 0], kind="stable"), 1].reshape(5, 5).mean(1)) > 0).all()
-    from loosefit.garment.mesh_checks import unique_edges
+    from loosefit.geometry.edges import unique_edges
 
     e, _ = unique_edges(f)
     for i in np.flatnonzero(~known):

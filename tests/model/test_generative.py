@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 import torch
 
-from loosefit.dress import fit_skirt
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.model.generative import (
@@ -23,6 +22,7 @@ from loosefit.model.generative import (
     kl_divergence,
 )
 from loosefit.model.motion_features import from_root_frame, heading_frames, to_root_frame
+from loosefit.placement.place import fit_skirt
 from loosefit.train.generative import TrainGenerativeConfig, load_checkpoint, train_generative
 
 SMALL = dict(uv_size=32, channels=(4, 8, 8, 8), rec_hidden=(16, 16, 16))

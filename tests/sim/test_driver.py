@@ -15,10 +15,10 @@ import pytest
 
 from loosefit.body.chain import preroll
 from loosefit.body.motions import load_motion
-from loosefit.dress import fit_skirt
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.geometry.query import closest_points
+from loosefit.placement.place import fit_skirt
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.driver import SimulationError, _guard, settle, simulate, simulate_batch
 from loosefit.sim.resume import run_key
@@ -318,7 +318,7 @@ def test_the_collider_with_arms_stops_a_hand_sweeping_through_a_tiny_skirt(avata
     # the left arm lowered from the A-pose past hanging: the hand sweeps 18 cm inward at
     # hip height, through the skirt's side, and stops 4 cm from the hip
     from loosefit.body.rotations import axis_angle_to_matrix
-    from loosefit.eval.quality import PENETRATION_TOLERANCE
+    from loosefit.garment.quality import PENETRATION_TOLERANCE
 
     skirt = fit_skirt(avatar, TINY_SKIRT)
     n = 20

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from loosefit.eval.body_regions import body_parts
+from loosefit.body.regions import body_parts
 from loosefit.geometry.query import Surface
 from loosefit.sim.overlap import flatten_overlaps
 

@@ -229,8 +229,8 @@ def test_sequences_of_other_frame_counts_are_refused(clips, tmp_path, capsys):
 
 
 def test_other_garments_are_refused(clips, skirt, avatar):
-    from loosefit.dress import carry_rigidly, fit_skirt
     from loosefit.garment.skirt import SkirtConfig
+    from loosefit.placement.place import carry_rigidly, fit_skirt
 
     a, _ = clips
     other = fit_skirt(avatar, SkirtConfig(style="aline", rings=5, segments=12))
@@ -280,7 +280,10 @@ def test_demo_view_opens_the_demo_result(tmp_path, monkeypatch, capsys, avatar):
 
 
 def test_animated_garment_view_returns_the_running_viewer(clips, capsys):
-    a, still = clips
+    import loosefit
+
+    a, still = clips  # a data set's clips: the API's AnimatedGarment views them
+    a = loosefit.AnimatedGarment(a.motion, a.garment, a.garment_vertices, a.avatar, a.source)
     viewer = a.view(still, names=["a", "still"], wait=False, port=0, layout="overlaid")
     try:
         assert [s.name for s in viewer.sequences] == ["a", "still"]

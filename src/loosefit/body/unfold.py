@@ -28,13 +28,13 @@ from dataclasses import dataclass, fields
 import numpy as np
 import torch
 
+from loosefit.body.regions import BodyParts
 from loosefit.body.rotations import axis_angle_to_matrix
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.body_regions import BodyParts
 from loosefit.geometry.query import ClosestPoints, Surface
 from loosefit.types import Motion
 
-# The joint each limb of :data:`loosefit.eval.body_regions.LIMBS` is turned at.
+# The joint each limb of :data:`loosefit.body.regions.LIMBS` is turned at.
 LIMB_ROOTS: dict[str, str] = {
     "left leg": "LeftUpLeg",
     "right leg": "RightUpLeg",
@@ -269,7 +269,7 @@ def unfold_motion(
     Args:
         avatar: the :class:`~loosefit.body.avatar.Avatar` the motion is on.
         motion: T frames on its skeleton.
-        parts: the body's limbs (:func:`~loosefit.eval.body_regions.body_parts` with the
+        parts: the body's limbs (:func:`~loosefit.body.regions.body_parts` with the
             simulation's arms): the limbs the cloth collides with are tested.
         config: how (default :class:`UnfoldConfig`).
 

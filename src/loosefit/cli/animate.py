@@ -180,7 +180,7 @@ def throughput(motion, result) -> str:
 
 def stage_line(model, stages, result) -> str:
     """What ran after the decoders, and what collision handling did."""
-    from loosefit.eval.quality import PENETRATION_TOLERANCE
+    from loosefit.garment.quality import PENETRATION_TOLERANCE
 
     ran = ["motion"]
     if stages.detail and model.detail is not None:

@@ -162,7 +162,7 @@ def retarget_config(args: argparse.Namespace):
 
 
 def add_import_args(p: argparse.ArgumentParser) -> None:
-    """How a garment file is read and placed (loosefit.dress.import_garment)."""
+    """How a garment file is read and placed (loosefit.placement.place.import_garment)."""
     p.add_argument(
         "--units",
         default=None,
@@ -212,7 +212,7 @@ def offset(text: str | None) -> tuple[float, float, float]:
 
 def garment_template(spec: str, avatar, resolution: str = "cpu", length: float | None = None):
     """A garment template in the avatar's rest frame from a style name or an OBJ file."""
-    from loosefit.dress import garment_for
+    from loosefit.placement.place import garment_for
 
     try:
         return garment_for(spec, avatar, resolution, length)

@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     """The main job: the pretrained model animating its skirt on a dance (``--physics``: the
     simulator instead; ``--no-physics``: the skirt carried rigidly)."""
     from loosefit.body.motions import load_motion
-    from loosefit.dress import carry_rigidly
+    from loosefit.placement.place import carry_rigidly
     from loosefit.sequence import AnimatedGarment
 
     out = Path(args.out)
@@ -156,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _simulate(args: argparse.Namespace, avatar, template, motion):
     """``demo --physics``: the skirt simulated with Newton's VBD solver, (T, V, 3)."""
-    from loosefit.dress import collider_arms
+    from loosefit.placement.place import collider_arms
     from loosefit.sim.cloth_config import ClothConfig
     from loosefit.sim.driver import simulate
 

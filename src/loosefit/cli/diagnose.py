@@ -45,10 +45,10 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     import torch
 
+    from loosefit.body.regions import body_parts
     from loosefit.data.format import write_json_atomic
-    from loosefit.eval.body_regions import body_parts
     from loosefit.eval.penetration import diagnose_clip, format_events
-    from loosefit.eval.quality import PENETRATION_TOLERANCE
+    from loosefit.garment.quality import PENETRATION_TOLERANCE
 
     source = Path(args.source)
     tolerance = PENETRATION_TOLERANCE if args.tolerance is None else args.tolerance
@@ -104,10 +104,9 @@ def _clip_and_arms(args: argparse.Namespace, source: Path):
     auto: the simulation's collider, the data set's, else the garment's)."""
     import json
 
-    from loosefit.data.format import DatasetReader
-    from loosefit.dress import collider_arms
+    from loosefit.data.format import DatasetReader, read_any_sequence
     from loosefit.inference.animator import arm_collision_of
-    from loosefit.sequence import read_any_sequence
+    from loosefit.placement.place import collider_arms
 
     if source.is_dir():
         if not args.clip:

@@ -30,11 +30,10 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from loosefit.data.format import DatasetReader
+    from loosefit.data.format import DatasetReader, read_any_sequence
     from loosefit.eval.report import write_rollout_report
     from loosefit.eval.rollouts import evaluate_rollouts
     from loosefit.inference.animator import load_pipeline
-    from loosefit.sequence import read_any_sequence
 
     model = load_pipeline(args.checkpoint, args.generative, args.detail)
     if len(args.data) == 1 and Path(args.data[0]).is_dir():

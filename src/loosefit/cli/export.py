@@ -50,7 +50,7 @@ def add_export_model_parser(sub) -> None:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from loosefit.sequence import read_any_sequence
+    from loosefit.data.format import read_any_sequence
 
     path = Path(args.sequence)
     if path.suffix != ".npz":

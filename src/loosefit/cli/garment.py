@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.fit:
         template, report, fit, avatar = _fit_file(args)
     elif is_file:
-        from loosefit.dress import import_garment
+        from loosefit.placement.place import import_garment
 
         avatar = build_avatar(args)
         template, report = import_garment(

@@ -46,8 +46,8 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from loosefit.body.motions import load_motion
-    from loosefit.dress import carry_rigidly
-    from loosefit.sequence import read_any_sequence
+    from loosefit.data.format import read_any_sequence
+    from loosefit.placement.place import carry_rigidly
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

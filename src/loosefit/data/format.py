@@ -259,3 +259,16 @@ class DatasetReader:
         if not path.is_file():
             raise LoosefitInputError(self.root, f"sequences/{name}.npz", "present", "missing")
         return read_sequence(path, self.template, self.avatar)
+
+
+def read_any_sequence(path: str | Path, reader=None) -> AnimatedGarment:
+    """A sequence ``.npz``: an animated garment's file, or a data set's clip (a clip of an
+    earlier data set, without the sequence format, is read through its data set, or through
+    ``reader``, a :class:`DatasetReader`, where given)."""
+    path = Path(path)
+    root = path.parent.parent
+    if reader is None and path.parent.name == "sequences" and (root / "manifest.json").is_file():
+        reader = DatasetReader(root, allow_incomplete=True)
+    if reader is not None:
+        return reader.read(path.stem)
+    return AnimatedGarment.load(path)

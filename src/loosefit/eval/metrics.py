@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.query import closest_points
 
 # ---------------------------------------------------------------------------

@@ -4,7 +4,7 @@
 speed about the vertical (a spin), how close each hand comes to the skin a skirt covers,
 the gap between the thighs, and how deep each limb is buried in the rest of the body (a
 self-intersecting pose, which closes a fold of skin over whatever cloth lies in it).
-Pure functions of arrays and a :class:`~loosefit.eval.body_regions.BodyParts`.
+Pure functions of arrays and a :class:`~loosefit.body.regions.BodyParts`.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from loosefit.body.regions import BodyParts
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.body_regions import BodyParts
 from loosefit.geometry.query import Surface
 
 # m: a limb vertex deeper than this inside the rest of the body makes the pose
@@ -51,10 +51,10 @@ class MotionSignals:
     Attributes:
         spin: (T,) rad/s about the vertical (:func:`spin_rate`).
         hand_hip: (T, 2) m, the smallest distance from a vertex of the (left, right) hand
-            to the skin a skirt covers (:data:`~loosefit.eval.body_regions.HIP_ZONE`: hips,
+            to the skin a skirt covers (:data:`~loosefit.body.regions.HIP_ZONE`: hips,
             waist, thighs); inf without hands.
         thigh_gap: (T,) m, the smallest distance from a left-thigh vertex (but the groin's,
-            :data:`~loosefit.eval.body_regions.THIGH_REST_CLEARANCE`) to the right thigh's
+            :data:`~loosefit.body.regions.THIGH_REST_CLEARANCE`) to the right thigh's
             skin.
         limbs: the limbs tested for self-intersection, in the order of the columns below.
         limb_collides: per limb, whether the cloth collides with it (its skin in the
@@ -104,7 +104,7 @@ def motion_signals(
         body: (T, Vb, 3) the posed body.
         root_rotations: (T, 3, 3) the root's world rotation.
         fps: frames per second.
-        parts: :func:`~loosefit.eval.body_regions.body_parts`.
+        parts: :func:`~loosefit.body.regions.body_parts`.
         self_tolerance: m.
         progress: called as ``progress(done, T)`` after each frame.
 

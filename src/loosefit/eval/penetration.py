@@ -1,12 +1,12 @@
 """Where and why garment vertices go deep inside the body: frames, body regions, motion.
 
-:func:`loosefit.eval.quality.quality` says *how much* of a clip's cloth is inside the
+:func:`loosefit.garment.quality.quality` says *how much* of a clip's cloth is inside the
 body; this module says *where* (which frames, which body part, how deep) and what the
 body does there, so a flagged clip can be traced to its cause:
 
 1. :func:`find_penetrations`: per frame, the garment vertices inside the collider (the
    closed body mesh the simulation collided with) deeper than the tolerance, their depth
-   and the body region of the closest skin (:mod:`loosefit.eval.body_regions`).
+   and the body region of the closest skin (:mod:`loosefit.body.regions`).
 2. :func:`~loosefit.eval.motion_signals.motion_signals`: per frame, what the motion
    does: a spin, a hand near the hips, the thighs closing, a self-intersecting pose.
 3. :func:`find_events` and :func:`diagnose`: runs of frames with penetration, each
@@ -24,10 +24,10 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from loosefit.body.regions import HANDS, BodyParts
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.body_regions import HANDS, BodyParts
 from loosefit.eval.motion_signals import MotionSignals, buried_vertices, motion_signals
-from loosefit.eval.quality import PENETRATION_TOLERANCE
+from loosefit.garment.quality import PENETRATION_TOLERANCE
 from loosefit.geometry.query import Surface
 
 # Thresholds behind the causes :func:`diagnose` names.
@@ -98,13 +98,13 @@ def find_penetrations(
     """The garment vertices deeper inside the body's collider than ``tolerance``, per frame.
 
     Inside is decided by the winding number, depth is the distance to the closest point of
-    the collider, as in :func:`~loosefit.eval.quality.quality` (whose
+    the collider, as in :func:`~loosefit.garment.quality.quality` (whose
     ``penetration_fraction`` is ``deep_fraction`` here). Non-finite vertices are left out.
 
     Args:
         garment: (T, V, 3) garment vertices.
         body: (T, Vb, 3) the posed body, the same frames.
-        parts: the collider and regions (:func:`~loosefit.eval.body_regions.body_parts`).
+        parts: the collider and regions (:func:`~loosefit.body.regions.body_parts`).
         tolerance: m.
         progress: called as ``progress(done, T)`` after each frame.
 
@@ -283,7 +283,7 @@ def diagnose(
         signals: :func:`motion_signals` of the same frames.
         body: (T, Vb, 3) the posed body (for distances to the cloth at the worst frame).
         garment: (T, V, 3) the garment.
-        parts: :func:`~loosefit.eval.body_regions.body_parts`.
+        parts: :func:`~loosefit.body.regions.body_parts`.
         fps: frames per second (for the skin's speed).
         merge_gap: see :func:`find_events`.
         context: frames before an event whose spin counts as its own.
@@ -569,7 +569,7 @@ def diagnose_clip(
         body: (T, Vb, 3) the posed body.
         root_rotations: (T, 3, 3) the root's world rotation (a motion's ``rotations[:, 0]``).
         fps: frames per second.
-        parts: :func:`~loosefit.eval.body_regions.body_parts` (the simulation's collider).
+        parts: :func:`~loosefit.body.regions.body_parts` (the simulation's collider).
         tolerance: m.
         merge_gap: see :func:`find_events`.
         progress: called as ``progress(done, 2 T)``: the penetrations, then the motion.

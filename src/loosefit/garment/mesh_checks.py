@@ -10,6 +10,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+# (geometry/collision.py and model/physics.py import unique_edges from here still)
+from loosefit.geometry.edges import unique_edges
+
 
 def triangle_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Unsigned triangle areas.
@@ -50,23 +53,6 @@ def degenerate_faces(vertices: np.ndarray, faces: np.ndarray, rel_eps: float = 1
     )
     tiny = triangle_areas(vertices, faces) <= rel_eps * max(diag2, np.finfo(np.float64).tiny)
     return np.flatnonzero(repeated | tiny).astype(np.int64)
-
-
-def unique_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Undirected edges of a triangle mesh and how many faces use each.
-
-    Args:
-        faces: (F, 3) vertex indices.
-
-    Returns:
-        edges: (E, 2) int64 vertex pairs with ``edges[:, 0] < edges[:, 1]``, sorted.
-        counts: (E,) int64 number of faces using each edge.
-    """
-    faces = np.asarray(faces, dtype=np.int64)
-    half = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)  # (3F, 2) directed edges
-    undirected = np.sort(half, axis=1)
-    edges, counts = np.unique(undirected, axis=0, return_counts=True)
-    return edges.reshape(-1, 2).astype(np.int64), counts.astype(np.int64)
 
 
 def nonmanifold_edges(faces: np.ndarray) -> np.ndarray:

@@ -17,7 +17,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.query import closest_points
 
 

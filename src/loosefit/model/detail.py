@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.geometry.edges import unique_edges
 
 
 @dataclass

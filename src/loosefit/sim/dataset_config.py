@@ -46,7 +46,7 @@ class MotionSource:
 class QualityLimits:
     """Thresholds beyond which a simulated clip is flagged and excluded from the split."""
 
-    # garment vertices more than eval.quality.PENETRATION_TOLERANCE (5 mm) inside the body,
+    # garment vertices more than garment.quality.PENETRATION_TOLERANCE (5 mm) inside the body,
     # worst frame
     max_penetration_fraction: float = 0.01
     max_inside_depth: float = 0.03  # m, no vertex deeper inside the body than this
@@ -56,7 +56,8 @@ class QualityLimits:
 
 @dataclass
 class GarmentFile:
-    """A user's garment file, imported onto the avatar (:func:`loosefit.dress.import_garment`)."""
+    """A user's garment file, imported onto the avatar
+    (:func:`loosefit.placement.place.import_garment`)."""
 
     path: str = ""  # .obj, .gltf, .glb, or a loosefit template .npz (used as it is)
     units: str | None = None  # None: guessed from its size
@@ -81,7 +82,7 @@ def garment_type(garment) -> str:
 
 def make_garment(garment, avatar):
     """The template of a dataset's garment config on ``avatar`` (its rest pose)."""
-    from loosefit.dress import fit_dress, fit_skirt, import_garment
+    from loosefit.placement.place import check_fitted_shape, fit_dress, fit_skirt, import_garment
     from loosefit.types import GarmentTemplate
 
     kind = garment_type(garment)
@@ -91,8 +92,6 @@ def make_garment(garment, avatar):
         return fit_dress(avatar, garment)
     path = Path(garment.path)
     if path.suffix.lower() == ".npz":
-        from loosefit.fit import check_fitted_shape
-
         template = GarmentTemplate.load(path)
         check_fitted_shape(template, avatar, path)  # a --fit garment: on the body it was fitted to
         return template

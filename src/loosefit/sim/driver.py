@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.quality import quality
+from loosefit.garment.quality import quality
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.release import TrappedRelease, release_parts
 from loosefit.sim.resume import Recording, batch_key, read_resume, resumed_release, save_run
@@ -40,7 +40,7 @@ from loosefit.types import GarmentTemplate, Motion
 
 if TYPE_CHECKING:
     from loosefit.body.avatar import Avatar
-    from loosefit.eval.body_regions import BodyParts
+    from loosefit.body.regions import BodyParts
 
 
 class SimulationError(RuntimeError):
@@ -127,7 +127,7 @@ def simulate(
     Args:
         avatar: the :class:`~loosefit.body.avatar.Avatar` the motion drives.
         template: the garment in the avatar's rest frame (root joint at the origin),
-            e.g. from :func:`~loosefit.dress.fit_skirt`.
+            e.g. from :func:`~loosefit.placement.place.fit_skirt`.
         motion: T frames on the avatar's skeleton.
         config: the physics (default :class:`ClothConfig`).
         progress: called as ``progress(done, total)`` after every simulated frame.

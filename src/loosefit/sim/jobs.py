@@ -13,7 +13,7 @@ from loosefit.errors import LoosefitInputError
 from loosefit.sim.dataset_config import DatasetConfig
 
 if TYPE_CHECKING:
-    from loosefit.eval.body_regions import BodyParts
+    from loosefit.body.regions import BodyParts
     from loosefit.types import Motion
 
 
@@ -149,7 +149,7 @@ def job_motion(
 def limb_parts(config: DatasetConfig, avatar) -> BodyParts:
     """The body parts the pose correction tests: the avatar's, with the arms the cloth
     meets (``config.cloth.colliding_arms``)."""
-    from loosefit.eval.body_regions import body_parts
+    from loosefit.body.regions import body_parts
 
     return body_parts(avatar, arms=config.cloth.colliding_arms)
 

@@ -25,8 +25,8 @@ from loosefit.atomic import atomic_path
 from loosefit.body.unfold import UnfoldConfig
 from loosefit.data.format import FORMAT, write_json_atomic
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.quality import PENETRATION_TOLERANCE
 from loosefit.garment.fingerprint import cloth_fingerprint
+from loosefit.garment.quality import PENETRATION_TOLERANCE
 from loosefit.sim.dataset_config import GARMENT_TYPES, DatasetConfig, config_dict, normalized
 from loosefit.sim.jobs import Job, job_motion, limb_parts, short_spec
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from loosefit.eval.body_regions import BodyParts
+from loosefit.body.regions import BodyParts
 from loosefit.geometry.query import Surface
 
 
@@ -48,7 +48,7 @@ def flatten_overlaps(body: np.ndarray, parts: BodyParts, inset: float = 0.002) -
     Args:
         body: (T, Vb, 3) posed body vertices.
         parts: the body's limbs and, for each, the closed rest of the collider without it
-            (:func:`~loosefit.eval.body_regions.body_parts` with the simulation's arms).
+            (:func:`~loosefit.body.regions.body_parts` with the simulation's arms).
         inset: metres; a pressed vertex stops this far inside the rest's surface
             (negative: this far outside it).
 

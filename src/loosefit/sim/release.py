@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from loosefit.eval.body_regions import BodyParts
+    from loosefit.body.regions import BodyParts
 
 
 class TrappedRelease:
@@ -156,7 +156,7 @@ def _rows_index(rows: np.ndarray, of: np.ndarray) -> np.ndarray:
 
 def release_parts(parts: BodyParts) -> np.ndarray:
     """(Vb,) int64 the body part of each body vertex for :class:`TrappedRelease`: 0 the
-    trunk and head, then each limb of :data:`loosefit.eval.body_regions.LIMBS`."""
+    trunk and head, then each limb of :data:`loosefit.body.regions.LIMBS`."""
     out = np.zeros(len(parts.region), np.int64)
     for i, verts in enumerate(parts.limb_vertices.values()):
         out[verts] = i + 1

@@ -14,7 +14,7 @@ from loosefit.sim.cloth_config import ClothConfig
 
 if TYPE_CHECKING:
     from loosefit.body.avatar import Avatar
-    from loosefit.eval.body_regions import BodyParts
+    from loosefit.body.regions import BodyParts
     from loosefit.types import Motion
 
 
@@ -83,7 +83,7 @@ def timeline(
     avatar: Avatar, motion: Motion, config: ClothConfig, parts: BodyParts | None = None
 ) -> Timeline:
     """The body a clip's simulation meets, frame by frame (:class:`Timeline`); ``parts``:
-    the avatar's :func:`~loosefit.eval.body_regions.body_parts` with the config's arms
+    the avatar's :func:`~loosefit.body.regions.body_parts` with the config's arms
     (built here when needed and not given)."""
     pre_rot, pre_root, n_settle = preroll(
         motion,
@@ -108,9 +108,9 @@ def timeline(
 
 
 def collider_parts(avatar: Avatar, config: ClothConfig) -> BodyParts:
-    """The avatar's :class:`~loosefit.eval.body_regions.BodyParts` with the arms the cloth
+    """The avatar's :class:`~loosefit.body.regions.BodyParts` with the arms the cloth
     meets (what the pressing of overlaps and the release of trapped cloth take)."""
-    from loosefit.eval.body_regions import body_parts
+    from loosefit.body.regions import body_parts
 
     return body_parts(avatar, arms=config.colliding_arms)
 

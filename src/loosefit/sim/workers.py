@@ -31,7 +31,7 @@ from loosefit.sim.manifest import clip_entry
 
 if TYPE_CHECKING:
     from loosefit.body.avatar import Avatar
-    from loosefit.eval.body_regions import BodyParts
+    from loosefit.body.regions import BodyParts
     from loosefit.types import GarmentTemplate
 
 

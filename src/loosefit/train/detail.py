@@ -35,7 +35,7 @@ from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.garment.fingerprint import same_garment
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.inference.animator import (
     AnimationModel,

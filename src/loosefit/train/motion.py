@@ -5,7 +5,7 @@ A run is a folder of the training scaffold (:mod:`loosefit.train.loop`: ``config
 ``model.pt``: the trained encoder alone, half precision, for sharing, and
 ``rest_state.npy``: the garment's settled drape, where every rollout starts (given, or
 settled once from the data set's cloth configuration:
-:func:`~loosefit.data.rest_drape.settled_rest_drape`).
+:func:`~loosefit.sim.rest_drape.settled_rest_drape`).
 
 **The previous state.** At inference a rollout feeds the encoder its own
 outputs for thousands of frames, while ground-truth previous frames (teacher
@@ -57,7 +57,6 @@ import numpy as np
 import torch
 
 from loosefit.data.format import DatasetReader
-from loosefit.data.rest_drape import settled_rest_drape
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.garment.mesh_checks import hem_loop
@@ -83,6 +82,7 @@ from loosefit.model.physics import (
     physics_terms,
 )
 from loosefit.model.rollout import MOTION_ONLY, RolloutConfig, change_frame
+from loosefit.sim.rest_drape import settled_rest_drape
 from loosefit.train.clips import (
     Clip,
     feature_statistics,
@@ -596,7 +596,7 @@ def train_motion(
         log, progress: where progress lines go; whether to show a tqdm bar.
         rest_state: (V, 3) the garment's settled drape in the rest pose's root frame;
             by default settled with the data set's cloth configuration
-            (:func:`~loosefit.data.rest_drape.settled_rest_drape`, kept in the run folder).
+            (:func:`~loosefit.sim.rest_drape.settled_rest_drape`, kept in the run folder).
 
     Returns:
         The report (also ``out/report.json`` and ``out/report.md``).

@@ -6,7 +6,7 @@
     viewer = view([simulated, ours], names=["simulation", "ours"])  # prints the URL
     viewer.wait()                                                   # until Ctrl-C
 
-``loosefit view SEQUENCE [SEQUENCE ...]`` and :meth:`AnimatedGarment.view` call
+``loosefit view SEQUENCE [SEQUENCE ...]`` and :meth:`loosefit.AnimatedGarment.view` call
 :func:`view`. The pieces: :mod:`~loosefit.view.scene` (sequences, bodies, checks),
 :mod:`~loosefit.view.colouring` (per-vertex values and colour bins, pure functions),
 :mod:`~loosefit.view.server` (the viser server, panel and playback) and

@@ -7,7 +7,7 @@ a frame's values when it shows it):
   sequence (the simulation, say; the frame's RMSE is
   :func:`~loosefit.eval.metrics.rmse_per_frame`'s);
 * :func:`vertex_strain`: ``|length / rest_length - 1|`` of the edges at each vertex
-  (:func:`~loosefit.eval.quality.edge_strain`, the worst edge at the vertex);
+  (:func:`~loosefit.garment.quality.edge_strain`, the worst edge at the vertex);
 * :func:`inside_depth`: how deep each vertex is inside the body, by the winding number
   on the posed body (:class:`~loosefit.geometry.query.Surface`, as
   :func:`~loosefit.eval.penetration.find_penetrations` decides it);
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from loosefit.eval.quality import edge_strain
+from loosefit.garment.quality import edge_strain
 from loosefit.geometry.query import Surface
 from loosefit.types import GarmentTemplate
 
@@ -68,7 +68,7 @@ def vertex_strain(vertices: np.ndarray, template: GarmentTemplate) -> np.ndarray
     """(V,) the largest ``|length / rest_length - 1|`` of the edges at each vertex.
 
     The edges along the waistband are left out (the body sets their length), as in
-    :func:`~loosefit.eval.quality.edge_strain`; a vertex with no other edge gets 0.
+    :func:`~loosefit.garment.quality.edge_strain`; a vertex with no other edge gets 0.
 
     Args:
         vertices: (V, 3) a frame of the garment.

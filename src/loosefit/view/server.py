@@ -49,7 +49,7 @@ class Viewer:
         config: how to serve and start.
 
     The scene and the whole panel are built before the constructor returns: whatever
-    announces :attr:`url` (``loosefit view``'s line, :meth:`AnimatedGarment.view`) does so
+    announces :attr:`url` (``loosefit view``'s line, :meth:`loosefit.AnimatedGarment.view`) does so
     once a browser opening it gets every control.
 
     Attributes:

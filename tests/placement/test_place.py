@@ -1,9 +1,9 @@
 import numpy as np
 import torch
 
-from loosefit.dress import carry_rigidly, fit_skirt, natural_waist_height
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.geometry.query import closest_points
+from loosefit.placement.place import carry_rigidly, fit_skirt, natural_waist_height
 
 
 def test_waist_is_between_hips_and_chest(avatar):

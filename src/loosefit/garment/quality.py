@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.query import closest_points
 from loosefit.types import GarmentTemplate
 

@@ -38,6 +38,8 @@ DRESS_BONES = HIP_BONES + ("Spine1", "LeftShoulder", "RightShoulder", "Neck")
 STRAP_CLEARANCE = 0.006  # m, a strap's top over the shoulder's skin
 ARMPIT_GAP = 0.045  # m, the chest line is where the arms hang this far from the torso
 ATTACH_DEPTH = 0.03  # m, a strap dress is held by its vertices this close to its top
+FIT_REACH = 0.1  # m, the deepest a vertex may be inside the body and be pushed out by
+#   fitting (loosefit.fit.FitConfig.reach's default)
 
 
 def natural_waist_height(avatar: Avatar, step: float = 0.005, band: float = 0.01) -> float:
@@ -139,8 +141,6 @@ def garment_for(
     if suffix in ("obj", "gltf", "glb"):
         return import_garment(spec, avatar)[0]
     if suffix == "npz":
-        from loosefit.fit import check_fitted_shape
-
         template = GarmentTemplate.load(spec)
         check_fitted_shape(template, avatar, spec)  # a --fit garment: on the body it was fitted to
         return template
@@ -390,10 +390,8 @@ def _fit_hint(source, template: GarmentTemplate, avatar: Avatar, depth: float) -
     can reach its deepest vertex; then the import's options."""
     import shlex
 
-    from loosefit.fit import FitConfig
-
     others = "check --units and --kind, or move it with --offset X,Y,Z (metres)"
-    reach = FitConfig().reach
+    reach = FIT_REACH
     if depth > reach:  # --fit would refuse it too: the options first
         return f"{others} (--fit pushes out vertices no deeper than {100 * reach:.0f} cm)"
     command = f"loosefit garment {shlex.quote(str(source))} --fit"
@@ -529,3 +527,20 @@ def import_garment(
     if check:
         check_clear_of_body(template, avatar, path)
     return template, report
+
+
+def check_fitted_shape(template: GarmentTemplate, avatar: Avatar, source="garment") -> None:
+    """Raise if ``template`` was fitted to another body than ``avatar`` (its ``meta["fit"]``)."""
+    fitted = (template.meta or {}).get("fit", {}).get("shape")
+    if not fitted:
+        return
+    mine = {k: float(v) for k, v in avatar.shape.items()}
+    if any(abs(float(v) - mine.get(k, np.nan)) > 1e-6 for k, v in fitted.items()):
+        given = ",".join(f"{k}={float(v):g}" for k, v in fitted.items())
+        raise LoosefitInputError(
+            source,
+            "fit.shape",
+            f"the avatar it was fitted to ({given})",
+            ",".join(f"{k}={v:g}" for k, v in mine.items()),
+            hint=f"simulate with --shape {given}",
+        )

@@ -1,6 +1,6 @@
 """A user's garment file onto the avatar: units, axes, placement, attachment, bad files.
 
-(``loosefit.dress``'s placement and import; ``loosefit.garment.importer``'s reading and
+(``loosefit.placement.place``'s placement and import; ``loosefit.garment.importer``'s reading and
 guesses are exercised through it.)
 """
 
@@ -11,7 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from loosefit.dress import (
+from loosefit.errors import LoosefitInputError
+from loosefit.garment.dress import DressConfig
+from loosefit.garment.importer import UNITS, detect_units, read_garment_mesh
+from loosefit.garment.mesh_checks import boundary_loops, nonmanifold_edges
+from loosefit.garment.obj import write_obj
+from loosefit.placement.place import (
     STRAP_CLEARANCE,
     check_clear_of_body,
     chest_height,
@@ -19,11 +24,6 @@ from loosefit.dress import (
     import_garment,
     natural_waist_height,
 )
-from loosefit.errors import LoosefitInputError
-from loosefit.garment.dress import DressConfig
-from loosefit.garment.importer import UNITS, detect_units, read_garment_mesh
-from loosefit.garment.mesh_checks import boundary_loops, nonmanifold_edges
-from loosefit.garment.obj import write_obj
 
 
 @pytest.fixture(scope="module")
@@ -91,8 +91,8 @@ def test_every_unit_is_recognised_by_the_garment_s_size(dresses, unit):
 
 
 def test_a_skirt_in_metres_with_z_up_keeps_its_units_and_lands_at_the_waist(avatar, tmp_path):
-    from loosefit.dress import fit_skirt
     from loosefit.garment.skirt import SkirtConfig
+    from loosefit.placement.place import fit_skirt
 
     skirt = fit_skirt(avatar, SkirtConfig.preset("cpu", "flared"))
     path = _export(skirt, tmp_path / "skirt.obj", "m", "z", shift=(0.0, 0.0, 0.93))
@@ -183,7 +183,7 @@ def test_a_garment_that_cannot_hang_clear_of_the_body_says_where(dresses, tmp_pa
     assert hint.index(command) < hint.index("--units") < hint.index("--offset X,Y,Z"), hint
     assert min(hint.find(o) for o in ("--units", "--kind dress", "--offset")) > hint.find("--fit")
     # deeper than --fit pushes (10 cm): the options come first, --fit's reach after them
-    from loosefit.dress import _fit_hint
+    from loosefit.placement.place import _fit_hint
 
     deep = _fit_hint(path, import_garment(path, avatar, kind="dress", check=False)[0], avatar,
                      0.25)  # fmt: skip

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.quality import quality
-from loosefit.garment.mesh_checks import unique_edges
+from loosefit.garment.quality import quality
+from loosefit.geometry.edges import unique_edges
 from loosefit.types import GarmentTemplate
 from tests.meshes import cube
 
@@ -42,7 +42,7 @@ def test_quality_on_known_cases():
 def test_strain_is_measured_against_the_rest_shape_not_the_start():
     """A template that starts stretched (a fitted garment, draped): its rest lengths are
     its ``rest_vertices``'."""
-    from loosefit.eval.quality import edge_strain
+    from loosefit.garment.quality import edge_strain
 
     v, f = cube(1.0)
     start = (1.1 * v).astype(np.float32)
