@@ -1,1 +1,2 @@
-"""The body: BVH reading, rotations, resampling, the avatar and retargeting."""
+"""The body: BVH reading, rotations, resampling, the avatar, its regions (:mod:`.regions`)
+and retargeting."""

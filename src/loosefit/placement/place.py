@@ -5,6 +5,8 @@ garment carried by the body.
 * :func:`import_garment`: a user's file in its own units and axes, converted, placed on
   the body (:func:`place_garment`), given its attachment and UVs, and checked to hang
   clear of the body.
+* :func:`check_fitted_shape`: a garment fitted to a body (:mod:`loosefit.fit`, which
+  drapes it in the simulator above this layer) is used on that body only.
 
 Everything here is in the avatar's rest frame (root joint at the origin, see
 :class:`~loosefit.body.avatar.Avatar`) unless a function says otherwise.

@@ -11,7 +11,8 @@ The simulator, bottom up:
   itself made one the cloth can lie outside of, and cloth trapped inside put back.
 * :mod:`~loosefit.sim.timeline`, :mod:`~loosefit.sim.resume`: a clip's body over settle,
   blend and motion; a killed run's saved state.
-* :mod:`~loosefit.sim.driver`: :func:`simulate`, :func:`simulate_batch`, :func:`settle`.
+* :mod:`~loosefit.sim.driver`: :func:`simulate`, :func:`simulate_batch`, :func:`settle`;
+  :mod:`~loosefit.sim.rest_drape`: a data set's garment settled on the rest pose.
 
 Data sets of simulated clips:
 
