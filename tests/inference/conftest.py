@@ -28,10 +28,10 @@ def model():
 def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
     """An untrained model of the coarse skirt with ``decoder`` (weights from a seed)."""
     from loosefit.inference.animator import AnimationModel
+    from loosefit.inference.timeline import RolloutConfig
     from loosefit.model.generative import GarmentGenerativeModel, GenerativeConfig
     from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
     from loosefit.model.motion_features import num_features
-    from loosefit.model.rollout import RolloutConfig
 
     torch.manual_seed(0)
     V, bones = skirt.num_vertices, 4
@@ -47,6 +47,15 @@ def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
     enc = DynamicMotionEncoder(gen, num_features(J), MotionEncoderConfig(
         motion_fc=8, gru=8, previous_state=previous_state)).eval()  # fmt: skip
     rest = torch.from_numpy(skirt.vertices).float() - torch.tensor([0, 0, avatar.floor_height])
-    return AnimationModel(gen, enc, skirt, rest, tuple(avatar.joint_names),
-                          float(avatar.floor_height), 30.0, {}, RolloutConfig(),
-                          "tiny.pt")  # fmt: skip
+    return AnimationModel(
+        generative=gen,
+        encoder=enc,
+        template=skirt,
+        rest_state=rest,
+        joint_names=tuple(avatar.joint_names),
+        floor_height=float(avatar.floor_height),
+        fps=30.0,
+        body={},
+        rollout_config=RolloutConfig(),
+        path="tiny.pt",
+    )

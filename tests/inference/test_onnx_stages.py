@@ -12,7 +12,7 @@ import torch
 
 from loosefit.api import motion_for
 from loosefit.errors import LoosefitInputError
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.sequence import AnimatedGarment
 from tests.inference.conftest import needs_ort, tiny_model
 
@@ -79,7 +79,7 @@ def test_an_encoder_without_the_previous_state_runs_too(skirt, avatar):
 
 
 def test_onnx_runtime_refusals_are_clear(model, monkeypatch, tmp_path):
-    from loosefit.inference.animator import BaselineModel
+    from loosefit.inference.baseline import BaselineModel
     from loosefit.model.baselines import BaselineConfig, BaselineNetwork
 
     m = model.model
@@ -89,8 +89,16 @@ def test_onnx_runtime_refusals_are_clear(model, monkeypatch, tmp_path):
     V = m.template.num_vertices
     net = BaselineNetwork(BaselineConfig(method="virtual-bones", motion_fc=8, gru=8, head_hidden=8),
                           m.encoder.num_features, torch.zeros(V, 3), torch.zeros(V, 4))  # fmt: skip
-    baseline = BaselineModel(net, m.template, m.joint_names, m.floor_height, m.fps, m.body,
-                             m.rollout_config, tmp_path / "baseline.pt")  # fmt: skip
+    baseline = BaselineModel(
+        network=net,
+        template=m.template,
+        joint_names=m.joint_names,
+        floor_height=m.floor_height,
+        fps=m.fps,
+        body=m.body,
+        rollout_config=m.rollout_config,
+        path=tmp_path / "baseline.pt",
+    )
     with pytest.raises(
         LoosefitInputError, match=r"baseline\.pt.*runtime.*'virtual-bones' baseline"
     ):

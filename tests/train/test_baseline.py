@@ -13,8 +13,8 @@ from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
 from loosefit.eval.rollouts import evaluate_rollouts
+from loosefit.inference.stages import Stages
 from loosefit.model.baselines import BaselineConfig
-from loosefit.model.rollout import Stages
 from loosefit.sequence import AnimatedGarment
 from loosefit.train import baseline as tb
 

@@ -106,7 +106,7 @@ def _clip_and_arms(args: argparse.Namespace, source: Path):
 
     from loosefit.data.format import DatasetReader
     from loosefit.dress import collider_arms
-    from loosefit.inference.animator import arm_collision_of
+    from loosefit.inference.model_common import arm_collision_of
     from loosefit.sequence import read_any_sequence
 
     if source.is_dir():

@@ -12,7 +12,7 @@ in the body's root frame, as the learned models do everywhere here:
   (:mod:`loosefit.geometry.skin_transfer`); the GRU predicts per-vertex
   displacements of the garment in the unposed space, ``x = LBS(T + D(h_t),
   W, G_t)`` with ``G_t`` the joints' transforms of frame t. Their post-process
-  pushes vertices out of the body (:class:`~loosefit.geometry.collision.PushOutHandler`).
+  pushes vertices out of the body (:class:`~loosefit.inference.stages.push_out.PushOutHandler`).
 * ``virtual-bones`` (Pan et al. 2022, "Predicting loose-fitting garment
   deformations using bone-driven motion networks", the paper's [21]): a
   skinning decomposition of the training frames (SSDR, Dem Bones,
@@ -213,25 +213,26 @@ def baseline_rollout(
         network: a trained :class:`BaselineNetwork`.
         motion: T frames on the skeleton it was trained on.
         floor_height: the avatar's standing root height (for the timeline and features).
-        config: the preroll (:class:`~loosefit.model.rollout.RolloutConfig`), as in training.
+        config: the preroll (:class:`~loosefit.inference.timeline.RolloutConfig`), as in training.
         pose_joints: Santesteban: ``pose_joints(start, stop) -> (n, J, 4, 4)`` the
             avatar's rest -> world joint transforms of those motion frames.
         progress: called as ``progress(done, total)``.
         chunk: motion frames decoded at once.
 
     Returns:
-        :class:`~loosefit.model.rollout.RolloutResult`, (T, V, 3) world positions.
+        :class:`~loosefit.inference.rollout.RolloutResult`, (T, V, 3) world positions.
     """
     import time
 
     from loosefit.geometry.skinning import root_frame_transforms
+    from loosefit.inference.rollout import RolloutResult, check_garment, timeline
+    from loosefit.inference.timeline import RolloutConfig
     from loosefit.model.motion_features import (
         feature_joints,
         from_root_frame,
         motion_features,
         root_frames,
     )
-    from loosefit.model.rollout import RolloutConfig, RolloutResult, check_garment, timeline
 
     config = config or RolloutConfig()
     network.eval()

@@ -8,14 +8,14 @@ import torch
 import trimesh
 
 from loosefit.errors import LoosefitInputError
-from loosefit.geometry.collision import (
+from loosefit.geometry.query import Surface
+from loosefit.inference.stages.collision import (
     REALTIME,
     BodyCollider,
     CollisionConfig,
     CollisionHandler,
     collision_setting,
 )
-from loosefit.geometry.query import Surface
 from tests.meshes import grid
 
 
@@ -259,7 +259,7 @@ def test_config_and_shape_checks():
 
 
 def test_push_out_moves_each_close_vertex_along_the_normal_to_epsilon():
-    from loosefit.geometry.collision import PushOutHandler
+    from loosefit.inference.stages.push_out import PushOutHandler
 
     sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
     v, f = _sheet(30, 0.4, 0.28)

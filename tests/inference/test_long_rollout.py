@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from loosefit.body.chain import chain_motions
+from loosefit.inference.stages import MOTION_ONLY
 from loosefit.model.motion_features import garment_in_root_frame
-from loosefit.model.rollout import MOTION_ONLY
 
 
 @pytest.mark.slow

@@ -8,8 +8,8 @@ import pytest
 import torch
 import trimesh
 
-from loosefit.geometry.collision import CollisionConfig, CollisionHandler
 from loosefit.geometry.query import Surface
+from loosefit.inference.stages.collision import CollisionConfig, CollisionHandler
 from tests.conftest import REPO, SALSA, needs_salsa
 from tests.geometry.test_collision import _sheet, _two_spheres
 
@@ -165,7 +165,7 @@ def test_rays_count_the_winding_number_where_body_parts_overlap():
 def test_the_fast_path_over_a_real_rollout():
     from loosefit.body.motions import load_motion
     from loosefit.inference.animator import load_pipeline
-    from loosefit.model.rollout import Stages
+    from loosefit.inference.stages import Stages
 
     model = load_pipeline(REPO / "checkpoints" / "salsa" / "motion.pt")
     motion = load_motion(SALSA / "60_01.bvh", model.avatar(), fps=model.fps, start_frame=10,
