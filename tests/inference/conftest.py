@@ -40,12 +40,20 @@ def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
         weights = torch.softmax(torch.randn(V, bones), -1).numpy()
         mean = np.tile(np.eye(3, 4, dtype=np.float32), (bones, 1, 1))
         ssdr = (skirt.vertices, weights, mean)
-    config = GenerativeConfig(decoder=decoder, uv_size=32, channels=(4, 4, 4, 4), latent=8,
-                              half=4, rec_hidden=(8, 8, 8), ssdr_bones=bones)  # fmt: skip
+    config = GenerativeConfig(
+        decoder=decoder,
+        uv_size=32,
+        channels=(4, 4, 4, 4),
+        latent=8,
+        half=4,
+        rec_hidden=(8, 8, 8),
+        ssdr_bones=bones,
+    )
     gen = GarmentGenerativeModel(skirt, config, ssdr).eval()
     J = len(avatar.joint_names)
-    enc = DynamicMotionEncoder(gen, num_features(J), MotionEncoderConfig(
-        motion_fc=8, gru=8, previous_state=previous_state)).eval()  # fmt: skip
+    enc = DynamicMotionEncoder(
+        gen, num_features(J), MotionEncoderConfig(motion_fc=8, gru=8, previous_state=previous_state)
+    ).eval()
     rest = torch.from_numpy(skirt.vertices).float() - torch.tensor([0, 0, avatar.floor_height])
     return AnimationModel(
         generative=gen,

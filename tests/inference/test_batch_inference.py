@@ -18,8 +18,10 @@ def model():
 
 def test_a_batch_of_motions_animates_each_as_alone(model):
     avatar = model.model.avatar()
-    motions = [loosefit.api.motion_for(spec, avatar, model.fps, frames)
-               for spec, frames in (("sway", 40), ("spin", 25), ("kick", 33))]  # fmt: skip
+    motions = [
+        loosefit.api.motion_for(spec, avatar, model.fps, frames)
+        for spec, frames in (("sway", 40), ("spin", 25), ("kick", 33))
+    ]
     for stages in (MOTION_ONLY, Stages()):  # the motion stage; then detail and collision too
         batch = model.model.animate_batch(motions, stages=stages)
         for m, b in zip(motions, batch, strict=True):

@@ -37,8 +37,9 @@ def test_onnx_runtime_animates_the_torch_frames_over_300_frames(model):
     np.testing.assert_allclose(got.codes, want.codes, atol=1e-4)
     # the detail and length stages ran on what the graphs gave
     assert _gap(got.vertices, got.decoded).max() > 1e-3
-    assert set(got.stage_cpu_seconds) == set(want.stage_cpu_seconds) == {
-        "motion", "detail", "lengths"}  # fmt: skip
+    assert (
+        set(got.stage_cpu_seconds) == set(want.stage_cpu_seconds) == {"motion", "detail", "lengths"}
+    )
     assert set(got.stage_seconds) == set(want.stage_seconds)
 
 
@@ -87,8 +88,12 @@ def test_onnx_runtime_refusals_are_clear(model, monkeypatch, tmp_path):
     with pytest.raises(LoosefitInputError, match=r"runtime.*'torch' or 'onnx'.*'tensorrt'"):
         m.animate(motion, runtime="tensorrt")
     V = m.template.num_vertices
-    net = BaselineNetwork(BaselineConfig(method="virtual-bones", motion_fc=8, gru=8, head_hidden=8),
-                          m.encoder.num_features, torch.zeros(V, 3), torch.zeros(V, 4))  # fmt: skip
+    net = BaselineNetwork(
+        BaselineConfig(method="virtual-bones", motion_fc=8, gru=8, head_hidden=8),
+        m.encoder.num_features,
+        torch.zeros(V, 3),
+        torch.zeros(V, 4),
+    )
     baseline = BaselineModel(
         network=net,
         template=m.template,
@@ -139,8 +144,10 @@ def test_a_batch_through_onnx_gives_each_motion_its_torch_garment(model):
     characters, the garments PyTorch's batch gives; with ``collision="realtime"`` each
     motion's garment is the one its own realtime ``animate`` gives."""
     m = model.model
-    motions = [motion_for(spec, m.avatar(), model.fps, n, seed=3)
-               for spec, n in (("dance:4", 40), ("spin", 28))]  # fmt: skip
+    motions = [
+        motion_for(spec, m.avatar(), model.fps, n, seed=3)
+        for spec, n in (("dance:4", 40), ("spin", 28))
+    ]
     want = m.animate_batch(motions, stages=MOTION_ONLY)
     got = m.animate_batch(motions, stages=MOTION_ONLY, runtime="onnx")
     for w, g, motion in zip(want, got, motions, strict=True):

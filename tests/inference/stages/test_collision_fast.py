@@ -70,8 +70,12 @@ def _both(bv, bf, v, f, rest=False, **cfg):
     """Today's result and the fast path's, each on its own surface."""
     out = []
     for fast in (False, True):
-        handler = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, fast=fast, **cfg),
-                                   rest=v.astype(np.float64) if rest else None)  # fmt: skip
+        handler = CollisionHandler(
+            f,
+            len(v),
+            CollisionConfig(reach=0.2, fast=fast, **cfg),
+            rest=v.astype(np.float64) if rest else None,
+        )
         surface = Surface(bv, bf, winding_number=not fast)
         out.append(handler.resolve(torch.from_numpy(np.asarray(v, np.float32)), surface))
     return out
@@ -168,8 +172,9 @@ def test_the_fast_path_over_a_real_rollout():
     from loosefit.inference.stages import Stages
 
     model = load_pipeline(REPO / "checkpoints" / "salsa" / "motion.pt")
-    motion = load_motion(SALSA / "60_01.bvh", model.avatar(), fps=model.fps, start_frame=10,
-                         max_frames=40)  # fmt: skip
+    motion = load_motion(
+        SALSA / "60_01.bvh", model.avatar(), fps=model.fps, start_frame=10, max_frames=40
+    )
     stages = Stages(overlap=False)
     assert model.collision.fast  # the default
     fast = model.animate(motion, stages=stages)
