@@ -68,8 +68,8 @@ def evaluate_rollouts(
         reference: score the settled drape carried by the root (the model's
             ``carry_drape``) instead of its rollout.
         restart_every: reset the rollout's previous state to the simulated garment
-            every this many frames (:func:`~loosefit.inference.rollout.rollout`'s
-            ``truth``), to measure drift on the same frames.
+            every this many frames (:class:`~loosefit.inference.rollout.RestartFromTruth`),
+            to measure drift on the same frames.
         oracle: score the generative model's reconstruction of the simulated
             garment (the model's ``reconstruct``) instead: the floor under the motion
             encoder's error.
