@@ -3,7 +3,7 @@
 Procedural dances of ``--frames`` frames each (the packaged salsa model, 2,352 vertices),
 with ``--threads`` torch threads:
 
-* the motion stage alone (:func:`loosefit.model.rollout.rollout_batch`, one network call
+* the motion stage alone (:func:`loosefit.inference.rollout.rollout_batch`, one network call
   per frame for all N), N = ``--sizes``;
 * the whole pipeline as :meth:`~loosefit.inference.animator.AnimationModel.animate_batch`
   runs it (the batched motion stage, then each character's detail, edge lengths and
@@ -39,9 +39,10 @@ import torch
 
 import loosefit
 from loosefit.api import motion_for
-from loosefit.geometry.collision import COLLISION_SETTINGS
-from loosefit.inference.animator import RUNTIMES
-from loosefit.model.rollout import MOTION_ONLY, Stages, rollout_batch
+from loosefit.inference.model_common import RUNTIMES
+from loosefit.inference.rollout import MotionStage, rollout_batch
+from loosefit.inference.stages import MOTION_ONLY, Stages
+from loosefit.inference.stages.collision import COLLISION_SETTINGS
 
 
 def paper_scale(model):
@@ -150,7 +151,8 @@ def main() -> int:
         def motion_stage(n, g=gen, e=enc, r=rest, packaged=gen is m.generative):
             if packaged and args.runtime == "onnx":
                 return m.animate_batch(dances[:n], stages=MOTION_ONLY, runtime="onnx")
-            return rollout_batch(g, e, dances[:n], r, m.floor_height, m.rollout_config)
+            stage = MotionStage(g, e, r, m.floor_height, m.rollout_config)
+            return rollout_batch(stage, dances[:n])
 
         motion_stage(1)  # warm-up (the onnx runtime's graphs exported)
         for n in sizes:

@@ -26,7 +26,7 @@ import torch
 from loosefit.body.motions import load_motion
 from loosefit.geometry.edges import unique_edges
 from loosefit.inference.animator import load_pipeline
-from loosefit.model.rollout import Stages
+from loosefit.inference.stages import Stages
 
 
 def accelerations(x: np.ndarray) -> np.ndarray:

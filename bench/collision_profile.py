@@ -21,9 +21,9 @@ import torch
 
 from loosefit.body.motions import load_motion
 from loosefit.geometry import query
-from loosefit.geometry.collision import COLLISION_SETTINGS, collision_setting
 from loosefit.inference.animator import load_pipeline
-from loosefit.model.rollout import Stages
+from loosefit.inference.stages import Stages
+from loosefit.inference.stages.collision import COLLISION_SETTINGS, collision_setting
 
 
 def main() -> None:

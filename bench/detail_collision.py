@@ -34,7 +34,7 @@ import torch
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
 from loosefit.garment.quality import edge_strain
 from loosefit.inference.animator import attach_detail, load_pipeline
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.train.common import machine
 
 ROWS = {  # label: stages

@@ -23,7 +23,7 @@ from PIL import Image
 
 from loosefit.data.format import DatasetReader
 from loosefit.inference.animator import attach_detail, load_pipeline
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.render.camera import CameraView
 from loosefit.render.renderer import RenderConfig
 from loosefit.render.video import comparison_sheet

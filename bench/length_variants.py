@@ -27,8 +27,8 @@ import torch
 from stage_account import clip_reference  # bench/, beside this file
 
 from loosefit.inference.animator import load_pipeline
-from loosefit.model.physics import LengthConfig
-from loosefit.model.rollout import Stages
+from loosefit.inference.stages import Stages
+from loosefit.inference.stages.lengths import LengthConfig
 from loosefit.train.common import machine
 
 VARIANTS = {  # label: the edge-length stage (None: as committed)

@@ -26,7 +26,7 @@ from loosefit.data.format import DatasetReader
 from loosefit.eval.report import write_rollout_report
 from loosefit.eval.rollouts import HORIZONS, evaluate_rollouts
 from loosefit.inference.animator import load_animation_model
-from loosefit.model.rollout import MOTION_ONLY
+from loosefit.inference.stages import MOTION_ONLY
 from loosefit.train.motion import TrainMotionConfig, train_motion
 
 RUNS = {

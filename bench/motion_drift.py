@@ -30,7 +30,7 @@ from motion_ablation import RUNS  # the Table 1 runs (bench/ is on the path of a
 from loosefit.data.format import DatasetReader
 from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.inference.animator import load_animation_model
-from loosefit.model.rollout import MOTION_ONLY
+from loosefit.inference.stages import MOTION_ONLY
 
 EVERY = (1, 100, 500, 1200, None)
 

@@ -30,7 +30,7 @@ from loosefit.api import motion_for
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
 from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.inference.stages import MOTION_ONLY, Stages
 
 WITH_DETAIL = Stages(lengths=False, collision=False, overlap=False)
 
@@ -50,7 +50,7 @@ def timed(run, repeats: int) -> tuple[dict, np.ndarray]:
 def print_batches(args, model, frames: int) -> None:
     """The graph with the detail stage stepping B characters at once (B procedural dances),
     one thread: frames per second counting every character's frames, preroll included."""
-    from loosefit.body.chain import rollout_timeline
+    from loosefit.inference.timeline import rollout_timeline
 
     sizes = [int(b) for b in args.batch.split(",")]
     rc = model.rollout_config

@@ -31,8 +31,8 @@ from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
 from loosefit.garment.quality import edge_strain
 from loosefit.inference.animator import load_pipeline
+from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.model.motion_features import heading_yaw
-from loosefit.model.rollout import MOTION_ONLY, Stages
 from loosefit.sim.presets import BALLET_CLIPS
 from loosefit.train.common import machine
 
@@ -243,7 +243,7 @@ def ablation_figures(ablation: Path, cache: Path, reader, seq, body, body_faces,
     from generative_ablation import DECODERS
 
     from loosefit.inference.checkpoints import load_generative
-    from loosefit.model.rollout import reconstruction
+    from loosefit.inference.references import reconstruction
 
     truth = seq.garment_vertices
     recon = {}

@@ -45,9 +45,9 @@ import numpy as np
 import torch
 
 from loosefit.body.motions import load_motion
-from loosefit.geometry.collision import CollisionConfig, collision_setting
 from loosefit.inference.animator import load_pipeline
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.inference.stages import MOTION_ONLY, Stages
+from loosefit.inference.stages.collision import CollisionConfig, collision_setting
 
 BEFORE_34 = CollisionConfig(iterations=6, finish=0, whole_body=False, fast=False)  # issue 34
 BEFORE_37 = CollisionConfig(fast=False)  # collision handling as before issue 37's fast path

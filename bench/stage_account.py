@@ -6,7 +6,7 @@ motion and measured against the simulation:
 
 * ``simulation``: the ground truth itself;
 * ``oracle``: the generative model's own reconstruction of the truth (encode, decode);
-* ``oracle + lengths``: that, with the edge-length stage (physics.LengthRestorer);
+* ``oracle + lengths``: that, with the edge-length stage (stages.lengths.LengthRestorer);
 * ``motion stage``: the rollout's decoded garment;
 * ``+ detail``: with the detail stage (paper 3.4);
 * ``today``: + collision handling as before issue 34 (the arms out of the collider, no
@@ -49,17 +49,12 @@ import torch
 from loosefit.eval.metrics import hausdorff, rmse, sted
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.garment.quality import PENETRATION_TOLERANCE
-from loosefit.geometry.collision import CollisionConfig
 from loosefit.geometry.query import Surface
 from loosefit.inference.animator import load_pipeline
+from loosefit.inference.stages import MOTION_ONLY, Stages
+from loosefit.inference.stages.collision import CollisionConfig
 from loosefit.model.motion_features import heading_yaw
-from loosefit.model.physics import (
-    ClothStructure,
-    dihedral_angles,
-    hem_radius,
-    signed_edge_change,
-)
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.model.physics import ClothStructure, dihedral_angles, hem_radius, signed_edge_change
 from loosefit.train.common import machine
 
 STAGES = {  # label: stages (None: not a rollout)

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from loosefit.geometry.collision import CollisionConfig
 from loosefit.inference.animator import load_pipeline
-from loosefit.model.rollout import Stages
+from loosefit.inference.stages import Stages
+from loosefit.inference.stages.collision import CollisionConfig
 from loosefit.render.renderer import RenderConfig
 from loosefit.render.video import comparison_sheet
 

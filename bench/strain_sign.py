@@ -21,7 +21,7 @@ from loosefit.data.format import DatasetReader
 from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.laplacian import laplacian_matrix
 from loosefit.inference.animator import load_pipeline
-from loosefit.model.rollout import MOTION_ONLY
+from loosefit.inference.stages import MOTION_ONLY
 from loosefit.train.common import machine
 
 

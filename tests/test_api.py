@@ -86,13 +86,9 @@ def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so
 
     from loosefit.api import pretrained_checkpoint
     from loosefit.inference.checkpoints import load_torch
-    from loosefit.model.physics import (
-        PHYSICS_TERMS,
-        ClothStructure,
-        hanging_edges,
-        signed_edge_change,
-    )
-    from loosefit.model.rollout import Stages
+    from loosefit.inference.stages import Stages
+    from loosefit.inference.stages.lengths import hanging_edges
+    from loosefit.model.physics import PHYSICS_TERMS, ClothStructure, signed_edge_change
 
     # the committed set was trained with every physics term
     assert model.model.missing_physics_terms == ()
@@ -145,14 +141,15 @@ def _imports_in_fresh_interpreter(modules: list[str]) -> set[str]:
 
 
 def test_the_model_package_imports_neither_the_simulator_nor_the_datasets():
-    """Every module of ``loosefit.model`` (the networks and the rollout) loads without newton,
+    """Every module of ``loosefit.model`` (the networks), and the rollout, load without newton,
     warp, sim/, data/ or train/."""
     import pkgutil
 
     import loosefit.model
 
     modules = [f"loosefit.model.{m.name}" for m in pkgutil.iter_modules(loosefit.model.__path__)]
-    assert "loosefit.model.rollout" in modules and len(modules) >= 8
+    assert "loosefit.model.generative" in modules and len(modules) >= 8
+    modules += ["loosefit.inference.rollout", "loosefit.inference.timeline"]
     loaded = _imports_in_fresh_interpreter(modules)
     bad = [m for m in loaded if m.split(".")[0] in ("newton", "warp")
            or m.startswith(("loosefit.sim", "loosefit.data", "loosefit.train"))]  # fmt: skip
@@ -202,9 +199,9 @@ def test_nothing_outside_training_imports_train():
 
 
 def test_a_configured_block_gives_the_model_its_own_stages_back(model):
-    from loosefit.geometry.collision import CollisionConfig
-    from loosefit.model.physics import LengthConfig
-    from loosefit.model.rollout import Stages
+    from loosefit.inference.stages import Stages
+    from loosefit.inference.stages.collision import CollisionConfig
+    from loosefit.inference.stages.lengths import LengthConfig
 
     m = model.model
     own = m.restorer(Stages())

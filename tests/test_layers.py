@@ -17,30 +17,20 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "loosefit"
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),  # LoosefitInputError
     ("types", "atomic", "progress"),  # Motion, GarmentTemplate; atomic writes; progress bars
-    ("geometry",),  # pure mesh geometry: edges, normals, skinning, queries, collision
+    ("geometry",),  # pure mesh geometry: edges, normals, skinning, queries, signed distances
     ("body",),  # the avatar, motions, body regions
     ("garment",),  # parametric garments, garment files, mesh checks, quality figures
     ("placement", "export", "model"),  # garments on the body; exporters; the networks
     ("sequence",),  # AnimatedGarment, in memory and on disk
     ("data",),  # the data set format and readers
-    ("sim", "eval"),  # the simulator and data sets of it; metrics and rollout scores
-    ("fit", "render", "view"),  # a garment fitted by draping it; the renderer; the viewer
-    ("inference",),  # the runtime: checkpoints, animator, ONNX
+    ("sim", "render"),  # the simulator and data sets of it; the renderer
+    ("inference",),  # the runtime: checkpoints, the rollout and its stages, ONNX
+    ("eval", "fit"),  # metrics and a model's rollouts scored; a garment fitted by draping it
+    ("view",),  # the viewer (colours by the metrics)
     ("train",),  # the training stages
     ("api",),  # the Python API
     ("cli",),  # the `loosefit` commands
     ("__init__", "__main__"),  # the package itself: the API imported on first use
-)
-
-# Imports that point the wrong way through files another change is restructuring; each
-# entry is (file under src/loosefit, unit imported). Remove an entry once its import is gone
-# (the test fails on one that no longer matches, so it cannot linger).
-ALLOWED: frozenset[tuple[str, str]] = frozenset(
-    {
-        # geometry/collision.py imports unique_edges from garment.mesh_checks; its home is
-        # geometry/edges.py now, and collision.py is being restructured elsewhere
-        ("geometry/collision.py", "garment"),
-    }
 )
 
 
@@ -87,15 +77,12 @@ def test_every_unit_has_a_layer():
 def test_every_import_points_down():
     layer = _layer_of()
     units = set(layer)
-    bad, used = [], set()
+    bad = []
     for rel in _modules():
         unit = _unit(rel)
         tree = ast.parse((PACKAGE / rel).read_text(), filename=str(rel))
         for line, target, statement in _imported_units(rel, tree, units):
             if target == unit or layer[target] < layer[unit]:
-                continue
-            if (rel.as_posix(), target) in ALLOWED:
-                used.add((rel.as_posix(), target))
                 continue
             way = "within its layer" if layer[target] == layer[unit] else "up"
             bad.append(
@@ -103,8 +90,6 @@ def test_every_import_points_down():
                 f"{target} (layer {layer[target]}), {way}: {statement}"
             )
     assert not bad, "imports that do not point down:\n" + "\n".join(bad)
-    stale = sorted(ALLOWED - used)
-    assert not stale, f"allowed imports that are gone (remove them from ALLOWED): {stale}"
 
 
 def test_the_reading_resolves_relative_and_package_imports():

@@ -41,7 +41,8 @@ def _checkpoint(path, fmt: str, marker) -> pathlib.Path:
 @pytest.mark.parametrize("fmt", ["loosefit.generative/1", "loosefit.motion/1",
                                  "loosefit.detail/1", "loosefit.baseline/1"])  # fmt: skip
 def test_a_checkpoint_with_a_pickled_object_is_refused(tmp_path, marker, fmt):
-    from loosefit.inference.animator import load_baseline, load_pipeline
+    from loosefit.inference.animator import load_pipeline
+    from loosefit.inference.baseline import load_baseline
     from loosefit.inference.checkpoints import load_generative
 
     path = _checkpoint(tmp_path / "evil.pt", fmt, marker)

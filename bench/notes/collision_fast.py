@@ -20,9 +20,9 @@ import numpy as np
 import torch
 
 from loosefit.body.motions import load_motion
-from loosefit.geometry.collision import CollisionConfig
 from loosefit.inference.animator import load_pipeline
-from loosefit.model.rollout import Stages
+from loosefit.inference.stages import Stages
+from loosefit.inference.stages.collision import CollisionConfig
 
 
 def compare(model, motion) -> dict:

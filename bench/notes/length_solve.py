@@ -1,6 +1,6 @@
 """The edge-length stage's solve on one core: the dense inverse it had against the banded one.
 
-:class:`~loosefit.model.physics.LengthRestorer`'s rounds solve one fixed system of the
+:class:`~loosefit.inference.stages.lengths.LengthRestorer`'s rounds solve one fixed system of the
 garment's free vertices for every coordinate of every frame of a chunk. Before issue 37
 that was one product with its dense float32 inverse; now it is the banded Cholesky
 factor taken by blocks (:mod:`loosefit.geometry.banded`). On the committed salsa
@@ -33,7 +33,7 @@ import torch
 
 from loosefit.body.motions import load_motion
 from loosefit.inference.animator import load_pipeline
-from loosefit.model.rollout import Stages
+from loosefit.inference.stages import Stages
 from loosefit.train.common import machine
 
 CHUNK = 64  # frames a call (the rollout's chunk)

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from loosefit import sequence
 from loosefit.errors import LoosefitInputError
+from loosefit.inference.protocols import AnimatingModel, BatchAnimatingModel
 from loosefit.types import GarmentTemplate, Motion
 
 PRETRAINED = "dance"  # the default set's folder under loosefit/pretrained
@@ -127,12 +128,13 @@ class Animator:
     """A trained model (ours, or a baseline) ready to animate its garment.
 
     Attributes:
-        model: the loaded stages (:class:`~loosefit.inference.animator.AnimationModel` or a
-            :class:`~loosefit.inference.animator.BaselineModel`).
+        model: the loaded stages, an :class:`~loosefit.inference.protocols.AnimatingModel`
+            (:class:`~loosefit.inference.animator.AnimationModel` or a
+            :class:`~loosefit.inference.baseline.BaselineModel`).
         path: the checkpoint it came from.
     """
 
-    def __init__(self, model, path: Path) -> None:
+    def __init__(self, model: AnimatingModel, path: Path) -> None:
         self.model, self.path = model, Path(path)
 
     @property
@@ -173,7 +175,7 @@ class Animator:
             start_frame: the motion's first frame to use.
             seed: seeds procedural motions.
             stages: which stages run after the decoders
-                (:class:`~loosefit.model.rollout.Stages`; default all).
+                (:class:`~loosefit.inference.stages.Stages`; default all).
             progress: called as ``progress(done, total)``.
             runtime: what runs the learned stages: ``"torch"`` (PyTorch), or ``"onnx"``
                 (onnxruntime: the same garments, faster on one core; ``pip install
@@ -222,7 +224,7 @@ class Animator:
         Raises:
             LoosefitInputError: a motion on other joints, at another rate, or unreadable.
         """
-        if not hasattr(self.model, "animate_batch"):
+        if not isinstance(self.model, BatchAnimatingModel):
             raise LoosefitInputError(
                 self.path,
                 "model",

@@ -6,7 +6,7 @@ avatar's rest body. :func:`fit_garment` takes it anyway, in three steps:
 1. it is placed as any garment file is (units, axes, the placement rules of
    :mod:`loosefit.placement.place`), then every vertex is pushed out of the rest body by the
    project's collision handling, which keeps the mesh's Laplacian (paper Eq. 16,
-   :class:`~loosefit.geometry.collision.CollisionHandler`): a dent, not a spike;
+   :class:`~loosefit.inference.stages.collision.CollisionHandler`): a dent, not a spike;
 2. it drapes on the avatar standing still in the simulator (the settle phase every
    clip starts with, :func:`~loosefit.sim.driver.settle`), so its top sits on the body;
 3. the largest and mean displacement (the placed input to the fitted garment) and what is
@@ -148,8 +148,8 @@ def inside_of(template_vertices: np.ndarray, avatar: Avatar, arms) -> tuple[int,
 def push_out(template: GarmentTemplate, avatar: Avatar, config: FitConfig) -> np.ndarray:
     """(V, 3) the template's vertices pushed out of the avatar's rest body, ``clearance``
     outside it, keeping the mesh's Laplacian (Eq. 16)."""
-    from loosefit.geometry.collision import CollisionConfig, CollisionHandler
     from loosefit.geometry.query import Surface
+    from loosefit.inference.stages.collision import CollisionConfig, CollisionHandler
     from loosefit.placement.place import collider_arms
 
     faces = avatar.collider_faces(arms=collider_arms(template)).cpu().numpy()

@@ -28,10 +28,10 @@ def model():
 def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
     """An untrained model of the coarse skirt with ``decoder`` (weights from a seed)."""
     from loosefit.inference.animator import AnimationModel
+    from loosefit.inference.timeline import RolloutConfig
     from loosefit.model.generative import GarmentGenerativeModel, GenerativeConfig
     from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
     from loosefit.model.motion_features import num_features
-    from loosefit.model.rollout import RolloutConfig
 
     torch.manual_seed(0)
     V, bones = skirt.num_vertices, 4
@@ -40,13 +40,30 @@ def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
         weights = torch.softmax(torch.randn(V, bones), -1).numpy()
         mean = np.tile(np.eye(3, 4, dtype=np.float32), (bones, 1, 1))
         ssdr = (skirt.vertices, weights, mean)
-    config = GenerativeConfig(decoder=decoder, uv_size=32, channels=(4, 4, 4, 4), latent=8,
-                              half=4, rec_hidden=(8, 8, 8), ssdr_bones=bones)  # fmt: skip
+    config = GenerativeConfig(
+        decoder=decoder,
+        uv_size=32,
+        channels=(4, 4, 4, 4),
+        latent=8,
+        half=4,
+        rec_hidden=(8, 8, 8),
+        ssdr_bones=bones,
+    )
     gen = GarmentGenerativeModel(skirt, config, ssdr).eval()
     J = len(avatar.joint_names)
-    enc = DynamicMotionEncoder(gen, num_features(J), MotionEncoderConfig(
-        motion_fc=8, gru=8, previous_state=previous_state)).eval()  # fmt: skip
+    enc = DynamicMotionEncoder(
+        gen, num_features(J), MotionEncoderConfig(motion_fc=8, gru=8, previous_state=previous_state)
+    ).eval()
     rest = torch.from_numpy(skirt.vertices).float() - torch.tensor([0, 0, avatar.floor_height])
-    return AnimationModel(gen, enc, skirt, rest, tuple(avatar.joint_names),
-                          float(avatar.floor_height), 30.0, {}, RolloutConfig(),
-                          "tiny.pt")  # fmt: skip
+    return AnimationModel(
+        generative=gen,
+        encoder=enc,
+        template=skirt,
+        rest_state=rest,
+        joint_names=tuple(avatar.joint_names),
+        floor_height=float(avatar.floor_height),
+        fps=30.0,
+        body={},
+        rollout_config=RolloutConfig(),
+        path="tiny.pt",
+    )

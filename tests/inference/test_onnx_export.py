@@ -22,7 +22,7 @@ from loosefit.inference.onnx_export import (
     export_onnx,
 )
 from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.inference.stages import MOTION_ONLY, Stages
 from tests.inference.conftest import needs_ort, tiny_model
 
 DETAIL_ONLY = Stages(lengths=False, collision=False, overlap=False)  # what the graph holds
@@ -59,8 +59,9 @@ def test_a_batch_of_characters_steps_as_each_alone(model, exported):
     for t in range(6):
         batch, state = runtime.step(rot[:, t], root[:, t], state, start=t == 0)
         for i in range(3):
-            one, alone[i] = runtime.step(rot[i : i + 1, t], root[i : i + 1, t], alone[i],
-                                         start=t == 0)  # fmt: skip
+            one, alone[i] = runtime.step(
+                rot[i : i + 1, t], root[i : i + 1, t], alone[i], start=t == 0
+            )
             np.testing.assert_allclose(batch[i], one[0], atol=1e-5)
     # a character restarted alone (start for it only) leaves the others as they were
     restart = np.array([False, True, False])
@@ -100,8 +101,10 @@ def test_the_json_says_what_the_inputs_mean(model, exported):
     import onnxruntime as ort
 
     session = ort.InferenceSession(str(exported), providers=["CPUExecutionProvider"])
-    for got, names, table in ((session.get_inputs(), INPUTS, meta["inputs"]),
-                              (session.get_outputs(), OUTPUTS, meta["outputs"])):  # fmt: skip
+    for got, names, table in (
+        (session.get_inputs(), INPUTS, meta["inputs"]),
+        (session.get_outputs(), OUTPUTS, meta["outputs"]),
+    ):
         assert [x.name for x in got] == list(names) == list(table)
         for x in got:
             assert x.shape[1:] == table[x.name]["shape"][1:], x.name
@@ -110,16 +113,27 @@ def test_the_json_says_what_the_inputs_mean(model, exported):
 
 
 def test_unsupported_stages_are_named(model, tmp_path, monkeypatch):
-    from loosefit.inference.animator import BaselineModel
+    from loosefit.inference.baseline import BaselineModel
     from loosefit.model.baselines import BaselineConfig, BaselineNetwork
 
     m = model.model
     V = m.template.num_vertices
-    net = BaselineNetwork(BaselineConfig(method="santesteban", motion_fc=8, gru=8,
-                                         head_hidden=8), m.encoder.num_features,
-                          torch.zeros(V, 3), torch.zeros(V, 4))  # fmt: skip
-    baseline = BaselineModel(net, m.template, m.joint_names, m.floor_height, m.fps, m.body,
-                             m.rollout_config, tmp_path / "baseline.pt")  # fmt: skip
+    net = BaselineNetwork(
+        BaselineConfig(method="santesteban", motion_fc=8, gru=8, head_hidden=8),
+        m.encoder.num_features,
+        torch.zeros(V, 3),
+        torch.zeros(V, 4),
+    )
+    baseline = BaselineModel(
+        network=net,
+        template=m.template,
+        joint_names=m.joint_names,
+        floor_height=m.floor_height,
+        fps=m.fps,
+        body=m.body,
+        rollout_config=m.rollout_config,
+        path=tmp_path / "baseline.pt",
+    )
     with pytest.raises(LoosefitInputError, match=r"baseline\.pt.*'santesteban' baseline"):
         export_onnx(baseline, tmp_path / "b.onnx")
     odd = loosefit.load().model
@@ -135,8 +149,9 @@ def test_unsupported_stages_are_named(model, tmp_path, monkeypatch):
 
 
 @needs_ort
-@pytest.mark.parametrize(("decoder", "previous_state"),
-                         [("decomposed", False), ("vertex", True), ("ssdr", True)])  # fmt: skip
+@pytest.mark.parametrize(
+    ("decoder", "previous_state"), [("decomposed", False), ("vertex", True), ("ssdr", True)]
+)
 def test_every_decoder_exports(skirt, avatar, tmp_path, decoder, previous_state):
     tiny = tiny_model(skirt, avatar, decoder, previous_state)
     path = tmp_path / "tiny.onnx"
@@ -158,8 +173,7 @@ def test_cli_export_model_end_to_end(tmp_path, capsys):
     meta = json.loads(out.with_suffix(".json").read_text())
     # the check against PyTorch said, with the figures the JSON records
     check = meta["check"]
-    said = (f"equals PyTorch within {check['max_difference_m']:.2g} m over {check['frames']} "
-            "frames")  # fmt: skip
+    said = f"equals PyTorch within {check['max_difference_m']:.2g} m over {check['frames']} frames"
     assert said in err and check["max_difference_m"] < 1e-4, err
     assert "detail generator" not in meta["stages"]["in_graph"]
     default = loosefit.load().model  # what export-model exports without a checkpoint

@@ -12,7 +12,7 @@ import torch
 
 from loosefit.api import motion_for
 from loosefit.errors import LoosefitInputError
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.sequence import AnimatedGarment
 from tests.inference.conftest import needs_ort, tiny_model
 
@@ -37,8 +37,9 @@ def test_onnx_runtime_animates_the_torch_frames_over_300_frames(model):
     np.testing.assert_allclose(got.codes, want.codes, atol=1e-4)
     # the detail and length stages ran on what the graphs gave
     assert _gap(got.vertices, got.decoded).max() > 1e-3
-    assert set(got.stage_cpu_seconds) == set(want.stage_cpu_seconds) == {
-        "motion", "detail", "lengths"}  # fmt: skip
+    assert (
+        set(got.stage_cpu_seconds) == set(want.stage_cpu_seconds) == {"motion", "detail", "lengths"}
+    )
     assert set(got.stage_seconds) == set(want.stage_seconds)
 
 
@@ -79,7 +80,7 @@ def test_an_encoder_without_the_previous_state_runs_too(skirt, avatar):
 
 
 def test_onnx_runtime_refusals_are_clear(model, monkeypatch, tmp_path):
-    from loosefit.inference.animator import BaselineModel
+    from loosefit.inference.baseline import BaselineModel
     from loosefit.model.baselines import BaselineConfig, BaselineNetwork
 
     m = model.model
@@ -87,10 +88,22 @@ def test_onnx_runtime_refusals_are_clear(model, monkeypatch, tmp_path):
     with pytest.raises(LoosefitInputError, match=r"runtime.*'torch' or 'onnx'.*'tensorrt'"):
         m.animate(motion, runtime="tensorrt")
     V = m.template.num_vertices
-    net = BaselineNetwork(BaselineConfig(method="virtual-bones", motion_fc=8, gru=8, head_hidden=8),
-                          m.encoder.num_features, torch.zeros(V, 3), torch.zeros(V, 4))  # fmt: skip
-    baseline = BaselineModel(net, m.template, m.joint_names, m.floor_height, m.fps, m.body,
-                             m.rollout_config, tmp_path / "baseline.pt")  # fmt: skip
+    net = BaselineNetwork(
+        BaselineConfig(method="virtual-bones", motion_fc=8, gru=8, head_hidden=8),
+        m.encoder.num_features,
+        torch.zeros(V, 3),
+        torch.zeros(V, 4),
+    )
+    baseline = BaselineModel(
+        network=net,
+        template=m.template,
+        joint_names=m.joint_names,
+        floor_height=m.floor_height,
+        fps=m.fps,
+        body=m.body,
+        rollout_config=m.rollout_config,
+        path=tmp_path / "baseline.pt",
+    )
     with pytest.raises(
         LoosefitInputError, match=r"baseline\.pt.*runtime.*'virtual-bones' baseline"
     ):
@@ -131,8 +144,10 @@ def test_a_batch_through_onnx_gives_each_motion_its_torch_garment(model):
     characters, the garments PyTorch's batch gives; with ``collision="realtime"`` each
     motion's garment is the one its own realtime ``animate`` gives."""
     m = model.model
-    motions = [motion_for(spec, m.avatar(), model.fps, n, seed=3)
-               for spec, n in (("dance:4", 40), ("spin", 28))]  # fmt: skip
+    motions = [
+        motion_for(spec, m.avatar(), model.fps, n, seed=3)
+        for spec, n in (("dance:4", 40), ("spin", 28))
+    ]
     want = m.animate_batch(motions, stages=MOTION_ONLY)
     got = m.animate_batch(motions, stages=MOTION_ONLY, runtime="onnx")
     for w, g, motion in zip(want, got, motions, strict=True):

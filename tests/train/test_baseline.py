@@ -13,8 +13,9 @@ from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
 from loosefit.eval.rollouts import evaluate_rollouts
+from loosefit.inference.baseline import BaselineModel
+from loosefit.inference.stages import Stages
 from loosefit.model.baselines import BaselineConfig
-from loosefit.model.rollout import Stages
 from loosefit.sequence import AnimatedGarment
 from loosefit.train import baseline as tb
 
@@ -34,7 +35,7 @@ def trained(request, toy_dataset, tmp_path_factory):
     out = tmp_path_factory.mktemp(request.param)
     report = tb.train_baseline(toy_dataset, out, _config(request.param), log=lambda *_: None,
                                progress=False)  # fmt: skip
-    return out, report, inf.load_baseline(out / "model.pt")
+    return out, report, BaselineModel.from_checkpoint(out / "model.pt")
 
 
 def test_training_lowers_the_loss(trained):
@@ -121,12 +122,12 @@ def test_bad_inputs_are_clear_errors(trained, toy_dataset, tmp_path):
     with pytest.raises(LoosefitInputError, match="finite"):
         model.animate(bad)
     with pytest.raises(LoosefitInputError):
-        inf.load_baseline(toy_dataset / "template.npz")
+        BaselineModel.from_checkpoint(toy_dataset / "template.npz")
     data = torch.load(out / "model.pt", weights_only=False)
     data["model"]["skin_weights"] = data["model"]["skin_weights"][:, :2]
     torch.save(data, tmp_path / "broken.pt")
     with pytest.raises(LoosefitInputError, match="weights of this baseline"):
-        inf.load_baseline(tmp_path / "broken.pt")
+        BaselineModel.from_checkpoint(tmp_path / "broken.pt")
 
 
 def test_train_baseline_evaluate_and_animate_commands(toy_dataset, tmp_path):

@@ -10,16 +10,18 @@ import pytest
 import torch
 
 import loosefit.inference.animator as inf
-import loosefit.model.rollout as rollout_module
 import loosefit.train.detail as td
 import loosefit.train.motion as tm
 from loosefit.cli import main
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
+from loosefit.inference.animator import collision_records
 from loosefit.inference.checkpoints import model_fingerprint
+from loosefit.inference.rollout import RolloutOptions, rollout
+from loosefit.inference.stages import MOTION_ONLY, Stages
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.detail import DetailConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
-from loosefit.model.rollout import MOTION_ONLY, RolloutConfig, Stages, rollout
 
 TINY = DetailConfig(disc_channels=(4, 8, 8), patches=(32, 16))  # the toy UV maps are 32 texels
 
@@ -120,17 +122,20 @@ def test_detail_runs_in_animate_and_can_be_switched_off(trained, motion, toy_dat
     np.testing.assert_allclose(fed.vertices[0], detailed.vertices[0], atol=1e-6)  # same first frame
 
 
-def test_the_later_stages_beside_the_motion_stage_change_nothing(trained, toy_dataset,
-                                                                 monkeypatch):  # fmt: skip
+def test_the_later_stages_beside_the_motion_stage_change_nothing(trained, toy_dataset):
     out, _ = trained
     model = inf.load_pipeline(out / "model.pt")
     m = DatasetReader(toy_dataset).read("c").motion
-    monkeypatch.setattr(rollout_module._Later, "chunk", 3)  # several chunks, and a remainder
     assert m.num_frames > 6 and m.num_frames % 3
-    apart = model.animate(m, stages=Stages(overlap=False))
-    beside = model.animate(m, stages=Stages(overlap=True))
+
+    def run(overlap: bool):  # chunks of 3 frames: several, and a remainder
+        later = model.later_stages(m, Stages(), model.detail)
+        options = RolloutOptions(later, overlap=overlap, chunk=3)
+        return rollout(model.motion_stage(), m, options), collision_records(later)
+
+    (apart, apart_records), (beside, beside_records) = run(False), run(True)
     np.testing.assert_array_equal(beside.vertices, apart.vertices)
-    assert beside.collisions == apart.collisions and len(beside.collisions) == m.num_frames
+    assert beside_records == apart_records and len(beside_records) == m.num_frames
     assert set(beside.stage_seconds) == {"motion", "detail", "lengths", "collision"}
 
 
@@ -174,8 +179,7 @@ def test_animate_without_later_stages_is_the_motion_stage_rollout(
     assert main(args) == 0
     got = np.load(next(dest.glob("*.npz")))["garment_vertices"]
     model = inf.load_animation_model(motion)
-    want = rollout(model.generative, model.encoder, seq.motion, model.rest_state,
-                   model.floor_height, model.rollout_config).vertices  # fmt: skip
+    want = rollout(model.motion_stage(), seq.motion).vertices
     np.testing.assert_array_equal(got, want)
 
 

@@ -9,9 +9,9 @@ import pytest
 import torch
 
 import loosefit.train.motion as tm
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.generative import GenerativeConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
-from loosefit.model.rollout import RolloutConfig
 from loosefit.train.generative import TrainGenerativeConfig, train_generative
 
 from .conftest import SMALL

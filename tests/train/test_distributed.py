@@ -71,7 +71,7 @@ import numpy as np
 import torch
 import torch.distributed as dist
 from loosefit.model.motion_encoder import MotionEncoderConfig
-from loosefit.model.rollout import RolloutConfig
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.train.motion import TrainMotionConfig, train_motion
 rank, world = int(sys.argv[1]), int(sys.argv[2])
 init, data, generative, rest, out = sys.argv[3:8]

@@ -8,9 +8,9 @@ import dataclasses
 import numpy as np
 
 import loosefit
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.generative import GenerativeConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
-from loosefit.model.rollout import RolloutConfig
 from loosefit.sim.generate import generate
 from loosefit.sim.presets import preset
 from loosefit.train.generative import TrainGenerativeConfig, train_generative

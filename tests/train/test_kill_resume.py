@@ -33,7 +33,7 @@ TRAIN_MOTION = """
 import sys
 import torch
 from loosefit.model.motion_encoder import MotionEncoderConfig
-from loosefit.model.rollout import RolloutConfig
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.train.motion import TrainMotionConfig, train_motion
 cfg = TrainMotionConfig(model=MotionEncoderConfig(motion_fc=16, gru=24),
                         rollout=RolloutConfig(warm_frames=2, blend_seconds=0.1), epochs=8,

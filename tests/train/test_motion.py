@@ -18,9 +18,9 @@ from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.inference.package import package_model
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import feature_joints, num_features
-from loosefit.model.rollout import RolloutConfig
 from loosefit.sequence import AnimatedGarment
 from loosefit.train.clips import prepare_clips, stack_clips
 from loosefit.types import Motion
@@ -189,7 +189,7 @@ def test_a_diverging_rollout_names_the_frame(trained, toy_dataset):
     motion = DatasetReader(toy_dataset).read("c").motion
     with torch.no_grad():
         model.encoder.fc.bias.fill_(1e6)  # a broken network
-    from loosefit.model.rollout import RolloutError
+    from loosefit.inference.rollout import RolloutError
 
     with pytest.raises(RolloutError, match="preroll frame 0"):
         model.animate(motion)

@@ -15,9 +15,9 @@ from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.inference.animator import load_animation_model
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.generative import GenerativeConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
-from loosefit.model.rollout import RolloutConfig
 from loosefit.train.clips import prepare_clips, stack_clips
 from loosefit.train.generative import TrainGenerativeConfig, _float32, train_generative
 

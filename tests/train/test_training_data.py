@@ -10,7 +10,7 @@ import pytest
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import garment_fingerprint
-from loosefit.model.rollout import RolloutConfig
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.sequence import AnimatedGarment
 from loosefit.train.clips import prepare_clips
 from loosefit.train.detail import rollout_pairs

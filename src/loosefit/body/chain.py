@@ -122,26 +122,6 @@ def preroll(
     return rotations.astype(np.float32), root.astype(np.float32), n_settle
 
 
-def rollout_timeline(
-    motion: Motion, floor_height: float, warm_frames: int, blend_seconds: float
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """A rollout's frames: ``warm_frames`` of the rest pose, the blend into the motion's
-    first frame over ``blend_seconds`` (:func:`preroll`), then the motion (what
-    :func:`loosefit.model.rollout.timeline` and the ONNX reference loop run).
-
-    Returns:
-        rotations (P + T, J, 3, 3), root translations (P + T, 3), and P, the number of
-        frames before the motion's first.
-    """
-    settle = max(warm_frames - 1, 0) / motion.fps
-    rot, root, _ = preroll(motion, floor_height, settle, blend_seconds)
-    return (
-        np.concatenate([rot, motion.rotations]),
-        np.concatenate([root, motion.root_translation]),
-        len(rot),
-    )
-
-
 def chain_motions(motions: list[Motion], blend_seconds: float = 0.5, name: str = "") -> Motion:
     """Play ``motions`` one after another as one continuous motion.
 

@@ -181,13 +181,14 @@ def throughput(motion, result) -> str:
 def stage_line(model, stages, result) -> str:
     """What ran after the decoders, and what collision handling did."""
     from loosefit.garment.quality import PENETRATION_TOLERANCE
+    from loosefit.inference.animator import AnimationModel
 
     ran = ["motion"]
     if stages.detail and model.detail is not None:
         ran.append("detail")
     elif stages.detail:
         ran.append("(no detail stage in this checkpoint)")
-    if hasattr(model, "restorer") and model.restorer(stages) is not None:  # baselines: none
+    if isinstance(model, AnimationModel) and model.restorer(stages) is not None:
         ran.append("edge lengths")
     if stages.collision:
         ran.append("collision")

@@ -298,7 +298,7 @@ def add_stage_args(p: argparse.ArgumentParser) -> None:
 
 def stages(args: argparse.Namespace):
     """The inference stages the ``add_stage_args`` flags leave on."""
-    from loosefit.model.rollout import Stages
+    from loosefit.inference.stages import Stages
 
     return Stages(
         detail=not args.no_detail,

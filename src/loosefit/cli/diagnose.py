@@ -105,7 +105,7 @@ def _clip_and_arms(args: argparse.Namespace, source: Path):
     import json
 
     from loosefit.data.format import DatasetReader, read_any_sequence
-    from loosefit.inference.animator import arm_collision_of
+    from loosefit.inference.model_common import arm_collision_of
     from loosefit.placement.place import collider_arms
 
     if source.is_dir():

@@ -11,7 +11,7 @@ from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
 from loosefit.garment.fingerprint import same_garment
-from loosefit.model.rollout import Stages
+from loosefit.inference.stages import Stages
 from loosefit.sequence import AnimatedGarment
 
 HORIZONS = (100, 500, 1200)  # the paper's Table 1: iter-100, iter-500, iter-1200
@@ -68,8 +68,8 @@ def evaluate_rollouts(
         reference: score the settled drape carried by the root (the model's
             ``carry_drape``) instead of its rollout.
         restart_every: reset the rollout's previous state to the simulated garment
-            every this many frames (:func:`~loosefit.model.rollout.rollout`'s
-            ``truth``), to measure drift on the same frames.
+            every this many frames (:class:`~loosefit.inference.rollout.RestartFromTruth`),
+            to measure drift on the same frames.
         oracle: score the generative model's reconstruction of the simulated
             garment (the model's ``reconstruct``) instead: the floor under the motion
             encoder's error.

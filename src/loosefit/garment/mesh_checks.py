@@ -10,7 +10,6 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-# (geometry/collision.py and model/physics.py import unique_edges from here still)
 from loosefit.geometry.edges import unique_edges
 
 

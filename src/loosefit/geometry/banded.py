@@ -1,6 +1,6 @@
 """A sparse symmetric positive definite system factorised once, solved for many right-hand sides.
 
-Projective dynamics (:class:`~loosefit.model.physics.LengthRestorer`) solves one fixed
+Projective dynamics (:class:`~loosefit.inference.stages.lengths.LengthRestorer`) solves one fixed
 system ``A`` of a garment's free vertices a few times per frame, for every coordinate of
 every frame at once: ``A X = R`` with ``R`` (n, K), K = 3 x frames. A garment's mesh in
 reverse Cuthill-McKee order is banded (the skirt's 2,268 free vertices: a bandwidth of

@@ -1,14 +1,15 @@
-"""Trained models that animate a garment: the paper's stages and the baselines.
+"""Trained models that animate a garment: the paper's stages, and any checkpoint loaded.
 
-:func:`load_pipeline` takes any checkpoint ``loosefit animate`` takes and gives a model
-with ``animate(motion)``: :class:`AnimationModel` (paper 3.2-3.5) or :class:`BaselineModel`.
+:func:`load_pipeline` takes any checkpoint ``loosefit animate`` takes and gives an
+:class:`~loosefit.inference.protocols.AnimatingModel`: :class:`AnimationModel` (paper
+3.2-3.5, :meth:`AnimationModel.from_checkpoint`) or a
+:class:`~loosefit.inference.baseline.BaselineModel`.
 Models are rebuilt from the checkpoints' ``model_config``
 (:mod:`loosefit.inference.checkpoints`); nothing here reads a training configuration.
 """
 
 from __future__ import annotations
 
-import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,13 +19,7 @@ import torch
 
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import garment_fingerprint
-from loosefit.geometry.collision import (
-    BodyCollider,
-    CollisionConfig,
-    CollisionHandler,
-    PushOutHandler,
-    collision_setting,
-)
+from loosefit.inference.baseline import BaselineModel
 from loosefit.inference.checkpoints import (
     BASELINE_FORMAT,
     DETAIL_FORMAT,
@@ -39,111 +34,70 @@ from loosefit.inference.checkpoints import (
     recorded_checkpoint,
     template_from_dict,
 )
-from loosefit.model.baselines import BaselineConfig, BaselineNetwork, baseline_rollout
-from loosefit.model.detail import DetailConfig, DetailGenerator
-from loosefit.model.generative import GarmentGenerativeModel
-from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
-from loosefit.model.physics import (
-    PHYSICS_TERMS,
-    ClothStructure,
-    LengthConfig,
-    LengthRestorer,
-    hanging_edges,
-    terms_of,
+from loosefit.inference.model_common import (
+    arm_collision_of,
+    avatar_of,
+    body_collider,
+    check_motion_joints,
+    check_runtime,
 )
-from loosefit.model.rollout import (
-    RolloutConfig,
-    Stages,
-    carried_drape,
-    collision_record,
-    reconstruction,
+from loosefit.inference.references import carried_drape, reconstruction
+from loosefit.inference.rollout import (
+    MotionStage,
+    RestartFromTruth,
+    RolloutHooks,
+    RolloutOptions,
+    RolloutResult,
+    StepFunction,
     refine,
     rollout,
     rollout_batch,
 )
+from loosefit.inference.stages import Stage, Stages
+from loosefit.inference.stages.collision import (
+    BodyCollider,
+    CollisionConfig,
+    CollisionHandler,
+    CollisionStage,
+    collision_setting,
+)
+from loosefit.inference.stages.detail import DetailNetwork, DetailStage
+from loosefit.inference.stages.lengths import (
+    LengthConfig,
+    LengthRestorer,
+    LengthStage,
+    length_restorer,
+)
+from loosefit.inference.timeline import RolloutConfig
+from loosefit.model.detail import DetailConfig, DetailGenerator
+from loosefit.model.generative import GarmentGenerativeModel
+from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
+from loosefit.model.physics import PHYSICS_TERMS, terms_of
 from loosefit.types import GarmentTemplate, Motion
-
-RUNTIMES = ("torch", "onnx")  # what runs the learned stages: PyTorch, or onnxruntime
-
-
-def check_runtime(runtime: str, source: str = "animate") -> None:
-    """A clear error for a runtime other than :data:`RUNTIMES`."""
-    if runtime not in RUNTIMES:
-        raise LoosefitInputError(source, "runtime", " or ".join(map(repr, RUNTIMES)), repr(runtime))
-
-
-def check_motion_joints(motion: Motion, joint_names: tuple[str, ...], path: Path) -> None:
-    """A clear error for a motion on other joints than a checkpoint's, or not finite."""
-    if tuple(motion.joint_names) != tuple(joint_names):
-        missing = [j for j in joint_names if j not in motion.joint_names]
-        raise LoosefitInputError(
-            f"motion '{motion.name}'",
-            "joint_names",
-            f"the {len(joint_names)} joints the checkpoint {Path(path).name} was "
-            "trained on, in its order",
-            f"{len(motion.joint_names)} joints"
-            + (f", missing {missing[:5]}" if missing else ", in another order"),
-        )
-    if not np.isfinite(motion.rotations).all() or not np.isfinite(motion.root_translation).all():
-        raise LoosefitInputError(
-            f"motion '{motion.name}'",
-            "rotations/root_translation",
-            "finite numbers",
-            "NaN or infinity",
-        )
-
-
-def body_collider(
-    avatar, handler, motion: Motion, arm_collision: bool | str, device: torch.device
-) -> BodyCollider:
-    """``handler`` (Eq. 16's, or a baseline's push-out) along ``motion``'s posed body, the
-    simulation's collider (the arms in it only with ``arm_collision``)."""
-    rot = torch.from_numpy(motion.rotations)
-    root = torch.from_numpy(motion.root_translation)
-
-    def pose(start: int, stop: int) -> np.ndarray:
-        return avatar.pose(rot[start:stop], root[start:stop]).vertices.cpu().numpy()
-
-    faces = avatar.collider_faces(arms=arm_collision).cpu().numpy()
-    warp_device = "cpu" if device.type == "cpu" else f"cuda:{device.index or 0}"
-    return BodyCollider(handler, faces, pose, motion.num_frames, device=warp_device)
-
-
-def avatar_of(body: dict):
-    """The avatar of a checkpoint's ``body`` record (its shape)."""
-    from loosefit.body.avatar import Avatar, AvatarConfig
-
-    return Avatar(AvatarConfig(shape=dict(body.get("shape", {}))))
-
-
-def arm_collision_of(data: dict, default: bool | str = False) -> bool | str:
-    """The arms the cloth met as the data was simulated: False, True or "upper" (True also
-    where they were a collider of their own, ``ClothConfig.arm_friction``; data made before
-    that field existed had none); ``default`` where the configuration does not say."""
-    cloth = data.get("cloth") or {}
-    if cloth.get("arm_friction") is not None:
-        return True
-    arms = cloth.get("arm_collision", default)
-    return arms if arms == "upper" else bool(arms)
-
 
 # -- the paper's model ------------------------------------------------------------------------
 
 
-@dataclass
+@dataclass(kw_only=True)
 class AnimationModel:
-    """Everything a rollout needs, loaded from a motion-stage checkpoint."""
+    """The paper's stages (3.2-3.5), everything a rollout needs: built by keyword, or from a
+    checkpoint (:meth:`from_checkpoint`).
 
-    generative: GarmentGenerativeModel
-    encoder: DynamicMotionEncoder
-    template: GarmentTemplate
-    rest_state: torch.Tensor  # (V, 3)
-    joint_names: tuple[str, ...]
-    floor_height: float
-    fps: float
-    body: dict
-    rollout_config: RolloutConfig
-    path: Path
+    A frame goes through :meth:`animate`: the motion stage (:meth:`motion_stage`, the
+    encoder and the decoders), then :meth:`later_stages` (detail, edge lengths, collision),
+    run by :func:`~loosefit.inference.rollout.rollout`.
+    """
+
+    generative: GarmentGenerativeModel  # the generative stage (its decoders)
+    encoder: DynamicMotionEncoder  # the motion stage
+    template: GarmentTemplate  # the garment it animates (V vertices)
+    rest_state: torch.Tensor  # (V, 3) the settled drape in the rest pose's root frame
+    joint_names: tuple[str, ...]  # the skeleton a motion must be on
+    floor_height: float  # the avatar's standing root height
+    fps: float  # the frame rate it was trained at
+    body: dict  # the avatar's record (its shape)
+    rollout_config: RolloutConfig  # the timeline before a motion's first frame
+    path: Path  # the checkpoint it came from
     detail: torch.nn.Module | None = None  # paper 3.4 (a DetailGenerator), if trained
     collision: CollisionConfig = field(default_factory=CollisionConfig)  # paper 3.5
     arm_collision: bool | str = False  # the arms in the collider, as the data's simulation
@@ -151,10 +105,40 @@ class AnimationModel:
     lengths: LengthConfig = field(default_factory=LengthConfig)  # edges back to rest length
     physics_terms: tuple[str, ...] = ()  # the physics terms the stages were trained with
     trained_on: dict | None = None  # a packaged set's training record (package.training_record)
-    _avatar: object = None
-    _handler: CollisionHandler | None = None
-    _restorer: LengthRestorer | None = None
+    _avatar: object = None  # the avatar, built on first use
+    _handler: CollisionHandler | None = None  # Eq. 16's operators, built on first use
+    _restorer: LengthRestorer | None = None  # the edge-length operator, built on first use
     _onnx: object = None  # the learned stages in onnxruntime (OnnxStages), built once
+
+    @classmethod
+    def from_checkpoint(
+        cls,
+        path: str | Path,
+        generative: str | Path | None = None,
+        detail: str | Path | None = None,
+        device="cpu",
+    ) -> AnimationModel:
+        """Every learned stage of the paper's model from one checkpoint.
+
+        Args:
+            path: a motion-stage checkpoint (``checkpoint.pt`` or ``model.pt`` of a run, or
+                a packaged ``motion.pt``, which takes the ``detail.pt`` beside it, if there
+                is one), or a detail checkpoint (with the motion stage it records).
+            generative: the generative-stage checkpoint; by default the one recorded.
+            detail: a detail checkpoint to attach explicitly.
+            device: where to put the networks.
+
+        Raises:
+            LoosefitInputError: not such a checkpoint, or stages that do not belong together.
+        """
+        path = Path(path)
+        if checkpoint_format(path) == DETAIL_FORMAT:
+            return load_detail_model(path, None, generative, device)
+        model = load_animation_model(path, generative, device)
+        beside = path.parent / "detail.pt"
+        if detail is None and path.name == "motion.pt" and beside.is_file():
+            detail = beside
+        return attach_detail(model, detail) if detail is not None else model
 
     @property
     def device(self) -> torch.device:
@@ -207,13 +191,7 @@ class AnimationModel:
         if not (stages.lengths and self.lengths.iterations):
             return None
         if self._restorer is None:
-            t, cfg = self.template, self.lengths
-            structure = ClothStructure.from_template(t)
-            if cfg.edges == "hanging":
-                structure = structure.with_edges(
-                    hanging_edges(t.vertices, structure.edges, cfg.min_vertical)
-                )
-            self._restorer = LengthRestorer(structure, cfg)
+            self._restorer = length_restorer(self.template, self.lengths)
         return self._restorer
 
     def onnx_stages(self):
@@ -235,14 +213,17 @@ class AnimationModel:
         stages: Stages | None = None,
         runtime: str = "torch",
         collision: str = "full",
-    ):
-        """:func:`~loosefit.model.rollout.rollout` of ``motion`` (checked first) through the
-        motion stage, then the detail stage (if the model has one) and collision handling,
-        as ``stages`` (default ``self.stages``) says.
+    ) -> RolloutResult:
+        """:func:`~loosefit.inference.rollout.rollout` of ``motion`` (checked first) through
+        the motion stage, then the detail stage (if the model has one), the edge lengths
+        and collision handling, as ``stages`` (default ``self.stages``) says.
+
+        ``truth`` (T, V, 3) and ``restart_every``: a drift measurement
+        (:class:`~loosefit.inference.rollout.RestartFromTruth`).
 
         ``collision``: ``"full"`` (the model's collision handling), or ``"realtime"`` (one
         solve and one round of its last steps a frame, 1.3-2.2x faster:
-        :data:`~loosefit.geometry.collision.REALTIME`).
+        :data:`~loosefit.inference.stages.collision.REALTIME`).
 
         ``runtime``: what runs the learned stages (the motion stage and the detail
         generator): ``"torch"`` (PyTorch), or ``"onnx"`` (onnxruntime, the graphs exported
@@ -254,26 +235,17 @@ class AnimationModel:
         check_runtime(runtime)
         self.check_motion(motion)
         stages = stages or self.stages
+        hooks = RolloutHooks(progress=progress)
+        if restart_every is not None:
+            shape = (motion.num_frames, self.template.num_vertices, 3)
+            hooks.restart = RestartFromTruth(truth, restart_every, shape, self.device)
         with self._collision_as(collision):
             step, detail = self._learned(runtime, stages)
-            collide = self.collider(motion) if stages.collision else None
-            return rollout(
-                self.generative,
-                self.encoder,
-                motion,
-                self.rest_state,
-                self.floor_height,
-                self.rollout_config,
-                progress,
-                truth,
-                restart_every,
-                detail,
-                collide,
-                stages.feedback,
-                stages.overlap,
-                self.restorer(stages),
-                step,
-            )
+            later = self.later_stages(motion, stages, detail)
+            options = RolloutOptions(later, feedback=stages.feedback, overlap=stages.overlap)
+            result = rollout(self.motion_stage(step), motion, options, hooks)
+        result.collisions = collision_records(later)
+        return result
 
     def animate_batch(
         self,
@@ -282,15 +254,15 @@ class AnimationModel:
         stages: Stages | None = None,
         runtime: str = "torch",
         collision: str = "full",
-    ):
+    ) -> list[RolloutResult]:
         """N motions (N characters) at once: the motion stage batched
-        (:func:`~loosefit.model.rollout.rollout_batch`, one network call per frame for all),
-        then each motion's detail and collision handling (:func:`~loosefit.model.rollout.
-        refine`). The same garments as :meth:`animate` of each, within float rounding;
-        ``runtime`` and ``collision`` as for :meth:`animate`.
+        (:func:`~loosefit.inference.rollout.rollout_batch`, one network call per frame for
+        all), then each motion's later stages (:func:`~loosefit.inference.rollout.refine`).
+        The same garments as :meth:`animate` of each, within float rounding; ``runtime`` and
+        ``collision`` as for :meth:`animate`.
 
         Returns:
-            One :class:`~loosefit.model.rollout.RolloutResult` per motion.
+            One :class:`~loosefit.inference.rollout.RolloutResult` per motion.
         """
         check_runtime(runtime)
         for m in motions:
@@ -298,29 +270,41 @@ class AnimationModel:
         stages = stages or self.stages
         with self._collision_as(collision):
             step, detail = self._learned(runtime, stages)
-            results = rollout_batch(
-                self.generative,
-                self.encoder,
-                motions,
-                self.rest_state,
-                self.floor_height,
-                self.rollout_config,
-                progress,
-                step,
-            )
+            motion_stage = self.motion_stage(step)
+            results = rollout_batch(motion_stage, motions, progress)
             for m, r in zip(motions, results, strict=True):
-                collide = self.collider(m) if stages.collision else None
-                refine(
-                    r,
-                    m,
-                    self.floor_height,
-                    self.rollout_config,
-                    detail,
-                    collide,
-                    self.device,
-                    self.restorer(stages),
-                )
+                later = self.later_stages(m, stages, detail)
+                refine(r, m, motion_stage, later)
+                if later:
+                    r.collisions = collision_records(later)
         return results
+
+    def motion_stage(self, step: StepFunction | None = None) -> MotionStage:
+        """The motion stage a rollout runs (``step``: its network call, e.g. in
+        onnxruntime; None: the encoder and the decoders in PyTorch)."""
+        return MotionStage(
+            self.generative,
+            self.encoder,
+            self.rest_state,
+            self.floor_height,
+            self.rollout_config,
+            step,
+        )
+
+    def later_stages(
+        self, motion: Motion, stages: Stages, detail: DetailNetwork | None
+    ) -> list[Stage]:
+        """The stages after the motion stage that ``stages`` asks, in order, for ``motion``:
+        ``detail`` (the detail network to run, or None), the edge lengths, collision."""
+        later: list[Stage] = []
+        if detail is not None:
+            later.append(DetailStage(detail, self.device))
+        restorer = self.restorer(stages)
+        if restorer is not None:
+            later.append(LengthStage(restorer))
+        if stages.collision:
+            later.append(CollisionStage(self.collider(motion), self.device))
+        return later
 
     def _learned(self, runtime: str, stages: Stages) -> tuple:
         """The motion stage's step (None: the networks in PyTorch) and the detail stage
@@ -333,7 +317,7 @@ class AnimationModel:
     @contextmanager
     def _collision_as(self, collision: str):
         """Within the block, collision handling as the setting ``collision`` says
-        (:func:`~loosefit.geometry.collision.collision_setting`): the model's own for
+        (:func:`~loosefit.inference.stages.collision.collision_setting`): the model's own for
         ``"full"``, its operators kept; otherwise :meth:`configured` with the setting's."""
         setting = collision_setting(self.collision, collision)
         if setting is self.collision:
@@ -343,12 +327,13 @@ class AnimationModel:
                 yield
 
     def carry_drape(self, motion: Motion, progress=None):
-        """:func:`~loosefit.model.rollout.carried_drape`: this garment with no dynamics."""
+        """:func:`~loosefit.inference.references.carried_drape`: this garment with no dynamics."""
         self.check_motion(motion)
         return carried_drape(motion, self.rest_state, self.floor_height, self.rollout_config)
 
     def reconstruct(self, motion: Motion, truth: np.ndarray):
-        """:func:`~loosefit.model.rollout.reconstruction`: the floor under the encoder's error."""
+        """:func:`~loosefit.inference.references.reconstruction`: the floor under the
+        encoder's error."""
         self.check_motion(motion)
         return reconstruction(
             self.generative, motion, truth, self.floor_height, self.rollout_config
@@ -413,16 +398,16 @@ def _animation_model(path: Path, data: dict, generative, device) -> AnimationMod
             f"shape {tuple(rest.shape)}",
         )
     return AnimationModel(
-        gmodel.eval(),
-        encoder.eval(),
-        template,
-        rest.to(device),
-        tuple(data["joint_names"]),
-        float(data["floor_height"]),
-        float(data["fps"]),
-        dict(data["body"]),
-        RolloutConfig(**config["rollout"]),
-        path,
+        generative=gmodel.eval(),
+        encoder=encoder.eval(),
+        template=template,
+        rest_state=rest.to(device),
+        joint_names=tuple(data["joint_names"]),
+        floor_height=float(data["floor_height"]),
+        fps=float(data["fps"]),
+        body=dict(data["body"]),
+        rollout_config=RolloutConfig(**config["rollout"]),
+        path=path,
         arm_collision=arm_collision_of(data),
         physics_terms=terms_of(gdata, data),
         trained_on=record if isinstance(record := data.get("trained_on"), dict) else None,
@@ -497,172 +482,6 @@ def load_detail_model(
     return attach_detail(model, path)
 
 
-# -- the baselines ----------------------------------------------------------------------------
-
-
-@dataclass
-class BaselineModel:
-    """A trained baseline with the animate() of :class:`AnimationModel`, so that ``loosefit
-    animate``/``evaluate`` and the benchmarks run it alike.
-
-    ``stages.collision`` runs Santesteban et al.'s post-process (every vertex closer
-    to the body than ``collision.epsilon`` pushed out along the body's normal);
-    virtual bones have none (Pan et al. have none). There is no detail stage.
-    """
-
-    network: BaselineNetwork
-    template: GarmentTemplate
-    joint_names: tuple[str, ...]
-    floor_height: float
-    fps: float
-    body: dict
-    rollout_config: RolloutConfig
-    path: Path
-    arm_collision: bool | str = False
-    collision: CollisionConfig = field(default_factory=CollisionConfig)
-    stages: Stages = field(default_factory=Stages)
-    detail: None = None  # no detail stage (what the CLI asks of every model)
-    _avatar: object = None
-
-    @property
-    def method(self) -> str:
-        return self.network.method
-
-    @property
-    def device(self) -> torch.device:
-        return self.network.rest.device
-
-    @property
-    def post_process(self) -> bool:
-        """Whether the method has a collision post-process (Santesteban's push-out)."""
-        return self.method == "santesteban"
-
-    def avatar(self):
-        if self._avatar is None:
-            self._avatar = avatar_of(self.body)
-        return self._avatar
-
-    def check_motion(self, motion: Motion) -> None:
-        check_motion_joints(motion, self.joint_names, self.path)
-
-    def animate(
-        self,
-        motion: Motion,
-        progress=None,
-        truth=None,
-        restart_every=None,
-        stages: Stages | None = None,
-        runtime: str = "torch",
-        collision: str = "full",
-    ):
-        """The garment through ``motion`` (T, V, 3) world positions, a
-        :class:`~loosefit.model.rollout.RolloutResult`; then the post-process where the
-        method has one and ``stages.collision``. ``truth``/``restart_every`` do not
-        apply (no previous garment is fed back) and are refused, and so are
-        ``runtime="onnx"`` (a baseline runs in PyTorch only) and ``collision="realtime"``
-        (its post-process has no rounds to cut)."""
-        check_runtime(runtime)
-        if collision != "full":
-            raise LoosefitInputError(
-                self.path,
-                "collision",
-                f"'full' (the '{self.method}' baseline's own post-process)",
-                repr(collision),
-            )
-        if runtime != "torch":
-            raise LoosefitInputError(
-                self.path,
-                "runtime",
-                f"'torch' (a baseline has no ONNX graphs; the '{self.method}' baseline)",
-                repr(runtime),
-            )
-        if restart_every is not None:
-            raise LoosefitInputError(
-                "BaselineModel.animate",
-                "restart_every",
-                "None (a baseline never sees the previous garment)",
-                restart_every,
-            )
-        self.check_motion(motion)
-        stages = stages or self.stages
-        pose = None
-        if self.method == "santesteban":
-            avatar = self.avatar()
-            rot = torch.from_numpy(motion.rotations)
-            root = torch.from_numpy(motion.root_translation)
-
-            def pose(s: int, e: int) -> torch.Tensor:
-                return avatar.pose(rot[s:e], root[s:e]).joint_transforms
-
-        result = baseline_rollout(
-            self.network, motion, self.floor_height, self.rollout_config, pose, progress
-        )
-        result.stage_seconds = {"motion": result.seconds}
-        if stages.collision and self.post_process:
-            t0 = time.perf_counter()
-            handler = PushOutHandler(
-                self.template.faces,
-                self.template.num_vertices,
-                self.collision.epsilon,
-                self.collision.reach,
-            )
-            arms = True if self.collision.whole_body else self.arm_collision
-            collide = body_collider(self.avatar(), handler, motion, arms, self.device)
-            result.decoded = result.vertices.copy()
-            result.collisions = []
-            for t in range(motion.num_frames):
-                r = collide(t, torch.from_numpy(result.decoded[t]))
-                result.vertices[t] = r.vertices.numpy()
-                result.collisions.append(collision_record(r))
-            result.stage_seconds["collision"] = time.perf_counter() - t0
-            result.seconds += result.stage_seconds["collision"]
-        return result
-
-
-def load_baseline(path: str | Path, device="cpu") -> BaselineModel:
-    """A trained baseline from a run's ``model.pt`` or ``checkpoint.pt``.
-
-    Raises:
-        LoosefitInputError: not a baseline checkpoint, or weights that do not fit the
-            configuration it records.
-    """
-    path = Path(path)
-    data = read_checkpoint_file(
-        path,
-        BASELINE_FORMAT,
-        device,
-        {
-            MOTION_FORMAT: "this is our motion stage; load it with load_pipeline",
-        },
-    )
-    with checkpoint_fields(path, "baseline checkpoint"):
-        return _baseline(path, data, device)
-
-
-def _baseline(path: Path, data: dict, device) -> BaselineModel:
-    config = model_config(data)
-    template = template_from_dict(data["garment"]["template"])
-    V, K = template.num_vertices, int(data["influences"])
-    network = BaselineNetwork(
-        BaselineConfig(**config["network"]),
-        int(data["num_features"]),
-        torch.zeros(V, 3),
-        torch.zeros(V, K),
-    )
-    load_weights(network, data["model"], path, "this baseline's configuration")
-    return BaselineModel(
-        network.to(device).eval(),
-        template,
-        tuple(data["joint_names"]),
-        float(data["floor_height"]),
-        float(data["fps"]),
-        dict(data["body"]),
-        RolloutConfig(**config["rollout"]),
-        path,
-        arm_collision=arm_collision_of(data),
-    )
-
-
 # -- any checkpoint ---------------------------------------------------------------------------
 
 
@@ -671,25 +490,24 @@ def load_pipeline(
     generative: str | Path | None = None,
     detail: str | Path | None = None,
     device="cpu",
-):
-    """Every learned stage for ``loosefit animate`` / ``evaluate`` from one checkpoint.
-
-    ``path`` is a motion-stage checkpoint (a packaged set's ``motion.pt`` takes the
-    ``detail.pt`` beside it, if there is one) or a detail checkpoint (with the motion
-    stage it records); ``detail`` names a detail checkpoint explicitly. A baseline's
-    checkpoint gives that baseline (:class:`BaselineModel`), which animates alike.
+) -> AnimationModel | BaselineModel:
+    """Every learned stage for ``loosefit animate`` / ``evaluate`` from one checkpoint:
+    a baseline's checkpoint gives that baseline (:meth:`BaselineModel.from_checkpoint`),
+    any other :meth:`AnimationModel.from_checkpoint`.
 
     Returns:
-        :class:`AnimationModel` or :class:`BaselineModel`.
+        An :class:`~loosefit.inference.protocols.AnimatingModel`.
     """
     path = Path(path)
-    fmt = checkpoint_format(path)
-    if fmt == DETAIL_FORMAT:
-        return load_detail_model(path, None, generative, device)
-    if fmt == BASELINE_FORMAT:
-        return load_baseline(path, device)
-    model = load_animation_model(path, generative, device)
-    beside = path.parent / "detail.pt"
-    if detail is None and path.name == "motion.pt" and beside.is_file():
-        detail = beside
-    return attach_detail(model, detail) if detail is not None else model
+    if checkpoint_format(path) == BASELINE_FORMAT:
+        return BaselineModel.from_checkpoint(path, device)
+    return AnimationModel.from_checkpoint(path, generative, detail, device)
+
+
+def collision_records(stages: list[Stage]) -> list[dict] | None:
+    """The collision stage's figures per motion frame, or None when none of ``stages`` is
+    the collision stage."""
+    for stage in stages:
+        if isinstance(stage, CollisionStage):
+            return stage.records
+    return None

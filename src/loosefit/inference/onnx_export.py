@@ -1,6 +1,6 @@
 """The learned runtime as one ONNX graph, for a game engine.
 
-One call of the graph is one frame of :func:`~loosefit.model.rollout.rollout` for B
+One call of the graph is one frame of :func:`~loosefit.inference.rollout.rollout` for B
 characters: the motion features of the frame (computed in the graph from the joints),
 the dynamic motion encoder's step (its GRU state an explicit input and output), the two
 decoders with the UV sampling, and the detail generator. The recurrent state, the
@@ -48,6 +48,7 @@ from loosefit.atomic import atomic_path
 from loosefit.body.rotations import axis_angle_to_matrix
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.obj import write_obj
+from loosefit.inference.protocols import LearnedStages
 from loosefit.model.detail import DetailGenerator
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_features import (
@@ -113,10 +114,8 @@ def check_exportable(model) -> None:
     Raises:
         LoosefitInputError: naming the stage that is not supported and what is.
     """
-    from loosefit.inference.animator import AnimationModel
-
     source = getattr(model, "path", "model")
-    if not isinstance(model, AnimationModel):
+    if not isinstance(model, LearnedStages):
         what = getattr(model, "method", type(model).__name__)
         raise LoosefitInputError(
             source,
@@ -331,7 +330,7 @@ def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
             "in_graph": ["motion features", "motion encoder step (GRU)", "decoders", "UV sampling"]
             + (["detail generator"] if detail else []),
             "not_in_graph": [
-                "edge lengths (loosefit.model.physics.LengthRestorer)",
+                "edge lengths (loosefit.inference.stages.lengths.LengthRestorer)",
                 "collision handling (paper 3.5): the engine's collider",
             ],
         },

@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.body.chain import rollout_timeline
 from loosefit.errors import LoosefitInputError
+from loosefit.inference.timeline import rollout_timeline
 from loosefit.types import Motion
 
 FORMAT = "loosefit-onnx-step/1"  # as loosefit.inference.onnx_export.FORMAT
@@ -159,7 +159,7 @@ def check_diverged(garment: np.ndarray, root: np.ndarray, limit: float, where: s
 def rollout_onnx(
     runtime: OnnxRuntime, motion: Motion, progress: Callable[[int, int], None] | None = None
 ) -> np.ndarray:
-    """The garment through ``motion`` as :func:`loosefit.model.rollout.rollout` computes it
+    """The garment through ``motion`` as :func:`loosefit.inference.rollout.rollout` computes it
     without detail-stage feedback, edge lengths or collision handling: the rest pose, the
     blend into the motion (the JSON's ``start_of_motion``), then one graph call per frame.
 

@@ -1,6 +1,6 @@
 """The animation pipeline's learned stages in onnxruntime: ``animate(..., runtime="onnx")``.
 
-:func:`~loosefit.model.rollout.rollout` runs the same timeline either way; with this
+:func:`~loosefit.inference.rollout.rollout` runs the same timeline either way; with this
 runtime its two network calls go through onnxruntime instead of PyTorch (faster
 on one core):
 
@@ -116,7 +116,7 @@ def _session(graph: bytes, threads: int):
 
 class OnnxStep:
     """The motion stage's network call in an onnxruntime session, as
-    :func:`~loosefit.model.rollout.rollout`'s ``step`` takes it: ``step(features (B, F),
+    :class:`~loosefit.inference.rollout.MotionStage`'s ``step`` takes it: ``step(features (B, F),
     previous (B, V, 3), hidden (B, G)) -> (Z_t (B, Z), hidden (B, G), garment (B, V, 3))``,
     CPU float32 tensors."""
 

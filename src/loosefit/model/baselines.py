@@ -12,7 +12,7 @@ in the body's root frame, as the learned models do everywhere here:
   (:mod:`loosefit.geometry.skin_transfer`); the GRU predicts per-vertex
   displacements of the garment in the unposed space, ``x = LBS(T + D(h_t),
   W, G_t)`` with ``G_t`` the joints' transforms of frame t. Their post-process
-  pushes vertices out of the body (:class:`~loosefit.geometry.collision.PushOutHandler`).
+  pushes vertices out of the body (:class:`~loosefit.inference.stages.push_out.PushOutHandler`).
 * ``virtual-bones`` (Pan et al. 2022, "Predicting loose-fitting garment
   deformations using bone-driven motion networks", the paper's [21]): a
   skinning decomposition of the training frames (SSDR, Dem Bones,
@@ -193,80 +193,6 @@ def body_joint_weights(avatar) -> np.ndarray:
         m.vertex_bone_weights.double().cpu(), m.vertex_bone_indices.cpu(), avatar.num_joints
     )
     return w.numpy()
-
-
-@torch.no_grad()
-def baseline_rollout(
-    network: BaselineNetwork,
-    motion,
-    floor_height: float,
-    config=None,
-    pose_joints=None,
-    progress=None,
-    chunk: int = 128,
-):
-    """Animate the garment through a motion with a baseline (no previous garment: the GRU
-    runs over the whole timeline at once, then the garment is decoded ``chunk`` frames at
-    a time).
-
-    Args:
-        network: a trained :class:`BaselineNetwork`.
-        motion: T frames on the skeleton it was trained on.
-        floor_height: the avatar's standing root height (for the timeline and features).
-        config: the preroll (:class:`~loosefit.model.rollout.RolloutConfig`), as in training.
-        pose_joints: Santesteban: ``pose_joints(start, stop) -> (n, J, 4, 4)`` the
-            avatar's rest -> world joint transforms of those motion frames.
-        progress: called as ``progress(done, total)``.
-        chunk: motion frames decoded at once.
-
-    Returns:
-        :class:`~loosefit.model.rollout.RolloutResult`, (T, V, 3) world positions.
-    """
-    import time
-
-    from loosefit.geometry.skinning import root_frame_transforms
-    from loosefit.model.motion_features import (
-        feature_joints,
-        from_root_frame,
-        motion_features,
-        root_frames,
-    )
-    from loosefit.model.rollout import RolloutConfig, RolloutResult, check_garment, timeline
-
-    config = config or RolloutConfig()
-    network.eval()
-    device = network.rest.device
-    t0 = time.perf_counter()
-    rot, root, P = timeline(motion, floor_height, config)
-    joints = feature_joints(motion.joint_names, network.config.joints)
-    feats = motion_features(rot, root, motion.fps, floor_height, joints).to(device)
-    H, p = (a.float() for a in root_frames(rot[P:].double(), root[P:].double()))
-    h, _ = network.encode(feats[None], network.initial_hidden(1, device))
-    h = h[0, P:]  # (T, gru): the motion's own frames
-    T = motion.num_frames
-    out = torch.empty(T, network.num_vertices, 3)
-    if network.method == "santesteban" and pose_joints is None:
-        raise LoosefitInputError(
-            "baseline_rollout",
-            "pose_joints",
-            "the avatar's joint transforms (Santesteban skins to them)",
-            "None",
-        )
-    for s in range(0, T, chunk):
-        e = min(s + chunk, T)
-        g = None
-        if network.method == "santesteban":
-            world = torch.as_tensor(pose_joints(s, e)).float()
-            g = root_frame_transforms(world, H[s:e], p[s:e]).to(device)
-        local = network.decode(h[s:e], g)["vertices"]
-        check_garment(local, config.max_distance, f"motion frames {s}-{e - 1}")
-        out[s:e] = from_root_frame(local.cpu(), H[s:e], p[s:e])
-        if progress is not None:
-            progress(P + e, P + T)
-    return RolloutResult(out.numpy(), time.perf_counter() - t0, P + T)
-
-
-# -- the loss (a pure function) ----------------------------------------------------------
 
 
 @dataclass

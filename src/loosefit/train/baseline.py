@@ -25,13 +25,16 @@ import torch
 from loosefit.data.format import DatasetReader
 from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.geometry.skinning import root_frame_transforms
-from loosefit.inference.animator import BaselineModel, arm_collision_of, load_baseline
+from loosefit.inference.baseline import BaselineModel, load_baseline
 from loosefit.inference.checkpoints import (
     BASELINE_FORMAT,
     garment_record,
     read_checkpoint_file,
     save_atomic,
 )
+from loosefit.inference.model_common import arm_collision_of
+from loosefit.inference.stages import Stages
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.baselines import (
     BaselineConfig,
     BaselineLossConfig,
@@ -39,7 +42,6 @@ from loosefit.model.baselines import (
     baseline_loss,
     body_joint_weights,
 )
-from loosefit.model.rollout import RolloutConfig, Stages
 from loosefit.train.clips import (
     Clip,
     feature_statistics,
@@ -269,14 +271,14 @@ class BaselineStage(Stage):
     def current(self, path: Path) -> BaselineModel:
         """The network being trained as a model to roll out."""
         return BaselineModel(
-            self.model,
-            self.template,
-            self.joint_names,
-            self.floor,
-            self.meta["fps"],
-            dict(self.reader.body),
-            self.config.rollout,
-            path,
+            network=self.model,
+            template=self.template,
+            joint_names=self.joint_names,
+            floor_height=self.floor,
+            fps=self.meta["fps"],
+            body=dict(self.reader.body),
+            rollout_config=self.config.rollout,
+            path=path,
             arm_collision=arm_collision_of(self.meta),
         )
 

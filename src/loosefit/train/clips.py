@@ -15,6 +15,8 @@ from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
+from loosefit.inference.rollout import latent_codes, timeline
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_features import (
     feature_joints,
@@ -23,7 +25,6 @@ from loosefit.model.motion_features import (
     root_frames,
     to_root_frame,
 )
-from loosefit.model.rollout import RolloutConfig, latent_codes, timeline
 from loosefit.types import Motion
 
 

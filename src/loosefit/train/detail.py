@@ -49,6 +49,8 @@ from loosefit.inference.checkpoints import (
     read_checkpoint_file,
     save_atomic,
 )
+from loosefit.inference.rollout import motion_root_frames
+from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.model.detail import (
     DetailConfig,
     DetailGenerator,
@@ -59,7 +61,6 @@ from loosefit.model.detail import (
     lsgan_generator_loss,
 )
 from loosefit.model.motion_features import to_root_frame
-from loosefit.model.rollout import MOTION_ONLY, Stages, motion_root_frames
 from loosefit.train.clips import clip_versions
 from loosefit.train.common import epoch_means
 from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train

@@ -143,8 +143,8 @@ def body_contacts(
     Returns:
         points (T, V, 3) and normals (T, V, 3), float32.
     """
-    from loosefit.geometry.collision import signed_distances
     from loosefit.geometry.query import Surface
+    from loosefit.geometry.signed_distance import signed_distances
 
     points = np.zeros(garment.shape, np.float32)
     normals = np.zeros(garment.shape, np.float32)

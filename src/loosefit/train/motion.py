@@ -72,6 +72,9 @@ from loosefit.inference.checkpoints import (
     read_checkpoint_file,
     save_atomic,
 )
+from loosefit.inference.rollout import change_frame
+from loosefit.inference.stages import MOTION_ONLY
+from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
 from loosefit.model.physics import (
@@ -81,7 +84,6 @@ from loosefit.model.physics import (
     hem_radius,
     physics_terms,
 )
-from loosefit.model.rollout import MOTION_ONLY, RolloutConfig, change_frame
 from loosefit.sim.rest_drape import settled_rest_drape
 from loosefit.train.clips import (
     Clip,
@@ -545,16 +547,16 @@ class MotionStage(Stage):
 
     def evaluate(self, epoch: int, record: dict, write) -> dict[str, float]:
         current = AnimationModel(
-            self.generative,
-            self.model,
-            self.template,
-            self.rest,
-            self.joint_names,
-            self.floor,
-            self.fps,
-            dict(self.reader.body),
-            self.config.rollout,
-            self.run.checkpoint,
+            generative=self.generative,
+            encoder=self.model,
+            template=self.template,
+            rest_state=self.rest,
+            joint_names=self.joint_names,
+            floor_height=self.floor,
+            fps=self.fps,
+            body=dict(self.reader.body),
+            rollout_config=self.config.rollout,
+            path=self.run.checkpoint,
         )
         return rollout_evaluation(current, self.reader, MOTION_ONLY, epoch, record, write)
 

@@ -8,10 +8,10 @@ import pytest
 import torch
 import trimesh
 
-from loosefit.geometry.collision import CollisionConfig, CollisionHandler
 from loosefit.geometry.query import Surface
+from loosefit.inference.stages.collision import CollisionConfig, CollisionHandler
 from tests.conftest import REPO, SALSA, needs_salsa
-from tests.geometry.test_collision import _sheet, _two_spheres
+from tests.inference.stages.test_collision import _sheet, _two_spheres
 
 TOLERANCE = 5e-4  # m: the fast path's garments against the path before it
 
@@ -70,8 +70,12 @@ def _both(bv, bf, v, f, rest=False, **cfg):
     """Today's result and the fast path's, each on its own surface."""
     out = []
     for fast in (False, True):
-        handler = CollisionHandler(f, len(v), CollisionConfig(reach=0.2, fast=fast, **cfg),
-                                   rest=v.astype(np.float64) if rest else None)  # fmt: skip
+        handler = CollisionHandler(
+            f,
+            len(v),
+            CollisionConfig(reach=0.2, fast=fast, **cfg),
+            rest=v.astype(np.float64) if rest else None,
+        )
         surface = Surface(bv, bf, winding_number=not fast)
         out.append(handler.resolve(torch.from_numpy(np.asarray(v, np.float32)), surface))
     return out
@@ -165,11 +169,12 @@ def test_rays_count_the_winding_number_where_body_parts_overlap():
 def test_the_fast_path_over_a_real_rollout():
     from loosefit.body.motions import load_motion
     from loosefit.inference.animator import load_pipeline
-    from loosefit.model.rollout import Stages
+    from loosefit.inference.stages import Stages
 
     model = load_pipeline(REPO / "checkpoints" / "salsa" / "motion.pt")
-    motion = load_motion(SALSA / "60_01.bvh", model.avatar(), fps=model.fps, start_frame=10,
-                         max_frames=40)  # fmt: skip
+    motion = load_motion(
+        SALSA / "60_01.bvh", model.avatar(), fps=model.fps, start_frame=10, max_frames=40
+    )
     stages = Stages(overlap=False)
     assert model.collision.fast  # the default
     fast = model.animate(motion, stages=stages)

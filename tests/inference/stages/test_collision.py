@@ -8,14 +8,14 @@ import torch
 import trimesh
 
 from loosefit.errors import LoosefitInputError
-from loosefit.geometry.collision import (
+from loosefit.geometry.query import Surface
+from loosefit.inference.stages.collision import (
     REALTIME,
     BodyCollider,
     CollisionConfig,
     CollisionHandler,
     collision_setting,
 )
-from loosefit.geometry.query import Surface
 from tests.meshes import grid
 
 
@@ -231,8 +231,9 @@ def test_body_collider_poses_lazily_and_resolves_each_frame():
         return np.stack([bv + [0, 0, 0.01 * t] for t in range(start, stop)])
 
     v, f = _sheet(20, 0.4, 0.32)
-    collide = BodyCollider(CollisionHandler(f, len(v), CollisionConfig(reach=0.2)), bf, pose,
-                           num_frames=6, chunk=4)  # fmt: skip
+    collide = BodyCollider(
+        CollisionHandler(f, len(v), CollisionConfig(reach=0.2)), bf, pose, num_frames=6, chunk=4
+    )
     results = [collide(t, torch.from_numpy(v)) for t in range(6)]
     assert calls == [(0, 4), (4, 6)]
     assert results[0].inside_before == 0 and results[5].inside_before > 0
@@ -259,28 +260,33 @@ def test_config_and_shape_checks():
 
 
 def test_push_out_moves_each_close_vertex_along_the_normal_to_epsilon():
-    from loosefit.geometry.collision import PushOutHandler
+    from loosefit.inference.stages.push_out import PushOutHandler
 
     sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.3)
     v, f = _sheet(30, 0.4, 0.28)
     handler = PushOutHandler(f, len(v), epsilon=0.002, reach=0.2)
-    r = handler.resolve(torch.from_numpy(v), Surface(np.asarray(sphere.vertices, np.float32),
-                                                     np.asarray(sphere.faces)))  # fmt: skip
+    r = handler.resolve(
+        torch.from_numpy(v),
+        Surface(np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces)),
+    )
     x = r.vertices.numpy()
     inside = np.linalg.norm(v, axis=1) < 0.3
     assert r.inside_before == inside.sum() > 0 and r.inside_after == 0
     # along the normal: the pushed vertices stay on their rays from the centre
     moved = np.linalg.norm(x - v, axis=1) > 1e-7
     dirs = x[moved] / np.linalg.norm(x[moved], axis=1, keepdims=True)
-    np.testing.assert_allclose(dirs, v[moved] / np.linalg.norm(v[moved], axis=1, keepdims=True),
-                               atol=2e-3)  # fmt: skip
+    np.testing.assert_allclose(
+        dirs, v[moved] / np.linalg.norm(v[moved], axis=1, keepdims=True), atol=2e-3
+    )
     assert np.abs(np.linalg.norm(x[inside], axis=1) - 0.302).max() < 2e-3  # the faceted sphere
     # vertices farther than epsilon are untouched
     far = np.linalg.norm(v, axis=1) > 0.31
     np.testing.assert_array_equal(x[far], v[far])
     with pytest.raises(LoosefitInputError, match="garment"):
-        handler.resolve(torch.zeros(3, 3), Surface(np.asarray(sphere.vertices, np.float32),
-                                                   np.asarray(sphere.faces)))  # fmt: skip
+        handler.resolve(
+            torch.zeros(3, 3),
+            Surface(np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces)),
+        )
 
 
 def _slab_collider(sticky: bool = True) -> BodyCollider:

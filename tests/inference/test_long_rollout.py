@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from loosefit.body.chain import chain_motions
+from loosefit.inference.stages import MOTION_ONLY
 from loosefit.model.motion_features import garment_in_root_frame
-from loosefit.model.rollout import MOTION_ONLY
 
 
 @pytest.mark.slow
@@ -25,8 +25,10 @@ def test_ten_thousand_frames_stay_on_the_body_and_repeat_themselves():
     assert np.linalg.norm(g - chain.root_translation[:, None], axis=-1).max() < 1.5
     # the same dance again and again: each repetition close to the second (the first starts
     # from rest), and no closer to drifting at the end than near the start
-    reps = [garment_in_root_frame(chain.slice(f, f + n), g[f : f + n]).numpy()
-            for _, f, n in chain.meta["segments"]]  # fmt: skip
+    reps = [
+        garment_in_root_frame(chain.slice(f, f + n), g[f : f + n]).numpy()
+        for _, f, n in chain.meta["segments"]
+    ]
     diff = [100 * np.sqrt(((r - reps[1]) ** 2).sum(-1).mean()) for r in reps[2:]]  # cm
     assert max(diff) < 10.0, diff
     assert np.mean(diff[-3:]) <= np.mean(diff[:3]) + 1.0, diff

@@ -1,4 +1,4 @@
-"""Collision handling (paper 3.5): push a garment out of the body while keeping its Laplacian.
+"""The collision stage (paper 3.5): push a garment out of the body, its Laplacian kept.
 
 For every garment vertex ``v_k`` the closest point ``b_k`` of the posed body and the
 body's normal ``n_k`` there give the signed distance ``ds_k = n_k . (v_k - b_k)``. Eq. 16
@@ -35,6 +35,7 @@ rest length are shortened and projected out again (``relax``). docs/HARD_POSES.m
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,10 +44,20 @@ import torch
 from scipy.linalg import solveh_banded
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.mesh_checks import unique_edges
 from loosefit.geometry.banded import band_order
+from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.laplacian import laplacian_matrix
 from loosefit.geometry.query import ClosestPoints, Surface
+from loosefit.geometry.signed_distance import (
+    beyond_skin,
+    hit_distances,
+    normals_of_hit,
+    on_skin,
+)
+from loosefit.inference.stages import StageFrames
+
+if TYPE_CHECKING:
+    from loosefit.inference.stages.push_out import PushOutHandler
 
 
 @dataclass
@@ -394,7 +405,7 @@ class CollisionHandler:
                 )
             else:
                 hit = self._ask(x[near], body, near, self.inside_test)
-            ds[near] = _signed(hit)
+            ds[near] = hit_distances(hit)
             return hit, (hit.faces >= 0) & hit.inside
 
         for k in range(cfg.finish):
@@ -405,14 +416,14 @@ class CollisionHandler:
             if not inside.any():
                 break
             idx = near[inside]
-            beyond, out = _beyond_skin(x[idx], hit, inside, cfg.epsilon)
+            beyond, out = beyond_skin(x[idx], hit, inside, cfg.epsilon)
             # moved before and still inside: on an inner skin, or caught between two body
             # parts that a projection only swaps: it goes on the way it went, as far as the
             # limit lets it (those at the limit stay, and are not asked again)
             on_inner = went[idx].any(1)
             step = beyond  # (K, 3) where each goes this round
             # (K,) not moved yet, on the outside of its closest skin: pinched, stays
-            stuck = ~on_inner & _on_skin(x[idx], body, hit, inside, cfg.face_reach)
+            stuck = ~on_inner & on_skin(x[idx], body, hit, inside, cfg.face_reach)
             step[stuck] = x[idx[stuck]]
             if on_inner.any():  # on to the next skin its way meets, eps beyond
                 w = idx[on_inner]
@@ -485,18 +496,18 @@ class CollisionHandler:
             x[touched] += delta[touched] / count[touched, None]
             hit = self._ask(x[touched], body, touched, sign)
             passes += 1
-            ds[touched] = _signed(hit)
+            ds[touched] = hit_distances(hit)
             stale[touched] = False
             inside = hit.inside & (hit.faces >= 0)
             if inside.any():
                 idx = touched[inside]
-                x[idx] = _beyond_skin(x[idx], hit, inside, cfg.epsilon)[0]
+                x[idx] = beyond_skin(x[idx], hit, inside, cfg.epsilon)[0]
                 stale[idx] = True
         if stale.any():  # where the last projections left them (the others as asked)
             idx = np.flatnonzero(stale)
             hit = self._ask(x[idx], body, idx, sign)
             passes += 1
-            ds[idx] = _signed(hit)
+            ds[idx] = hit_distances(hit)
         return x, ds, passes
 
     def _stick(
@@ -540,9 +551,9 @@ class CollisionHandler:
     def _signed(
         self, x: np.ndarray, body: Surface, reach: float, idx
     ) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`signed_distances` of the vertices ``idx`` at ``x`` (N, 3), with the fast
-        path's hints (see :meth:`_ask`)."""
-        return _normals(x, body, self._ask(x, body, idx, "normal", reach))
+        """:func:`~loosefit.geometry.signed_distance.signed_distances` of the vertices
+        ``idx`` at ``x`` (N, 3), with the fast path's hints (see :meth:`_ask`)."""
+        return normals_of_hit(x, body, self._ask(x, body, idx, "normal", reach))
 
     def _face_pushes(
         self,
@@ -580,7 +591,7 @@ class CollisionHandler:
         hit = body.query(
             pts, min(cfg.reach, deepest + 2 * cfg.face_reach), sign="normal", hint=hint
         )
-        n, dp = _normals(pts, body, hit)
+        n, dp = normals_of_hit(pts, body, hit)
         bad = np.flatnonzero(dp < 0.75 * cfg.epsilon)
         if not len(bad):
             return False
@@ -650,130 +661,16 @@ class CollisionHandler:
         return ab
 
 
-class PushOutHandler:
-    """Santesteban et al. 2019's post-process: every vertex closer to the body than
-    ``epsilon`` (or inside it) moved along the body's normal to ``epsilon`` outside,
-    each on its own (no smoothness term: the baseline that Eq. 16 improves on).
-
-    The same ``resolve(garment, body)`` as :class:`CollisionHandler`, so
-    :class:`BodyCollider` runs either along a motion.
-
-    Args:
-        faces: (F, 3) the garment's triangles (for the Laplacian change it reports).
-        num_vertices: V.
-        epsilon: m, the clearance a moved vertex ends at.
-        reach: m, vertices farther from the body are not queried.
-    """
-
-    def __init__(
-        self, faces: np.ndarray, num_vertices: int, epsilon: float = 1.0e-3, reach: float = 0.1
-    ) -> None:
-        if not (np.isfinite(epsilon) and epsilon > 0 and np.isfinite(reach) and reach > 0):
-            raise LoosefitInputError(
-                "PushOutHandler", "epsilon, reach", "positive numbers", (epsilon, reach)
-            )
-        self.num_vertices, self.epsilon, self.reach = num_vertices, float(epsilon), float(reach)
-        L = laplacian_matrix(faces, num_vertices, "uniform", dtype=torch.float64)
-        (li, lj), lv = L.indices().numpy(), L.values().numpy()
-        self.lap = sp.csr_matrix((lv, (li, lj)), shape=(num_vertices, num_vertices))
-
-    def resolve(
-        self, garment: torch.Tensor, body: Surface, previous: np.ndarray | None = None
-    ) -> CollisionResult:
-        """One frame: the garment (V, 3), world positions, with close vertices pushed out
-        (each frame on its own: ``previous`` is not used)."""
-        V = self.num_vertices
-        if garment.shape != (V, 3):
-            raise LoosefitInputError(
-                "PushOutHandler.resolve", "garment", f"({V}, 3)", f"{tuple(garment.shape)}"
-            )
-        x0 = garment.detach().cpu().double().numpy()
-        n, ds = signed_distances(x0, body, self.reach)
-        short = np.clip(self.epsilon - ds, 0.0, None)  # (V,), 0 beyond reach
-        d = short[:, None] * n
-        x = x0 + d
-        moved = short > 0
-        ds_after = ds.copy()
-        if moved.any():
-            ds_after[moved] = signed_distances(x[moved], body, self.reach)[1]
-        lap = self.lap @ d
-        return CollisionResult(
-            vertices=torch.from_numpy(x).to(garment.device, torch.float32),
-            depth_before=float(short.max(initial=0.0)),
-            depth_after=float(np.clip(-ds_after, 0, None).max()),
-            inside_before=int((ds < 0).sum()),
-            inside_after=int((ds_after < 0).sum()),
-            moved=int(moved.sum()),
-            iterations=2 if moved.any() else 1,
-            laplacian_change=float(np.sqrt((lap**2).sum(-1).mean())),
-        )
-
-
-def _signed(hit) -> np.ndarray:
-    """(N,) the signed distances of a query's answer: minus inside (by its ``inside``),
-    +inf where no face was within its reach."""
-    return np.where(hit.faces >= 0, np.where(hit.inside, -hit.distance, hit.distance), np.inf)
-
-
-def _face_normals(body: Surface, faces: np.ndarray) -> np.ndarray:
-    """(K, 3) float64 outward normals, unnormalised (twice the area long), of the body's
-    faces (K,)."""
-    tri = body.vertices[body.faces[faces]].astype(np.float64)  # (K, 3, 3)
-    return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-
-
-def _on_skin(x: np.ndarray, body: Surface, hit, inside: np.ndarray, reach: float) -> np.ndarray:
-    """(K,) bool: which of the points ``x`` (K, 3), the answers ``hit`` of whose ``inside``
-    (N,) bool mask are theirs, lie on the outer side of their closest face, nearer it than
-    ``reach``."""
-    side = ((x - hit.points[inside]) * _face_normals(body, hit.faces[inside])).sum(1)
-    return (side > 0) & (hit.distance[inside] < reach)
-
-
-def _beyond_skin(
-    x: np.ndarray, hit, inside: np.ndarray, epsilon: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """The points ``x`` (K, 3), the answers ``hit`` of whose ``inside`` (N,) bool mask are
-    theirs, moved to ``epsilon`` beyond their closest skin; and the unit directions (K, 3)
-    from each toward that skin."""
-    p = hit.points[inside].astype(np.float64)
-    out = (p - x) / np.maximum(hit.distance[inside, None], 1e-12)
-    return p + epsilon * out, out
-
-
-def signed_distances(x: np.ndarray, body: Surface, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """Normals n (N, 3) and signed distances ``ds = n.(x - b)`` (N,) of points x (N, 3),
-    b their closest body points; ``ds`` is +inf (and n 0) beyond ``reach`` of the body. ``n`` is the
-    distance's gradient, so ``ds = +-|x - b|`` (minus inside, by the closest face's
-    side); for a point on the surface itself, the face's normal."""
-    return _normals(x, body, body.query(x, reach, sign="normal"))
-
-
-def _normals(x: np.ndarray, body: Surface, hit) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`signed_distances` of points x (N, 3) from their query's answer ``hit``."""
-    valid = hit.faces >= 0
-    side = np.where(hit.inside, -1.0, 1.0)[:, None]
-    away = (x - hit.points) * side
-    dist = hit.distance[:, None]
-    n = away / np.maximum(dist, 1e-12)
-    flat = valid & (hit.distance <= 1e-5)
-    if flat.any():  # on the surface: the closest face's normal
-        fn = _face_normals(body, hit.faces[flat])
-        n[flat] = fn / np.maximum(np.linalg.norm(fn, axis=-1, keepdims=True), 1e-30)
-    ds = np.where(valid, (n * (x - hit.points)).sum(-1), np.inf)
-    n[~valid] = 0.0
-    return n, ds
-
-
 class BodyCollider:
     """Collision handling along a motion, frame by frame: a ``collide(frame, garment)``
-    callable for :func:`~loosefit.model.rollout.rollout`.
+    callable that :class:`CollisionStage` runs.
 
     The body is posed lazily, ``chunk`` frames at a time, by ``pose(start, stop)``, and
     held in one BVH refitted to each frame.
 
     Args:
-        handler: the garment's Eq. 16 operators (or the baseline's :class:`PushOutHandler`).
+        handler: the garment's Eq. 16 operators (or the baseline's
+            :class:`~loosefit.inference.stages.push_out.PushOutHandler`).
         body_faces: (F, 3) the collider's triangles (the simulation's collider).
         pose: ``pose(start, stop) -> (stop - start, Vb, 3)`` body vertices (m) of those
             motion frames.
@@ -837,3 +734,34 @@ class BodyCollider:
         self._way = np.where(size > 1e-3, moved / np.maximum(size, 1e-12), 0.0)
         self._last = frame
         return result
+
+
+def collision_record(result: CollisionResult) -> dict:
+    """A collision result's figures, without its vertices."""
+    return {k: v for k, v in vars(result).items() if k != "vertices"}
+
+
+class CollisionStage:
+    """The collision stage of a rollout: each frame's garment pushed out of the body by a
+    ``collide(motion_frame, garment (V, 3)) -> CollisionResult`` (a :class:`BodyCollider`),
+    frame by frame in motion order; each frame's figures kept in ``records``.
+
+    Args:
+        collide: the collider along the motion.
+        device: where the garment goes to be resolved.
+    """
+
+    name = "collision"
+
+    def __init__(self, collide, device: torch.device | str = "cpu") -> None:
+        self.collide, self.device = collide, device
+        self.records: list[dict] = []  # per motion frame resolved, collision_record's figures
+
+    def __call__(self, frames: StageFrames) -> torch.Tensor:
+        """(n, V, 3) world garments, pushed out of the body."""
+        out = frames.vertices
+        for i in range(len(out)):
+            result = self.collide(frames.start + i, out[i].to(self.device))
+            out[i] = result.vertices.cpu()
+            self.records.append(collision_record(result))
+        return out

@@ -8,7 +8,7 @@ import pytest
 
 import loosefit
 from loosefit.errors import LoosefitInputError
-from loosefit.model.rollout import MOTION_ONLY, Stages
+from loosefit.inference.stages import MOTION_ONLY, Stages
 
 
 @pytest.fixture(scope="module")
@@ -18,8 +18,10 @@ def model():
 
 def test_a_batch_of_motions_animates_each_as_alone(model):
     avatar = model.model.avatar()
-    motions = [loosefit.api.motion_for(spec, avatar, model.fps, frames)
-               for spec, frames in (("sway", 40), ("spin", 25), ("kick", 33))]  # fmt: skip
+    motions = [
+        loosefit.api.motion_for(spec, avatar, model.fps, frames)
+        for spec, frames in (("sway", 40), ("spin", 25), ("kick", 33))
+    ]
     for stages in (MOTION_ONLY, Stages()):  # the motion stage; then detail and collision too
         batch = model.model.animate_batch(motions, stages=stages)
         for m, b in zip(motions, batch, strict=True):
@@ -48,10 +50,10 @@ def test_the_api_animates_a_list(model, avatar):
 def test_a_diverging_batch_names_the_motion(model):
     import dataclasses
 
-    from loosefit.model.rollout import RolloutError, rollout_batch
+    from loosefit.inference.rollout import RolloutError, rollout_batch
 
     m = model.model
     motions = [loosefit.api.motion_for(s, m.avatar(), model.fps, 5) for s in ("sway", "spin")]
     tight = dataclasses.replace(m.rollout_config, max_distance=0.3)  # the skirt's hem is further
     with pytest.raises(RolloutError, match=r"preroll frame 0 of motion 0 \('sway'\).*0\.3 m"):
-        rollout_batch(m.generative, m.encoder, motions, m.rest_state, m.floor_height, tight)
+        rollout_batch(dataclasses.replace(m.motion_stage(), config=tight), motions)
