@@ -68,7 +68,8 @@ def broken_links(path: Path) -> list[str]:
                 continue  # https:, mailto:, ...
             file_part, _, fragment = target.partition("#")
             resolved = (path.parent / file_part).resolve() if file_part else path
-            where = f"{path.relative_to(ROOT)}:{number}: {target}"
+            shown = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+            where = f"{shown}:{number}: {target}"
             if not resolved.exists():
                 problems.append(f"{where} (no such file)")
             elif fragment and resolved.suffix == ".md" and fragment not in anchors(resolved):
