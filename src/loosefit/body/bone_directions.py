@@ -231,6 +231,168 @@ def _is_below(parents: np.ndarray, b: int, ancestor: int) -> bool:
     return False
 
 
+# A cue: (avatar rest vector (3,), source world vectors (T, 3)); None when a joint is unmapped.
+_Pair = tuple[np.ndarray, np.ndarray]
+
+
+@dataclass(frozen=True)
+class _Landmarks:
+    """Vectors between mapped joints, on the avatar at rest and in the capture.
+
+    Attributes:
+        names: the avatar's J joint names.
+        heads, tails: (J, 3) float64 avatar bone heads and tails at rest.
+        positions: (T, Js, 3) float64 source world joint positions.
+        present: avatar joint -> source joint index.
+        leaf: the source's End Site directions (:attr:`SourcePose.leaf`).
+    """
+
+    names: tuple[str, ...]
+    heads: np.ndarray
+    tails: np.ndarray
+    positions: np.ndarray
+    present: dict[str, int]
+    leaf: dict[int, tuple[np.ndarray, np.ndarray]]
+
+    def src(self, a: str) -> np.ndarray | None:
+        """(T, 3) world positions of the source joint driving ``a``."""
+        return self.positions[:, self.present[a]] if a in self.present else None
+
+    def pair(self, a1: str, a2: str) -> _Pair | None:
+        """(avatar rest vector, source vectors (T, 3)) from joint a1 to joint a2."""
+        if a1 not in self.present or a2 not in self.present:
+            return None
+        h = self.heads
+        return h[self.names.index(a2)] - h[self.names.index(a1)], self.src(a2) - self.src(a1)
+
+    def mid_pair(self, a1: str, a2: str, b1: str, b2: str) -> _Pair | None:
+        """From the midpoint of a1, a2 to the midpoint of b1, b2."""
+        if not {a1, a2, b1, b2} <= set(self.present):
+            return None
+        h = {n: self.heads[self.names.index(n)] for n in (a1, a2, b1, b2)}
+        src = self.src
+        return ((h[b1] + h[b2] - h[a1] - h[a2]) / 2, (src(b1) + src(b2) - src(a1) - src(a2)) / 2)
+
+    def foot_forward(self, S: str) -> _Pair | None:
+        """Where side ``S``'s foot points: to its toe, else along its End Site."""
+        toe = self.pair(f"{S}Foot", f"{S}ToeBase")
+        if toe is not None or f"{S}Foot" not in self.present:
+            return toe
+        f = self.names.index(f"{S}Foot")
+        leaf = self.leaf.get(self.present[f"{S}Foot"])
+        return (self.tails[f] - self.heads[f], leaf[0]) if leaf is not None else None
+
+    def limb_cues(self, an: str) -> list[tuple[_Pair | None, float]]:
+        """The second directions (and weights) that set limb ``an``'s twist."""
+        S = "Left" if an.startswith("Left") else "Right"
+        bone = an.removeprefix(S)
+        pair = self.pair
+        return {
+            "UpLeg": [(pair(f"{S}Leg", f"{S}Foot"), 1.0), (self.foot_forward(S), 0.5)],
+            "Leg": [(pair(f"{S}Leg", f"{S}UpLeg"), 1.0), (self.foot_forward(S), 0.5)],
+            "Foot": [(pair(f"{S}Foot", f"{S}Leg"), 1.0)],
+            "ToeBase": [(pair(f"{S}Foot", f"{S}Leg"), 1.0)],
+            "Arm": [(pair(f"{S}ForeArm", f"{S}Hand"), 1.0)],
+            "ForeArm": [(pair(f"{S}ForeArm", f"{S}Arm"), 1.0)],
+        }.get(bone, [])
+
+    def torso_cues(self) -> dict[str, list[tuple[_Pair | None, float]]]:
+        """Avatar torso joint -> [(landmark, weight)]: the hips' and arms' left-right
+        axes, the trunk's line and the head above the shoulders."""
+        mapped = set(self.present)
+        arms = (
+            ("LeftArm", "RightArm")
+            if {"LeftArm", "RightArm"} <= mapped
+            else ("LeftShoulder", "RightShoulder")
+        )
+        lat_hips = self.pair("RightUpLeg", "LeftUpLeg")
+        lat_arms = self.pair(arms[1], arms[0])
+        trunk = self.mid_pair("LeftUpLeg", "RightUpLeg", *arms)
+        head_up = self.mid_pair(*arms, "Head", "Head")
+        return {
+            **dict.fromkeys(("Hips", "LHipJoint", "RHipJoint"), [(lat_hips, 1.0), (trunk, 1.0)]),
+            "LowerBack": [(lat_hips, 0.67), (lat_arms, 0.33), (trunk, 1.0)],
+            "Spine": [(lat_hips, 0.33), (lat_arms, 0.67), (trunk, 1.0)],
+            "Spine1": [(lat_arms, 1.0), (trunk, 1.0)],
+            **dict.fromkeys(("Neck", "Neck1", "Head"), [(lat_arms, 1.0), (head_up, 1.0)]),
+        }
+
+
+def _primary_bone(
+    skeleton: Skeleton, source: SourcePose, landmarks: _Landmarks, a: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Limb ``a``'s bone: (avatar rest vector (3,), source world vectors (T, 3), source
+    vector at zero pose (3,)), to the next mapped joint down the chain, else along the
+    End Site or only child; None when there is none or it has no length."""
+    names, present = skeleton.names, landmarks.present
+    heads, tails, P = landmarks.heads, landmarks.tails, landmarks.positions  # P: (T, Js, 3)
+    b = present[names[a]]
+    primary = None
+    c = _chain_child(skeleton, a, set(present))
+    if c is not None and _is_below(source.parents, present[names[c]], b):
+        sc = present[names[c]]
+        primary = (heads[c] - heads[a], P[:, sc] - P[:, b], source.rest[sc] - source.rest[b])
+    elif c is None and b in source.leaf:
+        primary = (tails[a] - heads[a], *source.leaf[b])
+    if primary is not None and min(np.linalg.norm(primary[0]), np.linalg.norm(primary[2])) < 1e-9:
+        primary = None
+    return primary
+
+
+def _clip_limb_calibration(
+    an: str,
+    Qb: np.ndarray,
+    primary: tuple[np.ndarray, np.ndarray, np.ndarray],
+    parent_cues: list[tuple[np.ndarray, np.ndarray, float]],
+    landmarks: _Landmarks,
+) -> tuple[np.ndarray, str]:
+    """A limb's (3, 3) R_a from the whole clip, and how: its bone's direction in the
+    source joint's frame (``Qb``, (T, 3, 3)), turned about it to match the bend."""
+    local = _unit(_local(Qb, primary[1]))  # (T, 3): the bone in b's frame
+    axis = _unit(local.mean(0)[None])[0]
+    if np.linalg.norm(axis) < 0.5:
+        axis = _unit(primary[2][None])[0]
+    R0 = rotation_between(primary[0][None], axis[None])[0].astype(np.float64)
+    cues = [
+        (R0 @ v, _local(Qb, u), w)
+        for (v, u), w in ((c, w) for c, w in landmarks.limb_cues(an) if c is not None)
+    ]
+    main = bool(cues)
+    cues += [(R0 @ v, _local(Qb, u), 0.1 if main else 1.0) for v, u, _ in parent_cues]
+    how = "bone and " + ("bend" if main else "its parent's twist")
+    return _axis_angle(axis, twist_angle(axis, cues)) @ R0, how
+
+
+def _torso_calibration(
+    Qb: np.ndarray,
+    cues_of_joint: list[tuple[_Pair | None, float]],
+    parent_cues: list[tuple[np.ndarray, np.ndarray, float]],
+    has_parent: bool,
+) -> tuple[np.ndarray, str]:
+    """A torso joint's (3, 3) R_a from landmarks over the clip (else its parent's frame)."""
+    cues = [
+        (v, _local(Qb, u), w) for (v, u), w in ((c, w) for c, w in cues_of_joint if c is not None)
+    ]
+    R = best_rotation(cues)
+    if R is None and has_parent:  # too few landmarks: the parent's frame
+        R = best_rotation([(v, _local(Qb, u), w) for v, u, w in parent_cues])
+    how = "landmarks" if cues and R is not None else "its parent"
+    return (R if R is not None else np.eye(3)), how
+
+
+def _along_source(
+    world_a: np.ndarray, primary: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """(T, 3, 3) world rotations turned so the bone lies exactly along the source's."""
+    T = len(world_a)
+    now = world_a @ primary[0]  # (T, 3)
+    ok = np.linalg.norm(primary[1], axis=-1) > 1e-9
+    fix = np.tile(np.eye(3), (T, 1, 1))
+    if ok.any():
+        fix[ok] = rotation_between(now[ok], primary[1][ok]).astype(np.float64)
+    return fix @ world_a
+
+
 def solve_bone_rotations(
     skeleton: Skeleton,
     source: SourcePose,
@@ -254,67 +416,19 @@ def solve_bone_rotations(
         follow their parent rigidly.
     """
     names, parents = skeleton.names, skeleton.parents
-    heads = skeleton.heads.astype(np.float64)
-    tails = skeleton.tails.astype(np.float64)
-    P = source.positions.astype(np.float64)  # (T, Js, 3)
     Q = source.rotations.astype(np.float64)  # (T, Js, 3, 3)
-    T, J = P.shape[0], len(names)
+    T, J = source.positions.shape[0], len(names)
     if reference == "auto":
         reference = "zero-pose" if zero_pose_stands(source.rest, present)[0] else "clip"
-    mapped = set(present)
-
-    def src(a: str) -> np.ndarray | None:
-        return P[:, present[a]] if a in present else None
-
-    def pair(a1: str, a2: str) -> tuple[np.ndarray, np.ndarray] | None:
-        """(avatar rest vector, source vectors (T, 3)) from joint a1 to joint a2."""
-        if a1 not in present or a2 not in present:
-            return None
-        return heads[names.index(a2)] - heads[names.index(a1)], src(a2) - src(a1)
-
-    def mid_pair(a1: str, a2: str, b1: str, b2: str) -> tuple[np.ndarray, np.ndarray] | None:
-        """From the midpoint of a1, a2 to the midpoint of b1, b2."""
-        if not {a1, a2, b1, b2} <= mapped:
-            return None
-        h = {n: heads[names.index(n)] for n in (a1, a2, b1, b2)}
-        return ((h[b1] + h[b2] - h[a1] - h[a2]) / 2, (src(b1) + src(b2) - src(a1) - src(a2)) / 2)
-
-    arms = (
-        ("LeftArm", "RightArm")
-        if {"LeftArm", "RightArm"} <= mapped
-        else ("LeftShoulder", "RightShoulder")
+    landmarks = _Landmarks(
+        names,
+        skeleton.heads.astype(np.float64),
+        skeleton.tails.astype(np.float64),
+        source.positions.astype(np.float64),
+        present,
+        source.leaf,
     )
-    lat_hips = pair("RightUpLeg", "LeftUpLeg")
-    lat_arms = pair(arms[1], arms[0])
-    trunk = mid_pair("LeftUpLeg", "RightUpLeg", *arms)
-    head_up = mid_pair(*arms, "Head", "Head")
-    torso_cues = {  # avatar joint -> [(cue, weight)]
-        **dict.fromkeys(("Hips", "LHipJoint", "RHipJoint"), [(lat_hips, 1.0), (trunk, 1.0)]),
-        "LowerBack": [(lat_hips, 0.67), (lat_arms, 0.33), (trunk, 1.0)],
-        "Spine": [(lat_hips, 0.33), (lat_arms, 0.67), (trunk, 1.0)],
-        "Spine1": [(lat_arms, 1.0), (trunk, 1.0)],
-        **dict.fromkeys(("Neck", "Neck1", "Head"), [(lat_arms, 1.0), (head_up, 1.0)]),
-    }
-
-    def foot_forward(S: str) -> tuple[np.ndarray, np.ndarray] | None:
-        toe = pair(f"{S}Foot", f"{S}ToeBase")
-        if toe is not None or f"{S}Foot" not in present:
-            return toe
-        f = names.index(f"{S}Foot")
-        leaf = source.leaf.get(present[f"{S}Foot"])
-        return (tails[f] - heads[f], leaf[0]) if leaf is not None else None
-
-    def limb_cues(an: str) -> list:
-        S = "Left" if an.startswith("Left") else "Right"
-        bone = an.removeprefix(S)
-        return {
-            "UpLeg": [(pair(f"{S}Leg", f"{S}Foot"), 1.0), (foot_forward(S), 0.5)],
-            "Leg": [(pair(f"{S}Leg", f"{S}UpLeg"), 1.0), (foot_forward(S), 0.5)],
-            "Foot": [(pair(f"{S}Foot", f"{S}Leg"), 1.0)],
-            "ToeBase": [(pair(f"{S}Foot", f"{S}Leg"), 1.0)],
-            "Arm": [(pair(f"{S}ForeArm", f"{S}Hand"), 1.0)],
-            "ForeArm": [(pair(f"{S}ForeArm", f"{S}Arm"), 1.0)],
-        }.get(bone, [])
+    torso_cues = landmarks.torso_cues()
 
     world = np.zeros((T, J, 3, 3))
     calib = np.tile(np.eye(3), (J, 1, 1))  # R_a
@@ -325,30 +439,13 @@ def solve_bone_rotations(
             world[:, a] = world[:, p] if p >= 0 else np.eye(3)
             calib[a] = calib[p] if p >= 0 else np.eye(3)
             continue
-        b = present[an]
-        Qb = Q[:, b]
+        Qb = Q[:, present[an]]
         parent_world = world[:, p] if p >= 0 else np.broadcast_to(np.eye(3), (T, 3, 3))
         # The parent's frame, as cues: the three axes of the avatar's rest carried by it.
         parent_cues = [(np.eye(3)[k], parent_world[:, :, k], 1.0) for k in range(3)]
 
         # 1. The bone: the next mapped joint down the chain, else the End Site / only child.
-        primary = None  # (avatar rest vector, source world vectors (T, 3), at zero pose (3,))
-        if an in align:
-            c = _chain_child(skeleton, a, mapped)
-            if c is not None and _is_below(source.parents, present[names[c]], b):
-                sc = present[names[c]]
-                primary = (
-                    heads[c] - heads[a],
-                    P[:, sc] - P[:, b],
-                    source.rest[sc] - source.rest[b],
-                )
-            elif c is None and b in source.leaf:
-                primary = (tails[a] - heads[a], *source.leaf[b])
-            if (
-                primary is not None
-                and min(np.linalg.norm(primary[0]), np.linalg.norm(primary[2])) < 1e-9
-            ):
-                primary = None
+        primary = _primary_bone(skeleton, source, landmarks, a) if an in align else None
 
         # 2. The calibration R_a.
         if reference == "zero-pose":
@@ -359,37 +456,12 @@ def solve_bone_rotations(
                 calib[a] = calib[p] if p >= 0 else np.eye(3)
                 how[an] = "as its parent at zero pose" if p >= 0 else "zero pose"
         elif primary is not None:
-            local = _unit(_local(Qb, primary[1]))  # (T, 3): the bone in b's frame
-            axis = _unit(local.mean(0)[None])[0]
-            if np.linalg.norm(axis) < 0.5:
-                axis = _unit(primary[2][None])[0]
-            R0 = rotation_between(primary[0][None], axis[None])[0].astype(np.float64)
-            cues = [
-                (R0 @ v, _local(Qb, u), w)
-                for (v, u), w in ((c, w) for c, w in limb_cues(an) if c is not None)
-            ]
-            main = bool(cues)
-            cues += [(R0 @ v, _local(Qb, u), 0.1 if main else 1.0) for v, u, _ in parent_cues]
-            calib[a] = _axis_angle(axis, twist_angle(axis, cues)) @ R0
-            how[an] = "bone and " + ("bend" if main else "its parent's twist")
+            calib[a], how[an] = _clip_limb_calibration(an, Qb, primary, parent_cues, landmarks)
         else:
-            cues = [
-                (v, _local(Qb, u), w)
-                for (v, u), w in ((c, w) for c, w in torso_cues.get(an, []) if c is not None)
-            ]
-            R = best_rotation(cues)
-            if R is None and p >= 0:  # too few landmarks: the parent's frame
-                R = best_rotation([(v, _local(Qb, u), w) for v, u, w in parent_cues])
-            calib[a] = R if R is not None else np.eye(3)
-            how[an] = "landmarks" if cues and R is not None else "its parent"
+            calib[a], how[an] = _torso_calibration(Qb, torso_cues.get(an, []), parent_cues, p >= 0)
 
         world[:, a] = Qb @ calib[a]
         # 3. The bone exactly along the source's at each frame.
         if primary is not None:
-            now = world[:, a] @ primary[0]  # (T, 3)
-            ok = np.linalg.norm(primary[1], axis=-1) > 1e-9
-            fix = np.tile(np.eye(3), (T, 1, 1))
-            if ok.any():
-                fix[ok] = rotation_between(now[ok], primary[1][ok]).astype(np.float64)
-            world[:, a] = fix @ world[:, a]
+            world[:, a] = _along_source(world[:, a], primary)
     return BoneRotations(world, reference, how)

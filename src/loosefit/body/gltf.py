@@ -35,6 +35,7 @@ How a glTF becomes a clip:
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -195,7 +196,6 @@ def read_gltf(
 
 
 def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip:
-    path = doc.path
     nodes = doc_list(doc, "nodes")
 
     # 1. The animation and its channels on nodes.
@@ -211,44 +211,7 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
     a = _pick(doc, "animations", animation, 0, "animation")
     anim = doc_item(doc, "animations", a, f"animations[{a}]")
     anim_name = str(anim.get("name", f"#{a}"))
-    channels: dict[tuple[int, str], tuple[np.ndarray, np.ndarray, str]] = {}
-    samplers = anim.get("samplers", [])
-    for c, ch in enumerate(anim.get("channels", [])):
-        where = f"animations[{a}].channels[{c}]"
-        target = ch.get("target", {}) if isinstance(ch, dict) else {}
-        node, prop = target.get("node"), target.get("path")
-        if prop not in _PATHS or node is None:
-            continue  # morph weights, or an extension's pointer
-        if not (isinstance(node, int) and 0 <= node < len(nodes)):
-            raise gltf_error(doc, f"{where}.target.node", f"a node index below {len(nodes)}", node)
-        s = ch.get("sampler")
-        if not (isinstance(s, int) and 0 <= s < len(samplers)):
-            raise gltf_error(doc, f"{where}.sampler", f"a sampler index below {len(samplers)}", s)
-        sampler = samplers[s]
-        swhere = f"animations[{a}].samplers[{s}]"
-        interp = sampler.get("interpolation", "LINEAR")
-        if interp not in INTERPOLATIONS:
-            raise gltf_error(
-                doc, f"{swhere}.interpolation", f"one of {INTERPOLATIONS}", repr(interp)
-            )
-        times = read_accessor(doc, sampler.get("input"), f"{swhere}.input")[:, 0]
-        values = read_accessor(doc, sampler.get("output"), f"{swhere}.output")
-        if np.any(np.diff(times) < 0):
-            raise gltf_error(
-                doc,
-                f"{swhere}.input",
-                "increasing keyframe times",
-                f"a time going back at key {int(np.argmax(np.diff(times) < 0)) + 1}",
-            )
-        keys = len(times) * (3 if interp == "CUBICSPLINE" else 1)
-        if values.shape != (keys, _PATHS[prop]):
-            raise gltf_error(
-                doc,
-                f"{swhere}.output",
-                f"{keys} values of {_PATHS[prop]} components ({prop}, {interp})",
-                f"{values.shape[0]} of {values.shape[1]}",
-            )
-        channels[(node, prop)] = (times, values, interp)
+    channels = _read_channels(doc, anim, a, len(nodes))
 
     # 2. The skin and its joints, parents first.
     skins = doc_list(doc, "skins")
@@ -261,23 +224,11 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
             hint="export the armature with its mesh (Blender: glTF export > Skinning)",
         )
     driven = {n for n, _ in channels}
-
-    def joints_of(i: int) -> list[int]:
-        js = doc_item(doc, "skins", i, f"skins[{i}]").get("joints", [])
-        if not (
-            isinstance(js, list)
-            and js
-            and all(isinstance(j, int) for j in js)
-            and all(0 <= j < len(nodes) for j in js)
-        ):
-            raise gltf_error(
-                doc, f"skins[{i}].joints", f"node indices below {len(nodes)}", repr(js)[:60]
-            )
-        return js
-
-    best = max(range(len(skins)), key=lambda i: (len(driven & set(joints_of(i))), -i))
+    best = max(
+        range(len(skins)), key=lambda i: (len(driven & set(_skin_joints(doc, i, nodes))), -i)
+    )
     k = _pick(doc, "skins", skin, best, "skin")
-    skin_def, skin_joints = skins[k], joints_of(k)
+    skin_def, skin_joints = skins[k], _skin_joints(doc, k, nodes)
     skin_name = str(skin_def.get("name", f"#{k}"))
     if not driven & set(skin_joints):
         raise gltf_error(
@@ -292,6 +243,133 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
     clip_nodes, parents, names = _joint_tree(doc, nodes, parent_node, skin_joints)
 
     # 3. Frame times.
+    frames = _frame_times(doc, a, channels, fps)
+
+    # 4. World transforms of the joints and every node above them, at each frame and at rest.
+    world, rest = _world_transforms(doc, nodes, parent_node, clip_nodes, channels, frames.at)
+    ibm_how = "the nodes' own transforms (the skin has no inverseBindMatrices)"
+    if skin_def.get("inverseBindMatrices") is not None:
+        rest.update(_bind_pose(doc, skin_def, k, skin_joints))
+        ibm_how = "the skin's bind pose (inverseBindMatrices)"
+
+    # 5. The clip: world-aligned rest frames, rotations from the rest pose.
+    units_scale = _units_scale(doc, units, scale)
+    J = len(clip_nodes)
+    local = _local_frames(doc, clip_nodes, parents, world, rest, units_scale)
+    rot_channels = ("Xrotation", "Yrotation", "Zrotation")
+    return BvhClip(
+        path=doc.path,
+        joint_names=tuple(names),
+        parents=np.asarray(parents, np.int64),
+        offsets=local.offsets.astype(np.float32),
+        channels=[("Xposition", "Yposition", "Zposition", *rot_channels)]
+        + [rot_channels] * (J - 1),
+        end_offsets=_end_offsets(parents, local.offsets),
+        rotations=local.rotations.astype(np.float32),
+        local_translations=local.translations.astype(np.float32),
+        frame_time=1.0 / frames.fps,
+        units_scale=units_scale,
+        meta={
+            "format": "glTF",
+            "report": {
+                "animation": f"'{anim_name}' ({a + 1} of {len(anims)}: "
+                + ", ".join(repr(str(x.get("name", f"#{i}"))) for i, x in enumerate(anims))
+                + ")",
+                "skin": f"'{skin_name}' ({k + 1} of {len(skins)}), {len(skin_joints)} joints",
+                "rest pose": ibm_how,
+                "sampled": f"{frames.fps:g} fps ({frames.how}), "
+                f"keyframes {frames.t0:.3f} s to {frames.t1:.3f} s",
+            },
+        },
+    )
+
+
+# A channel: (K,) keyframe times, (K, W) or (3K, W) values, the interpolation.
+_Channel = tuple[np.ndarray, np.ndarray, str]
+
+
+def _read_channels(
+    doc: GltfDocument, anim: dict, a: int, num_nodes: int
+) -> dict[tuple[int, str], _Channel]:
+    """(node, path) -> its sampler's keyframes, for the animation's channels on nodes."""
+    channels: dict[tuple[int, str], _Channel] = {}
+    samplers = anim.get("samplers", [])
+    for c, ch in enumerate(anim.get("channels", [])):
+        where = f"animations[{a}].channels[{c}]"
+        target = ch.get("target", {}) if isinstance(ch, dict) else {}
+        node, prop = target.get("node"), target.get("path")
+        if prop not in _PATHS or node is None:
+            continue  # morph weights, or an extension's pointer
+        if not (isinstance(node, int) and 0 <= node < num_nodes):
+            raise gltf_error(doc, f"{where}.target.node", f"a node index below {num_nodes}", node)
+        s = ch.get("sampler")
+        if not (isinstance(s, int) and 0 <= s < len(samplers)):
+            raise gltf_error(doc, f"{where}.sampler", f"a sampler index below {len(samplers)}", s)
+        channels[(node, prop)] = _read_sampler(
+            doc, samplers[s], f"animations[{a}].samplers[{s}]", prop
+        )
+    return channels
+
+
+def _read_sampler(doc: GltfDocument, sampler: dict, swhere: str, prop: str) -> _Channel:
+    """A sampler's keyframe times, values and interpolation, checked for channel ``prop``."""
+    interp = sampler.get("interpolation", "LINEAR")
+    if interp not in INTERPOLATIONS:
+        raise gltf_error(doc, f"{swhere}.interpolation", f"one of {INTERPOLATIONS}", repr(interp))
+    times = read_accessor(doc, sampler.get("input"), f"{swhere}.input")[:, 0]
+    values = read_accessor(doc, sampler.get("output"), f"{swhere}.output")
+    if np.any(np.diff(times) < 0):
+        raise gltf_error(
+            doc,
+            f"{swhere}.input",
+            "increasing keyframe times",
+            f"a time going back at key {int(np.argmax(np.diff(times) < 0)) + 1}",
+        )
+    keys = len(times) * (3 if interp == "CUBICSPLINE" else 1)
+    if values.shape != (keys, _PATHS[prop]):
+        raise gltf_error(
+            doc,
+            f"{swhere}.output",
+            f"{keys} values of {_PATHS[prop]} components ({prop}, {interp})",
+            f"{values.shape[0]} of {values.shape[1]}",
+        )
+    return times, values, interp
+
+
+def _skin_joints(doc: GltfDocument, i: int, nodes: list) -> list[int]:
+    """Skin ``i``'s joints, node indices, checked."""
+    js = doc_item(doc, "skins", i, f"skins[{i}]").get("joints", [])
+    if not (
+        isinstance(js, list)
+        and js
+        and all(isinstance(j, int) for j in js)
+        and all(0 <= j < len(nodes) for j in js)
+    ):
+        raise gltf_error(
+            doc, f"skins[{i}].joints", f"node indices below {len(nodes)}", repr(js)[:60]
+        )
+    return js
+
+
+@dataclass(frozen=True)
+class _FrameTimes:
+    """When the clip's frames are sampled.
+
+    Attributes:
+        t0, t1: the first and last keyframe times, seconds.
+        fps: the sampling rate; ``how``: how it was chosen.
+        at: (T,) the frames' times, seconds.
+    """
+
+    t0: float
+    t1: float
+    fps: float
+    how: str
+    at: np.ndarray
+
+
+def _frame_times(doc: GltfDocument, a: int, channels: dict, fps: float | None) -> _FrameTimes:
+    """The frames' times, from the first keyframe to the last at the sampling rate."""
     t0 = min(t[0] for t, _, _ in channels.values())
     t1 = max(t[-1] for t, _, _ in channels.values())
     fps, fps_how = _frame_rate(doc, channels, fps)
@@ -305,8 +383,22 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
     # keyframe times are float32 in a file: a last key at 101/30 s reads 100.99999 frames
     T = int(np.floor((t1 - t0) * fps + 1e-3)) + 1
     at = t0 + np.arange(T) / fps  # (T,)
+    return _FrameTimes(t0, t1, fps, fps_how, at)
 
-    # 4. World transforms of the joints and every node above them, at each frame and at rest.
+
+def _world_transforms(
+    doc: GltfDocument,
+    nodes: list,
+    parent_node: dict[int, int],
+    clip_nodes: list[int],
+    channels: dict[tuple[int, str], _Channel],
+    at: np.ndarray,
+) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+    """node -> (T, 4, 4) world transforms at times ``at``, and node -> (4, 4) at rest.
+
+    For the clip's nodes and every node above them; ``-1`` (the scene) is the identity.
+    """
+    T = len(at)
     world: dict[int, np.ndarray] = {-1: np.broadcast_to(np.eye(4), (T, 4, 4))}
     rest: dict[int, np.ndarray] = {-1: np.eye(4)}
     for n in _with_ancestors(clip_nodes, parent_node):
@@ -320,32 +412,62 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
             else:
                 sampled.append(np.broadcast_to(default, (T, len(default))))
         world[n] = world[parent_node[n]] @ _trs_matrix(*sampled)  # (T, 4, 4)
-    ibm_how = "the nodes' own transforms (the skin has no inverseBindMatrices)"
-    if skin_def.get("inverseBindMatrices") is not None:
-        ibm = read_accessor(doc, skin_def["inverseBindMatrices"], f"skins[{k}].inverseBindMatrices")
-        if ibm.shape != (len(skin_joints), 16):
-            raise gltf_error(
-                doc,
-                f"skins[{k}].inverseBindMatrices",
-                f"{len(skin_joints)} MAT4 (one per joint)",
-                f"{ibm.shape}",
-            )
-        bind = np.linalg.inv(np.swapaxes(ibm.reshape(-1, 4, 4), -1, -2))  # column-major
-        for n, b in zip(skin_joints, bind, strict=True):
-            rest[n] = b
-        ibm_how = "the skin's bind pose (inverseBindMatrices)"
+    return world, rest
 
-    # 5. The clip: world-aligned rest frames, rotations from the rest pose.
+
+def _bind_pose(
+    doc: GltfDocument, skin_def: dict, k: int, skin_joints: list[int]
+) -> dict[int, np.ndarray]:
+    """joint node -> (4, 4) world transform at bind, from the skin's inverseBindMatrices."""
+    ibm = read_accessor(doc, skin_def["inverseBindMatrices"], f"skins[{k}].inverseBindMatrices")
+    if ibm.shape != (len(skin_joints), 16):
+        raise gltf_error(
+            doc,
+            f"skins[{k}].inverseBindMatrices",
+            f"{len(skin_joints)} MAT4 (one per joint)",
+            f"{ibm.shape}",
+        )
+    bind = np.linalg.inv(np.swapaxes(ibm.reshape(-1, 4, 4), -1, -2))  # column-major
+    return dict(zip(skin_joints, bind, strict=True))
+
+
+def _units_scale(doc: GltfDocument, units: str, scale: float | None) -> float:
+    """Metres per file unit: ``scale``, else ``units`` (glTF is in metres)."""
     if scale is not None:
         if not (np.isfinite(scale) and scale > 0):
             raise gltf_error(doc, "scale", "a positive factor", repr(scale))
-        units_scale = float(scale)
-    elif units == "auto":
-        units_scale = 1.0  # glTF is in metres
-    elif units in _UNIT_SCALES:
-        units_scale = _UNIT_SCALES[units]
-    else:
-        raise gltf_error(doc, "units", "one of 'auto', 'm', 'cm', 'mm'", repr(units))
+        return float(scale)
+    if units == "auto":
+        return 1.0  # glTF is in metres
+    if units in _UNIT_SCALES:
+        return _UNIT_SCALES[units]
+    raise gltf_error(doc, "units", "one of 'auto', 'm', 'cm', 'mm'", repr(units))
+
+
+@dataclass(frozen=True)
+class _LocalFrames:
+    """The clip's joints relative to their parents, in world-aligned rest frames.
+
+    Attributes:
+        rotations: (T, J, 3, 3) local rotations from the rest pose.
+        translations: (T, J, 3) local translations (the root's: its position).
+        offsets: (J, 3) rest offsets from the parent (the root's: its rest position).
+    """
+
+    rotations: np.ndarray
+    translations: np.ndarray
+    offsets: np.ndarray
+
+
+def _local_frames(
+    doc: GltfDocument,
+    clip_nodes: list[int],
+    parents: list[int],
+    world: dict[int, np.ndarray],
+    rest: dict[int, np.ndarray],
+    units_scale: float,
+) -> _LocalFrames:
+    """The clip's local rotations, translations and offsets from world and rest transforms."""
     J = len(clip_nodes)
     pos = np.stack([world[n][:, :3, 3] for n in clip_nodes], 1) * units_scale  # (T, J, 3)
     rot = _orthonormal(np.stack([world[n][:, :3, :3] for n in clip_nodes], 1))  # (T, J, 3, 3)
@@ -368,37 +490,18 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
             "NaN or an overflow (a zero quaternion, a singular bind matrix or a huge "
             "translation or scale)",
         )
+    return _LocalFrames(local, trans, offsets)
+
+
+def _end_offsets(parents: list[int], offsets: np.ndarray) -> dict[int, np.ndarray]:
+    """End Sites: a joint whose single child joint is a leaf gets that child's (3,) offset."""
+    J = len(parents)
     children = [[c for c in range(J) if parents[c] == j] for j in range(J)]
-    ends = {
+    return {
         j: offsets[kids[0]].astype(np.float32)
         for j, kids in enumerate(children)
         if len(kids) == 1 and not children[kids[0]]
     }
-    rot_channels = ("Xrotation", "Yrotation", "Zrotation")
-    return BvhClip(
-        path=path,
-        joint_names=tuple(names),
-        parents=np.asarray(parents, np.int64),
-        offsets=offsets.astype(np.float32),
-        channels=[("Xposition", "Yposition", "Zposition", *rot_channels)]
-        + [rot_channels] * (J - 1),
-        end_offsets=ends,
-        rotations=local.astype(np.float32),
-        local_translations=trans.astype(np.float32),
-        frame_time=1.0 / fps,
-        units_scale=units_scale,
-        meta={
-            "format": "glTF",
-            "report": {
-                "animation": f"'{anim_name}' ({a + 1} of {len(anims)}: "
-                + ", ".join(repr(str(x.get("name", f"#{i}"))) for i, x in enumerate(anims))
-                + ")",
-                "skin": f"'{skin_name}' ({k + 1} of {len(skins)}), {len(skin_joints)} joints",
-                "rest pose": ibm_how,
-                "sampled": f"{fps:g} fps ({fps_how}), keyframes {t0:.3f} s to {t1:.3f} s",
-            },
-        },
-    )
 
 
 def _node_parents(doc: GltfDocument, nodes: list) -> dict[int, int]:

@@ -262,6 +262,212 @@ def _two_sides(
     return {}, "structure"
 
 
+# The avatar joints of a match, in the order a JointMap lists them.
+_AVATAR_ORDER = (
+    "Hips",
+    "LHipJoint",
+    "LeftUpLeg",
+    "LeftLeg",
+    "LeftFoot",
+    "LeftToeBase",
+    "LowerBack",
+    "Spine",
+    "Spine1",
+    "LeftShoulder",
+    "LeftArm",
+    "LeftForeArm",
+    "LeftHand",
+    "Neck",
+    "Neck1",
+    "Head",
+    "RightShoulder",
+    "RightArm",
+    "RightForeArm",
+    "RightHand",
+    "RHipJoint",
+    "RightUpLeg",
+    "RightLeg",
+    "RightFoot",
+    "RightToeBase",
+)
+
+
+@dataclass(frozen=True)
+class _SourceTree:
+    """A source skeleton as the matcher walks it (J joints, parents before children).
+
+    Attributes:
+        names: the J joint names; ``parts``: what each name says; ``kinds``: its part.
+        parents: (J,) int64 parent indices, -1 for a root.
+        rest: (J, 3) float64 rest positions, the avatar's axes.
+        kids: each joint's children.
+        depth: (J,) int64 joints above each.
+        subtree: each joint's subtree, itself first.
+        legged: whether a joint's subtree holds a joint named as part of a leg.
+        extent: the skeleton's size (its height, or its arm span): legs reach down a
+            quarter of it below the pelvis, arms out 0.15 of it from the spine.
+    """
+
+    names: list[str]
+    parts: list[NameParts]
+    kinds: list[str | None]
+    parents: np.ndarray
+    rest: np.ndarray
+    kids: list[list[int]]
+    depth: np.ndarray
+    subtree: list[list[int]]
+    legged: list[bool]
+    extent: float
+
+
+def _source_tree(names: list[str], parents: np.ndarray, rest: np.ndarray) -> _SourceTree:
+    """The walkable tree of (J,) names, (J,) int64 parents and (J, 3) rest positions."""
+    J = len(names)
+    parts = [classify_joint_name(n) for n in names]
+    kinds = [p.part for p in parts]
+    kids: list[list[int]] = [[] for _ in range(J)]
+    depth = np.zeros(J, dtype=np.int64)
+    for j, p in enumerate(parents):
+        if p >= 0:
+            kids[p].append(j)
+            depth[j] = depth[p] + 1
+    subtree: list[list[int]] = [[j] for j in range(J)]
+    for j in range(J - 1, 0, -1):  # parents precede children
+        if parents[j] >= 0:
+            subtree[parents[j]] += subtree[j]
+    extent = float(np.ptp(rest, axis=0).max()) if J else 0.0
+    legged = [
+        any(kinds[i] in ("thigh", "shin", "foot", "hip") for i in subtree[j]) for j in range(J)
+    ]
+    return _SourceTree(names, parts, kinds, parents, rest, kids, depth, subtree, legged, extent)
+
+
+def _find_pelvis(tree: _SourceTree) -> tuple[int | None, str]:
+    """The pelvis and how it was found, or None.
+
+    A named root that branches (into the most named legs, then the deepest: a
+    scene's "root" above the "pelvis"), else the first joint that branches.
+    """
+    kids, depth = tree.kids, tree.depth
+    named_roots = [j for j in range(len(kids)) if tree.kinds[j] == "root" and len(kids[j]) >= 2]
+    if named_roots:
+        pelvis = max(named_roots, key=lambda j: (sum(tree.legged[c] for c in kids[j]), depth[j]))
+        return pelvis, "name"
+    if not kids:
+        return None, "structure"
+    j = int(np.flatnonzero(tree.parents < 0)[0])
+    while len(kids[j]) == 1:
+        j = kids[j][0]
+    return (j if len(kids[j]) >= 2 else None), "structure"
+
+
+def _torso(tree: _SourceTree, pelvis: int) -> tuple[int, int | None]:
+    """The pelvis's branch that is the torso (holding the head, else reaching highest),
+    and the named head joint nearest the pelvis (None when no joint is named so)."""
+    heads = [j for j in tree.subtree[pelvis] if tree.kinds[j] == "head" and j != pelvis]
+    top = min(heads, key=lambda j: tree.depth[j]) if heads else None
+    branches = tree.kids[pelvis]
+    if top is not None:
+        return next(c for c in branches if top in tree.subtree[c]), top
+    return max(branches, key=lambda c: tree.rest[tree.subtree[c], 2].max()), top
+
+
+def _legs(tree: _SourceTree, pelvis: int, torso: int) -> list[int]:
+    """Up to two of the pelvis's branches that reach far below it, lowest first."""
+    rest, subtree = tree.rest, tree.subtree
+    low = {c: rest[subtree[c], 2].min() for c in tree.kids[pelvis] if c != torso}
+    legs = [c for c in low if low[c] < rest[pelvis, 2] - 0.25 * tree.extent]
+    named_legs = [c for c in legs if tree.legged[c]]
+    return sorted(named_legs if len(named_legs) >= 2 else legs, key=lambda c: low[c])[:2]
+
+
+def _leg_joints(tree: _SourceTree, pelvis: int, s: str, c: int) -> dict[str, tuple[int, str]]:
+    """Avatar joint -> (source joint, how) along the leg branch ``c`` on side ``s``."""
+    S = "Left" if s == "L" else "Right"
+    lowest = max(tree.subtree[c], key=lambda j: (-tree.rest[j, 2], tree.depth[j]))
+    chain = _path(tree.parents, pelvis, lowest)
+    while len(tree.kids[chain[-1]]) == 1:
+        chain.append(tree.kids[chain[-1]][0])
+    roles = _leg_roles([tree.kinds[j] for j in chain], tree.rest[chain])
+    avatar = {
+        "hipjoint": f"{s}HipJoint",
+        "thigh": f"{S}UpLeg",
+        "shin": f"{S}Leg",
+        "foot": f"{S}Foot",
+        "toe": f"{S}ToeBase",
+    }
+    return {avatar[role]: (chain[i], h) for role, (i, h) in roles.items()}
+
+
+def _head(tree: _SourceTree, pelvis: int, torso: int, top: int | None) -> tuple[int, str]:
+    """The head and how: named, else the highest joint, or the one below it if that
+    one is a "HeadTop_End"."""
+    if top is not None:
+        return top, "name"
+    rest, depth, parents = tree.rest, tree.depth, tree.parents
+    highest = max(tree.subtree[torso], key=lambda j: (rest[j, 2], -depth[j]))
+    if _END_MARKER.search(tree.names[highest]) and parents[highest] not in (pelvis, -1):
+        return int(parents[highest]), "structure"
+    return highest, "structure"
+
+
+def _arm_branches(tree: _SourceTree, spine_path: list[int]) -> list[tuple[int, int]]:
+    """Up to two (spine joint, branch) off the spine path that reach farthest, as arms."""
+    rest, subtree = tree.rest, tree.subtree
+    on_path = set(spine_path)
+    offshoots = [(s, c) for s in spine_path[:-1] for c in tree.kids[s] if c not in on_path]
+    reach = {
+        c: float(np.linalg.norm(rest[subtree[c]] - rest[s], axis=1).max()) for s, c in offshoots
+    }
+    arm_kinds = ("collar", "shoulder", "upperarm", "forearm", "hand")
+    named_arms = [
+        (s, c) for s, c in offshoots if any(tree.kinds[j] in arm_kinds for j in subtree[c])
+    ]
+    pool = named_arms if len(named_arms) >= 2 else offshoots
+    arms = sorted(pool, key=lambda sc: -reach[sc[1]])[:2]
+    return [(s, c) for s, c in arms if reach[c] > 0.15 * tree.extent]
+
+
+def _arm_joints(tree: _SourceTree, s: str, c: int) -> dict[str, tuple[int, str]]:
+    """Avatar joint -> (source joint, how) along the arm branch ``c`` on side ``s``."""
+    S = "Left" if s == "L" else "Right"
+    rest, parents = tree.rest, tree.parents
+    lengths = {c: 0.0}  # path length from the branch's first joint
+    for j in sorted(tree.subtree[c])[1:]:
+        bone = float(np.linalg.norm(rest[j] - rest[parents[j]]))
+        lengths[j] = lengths[int(parents[j])] + bone
+    tip = max(lengths, key=lambda j: (lengths[j], -tree.depth[j]))
+    chain = [c, *_path(parents, c, tip)]
+    roles = _arm_roles([tree.kinds[j] for j in chain], rest[chain])
+    avatar = {
+        "collar": f"{S}Shoulder",
+        "arm": f"{S}Arm",
+        "forearm": f"{S}ForeArm",
+        "hand": f"{S}Hand",
+    }
+    return {avatar[role]: (chain[i], h) for role, (i, h) in roles.items()}
+
+
+def _spine_and_neck(
+    tree: _SourceTree, spine_path: list[int], arms: list[tuple[int, int]]
+) -> dict[str, tuple[int, str]]:
+    """Avatar spine and neck joint -> (source joint, how); the chest is where arms branch."""
+    out: dict[str, tuple[int, str]] = {}
+    chest_at = max((spine_path.index(s) for s, _ in arms), default=len(spine_path) - 2)
+    spine = spine_path[: chest_at + 1]
+    neck = spine_path[chest_at + 1 : -1]
+    slots = {"Spine1": -1} if len(spine) == 1 else {"LowerBack": 0, "Spine1": -1}
+    if len(spine) >= 3:
+        slots["Spine"] = (len(spine) - 1) // 2
+    for a, i in slots.items():
+        if spine:
+            out[a] = (spine[i], "name" if tree.kinds[spine[i]] == "spine" else "structure")
+    for a, i in ({"Neck": 0, "Neck1": -1} if len(neck) >= 2 else {"Neck": 0}).items():
+        if neck:
+            out[a] = (neck[i], "name" if tree.kinds[neck[i]] == "neck" else "structure")
+    return out
+
+
 def match_skeleton(
     names: list[str] | tuple[str, ...],
     parents: np.ndarray,
@@ -287,62 +493,27 @@ def match_skeleton(
             nothing drives, the candidates found for each, and a map file line to write.
     """
     names = list(names)
-    parents = np.asarray(parents, dtype=np.int64)
-    rest = np.asarray(rest, dtype=np.float64)
-    J = len(names)
-    parts = [classify_joint_name(n) for n in names]
-    kinds = [p.part for p in parts]
-    kids: list[list[int]] = [[] for _ in range(J)]
-    depth = np.zeros(J, dtype=np.int64)
-    for j, p in enumerate(parents):
-        if p >= 0:
-            kids[p].append(j)
-            depth[j] = depth[p] + 1
-    subtree: list[list[int]] = [[j] for j in range(J)]
-    for j in range(J - 1, 0, -1):  # parents precede children
-        if parents[j] >= 0:
-            subtree[parents[j]] += subtree[j]
-    # the skeleton's size (its height, or its arm span): legs reach down a quarter of it
-    # below the pelvis, arms out 0.15 of it from the spine
-    extent = float(np.ptp(rest, axis=0).max()) if J else 0.0
+    tree = _source_tree(
+        names, np.asarray(parents, dtype=np.int64), np.asarray(rest, dtype=np.float64)
+    )
     found: dict[str, int] = {}
     how: dict[str, str] = {}
     notes: list[str] = []
 
-    # 1. The pelvis: a named root that branches (into the most named legs, then the
-    # deepest: a scene's "root" above the "pelvis"), else the first joint that branches.
-    legged = [
-        any(kinds[i] in ("thigh", "shin", "foot", "hip") for i in subtree[j]) for j in range(J)
-    ]
-    named_roots = [j for j in range(J) if kinds[j] == "root" and len(kids[j]) >= 2]
-    pelvis = None
-    if named_roots:
-        pelvis = max(named_roots, key=lambda j: (sum(legged[c] for c in kids[j]), depth[j]))
-        how_pelvis = "name"
-    elif J:
-        j = int(np.flatnonzero(parents < 0)[0])
-        while len(kids[j]) == 1:
-            j = kids[j][0]
-        pelvis = j if len(kids[j]) >= 2 else None
-        how_pelvis = "structure"
+    def record(joints: dict[str, tuple[int, str]]) -> None:
+        for a, (j, h) in joints.items():
+            found[a], how[a] = j, h
+
+    # 1. The pelvis.
+    pelvis, how_pelvis = _find_pelvis(tree)
     if pelvis is None:
-        _fail(source, names, parts, found, ["no joint branches into legs and a spine"])
+        _fail(source, names, tree.parts, found, ["no joint branches into legs and a spine"])
     found["Hips"], how["Hips"] = pelvis, how_pelvis
     notes.append(f"pelvis: '{names[pelvis]}' ({how_pelvis})")
 
     # 2. Its branches: the torso (reaching highest, or holding the head), the legs (low).
-    branches = kids[pelvis]
-    heads = [j for j in subtree[pelvis] if kinds[j] == "head" and j != pelvis]
-    top = min(heads, key=lambda j: depth[j]) if heads else None
-    if top is not None:
-        torso = next(c for c in branches if top in subtree[c])
-    else:
-        torso = max(branches, key=lambda c: rest[subtree[c], 2].max())
-    low = {c: rest[subtree[c], 2].min() for c in branches if c != torso}
-    legs = [c for c in low if low[c] < rest[pelvis, 2] - 0.25 * extent]
-    named_legs = [c for c in legs if legged[c]]
-    legs = sorted(named_legs if len(named_legs) >= 2 else legs, key=lambda c: low[c])[:2]
-    leg_side, how_side = _two_sides(legs, subtree, parts, rest)
+    torso, top = _torso(tree, pelvis)
+    leg_side, how_side = _two_sides(_legs(tree, pelvis, torso), tree.subtree, tree.parts, tree.rest)
     found_legs = ", ".join(f"'{names[c]}' ({s})" for s, c in leg_side.items())
     notes.append(
         f"torso: '{names[torso]}'; legs: "
@@ -353,113 +524,29 @@ def match_skeleton(
         )
     )
     for s, c in leg_side.items():
-        S = "Left" if s == "L" else "Right"
-        lowest = max(subtree[c], key=lambda j: (-rest[j, 2], depth[j]))
-        chain = _path(parents, pelvis, lowest)
-        while len(kids[chain[-1]]) == 1:
-            chain.append(kids[chain[-1]][0])
-        roles = _leg_roles([kinds[j] for j in chain], rest[chain])
-        avatar = {
-            "hipjoint": f"{s}HipJoint",
-            "thigh": f"{S}UpLeg",
-            "shin": f"{S}Leg",
-            "foot": f"{S}Foot",
-            "toe": f"{S}ToeBase",
-        }
-        for role, (i, h) in roles.items():
-            found[avatar[role]], how[avatar[role]] = chain[i], h
+        record(_leg_joints(tree, pelvis, s, c))
 
-    # 3. The spine path, pelvis to head (named, else the highest joint, or the one below
-    # it if that one is a "HeadTop_End"), and the arms that branch off it.
-    head, how["Head"] = top, "name"
-    if top is None:
-        highest = max(subtree[torso], key=lambda j: (rest[j, 2], -depth[j]))
-        head, how["Head"] = highest, "structure"
-        if _END_MARKER.search(names[highest]) and parents[highest] not in (pelvis, -1):
-            head = int(parents[highest])
+    # 3. The spine path, pelvis to head, and the arms that branch off it.
+    head, how["Head"] = _head(tree, pelvis, torso, top)
     found["Head"] = head
-    spine_path = _path(parents, pelvis, head)
-    on_path = set(spine_path)
-    offshoots = [(s, c) for s in spine_path[:-1] for c in kids[s] if c not in on_path]
-    reach = {
-        c: float(np.linalg.norm(rest[subtree[c]] - rest[s], axis=1).max()) for s, c in offshoots
-    }
-    arm_kinds = ("collar", "shoulder", "upperarm", "forearm", "hand")
-    named_arms = [(s, c) for s, c in offshoots if any(kinds[j] in arm_kinds for j in subtree[c])]
-    pool = named_arms if len(named_arms) >= 2 else offshoots
-    arms = sorted(pool, key=lambda sc: -reach[sc[1]])[:2]
-    arms = [(s, c) for s, c in arms if reach[c] > 0.15 * extent]
-    arm_side, how_arm_side = _two_sides([c for _, c in arms], subtree, parts, rest)
+    spine_path = _path(tree.parents, pelvis, head)
+    arms = _arm_branches(tree, spine_path)
+    arm_side, how_arm_side = _two_sides([c for _, c in arms], tree.subtree, tree.parts, tree.rest)
     notes.append(
         "arms: "
         + (", ".join(f"'{names[c]}' ({s})" for s, c in arm_side.items()) or "none")
         + f", sides by {how_arm_side}"
     )
     for s, c in arm_side.items():
-        S = "Left" if s == "L" else "Right"
-        lengths = {c: 0.0}  # path length from the branch's first joint
-        for j in sorted(subtree[c])[1:]:
-            bone = float(np.linalg.norm(rest[j] - rest[parents[j]]))
-            lengths[j] = lengths[int(parents[j])] + bone
-        tip = max(lengths, key=lambda j: (lengths[j], -depth[j]))
-        chain = [c, *_path(parents, c, tip)]
-        roles = _arm_roles([kinds[j] for j in chain], rest[chain])
-        avatar = {
-            "collar": f"{S}Shoulder",
-            "arm": f"{S}Arm",
-            "forearm": f"{S}ForeArm",
-            "hand": f"{S}Hand",
-        }
-        for role, (i, h) in roles.items():
-            found[avatar[role]], how[avatar[role]] = chain[i], h
+        record(_arm_joints(tree, s, c))
 
     # 4. Spine and neck along the path; the chest is where the arms branch.
-    chest_at = max((spine_path.index(s) for s, _ in arms), default=len(spine_path) - 2)
-    spine = spine_path[: chest_at + 1]
-    neck = spine_path[chest_at + 1 : -1]
-    slots = {"Spine1": -1} if len(spine) == 1 else {"LowerBack": 0, "Spine1": -1}
-    if len(spine) >= 3:
-        slots["Spine"] = (len(spine) - 1) // 2
-    for a, i in slots.items():
-        if spine:
-            found[a] = spine[i]
-            how[a] = "name" if kinds[spine[i]] == "spine" else "structure"
-    for a, i in ({"Neck": 0, "Neck1": -1} if len(neck) >= 2 else {"Neck": 0}).items():
-        if neck:
-            found[a] = neck[i]
-            how[a] = "name" if kinds[neck[i]] == "neck" else "structure"
+    record(_spine_and_neck(tree, spine_path, arms))
 
     missing = [a for a in REQUIRED if a not in found]
     if missing:
-        _fail(source, names, parts, found, notes, missing)
-    order = (
-        "Hips",
-        "LHipJoint",
-        "LeftUpLeg",
-        "LeftLeg",
-        "LeftFoot",
-        "LeftToeBase",
-        "LowerBack",
-        "Spine",
-        "Spine1",
-        "LeftShoulder",
-        "LeftArm",
-        "LeftForeArm",
-        "LeftHand",
-        "Neck",
-        "Neck1",
-        "Head",
-        "RightShoulder",
-        "RightArm",
-        "RightForeArm",
-        "RightHand",
-        "RHipJoint",
-        "RightUpLeg",
-        "RightLeg",
-        "RightFoot",
-        "RightToeBase",
-    )
-    joints = {a: names[found[a]] for a in order if a in found}
+        _fail(source, names, tree.parts, found, notes, missing)
+    joints = {a: names[found[a]] for a in _AVATAR_ORDER if a in found}
     jmap = JointMap("auto-matched", joints, tuple(a for a in LIMBS if a in joints))
     return JointMatch(jmap, {a: how[a] for a in joints}, tuple(notes))
 

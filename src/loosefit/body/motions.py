@@ -100,117 +100,167 @@ def load_motion(
             ]
         )
         return motion if max_frames is None else motion.slice(0, max_frames)
+    motion = _load_one(text, avatar, fps, seed, retarget)
+    return _trim(motion, start_frame, max_frames)
+
+
+def _load_one(
+    text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
+) -> Motion:
+    """One motion spec (no ``+`` chain), every frame of it: by its prefix or its file."""
+    path = Path(text)
     setting = next((k for k in _SETTING_PREFIXES if text.startswith(k)), None)
     if setting is not None and not path.exists():
-        field_name, form, wanted = _SETTING_PREFIXES[setting]
-        value, _, inner = text[len(setting) :].partition(":")
-        if not (value and inner):
-            raise LoosefitInputError("motion", form, wanted, repr(text))
-        cfg = RetargetConfig(**{**(retarget or RetargetConfig()).__dict__, field_name: value})
-        motion = load_motion(inner, avatar, fps, seed, cfg)
-    elif text.startswith(("units:", "scale:")) and not path.exists():
-        key, _, rest = text.partition(":")
-        value, _, inner = rest.partition(":")
-        cfg = retarget or RetargetConfig()
-        if key == "units":
-            ok = value in BVH_UNITS
-            cfg = RetargetConfig(**{**cfg.__dict__, "units": value, "scale": None})
-        else:
-            try:
-                factor = float(value)
-            except ValueError:
-                factor = float("nan")
-            ok = math.isfinite(factor) and factor > 0
-            cfg = RetargetConfig(**{**cfg.__dict__, "scale": factor})
-        if not (ok and inner):
-            raise LoosefitInputError(
-                "motion",
-                f"{key}:{'UNIT' if key == 'units' else 'METRES_PER_UNIT'}:MOTION",
-                "m, cm, mm or auto, and a motion"
-                if key == "units"
-                else "a positive factor and a motion",
-                repr(text),
-            )
-        motion = load_motion(inner, avatar, fps, seed, cfg)
-    elif text.startswith("mirror:") and not path.exists():
-        motion = mirror_motion(load_motion(text[len("mirror:") :], avatar, fps, seed, retarget))
-    elif text.startswith("speed:") and not path.exists():
-        factor, _, inner = text[len("speed:") :].partition(":")
-        try:
-            speed = float(factor)
-        except ValueError:
-            speed = float("nan")
-        if not (inner and MIN_SPEED <= speed <= MAX_SPEED):
-            raise LoosefitInputError(
-                "motion",
-                "speed:FACTOR:MOTION",
-                f"a factor from {MIN_SPEED:g} to {MAX_SPEED:g} and a motion",
-                repr(text),
-            )
-        motion = retime_motion(load_motion(inner, avatar, fps, seed, retarget), speed)
-    elif text.startswith("frames:") and not path.exists():
-        start, _, rest = text[len("frames:") :].partition(":")
-        stop, _, inner = rest.partition(":")
-        try:
-            first, last = int(start), int(stop)
-        except ValueError:
-            first = last = -1
-        if not (inner and 0 <= first < last):
-            raise LoosefitInputError(
-                "motion", "frames:START:STOP:MOTION", "0 <= START < STOP and a motion", repr(text)
-            )
-        motion = load_motion(inner, avatar, fps, seed, retarget)
-        if last > motion.num_frames:
-            raise LoosefitInputError(
-                f"motion '{motion.name}'",
-                "frames:START:STOP",
-                f"STOP <= {motion.num_frames} (its frames)",
-                last,
-            )
-        motion = motion.slice(first, last)
-    elif path.suffix.lower() in CLIP_READERS and (
+        return _load_with_setting(text, setting, avatar, fps, seed, retarget)
+    if text.startswith(("units:", "scale:")) and not path.exists():
+        return _load_in_units(text, avatar, fps, seed, retarget)
+    if text.startswith("mirror:") and not path.exists():
+        return mirror_motion(load_motion(text[len("mirror:") :], avatar, fps, seed, retarget))
+    if text.startswith("speed:") and not path.exists():
+        return _load_retimed(text, avatar, fps, seed, retarget)
+    if text.startswith("frames:") and not path.exists():
+        return _load_frames(text, avatar, fps, seed, retarget)
+    if path.suffix.lower() in CLIP_READERS and (
         path.suffix.lower() != ".npz" or is_capture_file(path)
     ):
         cfg = retarget or RetargetConfig()
         cfg = RetargetConfig(**{**cfg.__dict__, "fps": fps})
         clip = read_clip(path, cfg)
-        motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height, cfg)
-    elif path.suffix.lower() == ".npz":
-        fields = npz_fields(path) if path.is_file() else ["rotations"]  # Motion.load says
-        if "rotations" not in fields:
-            raise LoosefitInputError(
-                path,
-                "rotations",
-                "a loosefit motion (joint_names, rotations, root_translation, fps) or an SMPL "
-                "pose file (poses, trans, mocap_framerate)",
-                f"fields {sorted(fields)}",
-            )
-        motion = Motion.load(path)
-        avatar.check_motion(motion)
-        if abs(motion.fps - fps) > 1e-6:
-            motion = resample_motion(motion, fps)
-    elif text.split(":")[0] in PROCEDURAL_NAMES:
-        name, _, arg = text.partition(":")
-        if name == "dance" and arg:
-            try:
-                seconds = float(arg)
-            except ValueError:
-                seconds = float("nan")
-            if not 0 < seconds <= MAX_DANCE_SECONDS:
-                raise LoosefitInputError(
-                    "motion", "dance:SECONDS", f"seconds in (0, {MAX_DANCE_SECONDS:g}]", repr(arg)
-                )
-            motion = random_dance(avatar.joint_names, avatar.floor_height, seconds, seed, fps)
-        else:
-            motion = named_motion(name, avatar.joint_names, avatar.floor_height, seed, fps)
+        return retarget_bvh(clip, avatar.skeleton, avatar.floor_height, cfg)
+    if path.suffix.lower() == ".npz":
+        return _load_saved(path, avatar, fps)
+    if text.split(":")[0] in PROCEDURAL_NAMES:
+        return _procedural(text, avatar, fps, seed)
+    raise LoosefitInputError(
+        "motion",
+        "spec",
+        f"a .bvh, .gltf, .glb or .npz file, or one of {list(PROCEDURAL_NAMES)} "
+        + "(dance:SECONDS)",
+        repr(text),
+    )
+
+
+def _load_with_setting(
+    text: str, setting: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
+) -> Motion:
+    """``joint-map:MAP:MOTION`` or ``animation:NAME:MOTION``: one RetargetConfig field set."""
+    field_name, form, wanted = _SETTING_PREFIXES[setting]
+    value, _, inner = text[len(setting) :].partition(":")
+    if not (value and inner):
+        raise LoosefitInputError("motion", form, wanted, repr(text))
+    cfg = RetargetConfig(**{**(retarget or RetargetConfig()).__dict__, field_name: value})
+    return load_motion(inner, avatar, fps, seed, cfg)
+
+
+def _load_in_units(
+    text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
+) -> Motion:
+    """``units:UNIT:MOTION`` or ``scale:METRES_PER_UNIT:MOTION``."""
+    key, _, rest = text.partition(":")
+    value, _, inner = rest.partition(":")
+    cfg = retarget or RetargetConfig()
+    if key == "units":
+        ok = value in BVH_UNITS
+        cfg = RetargetConfig(**{**cfg.__dict__, "units": value, "scale": None})
     else:
+        try:
+            factor = float(value)
+        except ValueError:
+            factor = float("nan")
+        ok = math.isfinite(factor) and factor > 0
+        cfg = RetargetConfig(**{**cfg.__dict__, "scale": factor})
+    if not (ok and inner):
         raise LoosefitInputError(
             "motion",
-            "spec",
-            f"a .bvh, .gltf, .glb or .npz file, or one of {list(PROCEDURAL_NAMES)} "
-            + "(dance:SECONDS)",
+            f"{key}:{'UNIT' if key == 'units' else 'METRES_PER_UNIT'}:MOTION",
+            "m, cm, mm or auto, and a motion"
+            if key == "units"
+            else "a positive factor and a motion",
             repr(text),
         )
+    return load_motion(inner, avatar, fps, seed, cfg)
+
+
+def _load_retimed(
+    text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
+) -> Motion:
+    """``speed:FACTOR:MOTION``: played FACTOR times as fast, at the same frame rate."""
+    factor, _, inner = text[len("speed:") :].partition(":")
+    try:
+        speed = float(factor)
+    except ValueError:
+        speed = float("nan")
+    if not (inner and MIN_SPEED <= speed <= MAX_SPEED):
+        raise LoosefitInputError(
+            "motion",
+            "speed:FACTOR:MOTION",
+            f"a factor from {MIN_SPEED:g} to {MAX_SPEED:g} and a motion",
+            repr(text),
+        )
+    return retime_motion(load_motion(inner, avatar, fps, seed, retarget), speed)
+
+
+def _load_frames(
+    text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
+) -> Motion:
+    """``frames:START:STOP:MOTION``: its frames START to STOP - 1."""
+    start, _, rest = text[len("frames:") :].partition(":")
+    stop, _, inner = rest.partition(":")
+    try:
+        first, last = int(start), int(stop)
+    except ValueError:
+        first = last = -1
+    if not (inner and 0 <= first < last):
+        raise LoosefitInputError(
+            "motion", "frames:START:STOP:MOTION", "0 <= START < STOP and a motion", repr(text)
+        )
+    motion = load_motion(inner, avatar, fps, seed, retarget)
+    if last > motion.num_frames:
+        raise LoosefitInputError(
+            f"motion '{motion.name}'",
+            "frames:START:STOP",
+            f"STOP <= {motion.num_frames} (its frames)",
+            last,
+        )
+    return motion.slice(first, last)
+
+
+def _load_saved(path: Path, avatar: Avatar, fps: float) -> Motion:
+    """A motion saved by :meth:`Motion.save`, checked on ``avatar``, resampled to ``fps``."""
+    fields = npz_fields(path) if path.is_file() else ["rotations"]  # Motion.load says
+    if "rotations" not in fields:
+        raise LoosefitInputError(
+            path,
+            "rotations",
+            "a loosefit motion (joint_names, rotations, root_translation, fps) or an SMPL "
+            "pose file (poses, trans, mocap_framerate)",
+            f"fields {sorted(fields)}",
+        )
+    motion = Motion.load(path)
+    avatar.check_motion(motion)
+    if abs(motion.fps - fps) > 1e-6:
+        motion = resample_motion(motion, fps)
+    return motion
+
+
+def _procedural(text: str, avatar: Avatar, fps: float, seed: int) -> Motion:
+    """A procedural move (``spin``, ``walk``, ...), ``dance`` or ``dance:SECONDS``."""
+    name, _, arg = text.partition(":")
+    if name == "dance" and arg:
+        try:
+            seconds = float(arg)
+        except ValueError:
+            seconds = float("nan")
+        if not 0 < seconds <= MAX_DANCE_SECONDS:
+            raise LoosefitInputError(
+                "motion", "dance:SECONDS", f"seconds in (0, {MAX_DANCE_SECONDS:g}]", repr(arg)
+            )
+        return random_dance(avatar.joint_names, avatar.floor_height, seconds, seed, fps)
+    return named_motion(name, avatar.joint_names, avatar.floor_height, seed, fps)
+
+
+def _trim(motion: Motion, start_frame: int, max_frames: int | None) -> Motion:
+    """Frames ``start_frame`` on, at most ``max_frames`` of them."""
     if not 0 <= start_frame < motion.num_frames:
         raise LoosefitInputError(
             f"motion '{motion.name}'", "start_frame", f"in [0, {motion.num_frames})", start_frame

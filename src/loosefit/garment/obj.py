@@ -91,6 +91,158 @@ def _resolve(path: Path, line_no: int, token: str, what: str, index: str, define
     return k - 1 if k > 0 else defined + k
 
 
+@dataclass
+class _ObjRecords:
+    """What an OBJ file's lines hold, indices resolved, before the mesh checks.
+
+    Attributes:
+        vertices: V ``v`` coordinates (3 each); ``vertex_lines`` their line numbers.
+        uvs: U ``vt`` coordinates (2 each); ``uv_lines`` their line numbers.
+        faces: F triangles (0-based vertex indices), polygons split into fans.
+        face_uvs: F triangles' 0-based ``vt`` indices, or None for a face without.
+        face_lines: F line numbers of the ``f`` line each triangle came from.
+    """
+
+    vertices: list[list[float]]
+    vertex_lines: list[int]
+    uvs: list[list[float]]
+    uv_lines: list[int]
+    faces: list[list[int]]
+    face_uvs: list[list[int] | None]
+    face_lines: list[int]
+
+
+def _face_corners(
+    path: Path, line_no: int, raw: str, args: list[str], n_vertices: int, n_uvs: int
+) -> tuple[list[int], list[int | None]]:
+    """An ``f`` line's corners: 0-based vertex indices and ``vt`` indices (or None)."""
+    if len(args) < 3:
+        raise LoosefitInputError(path, f"f (line {line_no})", "at least 3 corners", f"{len(args)}")
+    corners, corner_uvs = [], []
+    for token in args:
+        parts = token.split("/")
+        if len(parts) > 3 or parts[0] == "":
+            raise LoosefitInputError(
+                path,
+                f"f (line {line_no})",
+                "corners v, v/vt, v//vn or v/vt/vn",
+                repr(token),
+            )
+        corners.append(_resolve(path, line_no, token, "vertex", parts[0], n_vertices))
+        has_uv = len(parts) > 1 and parts[1] != ""
+        corner_uvs.append(_resolve(path, line_no, token, "vt", parts[1], n_uvs) if has_uv else None)
+    if any(c is None for c in corner_uvs) and not all(c is None for c in corner_uvs):
+        raise LoosefitInputError(
+            path,
+            f"f (line {line_no})",
+            "UV indices on every corner or on none",
+            repr(raw.strip()),
+        )
+    return corners, corner_uvs
+
+
+def _parse_obj(path: Path, text: str) -> _ObjRecords:
+    """The ``v``, ``vt`` and ``f`` lines of an OBJ text; faces split into fans."""
+    rec = _ObjRecords([], [], [], [], [], [], [])
+    for line_no, raw in enumerate(text.splitlines(), start=1):
+        fields = raw.split("#", 1)[0].split()
+        if not fields:
+            continue
+        keyword, args = fields[0], fields[1:]
+        if keyword == "v":
+            rec.vertices.append(_floats(path, "v", line_no, args, 3))
+            rec.vertex_lines.append(line_no)
+        elif keyword == "vt":
+            rec.uvs.append(_floats(path, "vt", line_no, args, 2))
+            rec.uv_lines.append(line_no)
+        elif keyword == "f":
+            corners, corner_uvs = _face_corners(
+                path, line_no, raw, args, len(rec.vertices), len(rec.uvs)
+            )
+            for k in range(1, len(corners) - 1):  # fan: (0, k, k + 1)
+                rec.faces.append([corners[0], corners[k], corners[k + 1]])
+                rec.face_uvs.append(
+                    None
+                    if corner_uvs[0] is None
+                    else [corner_uvs[0], corner_uvs[k], corner_uvs[k + 1]]
+                )
+                rec.face_lines.append(line_no)
+        # vn, o, g, s, usemtl, mtllib, l, p and unknown keywords are ignored
+    return rec
+
+
+def _checked_vertices(path: Path, rec: _ObjRecords) -> np.ndarray:
+    """(V, 3) float64 vertex positions; an error names the first non-finite one."""
+    verts = np.asarray(rec.vertices, dtype=np.float64).reshape(-1, 3)
+    with np.errstate(over="ignore"):  # beyond float32 is as unusable as NaN
+        bad = ~np.isfinite(verts.astype(np.float32)).all(axis=1)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise LoosefitInputError(
+            path,
+            f"v (line {rec.vertex_lines[first]})",
+            "finite coordinates",
+            f"{int(bad.sum())} vertices with NaN/inf, first {verts[first].tolist()}",
+        )
+    return verts
+
+
+def _check_face_indices(path: Path, tri: np.ndarray, lines: np.ndarray, V: int) -> None:
+    """Every (F, 3) vertex index within the ``V`` vertices; the error names the line."""
+    out = (tri < 0) | (tri >= V)
+    if out.any():
+        f = int(np.flatnonzero(out.any(axis=1))[0])
+        raise LoosefitInputError(
+            path,
+            f"f (line {lines[f]})",
+            f"vertex indices within the {V} vertices defined",
+            f"index {int(tri[f][out[f]][0]) + 1}",
+        )
+
+
+def _file_uvs(
+    path: Path, rec: _ObjRecords, lines: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The file's (U, 2) float64 UVs and (F, 3) int64 face UV indices, None without.
+
+    Raises:
+        LoosefitInputError: UVs on some faces but not others, an index out of range,
+            a non-finite UV.
+    """
+    with_uv = np.array([c is not None for c in rec.face_uvs])
+    if with_uv.any() and not with_uv.all():
+        first_without = int(lines[np.flatnonzero(~with_uv)[0]])
+        raise LoosefitInputError(
+            path,
+            "f (vt)",
+            "UV indices on every face or on none",
+            f"{int(with_uv.sum())} triangles with and {int((~with_uv).sum())} without, "
+            f"first without on line {first_without}",
+        )
+    if not with_uv.all():
+        return None
+    U = len(rec.uvs)
+    face_uvs = np.asarray(rec.face_uvs, dtype=np.int64)
+    out = (face_uvs < 0) | (face_uvs >= U)
+    if out.any():
+        f = int(np.flatnonzero(out.any(axis=1))[0])
+        raise LoosefitInputError(
+            path,
+            f"f (line {lines[f]})",
+            f"vt indices within the {U} UVs defined",
+            f"index {int(face_uvs[f][out[f]][0]) + 1}",
+        )
+    uvs = np.asarray(rec.uvs, dtype=np.float64).reshape(-1, 2)
+    with np.errstate(over="ignore"):
+        bad = ~np.isfinite(uvs.astype(np.float32)).all(axis=1)
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise LoosefitInputError(
+            path, f"vt (line {rec.uv_lines[first]})", "finite UV coordinates", "NaN/inf"
+        )
+    return uvs, face_uvs
+
+
 def read_obj(path: str | os.PathLike, *, compute_uvs_if_missing: bool = True) -> ObjMesh:
     """Read a polygon mesh from an OBJ file and triangulate it.
 
@@ -112,117 +264,18 @@ def read_obj(path: str | os.PathLike, *, compute_uvs_if_missing: bool = True) ->
     except OSError as exc:
         raise LoosefitInputError(path, "<file>", "a readable OBJ file", str(exc)) from exc
 
-    vertices: list[list[float]] = []
-    vertex_lines: list[int] = []
-    uvs: list[list[float]] = []
-    uv_lines: list[int] = []
-    faces: list[list[int]] = []  # triangles, resolved indices
-    face_uvs: list[list[int] | None] = []
-    face_lines: list[int] = []
-    for line_no, raw in enumerate(text.splitlines(), start=1):
-        fields = raw.split("#", 1)[0].split()
-        if not fields:
-            continue
-        keyword, args = fields[0], fields[1:]
-        if keyword == "v":
-            vertices.append(_floats(path, "v", line_no, args, 3))
-            vertex_lines.append(line_no)
-        elif keyword == "vt":
-            uvs.append(_floats(path, "vt", line_no, args, 2))
-            uv_lines.append(line_no)
-        elif keyword == "f":
-            if len(args) < 3:
-                raise LoosefitInputError(
-                    path, f"f (line {line_no})", "at least 3 corners", f"{len(args)}"
-                )
-            corners, corner_uvs = [], []
-            for token in args:
-                parts = token.split("/")
-                if len(parts) > 3 or parts[0] == "":
-                    raise LoosefitInputError(
-                        path,
-                        f"f (line {line_no})",
-                        "corners v, v/vt, v//vn or v/vt/vn",
-                        repr(token),
-                    )
-                corners.append(_resolve(path, line_no, token, "vertex", parts[0], len(vertices)))
-                has_uv = len(parts) > 1 and parts[1] != ""
-                corner_uvs.append(
-                    _resolve(path, line_no, token, "vt", parts[1], len(uvs)) if has_uv else None
-                )
-            if any(c is None for c in corner_uvs) and not all(c is None for c in corner_uvs):
-                raise LoosefitInputError(
-                    path,
-                    f"f (line {line_no})",
-                    "UV indices on every corner or on none",
-                    repr(raw.strip()),
-                )
-            for k in range(1, len(corners) - 1):  # fan: (0, k, k + 1)
-                faces.append([corners[0], corners[k], corners[k + 1]])
-                face_uvs.append(
-                    None
-                    if corner_uvs[0] is None
-                    else [corner_uvs[0], corner_uvs[k], corner_uvs[k + 1]]
-                )
-                face_lines.append(line_no)
-        # vn, o, g, s, usemtl, mtllib, l, p and unknown keywords are ignored
-
-    if not faces:
+    rec = _parse_obj(path, text)
+    if not rec.faces:
         raise LoosefitInputError(path, "f", "at least one face", "none")
-    V, U = len(vertices), len(uvs)
-    verts = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    with np.errstate(over="ignore"):  # beyond float32 is as unusable as NaN
-        bad = ~np.isfinite(verts.astype(np.float32)).all(axis=1)
-    if bad.any():
-        first = int(np.flatnonzero(bad)[0])
-        raise LoosefitInputError(
-            path,
-            f"v (line {vertex_lines[first]})",
-            "finite coordinates",
-            f"{int(bad.sum())} vertices with NaN/inf, first {verts[first].tolist()}",
-        )
-    tri = np.asarray(faces, dtype=np.int64)  # (F, 3)
-    lines = np.asarray(face_lines, dtype=np.int64)
-    out = (tri < 0) | (tri >= V)
-    if out.any():
-        f = int(np.flatnonzero(out.any(axis=1))[0])
-        raise LoosefitInputError(
-            path,
-            f"f (line {lines[f]})",
-            f"vertex indices within the {V} vertices defined",
-            f"index {int(tri[f][out[f]][0]) + 1}",
-        )
+    verts = _checked_vertices(path, rec)  # (V, 3)
+    tri = np.asarray(rec.faces, dtype=np.int64)  # (F, 3)
+    lines = np.asarray(rec.face_lines, dtype=np.int64)  # (F,)
+    _check_face_indices(path, tri, lines, len(rec.vertices))
 
-    with_uv = np.array([c is not None for c in face_uvs])
     mesh_uvs = mesh_face_uvs = None
-    if with_uv.any() and not with_uv.all():
-        first_without = int(lines[np.flatnonzero(~with_uv)[0]])
-        raise LoosefitInputError(
-            path,
-            "f (vt)",
-            "UV indices on every face or on none",
-            f"{int(with_uv.sum())} triangles with and {int((~with_uv).sum())} without, "
-            f"first without on line {first_without}",
-        )
-    if with_uv.all():
-        mesh_face_uvs = np.asarray(face_uvs, dtype=np.int64)
-        out = (mesh_face_uvs < 0) | (mesh_face_uvs >= U)
-        if out.any():
-            f = int(np.flatnonzero(out.any(axis=1))[0])
-            raise LoosefitInputError(
-                path,
-                f"f (line {lines[f]})",
-                f"vt indices within the {U} UVs defined",
-                f"index {int(mesh_face_uvs[f][out[f]][0]) + 1}",
-            )
-        mesh_uvs = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
-        with np.errstate(over="ignore"):
-            bad = ~np.isfinite(mesh_uvs.astype(np.float32)).all(axis=1)
-        if bad.any():
-            first = int(np.flatnonzero(bad)[0])
-            raise LoosefitInputError(
-                path, f"vt (line {uv_lines[first]})", "finite UV coordinates", "NaN/inf"
-            )
+    file_uvs = _file_uvs(path, rec, lines)
+    if file_uvs is not None:
+        mesh_uvs, mesh_face_uvs = file_uvs
     elif compute_uvs_if_missing:
         mesh_uvs, mesh_face_uvs = compute_uv_atlas(verts, tri)
 
