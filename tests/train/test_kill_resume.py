@@ -63,7 +63,9 @@ def _run(code: str, *args) -> subprocess.CompletedProcess:
 
 
 def _kill_when(code: str, args: list, appears: Path, seed: int) -> None:
-    """Start the run, SIGKILL it a random moment after ``appears`` exists."""
+    """Start the run, SIGKILL it a random moment after ``appears`` exists, and before the file
+    is written again three times (a toy run's epochs can be shorter than the random wait: it
+    must still be killed before its end)."""
     proc = subprocess.Popen([sys.executable, "-c", code, *map(str, args)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
     try:
@@ -72,7 +74,12 @@ def _kill_when(code: str, args: list, appears: Path, seed: int) -> None:
             assert proc.poll() is None, "the run ended before it could be killed"
             assert time.monotonic() < deadline, "nothing appeared to kill the run after"
             time.sleep(0.02)
-        time.sleep(random.Random(seed).uniform(0.0, 0.3))
+        end = time.monotonic() + random.Random(seed).uniform(0.0, 0.3)
+        last, rewrites = appears.stat().st_mtime_ns, 0
+        while time.monotonic() < end and rewrites < 3:
+            time.sleep(0.002)
+            written = appears.stat().st_mtime_ns  # replaced atomically: always there
+            rewrites, last = rewrites + (written != last), written
         assert proc.poll() is None, "the run ended before it could be killed"
         os.kill(proc.pid, signal.SIGKILL)
     finally:
