@@ -63,8 +63,9 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _checkpoint_and_motion(args: argparse.Namespace) -> None:
-    """``animate [CHECKPOINT] MOTION``: without a checkpoint, the pretrained default."""
+def _checkpoint_and_motion(args: argparse.Namespace) -> bool:
+    """``animate [CHECKPOINT] MOTION``: without a checkpoint, the pretrained default (then
+    True)."""
     from loosefit.api import pretrained_checkpoint
 
     if len(args.inputs) not in (1, 2):
@@ -76,7 +77,7 @@ def _checkpoint_and_motion(args: argparse.Namespace) -> None:
         )
     if len(args.inputs) == 2:
         args.checkpoint, args.motion = args.inputs
-        return
+        return False
     args.checkpoint, args.motion = pretrained_checkpoint(), args.inputs[0]
     if not args.checkpoint.is_file():
         raise LoosefitInputError(
@@ -87,16 +88,18 @@ def _checkpoint_and_motion(args: argparse.Namespace) -> None:
             hint="pass a checkpoint: loosefit animate CHECKPOINT MOTION",
         )
     log(f"no checkpoint given: the pretrained default {args.checkpoint}")
-    trained_on_note(args.checkpoint)
+    return True
 
 
 def run(args: argparse.Namespace) -> int:
-    _checkpoint_and_motion(args)
+    pretrained = _checkpoint_and_motion(args)
     from loosefit.api import motion_for
     from loosefit.inference.animator import load_pipeline
     from loosefit.sequence import AnimatedGarment
 
     model = load_pipeline(args.checkpoint, args.generative, args.detail)
+    if pretrained:  # what it was trained on, from the record it loaded with
+        trained_on_note(args.checkpoint, model)
     on = stages(args)
     physics_note(model, on)
     avatar = model.avatar()
@@ -143,11 +146,13 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def trained_on_note(path: Path) -> None:
-    """Say what a packaged set was trained on (the motion it knows)."""
-    from loosefit.api import trained_on
+def trained_on_note(path: Path, model) -> None:
+    """Say what a packaged set was trained on (the motion it knows), from the record its
+    model loaded with."""
+    from loosefit.inference.package import describe_training
 
-    log(f"model {Path(path).parent.name}: trained on {trained_on(path)}")
+    said = describe_training(getattr(model, "trained_on", None))
+    log(f"model {Path(path).parent.name}: trained on {said}")
 
 
 def physics_note(model, stages) -> None:

@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
 
         path = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
         model = load_pipeline(path)
-        trained_on_note(path)
+        trained_on_note(path, model)
         physics_note(model, model.stages)
         avatar, template = model.avatar(), model.template
     else:
