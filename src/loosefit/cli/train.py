@@ -53,6 +53,18 @@ def add_common_args(p: argparse.ArgumentParser, out: str) -> None:
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
 
 
+def _common_overrides(args: argparse.Namespace) -> dict:
+    """The preset overrides of :func:`add_common_args`'s flags (None: the preset's)."""
+    return {
+        "epochs": args.epochs,
+        "device": args.device,
+        "max_frames": args.max_frames,
+        "batch_size": args.batch_size,
+        "lr": args.lr,
+        "seed": args.seed,
+    }
+
+
 def _add_precision_arg(p: argparse.ArgumentParser) -> None:
     """``--precision`` (generative, motion; detail and baseline train in fp32)."""
     p.add_argument(
@@ -310,12 +322,7 @@ def run_generative(args: argparse.Namespace) -> int:
     cfg = TrainGenerativeConfig.preset(
         args.preset,
         decoder=args.decoder,
-        epochs=args.epochs,
-        device=args.device,
-        max_frames=args.max_frames,
-        batch_size=args.batch_size,
-        lr=args.lr,
-        seed=args.seed,
+        **_common_overrides(args),
         precision=args.precision,
     )
     cfg.loss = _physics_weights(cfg.loss, args)
@@ -338,16 +345,11 @@ def run_motion(args: argparse.Namespace) -> int:
         )
     cfg = TrainMotionConfig.preset(
         args.preset,
-        epochs=args.epochs,
-        device=args.device,
-        max_frames=args.max_frames,
-        batch_size=args.batch_size,
-        lr=args.lr,
+        **_common_overrides(args),
         previous=args.previous,
         previous_state=False if args.no_previous_state else None,
         mirror=True if args.mirror else None,
         joints=args.joints,
-        seed=args.seed,
         precision=args.precision,
     )
     cfg.loss = _physics_weights(cfg.loss, args)
@@ -368,13 +370,8 @@ def run_detail(args: argparse.Namespace) -> int:
         )
     cfg = TrainDetailConfig.preset(
         args.preset,
-        epochs=args.epochs,
-        device=args.device,
-        max_frames=args.max_frames,
-        batch_size=args.batch_size,
-        lr=args.lr,
+        **_common_overrides(args),
         discriminator=False if args.no_discriminator else None,
-        seed=args.seed,
     )
     if args.edge_weight is not None:
         cfg.loss.edge = args.edge_weight
@@ -396,15 +393,10 @@ def run_baseline(args: argparse.Namespace) -> int:
     cfg = TrainBaselineConfig.preset(
         args.preset,
         method=args.method,
-        epochs=args.epochs,
-        device=args.device,
-        max_frames=args.max_frames,
-        batch_size=args.batch_size,
-        lr=args.lr,
+        **_common_overrides(args),
         mirror=True if args.mirror else None,
         joints=args.joints,
         bones=args.bones,
-        seed=args.seed,
     )
     out = args.out or f"runs/baseline-{args.preset}-{args.method}"
     return _finish(out, train_baseline(args.data, out, cfg, log=log))
