@@ -67,3 +67,28 @@ def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
         rollout_config=RolloutConfig(),
         path="tiny.pt",
     )
+
+
+def tiny_baseline(model, method: str, path):
+    """An untrained ``method`` baseline (tiny networks, zero rest and weights) on ``model``'s
+    garment, skeleton and timeline, as if loaded from ``path``."""
+    from loosefit.inference.baseline import BaselineModel
+    from loosefit.model.baselines import BaselineConfig, BaselineNetwork
+
+    V = model.template.num_vertices
+    net = BaselineNetwork(
+        BaselineConfig(method=method, motion_fc=8, gru=8, head_hidden=8),
+        model.encoder.num_features,
+        torch.zeros(V, 3),
+        torch.zeros(V, 4),
+    )
+    return BaselineModel(
+        network=net,
+        template=model.template,
+        joint_names=model.joint_names,
+        floor_height=model.floor_height,
+        fps=model.fps,
+        body=model.body,
+        rollout_config=model.rollout_config,
+        path=path,
+    )

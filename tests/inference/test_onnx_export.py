@@ -23,7 +23,7 @@ from loosefit.inference.onnx_export import (
 )
 from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx
 from loosefit.inference.stages import MOTION_ONLY, Stages
-from tests.inference.conftest import needs_ort, tiny_model
+from tests.inference.conftest import needs_ort, tiny_baseline, tiny_model
 
 DETAIL_ONLY = Stages(lengths=False, collision=False, overlap=False)  # what the graph holds
 
@@ -113,27 +113,8 @@ def test_the_json_says_what_the_inputs_mean(model, exported):
 
 
 def test_unsupported_stages_are_named(model, tmp_path, monkeypatch):
-    from loosefit.inference.baseline import BaselineModel
-    from loosefit.model.baselines import BaselineConfig, BaselineNetwork
-
     m = model.model
-    V = m.template.num_vertices
-    net = BaselineNetwork(
-        BaselineConfig(method="santesteban", motion_fc=8, gru=8, head_hidden=8),
-        m.encoder.num_features,
-        torch.zeros(V, 3),
-        torch.zeros(V, 4),
-    )
-    baseline = BaselineModel(
-        network=net,
-        template=m.template,
-        joint_names=m.joint_names,
-        floor_height=m.floor_height,
-        fps=m.fps,
-        body=m.body,
-        rollout_config=m.rollout_config,
-        path=tmp_path / "baseline.pt",
-    )
+    baseline = tiny_baseline(m, "santesteban", tmp_path / "baseline.pt")
     with pytest.raises(LoosefitInputError, match=r"baseline\.pt.*'santesteban' baseline"):
         export_onnx(baseline, tmp_path / "b.onnx")
     odd = loosefit.load().model

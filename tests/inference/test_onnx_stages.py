@@ -14,7 +14,7 @@ from loosefit.api import motion_for
 from loosefit.errors import LoosefitInputError
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.sequence import AnimatedGarment
-from tests.inference.conftest import needs_ort, tiny_model
+from tests.inference.conftest import needs_ort, tiny_baseline, tiny_model
 
 NO_COLLISION = Stages(collision=False)  # detail and edge lengths, overlapped on a thread
 
@@ -80,30 +80,11 @@ def test_an_encoder_without_the_previous_state_runs_too(skirt, avatar):
 
 
 def test_onnx_runtime_refusals_are_clear(model, monkeypatch, tmp_path):
-    from loosefit.inference.baseline import BaselineModel
-    from loosefit.model.baselines import BaselineConfig, BaselineNetwork
-
     m = model.model
     motion = motion_for("sway", m.avatar(), model.fps, 3)
     with pytest.raises(LoosefitInputError, match=r"runtime.*'torch' or 'onnx'.*'tensorrt'"):
         m.animate(motion, runtime="tensorrt")
-    V = m.template.num_vertices
-    net = BaselineNetwork(
-        BaselineConfig(method="virtual-bones", motion_fc=8, gru=8, head_hidden=8),
-        m.encoder.num_features,
-        torch.zeros(V, 3),
-        torch.zeros(V, 4),
-    )
-    baseline = BaselineModel(
-        network=net,
-        template=m.template,
-        joint_names=m.joint_names,
-        floor_height=m.floor_height,
-        fps=m.fps,
-        body=m.body,
-        rollout_config=m.rollout_config,
-        path=tmp_path / "baseline.pt",
-    )
+    baseline = tiny_baseline(m, "virtual-bones", tmp_path / "baseline.pt")
     with pytest.raises(
         LoosefitInputError, match=r"baseline\.pt.*runtime.*'virtual-bones' baseline"
     ):
