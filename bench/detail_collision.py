@@ -224,10 +224,7 @@ def markdown(results: dict) -> str:
                     f"{ms.get('detail', 0):.1f} / {ms.get('collision', 0):.1f} |"
                 )
     if "part_b" in results:
-        clips = results["part_b"]
-        if "simulation" in clips:  # written before tables per clip: one clip's rows
-            clips = {"held-out chain": clips}
-        for clip, rows in clips.items():
+        for clip, rows in results["part_b"].items():
             title = ("all held-out clips (frame-weighted mean; inside max: the worst clip)"
                      if clip == "all" else clip)  # fmt: skip
             lines += ["", f"## Table 2: against the simulation, {title}", "",

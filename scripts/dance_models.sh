@@ -57,6 +57,9 @@ if step data; then
       > "$RUNS/reference.log" 2>&1
 fi
 
+chosen() {  # the set bench/compare_sets.py chose (step set), by its candidate's name
+  "$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])"
+}
 done_run() {  # a run whose report is written is finished
   [ -f "$1/report.json" ] && echo "[dance_models] $1: done ($1/report.json)"
 }
@@ -94,7 +97,7 @@ if step set; then
       --sets salsa="$BASE/motion.pt" ft="$RUNS/ft/set/motion.pt" \
       scratch="$RUNS/scratch/set/motion.pt" ft-nodetail="$RUNS/ft-nodetail/set/motion.pt" \
       --out docs/DANCE_SETS.md
-  winner=$("$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])")
+  winner=$(chosen)
   [ "$winner" != salsa ] || { echo "[dance_models] the salsa set won: nothing to commit"; exit 1; }
   run=${winner%-nodetail} detail=(--detail "$RUNS/${winner%-nodetail}/detail/model.pt")
   [ "$winner" = "$run" ] || detail=()  # the winner is a candidate without its detail stage
@@ -104,7 +107,7 @@ if step set; then
 fi
 # 3. Tables 1 and 2 on dance
 if step tables; then
-  winner=$("$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])")
+  winner=$(chosen)
   winner=${winner%-nodetail}  # the candidate whose detail stage Table 2 measures
   mkdir -p "$RUNS/tables/motion-ablation"
   ln -sfn "$(realpath "$RUNS/scratch/motion")" "$RUNS/tables/motion-ablation/ps-physics"
@@ -122,7 +125,7 @@ if step tables; then
 fi
 # 4. the paper's claims on dance
 if step results; then
-  winner=$("$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])")
+  winner=$(chosen)
   with_detail=""  # the shipped set without its detail stage: ours with it too, as a row
   [ "$winner" = "${winner%-nodetail}" ] || with_detail=$RUNS/${winner%-nodetail}/set/motion.pt
   DATA=$DATA RUNS=$RUNS CHECKPOINT=$SET/motion.pt TABLE=docs/GENERATIVE_DANCE_TABLE.md \
