@@ -27,6 +27,7 @@ from loosefit.eval.report import write_rollout_report
 from loosefit.eval.rollouts import HORIZONS, evaluate_rollouts
 from loosefit.inference.animator import load_animation_model
 from loosefit.inference.stages import MOTION_ONLY
+from loosefit.sim.rest_drape import settled_rest_drape
 from loosefit.train.motion import TrainMotionConfig, train_motion
 
 RUNS = {
@@ -130,7 +131,7 @@ def main() -> None:
             kw = {"epochs": args.epochs, **overrides}  # a run may fix its own epochs
             cfg = TrainMotionConfig.preset(args.preset, device=args.device, **kw)
             cfg.loss = replace(cfg.loss, **loss)
-            train_motion(data, args.generative, run, cfg)
+            train_motion(data, args.generative, run, cfg, settle=settled_rest_drape)
         evaluation = run / "evaluation" / "evaluation.json"
         if evaluation.is_file():
             result = json.loads(evaluation.read_text())

@@ -109,3 +109,23 @@ def test_the_reading_resolves_relative_and_package_imports():
         (4, "eval"),
         (5, "body"),
     ]
+
+
+# units a layer above may import but does not: training reads data sets, never simulates
+APART: tuple[tuple[str, str, str], ...] = (
+    ("train", "sim", "the motion stage reads its rest drape from the data set"),
+)
+
+
+def test_training_runs_no_simulator():
+    units = set(_layer_of())
+    bad = []
+    for unit, other, why in APART:
+        for rel in _modules():
+            if _unit(rel) != unit:
+                continue
+            tree = ast.parse((PACKAGE / rel).read_text(), filename=str(rel))
+            for line, target, statement in _imported_units(rel, tree, units):
+                if target == other:
+                    bad.append(f"src/loosefit/{rel.as_posix()}:{line}: {statement} ({why})")
+    assert not bad, "imports kept apart:\n" + "\n".join(bad)

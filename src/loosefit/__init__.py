@@ -7,18 +7,27 @@
     model = loosefit.load()                    # the pretrained set, or a checkpoint path
     result = model.animate("dance:20")         # a .bvh/.npz file, a move, or a Motion
     result.export("dance.usdc")                # also .usda, .pc2 (+ OBJ), a folder of OBJs
+    loosefit.show(result)                      # the browser viewer (any AnimatedGarment)
 
     template, report, avatar = loosefit.fit_garment("made_for_another.obj")  # onto the avatar
     loosefit.simulate("dance:4", template, shape=avatar.shape)               # ground truth
 """
 
 __version__ = "0.1.0"
-__all__ = ["AnimatedGarment", "Animator", "fit_garment", "load", "simulate", "__version__"]
+__all__ = [
+    "AnimatedGarment",
+    "Animator",
+    "fit_garment",
+    "load",
+    "show",
+    "simulate",
+    "__version__",
+]
 
 
 def __getattr__(name: str):
     """The API, imported on first use (``import loosefit`` stays light)."""
-    if name in ("load", "simulate", "Animator", "AnimatedGarment"):
+    if name in ("load", "show", "simulate", "Animator", "AnimatedGarment"):
         from loosefit import api
 
         return getattr(api, name)

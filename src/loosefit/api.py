@@ -26,11 +26,37 @@ from loosefit.types import GarmentTemplate, Motion
 PRETRAINED = "dance"  # the default set's folder under loosefit/pretrained
 
 
+def show(
+    *sequences: sequence.AnimatedGarment,
+    names: list[str] | None = None,
+    wait: bool = True,
+    **config,
+):
+    """Open animated garments in the browser viewer (:mod:`loosefit.view`;
+    ``pip install 'loosefit[viewer]'``): one, or several of the same garment and frames
+    side by side. Any :class:`~loosefit.sequence.AnimatedGarment` will do: a rollout, a
+    file read with ``AnimatedGarment.load``, a data set's clip
+    (``DatasetReader(folder).read(name)``).
+
+    Prints the URL; with ``wait`` serves until Ctrl-C, otherwise returns the running
+    :class:`~loosefit.view.server.Viewer` at once (``close()`` it). ``config``:
+    :class:`~loosefit.view.ViewerConfig` fields, e.g. ``port=8081``,
+    ``colouring="error"``, ``layout="overlaid"``.
+    """
+    from loosefit.view import ViewerConfig, view
+
+    viewer = view(list(sequences), names, ViewerConfig(**config))
+    print(f"loosefit viewer: {viewer.url}", flush=True)
+    if wait:
+        viewer.wait()
+    return viewer
+
+
 class AnimatedGarment(sequence.AnimatedGarment):
     """An animated garment as the API returns it (``loosefit.AnimatedGarment``): the
     sequence of :mod:`loosefit.sequence` (its fields, file, export) and :meth:`view`, the
-    browser viewer, which sits in a layer above the sequence's and is reached from here.
-    :meth:`load` reads a file as one of these."""
+    browser viewer, which sits in a layer above the sequence's and is reached from here
+    (:func:`show` opens any sequence). :meth:`load` reads a file as one of these."""
 
     def view(
         self,
@@ -40,20 +66,8 @@ class AnimatedGarment(sequence.AnimatedGarment):
         **config,
     ):
         """Open this sequence (and ``others`` of the same garment and frames, side by side)
-        in the browser viewer (:mod:`loosefit.view`; ``pip install 'loosefit[viewer]'``).
-
-        Prints the URL; with ``wait`` serves until Ctrl-C, otherwise returns the running
-        :class:`~loosefit.view.server.Viewer` at once (``close()`` it). ``config``:
-        :class:`~loosefit.view.ViewerConfig` fields, e.g. ``port=8081``,
-        ``colouring="error"``, ``layout="overlaid"``.
-        """
-        from loosefit.view import ViewerConfig, view
-
-        viewer = view([self, *others], names, ViewerConfig(**config))
-        print(f"loosefit viewer: {viewer.url}", flush=True)
-        if wait:
-            viewer.wait()
-        return viewer
+        in the browser viewer: :func:`show` with this one first."""
+        return show(self, *others, names=names, wait=wait, **config)
 
 
 def pretrained_checkpoint() -> Path:

@@ -48,6 +48,36 @@ def test_tiny_dataset_is_complete_and_readable(tiny_dataset):
     assert reader.training_clips("train") == ["kick_000"]
 
 
+def test_the_data_set_records_its_rest_drape(tiny_dataset):
+    from loosefit.body.avatar import Avatar, AvatarConfig
+    from loosefit.sim.driver import settle
+    from loosefit.sim.workers import one_torch_thread
+
+    out, _ = tiny_dataset
+    cfg = preset("tiny")
+    reader = DatasetReader(out)
+    with one_torch_thread():
+        body = Avatar(AvatarConfig(shape=dict(cfg.shape)))
+        want = settle(body, reader.template, cfg.cloth, cfg.fps)
+    np.testing.assert_allclose(reader.rest_drape, want, atol=1e-6)  # the settle phase, once
+    assert np.abs(want - reader.template.vertices).max() > 1e-3  # settled, not the template
+
+
+def test_a_damaged_rest_drape_is_refused_naming_the_file(tiny_dataset, tmp_path):
+    import shutil
+
+    out = tmp_path / "copy"
+    shutil.copytree(tiny_dataset[0], out)
+    np.save(out / "rest_drape.npy", np.zeros((5, 3), np.float32))
+    with pytest.raises(LoosefitInputError, match=r"rest_drape\.npy.*\(5, 3\)"):
+        DatasetReader(out).rest_drape
+    bad = DatasetReader(out).template.vertices.copy()
+    bad[0, 0] = np.nan
+    np.save(out / "rest_drape.npy", bad)
+    with pytest.raises(LoosefitInputError, match="NaN"):
+        DatasetReader(out).rest_drape
+
+
 def test_report_shows_the_inside_mean_and_the_poses_that_fold(tiny_dataset):
     _, manifest = tiny_dataset
     manifest = json.loads(json.dumps(manifest))

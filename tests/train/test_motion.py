@@ -439,3 +439,35 @@ def test_warm_start_from_a_packaged_encoder(trained, toy_dataset, generative, sk
         other = MotionEncoderConfig(motion_fc=16, gru=32)
         _train(toy_dataset, generative, skirt, tmp_path / "other", epochs=1, model=other,
                init=str(run / "model.pt"))  # fmt: skip
+
+
+def test_rollouts_start_from_the_data_set_s_recorded_drape(toy_dataset, generative, skirt,
+                                                           tmp_path):  # fmt: skip
+    import shutil
+
+    data = tmp_path / "ds"
+    shutil.copytree(toy_dataset, data)
+    drape = skirt.vertices + np.float32(0.002)  # what the simulator settled
+    np.save(data / "rest_drape.npy", drape)
+    cfg = _config(epochs=1)
+    tm.train_motion(data, generative, tmp_path / "run", cfg, log=lambda *_: None, progress=False)
+    model = inf.load_animation_model(tmp_path / "run" / "model.pt")
+    np.testing.assert_array_equal(model.rest_state.numpy(), drape)
+    assert not (tmp_path / "run" / "rest_state.npy").exists()  # nothing settled again
+
+
+def test_a_data_set_without_a_drape_needs_one_given_or_a_way_to_settle_it(
+    toy_dataset, generative, tmp_path
+):
+    with pytest.raises(LoosefitInputError, match=r"rest_drape\.npy.*settle="):
+        tm.train_motion(toy_dataset, generative, tmp_path / "run", _config(epochs=1),
+                        log=lambda *_: None, progress=False)  # fmt: skip
+    calls = []
+
+    def settle(reader, fps):
+        calls.append(fps)
+        return torch.from_numpy(reader.template.vertices)
+
+    tm.train_motion(toy_dataset, generative, tmp_path / "run2", _config(epochs=1),
+                    log=lambda *_: None, progress=False, settle=settle)  # fmt: skip
+    assert len(calls) == 1 and (tmp_path / "run2" / "rest_state.npy").is_file()

@@ -292,3 +292,13 @@ def test_animated_garment_view_returns_the_running_viewer(clips, capsys):
         assert viewer.url in capsys.readouterr().out
     finally:
         viewer.close()
+
+
+def test_show_opens_a_data_set_s_clips_as_they_are_read(clips, capsys):
+    import loosefit
+
+    viewer = loosefit.show(*clips, wait=False, port=0)  # no conversion: any AnimatedGarment
+    try:
+        assert len(viewer.sequences) == 2 and viewer.url in capsys.readouterr().out
+    finally:
+        viewer.close()

@@ -333,6 +333,7 @@ def run_generative(args: argparse.Namespace) -> int:
 
 
 def run_motion(args: argparse.Namespace) -> int:
+    from loosefit.sim.rest_drape import settled_rest_drape
     from loosefit.train.motion import TrainMotionConfig, train_motion
 
     _start(args, "motion")
@@ -356,7 +357,8 @@ def run_motion(args: argparse.Namespace) -> int:
     cfg.init = args.init
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
-    report = train_motion(args.data, args.generative, out, cfg, log=log)
+    # a data set simulated before the simulator recorded its drape: settled here, once
+    report = train_motion(args.data, args.generative, out, cfg, log=log, settle=settled_rest_drape)
     return _finish(out, report)
 
 

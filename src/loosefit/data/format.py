@@ -7,6 +7,10 @@ A dataset is a folder, readable with plain numpy and json::
     template.npz            the garment at rest: vertices (V, 3) float32, faces
                             (F, 3) int64, uvs (U, 2) float32, face_uvs (F, 3)
                             int64, waist (W,) int64, name
+    rest_drape.npy          the garment settled on the rest pose (V, 3) float32, in the
+                            rest pose's root frame: where every clip and every learned
+                            rollout starts (absent from data sets simulated before it
+                            was written: :mod:`loosefit.sim.rest_drape` settles it again)
     sequences/NAME.npz      one clip: an animated garment in the one sequence format
                             (:mod:`loosefit.sequence`), the motion and the simulated
                             garment (T, V, 3) float32, with the template and the body
@@ -194,6 +198,33 @@ class DatasetReader:
     def body(self) -> dict:
         """The avatar's description: model, rig, shape, floor_height."""
         return self.manifest["body"]
+
+    @property
+    def rest_drape(self) -> np.ndarray | None:
+        """(V, 3) float32 the garment settled on the rest pose (``rest_drape.npy``), or None
+        for a data set simulated before the simulator wrote it.
+
+        Raises:
+            LoosefitInputError: the file is unreadable, or not (V, 3) finite numbers.
+        """
+        path = self.root / "rest_drape.npy"
+        if not path.is_file():
+            return None
+        try:
+            drape = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise LoosefitInputError(path, "<file>", "a readable .npy", str(exc)) from exc
+        V = self.template.num_vertices
+        if drape.shape != (V, 3) or not np.issubdtype(drape.dtype, np.floating):
+            raise LoosefitInputError(
+                path,
+                "<array>",
+                f"({V}, 3) floats (the template's vertices)",
+                f"{drape.shape} {drape.dtype}",
+            )
+        if not np.isfinite(drape).all():
+            raise LoosefitInputError(path, "<array>", "finite numbers", "NaN or infinity")
+        return drape.astype(np.float32)
 
     def split(self, name: str) -> list[str]:
         """Sequence names of a split ("train", "test" or "all")."""

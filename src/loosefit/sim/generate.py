@@ -80,6 +80,7 @@ def generate(
 
     # 1. The body and garment, and the clips this folder holds already.
     avatar, template = _body_and_garment(config, out, manifest)
+    _rest_drape(config, out, avatar, template)
     _take_what_is_done(config, jobs, manifest, out, avatar, template, reuse, progress)
 
     # 2. The units of work left: clips alone, or batches of clips of similar length.
@@ -166,6 +167,33 @@ def _body_and_garment(config: DatasetConfig, out: Path, manifest: dict):
     manifest["garment"] = {"name": template.name, "num_vertices": template.num_vertices}
     write_json_atomic(out / "manifest.json", manifest)
     return avatar, template
+
+
+def _rest_drape(config: DatasetConfig, out: Path, avatar, template) -> None:
+    """Settle the garment on the rest pose once (``out/rest_drape.npy``, written atomically):
+    where the motion stage's rollouts start, read from the data set by training.
+
+    It runs on the simulation's device before any worker starts, so that on a GPU the
+    solver's modules are compiled here once and every worker loads them from warp's cache.
+    """
+    import dataclasses
+
+    import numpy as np
+    import torch
+
+    from loosefit.atomic import atomic_path
+    from loosefit.sim.driver import settle
+
+    path = out / "rest_drape.npy"
+    if path.is_file():
+        return
+    cloth = config.cloth
+    if cloth.device != "cpu" and not torch.cuda.is_available():  # a cluster's head node
+        cloth = dataclasses.replace(cloth, device="cpu")
+    with one_torch_thread():
+        drape = settle(avatar, template, cloth, config.fps)
+    with atomic_path(path) as tmp:
+        np.save(tmp, drape.astype(np.float32))
 
 
 def _take_what_is_done(

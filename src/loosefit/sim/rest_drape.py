@@ -1,12 +1,12 @@
 """The garment's settled drape on the rest pose, for data sets that do not record it.
 
 Every simulated clip starts from this drape (moved to where its motion starts), and so
-does every learned rollout: the motion stage trains from it. A data set of today holds
-the template and the clips' frames but not the drape itself (the simulator settles the
-garment for every clip and writes only the frames that follow), so this fallback runs
-the settle phase again with the data set's own cloth configuration
-(``manifest.json``'s ``config.cloth``). It is the one place the training stages reach
-the simulator through, lazily, and only where no drape is given or cached.
+does every learned rollout: the motion stage trains from it. The simulator records it in
+every data set it makes (``rest_drape.npy``); a data set made before it did holds only
+the template and the clips' frames, so this runs the settle phase again with the data
+set's own cloth configuration (``manifest.json``'s ``config.cloth``). ``loosefit train
+motion`` passes it to training (:func:`~loosefit.train.motion.train_motion`'s
+``settle``), which itself runs no simulator.
 """
 
 from __future__ import annotations

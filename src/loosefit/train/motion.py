@@ -3,9 +3,10 @@
 A run is a folder of the training scaffold (:mod:`loosefit.train.loop`: ``config.json``,
 ``checkpoint.pt`` written atomically, TensorBoard events, ``report.json/.md``) plus
 ``model.pt``: the trained encoder alone, half precision, for sharing, and
-``rest_state.npy``: the garment's settled drape, where every rollout starts (given, or
-settled once from the data set's cloth configuration:
-:func:`~loosefit.sim.rest_drape.settled_rest_drape`).
+``rest_state.npy``: the garment's settled drape, where every rollout starts, when the
+data set does not hold it (``rest_drape.npy``, written by the simulator) and it was not
+given: settled once by a function the caller passes in (the command line passes
+:func:`~loosefit.sim.rest_drape.settled_rest_drape`; training itself runs no simulator).
 
 **The previous state.** At inference a rollout feeds the encoder its own
 outputs for thousands of frames, while ground-truth previous frames (teacher
@@ -49,6 +50,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import ClassVar
@@ -84,7 +86,6 @@ from loosefit.model.physics import (
     hem_radius,
     physics_terms,
 )
-from loosefit.sim.rest_drape import settled_rest_drape
 from loosefit.train.clips import (
     Clip,
     feature_statistics,
@@ -426,6 +427,7 @@ class MotionStage(Stage):
         config: TrainMotionConfig,
         run: Run,
         rest_state: torch.Tensor | None,
+        settle: Callable[[DatasetReader, float], torch.Tensor] | None = None,
     ):
         self.config, self.run, self.reader = config, run, reader
         self.generative, self.gmeta = generative, gmeta
@@ -446,7 +448,7 @@ class MotionStage(Stage):
             config.model.joints,
         )
         self.fps = clips[0].motion.fps
-        rest = self.rest_drape(rest_state)
+        rest = self.rest_drape(rest_state, settle)
         run.log(
             f"prepared {len(clips)} train clips ({sum(c.length for c in clips)} frames) "
             f"in {time.perf_counter() - t0:.1f} s"
@@ -477,15 +479,33 @@ class MotionStage(Stage):
         }
         self.rest = rest.to(device)
 
-    def rest_drape(self, given: torch.Tensor | None) -> torch.Tensor:
-        """(V, 3) the settled drape: ``given``, or the run folder's ``rest_state.npy``,
-        settled once by the first process (:func:`settled_rest_drape`)."""
-        path = self.run.out / "rest_state.npy"
-        if given is None and self.run.main and not path.is_file():
-            np.save(path, settled_rest_drape(self.reader, self.fps).numpy())
-        barrier()
+    def rest_drape(self, given: torch.Tensor | None, settle) -> torch.Tensor:
+        """(V, 3) the settled drape: ``given``, else the data set's ``rest_drape.npy``, else
+        the run folder's ``rest_state.npy``, settled once by the first process with
+        ``settle(reader, fps)``.
+
+        Raises:
+            LoosefitInputError: none of these: a data set simulated before the simulator
+                recorded its drape, and no way to settle it given.
+        """
         if given is not None:
             return torch.as_tensor(given).float()
+        drape = self.reader.rest_drape
+        if drape is not None:
+            return torch.from_numpy(drape)
+        path = self.run.out / "rest_state.npy"
+        if not path.is_file() and settle is None:
+            raise LoosefitInputError(
+                self.reader.root / "rest_drape.npy",
+                "<file>",
+                "the garment settled on the rest pose, where rollouts start",
+                "missing (a data set simulated before the simulator wrote it)",
+                hint="pass rest_state=, or settle=loosefit.sim.rest_drape.settled_rest_drape "
+                "(what `loosefit train motion` does)",
+            )
+        if self.run.main and not path.is_file():
+            np.save(path, settle(self.reader, self.fps).numpy())
+        barrier()
         return torch.from_numpy(np.load(path, allow_pickle=False))
 
     def read_checkpoint(self, path: Path) -> dict:
@@ -586,6 +606,7 @@ def train_motion(
     log=print,
     progress: bool = True,
     rest_state: torch.Tensor | None = None,
+    settle: Callable[[DatasetReader, float], torch.Tensor] | None = None,
 ) -> dict:
     """Train (or resume) the dynamic motion encoder on a dataset and report rollout errors.
 
@@ -597,8 +618,11 @@ def train_motion(
         config: the run.
         log, progress: where progress lines go; whether to show a tqdm bar.
         rest_state: (V, 3) the garment's settled drape in the rest pose's root frame;
-            by default settled with the data set's cloth configuration
-            (:func:`~loosefit.sim.rest_drape.settled_rest_drape`, kept in the run folder).
+            by default the data set's (``rest_drape.npy``).
+        settle: for a data set without one: ``settle(reader, fps)`` -> (V, 3), run once
+            and kept in the run folder
+            (:func:`~loosefit.sim.rest_drape.settled_rest_drape` settles it with the
+            data set's cloth configuration).
 
     Returns:
         The report (also ``out/report.json`` and ``out/report.md``).
@@ -618,7 +642,8 @@ def train_motion(
     }
     stored = {"dataset": dataset, "generative": gmeta["fingerprint"], "train": config.to_dict()}
     run = Run.open(out, stored, config.seed, log, progress)
-    return train(MotionStage(reader, gmodel, gmeta, config, run, rest_state), run, dataset)
+    stage = MotionStage(reader, gmodel, gmeta, config, run, rest_state, settle)
+    return train(stage, run, dataset)
 
 
 # -- a warm start, a run's configuration ------------------------------------------------------

@@ -1,0 +1,274 @@
+"""Where a simulated frame's time goes: the cloth simulator profiled phase by phase.
+
+Usage:
+    OMP_NUM_THREADS=1 .venv/bin/python bench/sim_profile.py [--preset dance]
+        [--clips 60_01,05_10] [--frames 20] [--out docs/SIM_PROFILE.md] [--set KEY=VALUE]
+
+Simulates the first ``--frames`` motion frames of each clip exactly as the data set's
+worker would (the preset's garment, cloth configuration, pose correction; the settle and
+blend frames before them), with every phase of a frame timed: the body's timeline (anny
+posing the clip), the body's posing and BVH refit inside each substep, the waistband,
+detection of contacts with the body, the solver's parts (forward step, self-contact
+detection, the VBD iterations, the rest), the self-contact BVH rebuild once a frame, the
+release of trapped cloth and the recording of each frame. Warp's CPU kernels run on the
+calling thread, so each launch's wall time is its work: the kernels are timed one by one
+too. Graph capture is switched off while profiling (a replayed graph cannot be timed
+launch by launch); the seconds per frame with the configuration as it is are printed
+beside, from a second run of the same frames.
+
+``--set KEY=VALUE`` changes the cloth configuration (e.g. ``--set self_contact_every=2``)
+for a quick look at a lever; the quality of such a change is judged by
+``bench/sim_quality.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import platform
+import time
+from collections import defaultdict
+from datetime import date
+from pathlib import Path
+
+import torch
+import warp as wp
+
+import loosefit.sim.driver as driver
+import loosefit.sim.stepper as stepper
+from loosefit.sim.presets import preset
+from loosefit.sim.workers import Worker
+
+
+class Timer:
+    """Inclusive and exclusive seconds of nested labelled calls."""
+
+    def __init__(self) -> None:
+        self.total: dict[str, float] = defaultdict(float)
+        self.self_: dict[str, float] = defaultdict(float)
+        self.calls: dict[str, int] = defaultdict(int)
+        self.stack: list[list] = []  # [label, start, child seconds]
+
+    def wrap(self, owner, attr: str, label: str) -> None:
+        inner = getattr(owner, attr)
+        timer = self
+
+        def timed(*args, **kwargs):
+            timer.stack.append([label, time.perf_counter(), 0.0])
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                lab, t0, child = timer.stack.pop()
+                dt = time.perf_counter() - t0
+                timer.total[lab] += dt
+                timer.self_[lab] += dt - child
+                timer.calls[lab] += 1
+                if timer.stack:
+                    timer.stack[-1][2] += dt
+
+        setattr(owner, attr, timed)
+        self._undo.append((owner, attr, inner))
+
+    _undo: list = []
+
+    def restore(self) -> None:
+        for owner, attr, inner in reversed(self._undo):
+            setattr(owner, attr, inner)
+        self._undo.clear()
+
+
+def _kernel_name(kernel) -> str:
+    return getattr(kernel, "key", None) or getattr(kernel, "__name__", str(kernel))
+
+
+# what runs once for a clip (seconds a clip), not in the loop over its frames
+ONCE = {
+    "collider_parts": "body parts (pose correction, release)",
+    "timeline": "body timeline (anny posing the clip)",
+    "collider_meshes": "collider meshes",
+    "_batch_simulator": "building the simulator",
+    "_batch_schedule": "substep schedule",
+    "_clip_result": "the clip's quality figures",
+}
+
+
+def instrument(timer: Timer, kernels: Timer) -> None:
+    """Wrap the simulator's phases (``timer``) and every warp launch of the loop over frames
+    (``kernels``)."""
+    import newton
+    from newton.solvers import SolverVBD
+
+    timer._undo = []
+    kernels._undo = []
+    for attr, label in ONCE.items():
+        timer.wrap(driver, attr, label)
+    timer.wrap(stepper.ClothSimulator, "step_frame", "frame: body upload, the rest")
+    timer.wrap(SolverVBD, "rebuild_bvh", "self-contact BVH rebuild (once a frame)")
+    timer.wrap(stepper.ClothSimulator, "_pose_body", "body posed and refitted (each substep)")
+    timer.wrap(stepper.ClothSimulator, "_pin_waist", "waistband pinned")
+    timer.wrap(newton.CollisionPipeline, "collide", "body contact detection")
+    timer.wrap(SolverVBD, "step", "solver: the rest of a step")
+    timer.wrap(SolverVBD, "_initialize_particles", "solver: forward step")
+    timer.wrap(SolverVBD, "_mid_step_detection", "solver: self-contact detection")
+    timer.wrap(SolverVBD, "_solve_particle_iteration", "solver: VBD iterations")
+    timer.wrap(driver, "_release_trapped", "release of trapped cloth")
+    timer.wrap(driver, "_record_frame", "frame recorded and checked")
+
+    launch = wp.launch
+    once = set(ONCE.values())
+
+    def timed_launch(kernel, *args, **kwargs):
+        if not timer.stack or timer.stack[0][0] in once:  # only the loop over frames
+            return launch(kernel, *args, **kwargs)
+        t0 = time.perf_counter()
+        try:
+            return launch(kernel, *args, **kwargs)
+        finally:
+            name = _kernel_name(kwargs.get("kernel", kernel))
+            kernels.total[name] += time.perf_counter() - t0
+            kernels.calls[name] += 1
+
+    wp.launch = timed_launch
+    kernels._undo.append((wp, "launch", launch))
+
+
+def profile_clip(worker: Worker, name: str, frames: int, cloth) -> dict:
+    """One clip's first ``frames`` motion frames, profiled (capture off) and timed as
+    configured."""
+    from loosefit.sim.jobs import plan_jobs
+
+    jobs = {j.name: j for j in plan_jobs(worker.config)}
+    if name not in jobs:
+        raise SystemExit(f"no clip {name} in the preset (it has {', '.join(sorted(jobs))})")
+    motion = worker.motion(jobs[name]).slice(0, frames)
+    seeds = [jobs[name].seed]
+    avatar, template = worker.avatar, worker.template
+    # warp compiles every kernel once per process: a short clip first, outside the timing
+    short = dataclasses.replace(cloth, settle_seconds=0.0, blend_seconds=0.0)
+    driver.simulate_batch(avatar, template, [motion.slice(0, 2)], short, seeds=seeds)
+
+    timer, kernels = Timer(), Timer()
+    instrument(timer, kernels)
+    t0 = time.perf_counter()
+    try:
+        (profiled,) = driver.simulate_batch(
+            avatar, template, [motion], dataclasses.replace(cloth, capture=False), seeds=seeds
+        )
+    finally:
+        timer.restore()
+        kernels.restore()
+    wall_profiled = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    (plain,) = driver.simulate_batch(avatar, template, [motion], cloth, seeds=seeds)
+    wall_plain = time.perf_counter() - t0
+    steps = profiled.preroll_frames + motion.num_frames - 1  # frames stepped
+    substeps = plain.stats.get("substeps_mean")
+    return {
+        "clip": name,
+        "motion_frames": motion.num_frames,
+        "frames_stepped": steps,
+        "substeps_mean": substeps,
+        "seconds_per_frame_profiled": wall_profiled / steps,
+        "seconds_per_frame": wall_plain / steps,
+        "phases": {
+            k: {"self": timer.self_[k], "total": timer.total[k], "calls": timer.calls[k]}
+            for k in timer.total
+        },
+        "kernels": {k: {"seconds": v, "calls": kernels.calls[k]} for k, v in kernels.total.items()},
+        "quality": {k: plain.quality[k] for k in ("inside_max", "strain_p99", "max_speed")},
+        "wall_profiled": wall_profiled,
+    }
+
+
+def markdown(results: list[dict], args, machine: str) -> str:
+    lines = [
+        "# Where a simulated frame's time goes",
+        "",
+        f"`{' '.join(['python bench/sim_profile.py', *args])}`; {machine}; {date.today()}.",
+        "",
+    ]
+    for r in results:
+        steps = r["frames_stepped"]
+        wall = r["wall_profiled"]
+        lines += [
+            f"## {r['clip']}: {r['motion_frames']} motion frames ({steps} stepped with the "
+            f"settle and blend)",
+            "",
+            f"{r['seconds_per_frame']:.3f} s a frame as configured "
+            f"({r['seconds_per_frame_profiled']:.3f} profiled, graph capture off)"
+            + (f"; {r['substeps_mean']:.1f} substeps a frame" if r["substeps_mean"] else ""),
+            "",
+            "Once a clip:",
+            "",
+            "| phase | s |",
+            "|---|---:|",
+        ]
+        once = set(ONCE.values())
+        for k, v in r["phases"].items():
+            if k in once:
+                lines.append(f"| {k} | {v['total']:.2f} |")
+        looped = {k: v for k, v in r["phases"].items() if k not in once}
+        loop = sum(v["self"] for v in looped.values())
+        lines += [
+            "",
+            f"Each frame (the loop over frames: {loop / steps:.3f} s a frame, profiled):",
+            "",
+            "| phase (exclusive) | s a frame | share of the loop | calls a frame |",
+            "|---|---:|---:|---:|",
+        ]
+        for k, v in sorted(looped.items(), key=lambda kv: -kv[1]["self"]):
+            lines.append(
+                f"| {k} | {v['self'] / steps:.4f} | {100 * v['self'] / loop:.1f} % | "
+                f"{v['calls'] / steps:.1f} |"
+            )
+        other = wall - sum(v["self"] for v in r["phases"].values())
+        lines += [f"| (outside every phase above: {other:.2f} s in all) | | | |", ""]
+        lines += [
+            "| kernel | s a frame | share of the loop | launches a frame |",
+            "|---|---:|---:|---:|",
+        ]
+        top = sorted(r["kernels"].items(), key=lambda kv: -kv[1]["seconds"])[:15]
+        for k, v in top:
+            lines.append(
+                f"| `{k}` | {v['seconds'] / steps:.4f} | {100 * v['seconds'] / loop:.1f} % | "
+                f"{v['calls'] / steps:.0f} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--preset", default="dance")
+    p.add_argument("--clips", default="60_01,05_10", help="clip names of the preset")
+    p.add_argument("--frames", type=int, default=20, help="motion frames of each clip")
+    p.add_argument("--set", action="append", default=[], help="cloth KEY=VALUE")
+    p.add_argument("--out", default="", help="a Markdown file for the tables")
+    p.add_argument("--json", default="", help="a JSON file for the figures")
+    args = p.parse_args(argv)
+
+    torch.set_num_threads(1)
+    config = preset(args.preset)
+    changes = {}
+    for item in args.set:
+        key, _, value = item.partition("=")
+        changes[key] = json.loads(value)
+    cloth = dataclasses.replace(config.cloth, **changes)
+    worker = Worker.build(dataclasses.replace(config, cloth=cloth))
+    machine = (
+        f"{platform.node()}, {platform.processor() or platform.machine()}, "
+        f"{os.cpu_count()} cores, warp {wp.config.version}, one thread"
+    )
+    results = [profile_clip(worker, c, args.frames, cloth) for c in args.clips.split(",")]
+    text = markdown(results, argv if argv is not None else os.sys.argv[1:], machine)
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
