@@ -70,12 +70,12 @@ def test_a_damaged_rest_drape_is_refused_naming_the_file(tiny_dataset, tmp_path)
     shutil.copytree(tiny_dataset[0], out)
     np.save(out / "rest_drape.npy", np.zeros((5, 3), np.float32))
     with pytest.raises(LoosefitInputError, match=r"rest_drape\.npy.*\(5, 3\)"):
-        DatasetReader(out).rest_drape
+        _ = DatasetReader(out).rest_drape
     bad = DatasetReader(out).template.vertices.copy()
     bad[0, 0] = np.nan
     np.save(out / "rest_drape.npy", bad)
     with pytest.raises(LoosefitInputError, match="NaN"):
-        DatasetReader(out).rest_drape
+        _ = DatasetReader(out).rest_drape
 
 
 def test_report_shows_the_inside_mean_and_the_poses_that_fold(tiny_dataset):
