@@ -245,6 +245,129 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- the simulator's speed on the GPU (one call) ---------------------------------------------
+
+
+def sim_speed(args: argparse.Namespace) -> int:
+    """The simulator on the GPU in one call: the ``dance`` corpus end to end from a cold
+    start (``loosefit simulate``, timed from the command's start; ``--corpus-budget``
+    seconds at most), then ``bench/sim_gpu.py``'s table of frames per second by batch,
+    with and without graph capture, in what is left of ``--budget``. Results in ``--out``."""
+    t_end = time.monotonic() + args.budget
+    out, work = Path(args.out), Path(args.work)
+    out.mkdir(parents=True, exist_ok=True)
+    work.mkdir(parents=True, exist_ok=True)
+    env = environment()
+    salsa = Path(args.mocap)
+    sets = [a for item in args.set for a in ("--set", item)]
+    summary = {}
+    if args.corpus_budget > 0:
+        data = work / "dance"
+        config = work / "dance.yaml"
+        cli = [sys.executable, "-m", "loosefit", "simulate"]
+        preset = ["--preset", "tiny"] if args.tiny else ["--preset", "dance", "--bvh", str(salsa)]
+        t0 = time.monotonic()
+        subprocess.run([*cli, *preset, "--device", args.device, "--write-config", str(config)],
+                       cwd=ROOT, env=env, check=True, capture_output=True)  # fmt: skip
+        _set_cloth(config, args.set)
+        cmd = [*cli, "--config", str(config), "--out", str(data), "--device", args.device,
+               "--batch", str(args.corpus_batch),
+               "--workers", str(args.corpus_workers)]  # fmt: skip
+        print(f"[{time.strftime('%H:%M:%S')}] corpus: {' '.join(cmd)}", flush=True)
+        with open(out / "corpus.log", "w") as log:
+            try:
+                rc = subprocess.run(cmd, cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT,
+                                    timeout=args.corpus_budget).returncode  # fmt: skip
+            except subprocess.TimeoutExpired:
+                rc = "timeout"
+        seconds = time.monotonic() - t0
+        manifest = data / "manifest.json"
+        m = json.loads(manifest.read_text()) if manifest.is_file() else {}
+        done = [n for n, e in m.get("sequences", {}).items() if e.get("status") == "done"]
+        flagged = [n for n, e in m.get("sequences", {}).items() if e.get("status") == "flagged"]
+        frames = sum(e.get("frames", 0) for e in m.get("sequences", {}).values())
+        summary = {"exit": rc, "seconds": seconds, "complete": m.get("complete", False),
+                   "clips_done": len(done), "clips_flagged": flagged, "frames": frames,
+                   "batch": args.corpus_batch, "workers": args.corpus_workers,
+                   "summary": m.get("summary")}  # fmt: skip
+        (out / "corpus.json").write_text(json.dumps(summary, indent=1) + "\n")
+        if manifest.is_file():
+            shutil.copyfile(manifest, out / "corpus_manifest.json")
+        print(f"corpus: exit {rc} after {seconds:.0f} s, {len(done)} clips done, "
+              f"{len(flagged)} flagged, {frames} frames", flush=True)  # fmt: skip
+    left = t_end - time.monotonic()
+    bench = [sys.executable, "bench/sim_gpu.py", "--device", args.device, "--batches",
+             args.batches, "--frames", str(args.frames), "--budget", str(max(left - 60, 0)),
+             "--out", str(out), *sets]  # fmt: skip
+    bench += ["--tiny"] if args.tiny else ["--bvh", str(salsa)]
+    print(f"[{time.strftime('%H:%M:%S')}] table ({left:.0f} s left): {' '.join(bench)}", flush=True)
+    try:
+        rc = subprocess.run(bench, cwd=ROOT, env=env, timeout=max(left - 5, 1)).returncode
+    except subprocess.TimeoutExpired:
+        rc = "timeout"
+    print(f"table: exit {rc}", flush=True)
+    return 0 if rc == 0 and summary.get("exit", 0) == 0 else 1
+
+
+def _set_cloth(config: Path, items: list[str]) -> None:
+    """Change cloth fields of a written data set configuration (``KEY=VALUE``, JSON values)."""
+    if not items:
+        return
+    text = config.read_text()
+    import yaml
+
+    data = yaml.safe_load(text)
+    for item in items:
+        key, _, value = item.partition("=")
+        data["cloth"][key] = json.loads(value)
+    config.write_text(yaml.safe_dump(data, sort_keys=False))
+
+
+def build_kernels(cache: Path, arch: int = 90) -> int:
+    """Compile, here, the warp modules a simulation loads, for the GPU's architecture
+    (``sm_<arch>`` CUBINs, into the kernel cache ``cache``): a short simulation on the CPU
+    loads every module of the solver, the contacts and the body, and each is compiled ahead
+    of time for the GPU. On the device, warp finds them in its cache and compiles nothing
+    whose source and options are the same. Returns the number of modules compiled."""
+    code = f"""
+import dataclasses, warp as wp
+wp.init()
+from loosefit.sim.driver import simulate_batch, settle
+from loosefit.sim.presets import preset
+from loosefit.sim.workers import Worker
+from loosefit.sim.jobs import plan_jobs
+config = preset("tiny")
+worker = Worker.build(config)
+jobs = plan_jobs(config)[:2]
+motions = [worker.motion(j).slice(0, 2) for j in jobs]
+cloth = dataclasses.replace(config.cloth, settle_seconds=0.04, blend_seconds=0.0)
+for capture in (True, False):
+    c = dataclasses.replace(cloth, capture=capture)
+    simulate_batch(worker.avatar, worker.template, motions[:1], c)
+    simulate_batch(worker.avatar, worker.template, motions, c, seeds=[0, 1])
+settle(worker.avatar, worker.template, cloth, 30.0)
+from warp._src.context import user_modules
+done = 0
+for name, module in list(user_modules.items()):
+    if not module.kernels:
+        continue
+    try:
+        wp.compile_aot_module(module, arch={arch})
+        done += 1
+    except Exception as exc:
+        print("not compiled:", name, type(exc).__name__, str(exc)[:200])
+print("compiled", done)
+"""
+    env = dict(environment(), WARP_CACHE_PATH=str(cache))
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True,
+                          text=True)  # fmt: skip
+    if done.returncode != 0:
+        print(done.stdout[-2000:], done.stderr[-3000:])
+        raise RuntimeError("building the kernel cache failed")
+    line = [ln for ln in done.stdout.splitlines() if ln.startswith("compiled")]
+    return int(line[-1].split()[1]) if line else 0
+
+
 # -- getting the packages and the clips there ------------------------------------------------
 
 
@@ -263,13 +386,21 @@ def pack(args: argparse.Namespace) -> int:
         subprocess.run([sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary=:all:",
                         "--python-version", "3.12", "--implementation", "cp", *plat, "-d",
                         str(wheels), spec], check=True)  # fmt: skip
-    bundle = gpu / "bundle.tar"
-    with tarfile.open(bundle, "w") as tar:
+    cache = gpu / "warp-cache"
+    if args.kernels and not (cache / "done").is_file():
+        shutil.rmtree(cache, ignore_errors=True)
+        n = build_kernels(cache, args.arch)
+        (cache / "done").write_text(f"{n} modules for sm_{args.arch}\n")
+        print(f"{n} warp modules compiled for sm_{args.arch} into {cache}")
+    bundle = gpu / "bundle.tar.xz"
+    with tarfile.open(bundle, "w:xz") as tar:
         tar.add(wheels, arcname="wheels")
         tar.add(Path(args.mocap), arcname="mocap")
         ballet = Path(args.mocap).parent / "cmu-ballet"
         if ballet.is_dir():  # the dance preset reads them beside the salsa folder
             tar.add(ballet, arcname="cmu-ballet")
+        if args.kernels:
+            tar.add(cache, arcname="warp-cache")
     for old in gpu.glob("part-*"):
         shutil.rmtree(old)
     data = bundle.read_bytes()
@@ -319,7 +450,7 @@ def receive(args: argparse.Namespace) -> int:
     if hashlib.sha256(data).hexdigest() != meta["sha256"]:
         print("the parts do not make the bundle (sha256 differs): pack again")
         return 1
-    bundle = DEVICE_HOME / "bundle.tar"
+    bundle = DEVICE_HOME / "bundle.tar.xz"
     bundle.write_bytes(data)
     with tarfile.open(bundle) as tar:
         tar.extractall(DEVICE_HOME, filter="data")
@@ -327,6 +458,12 @@ def receive(args: argparse.Namespace) -> int:
                     "--no-compile", "--no-cache-dir", "--upgrade", "--target",
                     str(DEVICE_HOME / "site"), *map(str, (DEVICE_HOME / "wheels").glob("*.whl"))],
                    check=True)  # fmt: skip
+    carried = DEVICE_HOME / "warp-cache"
+    if carried.is_dir():  # the kernels compiled here for the GPU: into warp's default cache
+        mine = Path.home() / ".cache" / "warp"
+        for version in (p for p in carried.iterdir() if p.is_dir()):
+            shutil.copytree(version, mine / version.name, dirs_exist_ok=True)
+        print(f"warp's kernel cache: {mine}")
     print(f"installed into {DEVICE_HOME / 'site'}; clips in {DEVICE_HOME / 'mocap'}")
     return 0
 
@@ -336,6 +473,9 @@ def main() -> int:
     sub = ap.add_subparsers(dest="command", required=True)
     p = sub.add_parser("pack", help="here: the device's missing packages and the clips, in parts")
     p.add_argument("--mocap", default=str(ROOT.parent / "shared" / "mocap" / "cmu-salsa"))
+    p.add_argument("--no-kernels", dest="kernels", action="store_false",
+                   help="carry no kernels compiled here (the device compiles them)")  # fmt: skip
+    p.add_argument("--arch", type=int, default=90, help="the GPU's sm_ (90: H100, H200)")
     sub.add_parser("receive", help="device: take a carried part; install once all are there")
     p = sub.add_parser("run", help="the next steps of the pipeline within a time budget")
     p.add_argument("--budget", type=float, default=540.0, help="seconds this call may take")
@@ -353,8 +493,22 @@ def main() -> int:
                    help="paper: issue 25's paper-scale pipeline; dance: issue 35's set (the "
                    "dance data, the salsa set fine-tuned on it, Table 1 and 3 rows)")  # fmt: skip
     p.add_argument("--tiny", action="store_true", help="the tiny preset and a few epochs")
+    p = sub.add_parser("sim-speed", help="the simulator on the GPU: the dance corpus, the table")
+    p.add_argument("--budget", type=float, default=560.0, help="seconds this call may take")
+    p.add_argument("--corpus-budget", type=float, default=240.0, help="0: no corpus run")
+    p.add_argument("--corpus-batch", type=int, default=16)
+    p.add_argument("--corpus-workers", type=int, default=2)
+    p.add_argument("--batches", default="1,8,32,64")
+    p.add_argument("--frames", type=int, default=40)
+    p.add_argument("--set", action="append", default=[], help="cloth KEY=VALUE (JSON value)")
+    p.add_argument("--device", default="cuda:0")
+    p.add_argument("--mocap", default=str(DEVICE_HOME / "mocap"))
+    p.add_argument("--work", default=str(DEVICE_HOME / "work"))
+    p.add_argument("--out", default=os.environ.get("OUT", "out/sim-speed"))
+    p.add_argument("--tiny", action="store_true", help="the tiny preset (a test's size)")
     args = ap.parse_args()
-    return {"pack": pack, "receive": receive, "run": run}[args.command](args)
+    commands = {"pack": pack, "receive": receive, "run": run, "sim-speed": sim_speed}
+    return commands[args.command](args)
 
 
 if __name__ == "__main__":

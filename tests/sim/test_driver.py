@@ -225,6 +225,45 @@ def test_settle_alone_gives_the_drape_every_clip_starts_from(avatar, tiny):
     assert alone[:, 2].min() < -0.2  # hangs below the root, not at the template's rest
 
 
+def test_settled_once_every_clip_starts_from_the_one_drape(avatar, tiny):
+    """``settle_once``: the batch's clips skip their settle phase and start from one drape,
+    placed where each motion starts; the cloth that follows is the clip's cloth (within what
+    settling each clip again would change)."""
+    from loosefit.model.motion_features import root_frames
+
+    skirt, motion, result, _ = tiny
+    once = ClothConfig.tiny(settle_once=True)
+    drape = settle(avatar, skirt, ClothConfig.tiny(), fps=motion.fps)
+    (given,) = simulate_batch(avatar, skirt, [motion], once, drape=drape)
+    n_blend = round(once.blend_seconds * motion.fps)
+    assert given.preroll_frames == 1 + n_blend < result.preroll_frames  # no settle frames
+    c = ClothConfig.tiny()
+    rot, root, _ = preroll(motion, avatar.floor_height, c.settle_seconds, c.blend_seconds)
+    import torch
+
+    H, p = root_frames(torch.from_numpy(rot[:1]), torch.from_numpy(root[:1]))
+    start = ((torch.from_numpy(given.settled_vertices)[None] - p[:, None]) @ H)[0].numpy()
+    off = np.linalg.norm(start - drape, axis=-1)  # the drape, placed (and jittered); the
+    assert np.median(off) < 1e-3 and off.max() < 5e-3  # waistband glued to the body
+    gap = np.linalg.norm(given.garment_vertices - result.garment_vertices, axis=-1)
+    assert gap.mean() < 0.01, f"{gap.mean() * 1000:.1f} mm from the clip settled on its own"
+    assert given.quality["inside_max"] < 0.005
+    (settled_here,) = simulate_batch(avatar, skirt, [motion], once)  # settled once, here
+    np.testing.assert_array_equal(settled_here.garment_vertices, given.garment_vertices)
+    with pytest.raises(LoosefitInputError, match=r"drape.*finite numbers"):
+        simulate_batch(avatar, skirt, [motion], once, drape=drape[:-1])
+
+
+def test_one_self_contact_pass_a_substep(avatar, tiny):
+    skirt, motion, result, _ = tiny
+    one = simulate(avatar, skirt, motion, ClothConfig.tiny(self_contact_passes=1))
+    gap = np.linalg.norm(one.garment_vertices - result.garment_vertices, axis=-1)
+    assert 0 < gap.max() and gap.mean() < 0.01  # another schedule, the same cloth
+    assert one.quality["inside_max"] < 0.005
+    with pytest.raises(LoosefitInputError, match="self_contact_passes"):
+        ClothConfig(self_contact_passes=3)
+
+
 def test_the_cloth_keeps_its_templates_rest_shape_not_its_start(avatar, tiny):
     """A template whose rest shape is 10% smaller than where it starts (as a fitted garment
     starts draped): the cloth pulls in to the rest lengths; without rest_vertices the

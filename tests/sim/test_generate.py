@@ -391,3 +391,23 @@ def test_a_new_pose_correction_keeps_the_clips_whose_motion_it_leaves(spied_copy
     cfg.unfold.max_degrees, cfg.cloth.iterations = 25.0, 9
     with pytest.raises(LoosefitInputError, match=r"another dataset.*cloth"):
         generate(cfg, out, workers=1, progress=False)
+
+
+def test_settled_once_the_clips_start_from_the_data_set_s_drape(tmp_path, monkeypatch):
+    import dataclasses
+
+    given = []
+    real = workers.simulate_batch
+
+    def spy(*args, **kwargs):
+        given.append(kwargs.get("drape"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(workers, "simulate_batch", spy)
+    cfg = preset("tiny")
+    cfg = dataclasses.replace(cfg, cloth=dataclasses.replace(cfg.cloth, settle_once=True))
+    out = tmp_path / "once"
+    manifest = generate(cfg, out, workers=1, progress=False)
+    assert manifest["complete"] and manifest["summary"]["clips_ok"] == 2
+    drape = DatasetReader(out).rest_drape
+    assert len(given) == 2 and all(np.array_equal(g, drape) for g in given)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -157,6 +157,7 @@ def simulate_batch(
     resume: str | Path | None = None,
     resume_every: int = 50,
     seeds: list[int] | None = None,
+    drape: np.ndarray | None = None,
 ) -> list[SimResult]:
     """Simulate a garment through several motions at once, each clip a world of one model.
 
@@ -173,6 +174,10 @@ def simulate_batch(
         motions: K motions on the avatar's skeleton, all at one frame rate.
         progress: called as ``progress(done, total)`` after every batch frame.
         seeds: (K,) each clip's jitter seed (default: ``config.seed`` for all).
+        drape: with ``config.settle_once``: (V, 3) the garment settled on the rest pose
+            (:func:`settle`, in the rest pose's root frame) that every clip starts from,
+            placed where its motion starts; settled here once for the batch when not given.
+            Ignored otherwise.
 
     Returns:
         K :class:`SimResult`, one per motion, in order.
@@ -186,11 +191,17 @@ def simulate_batch(
     config = config or ClothConfig()
     fps = _check_batch(avatar, template, motions)
     K = len(motions)
+    start = None  # the clips start from the template, and settle on their own
+    if config.settle_once:
+        start = _check_drape(template, drape) if drape is not None else None
+        if start is None:
+            start = settle(avatar, template, config, fps)
 
-    # 1. Each body over its whole timeline: settle, blend, motion.
+    # 1. Each body over its whole timeline: settle (unless settled once), blend, motion.
     needs_parts = config.flatten_overlaps or config.release_depth is not None
     parts = collider_parts(avatar, config) if needs_parts else None  # once for all clips
-    lines = [timeline(avatar, motion, config, parts) for motion in motions]
+    line_config = config if start is None else replace(config, settle_seconds=0.0)
+    lines = [timeline(avatar, motion, line_config, parts) for motion in motions]
     bodies, colliders = [t.body for t in lines], [t.collider for t in lines]
     n_pre, n_settle = lines[0].n_pre, lines[0].n_settle
     body_faces, limb_faces, meshes = collider_meshes(avatar, config)
@@ -199,7 +210,7 @@ def simulate_batch(
 
     # 2. The simulator, with contact culling widened to the whole motions.
     t0 = time.perf_counter()
-    sim = _batch_simulator(template, lines, body_faces, limb_faces, config, fps, seeds)
+    sim = _batch_simulator(template, lines, body_faces, limb_faces, config, fps, seeds, start)
     t_build = time.perf_counter() - t0
     schedule = _batch_schedule(sim, colliders, totals, body_faces, config)
 
@@ -268,6 +279,17 @@ def _check_batch(avatar: Avatar, template: GarmentTemplate, motions: list[Motion
     return fps
 
 
+def _check_drape(template: GarmentTemplate, drape: np.ndarray) -> np.ndarray:
+    """(V, 3) float64 ``drape`` checked against the template."""
+    drape = np.asarray(drape)
+    V = template.num_vertices
+    if drape.shape != (V, 3) or not np.isfinite(drape).all():
+        raise LoosefitInputError(
+            "simulate_batch", "drape", f"({V}, 3) finite numbers", f"shape {drape.shape}"
+        )
+    return drape.astype(np.float64)
+
+
 def _batch_simulator(
     template: GarmentTemplate,
     lines: list[Timeline],
@@ -276,14 +298,19 @@ def _batch_simulator(
     config: ClothConfig,
     fps: float,
     seeds: list[int] | None,
+    start: np.ndarray | None = None,
 ) -> ClothSimulator:
     """The simulator of a batch's clips (one world each, a lone clip unbatched), the garment
-    placed on each clip's root in its first frame, contact culling over every body."""
+    (or the settled drape ``start``, root frame) placed on each clip's root in its first
+    frame, contact culling over every body."""
     K = len(lines)
+    shape = template.vertices if start is None else start
     garments = [
-        template.vertices.astype(np.float64) @ t.root_pose[:3, :3].T + t.root_pose[:3, 3]
-        for t in lines
+        shape.astype(np.float64) @ t.root_pose[:3, :3].T + t.root_pose[:3, 3] for t in lines
     ]
+    rest = template.rest_vertices
+    if start is not None and rest is None:  # the drape is where it starts, not its rest shape
+        rest = template.vertices
     bodies = [t.body for t in lines]
     lower = np.min([b.min((0, 1)) for b in bodies], 0) - 2.0
     upper = np.max([b.max((0, 1)) for b in bodies], 0) + 2.0
@@ -300,7 +327,7 @@ def _batch_simulator(
         loop=attached_loop(template),
         seeds=seeds,
         limb_faces=limb_faces,
-        rest_vertices=template.rest_vertices,
+        rest_vertices=rest,
     )
 
 

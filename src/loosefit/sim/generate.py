@@ -238,7 +238,8 @@ def _units(
     """The units of work (clips alone, or batches of ``batch`` clips of similar length,
     longest first) and the frames each simulates (settle and blend included: the bar's
     estimate), by unit name."""
-    preroll = round((config.cloth.settle_seconds + config.cloth.blend_seconds) * config.fps)
+    settle = 0.0 if config.cloth.settle_once else config.cloth.settle_seconds
+    preroll = round((settle + config.cloth.blend_seconds) * config.fps)
     length = {
         j.name: job_motion(config, j, avatar, unfold=False).num_frames + preroll for j in todo
     }

@@ -7,20 +7,25 @@ import warp as wp
 
 
 @wp.kernel
-def pose_body_kernel(
-    start: wp.array(dtype=wp.vec3),
-    end: wp.array(dtype=wp.vec3),
+def pose_bodies_kernel(
+    start: wp.array2d(dtype=wp.vec3),
+    end: wp.array2d(dtype=wp.vec3),
+    offsets: wp.array(dtype=wp.vec3),
+    shapes_per_world: int,
     alpha: float,
     inv_frame_dt: float,
-    points: wp.array(dtype=wp.vec3),
-    velocities: wp.array(dtype=wp.vec3),
+    meshes: wp.array(dtype=wp.uint64),
 ):
-    """Body vertices a fraction ``alpha`` into the frame, and their (constant) velocities."""
-    i = wp.tid()
-    a = start[i]
-    d = end[i] - a
-    points[i] = a + alpha * d
-    velocities[i] = d * inv_frame_dt
+    """Every clip's body meshes a fraction ``alpha`` into the frame, moved to the clip's cell
+    of the grid, and their (constant) velocities: one thread per (mesh, body vertex); the
+    meshes of clip k are ``meshes[k * shapes_per_world ...]``, all on the same vertices."""
+    j, i = wp.tid()
+    k = j // shapes_per_world
+    a = start[k, i]
+    d = end[k, i] - a
+    mesh = wp.mesh_get(meshes[j])
+    mesh.points[i] = a + offsets[k] + alpha * d
+    mesh.velocities[i] = d * inv_frame_dt
 
 
 @wp.func

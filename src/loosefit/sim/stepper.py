@@ -29,7 +29,7 @@ import warp as wp
 
 from loosefit.errors import LoosefitInputError
 from loosefit.sim.cloth_config import ClothConfig
-from loosefit.sim.kernels import damp_kernel, pin_waist_kernel, pose_body_kernel
+from loosefit.sim.kernels import damp_kernel, pin_waist_kernel, pose_bodies_kernel
 from loosefit.sim.waist import glue_waist
 
 
@@ -158,8 +158,13 @@ class ClothSimulator:
         # 5. Contacts, solver, the two states.
         self.pipeline = newton.CollisionPipeline(model, soft_contact_gap=cfg.body_contact_gap)
         self.contacts = self.pipeline.contacts()
+        Base = newton.solvers.SolverBase
+        passes = {}  # Newton's default: self-contact detected before and after the forward step
+        if cfg.self_contact_passes == 1:
+            passes = {Base.CollisionSlot.SOFT_SELF_CONTACT: Base.CollisionFrequencyType.PRE_INIT}
         self.solver = newton.solvers.SolverVBD(
             model,
+            collision_frequency_type=passes,
             iterations=cfg.iterations,
             integrate_with_external_rigid_solver=True,  # the body moves outside the solver
             particle_enable_self_contact=cfg.self_contact,
@@ -176,7 +181,8 @@ class ClothSimulator:
         # 6. Device buffers for the bodies' frame and the glue, per clip.
         self._device_buffers(bodies, body_faces, waist)
         self._damp_factor = wp.ones(1, dtype=float, device=self.device)
-        self._graphs: dict = {}  # recorded substeps, by substep count and swap parity
+        self._graphs: dict = {}  # recorded substeps (frames on a GPU), by count and parity
+        self._frame_graphs = True  # a GPU records whole frames until one fails to record
         self._substeps = cfg.substeps  # of the frame being stepped
         self._swaps = 0
         self._pose_body(1.0)
@@ -190,14 +196,16 @@ class ClothSimulator:
         V = self.num_vertices
         d = self.device
         self._body_faces = wp.array(body_faces, dtype=wp.vec3i, device=d)
-        self._body_start = [
-            wp.array(b + o, dtype=wp.vec3, device=d)
-            for b, o in zip(bodies, self.offsets, strict=True)
-        ]
-        self._body_end = [
-            wp.array(b + o, dtype=wp.vec3, device=d)
-            for b, o in zip(bodies, self.offsets, strict=True)
-        ]
+        # every clip's body at the start and the end of the frame, in its own coordinates
+        self._body_start = wp.array(bodies, dtype=wp.vec3, device=d)  # (K, Vb)
+        self._body_end = wp.array(bodies, dtype=wp.vec3, device=d)
+        self._offsets = wp.array(self.offsets, dtype=wp.vec3, device=d)
+        self._shapes_per_world = len(self._body_meshes[0])
+        self._mesh_ids = wp.array(
+            [shape.mesh.id for shapes in self._body_meshes for shape in shapes],
+            dtype=wp.uint64,
+            device=d,
+        )
         self._glue_arrays = [
             (
                 wp.array(g.faces.astype(np.int32), dtype=wp.int32, device=d),
@@ -329,17 +337,24 @@ class ClothSimulator:
     # -- one substep at a time --------------------------------------------------
 
     def _pose_body(self, alpha: float) -> None:
-        for k, shapes in enumerate(self._body_meshes):
+        """Every clip's body meshes posed ``alpha`` into the frame (one launch) and refitted."""
+        wp.launch(
+            pose_bodies_kernel,
+            dim=(len(self._mesh_ids), self.num_body_vertices),
+            inputs=[
+                self._body_start,
+                self._body_end,
+                self._offsets,
+                self._shapes_per_world,
+                alpha,
+                1.0 / self.frame_dt,
+                self._mesh_ids,
+            ],
+            device=self.device,
+        )
+        for shapes in self._body_meshes:
             for shape in shapes:
-                mesh = shape.mesh
-                wp.launch(
-                    pose_body_kernel,
-                    dim=self.num_body_vertices,
-                    inputs=[self._body_start[k], self._body_end[k], alpha, 1.0 / self.frame_dt],
-                    outputs=[mesh.points, mesh.velocities],
-                    device=self.device,
-                )
-                mesh.refit()
+                shape.mesh.refit()
 
     def _pin_waist(self) -> None:
         for (body, *_), (faces, bary, local, outward, particles) in zip(
@@ -397,12 +412,13 @@ class ClothSimulator:
         self._substeps = n
         rate = cfg.air_damping if damping is None else damping
         self._damp_factor.fill_(math.exp(-rate * self.frame_dt / n))
-        starts = np.asarray(body_start, np.float32).reshape(self.worlds, -1, 3)
-        ends = np.asarray(body_end, np.float32).reshape(self.worlds, -1, 3)
-        for k in range(self.worlds):
-            self._body_start[k].assign(np.ascontiguousarray(starts[k] + self.offsets[k]))
-            self._body_end[k].assign(np.ascontiguousarray(ends[k] + self.offsets[k]))
+        shape = (self.worlds, self.num_body_vertices, 3)
+        self._body_start.assign(np.ascontiguousarray(body_start, np.float32).reshape(shape))
+        self._body_end.assign(np.ascontiguousarray(body_end, np.float32).reshape(shape))
         self.solver.rebuild_bvh(self.state_0)  # self-contact BVH, rebuilt once a frame
+        frame_graph = cfg.capture and self.device.is_cuda and self._frame_graphs
+        if frame_graph and self._swaps >= 2 and self._replay_frame(n):
+            return
         for s in range(n):
             # Pose the body for the end of the substep before detecting contacts against it.
             # (Outside any graph: a CPU graph does not replay wp.Mesh.refit.)
@@ -420,6 +436,37 @@ class ClothSimulator:
                 wp.capture_launch(self._graphs[slot])
             else:
                 self._substep()
+            self.state_0, self.state_1 = self.state_1, self.state_0
+            self._swaps += 1
+
+    def _replay_frame(self, n: int) -> bool:
+        """On a GPU, a whole frame of ``n`` substeps (the body posed and refitted, the
+        waistband, contacts, the solver, the damping) as one recorded CUDA graph: no host
+        work between substeps. One graph per substep count and parity of the swap; a frame
+        that cannot be recorded (a warp or driver that refuses a refit in a graph) falls
+        back to the substep graphs for the rest of the run."""
+        slot = ("frame", n, self._swaps % 2)
+        if slot not in self._graphs:
+            states = (self.state_0, self.state_1, self._swaps)
+            try:
+                with wp.ScopedCapture(device=self.device) as capture:
+                    self._frame_substeps(n)
+            except Exception:  # nothing ran: the substep graphs from here on
+                self.state_0, self.state_1, self._swaps = states
+                self._frame_graphs = False
+                return False
+            self._graphs[slot] = capture.graph
+            self.state_0, self.state_1, self._swaps = states
+        wp.capture_launch(self._graphs[slot])
+        for _ in range(n):  # what the recorded frame did to the two states
+            self.state_0, self.state_1 = self.state_1, self.state_0
+            self._swaps += 1
+        return True
+
+    def _frame_substeps(self, n: int) -> None:
+        for s in range(n):
+            self._pose_body((s + 1) / n)
+            self._substep()
             self.state_0, self.state_1 = self.state_1, self.state_0
             self._swaps += 1
 

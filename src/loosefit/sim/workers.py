@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from loosefit.data.format import write_sequence
 from loosefit.sequence import AnimatedGarment
 from loosefit.sim.dataset_config import DatasetConfig, make_garment
@@ -112,6 +114,9 @@ class Worker:
 
         resume_dir = Path(out_dir) / "resume"
         resume_dir.mkdir(exist_ok=True)
+        drape = None  # with settle_once: the data set's, settled once before any clip
+        if config.cloth.settle_once and (Path(out_dir) / "rest_drape.npy").is_file():
+            drape = np.load(Path(out_dir) / "rest_drape.npy", allow_pickle=False)
         try:
             results = simulate_batch(
                 avatar,
@@ -122,6 +127,7 @@ class Worker:
                 resume=resume_dir / f"{name}.npz",
                 resume_every=resume_every,
                 seeds=[job.seed for job in jobs],
+                drape=drape,
             )
         except SimulationError as exc:
             if len(jobs) > 1:

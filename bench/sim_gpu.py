@@ -1,0 +1,202 @@
+"""Cloth simulation on a GPU: frames per second by batch size, with and without graph capture,
+and what a start costs.
+
+Usage (on a lent GPU, after ``scripts/gpu_pipeline.py receive``; one call)::
+
+    python3 bench/sim_gpu.py --device cuda:0 --batches 1,8,32,64 --frames 40 \\
+        --budget 420 --out $OUT
+
+At toy size on any machine (what ``tests/test_gpu_scripts.py`` runs)::
+
+    python bench/sim_gpu.py --tiny --device cpu --batches 1,2 --frames 3 --out /tmp/sim-gpu
+
+The start is timed phase by phase from the process's first line: the imports, the body
+and garment (anny's model cache), the clips' motions (the pose correction), and the first
+simulated frames (warp loading or compiling its modules). Then each batch size ``K`` runs
+``K`` of the preset's clips at once (the data set's clips in turn, each with its own seed
+when there are fewer than ``K``), their first ``--frames`` motion frames after the settle
+and blend, once with the whole frame replayed as one recorded graph (``capture``) and once
+launch by launch. Frames per second count every simulated clip frame (settle and blend
+included) over the loop's seconds; the model's build is given apart. Every run's clips go
+through the data set's quality gate; a flagged clip is counted in the table. A run that
+would pass ``--budget`` seconds (from the start) is left out and said so.
+
+Writes ``sim_gpu.md`` and ``sim_gpu.json`` into ``--out``.
+"""
+
+from __future__ import annotations
+
+import time
+
+T_START = time.perf_counter()  # noqa: E402 (the start is timed from here)
+
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import json  # noqa: E402
+import os  # noqa: E402
+import platform  # noqa: E402
+from datetime import date  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+
+def _since() -> float:
+    return time.perf_counter() - T_START
+
+
+def _machine(device: str) -> str:
+    text = f"{platform.node()}, {os.cpu_count()} CPU cores"
+    if device.startswith("cuda"):
+        import torch
+
+        text += f", {torch.cuda.get_device_name(0)}"
+    return text
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--preset", default="dance")
+    p.add_argument("--bvh", default=None, help="the salsa folder (dance: cmu-ballet beside it)")
+    p.add_argument("--device", default="cuda:0")
+    p.add_argument("--batches", default="1,8,32,64")
+    p.add_argument("--frames", type=int, default=40, help="motion frames of each clip")
+    p.add_argument("--capture", default="on,off", help="on, off or both (on,off)")
+    p.add_argument("--set", action="append", default=[], help="cloth KEY=VALUE")
+    p.add_argument("--budget", type=float, default=420.0, help="seconds from the start")
+    p.add_argument("--tiny", action="store_true", help="the tiny preset (a test's size)")
+    p.add_argument("--out", default=os.environ.get("OUT", "out/sim-gpu"))
+    args = p.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start: dict[str, float] = {}
+    mark = _since()
+
+    def phase(name: str) -> None:
+        nonlocal mark
+        now = _since()
+        start[name] = now - mark
+        mark = now
+        print(f"[{now:6.1f} s] {name}: {start[name]:.1f} s", flush=True)
+
+    import numpy as np
+    import torch
+    import warp as wp
+
+    from loosefit.sim.driver import simulate_batch
+    from loosefit.sim.jobs import plan_jobs
+    from loosefit.sim.manifest import clip_entry
+    from loosefit.sim.presets import preset
+    from loosefit.sim.workers import Worker
+
+    torch.set_num_threads(1)
+    wp.init()
+    phase("imports (torch, warp, loosefit)")
+    config = preset("tiny" if args.tiny else args.preset, args.bvh)
+    changes = {}
+    for item in args.set:
+        key, _, value = item.partition("=")
+        changes[key] = json.loads(value)
+    cloth = dataclasses.replace(config.cloth, device=args.device, **changes)
+    config = dataclasses.replace(config, cloth=cloth)
+    worker = Worker.build(config)
+    phase("body and garment (anny's model cache)")
+    jobs = [j for j in plan_jobs(config) if not j.name.startswith("chain")]
+    batches = [int(b) for b in args.batches.split(",")]
+    motions = [worker.motion(j).slice(0, args.frames) for j in jobs[: max(batches)]]
+    phase(f"{len(motions)} clips' motions (pose correction)")
+    first = dataclasses.replace(cloth, settle_seconds=0.0, blend_seconds=0.0)
+    simulate_batch(worker.avatar, worker.template, [motions[0].slice(0, 2)], first)
+    phase("first frames (warp's modules loaded or compiled)")
+    first_frames = _since()
+
+    rows = []
+    for K in batches:
+        for capture in args.capture.split(","):
+            if _since() > args.budget:
+                rows.append({"batch": K, "capture": capture, "skipped": "budget spent"})
+                print(f"batch {K}, capture {capture}: left out (budget)", flush=True)
+                continue
+            chosen = [motions[i % len(motions)] for i in range(K)]
+            picked = [jobs[i % len(motions)] for i in range(K)]
+            seeds = [j.seed + i // len(motions) for i, j in enumerate(picked)]
+            run_cloth = dataclasses.replace(cloth, capture=capture == "on")
+            t0 = time.perf_counter()
+            results = simulate_batch(worker.avatar, worker.template, chosen, run_cloth, seeds=seeds)
+            wall = time.perf_counter() - t0
+            stats = results[0].stats
+            loop = stats["simulate_seconds"] * K
+            build = stats["build_seconds"] * K
+            frames = sum(r.stats["frames_simulated"] for r in results)
+            flagged = [
+                j.name
+                for j, m, r in zip(picked, chosen, results, strict=True)
+                if clip_entry(config, j, m, r)["status"] != "done"
+            ]
+            row = {
+                "batch": K,
+                "capture": capture,
+                "clip_frames": frames,
+                "batch_frames": stats["batch_frames"],
+                "loop_seconds": loop,
+                "build_seconds": build,
+                "wall_seconds": wall,
+                "frames_per_second": frames / loop,
+                "substeps_mean": float(np.mean([r.stats["substeps_mean"] for r in results])),
+                "flagged": flagged,
+            }
+            rows.append(row)
+            print(
+                f"batch {K:3d}, capture {capture:3s}: {row['frames_per_second']:8.1f} frames/s "
+                f"({frames} clip frames in {loop:.1f} s; build {build:.1f} s; "
+                f"{len(flagged)} flagged)",
+                flush=True,
+            )
+            _write(out, args, start, first_frames, rows, _machine(args.device), argv)
+    _write(out, args, start, first_frames, rows, _machine(args.device), argv)
+    return 0
+
+
+def _write(out: Path, args, start, first_frames, rows, machine, argv) -> None:
+    record = {
+        "machine": machine,
+        "date": str(date.today()),
+        "device": args.device,
+        "preset": "tiny" if args.tiny else args.preset,
+        "frames": args.frames,
+        "start": start,
+        "first_frames_after": first_frames,
+        "runs": rows,
+    }
+    (out / "sim_gpu.json").write_text(json.dumps(record, indent=1) + "\n")
+    lines = [
+        "# Cloth simulation on a GPU: frames per second by batch",
+        "",
+        f"`python bench/sim_gpu.py {' '.join(argv if argv is not None else os.sys.argv[1:])}`;"
+        f" {machine}; {date.today()}.",
+        "",
+        "The start, from the process's first line:",
+        "",
+        "| phase | s |",
+        "|---|---:|",
+        *(f"| {k} | {v:.1f} |" for k, v in start.items()),
+        f"| **first simulated frames after** | **{first_frames:.1f}** |",
+        "",
+        f"Each clip: its first {args.frames} motion frames after the settle and blend.",
+        "",
+        "| clips at once | graph capture | frames/s | clip frames | loop (s) | build (s) "
+        "| substeps | flagged |",
+        "|---:|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in rows:
+        if "skipped" in r:
+            lines.append(f"| {r['batch']} | {r['capture']} | {r['skipped']} | | | | | |")
+            continue
+        lines.append(
+            f"| {r['batch']} | {r['capture']} | {r['frames_per_second']:.1f} | "
+            f"{r['clip_frames']} | {r['loop_seconds']:.1f} | {r['build_seconds']:.1f} | "
+            f"{r['substeps_mean']:.1f} | {', '.join(r['flagged']) or 'none'} |"
+        )
+    (out / "sim_gpu.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

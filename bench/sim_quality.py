@@ -1,0 +1,245 @@
+"""A faster cloth configuration against the unchanged one: speed, and what it does to the cloth.
+
+Usage:
+    .venv/bin/python bench/sim_quality.py [--preset dance] [--clips 60_01,05_10]
+        [--frames 120] [--workers 2] [--candidate NAME:KEY=VALUE,KEY=VALUE ...]
+        [--cache out/sim_quality] [--out docs/SIM_SPEED_QUALITY.md]
+
+Each clip of the preset (its first ``--frames`` motion frames, prepared as the data set's
+worker prepares it) is simulated three ways and more, one thread each:
+
+* ``base``: the preset's cloth configuration, the clip's own seed;
+* ``seed+1``: the same with the next seed (the start's 0.1 mm jitter). Cloth is chaotic: how
+  far two seeds of the unchanged solver drift apart is the tolerance a change is held to;
+* each ``--candidate``: the preset's configuration with the given changes, the clip's seed.
+
+For each run: seconds per frame (settle and blend included), the data set's quality gate
+(the preset's limits: flagged or kept, and why), the edge strain (median and 99th percentile
+over every frame), the hem (mean height above the floor and mean radius from the waist's
+axis, over the motion frames) and, against ``base``, the distance of every vertex (RMS over
+the motion frames, and the worst frame's mean). A candidate holds when the gate keeps what
+it keeps for ``base`` and each figure differs from ``base``'s by no more than ``seed+1``'s
+does (or by less than a floor: 1 mm for the hem, 0.002 for strain), on every clip.
+
+Runs are kept in ``--cache`` (one ``.npz`` each, named by clip, frames and configuration), so
+a rerun with another candidate simulates only that one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import json
+import os
+import platform
+import time
+from concurrent.futures import ProcessPoolExecutor
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+
+HEM_FLOOR = 0.001  # m: a hem figure closer than this to base's holds whatever the seeds do
+STRAIN_FLOOR = 0.002
+FLOORS = {
+    "hem_height": HEM_FLOOR,
+    "hem_radius": HEM_FLOOR,
+    "strain_p50": STRAIN_FLOOR,
+    "strain_p99": STRAIN_FLOOR,
+}
+
+
+def _config(preset_name: str, changes: dict):
+    from loosefit.sim.presets import preset
+
+    config = preset(preset_name)
+    return dataclasses.replace(config, cloth=dataclasses.replace(config.cloth, **changes))
+
+
+def _key(clip: str, frames: int, seed_shift: int, changes: dict) -> str:
+    text = json.dumps([clip, frames, seed_shift, sorted(changes.items())], default=str)
+    return f"{clip}-{frames}-{hashlib.sha256(text.encode()).hexdigest()[:10]}"
+
+
+def simulate_run(preset_name: str, clip: str, frames: int, seed_shift: int, changes: dict,
+                 cache: str) -> dict:  # fmt: skip
+    """One run, in a process of its own (one torch thread), cached in ``cache``."""
+    path = Path(cache) / f"{_key(clip, frames, seed_shift, changes)}.npz"
+    if path.is_file():
+        with np.load(path, allow_pickle=False) as z:
+            return {"garment": z["garment"], **json.loads(str(z["record"]))}
+    from loosefit.sim.driver import SimulationError, simulate_batch
+    from loosefit.sim.jobs import plan_jobs
+    from loosefit.sim.manifest import clip_entry
+    from loosefit.sim.workers import Worker
+
+    config = _config(preset_name, changes)
+    worker = Worker.build(config)
+    job = {j.name: j for j in plan_jobs(config)}[clip]
+    motion = worker.motion(job).slice(0, frames)
+    seed = job.seed + seed_shift
+    t0 = time.perf_counter()
+    try:
+        (result,) = simulate_batch(
+            worker.avatar, worker.template, [motion], config.cloth, seeds=[seed]
+        )
+    except SimulationError as exc:
+        return {"garment": None, "status": "flagged", "reason": str(exc), "seconds": 0.0}
+    wall = time.perf_counter() - t0
+    entry = clip_entry(config, dataclasses.replace(job, seed=seed), motion, result)
+    record = {
+        "status": entry["status"],
+        "reason": entry.get("reason", ""),
+        "seconds_per_frame": result.seconds_per_frame,
+        "wall": wall,
+        "frames_stepped": result.stats["frames_simulated"],
+        "substeps_mean": result.stats["substeps_mean"],
+        "quality": {
+            k: float(v)
+            for k, v in result.quality.items()
+            if np.ndim(v) == 0 and isinstance(v, int | float | np.floating | np.integer)
+        },
+        "floor": float(worker.avatar.floor_height),
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".partial.npz")
+    np.savez(tmp, garment=result.garment_vertices, record=json.dumps(record))
+    tmp.replace(path)
+    return {"garment": result.garment_vertices, **record}
+
+
+def figures(run: dict, template, base: dict | None) -> dict:
+    """Strain, hem and (against ``base``) vertex distance of one run's motion frames."""
+    from loosefit.garment.mesh_checks import hem_loop
+    from loosefit.garment.quality import edge_strain
+
+    g = run["garment"]  # (T, V, 3)
+    strain, _ = edge_strain(g, template)
+    hem = hem_loop(template.vertices, template.faces)
+    waist = g[:, template.waist].mean(1)  # (T, 3)
+    hem_xyz = g[:, hem]
+    radius = np.linalg.norm((hem_xyz - waist[:, None])[..., :2], axis=-1).mean()
+    out = {
+        "strain_p50": float(np.median(strain)),
+        "strain_p99": float(np.percentile(strain, 99)),
+        "hem_height": float(hem_xyz[..., 2].mean()),  # the floor is at z = 0
+        "hem_radius": float(radius),
+    }
+    if base is not None:
+        d = np.linalg.norm(g - base["garment"], axis=-1)  # (T, V)
+        out["rms_to_base_cm"] = float(100 * np.sqrt((d**2).mean()))
+        out["worst_frame_to_base_cm"] = float(100 * d.mean(1).max())
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--preset", default="dance")
+    p.add_argument("--clips", default="60_01,05_10")
+    p.add_argument("--frames", type=int, default=120)
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--candidate", action="append", default=[], help="NAME:KEY=VALUE,...")
+    p.add_argument("--cache", default="out/sim_quality")
+    p.add_argument("--out", default="")
+    args = p.parse_args(argv)
+
+    candidates = {}
+    for spec in args.candidate:
+        name, _, items = spec.partition(":")
+        changes = {}
+        for item in filter(None, items.split(",")):
+            key, _, value = item.partition("=")
+            changes[key] = json.loads(value)
+        candidates[name] = changes
+    clips = args.clips.split(",")
+    runs = [("base", 0, {}), ("seed+1", 1, {})] + [(n, 0, c) for n, c in candidates.items()]
+    jobs = [(clip, name, shift, changes) for clip in clips for name, shift, changes in runs]
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    os.environ.update(env)
+    with ProcessPoolExecutor(args.workers) as pool:
+        futures = {
+            (clip, name): pool.submit(
+                simulate_run, args.preset, clip, args.frames, shift, changes, args.cache
+            )
+            for clip, name, shift, changes in jobs
+        }
+        results = {k: f.result() for k, f in futures.items()}
+
+    from loosefit.sim.workers import Worker
+
+    template = Worker.build(_config(args.preset, {})).template
+    table = {}
+    for clip in clips:
+        base = results[(clip, "base")]
+        for name, _, _ in runs:
+            run = results[(clip, name)]
+            if run["garment"] is None:
+                table[(clip, name)] = {"status": "diverged", "reason": run["reason"]}
+                continue
+            table[(clip, name)] = {
+                **{k: run[k] for k in ("status", "reason", "seconds_per_frame", "substeps_mean")},
+                **figures(run, template, None if name == "base" else base),
+            }
+    verdicts = {}
+    for name in candidates:
+        ok, why = True, []
+        for clip in clips:
+            b, s, c = (table[(clip, n)] for n in ("base", "seed+1", name))
+            if c["status"] != "done" and b["status"] == "done":
+                ok = False
+                why.append(f"{clip}: flagged ({c.get('reason', '')})")
+                continue
+            if "strain_p50" not in c:
+                continue
+            for key, floor in FLOORS.items():
+                tol = max(abs(s[key] - b[key]), floor)
+                if abs(c[key] - b[key]) > tol:
+                    ok = False
+                    why.append(f"{clip}: {key} {c[key]:.4f} vs {b[key]:.4f} (tolerance {tol:.4f})")
+            if c["rms_to_base_cm"] > max(s["rms_to_base_cm"], 0.1):
+                ok = False
+                why.append(
+                    f"{clip}: {c['rms_to_base_cm']:.2f} cm from base, seeds "
+                    f"{s['rms_to_base_cm']:.2f}"
+                )
+        verdicts[name] = (ok, why)
+
+    machine = f"{platform.node()}, {os.cpu_count()} cores, one thread a run"
+    lines = [
+        "# A faster cloth configuration against the unchanged one",
+        "",
+        f"`python bench/sim_quality.py {' '.join(argv if argv is not None else os.sys.argv[1:])}`;"
+        f" {machine}, {args.workers} runs at once; {date.today()}.",
+        "",
+        "| clip | run | changes | s a frame | speed-up | substeps | gate | strain p50 | strain p99 "
+        "| hem height (m) | hem radius (m) | RMS to base (cm) | worst frame (cm) |",
+        "|---|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for clip in clips:
+        base_spf = table[(clip, "base")]["seconds_per_frame"]
+        for name, _, changes in runs:
+            r = table[(clip, name)]
+            if "strain_p50" not in r:
+                lines.append(f"| {clip} | {name} | {changes} | | | | {r['status']} | | | | | | |")
+                continue
+            rms = f"{r['rms_to_base_cm']:.2f}" if "rms_to_base_cm" in r else ""
+            worst = f"{r['worst_frame_to_base_cm']:.2f}" if "worst_frame_to_base_cm" in r else ""
+            label = ", ".join(f"{k}={v}" for k, v in changes.items()) or "(preset)"
+            lines.append(
+                f"| {clip} | {name} | {label} | {r['seconds_per_frame']:.3f} | "
+                f"{base_spf / r['seconds_per_frame']:.2f}x | {r['substeps_mean']:.1f} | "
+                f"{r['status']} | {r['strain_p50']:.4f} | {r['strain_p99']:.4f} | "
+                f"{r['hem_height']:.4f} | {r['hem_radius']:.4f} | {rms} | {worst} |"
+            )
+    lines.append("")
+    for name, (ok, why) in verdicts.items():
+        lines.append(f"- **{name}**: " + ("holds" if ok else "does not hold: " + "; ".join(why)))
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text)
+
+
+if __name__ == "__main__":
+    main()
