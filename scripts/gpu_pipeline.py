@@ -297,7 +297,8 @@ def sim_speed(args: argparse.Namespace) -> int:
               f"{len(flagged)} flagged, {frames} frames", flush=True)  # fmt: skip
     left = t_end - time.monotonic()
     bench = [sys.executable, "bench/sim_gpu.py", "--device", args.device, "--batches",
-             args.batches, "--frames", str(args.frames), "--budget", str(max(left - 60, 0)),
+             args.batches, "--frames", str(args.frames), "--clips", str(args.clips),
+             "--capture", args.capture, "--budget", str(max(left - 60, 0)),
              "--out", str(out), *sets]  # fmt: skip
     bench += ["--tiny"] if args.tiny else ["--bvh", str(salsa)]
     print(f"[{time.strftime('%H:%M:%S')}] table ({left:.0f} s left): {' '.join(bench)}", flush=True)
@@ -500,6 +501,8 @@ def main() -> int:
     p.add_argument("--corpus-workers", type=int, default=2)
     p.add_argument("--batches", default="1,8,32,64")
     p.add_argument("--frames", type=int, default=40)
+    p.add_argument("--clips", type=int, default=8, help="distinct clips of the table")
+    p.add_argument("--capture", default="on,off")
     p.add_argument("--set", action="append", default=[], help="cloth KEY=VALUE (JSON value)")
     p.add_argument("--device", default="cuda:0")
     p.add_argument("--mocap", default=str(DEVICE_HOME / "mocap"))

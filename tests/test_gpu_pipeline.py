@@ -66,3 +66,26 @@ def test_the_dance_pipeline_trains_every_stage_and_brings_back_the_set(tmp_path,
         assert path.is_file() and path.stat().st_size < 16 * 2**20, name
     # The toy set's test clip is rolled out by both tables.
     assert "| c | 16 |" in (out / "table3.md").read_text()
+
+
+def test_the_simulator_s_speed_call_runs_the_corpus_and_the_table(tmp_path):
+    """``sim-speed`` at toy size: the corpus end to end from the command line (timed, its
+    manifest brought back), then bench/sim_gpu.py's table; what a lent GPU runs in one call."""
+    import json
+
+    work, out = tmp_path / "work", tmp_path / "out"
+    cmd = [sys.executable, str(SCRIPT), "sim-speed", "--tiny", "--device", "cpu", "--work",
+           str(work), "--out", str(out), "--budget", "600", "--corpus-budget", "300",
+           "--corpus-batch", "2", "--corpus-workers", "1", "--batches", "1,2", "--frames", "2",
+           "--clips", "1", "--capture", "on", "--set", "settle_once=true"]  # fmt: skip
+    call = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert call.returncode == 0, call.stdout[-3000:] + call.stderr[-3000:]
+    corpus = json.loads((out / "corpus.json").read_text())
+    assert corpus["exit"] == 0 and corpus["complete"] and corpus["clips_done"] == 2
+    assert corpus["seconds"] > 0 and (out / "corpus_manifest.json").is_file()
+    manifest = json.loads((out / "corpus_manifest.json").read_text())
+    assert manifest["config"]["cloth"]["settle_once"] is True  # --set reached the corpus
+    table = json.loads((out / "sim_gpu.json").read_text())
+    runs = [r for r in table["runs"] if "skipped" not in r]
+    assert [r["batch"] for r in runs] == [1, 2] and all(r["frames_per_second"] > 0 for r in runs)
+    assert "first simulated frames after" in (out / "sim_gpu.md").read_text()

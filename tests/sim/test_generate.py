@@ -411,3 +411,20 @@ def test_settled_once_the_clips_start_from_the_data_set_s_drape(tmp_path, monkey
     assert manifest["complete"] and manifest["summary"]["clips_ok"] == 2
     drape = DatasetReader(out).rest_drape
     assert len(given) == 2 and all(np.array_equal(g, drape) for g in given)
+
+
+def test_a_batch_holds_clips_of_similar_length(monkeypatch):
+    from types import SimpleNamespace
+
+    import loosefit.sim.generate as gen
+    from loosefit.sim.jobs import Job
+
+    frames = {"chain": 2000, "a": 550, "b": 500, "c": 300, "d": 260, "e": 150}
+    monkeypatch.setattr(
+        gen, "job_motion", lambda c, j, a, unfold: SimpleNamespace(num_frames=frames[j.name])
+    )
+    jobs = [Job(n, n, 0, False) for n in frames]
+    groups, _ = gen._units(preset("tiny"), jobs, None, batch=3)
+    assert [[j.name for j in g] for g in groups] == [["chain"], ["a", "b", "c"], ["d", "e"]]
+    groups, _ = gen._units(preset("tiny"), jobs, None, batch=1)
+    assert len(groups) == len(frames)

@@ -55,7 +55,8 @@ def generate(
             the CPUs of a Ray instance it starts on this machine when it finds none.
         batch: clips simulated at once, each a world of one Newton model
             (:func:`~loosefit.sim.driver.simulate_batch`): for a GPU, where 16 clips
-            cost little more than one. Clips of similar length go together.
+            cost little more than one. Clips of similar length go together (none shorter
+            than half its batch's longest: a long clip goes alone).
         progress: show a progress bar over frames with rate and ETA.
         reuse: another dataset folder whose clips of the same simulation are
             taken rather than simulated again
@@ -235,17 +236,22 @@ def _take_what_is_done(
 def _units(
     config: DatasetConfig, todo: list[Job], avatar, batch: int
 ) -> tuple[list[list[Job]], dict[str, int]]:
-    """The units of work (clips alone, or batches of ``batch`` clips of similar length,
-    longest first) and the frames each simulates (settle and blend included: the bar's
+    """The units of work (clips alone, or batches of up to ``batch`` clips of similar length,
+    longest first, none shorter than half its batch's longest) and the frames each simulates (settle and blend included: the bar's
     estimate), by unit name."""
     settle = 0.0 if config.cloth.settle_once else config.cloth.settle_seconds
     preroll = round((settle + config.cloth.blend_seconds) * config.fps)
     length = {
         j.name: job_motion(config, j, avatar, unfold=False).num_frames + preroll for j in todo
     }
-    if batch > 1:
-        ordered = sorted(todo, key=lambda j: (-length[j.name], j.name))
-        groups = [ordered[i : i + batch] for i in range(0, len(ordered), batch)]
+    if batch > 1:  # a clip waits for its batch's longest: none shorter than half of it
+        groups: list[list[Job]] = []
+        for job in sorted(todo, key=lambda j: (-length[j.name], j.name)):
+            group = groups[-1] if groups else None
+            if group and len(group) < batch and 2 * length[job.name] >= length[group[0].name]:
+                group.append(job)
+            else:
+                groups.append([job])
     else:
         groups = [[j] for j in todo]
     frames_of = {unit_name(g): max(length[j.name] for j in g) for g in groups}
