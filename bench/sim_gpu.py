@@ -6,23 +6,25 @@ Usage (on a lent GPU, after ``scripts/gpu_pipeline.py receive``; one call)::
     python3 bench/sim_gpu.py --device cuda:0 --batches 1,8,32,64 --frames 40 \\
         --budget 420 --out $OUT
 
-At toy size on any machine (what ``tests/test_gpu_scripts.py`` runs)::
+At toy size on any machine (what ``tests/test_gpu_pipeline.py`` runs, through
+``scripts/gpu_pipeline.py sim-speed``)::
 
     python bench/sim_gpu.py --tiny --device cpu --batches 1,2 --frames 3 --out /tmp/sim-gpu
 
-The start is timed phase by phase from the process's first line: the imports, the body
-and garment (anny's model cache), the clips' bodies (``--clips`` distinct clips of the
-preset, each posed over its timeline with its limbs pressed out of each other, in parallel
-processes), and the first simulated frames (warp loading or compiling its modules). Then
-each batch size ``K`` runs ``K`` clips at once (the distinct clips in turn, each with its
-own seed), their first ``--frames`` motion frames after the settle and blend, once with
-the whole frame replayed as one recorded graph (``capture``) and once launch by launch.
-The bodies are prepared once and reused by every run (what this table measures is the
-simulation; a data set's clips also pay for their pose correction and bodies, which
-``loosefit simulate`` reports). Frames per second count every simulated clip frame (settle and blend
+The start is timed phase by phase from the process's first line: the imports, the body and
+garment (anny's model cache), the clips' bodies (``--clips`` distinct clips of the preset,
+pose-corrected as a data set's worker corrects them and posed over their timelines, in
+parallel processes), and the first simulated frames (warp loading or compiling its
+modules). Then each batch size ``K`` runs ``K`` clips at once (the distinct clips in turn,
+each with its own seed), their first ``--frames`` motion frames after the settle and blend,
+once for each ``--capture``: ``on``, a whole frame replayed as one recorded graph;
+``substeps``, one graph a substep with the bodies posed between them; ``off``, launch by
+launch. The bodies are prepared once and reused by every run: what this table measures is
+the simulation. Frames per second count every simulated clip frame (settle and blend
 included) over the loop's seconds; the model's build is given apart. Every run's clips go
-through the data set's quality gate; a flagged clip is counted in the table. A run that
-would pass ``--budget`` seconds (from the start) is left out and said so.
+through the data set's quality gate; a flagged clip is counted in the table. ``--phases``
+times a frame's phases, the device synchronised after each. A run that would pass
+``--budget`` seconds (from the start) is left out and said so.
 
 Writes ``sim_gpu.md`` and ``sim_gpu.json`` into ``--out``.
 """
@@ -63,7 +65,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--batches", default="1,8,32,64")
     p.add_argument("--frames", type=int, default=40, help="motion frames of each clip")
     p.add_argument("--clips", type=int, default=8, help="distinct clips (each seed a copy)")
-    p.add_argument("--capture", default="on,off", help="on, off or both (on,off)")
+    p.add_argument(
+        "--capture",
+        default="on,substeps,off",
+        help="on (a frame a graph), substeps (a substep a graph), off; comma-separated",
+    )
+    p.add_argument("--phases", action="store_true", help="time a frame's phases (synchronised)")
     p.add_argument("--set", action="append", default=[], help="cloth KEY=VALUE")
     p.add_argument("--budget", type=float, default=420.0, help="seconds from the start")
     p.add_argument("--tiny", action="store_true", help="the tiny preset (a test's size)")
@@ -86,6 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     import warp as wp
 
     import loosefit.sim.driver as driver
+    import loosefit.sim.stepper as stepper
     from loosefit.sim.driver import simulate_batch
     from loosefit.sim.jobs import plan_jobs
     from loosefit.sim.manifest import clip_entry
@@ -129,9 +137,16 @@ def main(argv: list[str] | None = None) -> int:
             chosen = [motions[i % len(motions)] for i in range(K)]
             picked = [jobs[i % len(motions)] for i in range(K)]
             seeds = [j.seed + i // len(motions) for i, j in enumerate(picked)]
-            run_cloth = dataclasses.replace(cloth, capture=capture == "on")
+            run_cloth = dataclasses.replace(cloth, capture=capture != "off")
+            stepper.ClothSimulator.record_frames = capture == "on"
+            timer = _phases(args.phases and args.device.startswith("cuda"))
             t0 = time.perf_counter()
-            results = simulate_batch(worker.avatar, worker.template, chosen, run_cloth, seeds=seeds)
+            try:
+                results = simulate_batch(
+                    worker.avatar, worker.template, chosen, run_cloth, seeds=seeds
+                )
+            finally:
+                timer.restore()
             wall = time.perf_counter() - t0
             stats = results[0].stats
             loop = stats["simulate_seconds"] * K
@@ -153,6 +168,7 @@ def main(argv: list[str] | None = None) -> int:
                 "frames_per_second": frames / loop,
                 "substeps_mean": float(np.mean([r.stats["substeps_mean"] for r in results])),
                 "flagged": flagged,
+                "phases": {k: v / stats["batch_frames"] for k, v in timer.self_.items()},
             }
             g = results[0].garment_vertices
             if previous is not None:  # the same clip, replayed or launched: the same cloth
@@ -170,9 +186,45 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _phases(on: bool):
+    """A frame's phases timed, the device synchronised after each (slower, but the seconds
+    are each phase's own); a timer that times nothing when ``on`` is false."""
+    import warp as wp
+    from newton.solvers import SolverVBD
+    from sim_profile import Timer
+
+    import loosefit.sim.driver as driver
+    import loosefit.sim.stepper as stepper
+
+    timer = Timer()
+    timer._undo = []
+    if not on:
+        return timer
+    for owner, attr, label in (
+        (stepper.ClothSimulator, "step_frame", "frame: body upload, the rest"),
+        (SolverVBD, "rebuild_bvh", "self-contact BVH rebuild"),
+        (stepper.ClothSimulator, "_replay_frame", "a frame's graph (recorded or replayed)"),
+        (stepper.ClothSimulator, "_pose_body", "body posed and refitted"),
+        (stepper.ClothSimulator, "_substep", "a substep launched"),
+        (driver, "_record_frame", "frame recorded and checked"),
+    ):
+        inner = getattr(owner, attr)
+
+        def synced(*a, _inner=inner, **k):
+            out = _inner(*a, **k)
+            if not wp.get_device().is_capturing:  # (inside a recording nothing runs)
+                wp.synchronize()
+            return out
+
+        setattr(owner, attr, synced)
+        timer._undo.append((owner, attr, inner))
+        timer.wrap(owner, attr, label)
+    return timer
+
+
 def _prepare_one(config, job, frames: int):
-    """One clip's motion (its first ``frames`` frames, as loaded: the pose correction is
-    the data set's, not the simulation's) and its timeline, in a process of its own."""
+    """One clip's motion (its first ``frames`` frames, pose-corrected as the data set's
+    worker corrects it) and its timeline, in a process of its own."""
     import torch
 
     from loosefit.sim.timeline import timeline
@@ -182,7 +234,8 @@ def _prepare_one(config, job, frames: int):
     worker = Worker.build(config)
     from loosefit.sim.jobs import job_motion
 
-    motion = job_motion(config, job, worker.avatar, unfold=False).slice(0, frames)
+    motions = dataclasses.replace(config.motions, max_frames=frames)  # corrected as a data set's
+    motion = job_motion(dataclasses.replace(config, motions=motions), job, worker.avatar)
     return motion, timeline(worker.avatar, motion, config.cloth)
 
 
@@ -240,6 +293,12 @@ def _write(out: Path, args, start, first_frames, rows, machine, argv) -> None:
             f"{r['substeps_mean']:.1f} | {', '.join(r['flagged']) or 'none'} | "
             + (f"{r['gap_to_other_mm']:.3f} |" if "gap_to_other_mm" in r else " |")
         )
+    timed = [r for r in rows if r.get("phases")]
+    if timed:
+        lines += ["", "A frame's phases (s a batch frame, the device synchronised after each):", ""]
+        for r in timed:
+            parts = ", ".join(f"{k} {v:.4f}" for k, v in sorted(r["phases"].items()))
+            lines.append(f"- {r['batch']} clips, capture {r['capture']}: {parts}")
     (out / "sim_gpu.md").write_text("\n".join(lines) + "\n")
 
 

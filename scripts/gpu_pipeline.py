@@ -327,8 +327,8 @@ def _set_cloth(config: Path, items: list[str]) -> None:
 def build_kernels(cache: Path, arch: int = 90) -> int:
     """Compile, here, the warp modules a simulation loads, for the GPU's architecture
     (``sm_<arch>`` CUBINs, into the kernel cache ``cache``): a short simulation on the CPU
-    loads every module of the solver, the contacts and the body, and each is compiled ahead
-    of time for the GPU. On the device, warp finds them in its cache and compiles nothing
+    loads every module of the solver, the contacts and the body, and each module it loaded
+    is compiled ahead of time for the GPU (a module only a GPU loads is compiled there). On the device, warp finds them in its cache and compiles nothing
     whose source and options are the same. Returns the number of modules compiled."""
     code = f"""
 import dataclasses, warp as wp
@@ -350,7 +350,7 @@ settle(worker.avatar, worker.template, cloth, 30.0)
 from warp._src.context import user_modules
 done = 0
 for name, module in list(user_modules.items()):
-    if not module.kernels:
+    if not module.kernels or not module.execs:  # only the modules the simulation loaded
         continue
     try:
         wp.compile_aot_module(module, arch={arch})
@@ -502,7 +502,7 @@ def main() -> int:
     p.add_argument("--batches", default="1,8,32,64")
     p.add_argument("--frames", type=int, default=40)
     p.add_argument("--clips", type=int, default=8, help="distinct clips of the table")
-    p.add_argument("--capture", default="on,off")
+    p.add_argument("--capture", default="on,substeps,off")
     p.add_argument("--set", action="append", default=[], help="cloth KEY=VALUE (JSON value)")
     p.add_argument("--device", default="cuda:0")
     p.add_argument("--mocap", default=str(DEVICE_HOME / "mocap"))

@@ -237,8 +237,8 @@ def _units(
     config: DatasetConfig, todo: list[Job], avatar, batch: int
 ) -> tuple[list[list[Job]], dict[str, int]]:
     """The units of work (clips alone, or batches of up to ``batch`` clips of similar length,
-    longest first, none shorter than half its batch's longest) and the frames each simulates (settle and blend included: the bar's
-    estimate), by unit name."""
+    longest first, none shorter than half its batch's longest) and the frames each
+    simulates (settle and blend included: the bar's estimate), by unit name."""
     settle = 0.0 if config.cloth.settle_once else config.cloth.settle_seconds
     preroll = round((settle + config.cloth.blend_seconds) * config.fps)
     length = {

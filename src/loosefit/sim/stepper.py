@@ -71,6 +71,10 @@ class ClothSimulator:
             draped and keeps its file's rest lengths); None: the initial positions.
     """
 
+    # with ``config.capture`` on a GPU: a whole frame as one graph (else one per substep, the
+    # body posed between them); a benchmark compares the two
+    record_frames: bool = True
+
     def __init__(
         self,
         garment_vertices: np.ndarray,
@@ -182,7 +186,8 @@ class ClothSimulator:
         self._device_buffers(bodies, body_faces, waist)
         self._damp_factor = wp.ones(1, dtype=float, device=self.device)
         self._graphs: dict = {}  # recorded substeps (frames on a GPU), by count and parity
-        self._frame_graphs = True  # a GPU records whole frames until one fails to record
+        # a GPU records whole frames (until one fails to record); else substeps only
+        self._frame_graphs = self.record_frames
         self._substeps = cfg.substeps  # of the frame being stepped
         self._swaps = 0
         self._pose_body(1.0)
