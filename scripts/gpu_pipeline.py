@@ -328,8 +328,9 @@ def build_kernels(cache: Path, arch: int = 90) -> int:
     """Compile, here, the warp modules a simulation loads, for the GPU's architecture
     (``sm_<arch>`` CUBINs, into the kernel cache ``cache``): a short simulation on the CPU
     loads every module of the solver, the contacts and the body, and each module it loaded
-    is compiled ahead of time for the GPU (a module only a GPU loads is compiled there). On the device, warp finds them in its cache and compiles nothing
-    whose source and options are the same. Returns the number of modules compiled."""
+    is compiled ahead of time for the GPU (a module only a GPU loads is compiled there).
+    On the device, warp finds them in its cache and compiles nothing whose source and
+    options are the same. Returns the number of modules compiled."""
     code = f"""
 import dataclasses, warp as wp
 wp.init()

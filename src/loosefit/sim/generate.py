@@ -81,7 +81,6 @@ def generate(
 
     # 1. The body and garment, and the clips this folder holds already.
     avatar, template = _body_and_garment(config, out, manifest)
-    _rest_drape(config, out, avatar, template)
     _take_what_is_done(config, jobs, manifest, out, avatar, template, reuse, progress)
 
     # 2. The units of work left: clips alone, or batches of clips of similar length.
@@ -91,6 +90,8 @@ def generate(
         if e.get("status") == "flagged" or (out / "sequences" / f"{n}.npz").is_file()
     }
     todo = [j for j in jobs if j.name not in done]
+    if todo:  # (a finished data set made before the drape was recorded is left as it is)
+        _rest_drape(config, out, avatar, template)
     if not (isinstance(batch, int) and batch >= 1):
         raise LoosefitInputError("generate", "batch", "an integer >= 1", repr(batch))
     if not (isinstance(resume_every, int) and resume_every >= 1):

@@ -20,7 +20,7 @@ from loosefit.types import GarmentTemplate
 # before they existed: at that value a field stays out of the run key, so that a run saved
 # before it existed still resumes. Every new field goes here. (Adding release_depth to the
 # key cost the dance data set two clips' saved frames, 3.5 core-hours.)
-RUN_KEY_SINCE: dict[str, object] = {}
+RUN_KEY_SINCE: dict[str, object] = {"self_contact_passes": 2, "settle_once": False}
 
 
 def run_key(body: np.ndarray, template: GarmentTemplate, config: ClothConfig) -> str:
