@@ -139,6 +139,15 @@ def main(argv: list[str] | None = None) -> int:
             seeds = [j.seed + i // len(motions) for i, j in enumerate(picked)]
             run_cloth = dataclasses.replace(cloth, capture=capture != "off")
             stepper.ClothSimulator.record_frames = capture == "on"
+            replays = {True: 0, False: 0}  # frames replayed as one graph, and refused
+            replay = stepper.ClothSimulator._replay_frame
+
+            def counted(sim, n, _replay=replay, _seen=replays):
+                done = _replay(sim, n)
+                _seen[done] += 1
+                return done
+
+            stepper.ClothSimulator._replay_frame = counted
             timer = _phases(args.phases and args.device.startswith("cuda"))
             t0 = time.perf_counter()
             try:
@@ -147,6 +156,7 @@ def main(argv: list[str] | None = None) -> int:
                 )
             finally:
                 timer.restore()
+                stepper.ClothSimulator._replay_frame = replay
             wall = time.perf_counter() - t0
             stats = results[0].stats
             loop = stats["simulate_seconds"] * K
@@ -169,6 +179,8 @@ def main(argv: list[str] | None = None) -> int:
                 "substeps_mean": float(np.mean([r.stats["substeps_mean"] for r in results])),
                 "flagged": flagged,
                 "phases": {k: v / stats["batch_frames"] for k, v in timer.self_.items()},
+                "frames_as_one_graph": replays[True],
+                "frame_graph_refused": replays[False] > 0,
             }
             g = results[0].garment_vertices
             if previous is not None:  # the same clip, replayed or launched: the same cloth
@@ -178,7 +190,8 @@ def main(argv: list[str] | None = None) -> int:
             print(
                 f"batch {K:3d}, capture {capture:3s}: {row['frames_per_second']:8.1f} frames/s "
                 f"({frames} clip frames in {loop:.1f} s; build {build:.1f} s; "
-                f"{len(flagged)} flagged)",
+                f"{len(flagged)} flagged; {replays[True]} frames as one graph"
+                + (", a frame's recording refused)" if replays[False] else ")"),
                 flush=True,
             )
             _write(out, args, start, first_frames, rows, _machine(args.device), argv)

@@ -23,6 +23,7 @@ What drives it through a clip (settle, blend, motion) is :mod:`loosefit.sim.driv
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import warp as wp
@@ -456,9 +457,15 @@ class ClothSimulator:
             try:
                 with wp.ScopedCapture(device=self.device) as capture:
                     self._frame_substeps(n)
-            except Exception:  # nothing ran: the substep graphs from here on
+            except Exception as exc:  # nothing ran: the substep graphs from here on
                 self.state_0, self.state_1, self._swaps = states
                 self._frame_graphs = False
+                warnings.warn(
+                    f"a frame could not be recorded as one graph ({type(exc).__name__}: "
+                    f"{exc}); recording each substep instead",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
                 return False
             self._graphs[slot] = capture.graph
             self.state_0, self.state_1, self._swaps = states
