@@ -163,3 +163,19 @@ def test_the_configuration_is_checked():
 
 def test_ease_holds_a_value_up_to_the_ends():
     np.testing.assert_allclose(ease(np.full(5, 3.0), 6), 3.0)
+
+
+def test_a_limb_test_answers_the_same_from_where_it_last_looked(avatar, parts):
+    """Each query starts from the faces the last one found: the same distances and sides as
+    a query from nothing, pose after pose."""
+    from loosefit.body.unfold import LimbTest
+
+    rest = avatar.rest_vertices.double().numpy()
+    test = LimbTest(parts, "left leg", rest)
+    motion = knee_lift(avatar, 140.0)
+    body = avatar.pose_motion(motion).vertices.double().numpy()
+    for frame in body[::3]:
+        hinted, _ = test.signed(frame)
+        test._hint = None
+        fresh, _ = test.signed(frame)
+        np.testing.assert_array_equal(hinted, fresh)
