@@ -91,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
     import torch
     import warp as wp
+    from sim_profile import Timer
 
     import loosefit.sim.driver as driver
     import loosefit.sim.stepper as stepper
@@ -147,8 +148,9 @@ def main(argv: list[str] | None = None) -> int:
                 _seen[done] += 1
                 return done
 
-            stepper.ClothSimulator._replay_frame = counted
-            timer = _phases(args.phases and args.device.startswith("cuda"))
+            timer = Timer()
+            timer.replace(stepper.ClothSimulator, "_replay_frame", counted)
+            _phases(timer, args.phases and args.device.startswith("cuda"))
             t0 = time.perf_counter()
             try:
                 results = simulate_batch(
@@ -156,7 +158,6 @@ def main(argv: list[str] | None = None) -> int:
                 )
             finally:
                 timer.restore()
-                stepper.ClothSimulator._replay_frame = replay
             wall = time.perf_counter() - t0
             stats = results[0].stats
             loop = stats["simulate_seconds"] * K
@@ -199,20 +200,16 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _phases(on: bool):
-    """A frame's phases timed, the device synchronised after each (slower, but the seconds
-    are each phase's own); a timer that times nothing when ``on`` is false."""
-    import warp as wp
+def _phases(timer, on: bool) -> None:
+    """With ``on``, ``timer`` (a :class:`sim_profile.Timer`) times a frame's phases, the
+    device synchronised after each (slower, but the seconds are each phase's own)."""
     from newton.solvers import SolverVBD
-    from sim_profile import Timer
 
     import loosefit.sim.driver as driver
     import loosefit.sim.stepper as stepper
 
-    timer = Timer()
-    timer._undo = []
     if not on:
-        return timer
+        return
     for owner, attr, label in (
         (stepper.ClothSimulator, "step_frame", "frame: body upload, the rest"),
         (SolverVBD, "rebuild_bvh", "self-contact BVH rebuild"),
@@ -221,18 +218,21 @@ def _phases(on: bool):
         (stepper.ClothSimulator, "_substep", "a substep launched"),
         (driver, "_record_frame", "frame recorded and checked"),
     ):
-        inner = getattr(owner, attr)
-
-        def synced(*a, _inner=inner, **k):
-            out = _inner(*a, **k)
-            if not wp.get_device().is_capturing:  # (inside a recording nothing runs)
-                wp.synchronize()
-            return out
-
-        setattr(owner, attr, synced)
-        timer._undo.append((owner, attr, inner))
+        timer.replace(owner, attr, _synced(getattr(owner, attr)))
         timer.wrap(owner, attr, label)
-    return timer
+
+
+def _synced(inner):
+    """``inner``, then the device synchronised (not inside a recording: nothing runs there)."""
+    import warp as wp
+
+    def synced(*args, **kwargs):
+        out = inner(*args, **kwargs)
+        if not wp.get_device().is_capturing:
+            wp.synchronize()
+        return out
+
+    return synced
 
 
 def _prepare_one(config, job, frames: int):

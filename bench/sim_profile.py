@@ -51,6 +51,12 @@ class Timer:
         self.self_: dict[str, float] = defaultdict(float)
         self.calls: dict[str, int] = defaultdict(int)
         self.stack: list[list] = []  # [label, start, child seconds]
+        self._undo: list[tuple] = []  # (owner, attribute, what it was), in order
+
+    def replace(self, owner, attr: str, new) -> None:
+        """Set ``owner.attr`` to ``new`` until :meth:`restore`."""
+        self._undo.append((owner, attr, getattr(owner, attr)))
+        setattr(owner, attr, new)
 
     def wrap(self, owner, attr: str, label: str) -> None:
         inner = getattr(owner, attr)
@@ -69,10 +75,7 @@ class Timer:
                 if timer.stack:
                     timer.stack[-1][2] += dt
 
-        setattr(owner, attr, timed)
-        self._undo.append((owner, attr, inner))
-
-    _undo: list = []
+        self.replace(owner, attr, timed)
 
     def restore(self) -> None:
         for owner, attr, inner in reversed(self._undo):
@@ -101,8 +104,6 @@ def instrument(timer: Timer, kernels: Timer) -> None:
     import newton
     from newton.solvers import SolverVBD
 
-    timer._undo = []
-    kernels._undo = []
     for attr, label in ONCE.items():
         timer.wrap(driver, attr, label)
     timer.wrap(stepper.ClothSimulator, "step_frame", "frame: body upload, the rest")
@@ -131,8 +132,7 @@ def instrument(timer: Timer, kernels: Timer) -> None:
             kernels.total[name] += time.perf_counter() - t0
             kernels.calls[name] += 1
 
-    wp.launch = timed_launch
-    kernels._undo.append((wp, "launch", launch))
+    kernels.replace(wp, "launch", timed_launch)
 
 
 def profile_clip(worker: Worker, name: str, frames: int, cloth) -> dict:

@@ -103,7 +103,6 @@ def simulate_run(preset_name: str, clip: str, frames: int, seed_shift: int, chan
             for k, v in result.quality.items()
             if np.ndim(v) == 0 and isinstance(v, int | float | np.floating | np.integer)
         },
-        "floor": float(worker.avatar.floor_height),
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".partial.npz")
@@ -160,8 +159,7 @@ def main(argv: list[str] | None = None) -> None:
     seeds = [(f"seed+{k}", k, {}) for k in range(1, args.seeds + 1)]
     runs = [("base", 0, {}), *seeds] + [(n, 0, c) for n, c in candidates.items()]
     jobs = [(clip, name, shift, changes) for clip in clips for name, shift, changes in runs]
-    env = dict(os.environ, OMP_NUM_THREADS="1")
-    os.environ.update(env)
+    os.environ["OMP_NUM_THREADS"] = "1"  # the runs' processes: one thread each
     with ProcessPoolExecutor(args.workers) as pool:
         futures = {
             (clip, name): pool.submit(

@@ -165,7 +165,7 @@ class LimbTest:
         sequence: frame after frame, angle after angle): the same answers, found sooner."""
         self.surface.refit(body)
         hit = self.surface.query(body[self.tested], hint=self._hint)
-        self._hint = hit.faces.astype(np.int64).copy()
+        self._hint = hit.faces.astype(np.int64)
         sd = np.where(hit.inside, -hit.distance, hit.distance)
         return np.where(hit.faces >= 0, sd, np.inf), hit
 
