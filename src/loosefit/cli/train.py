@@ -306,9 +306,14 @@ def _physics_weights(loss, args: argparse.Namespace):
 def _finish(out, report: dict, kept: str = "model") -> int:
     """A finished training run: its report, and where the run and its ``kept``.pt are
     (under torchrun, the first process's to say: the others return 0 quietly)."""
+    import torch.distributed as dist
+
     from loosefit.train.common import distributed
 
-    if distributed()[0] > 0:
+    rank = distributed()[0]
+    if dist.is_available() and dist.is_initialized():  # torchrun: every process, once done
+        dist.destroy_process_group()
+    if rank > 0:
         return 0
     print(Path(out, "report.md").read_text())
     log(f"run in {out}; {kept} {Path(out, kept + '.pt')}")

@@ -235,7 +235,7 @@ class Stage:
         states: what a checkpoint holds and a resume restores, by checkpoint key: the
             networks (``"model"`` first) and their optimisers.
         sampling: the CPU generator of the stage's own random draws (checkpointed), or None.
-        ddp_buffers: DDP's ``broadcast_buffers``.
+        ddp_buffers: whether DDP broadcasts the buffers at every forward pass.
         tags: TensorBoard tags of the extra history fields :meth:`train_epoch` returns.
     """
 
@@ -322,9 +322,7 @@ def train(stage: Stage, run: Run, dataset: str) -> dict:
         log(f"started from the weights of {config.init}")
     net = stage.model
     if run.world > 1:  # torchrun: each process a share of every batch, gradients averaged
-        net = torch.nn.parallel.DistributedDataParallel(
-            stage.model, broadcast_buffers=stage.ddp_buffers
-        )
+        net = torch.nn.parallel.DistributedDataParallel(stage.model, **_ddp_buffers(stage))
 
     writer = SummaryWriter(str(out)) if run.main else None
     bar = tqdm(
@@ -355,8 +353,10 @@ def train(stage: Stage, run: Run, dataset: str) -> dict:
                 writer.add_scalar(tag, value, epoch)
     bar.close()
     seconds = time.perf_counter() - t_start
+    del net  # DDP's hooks and its hold on the process group end with the loop
     barrier()
     if not run.main:  # the report is the first process's
+        barrier()  # every process leaves together: none shuts down while the first writes
         return {"history": history}
 
     common = {
@@ -372,7 +372,19 @@ def train(stage: Stage, run: Run, dataset: str) -> dict:
     write_json_atomic(out / "report.json", report)
     (out / "report.md").write_text(stage.format_report(report))
     writer.close()
+    barrier()
     return report
+
+
+def _ddp_buffers(stage: Stage) -> dict:
+    """DDP's keyword for whether buffers are broadcast at every forward pass: PyTorch
+    renamed ``broadcast_buffers`` to ``forward_sync_buffers`` (both keep the forward-pass
+    meaning; the new one also syncs buffers once at the start, which equal buffers allow)."""
+    import inspect
+
+    params = inspect.signature(torch.nn.parallel.DistributedDataParallel).parameters
+    key = "forward_sync_buffers" if "forward_sync_buffers" in params else "broadcast_buffers"
+    return {key: stage.ddp_buffers}
 
 
 def adam(module: torch.nn.Module, config: StageConfig) -> torch.optim.Adam:
