@@ -3,6 +3,7 @@
 Usage:
     OMP_NUM_THREADS=1 .venv/bin/python bench/sim_profile.py [--preset dance]
         [--clips 60_01,05_10] [--frames 20] [--out docs/SIM_PROFILE.md] [--set KEY=VALUE]
+        [--warp KEY=VALUE]
 
 Times the pose correction of each whole clip as the data set's worker runs it, then
 simulates the first ``--frames`` motion frames of the clip exactly as that worker would
@@ -16,6 +17,10 @@ calling thread, so each launch's wall time is its work: the kernels are timed on
 too. Graph capture is switched off while profiling (a replayed graph cannot be timed
 launch by launch); the seconds per frame with the configuration as it is are printed
 beside, from a second run of the same frames.
+
+``--warp KEY=VALUE`` sets one of warp's compiler settings before any kernel is built (e.g.
+``--warp optimization_level=3``, ``--warp fast_math=true``): the same solver compiled
+otherwise.
 
 ``--set KEY=VALUE`` changes the cloth configuration (e.g. ``--set self_contact_passes=1``)
 for a quick look at a lever; the quality of such a change is judged by
@@ -259,9 +264,15 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--clips", default="60_01,05_10", help="clip names of the preset")
     p.add_argument("--frames", type=int, default=20, help="motion frames of each clip")
     p.add_argument("--set", action="append", default=[], help="cloth KEY=VALUE")
+    p.add_argument("--warp", action="append", default=[], help="warp.config KEY=VALUE")
     p.add_argument("--out", default="", help="a Markdown file for the tables")
     p.add_argument("--json", default="", help="a JSON file for the figures")
     args = p.parse_args(argv)
+    for item in args.warp:  # before the first kernel is built: part of its cache key
+        key, _, value = item.partition("=")
+        if not hasattr(wp.config, key):
+            raise SystemExit(f"--warp {item}: warp.config has no setting {key!r}")
+        setattr(wp.config, key, json.loads(value))
 
     torch.set_num_threads(1)
     config = preset(args.preset)
@@ -274,6 +285,7 @@ def main(argv: list[str] | None = None) -> None:
     machine = (
         f"{platform.node()}, {platform.processor() or platform.machine()}, "
         f"{os.cpu_count()} cores, warp {wp.config.version}, one thread"
+        + "".join(f", {item}" for item in args.warp)
     )
     results = [profile_clip(worker, c, args.frames, cloth) for c in args.clips.split(",")]
     text = markdown(results, argv if argv is not None else os.sys.argv[1:], machine)
