@@ -178,8 +178,8 @@ def test_gltf_skinned_body_and_morph_target_garment_evaluate_to_the_meshes(tmp_p
             else:
                 weights[node] = out[:, 0].reshape(4, -1)[t]
 
-        def world(i):
-            return local[i] if i not in parent else world(parent[i]) @ local[i]
+        def world(i, local=local):
+            return local[i] if i not in parent else world(parent[i], local) @ local[i]
 
         garment = doc["meshes"][doc["nodes"][nodes["garment"]]["mesh"]]["primitives"][0]
         pos = _accessor(doc, blob, garment["attributes"]["POSITION"]).astype(np.float64)
