@@ -98,7 +98,9 @@ def main(argv: list[str] | None = None) -> int:
     _import(args.file)
     scene = bpy.context.scene
     colours = {"garment": (0.85, 0.25, 0.3, 1.0), "body": (0.75, 0.7, 0.65, 1.0)}
-    objects = sorted((o for o in scene.objects if o.type == "MESH"), key=lambda o: o.name)
+    # the visible meshes (glTF's importer adds a hidden one, its bones' display shape)
+    objects = [o for o in scene.objects if o.type == "MESH" and o.visible_get()]
+    objects.sort(key=lambda o: o.name)
     for o in objects:
         o.color = colours.get(o.name.split(".")[0], (0.5, 0.6, 0.8, 1.0))
     # glTF's animations start on frame 1 or 0 depending on the importer's version
