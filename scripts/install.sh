@@ -34,5 +34,12 @@ if ! $VPY -c "import torch" 2>/dev/null; then
   fi
 fi
 # The optional extras too, so that `make test` runs their tests (viewer, cluster, onnx).
-$VPY -m pip install -q -e ".[dev,viewer,cluster,onnx]"
+$VPY -m pip install -q -e ".[dev,viewer,cluster,onnx,alembic]"
+# Blender as a Python module, for the tests that open each export in Blender
+# (tests/export/test_blender.py; they skip where it is absent). Its wheel pins
+# numpy<2, which Blender's importers do not need: installed without its
+# dependencies so that it leaves loosefit's numpy as it is. LOOSEFIT_NO_BPY=1 skips it.
+if [ -z "${LOOSEFIT_NO_BPY:-}" ] && ! $VPY -c "import importlib.util as u, sys; sys.exit(u.find_spec('bpy') is None)" 2>/dev/null; then
+  $VPY -m pip install -q --no-deps "bpy==5.0.1" || echo "note: bpy (Blender) did not install; the Blender checks will skip" >&2
+fi
 $VPY -c "import torch, loosefit; print(f'loosefit {loosefit.__version__} installed (torch {torch.__version__})')"

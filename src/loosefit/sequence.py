@@ -72,6 +72,7 @@ class AnimatedGarment:
     source: str = "unknown"
     _body: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
     _body_faces: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
+    _body_skin: object | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def template(self) -> GarmentTemplate:
@@ -102,10 +103,13 @@ class AnimatedGarment:
 
     def _pose_body(self) -> None:
         from loosefit.body.avatar import Avatar
+        from loosefit.export import body_skin
 
         avatar = Avatar(self.avatar_config())
-        self._body = avatar.pose_motion(self.motion).vertices.cpu().numpy()
+        body = avatar.pose_motion(self.motion)
+        self._body = body.vertices.cpu().numpy()
         self._body_faces = avatar.faces.cpu().numpy()
+        self._body_skin = body_skin(avatar, body)
 
     @property
     def body_vertices(self) -> np.ndarray:
@@ -121,19 +125,31 @@ class AnimatedGarment:
             self._pose_body()
         return self._body_faces
 
-    def export(self, path: str | Path, body: bool = True) -> list[Path]:
-        """Write the garment (and the body) in the format ``path``'s suffix names:
-        ``.usd``/``.usdc``/``.usda``, ``.pc2`` (+ OBJ), or a folder of OBJs
-        (:func:`loosefit.export.export_animation`)."""
-        from loosefit.export import export_animation, garment_and_body
+    @property
+    def body_skin(self):
+        """The posed avatar's rig (:class:`~loosefit.export.Skin`: joints, weights, rest
+        mesh and the joints' poses in every frame)."""
+        if self._body_skin is None:
+            self._pose_body()
+        return self._body_skin
 
+    def export(self, path: str | Path, body: bool = True, config=None) -> list[Path]:
+        """Write the garment (and the body) in the format ``path``'s suffix names:
+        ``.usd``/``.usdc``/``.usda`` (the body skinned), ``.abc`` (Alembic), ``.glb``
+        (glTF, the body skinned), ``.pc2`` (+ OBJ), or a folder of OBJs
+        (:func:`loosefit.export.export_animation`; ``config``: an
+        :class:`~loosefit.export.ExportConfig`, the up axis and the body as points)."""
+        from loosefit.export import check_export_path, export_animation, garment_and_body
+
+        check_export_path(path)
         meshes = garment_and_body(
             self.garment,
             self.garment_vertices,
             self.body_vertices if body else None,
             self.body_faces if body else None,
+            self.body_skin if body else None,
         )
-        return export_animation(path, meshes, self.fps)
+        return export_animation(path, meshes, self.fps, config)
 
     def __post_init__(self) -> None:
         gv = np.asarray(self.garment_vertices)

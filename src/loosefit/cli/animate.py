@@ -9,10 +9,12 @@ from pathlib import Path
 
 from loosefit.cli.common import (
     add_bvh_args,
+    add_export_format_args,
     add_generative_arg,
     add_render_args,
     add_runtime_args,
     add_stage_args,
+    export_config,
     log,
     log_exported,
     render,
@@ -53,9 +55,10 @@ def add_parser(sub) -> None:
         "--export",
         default=None,
         metavar="PATH",
-        help="also export garment and body: .usd/.usdc/.usda (USD), .pc2 (point "
-        "caches + OBJ), or a folder (OBJ per frame)",
+        help="also export garment and body: .usd/.usdc/.usda (USD), .abc (Alembic), .glb "
+        "(glTF), .pc2 (point caches + OBJ), or a folder (OBJ per frame)",
     )
+    add_export_format_args(p)
     add_bvh_args(p)
     add_stage_args(p)
     add_runtime_args(p)
@@ -138,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
     seq.save(path)
     log(f"{throughput(motion, result)}; wrote {path}")
     if args.export:
-        log_exported(seq.export(args.export))
+        log_exported(seq.export(args.export, config=export_config(args)))
     if args.render:
         out = path.with_name(path.stem + "_render")
         title = f"{motion.name} (loosefit rollout)"

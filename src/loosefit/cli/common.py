@@ -327,3 +327,26 @@ def add_runtime_args(p: argparse.ArgumentParser) -> None:
         "projection and mending a frame: 1.3-2.2x faster, a little more cloth left within a "
         "millimetre of the skin; docs/BENCHMARKS.md, 'real time on one core')",
     )
+
+
+def add_export_format_args(p) -> None:
+    """The options of an animation export (``--up-axis``, ``--body-points``)."""
+    p.add_argument(
+        "--up-axis",
+        choices=("Y", "Z"),
+        default=None,
+        help="the exported axes (default: the format's own: USD Z up, Alembic Y up; glTF is "
+        "always Y up)",
+    )
+    p.add_argument(
+        "--body-points",
+        action="store_true",
+        help="the body as a point cache (every vertex every frame) rather than skinned (USD, glTF)",
+    )
+
+
+def export_config(args):
+    """The :class:`~loosefit.export.ExportConfig` that ``add_export_format_args`` asked for."""
+    from loosefit.export import ExportConfig
+
+    return ExportConfig(up_axis=args.up_axis, skinned_body=not args.body_points)

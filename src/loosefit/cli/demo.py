@@ -140,10 +140,14 @@ def run(args: argparse.Namespace) -> int:
     seq.save(out / "sequence.npz")
     log(f"wrote {out / 'sequence.npz'} ({source})")
     if learned:  # the body posed above, once for both files
-        from loosefit.export import export_animation, garment_and_body
+        from loosefit.export import body_skin, export_animation, garment_and_body
 
         meshes = garment_and_body(
-            template, garment, body.vertices.cpu().numpy(), avatar.faces.cpu().numpy()
+            template,
+            garment,
+            body.vertices.cpu().numpy(),
+            avatar.faces.cpu().numpy(),
+            body_skin(avatar, body),
         )
         for suffix in (".usdc", ".pc2"):
             log_exported(export_animation(out / f"demo{suffix}", meshes, motion.fps))

@@ -6,19 +6,32 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from loosefit.cli.common import add_generative_arg, log, log_exported
+from loosefit.cli.common import (
+    add_export_format_args,
+    add_generative_arg,
+    export_config,
+    log,
+    log_exported,
+)
 from loosefit.errors import LoosefitInputError
 
 
 def add_export_parser(sub) -> None:
-    p = sub.add_parser("export", help="a sequence to USD, PC2 point caches or an OBJ sequence")
+    p = sub.add_parser(
+        "export", help="a sequence to USD, Alembic, glTF, PC2 point caches or an OBJ sequence"
+    )
     p.add_argument(
         "sequence",
         help="a sequence .npz (from animate, the API's save(), demo's sequence.npz, or a "
         "dataset's sequences/NAME.npz)",
     )
-    p.add_argument("out", help=".usd, .usdc, .usda, .pc2, or a folder for an OBJ sequence")
+    p.add_argument(
+        "out",
+        help=".usd, .usdc, .usda (USD, the body skinned), .abc (Alembic), .glb (glTF, the body "
+        "skinned), .pc2 (point caches + OBJ), or a folder for an OBJ sequence",
+    )
     p.add_argument("--no-body", action="store_true", help="the garment only")
+    add_export_format_args(p)
     p.set_defaults(func=run_export)
 
 
@@ -60,7 +73,8 @@ def run_export(args: argparse.Namespace) -> int:
             "a sequence .npz (from animate, the API, demo or a data set's sequences/)",
             "another file",
         )
-    log_exported(read_any_sequence(path).export(args.out, body=not args.no_body))
+    seq = read_any_sequence(path)
+    log_exported(seq.export(args.out, body=not args.no_body, config=export_config(args)))
     return 0
 
 

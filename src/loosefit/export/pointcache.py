@@ -1,0 +1,109 @@
+"""Point caches: PC2 (+ an OBJ to put it on) and OBJ sequences.
+
+The PC2 layout (a 32-byte little-endian header, then float32 x, y, z per point per
+sample)::
+
+    char[12] "POINTCACHE2\\0"; int32 version = 1; int32 points;
+    float32 start frame; float32 sample rate (frames between samples); int32 samples
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from loosefit.atomic import atomic_path
+from loosefit.errors import LoosefitInputError
+from loosefit.export.meshes import AnimatedMesh, ExportConfig, check_meshes
+
+PC2_MAGIC = b"POINTCACHE2\0"
+PC2_HEADER = struct.Struct("<12siiffi")
+
+
+# -- PC2 ---------------------------------------------------------------------------------------
+
+
+def write_pc2(path: str | Path, vertices: np.ndarray, start_frame: float = 0.0) -> Path:
+    """One point cache: (T, V, 3) positions, a sample every frame from ``start_frame``."""
+    v = np.ascontiguousarray(vertices, "<f4")
+    T, V = v.shape[:2]
+    with atomic_path(Path(path)) as tmp, open(tmp, "wb") as fh:
+        fh.write(PC2_HEADER.pack(PC2_MAGIC, 1, V, float(start_frame), 1.0, T))
+        fh.write(v.tobytes())
+    return Path(path)
+
+
+def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
+    """A point cache: (T, V, 3) float32 positions, the start frame and the sample rate.
+
+    Raises:
+        LoosefitInputError: not a PC2 file, or its size disagrees with its header.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise LoosefitInputError(path, "<file>", "a readable .pc2 file", str(exc)) from exc
+    if len(data) < PC2_HEADER.size:
+        raise LoosefitInputError(path, "header", f"{PC2_HEADER.size} bytes", f"{len(data)} bytes")
+    magic, version, V, start, rate, T = PC2_HEADER.unpack_from(data)
+    if magic != PC2_MAGIC or version != 1:
+        raise LoosefitInputError(path, "header", "POINTCACHE2 version 1", f"{magic!r} v{version}")
+    want = PC2_HEADER.size + 12 * V * T
+    if len(data) != want:
+        raise LoosefitInputError(
+            path, "size", f"{want} bytes for {T} samples of {V} points", f"{len(data)} bytes"
+        )
+    v = np.frombuffer(data, "<f4", offset=PC2_HEADER.size).reshape(T, V, 3)
+    for name, value in (("start frame", start), ("sample rate", rate)):
+        if not np.isfinite(value):
+            raise LoosefitInputError(path, name, "a finite number", repr(value))
+    bad = ~np.isfinite(v)
+    if bad.any():
+        raise LoosefitInputError(
+            path,
+            "points",
+            "finite positions",
+            f"{int(bad.sum())} NaN/inf values, first at "
+            f"{tuple(int(i) for i in np.argwhere(bad)[0])}",
+        )
+    return v.astype(np.float32), float(start), float(rate)
+
+
+def _obj_of(path: Path, mesh: AnimatedMesh, frame: int) -> None:
+    from loosefit.garment.obj import write_obj
+
+    write_obj(path, mesh.vertices[frame], mesh.faces, mesh.uvs, mesh.face_uvs)
+
+
+def export_pc2(
+    path: Path, meshes: list[AnimatedMesh], fps: float, config: ExportConfig | None = None
+) -> list[Path]:
+    """The first mesh's cache at ``path``, the others as ``STEM_NAME.pc2``; an OBJ of each."""
+    check_meshes(meshes, fps, path)
+    written = []
+    for i, m in enumerate(meshes):
+        stem = path.stem if i == 0 else f"{path.stem}_{m.name}"
+        cache, obj = path.with_name(stem + ".pc2"), path.with_name(stem + ".obj")
+        written += [write_pc2(cache, m.vertices), obj]
+        _obj_of(obj, m, 0)
+    return written
+
+
+# -- OBJ sequence --------------------------------------------------------------------------------
+
+
+def export_obj_sequence(
+    folder: Path, meshes: list[AnimatedMesh], fps: float, config: ExportConfig | None = None
+) -> list[Path]:
+    """``folder/NAME_000000.obj`` ... one OBJ per frame and mesh (each written atomically)."""
+    T = check_meshes(meshes, fps, folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for m in meshes:
+        for t in range(T):
+            written.append(folder / f"{m.name}_{t:06d}.obj")
+            _obj_of(written[-1], m, t)
+    return written
