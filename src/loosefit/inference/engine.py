@@ -120,7 +120,7 @@ def load_engine(path: str | Path, device="cpu") -> EngineModel:
 
 
 @torch.no_grad()
-def rollout_engine(model: EngineModel, motion: Motion, coefficients: bool = False):
+def rollout_engine(model: EngineModel, motion: Motion, coefficients: bool = False, collide=None):
     """The engine tier's garment through ``motion``, in PyTorch: the rest pose, the blend
     into the motion (as every loosefit rollout), then one step per frame.
 
@@ -128,6 +128,8 @@ def rollout_engine(model: EngineModel, motion: Motion, coefficients: bool = Fals
         model: the tier.
         motion: T frames on its joints, at its frame rate.
         coefficients: also return the coefficients of the motion's frames.
+        collide: an :class:`~loosefit.inference.engine_export.EngineStep` with capsules:
+            its push-out applied to the garments (the exported graph's ``garment``).
 
     Returns:
         (T, V, 3) float32 world garments (and (T, K) coefficients with ``coefficients``).
@@ -151,7 +153,16 @@ def rollout_engine(model: EngineModel, motion: Motion, coefficients: bool = Fals
         c, hidden = tier(feats[t : t + 1], c, hidden)
         if t >= P:
             out[t - P] = c[0]
-    garments = from_root_frame(tier.decode(out), H[P:], p[P:]).cpu().numpy()
+    garments = from_root_frame(tier.decode(out), H[P:], p[P:])
+    if collide is not None:
+        from loosefit.geometry.capsule import chain_frames, push_out
+
+        r, q = (torch.from_numpy(a[P:]).float().to(device) for a in (rot.numpy(), root.numpy()))
+        R, o = chain_frames(r, q, collide.parents, collide.offsets, collide.capsule_joints)
+        a = (R @ collide.capsule_start[..., None])[..., 0] + o
+        b = (R @ collide.capsule_end[..., None])[..., 0] + o
+        garments = push_out(garments, a, b, collide.radius, q)
+    garments = garments.cpu().numpy()
     return (garments, out.cpu().numpy()) if coefficients else garments
 
 

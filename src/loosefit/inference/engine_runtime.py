@@ -9,8 +9,7 @@
     state = runtime.initial_state(B)
     for t in range(frames):
         garment, state = runtime.step(rotations[:, t], roots[:, t], state, start=(t == 0))
-        runtime.collide(garment, rotations[:, t], roots[:, t])   # the capsule push-out
-        # garment (B, V, 3): the renderer
+        # garment (B, V, 3), pushed out of the capsules in the graph: the renderer
 
 The graph's inputs and outputs are listed in :mod:`loosefit.inference.engine_export`.
 """
@@ -22,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.body.capsules import joint_frames
 from loosefit.errors import LoosefitInputError
 from loosefit.inference.onnx_runtime import check_diverged
 from loosefit.inference.timeline import rollout_timeline
@@ -49,42 +47,6 @@ def read_engine_metadata(path: Path) -> dict:
         raise LoosefitInputError(path, "format", repr(FORMAT), repr(found),
                                  hint="an export of --tier engine")  # fmt: skip
     return meta
-
-
-def push_out(garment: np.ndarray, start: np.ndarray, end: np.ndarray, radius: np.ndarray) -> int:
-    """Push garment vertices out of capsules, in place: every vertex closer than a
-    capsule's radius to its segment goes to the capsule's surface, along the direction from
-    the segment's nearest point (capsule after capsule, in order).
-
-    Args:
-        garment: (B, V, 3) float32 vertices, changed in place.
-        start, end: (B, C, 3) the capsules' segments, world.
-        radius: (C,) m.
-
-    Returns:
-        How many vertex-capsule pairs were pushed.
-    """
-    moved = 0
-    B, V, _ = garment.shape
-    flat = garment.reshape(B * V, 3)
-    for c in range(len(radius)):
-        a, ab = start[:, c], end[:, c] - start[:, c]  # (B, 3)
-        inv = 1.0 / np.maximum(np.einsum("bi,bi->b", ab, ab), 1e-12)  # (B,)
-        d = garment - a[:, None]  # (B, V, 3)
-        t = np.clip(np.einsum("bvi,bi->bv", d, ab) * inv[:, None], 0.0, 1.0)  # (B, V)
-        d -= t[..., None] * ab[:, None]  # from the nearest point of the segment
-        n2 = np.einsum("bvi,bvi->bv", d, d)  # (B, V)
-        hit = np.flatnonzero(n2 < radius[c] ** 2)
-        if hit.size == 0:
-            continue
-        moved += hit.size
-        dh = d.reshape(B * V, 3)[hit]
-        nh = np.sqrt(n2.reshape(-1)[hit])[:, None]
-        up = np.zeros_like(dh)
-        up[:, 2] = 1.0  # a vertex on the axis itself goes up... any direction will do
-        dh = np.where(nh > 1e-9, dh / np.maximum(nh, 1e-9), up)
-        flat[hit] += dh * (radius[c] - nh)
-    return moved
 
 
 class EngineRuntime:
@@ -115,15 +77,6 @@ class EngineRuntime:
                                             providers=["CPUExecutionProvider"])  # fmt: skip
         self.outputs = [o.name for o in self.session.get_outputs()]
         self.state_of = dict(self.meta["state"])  # output -> input
-        sk = self.meta["skeleton"]
-        self.parents = np.asarray(sk["parents"], np.int64)
-        self.offsets = np.asarray(sk["offsets"], np.float32)
-        caps = self.meta["capsules"]
-        names = self.joint_names
-        self.capsule_joints = np.array([names.index(c["joint"]) for c in caps], np.int64)
-        self.capsule_start = np.array([c["start"] for c in caps], np.float32)  # (C, 3)
-        self.capsule_end = np.array([c["end"] for c in caps], np.float32)  # (C, 3)
-        self.capsule_radius = np.array([c["radius"] for c in caps], np.float32)  # (C,)
 
     @property
     def joint_names(self) -> list[str]:
@@ -188,28 +141,11 @@ class EngineRuntime:
         out = dict(zip(self.outputs, self.session.run(None, feed), strict=True))
         return out["garment"], {self.state_of[k]: out[k] for k in self.state_of}
 
-    def capsules(self, rotations: np.ndarray, root: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The capsules' segments (B, C, 3) start and end, world, at a pose (B, J, 3, 3),
-        (B, 3): what an engine's own skeleton gives it."""
-        G = joint_frames(np.asarray(rotations, np.float32), np.asarray(root, np.float32),
-                         self.parents, self.offsets, self.capsule_joints.tolist())  # fmt: skip
-        R = G[:, self.capsule_joints, :3, :3]  # (B, C, 3, 3)
-        p = G[:, self.capsule_joints, :3, 3]  # (B, C, 3)
-        start = np.einsum("bcij,cj->bci", R, self.capsule_start) + p
-        end = np.einsum("bcij,cj->bci", R, self.capsule_end) + p
-        return start, end
 
-    def collide(self, garment: np.ndarray, rotations: np.ndarray, root: np.ndarray) -> int:
-        """Push ``garment`` (B, V, 3) out of the capsules at this pose, in place
-        (:func:`push_out`); returns the vertex-capsule pairs pushed."""
-        start, end = self.capsules(rotations, root)
-        return push_out(garment, start, end, self.capsule_radius)
-
-
-def rollout_engine_onnx(runtime: EngineRuntime, motion: Motion, collide: bool = True) -> np.ndarray:
+def rollout_engine_onnx(runtime: EngineRuntime, motion: Motion) -> np.ndarray:
     """The engine tier's garment through ``motion``: the rest pose, the blend into the motion
-    (the JSON's ``start_of_motion``), one graph call per frame, and the capsule push-out
-    (``collide``).
+    (the JSON's ``start_of_motion``), one graph call per frame (the capsule push-out in it,
+    unless exported without).
 
     Returns:
         (T, V, 3) float32 world positions of the motion's frames.
@@ -233,7 +169,5 @@ def rollout_engine_onnx(runtime: EngineRuntime, motion: Motion, collide: bool = 
         garment, state = runtime.step(rot[t : t + 1], root[t : t + 1], state, start=t == 0)
         check_diverged(garment, root[t : t + 1], meta["max_distance"], f"frame {t - P}")
         if t >= P:
-            if collide:
-                runtime.collide(garment, rot[t : t + 1], root[t : t + 1])
             out[t - P] = garment[0]
     return out
