@@ -200,28 +200,45 @@ def export_metadata(
         "inputs": {
             "joint_rotations": io(["B", J, 3, 3], f32, "this frame's local joint rotations"),
             "root_translation": io(["B", 3], f32, "this frame's root joint position, world"),
-            "start": io(["B"], "bool", "true on a character's first frame: the state inputs "
-                        "are then not read (settled drape, zero state, no velocity)"),
+            "start": io(
+                ["B"],
+                "bool",
+                "true on a character's first frame: the state inputs "
+                "are then not read (settled drape, zero state, no velocity)",
+            ),
             "hidden": io(["B", G], f32, "next_hidden of the frame before"),
             "previous_coefficients": io(["B", K], f32, "next_coefficients of the frame before"),
-            "previous_root_rotation": io(["B", 3, 3], f32, "next_root_rotation of the frame "
-                                         "before (the root's joint_rotations[:, 0])"),
-            "previous_root_translation": io(["B", 3], f32,
-                                            "next_root_translation of the frame before"),
+            "previous_root_rotation": io(
+                ["B", 3, 3],
+                f32,
+                "next_root_rotation of the frame before (the root's joint_rotations[:, 0])",
+            ),
+            "previous_root_translation": io(
+                ["B", 3], f32, "next_root_translation of the frame before"
+            ),
         },  # fmt: skip
         "outputs": {
-            "garment": io(["B", V, 3], f32, "the garment's vertices, world, pushed out of the "
-                          "capsules: render these" if in_graph else "the garment's vertices, "
-                          "world, before collision: push them out of the engine's capsules, "
-                          "then render"),
+            "garment": io(
+                ["B", V, 3],
+                f32,
+                "the garment's vertices, world, pushed out of the capsules: render these"
+                if in_graph
+                else "the garment's vertices, "
+                "world, before collision: push them out of the engine's capsules, "
+                "then render",
+            ),
             "next_hidden": io(["B", G], f32, "the recurrent state: the next frame's hidden"),
-            "next_coefficients": io(["B", K], f32, "the garment's basis coefficients (root "
-                                    "frame, before collision): the next frame's "
-                                    "previous_coefficients"),
-            "next_root_rotation": io(["B", 3, 3], f32, "the next frame's "
-                                     "previous_root_rotation"),
-            "next_root_translation": io(["B", 3], f32, "the next frame's "
-                                        "previous_root_translation"),
+            "next_coefficients": io(
+                ["B", K],
+                f32,
+                "the garment's basis coefficients (root "
+                "frame, before collision): the next frame's "
+                "previous_coefficients",
+            ),
+            "next_root_rotation": io(["B", 3, 3], f32, "the next frame's previous_root_rotation"),
+            "next_root_translation": io(
+                ["B", 3], f32, "the next frame's previous_root_translation"
+            ),
         },  # fmt: skip
         "state": dict(STATE),
         "skeleton": skeleton,
@@ -321,8 +338,7 @@ def check_frames(
     from loosefit.inference.engine import rollout_engine
     from loosefit.inference.engine_runtime import EngineRuntime, rollout_engine_onnx
 
-    motion = load_motion("dance:12", model.avatar(), fps=model.fps,
-                         max_frames=config.check_frames)
+    motion = load_motion("dance:12", model.avatar(), fps=model.fps, max_frames=config.check_frames)
     runtime = EngineRuntime(graph, threads=1, meta_path=meta_path)
     got = rollout_engine_onnx(runtime, motion)
     want = rollout_engine(model, motion, collide=step)
@@ -332,4 +348,3 @@ def check_frames(
                                  f"PyTorch over {len(want)} frames", f"{worst:.3g} m")  # fmt: skip
     return {"frames": len(want), "motion": "dance:12", "max_difference_m": worst,
             "onnxruntime": ort.__version__}  # fmt: skip
-
