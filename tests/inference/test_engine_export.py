@@ -27,7 +27,7 @@ def engine_run(toy_dataset, tmp_path_factory):
                            path="toy-motion.pt")  # fmt: skip
     full.rest_state = full.rest_state + torch.from_numpy(reader.template.vertices)
     out = tmp_path_factory.mktemp("engine")
-    cfg = TrainEngineConfig(epochs=2, window=8, eval_every=1,
+    cfg = TrainEngineConfig(epochs=2, window=8, eval_every=1, membrane=10.0,
                             model=EngineConfig(basis=6, motion_fc=16, gru=12, head=16))  # fmt: skip
     run = Run.open(out, {"toy": 1}, 0, log=lambda *_: None, progress=False)
     report = train(EngineStage(reader, full, cfg, run), run, str(toy_dataset))

@@ -240,6 +240,14 @@ def _add_engine_parser(stages) -> argparse.ArgumentParser:
         help="learn the simulated garments (default) or the full model's rollouts (distilled)",
     )
     p.add_argument("--no-mirror", action="store_true", help="leave out the mirrored clips")
+    p.add_argument(
+        "--membrane-weight",
+        type=float,
+        default=None,
+        metavar="W",
+        help="weight of the membrane term (mean squared edge strain of the decoded garment); "
+        "default 0",
+    )
     add_common_args(p, "runs/engine-PRESET")
     p.set_defaults(func=run_engine)
     return p
@@ -449,6 +457,7 @@ def run_engine(args: argparse.Namespace) -> int:
         basis=args.basis,
         targets=args.targets,
         mirror=False if args.no_mirror else None,
+        membrane=args.membrane_weight,
     )
     out = args.out or f"runs/engine-{args.preset}"
     motion = args.motion or pretrained_checkpoint()

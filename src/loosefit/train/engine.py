@@ -17,7 +17,8 @@ A run is a folder of the training scaffold (:mod:`loosefit.train.loop`: ``config
    half of the epochs, the tier's own output otherwise). The basis is orthonormal, so the
    loss is the squared vertex error within the subspace, computed on the coefficients
    alone; a flare term compares the hem's mean distance from the root's vertical axis,
-   decoded on the hem's vertices only.
+   decoded on the hem's vertices only; a membrane term (off by default) the decoded
+   garment's edge lengths with their rest lengths.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ from loosefit.inference.engine import (
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.engine import EngineConfig, EngineTier, fit_basis, project
 from loosefit.model.motion_features import to_root_frame
-from loosefit.model.physics import hem_radius
+from loosefit.model.physics import ClothStructure, hem_radius, membrane_energy
 from loosefit.train.clips import Clip, feature_statistics, pad_frames, prepare_clips
 from loosefit.train.common import epoch_means, optimizer_step
 from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
@@ -71,6 +72,10 @@ class TrainEngineConfig(StageConfig):
     mirror: bool = True  # every training clip also mirrored left-right
     targets: str = "simulation"  # "simulation", or "rollout" (the full model's, distilled)
     flare: float = 1.0  # weight of the hem-flare term (cm^2, as the geometry term); 0: off
+    # weight of the membrane term: the mean squared strain (l / L - 1)^2 of the decoded
+    # garment's edges (a linear basis shortens edges where it averages folds); 0: off
+    membrane: float = 0.0
+    membrane_stride: int = 5  # ... taken on every this many frames (its cost is the decode's)
     length_scale: float = 100.0  # metres to centimetres in the loss
     eval_every: int = 25  # epochs; the held-out rollout RMSE into TensorBoard
 
@@ -83,8 +88,10 @@ class TrainEngineConfig(StageConfig):
             )
         if not (isinstance(self.window, int) and self.window >= 1):
             raise LoosefitInputError("TrainEngineConfig", "window", "an integer >= 1", self.window)
-        if not self.flare >= 0:
-            raise LoosefitInputError("TrainEngineConfig", "flare", "a weight >= 0", self.flare)
+        for name in ("flare", "membrane"):
+            if not getattr(self, name) >= 0:
+                raise LoosefitInputError("TrainEngineConfig", name, "a weight >= 0",
+                                         getattr(self, name))  # fmt: skip
 
     def teacher_probability(self, epoch: int) -> float:
         span = self.teacher_fraction * self.epochs
@@ -161,6 +168,8 @@ class EngineStage(Stage):
         hem = torch.from_numpy(hem_loop(self.template.vertices, self.template.faces))
         self.hem_mean = basis.mean[hem]  # (H, 3)
         self.hem_basis = basis.basis[:, hem]  # (K, H, 3)
+        structure = ClothStructure.from_template(self.template)
+        self.edges = (structure.edges, structure.rest_lengths)
         self.optim = adam(self.model, config)
         self.states = {"model": self.model, "optimizer": self.optim}
         self.joint_names = tuple(clips[0].motion.joint_names)
@@ -198,7 +207,7 @@ class EngineStage(Stage):
         cfg = self.config
         s2 = cfg.length_scale**2
         P, L = batch["preroll"], batch["length"]
-        sums = {"geometry": 0.0, "flare": 0.0}
+        sums = {"geometry": 0.0, "flare": 0.0, "membrane": 0.0}
         count = 0
         for t in range(start, stop):
             c, hidden = self.model(batch["features"][:, t], previous, hidden)
@@ -214,6 +223,10 @@ class EngineStage(Stage):
             if cfg.flare > 0:
                 d = self.flare(c) - self.flare(truth)
                 sums["flare"] = sums["flare"] + cfg.flare * s2 * (w * d.pow(2)).sum()
+            if cfg.membrane > 0 and t % cfg.membrane_stride == 0:
+                e = membrane_energy(self.model.decode(c), *self.edges)  # (b,)
+                scale = cfg.membrane * cfg.membrane_stride  # the frames it stands for
+                sums["membrane"] = sums["membrane"] + scale * (w * e).sum()
             count += int(valid.sum())
             if teacher > 0:
                 use = (torch.rand(len(P), generator=self.sampling) < teacher) & valid
