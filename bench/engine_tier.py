@@ -88,6 +88,7 @@ def main() -> None:
                    help="motion frames the full pipeline is timed on, per --batch")  # fmt: skip
     p.add_argument("--sim-frames", type=int, default=3)
     p.add_argument("--out", default="docs/ENGINE_TIER.md")
+    p.add_argument("--machine", default=platform.node(), help="the machine's name in the doc")
     args = p.parse_args()
     torch.set_num_threads(1)
     checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
@@ -99,7 +100,7 @@ def main() -> None:
     export_engine(engine, tmp / "free.onnx", EngineExportConfig(capsules=False, check_frames=0))
     graphs = {"engine tier": EngineRuntime(tmp / "engine.onnx"),
               "engine tier, no push-out": EngineRuntime(tmp / "free.onnx")}  # fmt: skip
-    result = {"machine": f"{platform.node()}, {os.cpu_count()} CPUs, torch {torch.__version__}",
+    result = {"machine": f"{args.machine}, {os.cpu_count()} CPUs, torch {torch.__version__}",
               "date": time.strftime("%Y-%m-%d"), "checkpoint": str(checkpoint),
               "engine": str(engine.path), "speed": {}, "quality": {}}  # fmt: skip
 
