@@ -50,6 +50,15 @@ def add_export_model_parser(sub) -> None:
         default=None,
         help="a motion-stage, detail or packaged checkpoint (default: the pretrained set)",
     )
+    p.add_argument(
+        "--tier",
+        default="full",
+        choices=("full", "engine"),
+        help="full: the learned runtime of the paper's model (default); engine: the engine "
+        "tier, a linear garment basis and capsules for the engine's collider, tens of "
+        "microseconds a character (its engine.pt: beside --checkpoint's motion.pt, or "
+        "--checkpoint itself)",
+    )
     add_generative_arg(p)
     p.add_argument("--detail", default=None, help="a detail stage's checkpoint to include")
     p.add_argument("--no-detail", action="store_true", help="leave the detail stage out")
@@ -86,6 +95,8 @@ def run_export_model(args: argparse.Namespace) -> int:
     from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
 
     checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
+    if args.tier == "engine":
+        return _export_engine(checkpoint, args)
     model = load_pipeline(checkpoint, args.generative, args.detail)
     config = OnnxExportConfig(opset=args.opset, detail=not args.no_detail, check=not args.no_check)
     log(f"exporting {checkpoint} to ONNX (opset {config.opset})")
@@ -102,5 +113,56 @@ def run_export_model(args: argparse.Namespace) -> int:
             f"checked: onnxruntime {check['onnxruntime']} equals PyTorch within "
             f"{check['max_difference_m']:.2g} m over {check['frames']} frames (the rest pose, "
             f"then a bent one; {config.tolerance:g} m allowed)"
+        )
+    return 0
+
+
+def engine_checkpoint(checkpoint: Path) -> Path:
+    """The engine tier of a checkpoint: itself if it is one, else ``engine.pt`` beside it.
+
+    Raises:
+        LoosefitInputError: neither, saying how to train one.
+    """
+    from loosefit.inference.checkpoints import checkpoint_format
+    from loosefit.inference.engine import ENGINE_FORMAT, engine_path_of
+
+    if checkpoint.is_file() and checkpoint_format(checkpoint) == ENGINE_FORMAT:
+        return checkpoint
+    beside = engine_path_of(checkpoint)
+    if beside.is_file():
+        return beside
+    raise LoosefitInputError(
+        checkpoint,
+        "tier",
+        f"an engine tier: an engine-tier checkpoint, or {beside.name} beside it",
+        f"no {beside}",
+        hint=f"train one: loosefit train engine --data DATASET --motion {checkpoint} "
+        f"--out RUN, then pass --checkpoint RUN/engine.pt (or copy it to {beside})",
+    )
+
+
+def _export_engine(checkpoint: Path, args: argparse.Namespace) -> int:
+    import json
+
+    from loosefit.inference.engine import load_engine
+    from loosefit.inference.engine_export import EngineExportConfig, export_engine
+
+    path = engine_checkpoint(checkpoint)
+    config = EngineExportConfig(opset=args.opset, check_frames=0 if args.no_check else 300)
+    log(f"exporting the engine tier {path} to ONNX (opset {config.opset})")
+    onnx_path, json_path, obj_path = export_engine(load_engine(path), args.out, config)
+    meta = json.loads(json_path.read_text())
+    log(
+        f"wrote {onnx_path} ({onnx_path.stat().st_size / 1e6:.1f} MB), {json_path} (with "
+        f"{len(meta['capsules'])} capsules) and {obj_path} (the garment's mesh)"
+    )
+    check = meta.get("check")
+    if check is None:
+        log("not checked against PyTorch (--no-check)")
+    else:
+        log(
+            f"checked: onnxruntime {check['onnxruntime']}'s reference loop equals PyTorch "
+            f"within {check['max_difference_m']:.2g} m over {check['frames']} frames of "
+            f"{check['motion']} ({config.tolerance:g} m allowed)"
         )
     return 0

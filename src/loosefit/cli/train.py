@@ -1,4 +1,4 @@
-"""``loosefit train generative|motion|detail|baseline``: train a learned stage (resumable).
+"""``loosefit train generative|motion|detail|baseline|engine``: train a learned stage (resumable).
 
 Each stage is its own subcommand with only its own flags: ``add_common_args`` adds the
 ones every stage takes, the ``_add_*_args`` helpers the ones a few share. A flag of
@@ -16,7 +16,7 @@ from pathlib import Path
 from loosefit.cli.common import log
 from loosefit.errors import LoosefitInputError
 
-STAGES = ("generative", "motion", "detail", "baseline")
+STAGES = ("generative", "motion", "detail", "baseline", "engine")
 
 
 def add_parser(sub) -> None:
@@ -32,6 +32,7 @@ def add_parser(sub) -> None:
         "motion": _add_motion_parser(stages),
         "detail": _add_detail_parser(stages),
         "baseline": _add_baseline_parser(stages),
+        "engine": _add_engine_parser(stages),
     }
     _refuse_other_stages_flags(p, parsers)
 
@@ -213,6 +214,42 @@ def _add_baseline_parser(stages) -> argparse.ArgumentParser:
     _add_clip_args(p)
     add_common_args(p, "runs/baseline-PRESET-METHOD")
     p.set_defaults(func=run_baseline)
+    return p
+
+
+def _add_engine_parser(stages) -> argparse.ArgumentParser:
+    p = stages.add_parser(
+        "engine",
+        help="the engine tier: the motion stage's dynamics on a linear garment basis, for a "
+        "game engine (docs/ENGINE_EXPORT.md)",
+        description="Train the engine tier of a full model: its dynamics (motion features, "
+        "a recurrent state, the previous garment) mapped to the coefficients of a PCA basis "
+        "of the data set's garments, decoded by one matrix product.",
+    )
+    p.add_argument(
+        "--motion",
+        default=None,
+        help="the full model's motion-stage checkpoint, whose settled drape the tier starts "
+        "from (default: the pretrained set's)",
+    )
+    p.add_argument("--basis", type=int, default=None, help="basis size K (default 64)")
+    p.add_argument(
+        "--targets",
+        default=None,
+        choices=("simulation", "rollout"),
+        help="learn the simulated garments (default) or the full model's rollouts (distilled)",
+    )
+    p.add_argument("--no-mirror", action="store_true", help="leave out the mirrored clips")
+    p.add_argument(
+        "--membrane-weight",
+        type=float,
+        default=None,
+        metavar="W",
+        help="weight of the membrane term (mean squared edge strain of the decoded garment); "
+        "default 0",
+    )
+    add_common_args(p, "runs/engine-PRESET")
+    p.set_defaults(func=run_engine)
     return p
 
 
@@ -407,3 +444,22 @@ def run_baseline(args: argparse.Namespace) -> int:
     )
     out = args.out or f"runs/baseline-{args.preset}-{args.method}"
     return _finish(out, train_baseline(args.data, out, cfg, log=log))
+
+
+def run_engine(args: argparse.Namespace) -> int:
+    from loosefit.api import pretrained_checkpoint
+    from loosefit.train.engine import TrainEngineConfig, train_engine
+
+    _start(args, "engine")
+    cfg = TrainEngineConfig.preset(
+        args.preset,
+        **_common_overrides(args),
+        basis=args.basis,
+        targets=args.targets,
+        mirror=False if args.no_mirror else None,
+        membrane=args.membrane_weight,
+    )
+    out = args.out or f"runs/engine-{args.preset}"
+    motion = args.motion or pretrained_checkpoint()
+    report = train_engine(args.data, motion, out, cfg, log=log)
+    return _finish(out, report, "engine")
