@@ -143,3 +143,28 @@ def test_export_command_writes_a_dataset_sequence_with_the_posed_body(toy_datase
     np.testing.assert_array_equal(read_pc2(tmp_path / "own.pc2")[0], seq.garment_vertices)
     assert main(["export", str(toy_dataset / "sequences" / "c.npz"), str(tmp_path / "c.fbx")]) == 2
     assert not list(tmp_path.glob("c.fbx*")) and not (tmp_path / "t.usd").exists()
+
+
+def test_export_command_axes_and_body_as_points(toy_dataset, tmp_path):
+    from pxr import Usd, UsdGeom
+
+    from loosefit.cli import main
+    from loosefit.data.format import DatasetReader
+
+    seq = DatasetReader(toy_dataset).read("c")
+    src = str(toy_dataset / "sequences" / "c.npz")
+    for name, extra in (("skin.usda", []), ("points.usda", ["--body-points"]),
+                        ("y.usda", ["--up-axis", "Y"])):  # fmt: skip
+        assert main(["export", src, str(tmp_path / name), *extra]) == 0
+    skin, points, y = (Usd.Stage.Open(str(tmp_path / n))
+                       for n in ("skin.usda", "points.usda", "y.usda"))  # fmt: skip
+    assert skin.GetPrimAtPath("/loosefit/body_rig").IsValid()
+    assert not points.GetPrimAtPath("/loosefit/body_rig").IsValid()
+    assert points.GetPrimAtPath("/loosefit/body").IsValid()
+    assert UsdGeom.GetStageUpAxis(skin) == "Z" and UsdGeom.GetStageUpAxis(y) == "Y"
+    g = UsdGeom.Mesh(y.GetPrimAtPath("/loosefit/garment")).GetPointsAttr().Get(Usd.TimeCode(1))
+    v = seq.garment_vertices[1]  # Z up turned Y up: (x, y, z) -> (x, z, -y)
+    np.testing.assert_allclose(np.asarray(g), np.stack([v[:, 0], v[:, 2], -v[:, 1]], 1), atol=1e-6)
+    with pytest.raises(SystemExit):  # argparse names the choices
+        main(["export", src, str(tmp_path / "bad.usda"), "--up-axis", "X"])
+    assert not (tmp_path / "bad.usda").exists()

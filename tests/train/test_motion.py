@@ -224,6 +224,19 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     assert main(["animate", gen, "sway", "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x").exists()
 
+    # its engine tier, trained from the command line, beside it, and exported from it
+    eng = tmp_path / "engine"
+    engine_args = ["--basis", "4", "--targets", "rollout", "--membrane-weight", "10"]
+    assert main(["train", "engine", *data, "--motion", str(run / "model.pt"), *engine_args,
+                 "--out", str(eng)]) == 0  # fmt: skip
+    tier = torch.load(eng / "engine.pt", weights_only=False)
+    assert tier["config"]["targets"] == "rollout" and tier["model_config"]["engine"]["basis"] == 4
+    assert (eng / "report.md").is_file()
+    onnx = tmp_path / "engine.onnx"
+    assert main(["export-model", str(onnx), "--checkpoint", str(eng / "engine.pt"),
+                 "--tier", "engine"]) == 0  # fmt: skip
+    assert onnx.is_file() and onnx.with_suffix(".json").is_file()
+
 
 def test_package_writes_a_pair_that_loads_and_animates_alike(trained, toy_dataset, generative,
                                                               tmp_path):  # fmt: skip
