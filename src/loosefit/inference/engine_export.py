@@ -37,7 +37,12 @@ from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.obj import write_obj
 from loosefit.geometry.capsule import chain_frames, push_out
-from loosefit.inference.onnx_export import _set_metadata, needs_package, trace_graph
+from loosefit.inference.onnx_export import (
+    _set_metadata,
+    graph_header,
+    needs_package,
+    trace_graph,
+)
 from loosefit.model.motion_features import (
     frame_features,
     from_root_frame,
@@ -179,22 +184,8 @@ def export_metadata(
         return {"shape": shape, "dtype": dtype, "meaning": meaning}
 
     return {
-        "format": FORMAT,
+        **graph_header(model, FORMAT, onnx_name, opset),
         "tier": "engine",
-        "onnx": onnx_name,
-        "mesh": str(Path(onnx_name).with_suffix(".obj")),
-        "opset": opset,
-        "checkpoint": str(model.path),
-        "conventions": "metres, seconds, radians; world right-handed, Z up; at rest the "
-        "avatar faces -Y, its left hand towards +X (loosefit.types)",
-        "frame_rate": float(model.fps),
-        "floor_height": float(model.floor_height),
-        "joint_names": list(model.joint_names),
-        "joint_order": "joint_rotations[:, j] is the local rotation (parent to joint, a "
-        "rotation matrix acting on column vectors) of joint_names[j]; joint 0 is the root "
-        "and its rotation is world",
-        "vertex_count": V,
-        "face_count": int(len(model.template.faces)),
         "hidden_size": G,
         "basis_size": K,
         "inputs": {

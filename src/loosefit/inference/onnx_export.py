@@ -275,6 +275,28 @@ def example_inputs(model, batch: int = 1) -> dict[str, np.ndarray]:
 # -- the JSON beside it -----------------------------------------------------------------------
 
 
+def graph_header(model, format: str, onnx_name: str, opset: int) -> dict:
+    """The JSON's first fields, the same for every exported graph: its format, files,
+    conventions, frame rate and skeleton."""
+    return {
+        "format": format,
+        "onnx": onnx_name,
+        "mesh": str(Path(onnx_name).with_suffix(".obj")),
+        "opset": opset,
+        "checkpoint": str(model.path),
+        "conventions": "metres, seconds, radians; world right-handed, Z up; at rest the "
+        "avatar faces -Y, its left hand towards +X (loosefit.types)",
+        "frame_rate": float(model.fps),
+        "floor_height": float(model.floor_height),
+        "joint_names": list(model.joint_names),
+        "joint_order": "joint_rotations[:, j] is the local rotation (parent to joint, a "
+        "rotation matrix acting on column vectors) of joint_names[j]; joint 0 is the root "
+        "and its rotation is world",
+        "vertex_count": int(model.template.num_vertices),
+        "face_count": int(len(model.template.faces)),
+    }
+
+
 def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
     """What the graph's inputs and outputs mean: the JSON written beside it."""
     J, V = len(model.joint_names), model.template.num_vertices
@@ -309,21 +331,7 @@ def export_metadata(model, onnx_name: str, detail: bool, opset: int) -> dict:
     if not model.encoder.config.previous_state:  # the "w/o ps" ablation: no E_s, no input
         del inputs["previous_garment"], state["next_garment"]
     return {
-        "format": FORMAT,
-        "onnx": onnx_name,
-        "mesh": str(Path(onnx_name).with_suffix(".obj")),
-        "opset": opset,
-        "checkpoint": str(model.path),
-        "conventions": "metres, seconds, radians; world right-handed, Z up; at rest the "
-        "avatar faces -Y, its left hand towards +X (loosefit.types)",
-        "frame_rate": float(model.fps),
-        "floor_height": float(model.floor_height),
-        "joint_names": list(model.joint_names),
-        "joint_order": "joint_rotations[:, j] is the local rotation (parent to joint, a "
-        "rotation matrix acting on column vectors) of joint_names[j]; joint 0 is the root "
-        "and its rotation is world",
-        "vertex_count": V,
-        "face_count": int(len(model.template.faces)),
+        **graph_header(model, FORMAT, onnx_name, opset),
         "hidden_size": G,
         "latent_size": Z,
         "stages": {
