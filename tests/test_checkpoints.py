@@ -19,8 +19,12 @@ PAIR = REPO / "checkpoints" / "dance"
 
 def test_the_pair_is_committed_whole_and_small():
     sizes = {p.name: p.stat().st_size for p in PAIR.glob("*.pt")}
-    assert set(sizes) == {"generative.pt", "motion.pt"}
+    assert set(sizes) == {"generative.pt", "motion.pt", "engine.pt"}  # engine.pt: its tier
     assert sum(sizes.values()) <= 25 * 2**20  # a shipped set: 25 MB together at most
+    from loosefit.inference.checkpoints import load_torch
+
+    fingerprints = {n: load_torch(PAIR / n)["garment"]["fingerprint"] for n in sizes}
+    assert len(set(fingerprints.values())) == 1, fingerprints  # one garment, the set's
 
 
 @pytest.fixture(scope="module")

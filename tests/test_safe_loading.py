@@ -111,7 +111,7 @@ def test_every_checkpoint_says_what_it_is():
     from loosefit.api import pretrained_checkpoint
     from loosefit.inference.checkpoints import load_torch
 
-    sets = {pretrained_checkpoint().parent: ("generative", "motion"),
+    sets = {pretrained_checkpoint().parent: ("generative", "motion", "engine"),
             WITH_DETAIL: ("generative", "motion", "detail")}  # fmt: skip
     for root, names in sets.items():
         assert sorted(p.stem for p in root.glob("*.pt")) == sorted(names)

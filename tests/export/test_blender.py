@@ -51,7 +51,10 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_blender_sees_the_exported_vertices_at_three_frames(tmp_path, case):
+def test_blender_sees_the_exported_vertices_at_three_frames(tmp_path, monkeypatch, case):
+    import loosefit.export.usd
+
+    monkeypatch.setattr(loosefit.export.usd, "SAVE_EVERY", 2)  # saved in pieces, as a long one
     name, config, axes = CASES[case]
     meshes = dressed(T=5)
     export_animation(tmp_path / name, meshes, FPS, config)

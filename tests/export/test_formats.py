@@ -72,6 +72,31 @@ def test_usd_body_as_points_on_request_and_when_it_has_no_rig_or_a_wrong_one(tmp
         np.testing.assert_array_equal(np.asarray(body.GetPointsAttr().Get(2)), m.vertices[2])
 
 
+@pytest.mark.parametrize("suffix", [".usdc", ".usd", ".usda"])
+def test_usd_saved_in_pieces_reads_back_every_frame(tmp_path, monkeypatch, suffix):
+    """A binary layer is saved every SAVE_EVERY frames (so that a long sequence is not held
+    whole in memory twice): every frame and the last extent read back as written."""
+    from pxr import Usd, UsdGeom
+
+    import loosefit.export.usd as usd
+
+    monkeypatch.setattr(usd, "SAVE_EVERY", 4)
+    meshes = dressed(T=11)
+    meshes[0].vertices = (
+        meshes[0].vertices + np.linspace(0, 0.1, 11, dtype=np.float32)[:, None, None]
+    )  # every frame its own
+    export_animation(tmp_path / f"a{suffix}", meshes, 30.0)
+    stage = Usd.Stage.Open(str(tmp_path / f"a{suffix}"))
+    garment = UsdGeom.Mesh(stage.GetPrimAtPath("/loosefit/garment"))
+    assert garment.GetPointsAttr().GetTimeSamples() == list(range(11))
+    for t in range(11):
+        np.testing.assert_array_equal(np.asarray(garment.GetPointsAttr().Get(t)),
+                                      meshes[0].vertices[t])  # fmt: skip
+    hi = np.asarray(garment.GetExtentAttr().Get(10))[1]
+    np.testing.assert_allclose(hi, meshes[0].vertices[10].max(0), atol=1e-7)
+    assert stage.GetEndTimeCode() == 10 and not list(tmp_path.glob(".*partial*"))
+
+
 def test_usd_y_up_turns_points_and_rig(tmp_path):
     from pxr import Usd, UsdGeom
 

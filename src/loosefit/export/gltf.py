@@ -191,31 +191,9 @@ def export_gltf(
         else:
             base = m.vertices[0][source] @ A.T  # (N, 3)
             attributes["POSITION"] = lay.array(base, "VEC3", target=ARRAY_BUFFER, bounds=True)
-            targets = []
-            for t in range(T):
-                delta_view = lay.view(
-                    12 * len(source),
-                    lambda t=t, m=m, source=source, base=base: iter(
-                        [(m.vertices[t][source] @ A.T - base).astype("<f4").tobytes()]
-                    ),
-                    ARRAY_BUFFER,
-                )
-                d = m.vertices[t][source] @ A.T - base
-                targets.append(
-                    {"POSITION": lay.accessor(delta_view, FLOAT, len(source), "VEC3", d)}
-                )
-            prim["targets"] = targets
+            prim["targets"], weights = _morph_targets(lay, m, source, base, A)
             mesh["weights"] = [1.0] + [0.0] * (T - 1)
             mesh["extras"]["targetNames"] = [f"frame_{t:06d}" for t in range(T)]
-            diag = np.arange(T, dtype=np.uint64) * (T + 1)
-            ind = lay.view(4 * T, lambda d=diag: iter([d.astype("<u4").tobytes()]))
-            val = lay.view(4 * T, lambda: iter([np.ones(T, "<f4").tobytes()]))
-            weights = lay.accessor(None, FLOAT, T * T, "SCALAR")
-            lay.accessors[weights]["sparse"] = {
-                "count": T,
-                "indices": {"bufferView": ind, "componentType": UINT},
-                "values": {"bufferView": val},
-            }
             channels.append(
                 {"sampler": sampler(weights), "target": {"node": len(nodes), "path": "weights"}}
             )
@@ -242,6 +220,40 @@ def export_gltf(
     }
     if skins:
         doc["skins"] = skins
+    _write_glb(path, doc, lay)
+    return [path]
+
+
+def _morph_targets(
+    lay: _Layout, m: AnimatedMesh, source: np.ndarray, base: np.ndarray, A: np.ndarray
+) -> tuple[list[dict], int]:
+    """Every frame of ``m`` as a morph target on ``base`` (N, 3), its delta written a frame
+    at a time; and the accessor of the ``weights`` animation that turns frame t on at t
+    (sparse: T ones on the diagonal of T x T)."""
+    T = len(m.vertices)
+    targets = []
+    for t in range(T):
+        delta_view = lay.view(
+            12 * len(source),
+            lambda t=t: iter([(m.vertices[t][source] @ A.T - base).astype("<f4").tobytes()]),
+            ARRAY_BUFFER,
+        )
+        d = m.vertices[t][source] @ A.T - base  # its bounds, for the accessor
+        targets.append({"POSITION": lay.accessor(delta_view, FLOAT, len(source), "VEC3", d)})
+    diag = np.arange(T, dtype=np.uint64) * (T + 1)
+    ind = lay.view(4 * T, lambda: iter([diag.astype("<u4").tobytes()]))
+    val = lay.view(4 * T, lambda: iter([np.ones(T, "<f4").tobytes()]))
+    weights = lay.accessor(None, FLOAT, T * T, "SCALAR")
+    lay.accessors[weights]["sparse"] = {
+        "count": T,
+        "indices": {"bufferView": ind, "componentType": UINT},
+        "values": {"bufferView": val},
+    }
+    return targets, weights
+
+
+def _write_glb(path: Path, doc: dict, lay: _Layout) -> None:
+    """The binary glTF: header, JSON chunk, then the binary chunk streamed piece by piece."""
     text = json.dumps(doc, separators=(",", ":")).encode()
     text += b" " * (-len(text) % 4)
     total = 12 + 8 + len(text) + 8 + lay.size
@@ -255,4 +267,3 @@ def export_gltf(
                 fh.write(chunk)
                 written += len(chunk)
             assert written == length  # the layout promised it
-    return [path]

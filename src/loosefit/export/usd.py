@@ -13,6 +13,7 @@ few MB where the same body as points is about 160 KB a frame.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -77,13 +78,37 @@ def _define_mesh(stage, path: str, m: AnimatedMesh, Sdf, UsdGeom, Vt):
     return mesh
 
 
-def _write_points(mesh, vertices: np.ndarray, rotation, Gf, Usd, Vt) -> None:
+# A binary (crate) layer saved every this many frames: crate appends the new samples to the
+# file and lets go of them, so a long sequence is never held whole a second time in memory
+# (10,000 frames of a 2,401-vertex garment: 19 MiB at the peak instead of 280).
+SAVE_EVERY = 256
+
+
+def _saver(stage):
+    """A function of the frame just written that saves a crate layer every
+    :data:`SAVE_EVERY` frames (a text layer is written once, at the end)."""
+    layer = stage.GetRootLayer()
+    kind = layer.GetFileFormat().formatId  # .usd is crate unless USD is told otherwise
+    crate = kind == "usdc" or (
+        kind == "usd" and os.environ.get("USD_DEFAULT_FILE_FORMAT") != "usda"
+    )
+
+    def after(t: int) -> None:
+        if crate and (t + 1) % SAVE_EVERY == 0:
+            layer.Save()
+
+    return after
+
+
+def _write_points(mesh, vertices: np.ndarray, rotation, Gf, Usd, Vt, after=None) -> None:
     points, extent = mesh.CreatePointsAttr(), mesh.CreateExtentAttr()
     for t in range(len(vertices)):
         v = vertices[t] if rotation is None else (vertices[t] @ rotation.T).astype(np.float32)
         points.Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(v)), Usd.TimeCode(t))
         lo, hi = v.min(0).tolist(), v.max(0).tolist()
         extent.Set(Vt.Vec3fArray([Gf.Vec3f(*lo), Gf.Vec3f(*hi)]), Usd.TimeCode(t))
+        if after is not None:
+            after(t)
 
 
 def _write_skinned(stage, root: str, m: AnimatedMesh, skin: Skin, rotation, mods) -> None:
@@ -162,7 +187,7 @@ def export_usd(
                 _write_skinned(stage, f"/loosefit/{m.name}_rig", m, skin, rotation, mods)
             else:
                 mesh = _define_mesh(stage, f"/loosefit/{m.name}", m, Sdf, UsdGeom, Vt)
-                _write_points(mesh, m.vertices, rotation, Gf, Usd, Vt)
+                _write_points(mesh, m.vertices, rotation, Gf, Usd, Vt, _saver(stage))
         stage.GetRootLayer().Save()
         del stage
     return [path]
