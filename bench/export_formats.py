@@ -57,7 +57,7 @@ def blender_errors(path: Path, meshes, fps: float, frames: list[int], png: Path 
 def long_memory(frames: int, fmt: str, folder: Path) -> str:
     """Child process: peak resident memory of writing a ``frames``-long garment in ``fmt``."""
     code = f"""
-import resource, numpy as np
+import numpy as np
 from pathlib import Path
 from loosefit.export import AnimatedMesh, export_animation
 from tests.meshes import grid
@@ -67,11 +67,12 @@ g = np.empty(({frames}, len(v), 3), np.float32)
 for s in range(0, {frames}, 100):  # in small pieces: no temporary sets the peak before
     n = len(g[s : s + 100])
     g[s : s + n] = v + 0.01 * rng.standard_normal((n, len(v), 3), np.float32)
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+def hwm():  # this process's peak resident kB (ru_maxrss would count the parent's before exec)
+    return int(next(x for x in open('/proc/self/status') if x.startswith('VmHWM')).split()[1])
+before = hwm()
 garment = AnimatedMesh('garment', f, g, normals=True)
 export_animation(Path('{folder}') / 'long{fmt}', [garment], 30.0)
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-print(g.nbytes / 2**20, (peak - before) / 1024)
+print(g.nbytes / 2**20, (hwm() - before) / 1024)
 """
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     data, extra = map(float, run.stdout.split()[-2:])
