@@ -1,4 +1,4 @@
-"""The salsa cloth with the arms in the simulation's collider: does it hold? (issue 34)
+"""The salsa cloth with the arms in the simulation's collider: does it hold?
 
 Simulates windows of ``salsa`` preset jobs with ``arm_collision: true`` (everything else the
 preset's: flattened overlaps, the pose correction, adaptive substeps) and prints the quality

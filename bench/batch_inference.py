@@ -1,4 +1,4 @@
-"""Frames per second of N characters at once (issue 25, item 4; issue 37, item 3).
+"""Frames per second of N characters at once.
 
 Procedural dances of ``--frames`` frames each (the packaged salsa model, 2,352 vertices),
 with ``--threads`` torch threads:

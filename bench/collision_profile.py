@@ -33,7 +33,7 @@ def main() -> None:
     p.add_argument("--start-frame", type=int, default=10)
     p.add_argument("--frames", type=int, default=150)
     p.add_argument("--before-37", action="store_true",
-                   help="collision handling as before issue 37 (no fast path)")  # fmt: skip
+                   help="collision handling without its fast path")  # fmt: skip
     p.add_argument("--collision", choices=COLLISION_SETTINGS, default="full",
                    help="collision handling's setting (realtime: one round of each)")  # fmt: skip
     args = p.parse_args()

@@ -1,5 +1,5 @@
 """A dress made for another body, fitted (``garment --fit``) and simulated through a 4 s clip:
-the issue's target at full resolution (tests/test_fit.py's slow test is the coarse version).
+its target at full resolution (tests/test_fit.py's slow test is the coarse version).
 
 The parametric strapless dress (the ``cpu`` preset, 2,312 vertices) is made for a markedly
 different anny body (heavier, taller, other proportions), written in centimetres with Y up as

@@ -1,4 +1,4 @@
-"""Issue 34, item 4: what collision handling leaves inside the body on hard poses.
+"""What collision handling leaves inside the body on hard poses.
 
 The pipeline (default: the committed set) animates the penetration regression set's
 motions (``configs/regression.yaml``: the crouches of salsa 60_02, mirrored and 1.5x, 60_01's

@@ -1,4 +1,4 @@
-"""The edge-length stage restoring every edge, not only the hanging ones (issue 34's strain).
+"""The edge-length stage restoring every edge, not only the hanging ones (the strain it leaves).
 
 The committed pipeline restores the hanging edges of the garment after detail
 (``LengthConfig(edges="hanging")``): the skirt gets its length back, but its circumferential

@@ -1,5 +1,5 @@
 """A rollout of 10,000 frames: does the learned garment stay on the body, and does its error
-grow? (issue 24, item 4; docs/RELIABILITY.md)
+grow? (docs/RELIABILITY.md)
 
 The held-out salsa chain (never trained on) is played ``--repeats`` times in a row
 (:func:`~loosefit.body.chain.chain_motions`, half-second blends between), and the packaged

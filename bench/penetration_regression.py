@@ -1,8 +1,8 @@
-"""The penetration regression set (issue 26): simulate it, judge every clip, write the table.
+"""The penetration regression set: simulate it, judge every clip, write the table.
 
 Simulates the motions of ``configs/regression.yaml`` (the ground truth's hard cases: the
 deep crouch of salsa 60_02, mirrored and faster, 60_01's crouch, a fast spin) as a data set,
-once per variant of the cloth configuration, and reports per clip what the issue's targets
+once per variant of the cloth configuration, and reports per clip what its targets
 name: the share of garment vertices inside the body (any depth: mean and 99th percentile over
 frames), the worst frame's share deeper than 5 mm, the deepest vertex, edge strain p99,
 seconds per frame and whether the clip is kept (no vertex deeper than 3 cm, at most 1 %

@@ -1,4 +1,4 @@
-"""Issue 34's ablation of the training terms: what each makes of the learned skirt.
+"""The ablation of the physics training terms: what each makes of the learned skirt.
 
 Generative runs (``NAME=checkpoint.pt``, fine-tuned with and without the membrane, bending
 and collision terms) are measured by their own reconstruction of the simulation (the

@@ -1,4 +1,4 @@
-"""How far a self-intersecting capture pose would have to turn to clear the body (issue 26).
+"""How far a self-intersecting capture pose would have to turn to clear the body.
 
 In salsa 60_02's lunge anny's left thigh lies up to 3.5 cm inside the belly, and the skirt
 caught between the two skins is inside the body whatever the cloth does: that pinch is what

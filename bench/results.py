@@ -581,7 +581,7 @@ def main() -> None:
 
 
 def verdicts(scores: dict, turn: dict, clips: list[str], around: int = 30) -> list[str]:
-    """The issue's target, read off a set's table: ours (full) below both baselines on RMSE,
+    """The target, read off a set's table: ours (full) below both baselines on RMSE,
     Hausdorff and STED; each metric a baseline wins is named, with the share of frames
     each method is ahead on and the error around the set's fastest turn."""
     ours = scores["ours-full"]

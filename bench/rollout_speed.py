@@ -10,7 +10,7 @@ Times, in one run, on the same garment and the same motion:
 * Newton's VBD simulation of that garment on the first motion, with the cloth
   configuration of the model's training data (one CPU core, or the GPU).
 
-Several motions in one run (issue 37: salsa 60_01, the held-out chain around its fastest
+Several motions in one run (salsa 60_01, the held-out chain around its fastest
 spin, the procedural spin, ballet 05_20 by default); ``PATH@START`` takes the loaded
 motion's frames from START. Each row gives the wall clock and the CPU time of the thread
 that ran it (``time.thread_time`` with one thread, the process's with more: on a shared
@@ -49,10 +49,10 @@ from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.inference.stages.collision import CollisionConfig, collision_setting
 
-BEFORE_34 = CollisionConfig(iterations=6, finish=0, whole_body=False, fast=False)  # issue 34
-BEFORE_37 = CollisionConfig(fast=False)  # collision handling as before issue 37's fast path
+LEGS_ONLY = CollisionConfig(iterations=6, finish=0, whole_body=False, fast=False)  # no arms
+NO_FAST_PATH = CollisionConfig(fast=False)  # collision handling without its fast path
 CHAIN = "+".join(f"../shared/mocap/cmu-salsa/{n}.bvh" for n in ("60_03", "60_07", "61_03", "61_07"))
-MOTIONS = [  # issue 37: the whole pipeline on each of these, one command
+MOTIONS = [  # the whole pipeline on each of these, one command
     "../shared/mocap/cmu-salsa/60_01.bvh",
     CHAIN + "@1050",  # the held-out chain, its fastest spin (frames ~1,188-1,208) inside
     "spin",
@@ -62,17 +62,18 @@ MOTIONS = [  # issue 37: the whole pipeline on each of these, one command
 
 def pipelines(model) -> dict[str, tuple[Stages, CollisionConfig | None]]:
     """The stages timed (and the collision handling, None: the model's default): the motion
-    stage alone, + detail (if any), + collision handling as before issue 34, + collision
+    stage alone, + detail (if any), + collision handling of the legs and trunk alone (the arms out,
+    6 solves, no last projection), + collision
     handling now (the whole body, the last projection), + edge lengths (the pipeline),
-    the pipeline with collision handling as before issue 37 (no fast path) and with
+    the pipeline with collision handling without its fast path and with
     ``--collision realtime``'s."""
     rows = {"motion stage": (MOTION_ONLY, None)}
     if model.detail is not None:
         rows["+ detail"] = (Stages(lengths=False, collision=False), None)
     d = "+ detail " if model.detail is not None else "+ "
-    rows[d + "+ collision, before issue 34"] = (Stages(lengths=False), BEFORE_34)
+    rows[d + "+ collision, legs and trunk"] = (Stages(lengths=False), LEGS_ONLY)
     rows[d + "+ collision, whole body"] = (Stages(lengths=False), None)
-    rows[d + "+ lengths + collision, before issue 37"] = (Stages(), BEFORE_37)
+    rows[d + "+ lengths + collision, no fast path"] = (Stages(), NO_FAST_PATH)
     rows[d + "+ lengths + collision, realtime"] = (
         Stages(), collision_setting(model.collision, "realtime"))  # fmt: skip
     rows[d + "+ lengths + collision (all)"] = (Stages(), None)
@@ -179,8 +180,8 @@ def main() -> None:
     p.add_argument("--frames", type=int, default=300, help="rollout frames (of each motion)")
     p.add_argument("--threads", default="1", help="thread counts, e.g. 1,2 ('all': the CPUs)")
     p.add_argument("--quick", action="store_true",
-                   help="only the motion stage, + detail and the whole pipeline before and "
-                   "after issue 37 (not the issue 34 rows)")  # fmt: skip
+                   help="only the motion stage, + detail and the whole pipeline with and "
+                   "without collision's fast path (not the legs-and-trunk rows)")  # fmt: skip
     p.add_argument("--sim-frames", type=int, default=40,
                    help="simulated frames (of the same); 0: take --sim-seconds")  # fmt: skip
     p.add_argument(
@@ -230,7 +231,7 @@ def main() -> None:
         result["onnxruntime"] = importlib.import_module("onnxruntime").__version__
     for spec, m in motions:
         for label, stages in pipelines(model).items():
-            if args.quick and ("issue 34" in label or label.endswith("body")):
+            if args.quick and ("legs and trunk" in label or label.endswith("body")):
                 continue
             for t in threads:
                 torch_garments = None

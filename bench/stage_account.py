@@ -1,4 +1,4 @@
-"""An account of every stage (issue 34): where the learned skirt stops being cloth.
+"""An account of every stage: where the learned skirt stops being cloth.
 
 For each simulated clip given (a data set folder, every clip of it or those named, or a
 sequence ``.npz`` with its motion), the committed model's stages are run on the clip's
@@ -9,8 +9,8 @@ motion and measured against the simulation:
 * ``oracle + lengths``: that, with the edge-length stage (stages.lengths.LengthRestorer);
 * ``motion stage``: the rollout's decoded garment;
 * ``+ detail``: with the detail stage (paper 3.4);
-* ``today``: + collision handling as before issue 34 (the arms out of the collider, no
-  last projection);
+* ``today``: + collision handling as it was before the arms joined it (the arms out of the
+  collider, no last projection);
 * ``+ lengths``: + detail + the edge-length stage;
 * ``+ lengths, all edges``: the same restoring every edge, not only the hanging ones;
 * ``after``: the whole pipeline now (detail, edge lengths, collision handling against the
@@ -68,7 +68,7 @@ STAGES = {  # label: stages (None: not a rollout)
     "+ lengths, all edges": Stages(collision=False),  # LengthConfig(edges="all")
     "after": Stages(),
 }
-TODAY_COLLISION = CollisionConfig(finish=0, whole_body=False)  # before issue 34
+TODAY_COLLISION = CollisionConfig(finish=0, whole_body=False)  # no arms, no last projection
 TURN_WINDOW = 30  # frames either side of the fastest turn
 
 
@@ -161,7 +161,8 @@ def clip_reference(model, seq):
 
 def clip_account(model, name: str, seq, labels=tuple(STAGES), before=None) -> dict:
     """Every stage of ``labels`` (keys of :data:`STAGES`) on one simulated clip; the
-    ``today`` row with the pipeline ``before`` when given (the set before issue 34)."""
+    ``today`` row with the pipeline ``before`` when given (e.g. the set before the physics
+    terms)."""
     motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
     measure_garment, turn, window = clip_reference(model, seq)
     restorer = model.restorer(Stages())
@@ -255,7 +256,7 @@ def main() -> None:
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
     p.add_argument("--before", default=None,
                    help="the pipeline of the 'today' row (default: --checkpoint's), e.g. the "
-                   "set before issue 34 kept in out/salsa-before-34/motion.pt")  # fmt: skip
+                   "set before the physics terms in out/salsa-before-34/motion.pt")  # fmt: skip
     p.add_argument("--data", nargs="*", default=["datasets/account"],
                    help="data set folders (every clip, or --clips)")  # fmt: skip
     p.add_argument("--clips", nargs="*", default=None, help="only these clips")

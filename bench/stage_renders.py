@@ -1,11 +1,11 @@
-"""Pictures for issue 34: simulation | today | after, on chosen frames of simulated clips.
+"""Pictures of the stages: simulation | today | after, on chosen frames of simulated clips.
 
 For one clip of a data set (or a simulated sequence ``.npz``), the clip's motion is animated
-twice: as the pipeline ran before issue 34 (``today``: the ``--before`` set, by default the
-committed one, with detail, then collision handling without the arms and without the last
-projection) and as it runs now (``after``: the committed set with detail, edge lengths,
-collision handling against the whole body). The chosen
-frames are rendered next to the simulation, one row a frame, each from the front and the
+twice: as the pipeline ran before the arms joined collision handling (``today``: the
+``--before`` set, by default the committed one, with detail, then collision handling without
+the arms and without the last projection) and as it runs now (``after``: the committed set
+with detail, edge lengths, collision handling against the whole body). The chosen frames are
+rendered next to the simulation, one row a frame, each from the front and the
 side, the whole body (arms and hands) drawn, and tiled into one picture::
 
     .venv/bin/python bench/stage_renders.py --data datasets/account --clip spin \\
@@ -26,7 +26,7 @@ from loosefit.inference.stages.collision import CollisionConfig
 from loosefit.render.renderer import RenderConfig
 from loosefit.render.video import comparison_sheet
 
-TODAY = CollisionConfig(finish=0, whole_body=False)  # collision handling before issue 34
+TODAY = CollisionConfig(finish=0, whole_body=False)  # no arms, no last projection
 
 
 def main() -> None:

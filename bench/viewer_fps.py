@@ -1,4 +1,4 @@
-"""How fast the viewer opens a long sequence and how fast a browser gets its frames (issue 38).
+"""How fast the viewer opens a long sequence and how fast a browser gets its frames.
 
 Runs ``loosefit view`` on the sequences in a process of its own (timed from the start to
 the printed URL: read, bodies posed, server up), opens the page in headless Chromium

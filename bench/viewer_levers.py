@@ -1,4 +1,4 @@
-"""What makes a frame cheaper for a browser drawing WebGL without a GPU (issue 38).
+"""What makes a frame cheaper for a browser drawing WebGL without a GPU.
 
 Serves one sequence in this process (its bodies posed once), then for each condition opens
 it in a fresh headless Chromium (SwiftShader), lets it play and counts for ``--seconds``

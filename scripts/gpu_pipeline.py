@@ -1,4 +1,4 @@
-"""The paper-scale pipeline on a lent GPU machine, in calls of under 10 minutes (issue 25, item 5).
+"""The paper-scale pipeline on a lent GPU machine, in calls of under 10 minutes.
 
 simulate (the ``paper`` preset: the 9,352-vertex skirt, salsa and procedural dances, clips
 batched as worlds of one Newton model) -> train the generative model -> train the motion
@@ -22,7 +22,7 @@ it prints ``done`` (each call under the 10-minute limit)::
     python3 scripts/gpu_pipeline.py receive
     python3 scripts/gpu_pipeline.py run --budget 540 --out $OUT
 
-Issue 35's set (the ``dance`` data, the salsa set fine-tuned on it as
+The ``dance`` set (the ``dance`` data, the salsa set fine-tuned on it as
 ``scripts/dance_models.sh`` does on the CPU, the detail stage, Table 1's and 3's rows)::
 
     python3 scripts/gpu_pipeline.py run --preset dance --generative-epochs 10 \
@@ -68,7 +68,7 @@ PLATFORMS = ("manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_17_x
 
 
 def dance_steps(work: Path, out: Path, device: str, tiny: bool, mocap: Path, sizes: dict) -> list:
-    """Issue 35's set on a GPU: the ``dance`` data, then the committed salsa set fine-tuned on
+    """The ``dance`` set on a GPU: the ``dance`` data, then the committed salsa set fine-tuned on
     it as ``scripts/dance_models.sh`` does on the CPU (its physics terms and learning rate), the
     detail stage, the package and Table 1's and Table 3's rows on the held-out chain and
     ballet clips. ``tiny``: the same steps on the ``tiny`` preset, a few frames and epochs, each
@@ -492,7 +492,7 @@ def main() -> int:
     p.add_argument("--precision", default="bf16", choices=("fp32", "bf16"))
     p.add_argument("--detail-epochs", type=int, default=4, help="dance: detail stage epochs")
     p.add_argument("--preset", default="paper", choices=("paper", "dance"),
-                   help="paper: issue 25's paper-scale pipeline; dance: issue 35's set (the "
+                   help="paper: the paper-scale pipeline; dance: the dance set (the "
                    "dance data, the salsa set fine-tuned on it, Table 1 and 3 rows)")  # fmt: skip
     p.add_argument("--tiny", action="store_true", help="the tiny preset and a few epochs")
     p = sub.add_parser("sim-speed", help="the simulator on the GPU: the dance corpus, the table")

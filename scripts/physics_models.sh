@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 34: the committed salsa set fine-tuned with the physics terms, each term ablated
+# The committed salsa set fine-tuned with the physics terms, each term ablated
 # first. On the CPU, every step resumable (rerun the script to go on after a kill):
 #
 #   bash scripts/physics_models.sh                 # the ablation, then stop

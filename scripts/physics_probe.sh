@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 34: a first probe of the physics terms' weights, on one simulated salsa clip (60_01,
+# A first probe of the physics terms' weights, on one simulated salsa clip (60_01,
 # the first that datasets/salsa finishes), before the full ablation of
 # scripts/physics_models.sh. The committed generative model fine-tuned on it for
 # PROBE_EPOCHS epochs with each set of terms, one at a time on one thread, then measured by

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# docs/RESULTS.md (issues 21, 35): the paper's baselines and the generative ablation on a data
+# docs/RESULTS.md: the paper's baselines and the generative ablation on a data
 # set (salsa; DATA=datasets/dance RUNS=runs/dance CHECKPOINT=... for dance), trained and
 # compared with the committed model on its held-out clips, on the CPU; REFERENCE=DATASET adds
 # the physical reference row (held-out motion simulated again from another seed);

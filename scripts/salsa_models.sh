@@ -13,7 +13,7 @@ RUNS=${RUNS:-runs/salsa}
 GEN_EPOCHS=${GEN_EPOCHS:-40}
 MOTION_EPOCHS=${MOTION_EPOCHS:-40}
 
-# 1. Ground truth (issue 3): 10 training clips and the chained held-out sequence.
+# 1. Ground truth: 10 training clips and the chained held-out sequence.
 "$BIN/loosefit" simulate --preset salsa --bvh "$BVH" --out "$DATA" --workers 2
 #    More simulated data for two rows of Table 1: the training clips also played 1.25 times as
 #    fast; the clips salsa already has are taken from it, not simulated again (about 70 min).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The pretrained salsa set as shipped before issue 34's physics terms (commit be3b7ee), into
+# The pretrained salsa set as shipped before its physics terms (commit be3b7ee), into
 # a folder (default out/salsa-before-34): the runs of scripts/physics_models.sh start from
 # it, and the stage account's "today" rows are its. Needs the repository's history.
 set -euo pipefail
@@ -11,4 +11,4 @@ for f in generative motion detail; do
   git show "be3b7ee:src/loosefit/pretrained/salsa/$f.pt" > "$OUT/$f.pt.tmp"
   mv "$OUT/$f.pt.tmp" "$OUT/$f.pt"
 done
-echo "[set_before_34] the set before issue 34 in $OUT"
+echo "[set_before_34] the set before the physics terms in $OUT"

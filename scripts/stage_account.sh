@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 34's per-stage account (docs/STAGE_ACCOUNT.md), from scratch and resumable:
+# The per-stage account (docs/STAGE_ACCOUNT.md), from scratch and resumable:
 #   bash scripts/stage_account.sh        # about 70 CPU minutes on dev-cpu (2 cores)
 # 1. ground truth of the spin and the three held-out ballet clips (configs/account.yaml);
 # 2. the held-out salsa chain's fastest spin (frames 1,140-1,260, settled and blended in at

@@ -1,4 +1,4 @@
-"""Collision handling's fast path (issue 37) against the path before it, on whole clips.
+"""Collision handling's fast path against the path before it, on whole clips.
 
 For each motion: the committed set's garments before collision handling (motion stage,
 detail, edge lengths), then collision handling both ways on the same frames, one frame of

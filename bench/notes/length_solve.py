@@ -1,7 +1,7 @@
 """The edge-length stage's solve on one core: the dense inverse it had against the banded one.
 
 :class:`~loosefit.inference.stages.lengths.LengthRestorer`'s rounds solve one fixed system of the
-garment's free vertices for every coordinate of every frame of a chunk. Before issue 37
+garment's free vertices for every coordinate of every frame of a chunk. Before the fast path
 that was one product with its dense float32 inverse; now it is the banded Cholesky
 factor taken by blocks (:mod:`loosefit.geometry.banded`). On the committed salsa
 pipeline this times, with one thread and by the CPU time of that thread
@@ -40,14 +40,14 @@ CHUNK = 64  # frames a call (the rollout's chunk)
 
 
 def dense_inverse(restorer) -> np.ndarray:
-    """(Vf, Vf) float32: the inverse of the restorer's system, as it kept it before issue 37."""
+    """(Vf, Vf) float32: the inverse of the restorer's system, as kept before the fast path."""
     bf_t = restorer._bf_t  # (Vf, E)
     system = (bf_t @ bf_t.T).toarray() + restorer.config.tie * np.eye(bf_t.shape[0])
     return np.linalg.inv(system).astype(np.float32)
 
 
 def dense_rounds(restorer, x: np.ndarray, inverse: np.ndarray | None) -> np.ndarray:
-    """(B, V, 3) -> (B, V, 3): the rounds as before issue 37, all float32, solving for the
+    """(B, V, 3) -> (B, V, 3): the rounds as before the fast path, all float32, solving for the
     positions with the dense float32 ``inverse`` (None: all float64 with the exact SuperLU
     solve, the reference)."""
     cfg = restorer.config
