@@ -25,7 +25,6 @@ same steps cost as numpy calls (docs/ENGINE_EXPORT.md).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,15 +32,12 @@ import numpy as np
 import torch
 from torch import nn
 
-from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.obj import write_obj
 from loosefit.geometry.capsule import chain_frames, push_out
 from loosefit.inference.onnx_export import (
-    _set_metadata,
+    check_onnx_target,
     graph_header,
-    needs_package,
-    trace_graph,
+    write_graph_files,
 )
 from loosefit.model.motion_features import (
     frame_features,
@@ -284,34 +280,22 @@ def export_engine(model, path: str | Path, config: EngineExportConfig | None = N
     config = config or EngineExportConfig()
     path = Path(path)
     check_engine_exportable(model, getattr(model, "path", "model"))
-    if path.suffix != ".onnx":
-        raise LoosefitInputError(path, "<file>", "a path ending in .onnx", repr(path.suffix))
-    needs_package("onnx")
-    if config.check_frames:
-        needs_package("onnxruntime")
+    check_onnx_target(path, bool(config.check_frames))
     from loosefit.body.capsules import avatar_capsules
 
     avatar = model.avatar()
     capsules, skeleton = avatar_capsules(avatar), skeleton_record(avatar)
     step = EngineStep(model, capsules if config.capsules else None, skeleton).cpu().eval()
-    example = {k: torch.from_numpy(v) for k, v in example_inputs(model, 2).items()}
     meta = export_metadata(model, path.name, config.opset, capsules, skeleton, config.capsules)
-    json_path, obj_path = path.with_suffix(".json"), path.with_suffix(".obj")
-    with (
-        atomic_path(path) as tmp,
-        atomic_path(json_path) as tmp_json,
-        atomic_path(obj_path) as tmp_obj,
-    ):
-        t = model.template
-        write_obj(tmp_obj, t.vertices, t.faces, t.uvs, t.face_uvs)
-        trace_graph(step, tuple(example[k] for k in INPUTS), str(tmp), INPUTS, OUTPUTS,
-                    config.opset)  # fmt: skip
-        _set_metadata(tmp, meta)
-        if config.check_frames:
-            tmp_json.write_text(json.dumps(meta))  # the reference loop reads it beside tmp
-            meta["check"] = check_frames(model, step, tmp, tmp_json, config)
-        tmp_json.write_text(json.dumps(meta, indent=1) + "\n")
-    return [path, json_path, obj_path]
+
+    def check(graph: Path, meta_path: Path) -> dict:  # the reference loop reads the JSON
+        return check_frames(model, step, graph, meta_path, config)
+
+    checked = check if config.check_frames else None
+    example = example_inputs(model, 2)
+    return write_graph_files(
+        path, step, example, INPUTS, OUTPUTS, meta, model.template, config.opset, checked
+    )
 
 
 def check_frames(

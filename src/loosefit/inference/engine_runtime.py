@@ -16,41 +16,21 @@ The graph's inputs and outputs are listed in :mod:`loosefit.inference.engine_exp
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.inference.onnx_runtime import check_diverged
+from loosefit.inference.onnx_runtime import OnnxRuntime, check_diverged
 from loosefit.inference.timeline import rollout_timeline
 from loosefit.types import Motion
 
 FORMAT = "loosefit-onnx-engine/1"  # as loosefit.inference.engine_export.FORMAT
 
 
-def read_engine_metadata(path: Path) -> dict:
-    """The engine tier's JSON, checked to be one.
-
-    Raises:
-        LoosefitInputError: missing, unreadable, or of another format.
-    """
-    if not path.is_file():
-        raise LoosefitInputError(path, "<file>", "the JSON written beside the .onnx by "
-                                 "loosefit export-model --tier engine", "no such file")  # fmt: skip
-    try:
-        meta = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise LoosefitInputError(path, "<file>", "JSON", str(exc)) from None
-    found = meta.get("format") if isinstance(meta, dict) else type(meta).__name__
-    if found != FORMAT:
-        raise LoosefitInputError(path, "format", repr(FORMAT), repr(found),
-                                 hint="an export of --tier engine")  # fmt: skip
-    return meta
-
-
-class EngineRuntime:
-    """The engine tier's graph in an onnxruntime session, with its JSON.
+class EngineRuntime(OnnxRuntime):
+    """The engine tier's graph in an onnxruntime session, with its JSON: an
+    :class:`~loosefit.inference.onnx_runtime.OnnxRuntime` (``initial_state``, ``step``: the
+    garments (B, V, 3), world, pushed out of the capsules unless exported without) that also
+    checks an engine's skeleton against the JSON's.
 
     Args:
         path: the ``.onnx`` file (its ``.json`` beside it, or ``meta_path``).
@@ -60,31 +40,8 @@ class EngineRuntime:
         LoosefitInputError: onnxruntime missing, or a missing or unreadable graph or JSON.
     """
 
-    def __init__(self, path: str | Path, threads: int = 1, meta_path: str | Path | None = None):
-        try:
-            import onnxruntime as ort
-        except ImportError:
-            raise LoosefitInputError(path, "<dependencies>", "onnxruntime (pip install "
-                                     "'loosefit[onnx]')", "not installed") from None  # fmt: skip
-        self.path = Path(path)
-        if not self.path.is_file():
-            raise LoosefitInputError(self.path, "<file>", "an exported .onnx graph", "no such file")
-        self.meta = read_engine_metadata(Path(meta_path or self.path.with_suffix(".json")))
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = threads
-        options.inter_op_num_threads = 1
-        self.session = ort.InferenceSession(str(self.path), options,
-                                            providers=["CPUExecutionProvider"])  # fmt: skip
-        self.outputs = [o.name for o in self.session.get_outputs()]
-        self.state_of = dict(self.meta["state"])  # output -> input
-
-    @property
-    def joint_names(self) -> list[str]:
-        return list(self.meta["joint_names"])
-
-    @property
-    def fps(self) -> float:
-        return float(self.meta["frame_rate"])
+    FORMAT = FORMAT
+    COMMAND = "loosefit export-model --tier engine"
 
     def check_skeleton(self, joint_names, source: str = "skeleton") -> None:
         """Refuse a skeleton whose joint names or order differ from the JSON's.
@@ -108,38 +65,6 @@ class EngineRuntime:
                 repr(theirs[j]) if j < len(theirs) else "no more joints",
                 hint=f"the {len(mine)} joints of {self.path.with_suffix('.json').name}",
             )  # fmt: skip
-
-    def initial_state(self, batch: int) -> dict[str, np.ndarray]:
-        """The state inputs before a first frame (zeros: ``start`` makes the graph ignore them)."""
-        shapes = self.meta["inputs"]
-        return {name: np.zeros([batch, *shapes[name]["shape"][1:]], np.float32)
-                for name in self.state_of.values()}  # fmt: skip
-
-    def step(
-        self,
-        rotations: np.ndarray,
-        root: np.ndarray,
-        state: dict[str, np.ndarray],
-        start: bool | np.ndarray = False,
-    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """One frame for B characters: the garments (B, V, 3) before collision, world, and
-        the next frame's state.
-
-        Args:
-            rotations: (B, J, 3, 3) float32 local joint rotations, in ``joint_names``' order.
-            root: (B, 3) root positions, world.
-            state: the state of the frame before (:meth:`initial_state` before the first).
-            start: (B,) or one bool: a character's first frame.
-        """
-        B = len(rotations)
-        feed = {
-            "joint_rotations": np.ascontiguousarray(rotations, np.float32),
-            "root_translation": np.ascontiguousarray(root, np.float32),
-            "start": np.broadcast_to(np.asarray(start, bool), (B,)).copy(),
-            **state,
-        }
-        out = dict(zip(self.outputs, self.session.run(None, feed), strict=True))
-        return out["garment"], {self.state_of[k]: out[k] for k in self.state_of}
 
 
 def rollout_engine_onnx(runtime: EngineRuntime, motion: Motion) -> np.ndarray:

@@ -37,6 +37,7 @@ from __future__ import annotations
 import copy
 import json
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -441,29 +442,68 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
     config = config or OnnxExportConfig()
     path = Path(path)
     check_exportable(model)
+    check_onnx_target(path, config.check)
+    detail = config.detail and model.detail is not None
+    step = copy.deepcopy(RuntimeStep(model, detail)).cpu().eval()  # the model stays put
+    meta = export_metadata(model, path.name, detail, config.opset)
+
+    def check(graph: Path, _meta_path: Path) -> dict:
+        return check_first_frame(step, graph, model, config.tolerance)
+
+    checked = check if config.check else None
+    example = example_inputs(model, 2)
+    return write_graph_files(
+        path, step, example, INPUTS, OUTPUTS, meta, model.template, config.opset, checked
+    )
+
+
+def check_onnx_target(path: Path, checked: bool) -> None:
+    """Refuse an export path not ending in ``.onnx``, or a missing ``onnx`` (or, when the
+    graph is to be ``checked``, ``onnxruntime``) package.
+
+    Raises:
+        LoosefitInputError: naming the path or the package.
+    """
     if path.suffix != ".onnx":
         raise LoosefitInputError(path, "<file>", "a path ending in .onnx", repr(path.suffix))
     needs_package("onnx")
-    if config.check:
+    if checked:
         needs_package("onnxruntime")
-    detail = config.detail and model.detail is not None
-    step = copy.deepcopy(RuntimeStep(model, detail)).cpu().eval()  # the model stays put
-    example = {k: torch.from_numpy(v) for k, v in example_inputs(model, 2).items()}
-    meta = export_metadata(model, path.name, detail, config.opset)
+
+
+def write_graph_files(
+    path: Path,
+    step: nn.Module,
+    example: dict[str, np.ndarray],
+    inputs,
+    outputs,
+    meta: dict,
+    template,
+    opset: int,
+    check: Callable[[Path, Path], dict] | None = None,
+) -> list[Path]:
+    """Trace ``step`` into ``path`` (``.onnx``) with ``meta`` in its metadata, the JSON beside
+    it and the garment ``template``'s mesh (``.obj``), all three or none. ``check(graph,
+    json)``, run on the written files before they are kept, may raise to keep none; what it
+    returns is the JSON's ``check``.
+
+    Returns:
+        The three paths written.
+    """
+    example = {k: torch.from_numpy(v) for k, v in example.items()}
     json_path, obj_path = path.with_suffix(".json"), path.with_suffix(".obj")
     with (
         atomic_path(path) as tmp,
         atomic_path(json_path) as tmp_json,
         atomic_path(obj_path) as tmp_obj,
     ):
-        t = model.template
+        t = template
         write_obj(tmp_obj, t.vertices, t.faces, t.uvs, t.face_uvs)
-        trace_graph(
-            step, tuple(example[k] for k in INPUTS), str(tmp), INPUTS, OUTPUTS, config.opset
-        )
+        trace_graph(step, tuple(example[k] for k in inputs), str(tmp), inputs, outputs, opset)
         _set_metadata(tmp, meta)
-        if config.check:
-            meta["check"] = check_first_frame(step, tmp, model, config.tolerance)
+        if check is not None:
+            tmp_json.write_text(json.dumps(meta))  # a check may read it beside the graph
+            meta["check"] = check(tmp, tmp_json)
         tmp_json.write_text(json.dumps(meta, indent=1) + "\n")
     return [path, json_path, obj_path]
 

@@ -37,27 +37,35 @@ class OnnxDivergedError(RuntimeError):
     """A garment with NaN or a vertex farther than ``max_distance`` from the root."""
 
 
-def read_metadata(path: str | Path) -> dict:
-    """The JSON written beside an exported graph (``path`` with ``.json``), checked.
+def read_metadata(
+    path: str | Path,
+    format: str = FORMAT,
+    command: str = "loosefit export-model",
+    meta_path: str | Path | None = None,
+) -> dict:
+    """The JSON written beside an exported graph (``path`` with ``.json``, or ``meta_path``),
+    checked to be of ``format`` (what ``command`` writes).
 
     Raises:
         LoosefitInputError: a missing or unreadable file, or another format.
     """
-    meta_path = Path(path).with_suffix(".json")
+    meta_path = Path(meta_path) if meta_path else Path(path).with_suffix(".json")
     if not meta_path.is_file():
         raise LoosefitInputError(
             meta_path,
             "<file>",
-            "the JSON written beside the .onnx by loosefit export-model",
+            f"the JSON written beside the .onnx by {command}",
             "no such file",
         )
     try:
         meta = json.loads(meta_path.read_text())
     except (OSError, ValueError) as exc:
         raise LoosefitInputError(meta_path, "<file>", "JSON", str(exc)) from None
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+    if not isinstance(meta, dict) or meta.get("format") != format:
         found = meta.get("format") if isinstance(meta, dict) else type(meta).__name__
-        raise LoosefitInputError(meta_path, "format", repr(FORMAT), repr(found))
+        raise LoosefitInputError(
+            meta_path, "format", repr(format), repr(found), hint=f"an export of {command}"
+        )
     return meta
 
 
@@ -65,14 +73,19 @@ class OnnxRuntime:
     """An exported graph in an onnxruntime session, with its JSON.
 
     Args:
-        path: the ``.onnx`` file (its ``.json`` beside it).
+        path: the ``.onnx`` file (its ``.json`` beside it, or ``meta_path``).
         threads: onnxruntime's intra-op threads (1: one core, as a game thread has).
 
     Raises:
         LoosefitInputError: onnxruntime missing, or a missing or unreadable graph or JSON.
     """
 
-    def __init__(self, path: str | Path, threads: int = 1) -> None:
+    FORMAT = FORMAT  # the JSON's format, and the command that writes such a graph
+    COMMAND = "loosefit export-model"
+
+    def __init__(
+        self, path: str | Path, threads: int = 1, meta_path: str | Path | None = None
+    ) -> None:
         try:
             import onnxruntime as ort
         except ImportError:
@@ -85,7 +98,7 @@ class OnnxRuntime:
         self.path = Path(path)
         if not self.path.is_file():
             raise LoosefitInputError(self.path, "<file>", "an exported .onnx graph", "no such file")
-        self.meta = read_metadata(self.path)
+        self.meta = read_metadata(self.path, self.FORMAT, self.COMMAND, meta_path)
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
