@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from loosefit.body.chain import preroll
-from loosefit.sim.timeline import substep_schedule
+from loosefit.sim.timeline import body_moves, substep_schedule
 from loosefit.types import Motion
 
 
@@ -47,3 +47,35 @@ def test_substep_schedule_follows_the_fastest_waistband_point():
     np.testing.assert_array_equal(fast, expected)
     capped = substep_schedule(waist * 10, substeps=20, max_substeps=60, max_move=0.004, widen=0)
     assert capped.max() == 60 and (capped == 60).sum() == 1
+
+
+def test_body_moves_count_the_body_where_the_cloth_can_meet_it():
+    T, Vb = 6, 3
+    waist = np.zeros((T, 2, 3))
+    waist[..., 2] = 1.0  # the waistband's top at 1 m
+    body = np.zeros((T, Vb, 3))
+    body[:, 0, 2] = 0.5  # a knee, below the waist
+    body[:, 1, 2] = 1.5  # a shoulder, above it
+    body[:, 2, 2] = 1.5  # a hand coming down to the skirt at frame 4
+    body[4:, 2, 2] = 0.9
+    body[3, 0, 0] = 0.03  # the knee kicks 3 cm out at frame 3 and back
+    body[:, 1, 0] = np.arange(T) * 0.5  # the shoulder flies: it cannot touch the skirt
+    moves = body_moves(body, waist)
+    # the kick out (frame 2 to 3); the hand coming down to the skirt's height (3 to 4) and
+    # the knee going back; never the shoulder
+    np.testing.assert_allclose(moves, [0.0, 0.0, 0.03, 0.6, 0.0], atol=1e-9)
+
+
+def test_substep_schedule_gives_a_fast_leg_its_substeps():
+    T = 8
+    waist = np.zeros((T, 3, 3))
+    legs = np.zeros(T - 1)
+    legs[3] = 0.2  # a kick: 20 cm in a frame
+    slow = substep_schedule(waist, 10, 60, 0.004, widen=1)
+    np.testing.assert_array_equal(slow, np.full(T - 1, 10))  # not counted without a limit
+    n = substep_schedule(waist, 10, 60, 0.004, widen=1, body_moves=legs, max_body_move=0.01)
+    np.testing.assert_array_equal(n, [10, 10, 20, 20, 20, 10, 10])
+    # the larger demand of the waist and the legs
+    waist[4:, 0, 0] = 0.12  # 12 cm: 30 substeps at 4 mm
+    both = substep_schedule(waist, 10, 60, 0.004, widen=0, body_moves=legs, max_body_move=0.01)
+    np.testing.assert_array_equal(both, [10, 10, 10, 30, 10, 10, 10])

@@ -26,7 +26,20 @@ class ClothConfig:
     # skirt; at 40 it held (max strain 0.32). Costs ~5% more on the salsa clips.
     max_substeps: int = 60
     substep_waist_move: float = 0.004  # m
+    # m: a frame in which the body at the garment's height (the legs, the hips, a hand at the
+    # skirt) moves more than this per substep also gets more substeps, so that the cloth,
+    # which moves at most 0.85 (self_contact_margin + self_contact_gap) a substep, can keep
+    # ahead of a fast leg; None: only the waistband counts
+    substep_body_move: float | None = None
     iterations: int = 5  # VBD iterations per substep
+    # where each substep's VBD iterations start (loosefit.sim.vbd): "inertia", Newton's
+    # inertial prediction (every vertex falls freely for a substep); "adaptive", the VBD
+    # paper's guess from the last substep's acceleration along gravity (a hanging vertex
+    # starts where it is), which leaves less stretch for the iterations to take back
+    initial_guess: str = "inertia"
+    # Chebyshev's acceleration of the VBD iterations for this spectral radius (0: off): each
+    # iteration after the first overshoots along the last two (VBD paper, section 3.7)
+    chebyshev_rho: float = 0.0
     # fabric
     density: float = 0.15  # kg/m^2: 150 g/m^2, a light woven skirt fabric (cotton lawn, poplin)
     stretch_ke: float = 1.0e3  # N/m, membrane shear stiffness (Newton's tri_ke, Lame mu)
@@ -136,6 +149,13 @@ class ClothConfig:
             raise LoosefitInputError(
                 src, "arm_collision", "false, true or 'upper'", repr(self.arm_collision)
             )
+        if self.initial_guess not in ("inertia", "adaptive"):
+            raise LoosefitInputError(
+                src, "initial_guess", "'inertia' or 'adaptive'", repr(self.initial_guess)
+            )
+        rho = self.chebyshev_rho
+        if isinstance(rho, bool) or not isinstance(rho, int | float) or not 0 <= rho < 1:
+            raise LoosefitInputError(src, "chebyshev_rho", "a number in [0, 1)", repr(rho))
         if self.self_contact_passes not in (1, 2) or isinstance(self.self_contact_passes, bool):
             raise LoosefitInputError(
                 src, "self_contact_passes", "1 or 2", repr(self.self_contact_passes)
@@ -171,7 +191,7 @@ class ClothConfig:
             "blend_seconds",
         )
         # None turns these off; a number is checked as the others
-        optional_positive = ("release_depth",)
+        optional_positive = ("release_depth", "substep_body_move")
         optional_nonnegative = ("waist_offset", "arm_friction")
         optional = optional_positive + optional_nonnegative
         positive += tuple(n for n in optional_positive if getattr(self, n) is not None)

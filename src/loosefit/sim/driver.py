@@ -29,6 +29,7 @@ from loosefit.sim.resume import Recording, batch_key, read_resume, resumed_relea
 from loosefit.sim.stepper import ClothSimulator
 from loosefit.sim.timeline import (
     Timeline,
+    body_moves,
     collider_meshes,
     collider_parts,
     limb_collider_faces,
@@ -344,7 +345,12 @@ def _batch_schedule(
         for glue, body, n in zip(sim.glues, colliders, totals, strict=True):
             waist = np.stack([glued_points(glue, b, body_faces) for b in body])  # (P + T, W, 3)
             own = substep_schedule(
-                waist, config.substeps, config.max_substeps, config.substep_waist_move
+                waist,
+                config.substeps,
+                config.max_substeps,
+                config.substep_waist_move,
+                body_moves=None if config.substep_body_move is None else body_moves(body, waist),
+                max_body_move=config.substep_body_move,
             )
             schedule[:n] = np.maximum(schedule[:n], own)
     return schedule

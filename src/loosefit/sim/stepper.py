@@ -31,6 +31,7 @@ import warp as wp
 from loosefit.errors import LoosefitInputError
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.kernels import damp_kernel, pin_waist_kernel, pose_bodies_kernel
+from loosefit.sim.vbd import solver_class
 from loosefit.sim.waist import glue_waist
 
 
@@ -167,7 +168,7 @@ class ClothSimulator:
         passes = {}  # Newton's default: self-contact detected before and after the forward step
         if cfg.self_contact_passes == 1:
             passes = {Base.CollisionSlot.SOFT_SELF_CONTACT: Base.CollisionFrequencyType.PRE_INIT}
-        self.solver = newton.solvers.SolverVBD(
+        self.solver = solver_class(cfg.initial_guess, cfg.chebyshev_rho)(
             model,
             collision_frequency_type=passes,
             iterations=cfg.iterations,

@@ -19,9 +19,16 @@ if TYPE_CHECKING:
 
 
 def substep_schedule(
-    waist: np.ndarray, substeps: int, max_substeps: int, max_move: float, widen: int = 2
+    waist: np.ndarray,
+    substeps: int,
+    max_substeps: int,
+    max_move: float,
+    widen: int = 2,
+    body_moves: np.ndarray | None = None,
+    max_body_move: float | None = None,
 ) -> np.ndarray:
-    """Substeps per frame, so that the waistband moves at most ``max_move`` per substep.
+    """Substeps per frame, so that the waistband moves at most ``max_move`` per substep
+    (and the body where the cloth can meet it at most ``max_body_move``, where given).
 
     A frame gets ``ceil(d / max_move)`` substeps, clipped to ``[substeps, max_substeps]``,
     where ``d`` is the largest move of a waistband point over that frame and the ``widen``
@@ -33,18 +40,40 @@ def substep_schedule(
         max_substeps: the most.
         max_move: metres a waistband point may move in one substep.
         widen: frames on each side whose moves also count.
+        body_moves: (T - 1,) m, the largest move of the body at the garment's height over
+            each frame (:func:`body_moves`); with ``max_body_move``, a frame also gets
+            ``ceil(body_moves / max_body_move)`` substeps (widened as the waist's).
+        max_body_move: metres the body there may move in one substep; None: not counted.
 
     Returns:
         (T - 1,) int64: the substeps of the step from frame ``t`` to ``t + 1``.
     """
     waist = np.asarray(waist, np.float64)
     moves = np.linalg.norm(np.diff(waist, axis=0), axis=-1).max(-1)  # (T - 1,)
+    if max_body_move is not None and body_moves is not None:
+        # in units of the waist's move: the larger of the two demands
+        moves = np.maximum(moves, np.asarray(body_moves, np.float64) * (max_move / max_body_move))
     if len(moves) and widen > 0:
         padded = np.pad(moves, widen, mode="edge")
         windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * widen + 1)
         moves = windows.max(-1)
     wanted = np.ceil(moves / max_move - 1e-9)
     return np.clip(wanted, substeps, max_substeps).astype(np.int64)
+
+
+def body_moves(collider: np.ndarray, waist: np.ndarray, margin: float = 0.05) -> np.ndarray:
+    """(T - 1,) m, the largest move over each frame of a collider vertex at the garment's
+    height: below the waistband's highest point plus ``margin`` at the frame's start or end
+    (the legs, the hips, a hand brought down to the skirt), where cloth can meet it.
+
+    Args:
+        collider: (T, Vb, 3) the body the cloth collides with, per frame.
+        waist: (T, W, 3) the glued waistband points per frame.
+    """
+    top = np.asarray(waist, np.float64)[..., 2].max(-1) + margin  # (T,)
+    low = np.minimum(collider[:-1, :, 2] - top[:-1, None], collider[1:, :, 2] - top[1:, None]) < 0
+    move = np.linalg.norm(np.diff(collider, axis=0), axis=-1)  # (T - 1, Vb)
+    return np.where(low, move, 0.0).max(-1, initial=0.0)
 
 
 def limb_collider_faces(avatar: Avatar, config: ClothConfig) -> np.ndarray | None:

@@ -1,0 +1,190 @@
+"""Newton's VBD cloth solver, and a variant that starts each substep's iterations closer to
+where they end.
+
+VBD (He Chen et al. 2024) minimises, each substep, the inertia-plus-elasticity energy by a
+few Gauss-Seidel sweeps from an initial guess. Newton starts them at the inertial
+prediction ``x + v dt + g dt^2``: every vertex falls freely for a substep, and the sweeps
+must pull the membrane back up. With few sweeps they do not quite, and the fabric hangs
+stretched. The paper's *adaptive initialisation* (its section 3.6) starts instead from
+``x + v dt + a~ dt^2``, where ``a~`` is the vertex's acceleration of the last substep along
+gravity, clamped between 0 and ``|g|``: a hanging vertex (no acceleration) starts where it
+is, a falling one as Newton does. Only the start of the sweeps changes; what they minimise
+(the inertial target ``x + v dt + g dt^2``) and every contact are Newton's own.
+
+:func:`solver_class` gives Newton's solver, or that variant of it (``ClothConfig.initial_guess``).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+
+@wp.kernel
+def adaptive_forward_step_kernel(
+    dt: float,
+    gravity: wp.array(dtype=wp.vec3),
+    particle_world: wp.array(dtype=wp.int32),
+    pos: wp.array(dtype=wp.vec3),
+    vel: wp.array(dtype=wp.vec3),
+    vel_before: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    external_force: wp.array(dtype=wp.vec3),
+    active: wp.array(dtype=wp.int32),
+    pos_prev: wp.array(dtype=wp.vec3),
+    inertia_out: wp.array(dtype=wp.vec3),
+    displacements_out: wp.array(dtype=wp.vec3),
+):
+    """Newton's ``forward_step`` (the inertial target, the step's start kept in ``pos_prev``)
+    with the adaptive initial guess: the displacement ``v dt + a~ dt^2``, ``a~`` the last
+    substep's acceleration ``(vel - vel_before) / dt`` along gravity, clamped to
+    ``[0, |g|]``; ``vel_before`` becomes ``vel``. One thread a particle."""
+    i = wp.tid()
+    x = pos[i]
+    v = vel[i]
+    a = (v - vel_before[i]) / dt
+    vel_before[i] = v
+    pos_prev[i] = x
+    if active[i] == 0 or inv_mass[i] == 0.0:
+        inertia_out[i] = x
+        displacements_out[i] = wp.vec3(0.0, 0.0, 0.0)
+        return
+    g = gravity[particle_world[i]]
+    v_new = v + (g + external_force[i] * inv_mass[i]) * dt
+    inertia_out[i] = x + v_new * dt
+    g_norm = wp.length(g)
+    along = wp.vec3(0.0, 0.0, 0.0)
+    if g_norm > 0.0:
+        g_dir = g / g_norm
+        along = wp.clamp(wp.dot(a, g_dir), 0.0, g_norm) * g_dir
+    displacements_out[i] = v * dt + along * (dt * dt)
+
+
+@wp.kernel
+def active_flags_kernel(
+    flags: wp.array(dtype=wp.int32), active_bit: int, out: wp.array(dtype=wp.int32)
+):
+    """1 where a particle is simulated (``flags & active_bit``), else 0."""
+    i = wp.tid()
+    out[i] = wp.where(flags[i] & active_bit != 0, 1, 0)
+
+
+@wp.kernel
+def chebyshev_kernel(
+    omega: float,
+    displacement: wp.array(dtype=wp.vec3),
+    last: wp.array(dtype=wp.vec3),
+    before_last: wp.array(dtype=wp.vec3),
+):
+    """Chebyshev's semi-iterative step on the sweeps' displacements: ``d = omega (d - d'')
+    + d''`` with ``d''`` the displacement two sweeps back; the history moves on a sweep."""
+    i = wp.tid()
+    d = omega * (displacement[i] - before_last[i]) + before_last[i]
+    before_last[i] = last[i]
+    last[i] = d
+    displacement[i] = d
+
+
+def chebyshev_omegas(rho: float, iterations: int) -> list[float]:
+    """Chebyshev's weights of the sweeps ``1 .. iterations`` for a spectral radius ``rho``:
+    1, ``2 / (2 - rho^2)``, then ``4 / (4 - rho^2 w)`` of the last (all 1 for ``rho`` 0)."""
+    omegas: list[float] = []
+    for n in range(iterations):
+        if n == 0:
+            omegas.append(1.0)
+        elif n == 1:
+            omegas.append(2.0 / (2.0 - rho * rho))
+        else:
+            omegas.append(4.0 / (4.0 - rho * rho * omegas[-1]))
+    return omegas
+
+
+def solver_class(initial_guess: str = "inertia", chebyshev_rho: float = 0.0):
+    """Newton's ``SolverVBD`` (``"inertia"``, ``chebyshev_rho`` 0), or its subclass that
+    starts each substep's sweeps with the adaptive initial guess (``"adaptive"``) and/or
+    accelerates them by Chebyshev's method for a spectral radius ``chebyshev_rho`` in
+    (0, 1), each extrapolated sweep truncated again as Newton truncates a sweep (so that the
+    cloth stays out of itself and the body as it does)."""
+    import newton
+
+    if initial_guess not in ("inertia", "adaptive"):
+        raise ValueError(f"initial_guess: expected 'inertia' or 'adaptive', got {initial_guess!r}")
+    if not 0.0 <= chebyshev_rho < 1.0:
+        raise ValueError(f"chebyshev_rho: expected a number in [0, 1), got {chebyshev_rho!r}")
+    if initial_guess == "inertia" and chebyshev_rho == 0.0:
+        return newton.solvers.SolverVBD
+    adaptive = initial_guess == "adaptive"
+
+    class FasterVBD(newton.solvers.SolverVBD):
+        """Newton's VBD with the adaptive initial guess and/or Chebyshev's acceleration
+        (this module's docstring)."""
+
+        def step(self, state_in, state_out, control, contacts, dt, **kwargs):
+            self._sweep = 0
+            super().step(state_in, state_out, control, contacts, dt, **kwargs)
+
+        def _initialize_particles(self, state_in, state_out, contacts, dt):
+            if not adaptive:
+                return super()._initialize_particles(state_in, state_out, contacts, dt)
+            model = self.model
+            if model.particle_count == 0:
+                return
+            if not hasattr(self, "_vel_before"):
+                self._vel_before = wp.clone(state_in.particle_qd)
+                self._active = wp.empty(model.particle_count, dtype=wp.int32, device=self.device)
+                wp.launch(
+                    active_flags_kernel,
+                    dim=model.particle_count,
+                    inputs=[model.particle_flags, int(newton.ParticleFlags.ACTIVE)],
+                    outputs=[self._active],
+                    device=self.device,
+                )
+            if not self.rigid_soft_enable_dat and not self.particle_enable_self_contact:
+                self.pos_prev_collision_detection.assign(state_in.particle_q)
+                self.particle_displacements.zero_()
+            wp.launch(
+                adaptive_forward_step_kernel,
+                dim=model.particle_count,
+                inputs=[
+                    dt,
+                    model.gravity,
+                    model.particle_world,
+                    state_in.particle_q,
+                    state_in.particle_qd,
+                    self._vel_before,
+                    model.particle_inv_mass,
+                    state_in.particle_f,
+                    self._active,
+                ],
+                outputs=[self.particle_q_prev, self.inertia, self.particle_displacements],
+                device=self.device,
+            )
+            self._penetration_free_truncation(state_in, contacts)
+
+        def _solve_particle_iteration(self, state_in, state_out, contacts, dt):
+            if chebyshev_rho == 0.0:
+                return super()._solve_particle_iteration(state_in, state_out, contacts, dt)
+            n = self._sweep
+            self._sweep += 1
+            if n == 0:  # the sweeps' start: the history two back
+                if not hasattr(self, "_last"):
+                    self._last = wp.zeros_like(self.particle_displacements)
+                    self._before_last = wp.zeros_like(self.particle_displacements)
+                    self._omegas = chebyshev_omegas(chebyshev_rho, 64)
+                wp.copy(self._before_last, self.particle_displacements)
+            super()._solve_particle_iteration(state_in, state_out, contacts, dt)
+            if n == 0:
+                wp.copy(self._last, self.particle_displacements)
+                return
+            omega = self._omegas[min(n, len(self._omegas) - 1)]
+            wp.launch(
+                chebyshev_kernel,
+                dim=self.model.particle_count,
+                inputs=[omega],
+                outputs=[self.particle_displacements, self._last, self._before_last],
+                device=self.device,
+            )
+            self._penetration_free_truncation(state_in, contacts)
+            wp.copy(self._last, self.particle_displacements)
+            wp.copy(state_out.particle_q, state_in.particle_q)
+
+    return FasterVBD
