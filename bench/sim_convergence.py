@@ -101,10 +101,11 @@ def main(argv: list[str] | None = None) -> None:
     ref_index = next((i for i, (n, _) in enumerate(runs) if "reference" in n), None)
     ref = results[ref_index]["vertices"] if ref_index is not None else None
     machine = f"{platform.node()}, {os.cpu_count()} cores, one thread a run"
+    command = " ".join(argv if argv is not None else os.sys.argv[1:])
     lines = [
         "# The drape on the rest pose under several solver schedules",
         "",
-        f"`python bench/sim_convergence.py {' '.join(argv if argv is not None else os.sys.argv[1:])}`;"
+        f"`python bench/sim_convergence.py {command}`;"
         f" {machine}, {args.workers} at once; {date.today()}.",
         "",
         "| run | changes | s | strain p50 | strain p99 | hem below the waist (m) "
