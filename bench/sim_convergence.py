@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import platform
 import time
@@ -32,6 +31,7 @@ from datetime import date
 from pathlib import Path
 
 import numpy as np
+from sim_quality import parse_candidate
 
 DEFAULT_RUNS = (
     "preset:",
@@ -43,16 +43,6 @@ DEFAULT_RUNS = (
     'i40-adaptive:iterations=40,initial_guess="adaptive"',
     "s80i10:substeps=80,max_substeps=80,iterations=10",
 )
-
-
-def parse_run(spec: str) -> tuple[str, dict]:
-    """``NAME:KEY=VALUE,...`` (values as JSON) to (name, changes)."""
-    name, _, items = spec.partition(":")
-    changes = {}
-    for item in filter(None, items.split(",")):
-        key, _, value = item.partition("=")
-        changes[key] = json.loads(value)
-    return name, changes
 
 
 def drape(preset_name: str, changes: dict) -> dict:
@@ -93,7 +83,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--run", action="append", default=[], help="NAME:KEY=VALUE,...")
     p.add_argument("--out", default="")
     args = p.parse_args(argv)
-    runs = [parse_run(s) for s in (args.run or DEFAULT_RUNS)]
+    runs = [parse_candidate(s) for s in (args.run or DEFAULT_RUNS)]
     os.environ["OMP_NUM_THREADS"] = "1"
     with ProcessPoolExecutor(args.workers) as pool:
         futures = [pool.submit(drape, args.preset, changes) for _, changes in runs]

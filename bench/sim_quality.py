@@ -53,6 +53,16 @@ FLOORS = {
 }
 
 
+def parse_candidate(spec: str) -> tuple[str, dict]:
+    """``NAME:KEY=VALUE,KEY=VALUE`` (values as JSON) to (name, the cloth's changes)."""
+    name, _, items = spec.partition(":")
+    changes = {}
+    for item in filter(None, items.split(",")):
+        key, _, value = item.partition("=")
+        changes[key] = json.loads(value)
+    return name, changes
+
+
 def _config(preset_name: str, changes: dict):
     from loosefit.sim.presets import preset
 
@@ -147,14 +157,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--out", default="")
     args = p.parse_args(argv)
 
-    candidates = {}
-    for spec in args.candidate:
-        name, _, items = spec.partition(":")
-        changes = {}
-        for item in filter(None, items.split(",")):
-            key, _, value = item.partition("=")
-            changes[key] = json.loads(value)
-        candidates[name] = changes
+    candidates = dict(parse_candidate(spec) for spec in args.candidate)
     clips = args.clips.split(",")
     seeds = [(f"seed+{k}", k, {}) for k in range(1, args.seeds + 1)]
     runs = [("base", 0, {}), *seeds] + [(n, 0, c) for n, c in candidates.items()]

@@ -129,6 +129,23 @@ def test_fast_frames_get_more_substeps_and_replay_exactly(avatar, tiny):
     np.testing.assert_array_equal(plain.garment_vertices, fine.garment_vertices)
 
 
+def test_a_fast_body_at_the_skirt_gets_more_substeps(avatar, tiny):
+    # The spin's legs and hips move more than 5 mm a frame: at 0.5 mm a substep (a limit no
+    # waistband reaches here, at 1 m a substep) those frames need more than 8; the arms,
+    # above the waistband, do not count. Accelerated iterations ride along.
+    skirt, motion, result, _ = tiny
+    config = ClothConfig.tiny(
+        max_substeps=16, substep_waist_move=1.0, substep_body_move=0.0005, chebyshev_rho=0.9
+    )
+    legs = simulate(avatar, skirt, motion, config)
+    assert 8 < legs.stats["substeps_max"] <= 16
+    assert np.isfinite(legs.garment_vertices).all() and legs.quality["inside_max"] < 0.005
+    waist_only = simulate(avatar, skirt, motion, dataclasses.replace(config, substep_body_move=None))
+    assert waist_only.stats["substeps_max"] == 8
+    with pytest.raises(LoosefitInputError, match="substep_body_move"):
+        ClothConfig(substep_body_move=0.0)
+
+
 class _Kill(Exception):
     pass
 
