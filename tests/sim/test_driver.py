@@ -140,7 +140,9 @@ def test_a_fast_body_at_the_skirt_gets_more_substeps(avatar, tiny):
     legs = simulate(avatar, skirt, motion, config)
     assert 8 < legs.stats["substeps_max"] <= 16
     assert np.isfinite(legs.garment_vertices).all() and legs.quality["inside_max"] < 0.005
-    waist_only = simulate(avatar, skirt, motion, dataclasses.replace(config, substep_body_move=None))
+    waist_only = simulate(
+        avatar, skirt, motion, dataclasses.replace(config, substep_body_move=None)
+    )
     assert waist_only.stats["substeps_max"] == 8
     with pytest.raises(LoosefitInputError, match="substep_body_move"):
         ClothConfig(substep_body_move=0.0)

@@ -67,6 +67,14 @@ def test_the_run_key_leaves_the_device_out_and_a_cpu_run_keeps_its_key(tmp_path)
     tiny = ClothConfig.tiny(device="cuda:0")
     assert resume.run_key(body, template, tiny) == "1d2b5c13b1c0a98b4e23565967ce6374"
     assert resume.run_key(body, template, dataclasses.replace(tiny, iterations=9)) != on_cpu
+    # a field added since keeps the key at its old behaviour and changes it otherwise
+    for change in (
+        {"chebyshev_rho": 0.9},
+        {"initial_guess": "adaptive"},
+        {"substep_body_move": 0.01},
+    ):
+        other = resume.run_key(body, template, dataclasses.replace(tiny, **change))
+        assert other != "1d2b5c13b1c0a98b4e23565967ce6374", change
     # the resume file a GPU run saved is the CPU run's
     path = tmp_path / "clip.npz"
     resume.write_resume(path, key=np.array(on_gpu), frame=np.int64(3), seconds=np.float64(1.0))

@@ -20,7 +20,13 @@ from loosefit.types import GarmentTemplate
 # before they existed: at that value a field stays out of the run key, so that a run saved
 # before it existed still resumes. Every new field goes here. (Adding release_depth to the
 # key cost the dance data set two clips' saved frames, 3.5 core-hours.)
-RUN_KEY_SINCE: dict[str, object] = {"self_contact_passes": 2, "settle_once": False}
+RUN_KEY_SINCE: dict[str, object] = {
+    "self_contact_passes": 2,
+    "settle_once": False,
+    "initial_guess": "inertia",
+    "chebyshev_rho": 0.0,
+    "substep_body_move": None,
+}
 
 
 def run_key(body: np.ndarray, template: GarmentTemplate, config: ClothConfig) -> str:

@@ -1,17 +1,25 @@
-"""Newton's VBD cloth solver, and a variant that starts each substep's iterations closer to
-where they end.
+"""Newton's VBD cloth solver, and variants that converge further in as many iterations.
 
 VBD (He Chen et al. 2024) minimises, each substep, the inertia-plus-elasticity energy by a
-few Gauss-Seidel sweeps from an initial guess. Newton starts them at the inertial
-prediction ``x + v dt + g dt^2``: every vertex falls freely for a substep, and the sweeps
-must pull the membrane back up. With few sweeps they do not quite, and the fabric hangs
-stretched. The paper's *adaptive initialisation* (its section 3.6) starts instead from
-``x + v dt + a~ dt^2``, where ``a~`` is the vertex's acceleration of the last substep along
-gravity, clamped between 0 and ``|g|``: a hanging vertex (no acceleration) starts where it
-is, a falling one as Newton does. Only the start of the sweeps changes; what they minimise
-(the inertial target ``x + v dt + g dt^2``) and every contact are Newton's own.
+few Gauss-Seidel iterations (one colour of vertices at a time) from an initial guess. With
+few iterations it stops short, and where it stops depends on where it started. Newton has
+no option for either lever of the paper's; this module subclasses its ``SolverVBD`` and
+overrides two of its methods (``_initialize_particles``, ``_solve_particle_iteration``):
 
-:func:`solver_class` gives Newton's solver, or that variant of it (``ClothConfig.initial_guess``).
+* **Chebyshev's acceleration** (``ClothConfig.chebyshev_rho``; the paper's section 3.7).
+  Each iteration after the first overshoots along the last two: ``d = w (d^ - d'') + d''``
+  on the displacements, with Chebyshev's weights ``w`` for a spectral radius ``rho``. The
+  overshoot is truncated again as Newton truncates every iteration (the displacement bounds
+  of its divide-and-truncate contact), so the cloth still never crosses itself or the body.
+* **The adaptive initial guess** (``ClothConfig.initial_guess = "adaptive"``; the paper's
+  section 3.6). Newton starts at the inertial prediction ``x + v dt + g dt^2``: every vertex
+  falls freely for a substep. The adaptive guess starts at ``x + v dt + a~ dt^2``, ``a~`` the
+  last substep's acceleration along gravity clamped to ``[0, |g|]``, so a hanging vertex
+  starts where it is. What the iterations minimise (the inertial target) is Newton's own.
+  On a flared skirt it leaves the cloth floating (docs/SIM_SPEED.md): measured, not
+  recommended.
+
+:func:`solver_class` gives Newton's own solver when neither is asked for.
 """
 
 from __future__ import annotations
