@@ -33,8 +33,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--out", default="out/sim_quality_sheet.jpg")
     args = p.parse_args(argv)
 
-    from loosefit.render.clip import render_still
-    from loosefit.render.renderer import RenderConfig, RenderMesh
+    from loosefit.render.renderer import RenderConfig, Renderer, RenderMesh
     from loosefit.sim.jobs import plan_jobs
     from loosefit.sim.workers import Worker
 
@@ -48,27 +47,28 @@ def main(argv: list[str] | None = None) -> None:
         )
     body = posed.vertices.numpy()
     faces = worker.avatar.faces.numpy()
-    runs = [("preset", {})] + [parse_candidate(s) for s in args.candidate]
-    frames = [int(f) for f in args.frames.split(",")]
+    garments = {}  # each run's (T, V, 3) cloth, read (or simulated) once
+    for name, changes in [("preset", {})] + [parse_candidate(s) for s in args.candidate]:
+        run = simulate_run(args.preset, args.clip, args.motion_frames, 0, changes, args.cache)
+        if run["garment"] is None:
+            raise SystemExit(f"{name}: the run diverged ({run['reason']})")
+        garments[name] = run["garment"]
     look = RenderConfig(
         width=args.size, height=int(args.size * 7 / 6), views=("front", "side"),
         frame_counter=False,
     )  # fmt: skip
     rows = []
-    for f in frames:
-        row = []
-        for name, changes in runs:
-            run = simulate_run(args.preset, args.clip, args.motion_frames, 0, changes, args.cache)
-            if run["garment"] is None:
-                raise SystemExit(f"{name}: the run diverged ({run['reason']})")
-            scene = [
-                RenderMesh(faces, body[f], role="body"),
-                RenderMesh(worker.template.faces, run["garment"][f]),
-            ]
-            tmp = Path(args.out).with_suffix(".part.png")
-            row.append(render_still(scene, tmp, look, title=f"{args.clip} {name}, frame {f}"))
-            tmp.unlink()
-        rows.append(np.concatenate(row, axis=1))
+    with Renderer(look) as renderer:
+        for f in (int(f) for f in args.frames.split(",")):
+            row = []
+            for name, garment in garments.items():
+                scene = [
+                    RenderMesh(faces, body[f], role="body"),
+                    RenderMesh(worker.template.faces, garment[f]),
+                ]
+                title = f"{args.clip} {name}, frame {f}"
+                row.append(next(iter(renderer.render_sequence(scene, title=title, frames=[0]))))
+            rows.append(np.concatenate(row, axis=1))
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(np.concatenate(rows, axis=0)).save(args.out, quality=88)
     print(args.out)

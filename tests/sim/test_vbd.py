@@ -3,6 +3,7 @@ paper's adaptive one, on single particles and on a tiny skirt."""
 
 from __future__ import annotations
 
+import newton
 import numpy as np
 import pytest
 import warp as wp
@@ -13,6 +14,9 @@ from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.vbd import adaptive_forward_step_kernel, chebyshev_omegas, solver_class
 
 TINY_SKIRT = SkirtConfig(style="aline", rings=8, segments=24)
+
+
+ACTIVE = int(newton.ParticleFlags.ACTIVE)  # the flag bit of a simulated particle
 
 
 def _forward(vel_before, vel, active=(1, 1, 1, 1), dt=0.01, g=(0.0, 0.0, -10.0)):
@@ -33,7 +37,9 @@ def _forward(vel_before, vel, active=(1, 1, 1, 1), dt=0.01, g=(0.0, 0.0, -10.0))
             before,
             wp.ones(n, dtype=float),
             wp.zeros(n, dtype=wp.vec3),
-            wp.array(np.asarray(active, np.int32), dtype=wp.int32),
+            # Newton's flags: the active bit where ``active``, another bit everywhere
+            wp.array(np.asarray(active, np.int32) * ACTIVE | 2 * ACTIVE, dtype=wp.int32),
+            ACTIVE,
         ],
         outputs=outs,
     )
@@ -65,8 +71,6 @@ def test_a_pinned_particle_stays_where_it_is():
 
 
 def test_the_guess_is_named_or_refused():
-    import newton
-
     assert solver_class("inertia") is newton.solvers.SolverVBD
     assert issubclass(solver_class("adaptive"), newton.solvers.SolverVBD)
     with pytest.raises(ValueError, match="initial_guess"):

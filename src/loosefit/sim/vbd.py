@@ -37,7 +37,8 @@ def adaptive_forward_step_kernel(
     vel_before: wp.array(dtype=wp.vec3),
     inv_mass: wp.array(dtype=float),
     external_force: wp.array(dtype=wp.vec3),
-    active: wp.array(dtype=wp.int32),
+    flags: wp.array(dtype=wp.int32),
+    active_bit: int,
     pos_prev: wp.array(dtype=wp.vec3),
     inertia_out: wp.array(dtype=wp.vec3),
     displacements_out: wp.array(dtype=wp.vec3),
@@ -45,14 +46,15 @@ def adaptive_forward_step_kernel(
     """Newton's ``forward_step`` (the inertial target, the step's start kept in ``pos_prev``)
     with the adaptive initial guess: the displacement ``v dt + a~ dt^2``, ``a~`` the last
     substep's acceleration ``(vel - vel_before) / dt`` along gravity, clamped to
-    ``[0, |g|]``; ``vel_before`` becomes ``vel``. One thread a particle."""
+    ``[0, |g|]``; ``vel_before`` becomes ``vel``. A particle without ``active_bit`` in its
+    ``flags`` stays where it is. One thread a particle."""
     i = wp.tid()
     x = pos[i]
     v = vel[i]
     a = (v - vel_before[i]) / dt
     vel_before[i] = v
     pos_prev[i] = x
-    if active[i] == 0 or inv_mass[i] == 0.0:
+    if (flags[i] & active_bit) == 0 or inv_mass[i] == 0.0:
         inertia_out[i] = x
         displacements_out[i] = wp.vec3(0.0, 0.0, 0.0)
         return
@@ -68,15 +70,6 @@ def adaptive_forward_step_kernel(
 
 
 @wp.kernel
-def active_flags_kernel(
-    flags: wp.array(dtype=wp.int32), active_bit: int, out: wp.array(dtype=wp.int32)
-):
-    """1 where a particle is simulated (``flags & active_bit``), else 0."""
-    i = wp.tid()
-    out[i] = wp.where(flags[i] & active_bit != 0, 1, 0)
-
-
-@wp.kernel
 def chebyshev_kernel(
     omega: float,
     displacement: wp.array(dtype=wp.vec3),
@@ -84,12 +77,11 @@ def chebyshev_kernel(
     before_last: wp.array(dtype=wp.vec3),
 ):
     """Chebyshev's semi-iterative step on the sweeps' displacements: ``d = omega (d - d'')
-    + d''`` with ``d''`` the displacement two sweeps back; the history moves on a sweep."""
+    + d''`` with ``d''`` the displacement two sweeps back, which becomes ``last`` (the caller
+    stores the new one in ``last`` once it is truncated)."""
     i = wp.tid()
-    d = omega * (displacement[i] - before_last[i]) + before_last[i]
+    displacement[i] = omega * (displacement[i] - before_last[i]) + before_last[i]
     before_last[i] = last[i]
-    last[i] = d
-    displacement[i] = d
 
 
 def chebyshev_omegas(rho: float, iterations: int) -> list[float]:
@@ -138,14 +130,6 @@ def solver_class(initial_guess: str = "inertia", chebyshev_rho: float = 0.0):
                 return
             if not hasattr(self, "_vel_before"):
                 self._vel_before = wp.clone(state_in.particle_qd)
-                self._active = wp.empty(model.particle_count, dtype=wp.int32, device=self.device)
-                wp.launch(
-                    active_flags_kernel,
-                    dim=model.particle_count,
-                    inputs=[model.particle_flags, int(newton.ParticleFlags.ACTIVE)],
-                    outputs=[self._active],
-                    device=self.device,
-                )
             if not self.rigid_soft_enable_dat and not self.particle_enable_self_contact:
                 self.pos_prev_collision_detection.assign(state_in.particle_q)
                 self.particle_displacements.zero_()
@@ -161,7 +145,8 @@ def solver_class(initial_guess: str = "inertia", chebyshev_rho: float = 0.0):
                     self._vel_before,
                     model.particle_inv_mass,
                     state_in.particle_f,
-                    self._active,
+                    model.particle_flags,
+                    int(newton.ParticleFlags.ACTIVE),
                 ],
                 outputs=[self.particle_q_prev, self.inertia, self.particle_displacements],
                 device=self.device,
@@ -177,13 +162,13 @@ def solver_class(initial_guess: str = "inertia", chebyshev_rho: float = 0.0):
                 if not hasattr(self, "_last"):
                     self._last = wp.zeros_like(self.particle_displacements)
                     self._before_last = wp.zeros_like(self.particle_displacements)
-                    self._omegas = chebyshev_omegas(chebyshev_rho, 64)
+                    self._omegas = chebyshev_omegas(chebyshev_rho, self.iterations)
                 wp.copy(self._before_last, self.particle_displacements)
             super()._solve_particle_iteration(state_in, state_out, contacts, dt)
             if n == 0:
                 wp.copy(self._last, self.particle_displacements)
                 return
-            omega = self._omegas[min(n, len(self._omegas) - 1)]
+            omega = self._omegas[n]
             wp.launch(
                 chebyshev_kernel,
                 dim=self.model.particle_count,
