@@ -142,15 +142,32 @@ def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
     DatasetReader(out).read("spin_001")
 
 
-def test_clips_simulated_in_a_batch_are_the_same_data_set(tiny_dataset, tmp_path):
-    """``batch=2``: both clips as two worlds of one model, written and judged one by one."""
+def test_clips_simulated_in_a_batch_are_the_same_data_set(tiny_dataset, tmp_path, monkeypatch):
+    """``batch=2``: both clips as two worlds of one model, written and judged one by one;
+    their motions prepared before the batch (tests/sim/test_workers.py: in other
+    processes, the same to the bit)."""
+    import loosefit.sim.generate as gen
+
     out, single = tiny_dataset
+    prepared = []
+    real = gen.prepare_motions
+
+    def spy(config, jobs, processes, on_done=None):
+        prepared.append(([j.name for j in jobs], processes))
+        return real(config, jobs, processes, on_done)
+
+    monkeypatch.setattr(gen, "prepare_motions", spy)
     manifest = generate(preset("tiny"), tmp_path / "b", workers=1, progress=False,
-                            batch=2)  # fmt: skip
+                            batch=2, prepare_workers=1)  # fmt: skip
+    assert [sorted(names) for names, _ in prepared] == [["kick_000", "spin_001"]]
+    assert prepared[0][1] == 1
     assert manifest["complete"] and manifest["split"] == single["split"]
     reader, alone = DatasetReader(tmp_path / "b"), DatasetReader(out)
     for name, entry in manifest["sequences"].items():
         assert entry["status"] == "done" and entry["batch"] == 2
+        np.testing.assert_array_equal(  # the motion each clip was simulated with: the same
+            reader.read(name).motion.rotations, alone.read(name).motion.rotations
+        )
         got, want = reader.read(name).garment_vertices, alone.read(name).garment_vertices
         assert got.shape == want.shape and np.isfinite(got).all()
         # the same clip, up to the other world's rounding (see tests/sim/test_cloth.py)
@@ -160,6 +177,8 @@ def test_clips_simulated_in_a_batch_are_the_same_data_set(tiny_dataset, tmp_path
     assert not list((tmp_path / "b" / "resume").iterdir())  # the batch's state, removed
     with pytest.raises(LoosefitInputError, match="batch"):
         generate(preset("tiny"), tmp_path / "c", progress=False, batch=0)
+    with pytest.raises(LoosefitInputError, match="prepare_workers"):
+        generate(preset("tiny"), tmp_path / "c", progress=False, batch=2, prepare_workers=0)
 
 
 def test_a_batch_with_a_diverging_clip_is_run_again_clip_by_clip(tmp_path, monkeypatch, avatar):
@@ -173,7 +192,8 @@ def test_a_batch_with_a_diverging_clip_is_run_again_clip_by_clip(tmp_path, monke
         return real(avatar, template, motions, *a, **k)
 
     monkeypatch.setattr(workers, "simulate_batch", spin_explodes)
-    manifest = generate(preset("tiny"), tmp_path / "d", progress=False, batch=2)
+    manifest = generate(preset("tiny"), tmp_path / "d", progress=False, batch=2,
+                        prepare_workers=1)  # fmt: skip
     assert sizes == [2, 1, 1]
     assert manifest["sequences"]["kick_000"]["status"] == "done"
     assert manifest["sequences"]["spin_001"]["status"] == "flagged"

@@ -31,3 +31,59 @@ def test_the_data_set_s_garment_is_the_workers_whatever_the_caller_s_threads():
         np.testing.assert_array_equal(worker.template.vertices, ours)
     finally:
         torch.set_num_threads(threads)
+
+
+def test_motions_prepared_in_other_processes_are_the_workers_own_to_the_bit():
+    """A batch's motions are prepared on every core first (``prepare_motions``): loaded and
+    pose-corrected as the worker that simulates them would, the same to the bit."""
+    import pytest
+
+    from loosefit.errors import LoosefitInputError
+    from loosefit.sim.jobs import Job, plan_jobs
+
+    config = preset("tiny")
+    jobs = plan_jobs(config)[:3]
+    worker = workers.Worker.build(config)
+    own = [worker.motion(job) for job in jobs]
+    seen = []
+    pooled = workers.prepare_motions(config, jobs, 2, on_done=lambda j, m: seen.append(j.name))
+    assert sorted(seen) == sorted(j.name for j in jobs)
+    for a, b in zip(own, pooled, strict=True):
+        assert a.name == b.name and a.fps == b.fps and a.joint_names == b.joint_names
+        np.testing.assert_array_equal(a.rotations, b.rotations)
+        np.testing.assert_array_equal(a.root_translation, b.root_translation)
+        assert a.meta == b.meta  # the pose correction's own figures
+    here = workers.prepare_motions(config, jobs[:1], 1)
+    np.testing.assert_array_equal(here[0].rotations, own[0].rotations)
+    with pytest.raises(LoosefitInputError, match="processes"):
+        workers.prepare_motions(config, jobs, 0)
+    # a clip that cannot be prepared stops the run with its own error
+    missing = Job("gone", "/nonexistent/gone.bvh", 0, False)
+    with pytest.raises(LoosefitInputError, match="gone.bvh"):
+        workers.prepare_motions(config, [jobs[0], missing], 1)
+
+
+def test_a_pool_worker_simulates_the_motions_it_is_given(monkeypatch):
+    """``serve`` hands each unit's prepared motions (or None: its own) to ``Worker.run``."""
+    import queue
+
+    given = []
+
+    class Stub:
+        def run(self, jobs, out_dir, resume_every, motions=None):
+            given.append((jobs, out_dir, resume_every, motions))
+            return [{"name": j} for j in jobs]
+
+    build = classmethod(lambda cls, cfg, progress=None: Stub())
+    monkeypatch.setattr(workers.Worker, "build", build)
+    monkeypatch.setattr(workers, "exit_with_parent", lambda: None)
+    units, results = queue.Queue(), queue.Queue()
+    units.put((0, ["a", "b"], "out", 50, ["motion a", "motion b"]))
+    units.put((1, ["c"], "out", 7, None))
+    units.put(None)
+    workers.serve(preset("tiny"), units, results, None)
+    assert given == [(["a", "b"], "out", 50, ["motion a", "motion b"]), (["c"], "out", 7, None)]
+    assert [results.get_nowait() for _ in range(2)] == [
+        (0, [{"name": "a"}, {"name": "b"}]),
+        (1, [{"name": "c"}]),
+    ]

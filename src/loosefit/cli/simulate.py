@@ -100,6 +100,14 @@ def add_parser(sub) -> None:
         metavar="K",
         help="clips simulated at once as worlds of one model (a GPU: 16-64)",
     )
+    p.add_argument(
+        "--prepare-workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --batch: processes that load and pose-correct every clip's motion "
+        "before the first batch (default: every CPU core)",
+    )
     p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
     p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
     p.add_argument(
@@ -205,6 +213,7 @@ def run(args: argparse.Namespace) -> int:
         batch=args.batch,
         resume_every=args.save_every,
         cluster=cluster,
+        prepare_workers=args.prepare_workers,
     )
     print(format_report(manifest))
     log(f"dataset in {args.out}")

@@ -17,6 +17,7 @@ report (:mod:`~loosefit.sim.report`).
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import queue
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -31,7 +32,7 @@ from loosefit.sim.dataset_config import DatasetConfig, make_garment
 from loosefit.sim.jobs import Job, job_motion, plan_jobs, unit_name
 from loosefit.sim.manifest import adopt_clips, open_manifest, recheck_release, recheck_unfold
 from loosefit.sim.report import summarize
-from loosefit.sim.workers import Worker, one_torch_thread, serve
+from loosefit.sim.workers import Worker, one_torch_thread, prepare_motions, serve
 
 __all__ = ["generate"]
 
@@ -45,6 +46,7 @@ def generate(
     batch: int = 1,
     resume_every: int = 50,
     cluster: ClusterConfig | None = None,
+    prepare_workers: int | None = None,
 ) -> dict:
     """Simulate a dataset into ``out_dir`` (resuming a run of the same configuration).
 
@@ -66,6 +68,9 @@ def generate(
         cluster: run every unit of work as a task on this Ray cluster
             (:func:`loosefit.sim.cluster.run_on_ray`; ``out_dir`` on storage every node
             shares) instead of in processes of this machine; the data set is the same.
+        prepare_workers: with ``batch`` > 1, the processes that prepare every clip's motion
+            (loaded, pose-corrected: CPU work) before the batches are simulated; default:
+            every CPU core. A clip alone is prepared by the worker that simulates it.
 
     Returns:
         The final manifest (also written to ``out_dir/manifest.json``).
@@ -96,7 +101,19 @@ def generate(
         raise LoosefitInputError("generate", "batch", "an integer >= 1", repr(batch))
     if not (isinstance(resume_every, int) and resume_every >= 1):
         raise LoosefitInputError("generate", "resume_every", "an integer >= 1", repr(resume_every))
+    if prepare_workers is not None and not (
+        isinstance(prepare_workers, int) and prepare_workers >= 1
+    ):
+        raise LoosefitInputError(
+            "generate", "prepare_workers", "an integer >= 1 (or None)", repr(prepare_workers)
+        )
     groups, frames_of = _units(config, todo, avatar, batch)
+    # longest first, so that no long clip starts last and runs alone
+    by_length = sorted(groups, key=lambda g: -frames_of[unit_name(g)])
+    prepared = None  # batches' motions, prepared on every core before the first batch
+    if batch > 1 and cluster is None and any(len(g) > 1 for g in groups):
+        processes = prepare_workers or os.cpu_count() or 1
+        prepared = _prepare(config, by_length, processes, progress)
     bar = _Progress(
         frames_of,
         tqdm(
@@ -116,8 +133,7 @@ def generate(
                 tqdm.write(f"flagged {job.name}: {entry['reason']}")
         write_json_atomic(out / "manifest.json", manifest)
 
-    # 3. Simulate them: longest first, so that no long clip starts last and runs alone.
-    by_length = sorted(groups, key=lambda g: -frames_of[unit_name(g)])
+    # 3. Simulate them.
     if cluster is not None:
         created = manifest.get("created", "")
         run_on_ray(
@@ -135,9 +151,12 @@ def generate(
         with one_torch_thread():  # in this process: its thread count is the caller's again
             worker = Worker.build(config, _Direct(bar.update))
             for group in groups:
-                record(group, worker.run(group, str(out), resume_every))
+                motions = None if prepared is None else prepared[unit_name(group)]
+                record(group, worker.run(group, str(out), resume_every, motions))
     else:
-        _run_in_pool(config, by_length, str(out), resume_every, workers, bar.update, record)
+        _run_in_pool(
+            config, by_length, str(out), resume_every, workers, bar.update, record, prepared
+        )
     bar.close()
     return _finish(jobs, manifest, out)
 
@@ -307,9 +326,11 @@ def _run_in_pool(
     workers: int,
     on_progress: Callable[[str, int, int], None],
     record: Callable[[list[Job], list[dict]], None],
+    prepared: dict[str, list] | None = None,
 ) -> None:
     """Simulate ``units`` in ``workers`` processes (:func:`~loosefit.sim.workers.serve`:
-    each builds its worker once), in order, recording each as it finishes.
+    each builds its worker once), in order, recording each as it finishes; ``prepared``:
+    each unit's motions by unit name, or None (each worker makes its own).
 
     Raises:
         whatever a worker raised (its error, or the pool broken by a process that died).
@@ -318,7 +339,8 @@ def _run_in_pool(
     with ctx.Manager() as manager:
         progress, todo, done = manager.Queue(), manager.Queue(), manager.Queue()
         for index, group in enumerate(units):
-            todo.put((index, group, out_dir, resume_every))
+            motions = None if prepared is None else prepared[unit_name(group)]
+            todo.put((index, group, out_dir, resume_every, motions))
         for _ in range(workers):
             todo.put(None)  # one stop for each worker
         with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
@@ -339,6 +361,24 @@ def _run_in_pool(
                 record(units[index], entries)
                 left -= 1
             _drain(progress, on_progress)
+
+
+def _prepare(
+    config: DatasetConfig, units: list[list[Job]], processes: int, progress: bool
+) -> dict[str, list]:
+    """Every unit's motions (:func:`~loosefit.sim.workers.prepare_motions`; ``units``
+    longest first, so their clips are), by unit name, with a progress bar over the clips."""
+    jobs = [j for g in units for j in g]
+    bar = tqdm(
+        total=len(jobs),
+        unit="clip",
+        desc=f"prepare the motions ({min(processes, len(jobs))} processes)",
+        disable=not progress,
+    )
+    motions = prepare_motions(config, jobs, processes, on_done=lambda job, motion: bar.update())
+    bar.close()
+    of = {j.name: m for j, m in zip(jobs, motions, strict=True)}
+    return {unit_name(g): [of[j.name] for j in g] for g in units}
 
 
 def _drain(progress, on_progress: Callable[[str, int, int], None]) -> None:

@@ -10,6 +10,11 @@ units and passed to them, so nothing is kept between runs in module state:
   worker and runs the units it takes from a queue until it takes ``None``;
 * as a Ray task (:mod:`loosefit.sim.cluster`): :func:`run_clips`, which builds the
   worker for its unit.
+
+Batched clips (a GPU's units) have their motions prepared first, every clip in parallel
+(:func:`prepare_motions`): the pose correction is CPU work of up to a tenth of a second a
+frame, which a worker running a batch would otherwise do for each of its clips in turn
+before the batch's first frame.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import contextlib
 import dataclasses
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -25,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from loosefit.data.format import write_sequence
+from loosefit.errors import LoosefitInputError
 from loosefit.sequence import AnimatedGarment
 from loosefit.sim.dataset_config import DatasetConfig, make_garment
 from loosefit.sim.driver import SimulationError, simulate_batch
@@ -97,14 +104,24 @@ class Worker:
             self.parts = limb_parts(self.config, self.avatar)
         return job_motion(self.config, job, self.avatar, parts=self.parts)
 
-    def run(self, jobs: list[Job], out_dir: str, resume_every: int = 50) -> list[dict]:
+    def run(
+        self,
+        jobs: list[Job],
+        out_dir: str,
+        resume_every: int = 50,
+        motions: list | None = None,
+    ) -> list[dict]:
         """Simulate clips together (one clip, or a batch: :func:`simulate_batch`) and write
         them; returns their manifest entries. The run saves its state in ``out_dir/resume``
         every ``resume_every`` frames and goes on from there when run again after a kill.
         A batch in which one clip diverges is run again clip by clip, so that only that clip
-        is flagged."""
+        is flagged. ``motions``: the jobs' motions as :meth:`motion` makes them, prepared
+        already (:func:`prepare_motions`); None: made here."""
         config, avatar, template, q = self.config, self.avatar, self.template, self.progress
-        motions = [self.motion(job) for job in jobs]
+        if motions is None:
+            motions = [self.motion(job) for job in jobs]
+        elif len(motions) != len(jobs):
+            raise ValueError(f"motions: expected {len(jobs)} (one a job), found {len(motions)}")
         name = unit_name(jobs)
         t0 = time.perf_counter()
 
@@ -131,7 +148,11 @@ class Worker:
             )
         except SimulationError as exc:
             if len(jobs) > 1:
-                return [e for job in jobs for e in self.run([job], out_dir, resume_every)]
+                return [
+                    e
+                    for job, motion in zip(jobs, motions, strict=True)
+                    for e in self.run([job], out_dir, resume_every, [motion])
+                ]
             elapsed = time.perf_counter() - t0
             return [clip_entry(config, jobs[0], motions[0], None, elapsed, str(exc))]
         for job, motion, result in zip(jobs, motions, results, strict=True):
@@ -150,13 +171,105 @@ class Worker:
 
 def serve(config: DatasetConfig, units, results, progress) -> None:
     """A pool process's loop: exit with the parent, build one :class:`Worker`, then run
-    each ``(index, jobs, out_dir, resume_every)`` taken from ``units`` until ``None``,
-    putting ``(index, entries)`` in ``results``. An error ends the loop and is raised to
-    whoever waits on this process's task."""
+    each ``(index, jobs, out_dir, resume_every, motions)`` taken from ``units`` until
+    ``None`` (``motions``: prepared, or None), putting ``(index, entries)`` in ``results``.
+    An error ends the loop and is raised to whoever waits on this process's task."""
     exit_with_parent()
     worker = Worker.build(config, progress)
-    for index, jobs, out_dir, resume_every in iter(units.get, None):
-        results.put((index, worker.run(jobs, out_dir, resume_every)))
+    for index, jobs, out_dir, resume_every, motions in iter(units.get, None):
+        results.put((index, worker.run(jobs, out_dir, resume_every, motions)))
+
+
+class _Preparer:
+    """What a process preparing motions builds once: the avatar and the body parts the pose
+    correction tests (no garment: it is not needed to prepare a motion)."""
+
+    def __init__(self, config: DatasetConfig) -> None:
+        from loosefit.body.avatar import Avatar, AvatarConfig
+
+        self.config = config
+        with one_torch_thread():  # as every worker builds it: the same avatar to the bit
+            self.avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
+        self.parts = None
+
+    def motion(self, job: Job):
+        """:meth:`Worker.motion` of ``job``, on one torch thread as a worker makes it."""
+        if self.parts is None and self.config.unfold.enabled:
+            self.parts = limb_parts(self.config, self.avatar)
+        with one_torch_thread():
+            return job_motion(self.config, job, self.avatar, parts=self.parts)
+
+
+def _serve_motions(config: DatasetConfig, jobs, results) -> None:
+    """A pool process's loop of :func:`prepare_motions`: each job index taken from ``jobs``
+    until ``None``, its motion put in ``results`` as ``(index, motion)``."""
+    exit_with_parent()
+    preparer = _Preparer(config)
+    for index, job in iter(jobs.get, None):
+        results.put((index, preparer.motion(job)))
+
+
+def prepare_motions(
+    config: DatasetConfig,
+    jobs: list[Job],
+    processes: int,
+    on_done: Callable[[Job, object], None] | None = None,
+) -> list:
+    """The motions ``jobs`` simulate, as :meth:`Worker.motion` makes them (loaded at the data
+    set's frame rate, pose-corrected), the same to the bit, made in ``processes`` processes
+    at once (one: in this one), in the order of ``jobs`` (put the longest first: the last to
+    start should not be the longest to finish).
+
+    Args:
+        on_done: called with each job and its motion as it is ready (a progress bar).
+
+    Returns:
+        The motions, in the order of ``jobs``.
+
+    Raises:
+        whatever preparing a motion raised (a missing file, a motion on other joints).
+    """
+    if not isinstance(processes, int) or processes < 1:
+        raise LoosefitInputError("prepare_motions", "processes", "an integer >= 1", repr(processes))
+    processes = min(processes, len(jobs))
+    motions: list = [None] * len(jobs)
+    if processes <= 1:
+        preparer = _Preparer(config) if jobs else None
+        for index, job in enumerate(jobs):
+            motions[index] = preparer.motion(job)
+            if on_done is not None:
+                on_done(job, motions[index])
+        return motions
+    import multiprocessing as mp
+    import queue
+    from concurrent.futures import ProcessPoolExecutor
+
+    ctx = mp.get_context("spawn")
+    with ctx.Manager() as manager:
+        todo, done = manager.Queue(), manager.Queue()
+        for index, job in enumerate(jobs):
+            todo.put((index, job))
+        for _ in range(processes):
+            todo.put(None)
+        with ProcessPoolExecutor(max_workers=processes, mp_context=ctx) as pool:
+            running = [pool.submit(_serve_motions, config, todo, done) for _ in range(processes)]
+            left = len(jobs)
+            while left:
+                try:
+                    index, motion = done.get(timeout=0.2)
+                except queue.Empty:
+                    for f in running:
+                        if f.done():
+                            f.result()  # a process's error, raised here
+                    if all(f.done() for f in running):
+                        left_over = f"the processes stopped with {left} motions left"
+                        raise RuntimeError(left_over) from None
+                    continue
+                motions[index] = motion
+                if on_done is not None:
+                    on_done(jobs[index], motion)
+                left -= 1
+    return motions
 
 
 def run_clips(
