@@ -117,3 +117,26 @@ def test_a_job_simulates_the_squat_of_60_02_turned_out_of_the_belly(avatar):
     captured = job_motion(config, job, avatar, unfold=False)
     assert "unfold" not in captured.meta and captured.num_frames == motion.num_frames
     assert not np.array_equal(captured.rotations, motion.rotations)
+
+
+def test_the_pose_correction_runs_on_the_simulation_s_device(avatar, monkeypatch):
+    """A data set simulated on a GPU corrects its poses there too (the correction's queries
+    are most of a clip's preparation on the CPU)."""
+    import dataclasses
+
+    import loosefit.body.unfold as unfold
+
+    seen = []
+    real = unfold.unfold_motion
+
+    def spy(*args, device="cpu", **kwargs):
+        seen.append(device)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(unfold, "unfold_motion", spy)
+    config = preset("tiny")
+    job = plan_jobs(config)[0]
+    job_motion(config, job, avatar)
+    gpu = dataclasses.replace(config, cloth=dataclasses.replace(config.cloth, device="cuda:0"))
+    job_motion(gpu, job, avatar)
+    assert seen == ["cpu", "cuda:0"]

@@ -59,3 +59,38 @@ def test_a_data_set_made_before_flattening_was_made_without_it(tmp_path):
     del stored["cloth"]["flatten_overlaps"]
     assert stored_config({"config": stored})["cloth"]["flatten_overlaps"] is False
     assert preset("salsa").cloth.flatten_overlaps is True  # new data: the fix
+
+
+def test_each_frame_s_search_starts_from_the_last_and_finds_the_same(avatar, parts, monkeypatch):
+    """Frame after frame a limb's queries start from the faces the last frame found: the
+    same collider as searching afresh, on the device it is given."""
+    import loosefit.sim.overlap as overlap
+
+    rest = avatar.rest_vertices.float().cpu().numpy()
+    leg = parts.limb_vertices["left leg"]
+    frames = []
+    for dx in (0.0, -0.04, -0.08, -0.1, -0.06):  # the left thigh into the right and out
+        pose = rest.copy()
+        pose[leg] += np.array([dx, 0.0, 0.0], np.float32)
+        frames.append(pose)
+    body = np.stack(frames)
+    hinted = flatten_overlaps(body, parts)
+
+    real, hints, devices = Surface.query, [], []
+
+    class Fresh(Surface):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            devices.append(self.device)
+
+        def query(self, queries, *args, hint=None, **kwargs):
+            hints.append(hint is not None)
+            return real(self, queries, *args, **kwargs)  # no hint: the whole search
+
+    monkeypatch.setattr(overlap, "Surface", Fresh)
+    fresh = flatten_overlaps(body, parts, device="cpu")
+    assert any(hints) and devices == ["cpu"] * len(devices) and devices
+    assert hinted.moved.sum() > 0
+    np.testing.assert_array_equal(hinted.vertices, fresh.vertices)
+    np.testing.assert_array_equal(hinted.depth, fresh.depth)
+    np.testing.assert_array_equal(hinted.moved, fresh.moved)

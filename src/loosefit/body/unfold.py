@@ -144,13 +144,16 @@ class LimbTest:
     """Signed distances of a limb's skin to the rest of the body (the collider with the limb
     cut away and capped), without the band where the limb joins the body.
 
+    Args:
+        device: warp device of the queries ("cpu", "cuda:0").
+
     Attributes:
         tested: (n,) int64 body vertices tested.
     """
 
-    def __init__(self, parts: BodyParts, limb: str, rest: np.ndarray) -> None:
+    def __init__(self, parts: BodyParts, limb: str, rest: np.ndarray, device: str = "cpu") -> None:
         tested, _ = parts.tested_vertices(limb)
-        self.surface = Surface(rest, parts.limb_faces[limb])
+        self.surface = Surface(rest, parts.limb_faces[limb], device)
         self.tested = tested
         self._hint: np.ndarray | None = None  # each tested vertex's closest face last time
         sd, _ = self.signed(rest)
@@ -266,7 +269,11 @@ def same_correction(
 
 
 def unfold_motion(
-    avatar, motion: Motion, parts: BodyParts, config: UnfoldConfig | None = None
+    avatar,
+    motion: Motion,
+    parts: BodyParts,
+    config: UnfoldConfig | None = None,
+    device: str = "cpu",
 ) -> Unfolded:
     """Turn every colliding limb that is inside the rest of the body out of it, at most
     ``config.max_degrees`` at its root joint (more in a motion with deep folds:
@@ -278,6 +285,8 @@ def unfold_motion(
         parts: the body's limbs (:func:`~loosefit.body.regions.body_parts` with the
             simulation's arms): the limbs the cloth collides with are tested.
         config: how (default :class:`UnfoldConfig`).
+        device: warp device of its closest-point queries, most of its time ("cpu",
+            "cuda:0": the simulation's, so that a GPU's data set run does not wait on it).
 
     Returns:
         The :class:`Unfolded` motion. Only the frames where a limb is inside the rest of the
@@ -307,7 +316,7 @@ def unfold_motion(
             raise LoosefitInputError(
                 "unfold_motion", "parts", f"limbs among {list(LIMB_ROOTS)}", repr(limb)
             )
-        tests[limb] = LimbTest(parts, limb, rest)
+        tests[limb] = LimbTest(parts, limb, rest, device)
         folds[limb] = fold_depths(tests[limb], body)
         depth_before = np.maximum(depth_before, folds[limb][0])
     cap = math.radians(motion_cap(config, {k: d.max(initial=0.0) for k, (d, _) in folds.items()}))

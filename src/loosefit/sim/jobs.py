@@ -118,8 +118,9 @@ def job_motion(
 ) -> Motion:
     """The motion a job simulates, on ``avatar``'s skeleton at the dataset's frame rate:
     with ``unfold`` (and ``config.unfold.enabled``) the poses that fold into the body
-    turned out of it (:func:`~loosefit.body.unfold.unfold_motion`; the correction's
-    figures in ``motion.meta["unfold"]``); without, as loaded (the same frame count).
+    turned out of it (:func:`~loosefit.body.unfold.unfold_motion`, its queries on the
+    simulation's device, ``config.cloth.device``; the correction's figures in
+    ``motion.meta["unfold"]``); without, as loaded (the same frame count).
 
     Args:
         parts: the body parts the pose correction tests (:func:`limb_parts`); built here
@@ -141,7 +142,7 @@ def job_motion(
     from loosefit.body.unfold import unfold_motion
 
     parts = parts if parts is not None else limb_parts(config, avatar)
-    done = unfold_motion(avatar, motion, parts, config.unfold)
+    done = unfold_motion(avatar, motion, parts, config.unfold, device=config.cloth.device)
     done.motion.meta["unfold"] = done.stats()
     return done.motion
 

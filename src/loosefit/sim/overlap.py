@@ -42,7 +42,9 @@ class Flattened:
     depth: np.ndarray
 
 
-def flatten_overlaps(body: np.ndarray, parts: BodyParts, inset: float = 0.002) -> Flattened:
+def flatten_overlaps(
+    body: np.ndarray, parts: BodyParts, inset: float = 0.002, device: str = "cpu"
+) -> Flattened:
     """Press every colliding limb's vertices that lie inside the rest of the body onto it.
 
     Args:
@@ -51,6 +53,8 @@ def flatten_overlaps(body: np.ndarray, parts: BodyParts, inset: float = 0.002) -
             (:func:`~loosefit.body.regions.body_parts` with the simulation's arms).
         inset: metres; a pressed vertex stops this far inside the rest's surface
             (negative: this far outside it).
+        device: warp device of the closest-point queries ("cpu", "cuda:0": a simulation
+            on a GPU keeps this CPU work off its critical path).
 
     Returns:
         The :class:`Flattened` body: a vertex less deep than ``inset`` is left where it
@@ -62,13 +66,15 @@ def flatten_overlaps(body: np.ndarray, parts: BodyParts, inset: float = 0.002) -
     moved = np.zeros(T, np.int64)
     depth = np.zeros(T)
     limbs = [limb for limb in parts.limb_vertices if parts.limb_collides[limb]]
-    surfaces = {limb: Surface(body[0], parts.limb_faces[limb]) for limb in limbs}
+    surfaces = {limb: Surface(body[0], parts.limb_faces[limb], device) for limb in limbs}
+    tested = {limb: parts.tested_vertices(limb)[0] for limb in limbs}
+    hints: dict[str, np.ndarray] = {}  # each limb's closest faces last frame: found sooner
     for t in range(T):
         for limb in limbs:  # in order: a limb meets the others as already pressed
-            tested, _ = parts.tested_vertices(limb)
             surface = surfaces[limb]
             surface.refit(out[t])
-            hit = surface.query(out[t, tested])
+            hit = surface.query(out[t, tested[limb]], hint=hints.get(limb))
+            hints[limb] = hit.faces
             buried = hit.inside & (hit.faces >= 0)
             if not buried.any():
                 continue
@@ -77,7 +83,7 @@ def flatten_overlaps(body: np.ndarray, parts: BodyParts, inset: float = 0.002) -
             deep = d > max(inset, 1e-9)  # (a negative inset also moves the shallowest)
             if not deep.any():
                 continue
-            idx = tested[buried][deep]
+            idx = tested[limb][buried][deep]
             v, p, dd = out[t, idx], hit.points[buried][deep], d[deep, None]
             out[t, idx] = v + (p - v) * ((dd - inset) / dd)
             moved[t] += len(idx)

@@ -131,7 +131,9 @@ def timeline(
     if config.flatten_overlaps:
         from loosefit.sim.overlap import flatten_overlaps
 
-        flat = flatten_overlaps(body, parts or collider_parts(avatar, config), config.overlap_inset)
+        flat = flatten_overlaps(
+            body, parts or collider_parts(avatar, config), config.overlap_inset, config.device
+        )
         collider, pressed, overlap = flat.vertices, flat.moved, flat.depth
     return Timeline(body, collider, pressed, overlap, n_settle, len(pre_rot), root_pose)
 
