@@ -144,8 +144,8 @@ def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
 
 def test_clips_simulated_in_a_batch_are_the_same_data_set(tiny_dataset, tmp_path, monkeypatch):
     """``batch=2``: both clips as two worlds of one model, written and judged one by one;
-    their motions prepared before the batch (tests/sim/test_workers.py: in other
-    processes, the same to the bit)."""
+    their motions prepared in other processes before the batch, the same to the bit as a
+    worker's own, and handed to a pool of simulation workers."""
     import loosefit.sim.generate as gen
 
     out, single = tiny_dataset
@@ -157,17 +157,17 @@ def test_clips_simulated_in_a_batch_are_the_same_data_set(tiny_dataset, tmp_path
         return real(config, jobs, processes, on_done)
 
     monkeypatch.setattr(gen, "prepare_motions", spy)
-    manifest = generate(preset("tiny"), tmp_path / "b", workers=1, progress=False,
-                            batch=2, prepare_workers=1)  # fmt: skip
+    manifest = generate(preset("tiny"), tmp_path / "b", workers=2, progress=False,
+                            batch=2, prepare_workers=2)  # fmt: skip
     assert [sorted(names) for names, _ in prepared] == [["kick_000", "spin_001"]]
-    assert prepared[0][1] == 1
+    assert prepared[0][1] == 2
     assert manifest["complete"] and manifest["split"] == single["split"]
     reader, alone = DatasetReader(tmp_path / "b"), DatasetReader(out)
     for name, entry in manifest["sequences"].items():
         assert entry["status"] == "done" and entry["batch"] == 2
-        np.testing.assert_array_equal(  # the motion each clip was simulated with: the same
-            reader.read(name).motion.rotations, alone.read(name).motion.rotations
-        )
+        got, want = reader.read(name).motion, alone.read(name).motion  # what was simulated
+        np.testing.assert_array_equal(got.rotations, want.rotations)
+        np.testing.assert_array_equal(got.root_translation, want.root_translation)
         got, want = reader.read(name).garment_vertices, alone.read(name).garment_vertices
         assert got.shape == want.shape and np.isfinite(got).all()
         # the same clip, up to the other world's rounding (see tests/sim/test_cloth.py)

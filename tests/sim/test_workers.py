@@ -33,28 +33,27 @@ def test_the_data_set_s_garment_is_the_workers_whatever_the_caller_s_threads():
         torch.set_num_threads(threads)
 
 
-def test_motions_prepared_in_other_processes_are_the_workers_own_to_the_bit():
-    """A batch's motions are prepared on every core first (``prepare_motions``): loaded and
-    pose-corrected as the worker that simulates them would, the same to the bit."""
+def test_motions_prepared_ahead_are_the_workers_own_to_the_bit():
+    """A batch's motions are prepared before the batch (``prepare_motions``; in other
+    processes: tests/sim/test_generate.py's batch): loaded and pose-corrected as the worker
+    that simulates them would, the same to the bit."""
     import pytest
 
     from loosefit.errors import LoosefitInputError
     from loosefit.sim.jobs import Job, plan_jobs
 
     config = preset("tiny")
-    jobs = plan_jobs(config)[:3]
+    jobs = plan_jobs(config)[:2]
     worker = workers.Worker.build(config)
-    own = [worker.motion(job) for job in jobs]
     seen = []
-    pooled = workers.prepare_motions(config, jobs, 2, on_done=lambda j, m: seen.append(j.name))
-    assert sorted(seen) == sorted(j.name for j in jobs)
-    for a, b in zip(own, pooled, strict=True):
-        assert a.name == b.name and a.fps == b.fps and a.joint_names == b.joint_names
-        np.testing.assert_array_equal(a.rotations, b.rotations)
-        np.testing.assert_array_equal(a.root_translation, b.root_translation)
-        assert a.meta == b.meta  # the pose correction's own figures
-    here = workers.prepare_motions(config, jobs[:1], 1)
-    np.testing.assert_array_equal(here[0].rotations, own[0].rotations)
+    ahead = workers.prepare_motions(config, jobs, 1, on_done=lambda j, m: seen.append(j.name))
+    assert seen == [j.name for j in jobs]
+    for job, got in zip(jobs, ahead, strict=True):
+        want = worker.motion(job)
+        assert got.name == want.name and got.fps == want.fps
+        np.testing.assert_array_equal(got.rotations, want.rotations)
+        np.testing.assert_array_equal(got.root_translation, want.root_translation)
+        assert got.meta == want.meta  # the pose correction's own figures
     with pytest.raises(LoosefitInputError, match="processes"):
         workers.prepare_motions(config, jobs, 0)
     # a clip that cannot be prepared stops the run with its own error

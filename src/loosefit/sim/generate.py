@@ -16,11 +16,9 @@ report (:mod:`~loosefit.sim.report`).
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import os
 import queue
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from tqdm import tqdm
@@ -32,7 +30,13 @@ from loosefit.sim.dataset_config import DatasetConfig, make_garment
 from loosefit.sim.jobs import Job, job_motion, plan_jobs, unit_name
 from loosefit.sim.manifest import adopt_clips, open_manifest, recheck_release, recheck_unfold
 from loosefit.sim.report import summarize
-from loosefit.sim.workers import Worker, one_torch_thread, prepare_motions, serve
+from loosefit.sim.workers import (
+    Worker,
+    one_torch_thread,
+    prepare_motions,
+    run_in_processes,
+    serve,
+)
 
 __all__ = ["generate"]
 
@@ -335,32 +339,18 @@ def _run_in_pool(
     Raises:
         whatever a worker raised (its error, or the pool broken by a process that died).
     """
-    ctx = mp.get_context("spawn")
-    with ctx.Manager() as manager:
-        progress, todo, done = manager.Queue(), manager.Queue(), manager.Queue()
-        for index, group in enumerate(units):
-            motions = None if prepared is None else prepared[unit_name(group)]
-            todo.put((index, group, out_dir, resume_every, motions))
-        for _ in range(workers):
-            todo.put(None)  # one stop for each worker
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            running = [pool.submit(serve, config, todo, done, progress) for _ in range(workers)]
-            left = len(units)
-            while left:
-                _drain(progress, on_progress)
-                try:
-                    index, entries = done.get(timeout=0.2)
-                except queue.Empty:
-                    for f in running:
-                        if f.done():
-                            f.result()  # a worker's error, raised here
-                    if all(f.done() for f in running):
-                        raise RuntimeError(f"the workers stopped with {left} units left") from None
-                    continue
-                _drain(progress, on_progress)
-                record(units[index], entries)
-                left -= 1
-            _drain(progress, on_progress)
+    tasks = [
+        (group, out_dir, resume_every, None if prepared is None else prepared[unit_name(group)])
+        for group in units
+    ]
+    run_in_processes(
+        serve,
+        (config,),
+        tasks,
+        workers,
+        on_result=lambda index, entries: record(units[index], entries),
+        on_wait=lambda progress: _drain(progress, on_progress),
+    )
 
 
 def _prepare(

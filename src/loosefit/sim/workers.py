@@ -240,6 +240,35 @@ def prepare_motions(
             if on_done is not None:
                 on_done(job, motions[index])
         return motions
+
+    def take(index: int, motion) -> None:
+        motions[index] = motion
+        if on_done is not None:
+            on_done(jobs[index], motion)
+
+    run_in_processes(_serve_motions, (config,), [(job,) for job in jobs], processes, take)
+    return motions
+
+
+def run_in_processes(
+    target: Callable,
+    args: tuple,
+    tasks: list[tuple],
+    processes: int,
+    on_result: Callable[[int, object], None],
+    on_wait: Callable[[object], None] | None = None,
+) -> None:
+    """Run ``target(*args, todo, done, side)`` in ``processes`` spawned processes (spawned:
+    a parent with CUDA open cannot fork), each a loop that takes ``(index, *task)`` from
+    ``todo`` until ``None`` and puts ``(index, result)`` in ``done``; ``on_result(index,
+    result)`` is called here as each finishes. ``side`` is one more queue of the same
+    manager (a progress queue), handed to ``on_wait`` whenever this loop waits and at the
+    end (None: the processes do not get one).
+
+    Raises:
+        whatever a process raised (its error, or the pool broken by a process that died);
+        RuntimeError if they all stopped with tasks left.
+    """
     import multiprocessing as mp
     import queue
     from concurrent.futures import ProcessPoolExecutor
@@ -247,29 +276,34 @@ def prepare_motions(
     ctx = mp.get_context("spawn")
     with ctx.Manager() as manager:
         todo, done = manager.Queue(), manager.Queue()
-        for index, job in enumerate(jobs):
-            todo.put((index, job))
+        side = (manager.Queue(),) if on_wait is not None else ()
+        for index, task in enumerate(tasks):
+            todo.put((index, *task))
         for _ in range(processes):
-            todo.put(None)
+            todo.put(None)  # one stop for each process
         with ProcessPoolExecutor(max_workers=processes, mp_context=ctx) as pool:
-            running = [pool.submit(_serve_motions, config, todo, done) for _ in range(processes)]
-            left = len(jobs)
+            running = [pool.submit(target, *args, todo, done, *side) for _ in range(processes)]
+            left = len(tasks)
             while left:
+                if on_wait is not None:
+                    on_wait(*side)
                 try:
-                    index, motion = done.get(timeout=0.2)
+                    index, result = done.get(timeout=0.2)
                 except queue.Empty:
                     for f in running:
                         if f.done():
                             f.result()  # a process's error, raised here
                     if all(f.done() for f in running):
-                        left_over = f"the processes stopped with {left} motions left"
-                        raise RuntimeError(left_over) from None
+                        raise RuntimeError(
+                            f"the processes stopped with {left} tasks left"
+                        ) from None
                     continue
-                motions[index] = motion
-                if on_done is not None:
-                    on_done(jobs[index], motion)
+                if on_wait is not None:
+                    on_wait(*side)
+                on_result(index, result)
                 left -= 1
-    return motions
+            if on_wait is not None:
+                on_wait(*side)
 
 
 def run_clips(
