@@ -101,16 +101,7 @@ def generate(
     todo = [j for j in jobs if j.name not in done]
     if todo:  # (a finished data set made before the drape was recorded is left as it is)
         _rest_drape(config, out, avatar, template)
-    if not (isinstance(batch, int) and batch >= 1):
-        raise LoosefitInputError("generate", "batch", "an integer >= 1", repr(batch))
-    if not (isinstance(resume_every, int) and resume_every >= 1):
-        raise LoosefitInputError("generate", "resume_every", "an integer >= 1", repr(resume_every))
-    if prepare_workers is not None and not (
-        isinstance(prepare_workers, int) and prepare_workers >= 1
-    ):
-        raise LoosefitInputError(
-            "generate", "prepare_workers", "an integer >= 1 (or None)", repr(prepare_workers)
-        )
+    _check_counts(batch=batch, resume_every=resume_every, prepare_workers=prepare_workers)
     groups, frames_of = _units(config, todo, avatar, batch)
     # longest first, so that no long clip starts last and runs alone
     by_length = sorted(groups, key=lambda g: -frames_of[unit_name(g)])
@@ -163,6 +154,16 @@ def generate(
         )
     bar.close()
     return _finish(jobs, manifest, out)
+
+
+def _check_counts(**counts: int | None) -> None:
+    """Each of ``generate``'s counts an integer >= 1 (``prepare_workers`` may be None)."""
+    for name, value in counts.items():
+        if value is None and name == "prepare_workers":
+            continue
+        if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+            expected = "an integer >= 1" + (" (or None)" if name == "prepare_workers" else "")
+            raise LoosefitInputError("generate", name, expected, repr(value))
 
 
 def _body_and_garment(config: DatasetConfig, out: Path, manifest: dict):
