@@ -273,6 +273,8 @@ def sim_speed(args: argparse.Namespace) -> int:
         cmd = [*cli, "--config", str(config), "--out", str(data), "--device", args.device,
                "--batch", str(args.corpus_batch),
                "--workers", str(args.corpus_workers)]  # fmt: skip
+        if args.corpus_prepare_workers > 0:
+            cmd += ["--prepare-workers", str(args.corpus_prepare_workers)]
         print(f"[{time.strftime('%H:%M:%S')}] corpus: {' '.join(cmd)}", flush=True)
         with open(out / "corpus.log", "w") as log:
             try:
@@ -500,6 +502,8 @@ def main() -> int:
     p.add_argument("--corpus-budget", type=float, default=240.0, help="0: no corpus run")
     p.add_argument("--corpus-batch", type=int, default=16)
     p.add_argument("--corpus-workers", type=int, default=2)
+    p.add_argument("--corpus-prepare-workers", type=int, default=0,
+                   help="processes preparing the corpus's motions (0: every core)")  # fmt: skip
     p.add_argument("--batches", default="1,8,32,64")
     p.add_argument("--frames", type=int, default=40)
     p.add_argument("--clips", type=int, default=8, help="distinct clips of the table")

@@ -76,7 +76,8 @@ def test_the_simulator_s_speed_call_runs_the_corpus_and_the_table(tmp_path):
     work, out = tmp_path / "work", tmp_path / "out"
     cmd = [sys.executable, str(SCRIPT), "sim-speed", "--tiny", "--device", "cpu", "--work",
            str(work), "--out", str(out), "--budget", "600", "--corpus-budget", "300",
-           "--corpus-batch", "2", "--corpus-workers", "1", "--batches", "1,2", "--frames", "2",
+           "--corpus-batch", "2", "--corpus-workers", "1", "--corpus-prepare-workers", "1",
+           "--batches", "1,2", "--frames", "2",
            "--clips", "1", "--capture", "on", "--set", "settle_once=true"]  # fmt: skip
     call = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert call.returncode == 0, call.stdout[-3000:] + call.stderr[-3000:]

@@ -79,6 +79,7 @@ def generate(
     Returns:
         The final manifest (also written to ``out_dir/manifest.json``).
     """
+    _check_counts(batch=batch, resume_every=resume_every, prepare_workers=prepare_workers)
     if cluster is not None:  # no ray, or no cluster at the address: now, before any work
         preflight(cluster)
     out = Path(out_dir)
@@ -101,7 +102,6 @@ def generate(
     todo = [j for j in jobs if j.name not in done]
     if todo:  # (a finished data set made before the drape was recorded is left as it is)
         _rest_drape(config, out, avatar, template)
-    _check_counts(batch=batch, resume_every=resume_every, prepare_workers=prepare_workers)
     groups, frames_of = _units(config, todo, avatar, batch)
     # longest first, so that no long clip starts last and runs alone
     by_length = sorted(groups, key=lambda g: -frames_of[unit_name(g)])
