@@ -42,7 +42,6 @@ preset made of them.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import platform
@@ -59,22 +58,6 @@ LIMITS = ("cap", "body 1 cm", "cloth")
 def truncation_cap(cloth) -> float:
     """m: the farthest Newton's VBD moves a cloth vertex in one substep with self-contact."""
     return 0.85 * (cloth.self_contact_margin + cloth.self_contact_gap)
-
-
-def load_motion(path: Path):
-    """The motion a data set's sequence was simulated with, and its recorded cloth
-    (T, V, 3)."""
-    from loosefit.types import Motion
-
-    with np.load(path) as d:
-        motion = Motion(
-            tuple(str(n) for n in d["joint_names"]),
-            d["rotations"],
-            d["root_translation"],
-            float(d["fps"]),
-            str(d["motion_name"]),
-        )
-        return motion, d["garment_vertices"]
 
 
 def demands(avatar, template, motion, garment: np.ndarray, cloth) -> dict[str, np.ndarray]:
@@ -106,33 +89,18 @@ def substep_costs(worker, motion, cloth, frames: int) -> dict:
     """F (s a substep, outside the iterations) and I (s an iteration) from a profiled run."""
     import sim_profile as sp
 
-    import loosefit.sim.driver as driver
-
-    short = dataclasses.replace(cloth, settle_seconds=0.0, blend_seconds=0.0, capture=False)
-    driver.simulate_batch(worker.avatar, worker.template, [motion.slice(0, 2)], short)  # compile
-    run = dataclasses.replace(cloth, capture=False)
-    timer, kernels = sp.Timer(), sp.Timer()
-    sp.instrument(timer, kernels)
-    t0 = time.perf_counter()
-    try:
-        (res,) = driver.simulate_batch(
-            worker.avatar, worker.template, [motion.slice(0, frames)], run
-        )
-    finally:
-        timer.restore()
-        kernels.restore()
-    wall = time.perf_counter() - t0
+    res, timer, _, wall = sp.profiled_run(
+        worker.avatar, worker.template, motion.slice(0, frames), cloth
+    )
     once = sum(timer.self_[k] for k in sp.ONCE.values())
     steps = res.preroll_frames + frames - 1
     substeps = res.stats["substeps_mean"] * steps
     iterations = timer.calls["solver: VBD iterations"]
     it_seconds = timer.self_["solver: VBD iterations"]
     loop = wall - once
-    I = it_seconds / iterations
-    F = (loop - it_seconds) / substeps
     return {
-        "F": F,
-        "I": I,
+        "F": (loop - it_seconds) / substeps,
+        "I": it_seconds / iterations,
         "frames": steps,
         "substeps": substeps / steps,
         "iterations": iterations / substeps,
@@ -221,34 +189,34 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--json", default="", help="a JSON file for the figures")
     args = p.parse_args(argv)
 
+    from loosefit.data.format import DatasetReader
     from loosefit.sim.presets import preset
     from loosefit.sim.workers import Worker
 
-    data = Path(args.data)
-    manifest = data / "manifest.json"
-    if not manifest.is_file():
+    if not (Path(args.data) / "manifest.json").is_file():
         raise SystemExit(
-            f"{manifest}: not found; unpack the corpus first: python3 "
+            f"{args.data}: no data set; unpack the corpus first: python3 "
             "../shared/datasets/lfz.py unpack ../shared/datasets/dance.lfz. datasets/dance"
         )
+    reader = DatasetReader(args.data)
     torch.set_num_threads(1)
     config = preset(args.preset)
     cloth = config.cloth
     worker = Worker.build(config)
-    sequences = json.loads(manifest.read_text())["sequences"]
+    sequences = reader.manifest["sequences"]
     names = args.clips.split(",") if args.clips else sorted(sequences)
     for name in names:
         if name not in sequences:
-            raise SystemExit(f"{manifest}: no sequence {name!r} (it has {', '.join(sequences)})")
+            raise SystemExit(f"{args.data}: no sequence {name!r} (it has {', '.join(sequences)})")
 
     clips = []
     t0 = time.perf_counter()
     for n, name in enumerate(names):
-        motion, garment = load_motion(data / "sequences" / f"{name}.npz")
-        need = demands(worker.avatar, worker.template, motion, garment, cloth)
+        seq = reader.read(name)
+        need = demands(worker.avatar, worker.template, seq.motion, seq.garment_vertices, cloth)
         entry = {
             "clip": name,
-            "frames": motion.num_frames - 1,
+            "frames": seq.motion.num_frames - 1,
             "kept": sequences[name]["status"] != "flagged",
             "preset_substeps": float(sequences[name]["substeps_mean"]),
         }
@@ -263,7 +231,7 @@ def main(argv: list[str] | None = None) -> None:
             flush=True,
         )
 
-    motion, _ = load_motion(data / "sequences" / f"{args.profile_clip}.npz")
+    motion = reader.read(args.profile_clip).motion
     costs = substep_costs(worker, motion, cloth, args.profile_frames)
     costs["clip"] = args.profile_clip
     table = bound_table(clips, costs, cloth.iterations)

@@ -140,6 +140,28 @@ def instrument(timer: Timer, kernels: Timer) -> None:
     kernels.replace(wp, "launch", timed_launch)
 
 
+def profiled_run(avatar, template, motion, cloth, seeds=None):
+    """``motion`` simulated once with every phase and kernel timed (graph capture off),
+    after a short run outside the timing (warp compiles every kernel once per process).
+
+    Returns:
+        The clip's result, the phases' :class:`Timer`, the kernels' and the wall seconds.
+    """
+    short = dataclasses.replace(cloth, settle_seconds=0.0, blend_seconds=0.0)
+    driver.simulate_batch(avatar, template, [motion.slice(0, 2)], short, seeds=seeds)
+    timer, kernels = Timer(), Timer()
+    instrument(timer, kernels)
+    t0 = time.perf_counter()
+    try:
+        (result,) = driver.simulate_batch(
+            avatar, template, [motion], dataclasses.replace(cloth, capture=False), seeds=seeds
+        )
+    finally:
+        timer.restore()
+        kernels.restore()
+    return result, timer, kernels, time.perf_counter() - t0
+
+
 def profile_clip(worker: Worker, name: str, frames: int, cloth) -> dict:
     """One clip's first ``frames`` motion frames, profiled (capture off) and timed as
     configured."""
@@ -158,21 +180,7 @@ def profile_clip(worker: Worker, name: str, frames: int, cloth) -> dict:
     motion = whole.slice(0, frames)
     seeds = [jobs[name].seed]
     avatar, template = worker.avatar, worker.template
-    # warp compiles every kernel once per process: a short clip first, outside the timing
-    short = dataclasses.replace(cloth, settle_seconds=0.0, blend_seconds=0.0)
-    driver.simulate_batch(avatar, template, [motion.slice(0, 2)], short, seeds=seeds)
-
-    timer, kernels = Timer(), Timer()
-    instrument(timer, kernels)
-    t0 = time.perf_counter()
-    try:
-        (profiled,) = driver.simulate_batch(
-            avatar, template, [motion], dataclasses.replace(cloth, capture=False), seeds=seeds
-        )
-    finally:
-        timer.restore()
-        kernels.restore()
-    wall_profiled = time.perf_counter() - t0
+    profiled, timer, kernels, wall_profiled = profiled_run(avatar, template, motion, cloth, seeds)
     t0, c0 = time.perf_counter(), time.process_time()
     (plain,) = driver.simulate_batch(avatar, template, [motion], cloth, seeds=seeds)
     wall_plain, cpu_plain = time.perf_counter() - t0, time.process_time() - c0

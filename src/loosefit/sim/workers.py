@@ -82,21 +82,24 @@ class Worker:
 
     config: DatasetConfig  # the data set's configuration
     avatar: Avatar  # the body, with the data set's shape
-    template: GarmentTemplate  # the data set's garment, fitted to the avatar
+    # the data set's garment, fitted to the avatar (None: a worker that only prepares motions)
+    template: GarmentTemplate | None
     progress: object = None  # anything with put((name, frame, total)), or None
     # the body parts the pose correction tests (jobs.limb_parts), built for the first clip
     parts: BodyParts | None = None
 
     @classmethod
-    def build(cls, config: DatasetConfig, progress=None) -> Worker:
-        """Build the avatar and the garment on one torch thread (as every worker runs)."""
+    def build(cls, config: DatasetConfig, progress=None, garment: bool = True) -> Worker:
+        """Build the avatar and the garment (``garment`` False: none, for a worker that only
+        prepares motions) on one torch thread (as every worker runs)."""
         import torch
 
         from loosefit.body.avatar import Avatar, AvatarConfig
 
         torch.set_num_threads(1)
         avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
-        return cls(config, avatar, make_garment(config.garment, avatar), progress)
+        template = make_garment(config.garment, avatar) if garment else None
+        return cls(config, avatar, template, progress)
 
     def motion(self, job: Job):
         """The motion ``job`` simulates (:func:`~loosefit.sim.jobs.job_motion`)."""
@@ -180,33 +183,13 @@ def serve(config: DatasetConfig, units, results, progress) -> None:
         results.put((index, worker.run(jobs, out_dir, resume_every, motions)))
 
 
-class _Preparer:
-    """What a process preparing motions builds once: the avatar and the body parts the pose
-    correction tests (no garment: it is not needed to prepare a motion)."""
-
-    def __init__(self, config: DatasetConfig) -> None:
-        from loosefit.body.avatar import Avatar, AvatarConfig
-
-        self.config = config
-        with one_torch_thread():  # as every worker builds it: the same avatar to the bit
-            self.avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
-        self.parts = None
-
-    def motion(self, job: Job):
-        """:meth:`Worker.motion` of ``job``, on one torch thread as a worker makes it."""
-        if self.parts is None and self.config.unfold.enabled:
-            self.parts = limb_parts(self.config, self.avatar)
-        with one_torch_thread():
-            return job_motion(self.config, job, self.avatar, parts=self.parts)
-
-
 def _serve_motions(config: DatasetConfig, jobs, results) -> None:
     """A pool process's loop of :func:`prepare_motions`: each job index taken from ``jobs``
     until ``None``, its motion put in ``results`` as ``(index, motion)``."""
     exit_with_parent()
-    preparer = _Preparer(config)
+    worker = Worker.build(config, garment=False)
     for index, job in iter(jobs.get, None):
-        results.put((index, preparer.motion(job)))
+        results.put((index, worker.motion(job)))
 
 
 def prepare_motions(
@@ -234,11 +217,12 @@ def prepare_motions(
     processes = min(processes, len(jobs))
     motions: list = [None] * len(jobs)
     if processes <= 1:
-        preparer = _Preparer(config) if jobs else None
-        for index, job in enumerate(jobs):
-            motions[index] = preparer.motion(job)
-            if on_done is not None:
-                on_done(job, motions[index])
+        with one_torch_thread():  # as a worker process runs: the caller's threads given back
+            worker = Worker.build(config, garment=False) if jobs else None
+            for index, job in enumerate(jobs):
+                motions[index] = worker.motion(job)
+                if on_done is not None:
+                    on_done(job, motions[index])
         return motions
 
     def take(index: int, motion) -> None:
