@@ -18,6 +18,7 @@ game and studio rigs write it. Retargeting cannot lean on the zero pose there.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -86,6 +87,11 @@ class Convention:
             bone along its joint's own local axis at zero pose (see the module).
         orient_twist: degrees the joint orients turn each joint about its bone, times
             the joint's index (0: the smallest turn onto the axis).
+        start: (3,) metres, avatar axes: where the capture started, baked into the hips'
+            OFFSET below a root joint of no geometry of its own at the origin (studio
+            exports); None: the hips sit above that root at their height.
+        zero_offsets: every OFFSET and End Site written as zeros, each joint's bone in its
+            position channels (the skeleton's shape exists only in the frames).
     """
 
     name: str
@@ -99,6 +105,8 @@ class Convention:
     forward: str = "+z"
     bone_axis: str | None = None
     orient_twist: float = 0.0
+    start: tuple[float, float, float] | None = None
+    zero_offsets: bool = False
 
 
 CMU_MB = Convention("cmu_mb", {n: n for n in (
@@ -300,6 +308,9 @@ def write_convention_bvh(
 
     def emit(name, offset, rotations, positions, end, kids_fn, depth, keyword="JOINT"):
         pad = "  " * depth
+        if conv.zero_offsets:  # the bone lives in the position channels alone
+            offset = np.zeros(3)
+            end = None if end is None else np.zeros(3)
         lines.append(f"{pad}{keyword} {name}")
         lines.append(f"{pad}{{")
         lines.append(f"{pad}  OFFSET {' '.join(f'{v:.6f}' for v in offset)}")
@@ -323,11 +334,11 @@ def write_convention_bvh(
         q = src_parent[a]
         offset = in_frame(q, to_file(rest[j] - rest[names.index(q)])) if q else np.zeros(3)
         if a == "Hips" and root_extra:
-            offset = to_file(np.array([0, 0, floor_height]))
+            offset = to_file(np.array([0, 0, floor_height]) + (conv.start or 0.0))
         positions = None
         if a == "Hips":
-            positions = hips_pos
-        elif conv.six_channels:
+            positions = hips_pos + offset if conv.zero_offsets else hips_pos
+        elif conv.six_channels or conv.zero_offsets:
             positions = np.broadcast_to(offset, (T, 3))  # studio files repeat the offset
         mine = [e for e in conv.extras if e[1] == conv.joints[a]]
         leaf = a not in has_children
@@ -339,7 +350,8 @@ def write_convention_bvh(
             for name, _, bone in mine:
                 b = names.index(bone)
                 off = in_frame(a, to_file(A[b] @ (tails[b] - heads[b])))
-                pos = np.broadcast_to(off, (T, 3)) if conv.six_channels else None
+                six = conv.six_channels or conv.zero_offsets
+                pos = np.broadcast_to(off, (T, 3)) if six else None
                 emit(name, off, eye, pos, off * 0.5, lambda d: None, d)
 
         emit(conv.joints[a], offset, local[a], positions, end, kids_fn, depth, keyword)
@@ -368,3 +380,14 @@ def motion_error(avatar, want, got, joints) -> tuple[float, float]:
     d -= d.reshape(-1, 3).mean(0)
     err = np.linalg.norm(d, axis=-1)
     return float(err.mean()), float(err.max())
+
+# Studio exports as a whole data set writes them: the capture's start position baked
+# into the hips' OFFSET, metres from a root joint of no geometry at the origin.
+STUDIO_FAR = dataclasses.replace(STUDIO_X, name="studio-far", start=(6.5, -4.0, 0.0))
+# No OFFSETs at all: every joint's bone in its position channels, the shape in the frames.
+STUDIO_ZERO = dataclasses.replace(STUDIO_FAR, name="studio-zero", zero_offsets=True)
+MIXAMO_ZERO = dataclasses.replace(MIXAMO, name="mixamo-zero", zero_offsets=True)
+# Every rig convention the retargeting is held to: the named ones, and the studio rigs.
+ALL_CONVENTIONS = {
+    c.name: c for c in (*CONVENTIONS.values(), STUDIO_X, STUDIO_FAR, STUDIO_ZERO, MIXAMO_ZERO)
+}

@@ -119,11 +119,19 @@ def test_a_wrong_map_is_far_off(avatar, dance, tmp_path):
     conv = CONVENTIONS["mixamo"]
     clip = _write(tmp_path, "m.bvh", conv, avatar, dance)
     swapped = {a: s.replace("Left", "@").replace("Right", "Left").replace("@", "Right")
-               if "Arm" in a or "Hand" in a else s for a, s in conv.joints.items()}  # fmt: skip
+               if "Arm" in a or "Hand" in a or "Shoulder" in a else s
+               for a, s in conv.joints.items()}  # fmt: skip
     path = tmp_path / "swapped.yaml"
     path.write_text("".join(f"{a}: '{s}'\n" for a, s in swapped.items()))
     cfg = RetargetConfig(fps=None, joint_map=str(path))
     assert _retarget_error(avatar, dance, conv, clip, cfg)[0] > 5 * CM
+    # Only the arms below the collars swapped: the map cannot be this skeleton's.
+    half = {a: s.replace("Left", "@").replace("Right", "Left").replace("@", "Right")
+            if "Arm" in a or "Hand" in a else s for a, s in conv.joints.items()}  # fmt: skip
+    path.write_text("".join(f"{a}: '{s}'\n" for a, s in half.items()))
+    with pytest.raises(LoosefitInputError, match=r"swapped\.yaml.*'LeftArm'.*not below "
+                       r"LeftShoulder 'mixamorig:LeftShoulder'"):  # fmt: skip
+        resolve_joint_map(clip, cfg)
 
 
 def test_a_skeleton_with_made_up_names_and_z_up_maps_with_a_file(avatar, dance, tmp_path):
@@ -136,7 +144,8 @@ def test_a_skeleton_with_made_up_names_and_z_up_maps_with_a_file(avatar, dance, 
     text = str(err.value)
     assert "z.bvh" in text and "--joint-map" in text and "LeftUpLeg: my_thigh_L" in text
     # ... after the zero pose, on the frames too; with the command that writes a map.
-    assert "tried the zero pose, then frames [0, 45, 22, 67]" in text
+    assert "in the frames or the zero pose (LeftUpLeg: no joint named like" in text
+    assert "of the frames tried ([0, 45, 22, 67]), the closest: pelvis" in text
     assert "loosefit inspect-motion z.bvh --write-joint-map my_map.yaml" in text
     # A YAML file: joints and axes.
     path = tmp_path / "map.yaml"
@@ -218,7 +227,7 @@ def test_map_file_errors_name_the_file_and_the_key(tmp_path):
         "nohips.yaml": ("LeftUpLeg: thigh\n", r"nohips\.yaml.*'Hips'"),
         "axis.yaml": ("Hips: pelvis\nsource_up: up\n", r"axis\.yaml.*'source_up'"),
         "align.yaml": ("Hips: pelvis\nalign: [LeftArm]\n", r"align\.yaml.*'align'"),
-        "twice.yaml": ("Hips: pelvis\nLeftUpLeg: pelvis\n", r"twice\.yaml.*mapped twice"),
+        "twice.yaml": ("Hips: pelvis\nLeftUpLeg: pelvis\n", r"twice\.yaml.*Hips and LeftUpLeg both mapped to 'pelvis'"),
         "bad.toml": ("Hips = \n", r"bad\.toml.*valid TOML"),
     }
     for file, (text, pattern) in cases.items():

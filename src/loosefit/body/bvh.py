@@ -63,7 +63,9 @@ class BvhClip:
         joint_names: J joint names in file order (parents before children);
             End Sites are not joints.
         parents: (J,) int64 parent indices, -1 for the root.
-        offsets: (J, 3) float32 OFFSET of each joint from its parent, metres.
+        offsets: (J, 3) float32 OFFSET of each joint from its parent, metres; a joint
+            whose OFFSET is zero and whose position channels carry its bone (a rig whose
+            shape exists only in its frames) has the channels' median over the frames.
         channels: per joint, the channel names in file order, e.g.
             ``("Zrotation", "Xrotation", "Yrotation")``.
         end_offsets: End Site offsets, metres, keyed by the index of the joint
@@ -74,7 +76,8 @@ class BvhClip:
             parent's frame, metres: the offset combined with any position channels.
         frame_time: seconds per frame, as written in the file.
         units_scale: the factor that took the file's lengths to metres.
-        meta: free-form notes for later stages (empty when read).
+        meta: free-form notes for later stages; when read, ``bones_from_frames`` lists
+            the joints whose offsets came from their position channels (if any).
     """
 
     path: Path
@@ -337,6 +340,15 @@ def _parse_hierarchy(path: Path, lines: list[str]) -> _Skeleton:
                 "balanced braces: nothing after the ROOT joint's closing '}'",
                 f"an extra '}}' on line {cur.lineno()}",
             )
+        if tok == "ROOT":
+            second = " ".join(cur.lines[cur.i][cur.k + 1 :]).rstrip("{ ")
+            raise LoosefitInputError(
+                path,
+                "ROOT",
+                f"one ROOT per file (the skeleton under ROOT '{skel.names[0]}')",
+                f"a second ROOT {second!r} on line {cur.lineno()}",
+                hint="a file with two skeletons: keep the dancer's and remove the other",
+            )
         raise LoosefitInputError(
             path,
             "MOTION",
@@ -450,15 +462,39 @@ def _parse_frames(
 # --------------------------------------------------------------------------- reading
 
 
+def _body_joints(parents: np.ndarray) -> list[int]:
+    """The joints of the body: the subtree of the first joint that branches (a root joint
+    of no geometry of its own above the hips, and the joints on its way down, left out);
+    every joint when none branches."""
+    kids: dict[int, list[int]] = {}
+    for j, p in enumerate(parents):
+        kids.setdefault(int(p), []).append(j)
+    top = kids.get(-1, [0])[0]
+    while len(kids.get(top, [])) == 1:
+        top = kids[top][0]
+    if not kids.get(top):  # a chain: no joint branches, all of it is the body
+        return list(range(len(parents)))
+    body, stack = [], [top]
+    while stack:
+        j = stack.pop()
+        body.append(j)
+        stack += kids.get(j, [])
+    return sorted(body)
+
+
 def _units_scale(
     path: Path, offsets: np.ndarray, end_offsets: dict, parents: list[int], units: str
 ) -> float:
+    """Metres per file unit: the given unit's, or for "auto" guessed from the size of the
+    body at rest (:func:`_body_joints`: a capture's start position baked into the hips'
+    OFFSET below an empty root does not make the dancer larger)."""
     if units in _UNIT_SCALES:
         return _UNIT_SCALES[units]
     if units != "auto":
         raise LoosefitInputError(path, "units", "one of 'm', 'cm', 'mm', 'auto'", repr(units))
     rest = _rest_positions(np.asarray(parents), offsets)
-    points = [rest] + [rest[j] + np.asarray(o) for j, o in end_offsets.items()]
+    body = _body_joints(np.asarray(parents))
+    points = [rest[body]] + [rest[j] + np.asarray(o) for j, o in end_offsets.items() if j in body]
     points = np.vstack(points)
     extent = float((points.max(0) - points.min(0)).max())
     if extent > AUTO_MM_ABOVE:
@@ -466,6 +502,39 @@ def _units_scale(
     if extent > AUTO_CM_ABOVE:
         return 0.01
     return 1.0
+
+
+def _bones_from_channels(
+    parents: np.ndarray, offsets: np.ndarray, channels: list[tuple[str, ...]], data: np.ndarray
+) -> tuple[np.ndarray, list[int]]:
+    """Offsets with each bone that lives in the frames alone filled in.
+
+    A rig may write every OFFSET as zeros and each joint's bone in its position channels
+    (the skeleton's shape exists only in the frames). A joint below the root with all
+    three position channels, a zero OFFSET and channels that are not zero gets the
+    channels' median over the frames as its OFFSET: its zero pose, for the matcher, the
+    units guess and the calibration.
+
+    Args:
+        parents: (J,) parent indices; offsets: (J, 3) the file's OFFSETs, file units.
+        channels: per joint, its channel names; data: (T, C) the frames' values.
+
+    Returns:
+        (J, 3) offsets, and the joints whose offsets came from the frames.
+    """
+    out = offsets.copy()
+    filled = []
+    col = 0
+    for j, chans in enumerate(channels):
+        cols = {name[0]: col + i for i, name in enumerate(chans) if name.endswith("position")}
+        col += len(chans)
+        if parents[j] < 0 or len(cols) < 3 or np.abs(offsets[j]).max() > 1e-9:
+            continue
+        values = data[:, [cols["X"], cols["Y"], cols["Z"]]]  # (T, 3)
+        if len(values) and np.linalg.norm(values, axis=1).max() > 1e-9:
+            out[j] = np.median(values, axis=0)
+            filled.append(j)
+    return out, filled
 
 
 def read_bvh(
@@ -532,7 +601,9 @@ def read_bvh(
     ]
     data = _parse_frames(path, lines, data_start, frames, len(labels), labels)  # (T, C)
 
-    # 4. Units.
+    # 4. Bones that live in the frames alone, then units.
+    file_offsets = raw_offsets
+    raw_offsets, from_frames = _bones_from_channels(parents, raw_offsets, skel.channels, data)
     if scale is not None:
         if not (np.isfinite(scale) and scale > 0):
             raise LoosefitInputError(path, "scale", "a positive factor", repr(scale))
@@ -547,7 +618,7 @@ def read_bvh(
     # 5. Channels to local rotations and translations.
     T = frames
     rotations = np.broadcast_to(np.eye(3), (T, J, 3, 3)).copy()  # (T, J, 3, 3)
-    translations = np.broadcast_to(raw_offsets, (T, J, 3)).copy()  # (T, J, 3)
+    translations = np.broadcast_to(file_offsets, (T, J, 3)).copy()  # (T, J, 3)
     by_order: dict[str, list[tuple[int, list[int]]]] = {}  # order -> [(joint, columns)]
     col = 0
     for j, chans in enumerate(skel.channels):
@@ -582,6 +653,7 @@ def read_bvh(
         local_translations=(translations * units_scale).astype(np.float32),
         frame_time=frame_time,
         units_scale=units_scale,
+        meta={"bones_from_frames": [skel.names[j] for j in from_frames]} if from_frames else {},
     )
 
 

@@ -223,8 +223,15 @@ def load_joint_map_file(
         )
     twice = sorted({v for v in joints.values() if list(joints.values()).count(v) > 1})
     if twice:
+        both = [a for a, v in joints.items() if v == twice[0]]
         raise LoosefitInputError(
-            path, "<joints>", "each source joint mapped once", f"{twice} mapped twice"
+            path,
+            " and ".join(both),
+            "each source joint mapped once",
+            f"{' and '.join(both)} both mapped to {twice[0]!r}"
+            + (f" (and {twice[1:]} twice too)" if len(twice) > 1 else ""),
+            hint="each avatar joint needs its own source joint; leave out a line for a "
+            "joint the skeleton does not have (it follows its parent)",
         )
     align = data.get("align")
     if align is None:

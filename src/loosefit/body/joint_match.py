@@ -34,7 +34,7 @@ drives it and how that was decided, for ``loosefit inspect-motion`` to print.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -304,8 +304,10 @@ class _SourceTree:
         depth: (J,) int64 joints above each.
         subtree: each joint's subtree, itself first.
         legged: whether a joint's subtree holds a joint named as part of a leg.
-        extent: the skeleton's size (its height, or its arm span): legs reach down a
-            quarter of it below the pelvis, arms out 0.15 of it from the spine.
+        extent: the body's size (its height, or its arm span), measured over the
+            pelvis's subtree once the pelvis is found (a root joint of no geometry metres
+            away, where a capture's start position was baked in, is not the body): legs
+            reach down a quarter of it below the pelvis, arms out 0.15 of it from the spine.
     """
 
     names: list[str]
@@ -507,22 +509,29 @@ def match_skeleton(
     # 1. The pelvis.
     pelvis, how_pelvis = _find_pelvis(tree)
     if pelvis is None:
-        _fail(source, names, tree.parts, found, ["no joint branches into legs and a spine"])
+        _fail(source, names, tree.parts, found, ["no joint branches into legs and a spine"],
+              parents=tree.parents)  # fmt: skip
     found["Hips"], how["Hips"] = pelvis, how_pelvis
     notes.append(f"pelvis: '{names[pelvis]}' ({how_pelvis})")
+    body = tree.rest[tree.subtree[pelvis]]
+    tree = replace(tree, extent=float(np.ptp(body, axis=0).max()))
 
     # 2. Its branches: the torso (reaching highest, or holding the head), the legs (low).
     torso, top = _torso(tree, pelvis)
     leg_side, how_side = _two_sides(_legs(tree, pelvis, torso), tree.subtree, tree.parts, tree.rest)
     found_legs = ", ".join(f"'{names[c]}' ({s})" for s, c in leg_side.items())
-    notes.append(
-        f"torso: '{names[torso]}'; legs: "
-        + (
-            f"{found_legs}, sides by {how_side}"
-            if found_legs
-            else "none reach below the pelvis (axes wrong?)"
+    if not found_legs:
+        others = [c for c in tree.kids[pelvis] if c != torso]
+        drop = max((tree.rest[pelvis, 2] - tree.rest[tree.subtree[c], 2].min() for c in others),
+                   default=0.0)  # fmt: skip
+        found_legs = (
+            f"none reach below the pelvis: of its {len(others)} other branches the lowest "
+            f"reaches {drop:.3g} below it, a leg {0.25 * tree.extent:.3g} (a quarter of the "
+            "body's size; axes wrong?)"
         )
-    )
+    else:
+        found_legs += f", sides by {how_side}"
+    notes.append(f"torso: '{names[torso]}'; legs: {found_legs}")
     for s, c in leg_side.items():
         record(_leg_joints(tree, pelvis, s, c))
 
@@ -545,10 +554,61 @@ def match_skeleton(
 
     missing = [a for a in REQUIRED if a not in found]
     if missing:
-        _fail(source, names, tree.parts, found, notes, missing)
+        _fail(source, names, tree.parts, found, notes, missing, tree.parents)
     joints = {a: names[found[a]] for a in _AVATAR_ORDER if a in found}
     jmap = JointMap("auto-matched", joints, tuple(a for a in LIMBS if a in joints))
     return JointMatch(jmap, {a: how[a] for a in joints}, tuple(notes))
+
+
+class SkeletonMatchError(LoosefitInputError):
+    """The matcher found no humanoid in a skeleton (a :class:`LoosefitInputError`).
+
+    Attributes:
+        missing: the avatar joints of :data:`REQUIRED` that nothing drives.
+        notes: what the matcher decided on the way (pelvis, torso, legs, arms).
+        details: for each missing joint, the joints named like it (or that none are).
+        guesses: avatar joint -> a source joint named like it (for a map file's lines).
+    """
+
+    def __init__(self, *args, missing=(), notes=(), guesses=None, details=(), **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.missing = tuple(missing)
+        self.notes = tuple(notes)
+        self.guesses = dict(guesses or {})
+        self.details = tuple(details)
+
+    def __reduce__(self):
+        return _rebuild_match_error, (
+            (self.source, self.field, self.expected, self.found, self.hint),
+            self.missing,
+            self.notes,
+            self.guesses,
+            self.details,
+        )
+
+
+def _rebuild_match_error(args, missing, notes, guesses, details) -> SkeletonMatchError:
+    return SkeletonMatchError(*args, missing=missing, notes=notes, guesses=guesses, details=details)
+
+
+MATCH_EXPECTED = (
+    "a humanoid skeleton the joint matcher can map: a pelvis with two legs (thigh, shin, "
+    "foot) and a spine with two arms (upper arm, forearm, hand)"
+)
+
+
+def map_file_hint(source: str, guesses: dict[str, str] | None = None) -> str:
+    """What to write in a joint map for a skeleton the matcher cannot map: the lines the
+    names suggest (``guesses``, avatar joint -> source joint) and where to pass the file."""
+    lines = ", ".join(f"'{a}: {s}'" for a, s in (guesses or {}).items())
+    example = f"({lines} by the names; check them)" if lines else f"e.g. '{MAP_FILE_EXAMPLE}'"
+    return (
+        "write a joint map file (YAML or TOML), one line 'avatar joint: your joint' per "
+        f"joint {example}, and pass --joint-map FILE (the motion spec "
+        "joint-map:FILE:CLIP.bvh elsewhere); "
+        f"{joint_map_template_hint(source)}; a skeleton not Y up and facing +Z: "
+        "source_up and source_forward in a map file"
+    )
 
 
 def _fail(
@@ -558,6 +618,7 @@ def _fail(
     found: dict[str, int],
     notes: list[str],
     missing: list[str] | None = None,
+    parents: np.ndarray | None = None,
 ) -> None:
     """Raise the error for a skeleton the matcher cannot map."""
     missing = missing or list(REQUIRED)
@@ -584,18 +645,21 @@ def _fail(
             f"candidates {cands[:4]}" if cands else f"no joint named like {_PART_WORDS[part[bone]]}"
         )
         details.append(f"{a}: {what}")
-    raise LoosefitInputError(
+    guesses = {}
+    if parents is not None:
+        named = guess_by_name(names, parents, {names[j]: a for a, j in found.items()})
+        guesses = {a: named[a][0] for a in missing if a in named}
+    raise SkeletonMatchError(
         source,
         "HIERARCHY",
-        "a humanoid skeleton the joint matcher can map: a pelvis with two legs (thigh, shin, "
-        "foot) and a spine with two arms (upper arm, forearm, hand)",
+        MATCH_EXPECTED,
         f"nothing for {missing} ({'; '.join(details)}; {'; '.join(notes)}; "
         f"its joints: {', '.join(names[:40])}{'...' if len(names) > 40 else ''})",
-        hint=f"write a joint map file (YAML or TOML), one line 'avatar joint: your joint' per "
-        f"joint, e.g. '{MAP_FILE_EXAMPLE}', and pass --joint-map FILE (the motion spec "
-        "joint-map:FILE:CLIP.bvh elsewhere); `loosefit inspect-motion CLIP.bvh` lists "
-        "the joints; a skeleton not Y up and facing +Z: source_up and source_forward "
-        "in a map file",
+        hint=map_file_hint(source, guesses),
+        missing=missing,
+        notes=notes,
+        guesses=guesses,
+        details=details,
     )
 
 
@@ -615,41 +679,112 @@ _TEMPLATE_WORDS = {"UpLeg": "thigh", "Leg": "shin (knee)", "Foot": "ankle", "Toe
                    "Neck": "neck", "Head": "head"}  # fmt: skip
 
 
+def guess_by_name(
+    names: list[str], parents: np.ndarray | None, taken: dict[str, str] | None = None
+) -> dict[str, tuple[str | None, str]]:
+    """Avatar joint -> (source joint or None, why), from the names and the hierarchy alone.
+
+    For the joints a map file must have (:data:`_TEMPLATE_PARTS`): the first source joint
+    named as that part on that side (the chest: the last spine joint), not yet ``taken``
+    (source joint -> avatar joint). A sided ``Shoulder`` is the collar when an upper arm
+    of that side lies below it, else the upper arm; a sided ``Hip`` is the hip joint when
+    a thigh lies below it. The pelvis must branch (into legs and a spine): a joint named
+    so with a single child (a root of no geometry of its own above the hips) is passed
+    over, and when no named joint branches, the first joint that does is taken.
+
+    Args:
+        names: J source joint names, parents before children.
+        parents: (J,) parent indices, -1 for a root; None: the hierarchy is unknown (names
+            alone: a Shoulder is an upper arm, a Hip a thigh, any pelvis is taken).
+        taken: source joints already mapped, left out.
+
+    Returns:
+        For each avatar joint guessed or refused: (the source joint, "guessed by name" or
+        "by structure"), or (None, why none was taken).
+    """
+    parts = [classify_joint_name(n) for n in names]
+    kids: list[list[int]] = [[] for _ in names]
+    for j, p in enumerate(parents if parents is not None else []):
+        if p >= 0:
+            kids[p].append(j)
+    below: list[set[int]] = [set() for _ in names]
+    for j in range(len(names) - 1, -1, -1):
+        for c in kids[j]:
+            below[j] |= {c} | below[c]
+    role = []  # what each joint is taken for
+    for j, p in enumerate(parts):
+        part = p.part
+        if part == "shoulder":
+            has_arm = any(parts[k].part == "upperarm" and parts[k].side == p.side for k in below[j])
+            part = "collar" if has_arm else "upperarm"
+        elif part == "hip" and p.side:
+            has_thigh = any(parts[k].part == "thigh" and parts[k].side == p.side for k in below[j])
+            part = "hipjoint" if has_thigh else "thigh"
+        role.append(part)
+    used = set(taken or {})
+    out: dict[str, tuple[str | None, str]] = {}
+    for a, (side, want) in _TEMPLATE_PARTS.items():
+        cands = [
+            j
+            for j, p in enumerate(parts)
+            if role[j] in want and p.side == side and names[j] not in used
+        ]
+        if a == "Spine1" and cands:  # the chest is the last spine joint, the lower back the first
+            cands = cands[-1:]
+        if a == "Hips" and parents is not None:
+            empty = [j for j in cands if len(kids[j]) < 2]
+            cands = [j for j in cands if len(kids[j]) >= 2]
+            if not cands:
+                first = next((j for j in range(len(names)) if len(kids[j]) >= 2), None)
+                if first is not None and names[first] not in used:
+                    out[a] = (names[first], "by structure: the first joint that branches")
+                    used.add(names[first])
+                    continue
+                if empty:
+                    out[a] = (None, f"'{names[empty[0]]}' is named so but does not branch "
+                                    "into legs and a spine (no geometry of its own)")  # fmt: skip
+                continue
+        if cands:
+            out[a] = (names[cands[0]], "guessed by name")
+            used.add(names[cands[0]])
+    return out
+
+
 def joint_map_template(
     names: list[str] | tuple[str, ...],
     match: JointMatch | None,
     source: str,
     axes: tuple[str, str] | None = None,
+    parents: np.ndarray | None = None,
 ) -> str:
     """A joint map file (YAML) to correct by hand: what the matcher found, else guesses
-    by name, and the joints nothing was found for as commented lines to fill in.
+    by name (:func:`guess_by_name`), and the joints nothing was found for as commented
+    lines saying why, to fill in.
 
     Args:
         names: the source's joint names.
         match: the matcher's result, or None when it failed (then names alone).
         source: the motion file, for the header.
         axes: (up, forward) to write, or None.
+        parents: (J,) the source's parent indices (the hierarchy the guesses check);
+            None: read as a chain, parents before children.
 
     Returns:
         The file's text; :func:`~loosefit.body.joint_maps.load_joint_map_file` reads it.
     """
     names = list(names)
     found = dict(match.joint_map.joints) if match is not None else {}
-    used = set(found.values())
-    parts = [classify_joint_name(n) for n in names]
-    for a, (side, want) in _TEMPLATE_PARTS.items():
-        if a in found:
-            continue
-        cands = [
-            n
-            for n, p in zip(names, parts, strict=True)
-            if p.part in want and p.side == side and n not in used
-        ]
-        if a == "Spine1" and cands:  # the chest is the last spine joint, the lower back the first
-            cands = cands[-1:]
-        if cands:
-            found[a] = cands[0]
-            used.add(cands[0])
+    notes: dict[str, str] = {}
+    if parents is not None or match is None:
+        taken = {s: a for a, s in found.items()}
+        for a, (src, why) in guess_by_name(names, parents, taken).items():
+            if a in found:
+                continue
+            if src is None:
+                notes[a] = why
+            else:
+                found[a] = src
+                notes[a] = why
     lines = [
         f"# Joint map for {Path(source).name}: 'avatar joint: source joint', one a line.",
         "# Correct the guesses, fill in the commented lines (remove the '# '), and pass",
@@ -686,10 +821,11 @@ def joint_map_template(
         word = _TEMPLATE_WORDS.get(bone, "")
         how = match.how.get(a, "") if match is not None else ""
         if a in found:
-            note = f"  # {how}" if how else ("  # guessed by name" if a in _TEMPLATE_PARTS else "")
+            note = f"  # {how}" if how else (f"  # {notes[a]}" if a in notes else "")
             lines.append(f"{a}: {_yaml_name(found[a])}{note}")
         elif a in _TEMPLATE_PARTS:
-            lines.append(f"# {a}: ?   # {word}")
+            why = f"; {notes[a]}" if a in notes else ""
+            lines.append(f"# {a}: ?   # {word}{why}")
     if axes is not None:
         lines += [f"source_up: '{axes[0]}'", f"source_forward: '{axes[1]}'"]
     return "\n".join(lines) + "\n"
@@ -709,3 +845,109 @@ def joint_map_template_hint(source: str) -> str:
         "writes one filled in with what was found and guessed by name, to correct and "
         "pass as --joint-map my_map.yaml"
     )
+
+
+# The avatar's chains, top to bottom: a map's joints along each must go down the source's.
+_CHAINS = (
+    ("Hips", "LHipJoint", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"),
+    ("Hips", "RHipJoint", "RightUpLeg", "RightLeg", "RightFoot", "RightToeBase"),
+    ("Hips", "LowerBack", "Spine", "Spine1", "Neck", "Neck1", "Head"),
+    ("Spine1", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand"),
+    ("Spine1", "RightShoulder", "RightArm", "RightForeArm", "RightHand"),
+)
+# A limb's segments: a joint skipped between the two may not bend (twist bones may).
+_SEGMENTS = tuple(
+    (f"{S}{a}", f"{S}{b}")
+    for S in ("Left", "Right")
+    for a, b in (("UpLeg", "Leg"), ("Leg", "Foot"), ("Arm", "ForeArm"), ("ForeArm", "Hand"))
+)
+BEND_SKIPPED_DEG = 20.0  # a skipped joint bending the limb further than this: a wrong map
+
+
+def check_joint_map(
+    joints: dict[str, str],
+    names: list[str] | tuple[str, ...],
+    parents: np.ndarray,
+    positions: np.ndarray,
+    source: str,
+    map_name: str,
+) -> None:
+    """Refuse a joint map (a user's file) that cannot be this skeleton's.
+
+    Along each avatar chain (hips to toes, hips to head, chest to hands) each mapped
+    joint must lie below the one mapped before it in the source's hierarchy; the pelvis
+    must be where the mapped legs and spine part (not a root of no geometry above it);
+    and no joint skipped inside a limb segment (between the upper arm and the forearm,
+    say) may bend the limb by more than :data:`BEND_SKIPPED_DEG` in the frames: it is a
+    joint the map left out (``LeftArm: Shoulder_L`` over an ``UpperArm_L``).
+
+    Args:
+        joints: avatar joint -> source joint (every source joint among ``names``).
+        names: J source joint names; parents: (J,) their parents, -1 for a root.
+        positions: (T, J, 3) the joints' world positions over the frames (any axes).
+        source: the motion file; map_name: the map (its file), for messages.
+
+    Raises:
+        LoosefitInputError: naming the map, the avatar joint, the source joints and
+            what the file's hierarchy or frames show instead.
+    """
+    names = list(names)
+    index = {n: i for i, n in enumerate(names)}
+    parents = np.asarray(parents, dtype=np.int64)
+
+    def above(top: int, j: int) -> bool:
+        j = int(parents[j])
+        while j >= 0 and j != top:
+            j = int(parents[j])
+        return j == top
+
+    def refuse(avatar: str, found: str, hint: str) -> None:
+        raise LoosefitInputError(
+            map_name, avatar, f"a joint map that fits {Path(source).name}'s skeleton", found,
+            hint=hint,
+        )  # fmt: skip
+
+    for chain in _CHAINS:
+        mapped = [a for a in chain if a in joints]
+        for a, b in zip(mapped, mapped[1:], strict=False):
+            ja, jb = index[joints[a]], index[joints[b]]
+            if not above(ja, jb):
+                refuse(b, f"'{joints[b]}', which is not below {a} '{joints[a]}' in the file's "
+                          "hierarchy", f"the joints below '{joints[a]}': "
+                          f"{', '.join(names[k] for k in range(len(names)) if above(ja, k))[:300]}"
+                          " (`loosefit inspect-motion FILE` prints the hierarchy)")  # fmt: skip
+    if "Hips" in joints:
+        hips = index[joints["Hips"]]
+        kids = [k for k in range(len(names)) if parents[k] == hips]
+        others = [index[s] for a, s in joints.items() if a != "Hips"]
+        if len(kids) == 1 and others and all(k == kids[0] or above(kids[0], k) for k in others):
+            refuse("Hips", f"'{joints['Hips']}', a joint with one child '{names[kids[0]]}' above "
+                           "every other mapped joint (no geometry of its own)",
+                   f"map Hips to the joint where the legs and the spine part, e.g. "
+                   f"'{names[kids[0]]}' or below it")  # fmt: skip
+    steps = np.linspace(0, len(positions) - 1, min(len(positions), 40)).round().astype(int)
+    pos = np.asarray(positions, dtype=np.float64)[steps]  # (K, J, 3)
+    for a, b in _SEGMENTS:
+        if a not in joints or b not in joints:
+            continue
+        ja, jb = index[joints[a]], index[joints[b]]
+        path = []
+        j = int(parents[jb])
+        while j >= 0 and j != ja:
+            path.append(j)
+            j = int(parents[j])
+        for k in path:
+            u, v = pos[:, k] - pos[:, ja], pos[:, jb] - pos[:, k]
+            lu, lv = np.linalg.norm(u, axis=-1), np.linalg.norm(v, axis=-1)
+            ok = (lu > 1e-6) & (lv > 1e-6)
+            if not ok.any():
+                continue
+            cos = (u[ok] * v[ok]).sum(-1) / (lu[ok] * lv[ok])
+            bend = float(np.degrees(np.arccos(np.clip(cos, -1, 1))).max())
+            if bend > BEND_SKIPPED_DEG:
+                refuse(a, f"'{joints[a]}' to {b} '{joints[b]}' passing over '{names[k]}', where "
+                          f"the limb bends by up to {bend:.0f} degrees in the frames",
+                       f"'{names[k]}' is a joint of the limb the map leaves out: map {a} to "
+                       f"'{names[k]}' (and the joint above it to the one before), or "
+                       "`loosefit inspect-motion FILE --write-joint-map MAP` for a map "
+                       "filled in from what the matcher finds")  # fmt: skip

@@ -54,7 +54,14 @@ from loosefit.body.joint_maps import (  # noqa: F401 - JointMap, DAZ_MAP, CMU_MB
     is_map_file,
     load_joint_map_file,
 )
-from loosefit.body.joint_match import JointMatch, joint_map_template_hint, match_skeleton
+from loosefit.body.joint_match import (
+    MATCH_EXPECTED,
+    JointMatch,
+    SkeletonMatchError,
+    check_joint_map,
+    map_file_hint,
+    match_skeleton,
+)
 from loosefit.body.pose_check import check_pose
 from loosefit.body.resample import filter_rotation_glitches, resample_motion
 from loosefit.errors import LoosefitInputError
@@ -195,18 +202,27 @@ def _match_on_frames(clip: BvhClip, C: np.ndarray) -> JointMatch:
     """The joint matcher on the zero pose, else on the capture's frames (a rig whose zero
     pose does not stand, e.g. every bone along X): the first frame that shows a pelvis
     with legs below it and a spine with arms; sides decided by position are taken with
-    the frame turned to face -Y by its feet."""
+    the frame turned to face -Y by its feet.
+
+    Raises:
+        SkeletonMatchError: when neither the zero pose nor any frame tried shows a
+            humanoid: what was found on the frame that came closest and on the zero pose,
+            and the map file lines the names suggest.
+    """
     names, parents, source = list(clip.joint_names), clip.parents, str(clip.path)
     try:
         return match_skeleton(names, parents, rest_positions(clip) @ C.T, source)
-    except LoosefitInputError as exc:
+    except SkeletonMatchError as exc:
         first = exc
     frames = matching_frames(clip.num_frames)
     positions = _kinematics(clip)[0].astype(np.float64) @ C.T  # (T, Js, 3)
+    closest: tuple[int, SkeletonMatchError] | None = None
     for t in frames:
         try:
             match = match_skeleton(names, parents, positions[t], source)
-        except LoosefitInputError:
+        except SkeletonMatchError as exc:
+            if closest is None or len(exc.missing) < len(closest[1].missing):
+                closest = (t, exc)
             continue
         note = f"matched on frame {t}: the zero pose shows no legs below the pelvis"
         joints = match.joint_map.joints
@@ -223,12 +239,26 @@ def _match_on_frames(clip: BvhClip, C: np.ndarray) -> JointMatch:
                 match = match_skeleton(names, parents, turned, source)
                 note += ", turned to face -Y by its feet"
         return JointMatch(match.joint_map, match.how, (*match.notes, note))
-    raise LoosefitInputError(
-        first.source,
-        first.field,
-        first.expected,
-        f"{first.found}; tried the zero pose, then frames {frames}",
-        hint=first.hint,
+    t, best = closest if closest is not None else (None, first)
+    on_frames = (
+        f"on frame {t} of the frames tried ({frames}), the closest: {'; '.join(best.notes)}"
+        if t is not None
+        else "no frames to try"
+    )
+    guesses = {**first.guesses, **best.guesses}
+    raise SkeletonMatchError(
+        source,
+        "HIERARCHY",
+        MATCH_EXPECTED,
+        f"nothing for {list(best.missing)} in the frames or the zero pose "
+        f"({'; '.join(best.details)}; {on_frames}; on "
+        f"the zero pose: {'; '.join(first.notes)}; the file's {len(names)} joints: "
+        f"{', '.join(names[:40])}{'...' if len(names) > 40 else ''})",
+        hint=map_file_hint(source, guesses),
+        missing=best.missing,
+        notes=best.notes,
+        guesses=guesses,
+        details=best.details,
     )
 
 
@@ -253,6 +283,9 @@ def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> Jo
         jmap = choose_joint_map(names, name)
         if jmap.joints:
             how = "map file" if is_map_file(name) else f"map {jmap.name}"
+            if is_map_file(name):  # a user's map: it must fit the skeleton
+                positions = _kinematics(clip)[0]
+                check_joint_map(jmap.joints, names, clip.parents, positions, str(clip.path), name)
             return JointMatch(jmap, dict.fromkeys(jmap.joints, how))
         # a map file with only the axes: matched automatically in them
         axes = {
@@ -272,16 +305,7 @@ def resolve_joint_map(clip: BvhClip, config: RetargetConfig | None = None) -> Jo
             present = {a: s for a, s in jmap.joints.items() if s in have}
             return JointMatch(jmap, dict.fromkeys(present, f"map {jmap.name}"))
     up, forward, _ = source_axes(clip, config)
-    try:
-        return _match_on_frames(clip, axis_change(up, forward))
-    except LoosefitInputError as exc:
-        raise LoosefitInputError(
-            exc.source,
-            exc.field,
-            exc.expected,
-            exc.found,
-            hint=f"{exc.hint}; {joint_map_template_hint(str(clip.path))}",
-        ) from None
+    return _match_on_frames(clip, axis_change(up, forward))
 
 
 def _axes(jmap: JointMap, config: RetargetConfig, clip: BvhClip) -> np.ndarray:

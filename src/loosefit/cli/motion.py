@@ -92,7 +92,9 @@ def run_inspect(args: argparse.Namespace) -> int:
         out = Path(args.write_joint_map)
         axes = (report.up, report.forward)
         out.write_text(
-            joint_map_template(report.clip.joint_names, report.match, str(args.file), axes)
+            joint_map_template(
+                report.clip.joint_names, report.match, str(args.file), axes, report.clip.parents
+            )
         )
         log(f"wrote {out}: correct it and pass --joint-map {out}")
     if report.error is not None:
