@@ -381,6 +381,7 @@ def motion_error(avatar, want, got, joints) -> tuple[float, float]:
     err = np.linalg.norm(d, axis=-1)
     return float(err.mean()), float(err.max())
 
+
 # Studio exports as a whole data set writes them: the capture's start position baked
 # into the hips' OFFSET, metres from a root joint of no geometry at the origin.
 STUDIO_FAR = dataclasses.replace(STUDIO_X, name="studio-far", start=(6.5, -4.0, 0.0))

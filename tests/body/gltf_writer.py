@@ -5,7 +5,8 @@
 numbers are centimetres), each joint with its own bone frame (a fixed rotation, as
 Blender's bones point along their local +Y), a skin with inverse bind matrices at the
 clip's rest pose, End Sites as leaf ``_end`` nodes, and an animation with a rotation
-sampler per joint and a translation sampler on the root. The world the file shows is
+sampler per joint and a translation sampler on the root (and on any joint that moves
+in its parent, such as hips below a still root joint). The world the file shows is
 the clip's, so reading it back must give the clip's motion again.
 """
 
@@ -155,7 +156,7 @@ def write_gltf(
                else buf.add(q, "VEC4"))  # fmt: skip
         samplers.append({"input": times, "output": out, "interpolation": "LINEAR"})
         channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
-        if parents[j] < 0:
+        if parents[j] < 0 or np.ptp(tr_t[:, j], axis=0).max() > 1e-9:  # a root, or moving
             samplers.append({"input": times, "output": buf.add(tr_t[:, j], "VEC3")})
             channels.append({"sampler": len(samplers) - 1,
                              "target": {"node": j, "path": "translation"}})  # fmt: skip

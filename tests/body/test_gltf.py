@@ -12,7 +12,7 @@ from loosefit.body.gltf import DEFAULT_FPS, read_gltf, sample_channel
 from loosefit.body.retarget import RetargetConfig, resolve_joint_map
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
-from tests.body.bvh_conventions import CONVENTIONS, motion_error, write_convention_bvh
+from tests.body.bvh_conventions import ALL_CONVENTIONS, motion_error, write_convention_bvh
 from tests.body.gltf_writer import write_document, write_gltf
 
 CM = 0.01
@@ -28,7 +28,7 @@ def dance(avatar):
 def _clip(tmp_path, avatar, dance, conv="mixamo"):
     """The dance written as a BVH in a convention, read back: the clip a glTF carries."""
     path = tmp_path / f"{conv}.bvh"
-    write_convention_bvh(path, CONVENTIONS[conv], avatar.skeleton, dance, avatar.floor_height)
+    write_convention_bvh(path, ALL_CONVENTIONS[conv], avatar.skeleton, dance, avatar.floor_height)
     return read_bvh(path)
 
 
@@ -40,6 +40,7 @@ def _clip(tmp_path, avatar, dance, conv="mixamo"):
         ("unreal", "unreal.gltf", {"quantize": True}),  # embedded buffer, int16 rotations
         ("smpl", "nobind.glb", {"inverse_bind": False}),  # the rest from the nodes
         ("daz", "plain.gltf", {"bone_frames": False, "armature_scale": 1.0}),
+        ("studio-far", "far.glb", {}),  # hips metres from a still root joint, bones along X
     ],
 )
 def test_a_gltf_animation_round_trips_to_the_same_motion(avatar, dance, tmp_path, conv, file,
@@ -51,7 +52,7 @@ def test_a_gltf_animation_round_trips_to_the_same_motion(avatar, dance, tmp_path
     back = load_motion(str(path), avatar)
     seconds = time.perf_counter() - t
     assert back.num_frames == dance.num_frames and back.fps == 30
-    joints = CONVENTIONS[conv].joints
+    joints = ALL_CONVENTIONS[conv].joints
     assert resolve_joint_map(read_gltf(path)).joint_map.joints == joints
     mean, worst = motion_error(avatar, dance, back, joints)
     print(f"{file}: mean joint error {mean / CM:.2g} cm, max {worst / CM:.2g} cm, "
@@ -69,7 +70,7 @@ def test_animation_and_skin_picked_by_name_or_index(avatar, dance, tmp_path):
     assert "'body' (2 of 2)" in idle.meta["report"]["skin"]  # the skin it animates
     for pick in ("dance", "1", 1):
         assert read_gltf(path, animation=pick).num_frames == dance.num_frames
-    joints = CONVENTIONS["mixamo"].joints
+    joints = ALL_CONVENTIONS["mixamo"].joints
     for spec, cfg in ((f"animation:dance:{path}", None),
                       (str(path), RetargetConfig(animation="dance"))):  # fmt: skip
         back = load_motion(spec, avatar, retarget=cfg)
@@ -93,7 +94,7 @@ def test_keyframes_set_the_rate_and_are_resampled(avatar, dance, tmp_path):
     back = load_motion(str(path), avatar, fps=30)  # resampled by the retargeting
     assert back.fps == 30 and back.num_frames == (dance.num_frames + 1) // 2
     every_other = Motion(dance.joint_names, dance.rotations[::2], dance.root_translation[::2], 30)
-    assert motion_error(avatar, every_other, back, CONVENTIONS["mixamo"].joints)[0] < 1 * CM
+    assert motion_error(avatar, every_other, back, ALL_CONVENTIONS["mixamo"].joints)[0] < 1 * CM
     slow = dataclasses.replace(clip, frame_time=0.5)  # sparse keys: sampled at 30 fps
     got = read_gltf(write_gltf(tmp_path / "slow.glb", slow))
     assert got.fps == DEFAULT_FPS and got.num_frames == int((dance.num_frames - 1) * 0.5 * 30) + 1

@@ -16,6 +16,7 @@ from loosefit.body.retarget import (
 )
 from loosefit.errors import LoosefitInputError
 from tests.body.bvh_conventions import (
+    ALL_CONVENTIONS,
     CONVENTIONS,
     NAMELESS,
     Convention,
@@ -99,9 +100,9 @@ def _retarget_error(avatar, motion, conv, clip, config=None):
     return float(err.mean()), float(err.max())
 
 
-@pytest.mark.parametrize("name", list(CONVENTIONS))
+@pytest.mark.parametrize("name", list(ALL_CONVENTIONS))
 def test_each_convention_animates_the_same_body_motion(avatar, dance, tmp_path, name):
-    conv = CONVENTIONS[name]
+    conv = ALL_CONVENTIONS[name]
     clip = _write(tmp_path, f"{name}.bvh", conv, avatar, dance)
     match = resolve_joint_map(clip)
     assert match.joint_map.joints == conv.joints
@@ -112,6 +113,10 @@ def test_each_convention_animates_the_same_body_motion(avatar, dance, tmp_path, 
     assert mean < 1 * CM and worst < 2 * CM
     if name == "studio":  # six channels on every joint, in centimetres, arms down at rest
         assert all(len(c) == 6 for c in clip.channels) and clip.units_scale == 0.01
+    if name.startswith("studio-"):  # the hips metres from the root still read in centimetres
+        assert clip.units_scale == 0.01
+    if conv.zero_offsets:  # every bone below the root from the frames
+        assert len(clip.meta["bones_from_frames"]) == clip.num_joints - 1
 
 
 def test_a_wrong_map_is_far_off(avatar, dance, tmp_path):
@@ -227,7 +232,10 @@ def test_map_file_errors_name_the_file_and_the_key(tmp_path):
         "nohips.yaml": ("LeftUpLeg: thigh\n", r"nohips\.yaml.*'Hips'"),
         "axis.yaml": ("Hips: pelvis\nsource_up: up\n", r"axis\.yaml.*'source_up'"),
         "align.yaml": ("Hips: pelvis\nalign: [LeftArm]\n", r"align\.yaml.*'align'"),
-        "twice.yaml": ("Hips: pelvis\nLeftUpLeg: pelvis\n", r"twice\.yaml.*Hips and LeftUpLeg both mapped to 'pelvis'"),
+        "twice.yaml": (
+            "Hips: pelvis\nLeftUpLeg: pelvis\n",
+            r"twice\.yaml.*Hips and LeftUpLeg both mapped to 'pelvis'",
+        ),
         "bad.toml": ("Hips = \n", r"bad\.toml.*valid TOML"),
     }
     for file, (text, pattern) in cases.items():
@@ -334,3 +342,64 @@ def test_a_nameless_rig_whose_zero_pose_does_not_stand_is_matched_on_its_frames(
     assert match.joint_map.joints == conv.joints
     assert "turned to face -Y by its feet" in match.notes[-1]
     assert _retarget_error(avatar, away, conv, clip, cfg)[0] < 1 * CM
+
+
+def test_the_template_never_takes_an_empty_root_and_tells_a_collar_from_an_upper_arm(
+    avatar, dance, tmp_path
+):
+    from loosefit.body.joint_match import guess_by_name, joint_map_template
+    from tests.body.bvh_conventions import STUDIO_FAR
+
+    # A studio rig with its right side gone: the matcher refuses it, the names guess.
+    keep = {a: s for a, s in STUDIO_FAR.joints.items() if "Right" not in a}
+    half = _write(tmp_path, "h.bvh", dataclasses.replace(STUDIO_FAR, joints=keep), avatar, dance)
+    with pytest.raises(LoosefitInputError) as err:
+        resolve_joint_map(half)
+    assert "'LeftArm: UpperArm_L'" not in str(err.value)  # the left side was found
+    text = joint_map_template(half.joint_names, None, "h.bvh", None, half.parents)
+    jmap = load_joint_map_file(_text(tmp_path / "h.yaml", text), half.joint_names)
+    assert jmap.joints["Hips"] == "Hips"  # not joint_Root, a root with no geometry
+    assert jmap.joints["LeftShoulder"] == "Shoulder_L" and jmap.joints["LeftArm"] == "UpperArm_L"
+    assert "# RightArm: ?" in text
+    # No joint named as a pelvis branches: the first that does, said so; an empty root
+    # named so is never taken, and the line says why.
+    names = ["joint_Root", "Body", "UpperLeg_L", "UpperLeg_R", "Spine"]
+    parents = np.array([-1, 0, 1, 1, 1])
+    assert guess_by_name(names, parents)["Hips"] == ("Body", "by structure: the first joint "
+                                                     "that branches")  # fmt: skip
+    out = guess_by_name(["Root", "Hips"], np.array([-1, 0]))
+    assert out["Hips"][0] is None and "'Root' is named so but does not branch" in out["Hips"][1]
+
+
+def _text(path, text):
+    path.write_text(text)
+    return path
+
+
+def test_a_map_that_cannot_be_the_skeletons_is_refused(avatar, dance, tmp_path):
+    from tests.body.bvh_conventions import STUDIO_FAR
+
+    clip = _write(tmp_path, "s.bvh", STUDIO_FAR, avatar, dance)
+    good = dict(STUDIO_FAR.joints)
+    cfg = RetargetConfig(fps=None, joint_map=str(tmp_path / "m.yaml"))
+
+    def refused(joints, pattern):
+        _text(tmp_path / "m.yaml", "".join(f"{a}: {s}\n" for a, s in joints.items()))
+        with pytest.raises(LoosefitInputError, match=pattern):
+            resolve_joint_map(clip, cfg)
+
+    _text(tmp_path / "m.yaml", "".join(f"{a}: {s}\n" for a, s in good.items()))
+    assert resolve_joint_map(clip, cfg).joint_map.joints == good  # the right map passes
+    # The shoulder as the upper arm, the collar left out: the upper arm bends in between.
+    wrong = {a: s for a, s in good.items() if a != "LeftShoulder"} | {"LeftArm": "Shoulder_L"}
+    refused(wrong, r"m\.yaml.*'LeftArm'.*'Shoulder_L' to LeftForeArm 'LowerArm_L' passing "
+                   r"over 'UpperArm_L', where the limb bends by up to \d+ degrees.*map LeftArm "
+                   r"to 'UpperArm_L'")  # fmt: skip
+    # The pelvis on the root of no geometry above the hips.
+    refused(good | {"Hips": "joint_Root"}, r"m\.yaml.*'Hips'.*'joint_Root', a joint with one "
+                                           r"child 'Hips'")  # fmt: skip
+    # A joint the file does not have; two avatar joints on one source joint.
+    refused(good | {"LeftHand": "Hand_X"}, r"m\.yaml.*'LeftHand'.*a joint of the motion file.*"
+                                           r"'Hand_X'.*did you mean .*'Hand_L'")  # fmt: skip
+    refused(good | {"LeftFoot": "LowerLeg_L"}, r"m\.yaml.*LeftLeg and LeftFoot both mapped "
+                                               r"to 'LowerLeg_L'")  # fmt: skip

@@ -462,7 +462,7 @@ def _parse_frames(
 # --------------------------------------------------------------------------- reading
 
 
-def _body_joints(parents: np.ndarray) -> list[int]:
+def body_joints(parents: np.ndarray) -> list[int]:
     """The joints of the body: the subtree of the first joint that branches (a root joint
     of no geometry of its own above the hips, and the joints on its way down, left out);
     every joint when none branches."""
@@ -486,14 +486,14 @@ def _units_scale(
     path: Path, offsets: np.ndarray, end_offsets: dict, parents: list[int], units: str
 ) -> float:
     """Metres per file unit: the given unit's, or for "auto" guessed from the size of the
-    body at rest (:func:`_body_joints`: a capture's start position baked into the hips'
+    body at rest (:func:`body_joints`: a capture's start position baked into the hips'
     OFFSET below an empty root does not make the dancer larger)."""
     if units in _UNIT_SCALES:
         return _UNIT_SCALES[units]
     if units != "auto":
         raise LoosefitInputError(path, "units", "one of 'm', 'cm', 'mm', 'auto'", repr(units))
     rest = _rest_positions(np.asarray(parents), offsets)
-    body = _body_joints(np.asarray(parents))
+    body = body_joints(np.asarray(parents))
     points = [rest[body]] + [rest[j] + np.asarray(o) for j, o in end_offsets.items() if j in body]
     points = np.vstack(points)
     extent = float((points.max(0) - points.min(0)).max())

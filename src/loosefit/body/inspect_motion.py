@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.body.bone_directions import zero_pose_stands
-from loosefit.body.bvh import _UNIT_SCALES, BvhClip, rest_positions
+from loosefit.body.bvh import _UNIT_SCALES, BvhClip, body_joints, rest_positions
 from loosefit.body.joint_maps import AVATAR_JOINTS
 from loosefit.body.joint_match import JointMatch
 from loosefit.body.motion_files import read_clip
@@ -38,7 +38,7 @@ class MotionInspection:
 
     Attributes:
         clip: the file as read.
-        units: how its lengths were read, e.g. "cm (guessed: the rest skeleton spans 171
+        units: how its lengths were read, e.g. "cm (guessed: the body at rest spans 171
             file units)".
         height: the dancer's height, metres, as read.
         height_how: how the height was measured.
@@ -119,11 +119,18 @@ def _units(clip: BvhClip, config: RetargetConfig) -> str:
     if form == "glTF":
         return "m (glTF's unit; --units or --scale to set)"
     rest = rest_positions(clip) / clip.units_scale
-    ends = [rest[j] + o / clip.units_scale for j, o in clip.end_offsets.items()]
-    points = np.vstack([rest, *ends]) if ends else rest
+    body = body_joints(clip.parents)
+    ends = [rest[j] + o / clip.units_scale for j, o in clip.end_offsets.items() if j in body]
+    points = np.vstack([rest[body], *ends]) if ends else rest[body]
     extent = float((points.max(0) - points.min(0)).max())
+    shape = ""
+    if clip.meta.get("bones_from_frames"):
+        shape = (
+            f"; its OFFSETs are zero: {len(clip.meta['bones_from_frames'])} bones read from "
+            "the frames' position channels"
+        )
     return (
-        f"{unit} (guessed: the rest skeleton spans {extent:.4g} file units; "
+        f"{unit} (guessed: the body at rest spans {extent:.4g} file units{shape}; "
         "--units or --scale to set)"
     )
 

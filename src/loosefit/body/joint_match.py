@@ -375,9 +375,17 @@ def _torso(tree: _SourceTree, pelvis: int) -> tuple[int, int | None]:
 
 
 def _legs(tree: _SourceTree, pelvis: int, torso: int) -> list[int]:
-    """Up to two of the pelvis's branches that reach far below it, lowest first."""
+    """Up to two of the pelvis's branches that reach far below it, lowest first; a branch
+    whose joints are named as an arm and none as a leg is no leg (arms hanging from a
+    chest taken for the pelvis, in a capture with no legs)."""
     rest, subtree = tree.rest, tree.subtree
-    low = {c: rest[subtree[c], 2].min() for c in tree.kids[pelvis] if c != torso}
+    arm_kinds = ("collar", "shoulder", "upperarm", "forearm", "hand")
+    low = {
+        c: rest[subtree[c], 2].min()
+        for c in tree.kids[pelvis]
+        if c != torso
+        and (tree.legged[c] or not any(tree.kinds[j] in arm_kinds for j in subtree[c]))
+    }
     legs = [c for c in low if low[c] < rest[pelvis, 2] - 0.25 * tree.extent]
     named_legs = [c for c in legs if tree.legged[c]]
     return sorted(named_legs if len(named_legs) >= 2 else legs, key=lambda c: low[c])[:2]
@@ -513,6 +521,11 @@ def match_skeleton(
               parents=tree.parents)  # fmt: skip
     found["Hips"], how["Hips"] = pelvis, how_pelvis
     notes.append(f"pelvis: '{names[pelvis]}' ({how_pelvis})")
+    unbranched = [
+        names[j] for j in range(len(names)) if tree.kinds[j] == "root" and len(tree.kids[j]) == 1
+    ]
+    if how_pelvis == "structure" and unbranched:
+        notes.append(f"'{unbranched[-1]}' is named as the pelvis but does not branch (no legs?)")
     body = tree.rest[tree.subtree[pelvis]]
     tree = replace(tree, extent=float(np.ptp(body, axis=0).max()))
 
