@@ -6,7 +6,10 @@ tool (built in code by ``tests/body/bvh_conventions.py``: no outside file), read
 --sheet`` (the file's skeleton from its own forward kinematics, left; the retargeted avatar,
 right). The conventions: a studio rig whose every bone lies along its own local X axis at
 zero pose (centimetres, six channels a joint, joint orients twisted about the bones),
-Mixamo (``mixamorig:`` names, centimetres, Y up), and Unreal (``thigh_l``, A-pose)::
+Mixamo (``mixamorig:`` names, centimetres, Y up), Unreal (``thigh_l``, A-pose), and the
+conventions of a whole studio data set: the hips' OFFSET metres from a ``joint_Root`` of no
+geometry (the capture's start baked in; as BVH and as GLB), and no OFFSETs at all, every
+bone in the frames' position channels (the studio rig, and Mixamo's)::
 
     python bench/retarget_sheets.py --out docs/img
 """
@@ -20,9 +23,19 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from loosefit.body.avatar import Avatar  # noqa: E402
+from loosefit.body.bvh import read_bvh  # noqa: E402
 from loosefit.body.motions import load_motion  # noqa: E402
 from loosefit.cli import main as cli  # noqa: E402
-from tests.body.bvh_conventions import MIXAMO, STUDIO_X, UNREAL, write_convention_bvh  # noqa: E402
+from tests.body.bvh_conventions import (  # noqa: E402
+    MIXAMO,
+    MIXAMO_ZERO,
+    STUDIO_FAR,
+    STUDIO_X,
+    STUDIO_ZERO,
+    UNREAL,
+    write_convention_bvh,
+)
+from tests.body.gltf_writer import write_gltf  # noqa: E402
 
 
 def main() -> None:
@@ -30,21 +43,30 @@ def main() -> None:
     p.add_argument("--out", default="docs/img")
     p.add_argument("--motion", default="dance:3", help="a procedural motion on the avatar")
     p.add_argument("--frames", type=int, default=3, help="pictures a sheet")
+    p.add_argument("--format", default="png", choices=("png", "jpg"), help="the sheets' format")
     args = p.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     avatar = Avatar()
     motion = load_motion(args.motion, avatar, seed=3)
-    for conv in (STUDIO_X, MIXAMO, UNREAL):
+    for conv, glb in ((STUDIO_X, False), (MIXAMO, False), (UNREAL, False), (STUDIO_FAR, True),
+                      (STUDIO_ZERO, False), (MIXAMO_ZERO, False)):  # fmt: skip
         bvh = out / f".retarget_{conv.name}.bvh"
         write_convention_bvh(bvh, conv, avatar.skeleton, motion, avatar.floor_height)
-        sheet = out / f"retarget_{conv.name}.png"
-        code = cli(["inspect-motion", str(bvh), "--sheet", str(sheet), "--sheet-frames",
-                    str(args.frames)])  # fmt: skip
-        bvh.unlink()
-        if code != 0:
-            raise SystemExit(f"{conv.name}: inspect-motion refused it (exit {code})")
-        print(f"{conv.name}: {sheet}")
+        files = {conv.name: bvh}
+        if glb:
+            files[f"{conv.name}-glb"] = write_gltf(
+                out / f".retarget_{conv.name}.glb", read_bvh(bvh)
+            )
+        for name, path in files.items():
+            sheet = out / f"retarget_{name}.{args.format}"
+            code = cli(["inspect-motion", str(path), "--sheet", str(sheet), "--sheet-frames",
+                        str(args.frames)])  # fmt: skip
+            if code != 0:
+                raise SystemExit(f"{name}: inspect-motion refused it (exit {code})")
+            print(f"{name}: {sheet}")
+        for path in files.values():
+            path.unlink()
 
 
 if __name__ == "__main__":

@@ -53,6 +53,21 @@ def test_every_rig_is_read_without_a_joint_map(rig_files, capsys):
             assert clip.meta["bones_from_frames"], label  # the shape came from the frames
 
 
+def test_the_joint_map_written_for_a_studio_export_is_right(rig_files, tmp_path, capsys):
+    from loosefit.body.joint_maps import load_joint_map_file
+    from loosefit.cli import main
+    from tests.body.bvh_conventions import STUDIO_FAR
+
+    path, out = rig_files["studio-far"], tmp_path / "far.yaml"
+    assert main(["inspect-motion", str(path), "--write-joint-map", str(out)]) == 0
+    jmap = load_joint_map_file(out, read_bvh(path).joint_names)
+    assert jmap.joints == STUDIO_FAR.joints  # Hips on the hips, not on joint_Root
+    assert jmap.joints["LeftShoulder"] == "Shoulder_L" and jmap.joints["LeftArm"] == "UpperArm_L"
+    capsys.readouterr()
+    assert main(["inspect-motion", str(path), "--joint-map", str(out)]) == 0
+    assert "map file" in capsys.readouterr().out
+
+
 def test_every_rig_animates_a_standing_dancer_with_the_cloth_out_of_the_body(avatar, rig_files):
     import loosefit
     from loosefit.geometry.query import closest_points
