@@ -3,9 +3,9 @@
 Run as a script, in its own process (``bpy`` carries its own USD libraries, which must
 not meet ``usd-core``'s in one process)::
 
-    python blender_read.py FILE --fps 30 --frames 0 5 9 --out seen.npz [--png view.png]
+    python blender_read.py FILE [FILE ...] --fps 30 --frames 0 5 9 --out seen.npz [--png view.png]
 
-It imports FILE (``.abc``, ``.usd*``, ``.glb``, or ``.pc2``: the OBJ beside each cache
+It imports each FILE (``.abc``, ``.usd*``, ``.glb``, or ``.pc2``: the OBJ beside each cache
 imported with the importer's defaults and a Mesh Cache modifier on it reading the cache)
 into an empty scene at ``--fps``, and writes to ``--out`` each mesh object's evaluated
 vertices in Blender's world (metres, Z up) at each frame, as ``NAME`` (frames, V, 3)
@@ -106,7 +106,7 @@ def _render(png: str, meshes: list, distance: float = 1.0) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("file")
+    p.add_argument("files", nargs="+", metavar="file")
     p.add_argument("--fps", type=float, required=True)
     p.add_argument("--frames", type=int, nargs="+", required=True)
     p.add_argument("--out", required=True)
@@ -121,7 +121,8 @@ def main(argv: list[str] | None = None) -> int:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.render.fps, scene.render.fps_base = round(args.fps), round(args.fps) / args.fps
-    _import(args.file)
+    for path in args.files:
+        _import(path)
     scene = bpy.context.scene
     colours = {"garment": (0.85, 0.25, 0.3, 1.0), "body": (0.75, 0.7, 0.65, 1.0)}
     # the visible meshes (glTF's importer adds a hidden one, its bones' display shape)
@@ -131,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
         o.color = colours.get(o.name.split(".")[0], (0.5, 0.6, 0.8, 1.0))
     # glTF's animations start on frame 1 or 0 depending on the importer's version
     offset = 0
-    if args.file.lower().endswith((".glb", ".gltf")) and bpy.data.actions:
+    if args.files[0].lower().endswith((".glb", ".gltf")) and bpy.data.actions:
         offset = int(round(min(a.frame_range[0] for a in bpy.data.actions)))
     seen: dict[str, list] = {o.name: [] for o in objects}
     out: dict[str, np.ndarray] = {"frame_offset": np.array(offset)}
