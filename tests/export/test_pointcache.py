@@ -1,11 +1,15 @@
-"""PC2 + OBJ and OBJ sequences: Y up by default (the OBJ convention), the PC2 in the OBJ's
-axes, loosefit's own axes on request, and a mesh Blender's OBJ importer would shorten."""
+"""PC2 + OBJ and OBJ sequences: the PC2 read back from its spec, Y up by default (the OBJ
+convention) in the OBJ's axes, loosefit's own axes on request, a mesh Blender's OBJ
+importer would shorten, and a bad cache."""
 
 from __future__ import annotations
+
+import struct
 
 import numpy as np
 import pytest
 
+from loosefit.errors import LoosefitInputError
 from loosefit.export import AnimatedMesh, ExportConfig, export_animation, read_pc2
 from loosefit.garment.obj import read_obj
 from tests.export.rigged import dressed
@@ -31,6 +35,10 @@ def test_pc2_and_its_obj_share_the_axes_y_up_by_default(tmp_path, up):
     for m, stem in zip(meshes, ("a", "a_body"), strict=True):
         cache, start, rate = read_pc2(tmp_path / f"{stem}.pc2")
         assert (start, rate) == (0.0, 1.0)
+        raw = (tmp_path / f"{stem}.pc2").read_bytes()  # the layout, read from the spec
+        assert struct.unpack_from("<12siiffi", raw) == (b"POINTCACHE2\0", 1, m.vertices.shape[1],
+                                                        0.0, 1.0, 3)  # fmt: skip
+        np.testing.assert_array_equal(np.frombuffer(raw, "<f4", offset=32).reshape(3, -1, 3), cache)
         np.testing.assert_array_equal(cache @ to_z.T, m.vertices)  # exact: a permutation
         obj, objects = _obj_vertices_and_name(tmp_path / f"{stem}.obj")
         assert objects == [m.name]
@@ -42,9 +50,16 @@ def test_pc2_and_its_obj_share_the_axes_y_up_by_default(tmp_path, up):
         assert body[..., 1].min() > 0.6 and np.ptp(body[..., 2]) < 0.5
 
 
-def test_obj_sequence_is_y_up_unless_asked(tmp_path):
+def test_a_cache_shorter_than_its_header_is_a_clear_error(tmp_path):
+    bad = tmp_path / "bad.pc2"
+    bad.write_bytes(b"POINTCACHE2\0" + b"\0" * 10)
+    with pytest.raises(LoosefitInputError, match=r"bad\.pc2.*header"):
+        read_pc2(bad)
+
+
+def test_obj_sequence_is_a_file_per_frame_and_mesh_y_up_unless_asked(tmp_path):
     meshes = dressed(T=2)
-    export_animation(tmp_path / "y", meshes, 30.0)
+    assert len(export_animation(tmp_path / "y", meshes, 30.0)) == 2 * 2
     export_animation(tmp_path / "z", meshes, 30.0, ExportConfig(up_axis="Z"))
     for folder, to_z in (("y", Y_TO_Z_UP), ("z", np.eye(3))):
         v, objects = _obj_vertices_and_name(tmp_path / folder / "garment_000001.obj")
