@@ -1,9 +1,14 @@
 """The docs hold together: every relative link in README.md, docs/ and bench/ resolves to a
-file and, where it names one, a heading (scripts/check_links.py, which a writer runs too)."""
+file and, where it names one, a heading (scripts/check_links.py, which a writer runs too);
+every dotted ``loosefit.x.y`` name in README.md and docs/ imports."""
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+import re
+
+import pytest
 
 from tests.conftest import REPO
 
@@ -30,3 +35,51 @@ def test_a_broken_link_and_a_missing_heading_are_found(tmp_path):
     broken = check.broken_links(page)
     assert len(broken) == 2 and any("missing.md" in b for b in broken)
     assert any("nowhere" in b for b in broken)
+
+
+# a dotted name, also one broken after a dot at the end of a line; not a format tag
+# (``loosefit.motion/1``)
+DOTTED = re.compile(
+    r"\bloosefit(?:\.[A-Za-z_]\w*)+(?:\.\n[ \t]*[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*)?(?![\w/])"
+)
+
+
+def dotted_names(text: str) -> set[str]:
+    """Every ``loosefit.x.y.z`` named in ``text`` (a line break after a dot joined)."""
+    return {re.sub(r"\s+", "", m.group(0)) for m in DOTTED.finditer(text)}
+
+
+def resolve(name: str):
+    """The object a dotted name names: its longest importable module, then attributes."""
+    parts = name.split(".")
+    for k in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:k]))
+        except ModuleNotFoundError as exc:
+            if exc.name not in {".".join(parts[:j]) for j in range(1, k + 1)}:
+                raise  # the module exists and fails to import: a real error
+            continue
+        for attribute in parts[k:]:
+            obj = getattr(obj, attribute)
+        return obj
+    raise ModuleNotFoundError(name)
+
+
+def test_every_dotted_loosefit_name_in_the_docs_resolves():
+    pages = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+    missing = []
+    for page in pages:
+        for name in sorted(dotted_names(page.read_text(encoding="utf-8"))):
+            try:
+                resolve(name)
+            except (ImportError, AttributeError) as exc:
+                missing.append(f"{page.relative_to(REPO)}: {name} ({exc})")
+    assert not missing, "names in the docs that do not resolve:\n" + "\n".join(missing)
+
+
+def test_dotted_names_are_found_across_lines_and_a_missing_one_fails():
+    text = "see `loosefit.body.\n  bvh.read_bvh`, format `loosefit.motion/1`, and loosefit.nowhere."
+    assert dotted_names(text) == {"loosefit.body.bvh.read_bvh", "loosefit.nowhere"}
+    assert callable(resolve("loosefit.body.bvh.read_bvh"))
+    with pytest.raises(AttributeError):
+        resolve("loosefit.body.chain.rollout_timeline")

@@ -1,4 +1,5 @@
-"""Exporters: every format written, read back and compared; bad input gives clear errors."""
+"""Exporters: USD written, read back and compared; bad input gives clear errors; the
+``export`` command (PC2 + OBJ and OBJ sequences: tests/export/test_pointcache.py)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import pytest
 
 from loosefit.errors import LoosefitInputError
 from loosefit.export import AnimatedMesh, export_animation, read_pc2
+from loosefit.export.meshes import in_up_axis
 from tests.meshes import grid
 
 
@@ -44,37 +46,6 @@ def test_usd_holds_time_sampled_points_uvs_and_the_stage_units(tmp_path, suffix)
     st = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/loosefit/garment")).GetPrimvar("st")
     np.testing.assert_allclose(np.asarray(st.ComputeFlattened()),
                                meshes[0].uvs[meshes[0].face_uvs.ravel()])  # fmt: skip
-
-
-def test_pc2_caches_read_back_from_the_format_spec_with_their_objs(tmp_path):
-    from loosefit.garment.obj import read_obj
-
-    meshes = _meshes(T=5)
-    files = export_animation(tmp_path / "skirt.pc2", meshes, fps=24.0)
-    assert {p.name for p in files} == {"skirt.pc2", "skirt.obj", "skirt_body.pc2",
-                                       "skirt_body.obj"}  # fmt: skip
-    for m, stem in zip(meshes, ("skirt", "skirt_body"), strict=True):
-        v, start, rate = read_pc2(tmp_path / f"{stem}.pc2")
-        np.testing.assert_array_equal(v, m.vertices)
-        assert (start, rate) == (0.0, 1.0)
-        raw = (tmp_path / f"{stem}.pc2").read_bytes()
-        assert raw[:12] == b"POINTCACHE2\0" and len(raw) == 32 + 12 * v.shape[0] * v.shape[1]
-        obj = read_obj(tmp_path / f"{stem}.obj", compute_uvs_if_missing=False)
-        np.testing.assert_allclose(obj.vertices, m.vertices[0], atol=1e-7)
-    bad = tmp_path / "bad.pc2"
-    bad.write_bytes(b"POINTCACHE2\0" + b"\0" * 10)
-    with pytest.raises(LoosefitInputError, match="header"):
-        read_pc2(bad)
-
-
-def test_an_obj_sequence_has_a_file_per_frame_and_mesh(tmp_path):
-    from loosefit.garment.obj import read_obj
-
-    meshes = _meshes(T=3)
-    files = export_animation(tmp_path / "frames", meshes, fps=30.0)
-    assert len(files) == 6
-    got = read_obj(tmp_path / "frames" / "garment_000002.obj", compute_uvs_if_missing=False)
-    np.testing.assert_allclose(got.vertices, meshes[0].vertices[2], atol=1e-7)
 
 
 def test_bad_exports_are_clear_errors_and_leave_nothing(tmp_path):
@@ -125,10 +96,11 @@ def test_export_command_writes_a_dataset_sequence_with_the_posed_body(toy_datase
     seq = DatasetReader(toy_dataset).read("c")
     assert main(["export", str(toy_dataset / "sequences" / "c.npz"),
                  str(tmp_path / "c.pc2")]) == 0  # fmt: skip
-    garment, _, _ = read_pc2(tmp_path / "c.pc2")
-    np.testing.assert_array_equal(garment, seq.garment_vertices)
+    garment, _, _ = read_pc2(tmp_path / "c.pc2")  # Y up, as the OBJ beside it
+    np.testing.assert_array_equal(garment, in_up_axis(seq.garment_vertices, "Y"))
     body, _, _ = read_pc2(tmp_path / "c_body.pc2")
-    np.testing.assert_allclose(body, avatar.pose_motion(seq.motion).vertices.numpy(), atol=1e-5)
+    posed = avatar.pose_motion(seq.motion).vertices.numpy()
+    np.testing.assert_allclose(body, in_up_axis(posed, "Y"), atol=1e-5)
     assert main(["export", str(toy_dataset / "sequences" / "c.npz"), str(tmp_path / "g.usda"),
                  "--no-body"]) == 0  # fmt: skip
     assert "body" not in (tmp_path / "g.usda").read_text()
@@ -140,7 +112,8 @@ def test_export_command_writes_a_dataset_sequence_with_the_posed_body(toy_datase
     own = AnimatedGarment(seq.motion, DatasetReader(toy_dataset).template, seq.garment_vertices,
                           {"rig": "cmu_mb", "shape": {}}).save(tmp_path / "own.npz")  # fmt: skip
     assert main(["export", str(own), str(tmp_path / "own.pc2"), "--no-body"]) == 0
-    np.testing.assert_array_equal(read_pc2(tmp_path / "own.pc2")[0], seq.garment_vertices)
+    own_cache = read_pc2(tmp_path / "own.pc2")[0]
+    np.testing.assert_array_equal(own_cache, in_up_axis(seq.garment_vertices, "Y"))
     assert main(["export", str(toy_dataset / "sequences" / "c.npz"), str(tmp_path / "c.fbx")]) == 2
     assert not list(tmp_path.glob("c.fbx*")) and not (tmp_path / "t.usd").exists()
 

@@ -32,6 +32,7 @@ def test_demo_animates_the_pretrained_model_and_exports_it(tmp_path, capsys):
     import numpy as np
 
     from loosefit.export import read_pc2
+    from loosefit.export.meshes import in_up_axis
     from loosefit.sequence import DressedSequence
 
     out = tmp_path / "demo"
@@ -43,7 +44,7 @@ def test_demo_animates_the_pretrained_model_and_exports_it(tmp_path, capsys):
     err = capsys.readouterr().err  # throughput apart from the clip's own rate
     assert "animated 30 frames of a 30 fps clip (1.0 s) in" in err and "frames per second" in err
     cache, _, _ = read_pc2(out / "demo.pc2")
-    np.testing.assert_array_equal(cache, seq.garment_vertices)
+    np.testing.assert_array_equal(cache, in_up_axis(seq.garment_vertices, "Y"))  # OBJ's axes
     for name in ("demo.usdc", "demo.obj", "demo_body.pc2", "video.mp4", "video_sheet.png"):
         assert (out / name).is_file(), name
     assert iio.imread(out / "video.mp4").shape[0] == 30

@@ -1,6 +1,8 @@
-"""Every export opened in real Blender (``bpy``, Blender as a Python module): its vertices
-at three frames, in Blender's world, match loosefit's to 0.01 mm in the right axes and
-units, and the garment's UVs arrive on the right corners.
+"""Every export opened in real Blender (``bpy``, Blender as a Python module) as a user
+opens it, with the importers' defaults (a PC2: the OBJ beside it imported, a Mesh Cache
+modifier reading the cache): its vertices at three frames, in Blender's world, match
+loosefit's to 0.01 mm in the right axes and units, and the garment's UVs arrive on the
+right corners.
 
 Blender runs in a subprocess (:mod:`loosefit.export.blender_read`): its own USD libraries
 must not meet usd-core's in one process. Skipped, with the reason, where ``bpy`` is not
@@ -29,7 +31,7 @@ pytestmark = pytest.mark.skipif(
 READER = Path(loosefit.export.__file__).with_name("blender_read.py")
 FRAMES = [0, 2, 4]
 FPS = 24.0
-# Blender's Alembic importer turns Y up to Z up: (x, y, z) -> (x, -z, y).
+# Blender's Alembic and OBJ importers turn Y up to Z up: (x, y, z) -> (x, -z, y).
 YUP_IN_BLENDER = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
@@ -47,6 +49,8 @@ CASES = {
     "usd-skinned": ("s.usdc", None, np.eye(3)),
     "usd-points": ("p.usdc", ExportConfig(skinned_body=False), np.eye(3)),
     "glb": ("g.glb", None, np.eye(3)),
+    "pc2": ("c.pc2", None, np.eye(3)),
+    "pc2-zup": ("zc.pc2", ExportConfig(up_axis="Z"), YUP_IN_BLENDER),  # read as if Y up
 }
 
 
@@ -65,8 +69,10 @@ def test_blender_sees_the_exported_vertices_at_three_frames(tmp_path, monkeypatc
         assert seen[m.name].shape == want.shape, m.name
         err = np.linalg.norm(seen[m.name] - want, axis=-1).max()
         assert err < 1e-5, f"{m.name}: {err * 1e3:.4f} mm"  # 0.01 mm
-    # the garment's UVs: at each Blender face corner, the UV loosefit gave that corner
     g = meshes[0]
+    if name.endswith(".pc2"):  # the OBJ's vertices and faces in loosefit's order
+        np.testing.assert_array_equal(seen["garment.faces"], g.faces)
+    # the garment's UVs: at each Blender face corner, the UV loosefit gave that corner
     source = split_uvs(g)[0] if name.endswith(".glb") else np.arange(g.vertices.shape[1])
     corner_uv = {(frozenset(f), v): g.uvs[u] for f, fu in zip(g.faces, g.face_uvs, strict=True)
                  for v, u in zip(f, fu, strict=True)}  # fmt: skip

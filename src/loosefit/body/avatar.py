@@ -137,7 +137,10 @@ class SeedPoints:
 
 
 def _build_anny(rig: str, topology: str, shape: dict[str, float]):
-    import anny  # imported lazily: importing it initialises warp
+    from loosefit.warp_log import import_warp
+
+    import_warp()  # before anny: importing it initialises warp, whose banner goes to stderr
+    import anny  # imported lazily
 
     model = anny.Anny(rig=rig, topology=topology)
     unknown = set(shape) - set(model.phenotype_labels)

@@ -335,8 +335,8 @@ def add_export_format_args(p) -> None:
         "--up-axis",
         choices=("Y", "Z"),
         default=None,
-        help="the exported axes (default: the format's own: USD Z up, Alembic Y up; glTF is "
-        "always Y up)",
+        help="the exported axes (default: the format's own: USD Z up; Alembic, PC2 and OBJ Y "
+        "up; glTF is always Y up)",
     )
     p.add_argument(
         "--body-points",

@@ -14,8 +14,9 @@ own module:
 * ``.pc2``: a point cache (Blender's Mesh Cache modifier, Maya, Houdini, 3ds Max)
   of the first mesh, the others beside it as ``STEM_NAME.pc2``, and each mesh's
   first frame with its UVs as ``STEM[_NAME].obj`` to put the cache on (import it
-  keeping the vertex order) (:mod:`~loosefit.export.pointcache`).
-* a folder (no suffix): one OBJ per frame and mesh, ``NAME_000000.obj``.
+  keeping the vertex order: Blender's default OBJ import does), both Y up as OBJ files
+  are (:mod:`~loosefit.export.pointcache`).
+* a folder (no suffix): one OBJ per frame and mesh, ``NAME_000000.obj``, Y up.
 
 Every file is written to a temporary name beside it and renamed when complete, so a
 failed export leaves nothing that looks finished.

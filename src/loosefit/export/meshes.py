@@ -17,7 +17,8 @@ Z_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 class ExportConfig:
     """How animated meshes are written (every field has a default for every format)."""
 
-    up_axis: str | None = None  # "Z" or "Y"; None: the format's own (USD Z, Alembic Y; glTF is Y)
+    # "Z" or "Y"; None: the format's own (USD Z; Alembic, PC2 and OBJ Y; glTF is always Y)
+    up_axis: str | None = None
     skinned_body: bool = True  # a body with a rig as a skinned mesh (USD, glTF), else points
     skin_tolerance: float = 1e-5  # metres: a rig farther than this from the body -> points
 
@@ -25,6 +26,14 @@ class ExportConfig:
         if self.up_axis is not None and self.up_axis.upper() not in ("Y", "Z"):
             raise LoosefitInputError("ExportConfig", "up_axis", "'Y', 'Z' or None", self.up_axis)
         self.up_axis = None if self.up_axis is None else self.up_axis.upper()
+
+
+def in_up_axis(vertices: np.ndarray, up_axis: str) -> np.ndarray:
+    """(..., 3) positions in loosefit's axes (Z up) written in ``up_axis``: "Z", as they
+    are; "Y", turned by :data:`Z_TO_Y_UP`, (x, y, z) -> (x, z, -y), exactly (no rounding)."""
+    if up_axis == "Z":
+        return vertices
+    return np.stack([vertices[..., 0], vertices[..., 2], -vertices[..., 1]], axis=-1)
 
 
 @dataclass

@@ -1,5 +1,14 @@
 """Point caches: PC2 (+ an OBJ to put it on) and OBJ sequences.
 
+Both are written Y up by default, the OBJ convention (``ExportConfig.up_axis`` "Z" keeps
+loosefit's own axes): (x, y, z) -> (x, z, -y), the PC2 in the same axes as the OBJ beside
+it. So Blender's OBJ importer with its defaults (forward -Z, up Y) stands the mesh up by
+its object's rotation, and a Mesh Cache modifier on it with its defaults (format PC2;
+forward +Y, up +Z: the cache in the object's own axes) plays the cache in place. The OBJ
+names its object (``o NAME``) and keeps loosefit's vertex order; Blender's importer keeps
+that order too but drops a vertex no face uses, after which the modifier refuses the
+cache (its vertex count differs), so such a mesh is written with a warning.
+
 The PC2 layout (a 32-byte little-endian header, then float32 x, y, z per point per
 sample)::
 
@@ -10,13 +19,14 @@ sample)::
 from __future__ import annotations
 
 import struct
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from loosefit.atomic import atomic_path
 from loosefit.errors import LoosefitInputError
-from loosefit.export.meshes import AnimatedMesh, ExportConfig, check_meshes
+from loosefit.export.meshes import AnimatedMesh, ExportConfig, check_meshes, in_up_axis
 
 PC2_MAGIC = b"POINTCACHE2\0"
 PC2_HEADER = struct.Struct("<12siiffi")
@@ -72,23 +82,38 @@ def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
     return v.astype(np.float32), float(start), float(rate)
 
 
-def _obj_of(path: Path, mesh: AnimatedMesh, frame: int) -> None:
+def _obj_of(path: Path, mesh: AnimatedMesh, frame: int, up_axis: str) -> None:
     from loosefit.garment.obj import write_obj
 
-    write_obj(path, mesh.vertices[frame], mesh.faces, mesh.uvs, mesh.face_uvs)
+    vertices = in_up_axis(mesh.vertices[frame], up_axis)
+    write_obj(path, vertices, mesh.faces, mesh.uvs, mesh.face_uvs, name=mesh.name)
+
+
+def _warn_unused_vertices(mesh: AnimatedMesh, where: Path) -> None:
+    unused = int((np.bincount(mesh.faces.ravel(), minlength=mesh.vertices.shape[1]) == 0).sum())
+    if unused:
+        warnings.warn(
+            f"{where}: {unused} of the {mesh.vertices.shape[1]} vertices of '{mesh.name}' are "
+            "in no face: Blender's OBJ importer drops them, and its Mesh Cache modifier then "
+            "refuses the cache (vertex count mismatch)",
+            stacklevel=3,
+        )
 
 
 def export_pc2(
     path: Path, meshes: list[AnimatedMesh], fps: float, config: ExportConfig | None = None
 ) -> list[Path]:
-    """The first mesh's cache at ``path``, the others as ``STEM_NAME.pc2``; an OBJ of each."""
+    """The first mesh's cache at ``path``, the others as ``STEM_NAME.pc2``; an OBJ of each
+    (its first frame) beside its cache, both Y up unless ``config.up_axis`` is "Z"."""
     check_meshes(meshes, fps, path)
+    up_axis = (config or ExportConfig()).up_axis or "Y"
     written = []
     for i, m in enumerate(meshes):
+        _warn_unused_vertices(m, path)
         stem = path.stem if i == 0 else f"{path.stem}_{m.name}"
         cache, obj = path.with_name(stem + ".pc2"), path.with_name(stem + ".obj")
-        written += [write_pc2(cache, m.vertices), obj]
-        _obj_of(obj, m, 0)
+        written += [write_pc2(cache, in_up_axis(m.vertices, up_axis)), obj]
+        _obj_of(obj, m, 0, up_axis)
     return written
 
 
@@ -98,12 +123,14 @@ def export_pc2(
 def export_obj_sequence(
     folder: Path, meshes: list[AnimatedMesh], fps: float, config: ExportConfig | None = None
 ) -> list[Path]:
-    """``folder/NAME_000000.obj`` ... one OBJ per frame and mesh (each written atomically)."""
+    """``folder/NAME_000000.obj`` ... one OBJ per frame and mesh (each written atomically),
+    Y up unless ``config.up_axis`` is "Z"."""
     T = check_meshes(meshes, fps, folder)
+    up_axis = (config or ExportConfig()).up_axis or "Y"
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for m in meshes:
         for t in range(T):
             written.append(folder / f"{m.name}_{t:06d}.obj")
-            _obj_of(written[-1], m, t)
+            _obj_of(written[-1], m, t, up_axis)
     return written

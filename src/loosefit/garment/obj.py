@@ -333,6 +333,7 @@ def write_obj(
     faces: np.ndarray,
     uvs: np.ndarray | None = None,
     face_uvs: np.ndarray | None = None,
+    name: str | None = None,
 ) -> None:
     """Write a triangle mesh (and UVs) to an OBJ file, atomically.
 
@@ -346,6 +347,7 @@ def write_obj(
         faces: (F, 3) 0-based vertex indices.
         uvs: (U, 2) UV coordinates, or None.
         face_uvs: (F, 3) 0-based indices into ``uvs``, or None (with ``uvs``).
+        name: the object's name (an ``o`` line: what an importer calls it), or None.
     """
     vertices = np.asarray(vertices)
     faces = np.asarray(faces, dtype=np.int64)
@@ -353,7 +355,7 @@ def write_obj(
     face_uvs = None if face_uvs is None else np.asarray(face_uvs, dtype=np.int64)
     _check_write(vertices, faces, uvs, face_uvs)
 
-    parts = ["# written by loosefit\n"]
+    parts = ["# written by loosefit\n"] + ([f"o {name}\n"] if name else [])
     parts += [f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in vertices.tolist()]
     if uvs is not None and face_uvs is not None:
         parts += [f"vt {u:.9g} {v:.9g}\n" for u, v in uvs.tolist()]

@@ -10,7 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import warp as wp
+
+from loosefit.warp_log import import_warp
+
+wp = import_warp()  # its banner and kernel loads on standard error
 
 
 @dataclass

@@ -3,7 +3,9 @@ posed inside a frame, the waistband pinned to it, the velocities damped."""
 
 from __future__ import annotations
 
-import warp as wp
+from loosefit.warp_log import import_warp
+
+wp = import_warp()  # its banner and kernel loads on standard error
 
 
 @wp.kernel

@@ -26,13 +26,15 @@ import math
 import warnings
 
 import numpy as np
-import warp as wp
 
 from loosefit.errors import LoosefitInputError
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.kernels import damp_kernel, pin_waist_kernel, pose_bodies_kernel
 from loosefit.sim.vbd import solver_class
 from loosefit.sim.waist import glue_waist
+from loosefit.warp_log import import_warp
+
+wp = import_warp()  # its banner and kernel loads on standard error
 
 
 class ClothSimulator:

@@ -24,7 +24,9 @@ overrides two of its methods (``_initialize_particles``, ``_solve_particle_itera
 
 from __future__ import annotations
 
-import warp as wp
+from loosefit.warp_log import import_warp
+
+wp = import_warp()  # its banner and kernel loads on standard error
 
 
 @wp.kernel
