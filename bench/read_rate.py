@@ -6,8 +6,9 @@ is read as ``loosefit animate`` reads it, without a joint map (the shipped maps,
 joint matcher), and judged a plausible dancer when it stands as one: a dancer's height as
 measured on the frames (1.2-2.2 m, what retargeting accepts), the avatar's root 0.7-1.1 m
 above the floor in the median frame (a ballet clip's plies sink it below 0.8), its head
-above its pelvis in at least 75 % of the frames (a cartwheel turns it over a while). Prints, and writes with ``--out``, the share read, why the rest were refused
-(grouped by the error's field and its first words) and each file's line::
+above its pelvis in at least 75 % of the frames (a cartwheel turns it over a while).
+Prints, and writes with ``--out``, the share read, why the rest were refused (grouped by
+the error's field and its first words) and each file's line::
 
     python bench/read_rate.py /path/to/studio/bvh --sample 78 --out read_rate.md
 
@@ -24,7 +25,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime
-import platform
 import sys
 import time
 from collections import Counter
@@ -109,6 +109,7 @@ def main() -> None:
     p.add_argument("--seconds", type=float, default=4.0, help="a made clip's length")
     p.add_argument("--work", default="out/read_rate", help="where --studio writes its clips")
     p.add_argument("--out", help="a markdown file for the table")
+    p.add_argument("--machine", default="dev-cpu", help="the machine's name, for the table")
     args = p.parse_args()
     avatar = Avatar()
     folder = Path(args.folder or args.work)
@@ -132,7 +133,7 @@ def main() -> None:
     lines = [
         f"# Read without a joint map: {folder.name}",
         "",
-        f"{platform.node() or 'dev-cpu'}, {datetime.date.today()}: `python bench/read_rate.py "
+        f"{args.machine}, {datetime.date.today()}: `python bench/read_rate.py "
         f"{args.folder or args.work} --sample {args.sample}"
         + (f" --studio {args.studio}" if args.studio else "")
         + "`",
