@@ -126,6 +126,15 @@ def table(rows: dict[str, list[dict]], args) -> str:
         "when each run started is in its row. Ratio: the row's seconds over the fastest "
         "of its condition.",
         "",
+        "The default (`loosefit.inference.threads.default_threads`): the free cores, "
+        "`round(cores - load average)`, at least 1 and at most 4, never more than torch's "
+        "own count, and torch's count as it is where `OMP_NUM_THREADS` or `MKL_NUM_THREADS` "
+        "is set; `--threads N` on `animate`, `demo` and `evaluate`, `threads=N` on "
+        "`Animator.animate` and `animate_batch` choose instead, for that call alone (torch's "
+        "count before comes back after it). The target: the default within 1.2x of the "
+        "fastest row, idle and under load. What the figures mean, and earlier runs: "
+        "[BENCHMARKS.md](BENCHMARKS.md#threads-how-many-animate-uses).",
+        "",
         "| machine | date | torch | load condition | load average at start | threads asked "
         "| threads run | seconds | CPU seconds | frames/s | ratio to the best |",
         "|---|---|---|---|---:|---|---:|---:|---:|---:|---:|",

@@ -5,9 +5,10 @@ already runs its later stages (edge lengths, collision handling) on a second Pyt
 beside the motion stage, each with its own team of torch's intra-op (OpenMP) threads. More
 intra-op threads than free cores then cost far more than they save: OpenMP's threads wait
 for each other at every operation, spinning, and a core taken by another program stalls
-them all. On dev-cpu (2 cores) with other work running, torch's default of one thread a
-core made ``loosefit animate`` 2-6x slower than one thread, at 2x the CPU time; idle, two
-threads are 1.1-1.2x faster than one (docs/THREADS.md, ``bench/animate_threads.py``).
+them all. On dev-cpu (2 cores) under load, torch's default of a thread a core made
+``animate`` 1.4-2x slower than one thread, at 2x the CPU time (a user saw 6x); on the
+quiet machine two threads were 1.22x faster than one (docs/BENCHMARKS.md, "Threads";
+``bench/animate_threads.py``).
 
 The default (:func:`default_threads`) is therefore the free cores, counted from the
 machine's load: ``round(cores - load)`` where ``cores`` are the ones this process may run
@@ -21,9 +22,10 @@ The setting is **scoped**: :func:`inference_threads` sets torch's count for one
 ``animate`` call and puts the previous count back after it.
 
 Thread counts change the order of floating-point sums, so two counts give garments that
-differ by float rounding (1e-6 m) before collision handling, and, since collision
-handling is not continuous in its input, by up to millimetres at a few vertices after it.
-For bit-identical reruns on machines under different load, pass a fixed count.
+differ by float rounding (under 1e-6 m) before collision handling and, since collision
+handling is not continuous in its input, by up to about 2 mm at a few vertices after it;
+one count gives the same garments, bit for bit, whoever chose it. For bit-identical reruns
+on machines under different loads, pass a fixed count.
 """
 
 from __future__ import annotations
