@@ -85,3 +85,19 @@ def test_the_setting_is_scoped_to_the_block():
         assert torch.get_num_threads() == 2
     finally:
         torch.set_num_threads(before)
+
+
+def test_the_default_reads_the_users_variable_and_torchs_count(monkeypatch):
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        monkeypatch.setenv("OMP_NUM_THREADS", "2")
+        with inference_threads() as n:  # the user's variable: torch's count, whatever the load
+            assert n == 2 == torch.get_num_threads()
+        monkeypatch.delenv("OMP_NUM_THREADS")
+        monkeypatch.delenv("MKL_NUM_THREADS", raising=False)
+        torch.set_num_threads(1)
+        with inference_threads() as n:  # never more than torch's own count
+            assert n == 1
+    finally:
+        torch.set_num_threads(before)

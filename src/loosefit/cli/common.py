@@ -17,6 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from loosefit.errors import LoosefitInputError
+from loosefit.inference.threads import MOST_THREADS
 
 
 def log(msg: str) -> None:
@@ -339,7 +340,7 @@ def add_threads_arg(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="N",
         help="torch threads while the model animates (default: the free cores by the "
-        "machine's load average, at most 4; OMP_NUM_THREADS, if set, is kept; "
+        f"machine's load average, at most {MOST_THREADS}; OMP_NUM_THREADS, if set, is kept; "
         "docs/THREADS.md)",
     )
 
@@ -383,7 +384,7 @@ def inference_threads(args: argparse.Namespace):
         elif variable is not None:
             why = f"as {variable} sets"
         else:
-            why = "the free cores by the load average, at most 4; --threads N to choose"
+            why = f"the free cores by the load average, at most {MOST_THREADS}; --threads N"
         log(f"{n} torch thread{'s' if n > 1 else ''} ({why})")
         yield n
 

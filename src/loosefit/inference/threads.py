@@ -14,9 +14,10 @@ The default (:func:`default_threads`) is therefore the free cores, counted from 
 machine's load: ``round(cores - load)`` where ``cores`` are the ones this process may run
 on (its CPU affinity and a container's CPU quota) and ``load`` the one-minute load
 average, at least 1 and at most :data:`MOST_THREADS`; never more than torch's own count
-(a smaller ``torch.set_num_threads(k)`` of yours stays), and torch's count as it is when
-``OMP_NUM_THREADS`` or ``MKL_NUM_THREADS`` is set (you chose it). ``threads=N`` (the
-API) or ``--threads N`` (the commands) overrides it.
+(a smaller ``torch.set_num_threads(k)`` of yours stays; a larger one is lowered like
+torch's default), and torch's count as it is when ``OMP_NUM_THREADS`` or
+``MKL_NUM_THREADS`` is set (you chose it). ``threads=N`` (the API) or ``--threads N``
+(the commands) overrides it.
 
 The setting is **scoped**: :func:`inference_threads` sets torch's count for one
 ``animate`` call and puts the previous count back after it.
