@@ -8,6 +8,9 @@ process's CPU time), ``--repeats`` times, the fastest kept. The thread count tor
 with is read during the rollout. ``OMP_NUM_THREADS`` and ``MKL_NUM_THREADS`` are removed
 from the children's environment (else the default keeps them).
 
+``--omp-wait-policy PASSIVE`` runs them with OpenMP's idle threads sleeping at once
+instead of spinning a while first.
+
 The load: one busy-looping process per core (``os.cpu_count()``, no CPU affinity set),
 started before the loaded runs, each ending by itself after ``--load-seconds`` at the most
 and stopped when the runs are done; the runs wait until the one-minute load average has
@@ -62,6 +65,8 @@ def child(threads: str, motion: str, frames: int, repeats: int) -> dict:
 def run_child(threads: str, args) -> dict:
     """One configuration in a fresh process, with the load average when it started."""
     env = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+    if args.omp_wait_policy:  # read when OpenMP starts: set for the child, not here
+        env["OMP_WAIT_POLICY"] = args.omp_wait_policy
     load = os.getloadavg()[0]
     command = [sys.executable, __file__, "--child", threads, "--motion", args.motion,
                "--frames", str(args.frames), "--repeats", str(args.repeats)]  # fmt: skip
@@ -124,7 +129,8 @@ def table(rows: dict[str, list[dict]], args) -> str:
         f"fastest of {args.repeats} run(s) after a warm-up; `load`: {cores} busy-looping "
         "processes beside it. `idle` is only as idle as the machine was: the load average "
         "when each run started is in its row. Ratio: the row's seconds over the fastest "
-        "of its condition.",
+        "of its condition. OpenMP's wait policy (`OMP_WAIT_POLICY`): "
+        f"{args.omp_wait_policy or 'not set (its default: spin a while, then sleep)'}.",
         "",
         "The default (`loosefit.inference.threads.default_threads`): the free cores, "
         "`round(cores - load average)`, at least 1 and at most 4, never more than torch's "
@@ -160,6 +166,12 @@ def main() -> None:
     p.add_argument("--conditions", default="idle,load", help="idle and/or load")
     p.add_argument("--load-seconds", type=float, default=600.0, help="a busy loop's longest life")
     p.add_argument("--load-warmup", type=float, default=60.0, help="most seconds to wait for it")
+    p.add_argument(
+        "--omp-wait-policy",
+        default=None,
+        choices=("PASSIVE", "ACTIVE"),
+        help="OMP_WAIT_POLICY for the runs (default: not set)",
+    )
     p.add_argument("--machine", default=platform.node(), help="the machine's name in the doc")
     p.add_argument("--out", default="docs/THREADS.md")
     p.add_argument("--child", default=None, help=argparse.SUPPRESS)

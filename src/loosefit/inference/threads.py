@@ -3,9 +3,10 @@
 A frame's tensors are small (a 2,352-vertex garment, small networks) and the rollout
 already runs its later stages (edge lengths, collision handling) on a second Python thread
 beside the motion stage, each with its own team of torch's intra-op (OpenMP) threads. More
-intra-op threads than free cores then cost far more than they save: OpenMP's threads wait
-for each other at every operation, spinning, and a core taken by another program stalls
-them all. On dev-cpu (2 cores) under load, torch's default of a thread a core made
+intra-op threads than free cores then cost far more than they save: every operation
+waits for its team's slowest thread, and a thread that another program's work has taken
+off its core holds up the rest (with OpenMP's idle threads sleeping rather than spinning,
+too). On dev-cpu (2 cores) under load, torch's default of a thread a core made
 ``animate`` 1.4-2x slower than one thread, at 2x the CPU time (a user saw 6x); on the
 quiet machine two threads were 1.22x faster than one (docs/BENCHMARKS.md, "Threads";
 ``bench/animate_threads.py``).
