@@ -7,7 +7,7 @@ intra-op threads than free cores then cost far more than they save: every operat
 waits for its team's slowest thread, and a thread that another program's work has taken
 off its core holds up the rest (with OpenMP's idle threads sleeping rather than spinning,
 too). On dev-cpu (2 cores) under load, torch's default of a thread a core made
-``animate`` 1.4-2x slower than one thread, at 2x the CPU time (a user saw 6x); on the
+``animate`` 1.5-1.9x slower than one thread, at 2x the CPU time (a user saw 6x); on the
 quiet machine two threads were 1.22x faster than one (docs/BENCHMARKS.md, "Threads";
 ``bench/animate_threads.py``).
 
@@ -41,7 +41,7 @@ from pathlib import Path
 
 from loosefit.errors import LoosefitInputError
 
-MOST_THREADS = 4  # the default's ceiling: a frame's tensors are too small to use more
+MOST_THREADS = 4  # the default's ceiling, for a frame's small tensors (not measured past 2 cores)
 USER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS")  # torch reads these at start
 CGROUP_CPU_MAX = Path("/sys/fs/cgroup/cpu.max")  # a container's CPU quota (cgroup v2)
 
