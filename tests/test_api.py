@@ -57,6 +57,27 @@ def test_bad_inputs_are_clear_errors(model, tmp_path):
         model.animate("kick", frames=4, collision="fast")
 
 
+def test_threads_are_checked_and_set_for_the_call_alone(model):
+    import torch
+
+    seen = []
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        model.animate(
+            "kick", frames=3, threads=1, progress=lambda *_: seen.append(torch.get_num_threads())
+        )
+        assert seen and set(seen) == {1} and torch.get_num_threads() == 2
+        for bad in (0, 1.5, "2"):
+            with pytest.raises(LoosefitInputError, match="threads.*at least 1"):
+                model.animate("kick", frames=3, threads=bad)
+        with pytest.raises(LoosefitInputError, match="threads.*at least 1"):
+            model.animate_batch(["kick", "spin"], frames=3, threads=-1)
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+
+
 def test_realtime_collision_handling_keeps_the_cloth_out_with_fewer_rounds(model):
     # the same frames, collision handling cut to one solve and one round of its last steps:
     # the model's own configuration is back afterwards

@@ -179,6 +179,7 @@ class Animator:
         progress: Callable[[int, int], None] | None = None,
         runtime: str = "torch",
         collision: str = "full",
+        threads: int | None = None,
     ) -> AnimatedGarment:
         """The garment through a motion.
 
@@ -199,19 +200,27 @@ class Animator:
                 the last projection and of the mending a frame, 1.3-2.2x faster collision
                 handling, a little more cloth left within a millimetre of the skin
                 (docs/BENCHMARKS.md, "Collision handling: full and realtime").
+            threads: torch's intra-op threads for this call (an int >= 1); None: the free
+                cores, at most 4 (:func:`~loosefit.inference.threads.default_threads`:
+                fewer on a busy machine, torch's own count kept where ``OMP_NUM_THREADS``
+                is set). Torch's count before the call comes back after it
+                (docs/THREADS.md).
 
         Returns:
             :class:`~loosefit.sequence.AnimatedGarment`, world positions.
 
         Raises:
-            LoosefitInputError: an unreadable motion, or ``runtime="onnx"`` without
-                onnxruntime or for a baseline.
+            LoosefitInputError: an unreadable motion, ``runtime="onnx"`` without
+                onnxruntime or for a baseline, or ``threads`` not an int >= 1.
         """
-        avatar = self.model.avatar()
-        m = motion_for(motion, avatar, self.fps, frames, start_frame, seed)
-        result = self.model.animate(
-            m, progress, stages=stages, runtime=runtime, collision=collision
-        )
+        from loosefit.inference.threads import inference_threads
+
+        with inference_threads(threads):
+            avatar = self.model.avatar()
+            m = motion_for(motion, avatar, self.fps, frames, start_frame, seed)
+            result = self.model.animate(
+                m, progress, stages=stages, runtime=runtime, collision=collision
+            )
         shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
         return AnimatedGarment(
             m, self.template, result.vertices, shape, f"loosefit model {self.path}"
@@ -226,18 +235,22 @@ class Animator:
         progress=None,
         runtime: str = "torch",
         collision: str = "full",
+        threads: int | None = None,
     ) -> list[AnimatedGarment]:
         """N motions (files, moves or :class:`~loosefit.types.Motion`) at once, N characters:
         the motion stage runs batched (one network call per frame for all of them). ``seed``
-        seeds procedural motions (the i-th gets ``seed + i``); ``runtime`` and ``collision``
-        as for :meth:`animate`.
+        seeds procedural motions (the i-th gets ``seed + i``); ``runtime``, ``collision``
+        and ``threads`` as for :meth:`animate`.
 
         Returns:
             One :class:`~loosefit.sequence.AnimatedGarment` per motion.
 
         Raises:
-            LoosefitInputError: a motion on other joints, at another rate, or unreadable.
+            LoosefitInputError: a motion on other joints, at another rate, or unreadable;
+                ``threads`` not an int >= 1.
         """
+        from loosefit.inference.threads import inference_threads
+
         if not isinstance(self.model, BatchAnimatingModel):
             raise LoosefitInputError(
                 self.path,
@@ -245,11 +258,14 @@ class Animator:
                 "our model (a baseline animates one motion at a time)",
                 type(self.model).__name__,
             )
-        avatar = self.model.avatar()
-        ms = [motion_for(m, avatar, self.fps, frames, 0, seed + i) for i, m in enumerate(motions)]
-        results = self.model.animate_batch(
-            ms, progress, stages=stages, runtime=runtime, collision=collision
-        )
+        with inference_threads(threads):
+            avatar = self.model.avatar()
+            ms = [
+                motion_for(m, avatar, self.fps, frames, 0, seed + i) for i, m in enumerate(motions)
+            ]
+            results = self.model.animate_batch(
+                ms, progress, stages=stages, runtime=runtime, collision=collision
+            )
         shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
         return [
             AnimatedGarment(m, self.template, r.vertices, shape, f"loosefit model {self.path}")

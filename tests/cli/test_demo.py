@@ -63,3 +63,14 @@ def test_demo_with_physics(tmp_path, avatar):
 
     seq = DressedSequence.load(out / "sequence.npz")
     assert seq.source == "newton-vbd" and seq.garment_vertices.shape[0] == 10
+
+
+@pytest.mark.parametrize("mode", ["--no-physics", "--physics"])
+def test_demo_threads_only_with_the_learned_model(tmp_path, capsys, mode):
+    """--threads sets the learned model's threads: with the simulator or a rigid skirt it is
+    refused, not ignored; a bad count is refused before the work."""
+    assert main(["demo", "--out", str(tmp_path), mode, "--threads", "2"]) == 2
+    assert "no --threads with --physics or --no-physics" in capsys.readouterr().err
+    assert main(["demo", "--out", str(tmp_path), "--threads", "0"]) == 2
+    assert "--threads: field 'threads'" in capsys.readouterr().err
+    assert not (tmp_path / "sequence.npz").exists()

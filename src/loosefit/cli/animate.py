@@ -14,12 +14,15 @@ from loosefit.cli.common import (
     add_render_args,
     add_runtime_args,
     add_stage_args,
+    add_threads_arg,
     export_config,
+    inference_threads,
     log,
     log_exported,
     render,
     retarget_config,
     stages,
+    threads_of,
 )
 from loosefit.errors import LoosefitInputError
 from loosefit.progress import tqdm_bar
@@ -62,6 +65,7 @@ def add_parser(sub) -> None:
     add_bvh_args(p)
     add_stage_args(p)
     add_runtime_args(p)
+    add_threads_arg(p)
     add_render_args(p, views="front,side")
     p.set_defaults(func=run)
 
@@ -95,6 +99,7 @@ def _checkpoint_and_motion(args: argparse.Namespace) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
+    threads_of(args)  # a bad count before the work
     pretrained = _checkpoint_and_motion(args)
     from loosefit.api import motion_for
     from loosefit.inference.animator import load_pipeline
@@ -128,11 +133,12 @@ def run(args: argparse.Namespace) -> int:
 
         check_export_path(args.export)  # before the work, not after
     log(f"animating {motion.num_frames} frames of '{motion.name}'")
-    bar = tqdm_bar("rollout", unit="frame")
-    result = model.animate(
-        motion, bar.progress, stages=on, runtime=args.runtime, collision=args.collision
-    )
-    bar.close()
+    with inference_threads(args):
+        bar = tqdm_bar("rollout", unit="frame")
+        result = model.animate(
+            motion, bar.progress, stages=on, runtime=args.runtime, collision=args.collision
+        )
+        bar.close()
     log(stage_line(model, on, result))
     shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
     source = f"loosefit model {Path(args.checkpoint).resolve()}"

@@ -10,11 +10,14 @@ parser stays quick.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from loosefit.errors import LoosefitInputError
+from loosefit.inference.threads import MOST_THREADS
 
 
 def log(msg: str) -> None:
@@ -327,6 +330,63 @@ def add_runtime_args(p: argparse.ArgumentParser) -> None:
         "projection and mending a frame: 1.3-2.2x faster, a little more cloth left within a "
         "millimetre of the skin; docs/BENCHMARKS.md, 'real time on one core')",
     )
+
+
+def add_threads_arg(p: argparse.ArgumentParser) -> None:
+    """``--threads``: torch's intra-op threads while the model animates (read by
+    ``inference_threads``)."""
+    p.add_argument(
+        "--threads",
+        default=None,
+        metavar="N",
+        help="torch threads while the model animates (default: the free cores by the "
+        f"machine's load average, at most {MOST_THREADS}; OMP_NUM_THREADS, if set, is kept; "
+        "docs/THREADS.md)",
+    )
+
+
+def threads_of(args: argparse.Namespace) -> int | None:
+    """``--threads`` as a count (None: not given); commands check it before their work.
+
+    Raises:
+        LoosefitInputError: not a whole number >= 1.
+    """
+    if args.threads is None:
+        return None
+    try:
+        asked = int(args.threads)
+    except ValueError:
+        asked = 0
+    if asked < 1:
+        raise LoosefitInputError(
+            "--threads", "threads", "a whole number, at least 1", repr(args.threads)
+        )
+    return asked
+
+
+@contextmanager
+def inference_threads(args: argparse.Namespace):
+    """Within the block, torch's threads as ``--threads`` asks (default: the policy of
+    :func:`~loosefit.inference.threads.default_threads`), logged; torch's count before
+    comes back after it.
+
+    Raises:
+        LoosefitInputError: ``--threads`` not a whole number >= 1.
+    """
+    from loosefit.inference.threads import inference_threads as scoped
+    from loosefit.inference.threads import user_thread_variable
+
+    asked = threads_of(args)
+    with scoped(asked, "--threads") as n:
+        variable = user_thread_variable(os.environ)
+        if asked is not None:
+            why = "as --threads asks"
+        elif variable is not None:
+            why = f"as {variable} sets"
+        else:
+            why = f"the free cores by the load average, at most {MOST_THREADS}; --threads N"
+        log(f"{n} torch thread{'s' if n > 1 else ''} ({why})")
+        yield n
 
 
 def add_export_format_args(p) -> None:

@@ -11,12 +11,15 @@ from loosefit.cli.common import (
     add_bvh_args,
     add_render_args,
     add_runtime_args,
+    add_threads_arg,
     build_avatar,
     garment_template,
+    inference_threads,
     log,
     log_exported,
     render,
     retarget_config,
+    threads_of,
 )
 from loosefit.cli.view import add_view_args, serve
 from loosefit.errors import LoosefitInputError
@@ -55,6 +58,7 @@ def add_parser(sub) -> None:
         help="a model to animate with (default: the pretrained set)",
     )
     add_runtime_args(p)
+    add_threads_arg(p)
     p.add_argument("--sim-device", default="cpu", help="warp device for the simulation")
     p.add_argument(
         "--garment",
@@ -95,6 +99,13 @@ def run(args: argparse.Namespace) -> int:
             "--physics to simulate another)",
             repr(args.garment),
         )
+    if threads_of(args) is not None and not learned:  # a bad count, or one nothing reads
+        raise LoosefitInputError(
+            "--threads",
+            "threads",
+            "no --threads with --physics or --no-physics (it sets the learned model's threads)",
+            repr(args.threads),
+        )
     spec = args.motion or ("dance:20" if learned else "spin")
     max_frames = args.max_frames if args.max_frames or learned else 90
     model = None
@@ -122,11 +133,12 @@ def run(args: argparse.Namespace) -> int:
     log(f"motion '{motion.name}': {motion.num_frames} frames at {motion.fps:g} fps")
     body = avatar.pose_motion(motion)
     if model is not None:
-        bar = tqdm_bar("animate", unit="frame")
-        result = model.animate(
-            motion, progress=bar.progress, runtime=args.runtime, collision=args.collision
-        )
-        bar.close()
+        with inference_threads(args):
+            bar = tqdm_bar("animate", unit="frame")
+            result = model.animate(
+                motion, progress=bar.progress, runtime=args.runtime, collision=args.collision
+            )
+            bar.close()
         garment, source = result.vertices, f"loosefit model {path.parent.name}"
         log(throughput(motion, result) + "; " + stage_line(model, model.stages, result))
     elif args.no_physics:

@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from loosefit.cli.common import add_generative_arg, add_stage_args, log, stages
+from loosefit.cli.common import (
+    add_generative_arg,
+    add_stage_args,
+    add_threads_arg,
+    inference_threads,
+    log,
+    stages,
+    threads_of,
+)
 from loosefit.errors import LoosefitInputError
 
 
@@ -26,6 +34,7 @@ def add_parser(sub) -> None:
     p.add_argument("--rmse-only", action="store_true", help="skip Hausdorff and STED (faster)")
     p.add_argument("--out", default="out/evaluate")
     add_stage_args(p)
+    add_threads_arg(p)
     p.set_defaults(func=run)
 
 
@@ -35,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from loosefit.eval.rollouts import evaluate_rollouts
     from loosefit.inference.animator import load_pipeline
 
+    threads_of(args)  # a bad count before the work
     model = load_pipeline(args.checkpoint, args.generative, args.detail)
     if len(args.data) == 1 and Path(args.data[0]).is_dir():
         reader = DatasetReader(args.data[0])
@@ -48,15 +58,16 @@ def run(args: argparse.Namespace) -> int:
         raise LoosefitInputError(
             "--horizons", "horizons", "comma-separated frame counts", repr(args.horizons)
         ) from None
-    result = evaluate_rollouts(
-        model,
-        reader,
-        args.split,
-        horizons,
-        surface=not args.rmse_only,
-        max_frames=args.max_frames,
-        stages=stages(args),
-    )
+    with inference_threads(args):
+        result = evaluate_rollouts(
+            model,
+            reader,
+            args.split,
+            horizons,
+            surface=not args.rmse_only,
+            max_frames=args.max_frames,
+            stages=stages(args),
+        )
     result["checkpoint"] = str(Path(args.checkpoint).resolve())
     result["dataset"] = where
     write_rollout_report(result, args.out, f"Rollouts of {Path(args.checkpoint).parent.name}")

@@ -18,8 +18,9 @@ and root frames (computed for all frames at once), the divergence check, the edg
 stage, collision handling, feedback, and the later stages' overlap on a second thread
 (``Stages.overlap``; the detail graph then runs on that thread in its own session, and
 onnxruntime lets go of the GIL while it runs). Each session has as many intra-op threads
-as torch has (``torch.get_num_threads()`` when the rollout starts: one on one thread, so
-that the one-thread figures of ``bench/rollout_speed.py`` are one core's).
+as torch has (``torch.get_num_threads()`` when the rollout starts, which ``animate``'s
+``threads`` sets: :mod:`loosefit.inference.threads`; one on one thread, so that the
+one-thread figures of ``bench/rollout_speed.py`` are one core's).
 
 The garments before collision handling are PyTorch's within float rounding: over 300
 frames of the pretrained set, 5e-7 m after the decoders and the detail stage, 3e-6 m after
