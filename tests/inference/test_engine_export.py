@@ -108,3 +108,17 @@ def test_export_of_a_model_without_an_engine_tier_says_how(tmp_path):
     motion.write_bytes(b"")
     with pytest.raises(LoosefitInputError, match="loosefit train engine"):
         engine_checkpoint(motion)
+
+
+def test_waist_hold_leaves_the_band_and_pushes_below(skirt):
+    from loosefit.inference.engine_export import waist_hold
+
+    w = waist_hold(skirt.vertices, skirt.waist, 0.08)
+    z = skirt.vertices[:, 2]
+    below = z[skirt.waist].mean() - z
+    assert np.all(w[skirt.waist] == 0) and np.all(w[below >= 0.08] == 1)
+    middle = (below > 0) & (below < 0.08)
+    np.testing.assert_allclose(w[middle], below[middle] / 0.08, rtol=1e-5)
+    assert np.all(waist_hold(skirt.vertices, skirt.waist, 0.0) == 1)
+    with pytest.raises(LoosefitInputError, match="waist_blend"):
+        waist_hold(skirt.vertices, skirt.waist, -1.0)
