@@ -21,8 +21,9 @@ engine's skeleton, and the graph pushes the garment out of them
 rotations), unless exported without (``capsules=False``: the engine's own collider does it
 with the JSON's capsules). The waistband is glued to the body in the simulation and held
 by the full pipeline; capsules are rounder than a waist, so the push-out leaves the band
-where the tier puts it and takes effect gradually below it (:func:`waist_hold`). Measured: in the graph the push-out costs a fraction of what the
-same steps cost as numpy calls (docs/ENGINE_EXPORT.md).
+where the tier puts it and takes effect gradually below it (:func:`waist_hold`). Measured:
+in the graph the push-out costs a fraction of what the same steps cost as numpy calls
+(docs/ENGINE_EXPORT.md).
 """
 
 from __future__ import annotations

@@ -15,8 +15,8 @@ the training corpus's simulated garments, decoded by one matrix product::
 and leave the networks normalised). ``low`` and ``high`` (F,) are the range of each
 feature over the training frames: a motion outside it (a procedural dance bends the spine
 that no capture clip bends, 1,000 standard deviations out) is read as the nearest motion
-the tier was trained on, where outside it the skirt drifted 10 cm from the full model's. The basis is orthonormal, so the squared error of
-the coefficients is the squared error of the decoded vertices within the subspace
+the tier was trained on. The basis is orthonormal, so the squared error of the
+coefficients is the squared error of the decoded vertices within the subspace
 (:func:`fit_basis`). The previous coefficients are those of the previous frame's garment
 in the previous frame's root frame: the features hold the root's velocity and turn rate,
 which relate the two frames; no re-projection is needed.
