@@ -63,6 +63,17 @@ def engine_figures(engine, step, motion, full: np.ndarray, waist: np.ndarray) ->
     }
 
 
+def full_garments(model, motion, name: str, cache: str | None) -> np.ndarray:
+    """(T, V, 3) the full pipeline's garments of ``motion``, from ``cache`` when there."""
+    if cache is None:
+        return model.animate(motion).vertices
+    path = Path(cache) / (name.replace(", ", "_").replace(":", "-").replace(" ", "") + ".npy")
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.save(path, model.animate(motion).vertices)
+    return np.load(path)
+
+
 def motions(args, avatar, reader, fps):
     for spec in args.demo.split(","):
         move, seed = spec.split("@")
@@ -79,6 +90,9 @@ def main() -> None:
     p.add_argument("--before", default=None, help="another engine.pt, pushed out as before")
     p.add_argument("--demo", default=DEMO, help="MOVE@SEED, comma-separated")
     p.add_argument("--clips", default=HELD_OUT)
+    p.add_argument("--cache", default=None,
+                   help="a folder for the full pipeline's garments (.npy per motion), reused "
+                   "when there: to measure another tier against the same")  # fmt: skip
     p.add_argument("--out", default="docs/ENGINE_WAIST.md")
     p.add_argument("--machine", default=platform.node(), help="the machine's name in the doc")
     p.add_argument("--date", default=time.strftime("%Y-%m-%d"))
@@ -100,7 +114,7 @@ def main() -> None:
               "date": args.date, "checkpoint": str(checkpoint),
               "engines": {k: str(e.path) for k, e in tiers.items()}, "motions": {}}  # fmt: skip
     for name, kind, motion in motions(args, avatar, reader, tiers["engine tier"].fps):
-        full = model.animate(motion).vertices
+        full = full_garments(model, motion, name, args.cache)
         rf = waist_radius(full, waist)
         row = {"kind": kind, "frames": len(full),
                "full_waist_cm": [float(100 * rf.min()), float(100 * rf.max())]}  # fmt: skip

@@ -138,6 +138,8 @@ def procedural_clips(full_model, config: TrainEngineConfig, floor: float, fps: f
     from loosefit.inference.rollout import timeline
     from loosefit.model.motion_features import feature_joints, motion_features, root_frames
 
+    if config.procedural == 0:
+        return []
     avatar = full_model.avatar()
     clips = []
     for i in range(config.procedural):
