@@ -65,7 +65,8 @@ def push_out(
         start, end: (B, C, 3) the capsules' segments.
         radius: (C,) their radii.
         origin: (B, 3) a point near them all (the root), subtracted first for precision.
-        weight: (N,) the share of its move each point makes (0: held where it is; None: 1).
+        weight: (N, C) the share of each capsule's move each point makes (0: held where it
+            is; None: 1).
 
     Returns:
         (B, N, 3) the points, moved where inside.
@@ -86,6 +87,6 @@ def push_out(
     # bounded, continuous, and out within a few frames
     w = (radius - n).clamp_min(0.0) / torch.maximum(n, DEEP * radius)
     if weight is not None:
-        w = w * weight[:, None]  # (B, N, C)
+        w = w * weight  # (B, N, C)
     # sum_c w_c (x - a_c - t_c ab_c)
     return x + x * w.sum(-1, keepdim=True) - w @ start - (w * t) @ ab

@@ -20,8 +20,9 @@ engine's skeleton, and the graph pushes the garment out of them
 (:func:`loosefit.geometry.capsule.push_out`, the segments placed by the frame's joint
 rotations), unless exported without (``capsules=False``: the engine's own collider does it
 with the JSON's capsules). The waistband is glued to the body in the simulation and held
-by the full pipeline; capsules are rounder than a waist, so the push-out leaves the band
-where the tier puts it and takes effect gradually below it (:func:`waist_hold`). Measured:
+by the full pipeline; capsules are rounder than a waist, so the trunk's capsules leave the
+band where the tier puts it and push gradually more below it (:func:`waist_hold`); the
+legs' push it as the rest. Measured:
 in the graph the push-out costs a fraction of what the same steps cost as numpy calls
 (docs/ENGINE_EXPORT.md).
 """
@@ -50,6 +51,9 @@ from loosefit.model.motion_features import (
 )
 
 FORMAT = "loosefit-onnx-engine/1"  # the JSON's "format"
+# the capsules of the trunk, which the waistband is glued to: their push-out leaves the band
+# (waist_hold); a leg's capsule pushes it as any cloth (a thigh raised to the waist)
+TRUNK = ("pelvis", "abdomen", "waist")
 INPUTS = (
     "joint_rotations",
     "root_translation",
@@ -142,7 +146,9 @@ class EngineStep(nn.Module):
             self.register_buffer("capsule_end", torch.tensor([c.end for c in capsules]))
             self.register_buffer("radius", torch.tensor([c.radius for c in capsules]))
             hold = waist_hold(model.template.vertices, model.template.waist, waist_blend)
-            self.register_buffer("push_weight", torch.from_numpy(hold))  # (V,)
+            trunk = torch.tensor([c.name in TRUNK for c in capsules])  # (C,)
+            weight = torch.where(trunk, torch.from_numpy(hold)[:, None], torch.ones(1))
+            self.register_buffer("push_weight", weight)  # (V, C)
 
     def forward(
         self,
