@@ -52,6 +52,7 @@ def test_export_equals_pytorch_over_300_frames(engine_run, tmp_path):
     meta = json.loads(paths[1].read_text())
     assert meta["check"]["frames"] == 300 and meta["check"]["max_difference_m"] <= 1e-5
     assert meta["capsules_in_graph"] and len(meta["capsules"]) == 9
+    assert meta["waist_held_by"] == ["pelvis", "abdomen", "waist"] and meta["waist_blend"] == 0.08
     assert meta["joint_names"] == list(model.joint_names)
 
 

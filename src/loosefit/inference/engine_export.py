@@ -282,8 +282,13 @@ def export_metadata(
         "capsule_meaning": "start and end are the segment's end points in the frame of "
         "joint (skeleton.frames), radius in metres: push every garment vertex closer than "
         "radius to the segment out to its surface, along the direction from the nearest "
-        "point of the segment, summed over the capsules it is in (loosefit.geometry.capsule."
-        "push_out; in the graph unless exported with --no-capsules)",
+        "point of the segment, summed over the capsules it is in; the moves of the capsules "
+        "named in waist_held_by times the vertex's share: 0 on the waistband and at its "
+        "height, rising linearly to 1 at waist_blend metres below the band's mean height in "
+        "the OBJ (loosefit.geometry.capsule.push_out, loosefit.inference.engine_export."
+        "waist_hold; in the graph unless exported with --no-capsules)",
+        "waist_held_by": list(TRUNK),
+        "waist_blend": float(waist_blend),
         "start_of_motion": {
             "warm_frames": int(rc.warm_frames),
             "blend_seconds": float(rc.blend_seconds),
