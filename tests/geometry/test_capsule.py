@@ -36,6 +36,24 @@ def test_push_out_equals_the_naive_loop():
     torch.testing.assert_close(got, want, atol=1e-9, rtol=0)
 
 
+def test_a_weighted_point_makes_its_share_of_the_move():
+    gen = torch.Generator().manual_seed(1)
+    x = torch.rand(2, 200, 3, generator=gen, dtype=torch.float64) - 0.5
+    a = torch.rand(2, 3, 3, generator=gen, dtype=torch.float64) * 0.4 - 0.2
+    b = a + torch.rand(2, 3, 3, generator=gen, dtype=torch.float64) * 0.3
+    r = torch.tensor([0.1, 0.15, 0.05], dtype=torch.float64)
+    weight = torch.rand(200, 3, generator=gen, dtype=torch.float64)
+    weight[:50] = 0.0
+    origin = torch.full((2, 3), 0.1, dtype=torch.float64)
+    got = push_out(x, a, b, r, origin, weight)
+    want = x.clone()
+    for c in range(3):  # the capsules' moves, each its share, summed
+        one = naive_push_out(x, a[:, c : c + 1], b[:, c : c + 1], r[c : c + 1]) - x
+        want += weight[:, c : c + 1] * one
+    torch.testing.assert_close(got, want, atol=1e-9, rtol=0)
+    torch.testing.assert_close(got[:, :50], x[:, :50], atol=1e-12, rtol=0)  # held
+
+
 def test_a_pushed_point_lies_on_the_surface():
     a, b = torch.zeros(1, 1, 3), torch.tensor([[[0.0, 0.0, 1.0]]])
     x = torch.tensor([[[0.05, 0.0, 0.5], [0.3, 0.0, 0.5], [0.0, 0.06, 1.02]]])

@@ -52,6 +52,7 @@ def test_export_equals_pytorch_over_300_frames(engine_run, tmp_path):
     meta = json.loads(paths[1].read_text())
     assert meta["check"]["frames"] == 300 and meta["check"]["max_difference_m"] <= 1e-5
     assert meta["capsules_in_graph"] and len(meta["capsules"]) == 9
+    assert meta["waist_held_by"] == ["pelvis", "abdomen", "waist"] and meta["waist_blend"] == 0.08
     assert meta["joint_names"] == list(model.joint_names)
 
 
@@ -108,3 +109,17 @@ def test_export_of_a_model_without_an_engine_tier_says_how(tmp_path):
     motion.write_bytes(b"")
     with pytest.raises(LoosefitInputError, match="loosefit train engine"):
         engine_checkpoint(motion)
+
+
+def test_waist_hold_leaves_the_band_and_pushes_below(skirt):
+    from loosefit.inference.engine_export import waist_hold
+
+    w = waist_hold(skirt.vertices, skirt.waist, 0.08)
+    z = skirt.vertices[:, 2]
+    below = z[skirt.waist].mean() - z
+    assert np.all(w[skirt.waist] == 0) and np.all(w[below >= 0.08] == 1)
+    middle = (below > 0) & (below < 0.08)
+    np.testing.assert_allclose(w[middle], below[middle] / 0.08, rtol=1e-5)
+    assert np.all(waist_hold(skirt.vertices, skirt.waist, 0.0) == 1)
+    with pytest.raises(LoosefitInputError, match="waist_blend"):
+        waist_hold(skirt.vertices, skirt.waist, -1.0)

@@ -248,6 +248,14 @@ def _add_engine_parser(stages) -> argparse.ArgumentParser:
         help="weight of the membrane term (mean squared edge strain of the decoded garment); "
         "default 0",
     )
+    p.add_argument(
+        "--procedural",
+        type=int,
+        default=None,
+        metavar="N",
+        help="add N procedural dances (the demo's moves) to the training clips, distilled "
+        "from the full model's rollouts of them; default 0",
+    )
     add_common_args(p, "runs/engine-PRESET")
     p.set_defaults(func=run_engine)
     return p
@@ -458,6 +466,7 @@ def run_engine(args: argparse.Namespace) -> int:
         targets=args.targets,
         mirror=False if args.no_mirror else None,
         membrane=args.membrane_weight,
+        procedural=args.procedural,
     )
     out = args.out or f"runs/engine-{args.preset}"
     motion = args.motion or pretrained_checkpoint()

@@ -49,7 +49,7 @@ DEEP = 0.25  # the share of the radius under which a point is pushed out partly 
 
 def push_out(
     x: torch.Tensor, start: torch.Tensor, end: torch.Tensor, radius: torch.Tensor,
-    origin: torch.Tensor | None = None,
+    origin: torch.Tensor | None = None, weight: torch.Tensor | None = None,
 ) -> torch.Tensor:  # fmt: skip
     """Points pushed out of capsules: a point at distance ``n < r`` from a capsule's segment
     moves by ``r - n`` along the direction from the segment's nearest point (by
@@ -65,13 +65,15 @@ def push_out(
         start, end: (B, C, 3) the capsules' segments.
         radius: (C,) their radii.
         origin: (B, 3) a point near them all (the root), subtracted first for precision.
+        weight: (N, C) the share of each capsule's move each point makes (0: held where it
+            is; None: 1).
 
     Returns:
         (B, N, 3) the points, moved where inside.
     """
     if origin is not None:
         o = origin[:, None]
-        return push_out(x - o, start - o, end - o, radius) + o
+        return push_out(x - o, start - o, end - o, radius, weight=weight) + o
     ab = end - start  # (B, C, 3)
     L2 = (ab * ab).sum(-1).clamp_min(1e-12)[:, None]  # (B, 1, C)
     s = x @ ab.transpose(1, 2) - (start * ab).sum(-1)[:, None]  # (B, N, C): (x - a).ab
@@ -84,5 +86,7 @@ def push_out(
     # turns fast (undefined on it), a point moves by its depth times n / (DEEP r) only:
     # bounded, continuous, and out within a few frames
     w = (radius - n).clamp_min(0.0) / torch.maximum(n, DEEP * radius)
+    if weight is not None:
+        w = w * weight  # (B, N, C)
     # sum_c w_c (x - a_c - t_c ab_c)
     return x + x * w.sum(-1, keepdim=True) - w @ start - (w * t) @ ab

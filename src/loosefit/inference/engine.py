@@ -101,9 +101,13 @@ def load_engine(path: str | Path, device="cpu") -> EngineModel:
     with checkpoint_fields(path, "engine-tier checkpoint"):
         config = EngineConfig(**data["model_config"]["engine"])
         weights = float_weights(data["model"])
+        F = int(data["num_features"])
+        # a tier saved before its features' range was recorded reads them unclamped
+        weights.setdefault("feature_low", torch.full((F,), -float("inf")))
+        weights.setdefault("feature_high", torch.full((F,), float("inf")))
         K, V = config.basis, int(data["num_vertices"])
         empty = GarmentBasis(torch.zeros(V, 3), torch.zeros(K, V, 3), torch.ones(K), torch.ones(K))
-        tier = EngineTier(int(data["num_features"]), config, empty)
+        tier = EngineTier(F, config, empty)
         load_weights(tier, weights, path, "this engine-tier configuration")
         template = template_from_dict(data["garment"]["template"])
         return EngineModel(
@@ -161,7 +165,7 @@ def rollout_engine(model: EngineModel, motion: Motion, coefficients: bool = Fals
         R, o = chain_frames(r, q, collide.parents, collide.offsets, collide.capsule_joints)
         a = (R @ collide.capsule_start[..., None])[..., 0] + o
         b = (R @ collide.capsule_end[..., None])[..., 0] + o
-        garments = push_out(garments, a, b, collide.radius, q)
+        garments = push_out(garments, a, b, collide.radius, q, collide.push_weight)
     garments = garments.cpu().numpy()
     return (garments, out.cpu().numpy()) if coefficients else garments
 

@@ -19,8 +19,12 @@ lists capsules fitted to the avatar (:mod:`loosefit.body.capsules`) on the joint
 engine's skeleton, and the graph pushes the garment out of them
 (:func:`loosefit.geometry.capsule.push_out`, the segments placed by the frame's joint
 rotations), unless exported without (``capsules=False``: the engine's own collider does it
-with the JSON's capsules). Measured: in the graph the push-out costs a fraction of what the
-same steps cost as numpy calls (docs/ENGINE_EXPORT.md).
+with the JSON's capsules). The waistband is glued to the body in the simulation and held
+by the full pipeline; capsules are rounder than a waist, so the trunk's capsules leave the
+band where the tier puts it and push gradually more below it (:func:`waist_hold`); the
+legs' push it as the rest. Measured:
+in the graph the push-out costs a fraction of what the same steps cost as numpy calls
+(docs/ENGINE_EXPORT.md).
 """
 
 from __future__ import annotations
@@ -47,6 +51,9 @@ from loosefit.model.motion_features import (
 )
 
 FORMAT = "loosefit-onnx-engine/1"  # the JSON's "format"
+# the capsules of the trunk, which the waistband is glued to: their push-out leaves the band
+# (waist_hold); a leg's capsule pushes it as any cloth (a thigh raised to the waist)
+TRUNK = ("pelvis", "abdomen", "waist")
 INPUTS = (
     "joint_rotations",
     "root_translation",
@@ -79,6 +86,32 @@ class EngineExportConfig:
     capsules: bool = True  # the capsule push-out in the graph (False: the engine's own collider)
     check_frames: int = 300  # frames of a procedural dance run against PyTorch (0: none)
     tolerance: float = 1e-5  # m: the check's largest allowed difference
+    # m below the waistband over which the push-out comes in (0 at the band, whole below;
+    # 0: the band pushed out too)
+    waist_blend: float = 0.08
+
+
+def waist_hold(vertices: np.ndarray, waist: np.ndarray, blend: float) -> np.ndarray:
+    """(V,) float32 the share of the capsule push-out each garment vertex takes: 0 on the
+    waistband and at its height, rising linearly to 1 at ``blend`` metres below the band's
+    mean height (+Z up) and below; ``blend`` 0: 1 everywhere (the band pushed out too).
+
+    A round capsule is wider than a waist in places: pushing the band out of the waist's
+    capsule loosened it by 4-5 cm and stood it out at the back, where the simulation glues
+    it to the body.
+
+    Args:
+        vertices: (V, 3) the garment at rest (the template's, on the avatar).
+        waist: (W,) the waistband's vertices.
+        blend: metres (>= 0).
+    """
+    if not blend >= 0:
+        raise LoosefitInputError("EngineExportConfig", "waist_blend", "metres >= 0", blend)
+    if blend == 0:
+        return np.ones(len(vertices), np.float32)
+    z = np.asarray(vertices, np.float64)[:, 2]
+    below = float(z[np.asarray(waist)].mean()) - z  # (V,) metres below the band
+    return np.clip(below / blend, 0.0, 1.0).astype(np.float32)
 
 
 class EngineStep(nn.Module):
@@ -86,9 +119,19 @@ class EngineStep(nn.Module):
 
     Args:
         model: an :class:`~loosefit.inference.engine.EngineModel`.
+        capsules: the capsules to push the garment out of (None: no push-out).
+        skeleton: what places them (:func:`skeleton_record`).
+        waist_blend: metres below the waistband over which the push-out comes in
+            (:func:`waist_hold`).
     """
 
-    def __init__(self, model, capsules: list | None = None, skeleton: dict | None = None):
+    def __init__(
+        self,
+        model,
+        capsules: list | None = None,
+        skeleton: dict | None = None,
+        waist_blend: float = EngineExportConfig.waist_blend,
+    ):
         super().__init__()
         self.tier = model.tier
         self.fps, self.floor_height = float(model.fps), float(model.floor_height)
@@ -102,6 +145,10 @@ class EngineStep(nn.Module):
             self.register_buffer("capsule_start", torch.tensor([c.start for c in capsules]))
             self.register_buffer("capsule_end", torch.tensor([c.end for c in capsules]))
             self.register_buffer("radius", torch.tensor([c.radius for c in capsules]))
+            hold = waist_hold(model.template.vertices, model.template.waist, waist_blend)
+            trunk = torch.tensor([c.name in TRUNK for c in capsules])  # (C,)
+            weight = torch.where(trunk, torch.from_numpy(hold)[:, None], torch.ones(1))
+            self.register_buffer("push_weight", weight)  # (V, C)
 
     def forward(
         self,
@@ -132,7 +179,7 @@ class EngineStep(nn.Module):
                                 self.capsule_joints)  # fmt: skip  # (B, C, 3, 3), (B, C, 3)
             a = (R @ self.capsule_start[..., None])[..., 0] + p  # (B, C, 3)
             b = (R @ self.capsule_end[..., None])[..., 0] + p
-            garment = push_out(garment, a, b, self.radius, root_translation)
+            garment = push_out(garment, a, b, self.radius, root_translation, self.push_weight)
         return garment, hidden, c, root_rotation, root_translation
 
 
@@ -168,8 +215,9 @@ def skeleton_record(avatar) -> dict:
 
 
 def export_metadata(
-    model, onnx_name: str, opset: int, capsules: list, skeleton: dict, in_graph: bool
-) -> dict:
+    model, onnx_name: str, opset: int, capsules: list, skeleton: dict, in_graph: bool,
+    waist_blend: float = EngineExportConfig.waist_blend,
+) -> dict:  # fmt: skip
     """What the graph's inputs and outputs mean, the skeleton and the capsules: the JSON."""
     J, V = len(model.joint_names), model.template.num_vertices
     G, K = model.tier.config.gru, model.tier.config.basis
@@ -234,8 +282,13 @@ def export_metadata(
         "capsule_meaning": "start and end are the segment's end points in the frame of "
         "joint (skeleton.frames), radius in metres: push every garment vertex closer than "
         "radius to the segment out to its surface, along the direction from the nearest "
-        "point of the segment, summed over the capsules it is in (loosefit.geometry.capsule."
-        "push_out; in the graph unless exported with --no-capsules)",
+        "point of the segment, summed over the capsules it is in; the moves of the capsules "
+        "named in waist_held_by times the vertex's share: 0 on the waistband and at its "
+        "height, rising linearly to 1 at waist_blend metres below the band's mean height in "
+        "the OBJ (loosefit.geometry.capsule.push_out, loosefit.inference.engine_export."
+        "waist_hold; in the graph unless exported with --no-capsules)",
+        "waist_held_by": list(TRUNK),
+        "waist_blend": float(waist_blend),
         "start_of_motion": {
             "warm_frames": int(rc.warm_frames),
             "blend_seconds": float(rc.blend_seconds),
@@ -285,8 +338,10 @@ def export_engine(model, path: str | Path, config: EngineExportConfig | None = N
 
     avatar = model.avatar()
     capsules, skeleton = avatar_capsules(avatar), skeleton_record(avatar)
-    step = EngineStep(model, capsules if config.capsules else None, skeleton).cpu().eval()
-    meta = export_metadata(model, path.name, config.opset, capsules, skeleton, config.capsules)
+    step = EngineStep(model, capsules if config.capsules else None, skeleton,
+                      config.waist_blend).cpu().eval()  # fmt: skip
+    meta = export_metadata(model, path.name, config.opset, capsules, skeleton, config.capsules,
+                           config.waist_blend)  # fmt: skip
 
     def check(graph: Path, meta_path: Path) -> dict:  # the reference loop reads the JSON
         return check_frames(model, step, graph, meta_path, config)

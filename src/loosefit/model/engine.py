@@ -6,13 +6,17 @@ frame). The engine tier keeps the same dynamics (the motion features of
 them to the K coefficients of a linear basis of the garment in the root frame, a PCA of
 the training corpus's simulated garments, decoded by one matrix product::
 
+    M_t = clamp(features_t, low, high)                       (F,)
     h_t = GRU(fc([M_t, c_{t-1} / s]), h_{t-1})
     c_t = s * head([h_t, c_{t-1} / s])                       (K,)
     V_t = mean + c_t @ basis                                 (V, 3), root frame
 
 ``s`` (K,) are the basis's standard deviations over the corpus (the coefficients enter
-and leave the networks normalised). The basis is orthonormal, so the squared error of
-the coefficients is the squared error of the decoded vertices within the subspace
+and leave the networks normalised). ``low`` and ``high`` (F,) are the range of each
+feature over the training frames: a motion outside it (a procedural dance bends the spine
+that no capture clip bends, 1,000 standard deviations out) is read as the nearest motion
+the tier was trained on. The basis is orthonormal, so the squared error of the
+coefficients is the squared error of the decoded vertices within the subspace
 (:func:`fit_basis`). The previous coefficients are those of the previous frame's garment
 in the previous frame's root frame: the features hold the root's velocity and turn rate,
 which relate the two frames; no re-projection is needed.
@@ -124,6 +128,8 @@ class EngineTier(nn.Module):
         basis: the garment basis (its ``basis`` has ``config.basis`` directions).
         feature_mean: (F,) and ``feature_std`` (F,): the training set's statistics.
         rest: (K,) the settled drape's coefficients: the previous garment of a first frame.
+        feature_low: (F,) and ``feature_high`` (F,): the range of each feature over the
+            training frames, to which the features are clamped (None: unbounded).
     """
 
     def __init__(
@@ -134,6 +140,8 @@ class EngineTier(nn.Module):
         feature_mean: torch.Tensor | None = None,
         feature_std: torch.Tensor | None = None,
         rest: torch.Tensor | None = None,
+        feature_low: torch.Tensor | None = None,
+        feature_high: torch.Tensor | None = None,
     ) -> None:
         super().__init__()
         self.config = cfg = config
@@ -146,6 +154,11 @@ class EngineTier(nn.Module):
                              feature_mean.float().clone())  # fmt: skip
         std = torch.ones(F) if feature_std is None else feature_std.float()
         self.register_buffer("feature_std", std.clamp_min(1e-4).clone())
+        inf = torch.full((F,), float("inf"))
+        low = -inf if feature_low is None else feature_low.float().clone()
+        high = inf if feature_high is None else feature_high.float().clone()
+        self.register_buffer("feature_low", low)  # (F,)
+        self.register_buffer("feature_high", high)  # (F,)
         self.register_buffer("mean", basis.mean.float().clone())  # (V, 3)
         self.register_buffer("basis", basis.basis.float().reshape(K, 3 * V).clone())  # (K, 3V)
         self.register_buffer("scale", basis.scale.float().clamp_min(1e-6).clone())  # (K,)
@@ -181,7 +194,8 @@ class EngineTier(nn.Module):
             raise LoosefitInputError(
                 "EngineTier", "features", f"(B, {self.num_features})", tuple(features.shape)
             )
-        x = (features - self.feature_mean) / self.feature_std
+        inside = torch.minimum(torch.maximum(features, self.feature_low), self.feature_high)
+        x = (inside - self.feature_mean) / self.feature_std
         prev = previous / self.scale  # (B, K)
         m = nn.functional.leaky_relu(self.motion_fc(torch.cat([x, prev], -1)), 0.2)
         hidden = self.gru(m, hidden)

@@ -128,6 +128,13 @@ def feature_statistics(
     return F, feats.mean(0), feats.std(0)
 
 
+def feature_range(clips: list[Clip]) -> tuple[torch.Tensor, torch.Tensor]:
+    """The least and the greatest value (F,) of each motion feature over the clips' motion
+    frames (the preroll left out: the frames a loss sees)."""
+    feats = torch.cat([c.features[c.preroll : c.length] for c in clips])  # (N, F)
+    return feats.min(0).values, feats.max(0).values
+
+
 def stack_clips(
     clips: list[Clip], longest: list[Clip] | None = None, extra: list[torch.Tensor] | None = None
 ) -> dict[str, torch.Tensor]:

@@ -48,11 +48,20 @@ from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.engine import EngineConfig, EngineTier, fit_basis, project
 from loosefit.model.motion_features import to_root_frame
 from loosefit.model.physics import ClothStructure, hem_radius, membrane_energy
-from loosefit.train.clips import Clip, feature_statistics, pad_frames, prepare_clips
+from loosefit.train.clips import (
+    Clip,
+    feature_range,
+    feature_statistics,
+    pad_frames,
+    prepare_clips,
+)
 from loosefit.train.common import epoch_means, optimizer_step
 from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
 
 TARGETS = ("simulation", "rollout")
+# the first seed of the procedural dances a tier is trained on: far from the seeds the
+# demo and the benchmarks dance (0-9), so that those stay held out
+PROCEDURAL_SEED = 1000
 
 
 @dataclass
@@ -78,6 +87,12 @@ class TrainEngineConfig(StageConfig):
     membrane_stride: int = 5  # ... taken on every this many frames (its cost is the decode's)
     length_scale: float = 100.0  # metres to centimetres in the loss
     eval_every: int = 25  # epochs; the held-out rollout RMSE into TensorBoard
+    # procedural dances (loosefit.body.procedural, seeds PROCEDURAL_SEED, +1, ...) added to
+    # the training clips, distilled from the full model's rollouts of them: the moves
+    # `loosefit demo` dances (a spine bent forward, arms near the A-pose, standing tall),
+    # which no capture clip holds; 0: none
+    procedural: int = 0
+    procedural_seconds: int = 12  # the length of each
 
     PRESETS: ClassVar[dict[str, dict]] = {"cpu": {}, "full": {}, "quick": {"epochs": 40}}
 
@@ -88,6 +103,9 @@ class TrainEngineConfig(StageConfig):
             )
         if not (isinstance(self.window, int) and self.window >= 1):
             raise LoosefitInputError("TrainEngineConfig", "window", "an integer >= 1", self.window)
+        if not (isinstance(self.procedural, int) and self.procedural >= 0):
+            raise LoosefitInputError("TrainEngineConfig", "procedural", "an integer >= 0",
+                                     self.procedural)  # fmt: skip
         for name in ("flare", "membrane"):
             if not getattr(self, name) >= 0:
                 raise LoosefitInputError("TrainEngineConfig", name, "a weight >= 0",
@@ -109,6 +127,32 @@ def rollout_targets(full_model, clips: list[Clip]) -> list[torch.Tensor]:
         P = c.preroll
         out.append(to_root_frame(world.float(), c.heading[P:], c.origin[P:]))
     return out
+
+
+@torch.no_grad()
+def procedural_clips(full_model, config: TrainEngineConfig, floor: float, fps: float) -> list[Clip]:
+    """``config.procedural`` procedural dances on the rollout timeline, their targets the
+    full model's garments (motion stage, decoded; root frames): clips as
+    :func:`~loosefit.train.clips.prepare_clips` makes them."""
+    from loosefit.body.motions import load_motion
+    from loosefit.inference.rollout import timeline
+    from loosefit.model.motion_features import feature_joints, motion_features, root_frames
+
+    if config.procedural == 0:
+        return []
+    avatar = full_model.avatar()
+    clips = []
+    for i in range(config.procedural):
+        seed = PROCEDURAL_SEED + i
+        m = load_motion(f"dance:{config.procedural_seconds}", avatar, fps=fps, seed=seed)
+        rot, root, P = timeline(m, floor, config.rollout)
+        H, p = (a.float() for a in root_frames(rot.double(), root.double()))
+        joints = feature_joints(m.joint_names, config.model.joints)
+        feats = motion_features(rot, root, m.fps, floor, joints)  # (P + T, F)
+        clip = Clip(f"dance_{seed}", m, feats, H, p, None, None, P)
+        (clip.target,) = rollout_targets(full_model, [clip])  # (T, V, 3)
+        clips.append(clip)
+    return clips
 
 
 def stack_coefficients(clips: list[Clip]) -> dict[str, torch.Tensor]:
@@ -152,6 +196,7 @@ class EngineStage(Stage):
             for c, x in zip(clips, rollout_targets(full_model, clips), strict=True):
                 c.target = x
         self.fps = clips[0].motion.fps
+        clips += procedural_clips(full_model, config, self.floor, self.fps)
         frames = torch.cat([c.target for c in clips])  # (N, V, 3)
         run.log(f"prepared {len(clips)} train clips ({len(frames)} frames) "
                 f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
@@ -161,7 +206,9 @@ class EngineStage(Stage):
                 "the variance")  # fmt: skip
         F, mean, std = feature_statistics(reader, clips, config.model.joints)
         rest = full_model.rest_state.float().cpu()
-        self.model = EngineTier(F, config.model, basis, mean, std)
+        low, high = feature_range(clips)
+        self.model = EngineTier(F, config.model, basis, mean, std, feature_low=low,
+                                feature_high=high)  # fmt: skip
         self.model.rest.copy_(rest_coefficients(self.model, rest))
         for c in clips:
             c.latent = project(c.target, basis.mean, basis.basis)  # (T, K) the targets
@@ -355,3 +402,30 @@ def train_engine(
     run = Run.open(out, stored, config.seed, log, progress)
     stage = EngineStage(reader, full, config, run)
     return train(stage, run, dataset)
+
+
+def record_feature_range(path: str | Path, data: str | Path) -> tuple[torch.Tensor, torch.Tensor]:
+    """Write into an engine-tier checkpoint the range of its features over its data set's
+    training frames (what :class:`EngineStage` records in a new run; the weights are left
+    as they are), atomically.
+
+    Returns:
+        The least and greatest value (F,) of each feature.
+
+    Raises:
+        LoosefitInputError: not an engine-tier checkpoint, or a data set of other features.
+    """
+    path = Path(path)
+    data_dict = read_checkpoint_file(path, ENGINE_FORMAT)
+    cfg = TrainEngineConfig.from_dict(data_dict["config"])  # the run's clips, as trained
+    clips = prepare_clips(
+        DatasetReader(data), "train", None, float(data_dict["floor_height"]), cfg.rollout,
+        cfg.max_frames, cfg.mirror, cfg.model.joints,
+    )  # fmt: skip
+    low, high = feature_range(clips)
+    F = int(data_dict["num_features"])
+    if low.shape != (F,):
+        raise LoosefitInputError(data, "features", F, tuple(low.shape))
+    data_dict["model"]["feature_low"], data_dict["model"]["feature_high"] = low, high
+    save_atomic(data_dict, path)
+    return low, high
