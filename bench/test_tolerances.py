@@ -21,6 +21,10 @@ other choices, so the same simulations round as on another processor:
 * ``baseline``: the oldest x86-64 each library supports: Warp's generic target (``""``),
   OpenBLAS's Prescott kernels (SSE3), MKL's compatible path, PyTorch unvectorized.
 
+(Warp's generic target with PyTorch unvectorized, OpenBLAS and MKL left as they are, gave
+the native figures to the bit on 2026-11-29, as did ``-ffp-contract=off``: Warp does not
+fuse these kernels' multiply-adds, and the processors' differences come from the BLAS.)
+
 On each target: the quantities of tests/sim/test_driver.py and tests/sim/test_generate.py
 as the tests compute them (seed 0), the in-run spreads their tolerances are derived from
 (other jitter seeds), the same quantity with the start moved by 1e-6 m (the jitter drawn
@@ -284,6 +288,14 @@ measured in the same run (`SEED_FACTOR` x the larger of two seeds' mean gaps, fl
 deterministic by construction (same process, same inputs). The tiny clip is the spin of
 tests/sim/test_driver.py turned to start facing +X. "bound": what the test allows on that
 run.
+
+Reading it: a start moved by 1e-6 m hardly moves the clip, but the processor's kernels do:
+they change the posed body and the placed garment in a float's last bits, and where a
+clip's settle is turned by an arbitrary angle those bits decide which way its folds fall.
+The row "at its own 4 deg heading" is the settle_once test as it was, against a fixed
+10 mm: over it with this machine's kernels, under it with an EPYC's. Turned a quarter turn
+(exact in floats), the clip's settle is `settle()`'s but for the jitter's pattern; every
+comparison then sits within its bound on every target, and a broken feature well over it.
 
 {head}
 {chr(10).join(rows)}

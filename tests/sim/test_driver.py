@@ -31,8 +31,10 @@ TINY_SKIRT = SkirtConfig(style="aline", rings=8, segments=24)
 def facing_x(motion: Motion) -> Motion:
     """``motion`` turned about its first root position to start facing +X: a quarter turn
     of the rest pose is exact in floats, so the drape settled there is the drape settled
-    at the origin (:func:`settle`) but for the jitter, drawn in the world frame (at the
-    spin's own 4 degrees the two differ by several seeds' worth, by rounding)."""
+    at the origin (:func:`settle`) but for the jitter, drawn in the world frame. At the
+    spin's own 4 degrees the processor's rounding decides the folds: a clip started from
+    settle()'s drape was 13.9 mm from it with one processor's kernels, 7.2 with another's
+    (docs/TEST_TOLERANCES.md)."""
     forward = motion.rotations[0, 0] @ np.array([0.0, -1.0, 0.0])
     heading = math.atan2(forward[0], -forward[1])
     return place_motion(motion, math.pi / 2 - heading, motion.root_translation[0, :2])
@@ -70,6 +72,8 @@ def test_tiny_skirt_stays_finite_attached_and_outside(avatar, tiny):
     assert np.isfinite(g).all()
     body = avatar.pose_motion(motion).vertices.numpy()
     faces = avatar.faces.numpy()
+    # the quality gate's bounds, not the cloth's positions: the waistband is glued 3 mm out,
+    # the contact keeps the cloth 4 mm out (the same on every target: TEST_TOLERANCES.md)
     for t in range(motion.num_frames):
         hit = closest_points(body[t], faces, g[t])
         waist = hit.distance[skirt.waist]
@@ -89,7 +93,7 @@ def test_tiny_skirt_hangs_under_gravity(tiny):
     assert drop > 0.8 * TINY_SKIRT.length * math.cos(math.radians(10.0))
     # Gravity pulls it down, never up, relative to the waist.
     assert drop >= (rings[0, :, 2].mean() - rings[-1, :, 2].mean()) - 0.01
-    assert result.quality["strain_p99"] < 0.1
+    assert result.quality["strain_p99"] < 0.1  # the quality gate's figure (0.044 here)
 
 
 def test_simulation_is_deterministic(avatar, tiny):
