@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from loosefit.body.chain import preroll
+from loosefit.body.chain import place_motion, preroll
 from loosefit.body.motions import load_motion
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.skirt import SkirtConfig
@@ -23,20 +23,46 @@ from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.driver import SimulationError, _guard, settle, simulate, simulate_batch
 from loosefit.sim.resume import run_key
 from loosefit.types import GarmentTemplate, Motion
+from tests.sim.spread import mean_gap, seed_bound
 
 TINY_SKIRT = SkirtConfig(style="aline", rings=8, segments=24)
 
 
+def facing_x(motion: Motion) -> Motion:
+    """``motion`` turned about its first root position to start facing +X: a quarter turn
+    of the rest pose is exact in floats, so the drape settled there is the drape settled
+    at the origin (:func:`settle`) but for the jitter, drawn in the world frame. At the
+    spin's own 4 degrees the processor's rounding decides the folds: a clip started from
+    settle()'s drape was 13.9 mm from it with one processor's kernels, 7.2 with another's
+    (docs/TEST_TOLERANCES.md)."""
+    forward = motion.rotations[0, 0] @ np.array([0.0, -1.0, 0.0])
+    heading = math.atan2(forward[0], -forward[1])
+    return place_motion(motion, math.pi / 2 - heading, motion.root_translation[0, :2])
+
+
 @pytest.fixture(scope="module")
 def tiny(avatar):
-    """A coarse skirt, six frames of a spin ramping up, and its simulation."""
+    """A coarse skirt, six frames of a spin ramping up (turned to start facing +X), and its
+    simulation."""
     skirt = fit_skirt(avatar, TINY_SKIRT)
-    motion = load_motion("spin", avatar).slice(20, 26)
+    motion = facing_x(load_motion("spin", avatar).slice(20, 26))
     done = []
     result = simulate(
         avatar, skirt, motion, ClothConfig.tiny(), progress=lambda d, t: done.append((d, t))
     )
     return skirt, motion, result, done
+
+
+@pytest.fixture(scope="module")
+def seed_spread(avatar, tiny) -> float:
+    """How far (m, mean over vertices and frames) the tiny clip's cloth moves when its start
+    jitter is drawn with another seed: the larger of two seeds, this run, this machine."""
+    skirt, motion, result, _ = tiny
+    return max(
+        mean_gap(simulate(avatar, skirt, motion, ClothConfig.tiny(seed=s)).garment_vertices,
+                 result.garment_vertices)
+        for s in (1, 2)
+    )  # fmt: skip
 
 
 def test_tiny_skirt_stays_finite_attached_and_outside(avatar, tiny):
@@ -46,6 +72,8 @@ def test_tiny_skirt_stays_finite_attached_and_outside(avatar, tiny):
     assert np.isfinite(g).all()
     body = avatar.pose_motion(motion).vertices.numpy()
     faces = avatar.faces.numpy()
+    # the quality gate's bounds, not the cloth's positions: the waistband is glued 3 mm out,
+    # the contact keeps the cloth 4 mm out (the same on every target: TEST_TOLERANCES.md)
     for t in range(motion.num_frames):
         hit = closest_points(body[t], faces, g[t])
         waist = hit.distance[skirt.waist]
@@ -65,7 +93,7 @@ def test_tiny_skirt_hangs_under_gravity(tiny):
     assert drop > 0.8 * TINY_SKIRT.length * math.cos(math.radians(10.0))
     # Gravity pulls it down, never up, relative to the waist.
     assert drop >= (rings[0, :, 2].mean() - rings[-1, :, 2].mean()) - 0.01
-    assert result.quality["strain_p99"] < 0.1
+    assert result.quality["strain_p99"] < 0.1  # the quality gate's figure (0.044 here)
 
 
 def test_simulation_is_deterministic(avatar, tiny):
@@ -237,17 +265,21 @@ def test_settle_alone_gives_the_drape_every_clip_starts_from(avatar, tiny):
 
     H, p = root_frames(torch.from_numpy(rot[:1]), torch.from_numpy(root[:1]))
     in_root = (torch.from_numpy(result.settled_vertices)[None] - p[:, None]) @ H
-    # The drape is one of many near-equilibria (folds fall one way or another with the
-    # jitter, which is drawn in the world frame), so it matches closely, not exactly.
-    gap = np.linalg.norm(in_root[0].numpy() - alone, axis=-1)
-    assert gap.mean() < 0.01 and gap.max() < 0.03
+    # The clip settled facing +X, settle() at the origin facing -Y: the same drape but for
+    # the jitter's pattern (drawn in the world frame), so the two agree as the drapes of two
+    # seeds do (3x the settle's seed spread measured here, floor 3 mm: bench/
+    # test_tolerances.py). A drape left in the world frame, or not turned back, is
+    # centimetres off.
+    reseeded = settle(avatar, skirt, ClothConfig.tiny(seed=1), fps=motion.fps)
+    gap, spread = mean_gap(in_root[0].numpy(), alone), mean_gap(reseeded, alone)
+    assert gap < max(3 * spread, 0.003), f"{gap * 1000:.2f} mm (seeds: {spread * 1000:.2f})"
     assert alone[:, 2].min() < -0.2  # hangs below the root, not at the template's rest
 
 
-def test_settled_once_every_clip_starts_from_the_one_drape(avatar, tiny):
+def test_settled_once_every_clip_starts_from_the_one_drape(avatar, tiny, seed_spread):
     """``settle_once``: the batch's clips skip their settle phase and start from one drape,
     placed where each motion starts; the cloth that follows is the clip's cloth (within what
-    settling each clip again would change)."""
+    another jitter seed changes: it starts from the drape at rest, jittered again)."""
     from loosefit.model.motion_features import root_frames
 
     skirt, motion, result, _ = tiny
@@ -264,8 +296,12 @@ def test_settled_once_every_clip_starts_from_the_one_drape(avatar, tiny):
     start = ((torch.from_numpy(given.settled_vertices)[None] - p[:, None]) @ H)[0].numpy()
     off = np.linalg.norm(start - drape, axis=-1)  # the drape, placed (and jittered); the
     assert np.median(off) < 1e-3 and off.max() < 5e-3  # waistband glued to the body
-    gap = np.linalg.norm(given.garment_vertices - result.garment_vertices, axis=-1)
-    assert gap.mean() < 0.01, f"{gap.mean() * 1000:.1f} mm from the clip settled on its own"
+    gap = mean_gap(given.garment_vertices, result.garment_vertices)
+    bound = seed_bound(seed_spread)  # tests/sim/spread.py
+    assert gap < bound, (
+        f"{gap * 1000:.1f} mm from the clip settled on its own, {bound * 1000:.1f} mm allowed"
+        f" (seeds: {seed_spread * 1000:.1f} mm)"
+    )
     assert given.quality["inside_max"] < 0.005
     (settled_here,) = simulate_batch(avatar, skirt, [motion], once)  # settled once, here
     np.testing.assert_array_equal(settled_here.garment_vertices, given.garment_vertices)
@@ -273,11 +309,13 @@ def test_settled_once_every_clip_starts_from_the_one_drape(avatar, tiny):
         simulate_batch(avatar, skirt, [motion], once, drape=drape[:-1])
 
 
-def test_one_self_contact_pass_a_substep(avatar, tiny):
+def test_one_self_contact_pass_a_substep(avatar, tiny, seed_spread):
     skirt, motion, result, _ = tiny
     one = simulate(avatar, skirt, motion, ClothConfig.tiny(self_contact_passes=1))
     gap = np.linalg.norm(one.garment_vertices - result.garment_vertices, axis=-1)
-    assert 0 < gap.max() and gap.mean() < 0.01  # another schedule, the same cloth
+    # another schedule, the same cloth: it moves the cloth less than another jitter seed
+    # does (measured here; hundreds of times less on every target in bench/test_tolerances.py)
+    assert 0 < gap.max() and gap.mean() < seed_spread
     assert one.quality["inside_max"] < 0.005
     with pytest.raises(LoosefitInputError, match="self_contact_passes"):
         ClothConfig(self_contact_passes=3)
@@ -330,12 +368,17 @@ def test_batched_clips_match_their_own_simulations(avatar, tiny, batch):
     np.testing.assert_array_equal(a.garment_vertices, alone.garment_vertices)
     np.testing.assert_array_equal(a.settled_vertices, alone.settled_vertices)
     # The second is moved metres away (Newton's self-contact ignores worlds): the same
-    # physics up to float rounding there, which a swaying drape amplifies, but by less than
-    # a 0.1 mm jitter of its start does (the seed).
-    gap = np.linalg.norm(b.garment_vertices - sway_alone.garment_vertices, axis=-1).max()
+    # physics up to float rounding there, which a swaying drape amplifies as it does a 0.1 mm
+    # jitter of its start: within the seeds' spread measured here (tests/sim/spread.py).
+    gap = mean_gap(b.garment_vertices, sway_alone.garment_vertices)
     reseeded = simulate(avatar, skirt, sway, ClothConfig.tiny(seed=1))
-    spread = np.linalg.norm(reseeded.garment_vertices - sway_alone.garment_vertices, axis=-1)
-    assert gap < 0.5 * spread.max(), f"{gap * 1000:.1f} mm (seeds: {spread.max() * 1000:.1f})"
+    spread = mean_gap(reseeded.garment_vertices, sway_alone.garment_vertices)
+    bound = seed_bound(spread)
+    assert gap < bound, (
+        f"{gap * 1000:.1f} mm, {bound * 1000:.1f} allowed (seed: {spread * 1000:.1f})"
+    )
+    # the quality gate's figures: no vertex 5 mm inside; strain p99 within 0.01, ten times
+    # its spread over seeds and CPU targets (docs/TEST_TOLERANCES.md)
     assert b.quality["inside_max"] < 0.005
     assert abs(b.quality["strain_p99"] - sway_alone.quality["strain_p99"]) < 0.01
     # the batch steps the longer clip's timeline; the shorter one holds its last pose
