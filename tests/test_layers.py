@@ -16,7 +16,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "loosefit"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),  # LoosefitInputError
-    ("types", "atomic", "progress"),  # Motion, GarmentTemplate; atomic writes; progress bars
+    ("types", "atomic", "progress", "warp_log"),  # Motion, GarmentTemplate; atomic writes;
+    # progress bars; warp imported with its messages on standard error
     ("geometry",),  # pure mesh geometry: edges, normals, skinning, queries, signed distances
     ("body",),  # the avatar, motions, body regions
     ("garment",),  # parametric garments, garment files, mesh checks, quality figures

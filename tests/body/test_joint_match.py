@@ -293,7 +293,7 @@ def test_any_tree_is_matched_or_refused_clearly():
 
 
 def test_a_joint_map_template_is_filled_in_and_loads(avatar, dance, tmp_path):
-    from loosefit.body.joint_match import joint_map_template
+    from loosefit.body.joint_map_files import joint_map_template
     from tests.body.bvh_conventions import STUDIO_X
 
     # Matched (a studio rig whose zero pose lies along X, matched on its frames): the
@@ -347,7 +347,8 @@ def test_a_nameless_rig_whose_zero_pose_does_not_stand_is_matched_on_its_frames(
 def test_the_template_never_takes_an_empty_root_and_tells_a_collar_from_an_upper_arm(
     avatar, dance, tmp_path
 ):
-    from loosefit.body.joint_match import guess_by_name, joint_map_template
+    from loosefit.body.joint_map_files import joint_map_template
+    from loosefit.body.joint_match import guess_by_name
     from tests.body.bvh_conventions import STUDIO_FAR
 
     # A studio rig with its right side gone: the matcher refuses it, the names guess.

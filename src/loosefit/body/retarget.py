@@ -46,6 +46,7 @@ from loosefit.body.capture_measure import (
     matching_frames,
     measure_height,
 )
+from loosefit.body.joint_map_files import check_joint_map
 from loosefit.body.joint_maps import (  # noqa: F401 - JointMap, DAZ_MAP, CMU_MB_MAP re-exported
     CMU_MB_MAP,
     DAZ_MAP,
@@ -58,7 +59,6 @@ from loosefit.body.joint_match import (
     MATCH_EXPECTED,
     JointMatch,
     SkeletonMatchError,
-    check_joint_map,
     map_file_hint,
     match_skeleton,
 )

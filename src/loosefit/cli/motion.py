@@ -83,7 +83,7 @@ def run_motion(args: argparse.Namespace) -> int:
 
 def run_inspect(args: argparse.Namespace) -> int:
     from loosefit.body.inspect_motion import inspect_motion
-    from loosefit.body.joint_match import joint_map_template
+    from loosefit.body.joint_map_files import joint_map_template
 
     config = retarget_config(args)
     report = inspect_motion(args.file, config)
