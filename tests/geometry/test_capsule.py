@@ -24,12 +24,18 @@ def naive_push_out(x, a, b, r):
     return out
 
 
-def test_push_out_equals_the_naive_loop():
-    gen = torch.Generator().manual_seed(0)
+def _points_and_capsules(gen: torch.Generator):
+    """(2, 200, 3) points around the origin, 3 capsules' ends (2, 3, 3) each and radii (3,)."""
     x = torch.rand(2, 200, 3, generator=gen, dtype=torch.float64) - 0.5
     a = torch.rand(2, 3, 3, generator=gen, dtype=torch.float64) * 0.4 - 0.2
     b = a + torch.rand(2, 3, 3, generator=gen, dtype=torch.float64) * 0.3
     r = torch.tensor([0.1, 0.15, 0.05], dtype=torch.float64)
+    return x, a, b, r
+
+
+def test_push_out_equals_the_naive_loop():
+    gen = torch.Generator().manual_seed(0)
+    x, a, b, r = _points_and_capsules(gen)
     got = push_out(x, a, b, r, origin=torch.full((2, 3), 0.1, dtype=torch.float64))
     want = naive_push_out(x, a, b, r)
     assert (want - x).abs().max() > 0.01  # some points were inside
@@ -38,10 +44,7 @@ def test_push_out_equals_the_naive_loop():
 
 def test_a_weighted_point_makes_its_share_of_the_move():
     gen = torch.Generator().manual_seed(1)
-    x = torch.rand(2, 200, 3, generator=gen, dtype=torch.float64) - 0.5
-    a = torch.rand(2, 3, 3, generator=gen, dtype=torch.float64) * 0.4 - 0.2
-    b = a + torch.rand(2, 3, 3, generator=gen, dtype=torch.float64) * 0.3
-    r = torch.tensor([0.1, 0.15, 0.05], dtype=torch.float64)
+    x, a, b, r = _points_and_capsules(gen)
     weight = torch.rand(200, 3, generator=gen, dtype=torch.float64)
     weight[:50] = 0.0
     origin = torch.full((2, 3), 0.1, dtype=torch.float64)

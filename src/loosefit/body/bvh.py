@@ -482,6 +482,20 @@ def body_joints(parents: np.ndarray) -> list[int]:
     return sorted(body)
 
 
+def body_extent(parents: np.ndarray, offsets: np.ndarray, end_offsets: dict) -> float:
+    """The largest side of the body's bounding box at rest (:func:`body_joints` and their
+    End Sites), in the offsets' unit.
+
+    Args:
+        parents: (J,) parent indices; offsets: (J, 3) OFFSETs; end_offsets: {j: (3,)}.
+    """
+    rest = _rest_positions(parents, offsets)
+    body = body_joints(parents)
+    points = [rest[body]] + [rest[j] + np.asarray(o) for j, o in end_offsets.items() if j in body]
+    points = np.vstack(points)
+    return float((points.max(0) - points.min(0)).max())
+
+
 def _units_scale(
     path: Path, offsets: np.ndarray, end_offsets: dict, parents: list[int], units: str
 ) -> float:
@@ -492,11 +506,7 @@ def _units_scale(
         return _UNIT_SCALES[units]
     if units != "auto":
         raise LoosefitInputError(path, "units", "one of 'm', 'cm', 'mm', 'auto'", repr(units))
-    rest = _rest_positions(np.asarray(parents), offsets)
-    body = body_joints(np.asarray(parents))
-    points = [rest[body]] + [rest[j] + np.asarray(o) for j, o in end_offsets.items() if j in body]
-    points = np.vstack(points)
-    extent = float((points.max(0) - points.min(0)).max())
+    extent = body_extent(np.asarray(parents), offsets, end_offsets)
     if extent > AUTO_MM_ABOVE:
         return 0.001
     if extent > AUTO_CM_ABOVE:

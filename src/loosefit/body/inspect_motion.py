@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.body.bone_directions import zero_pose_stands
-from loosefit.body.bvh import _UNIT_SCALES, BvhClip, body_joints, rest_positions
+from loosefit.body.bvh import _UNIT_SCALES, BvhClip, body_extent
 from loosefit.body.joint_maps import AVATAR_JOINTS
 from loosefit.body.joint_match import JointMatch
 from loosefit.body.motion_files import read_clip
@@ -118,11 +118,9 @@ def _units(clip: BvhClip, config: RetargetConfig) -> str:
         return f"{config.units} (--units)"
     if form == "glTF":
         return "m (glTF's unit; --units or --scale to set)"
-    rest = rest_positions(clip) / clip.units_scale
-    body = body_joints(clip.parents)
-    ends = [rest[j] + o / clip.units_scale for j, o in clip.end_offsets.items() if j in body]
-    points = np.vstack([rest[body], *ends]) if ends else rest[body]
-    extent = float((points.max(0) - points.min(0)).max())
+    scale = clip.units_scale
+    ends = {j: o / scale for j, o in clip.end_offsets.items()}
+    extent = body_extent(clip.parents, clip.offsets.astype(np.float64) / scale, ends)
     shape = ""
     if clip.meta.get("bones_from_frames"):
         shape = (

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.body.joint_match import _TEMPLATE_PARTS, JointMatch, guess_by_name
+from loosefit.body.joint_match import TEMPLATE_PARTS, JointMatch, guess_by_name
 from loosefit.errors import LoosefitInputError
 
 _TEMPLATE_WORDS = {"UpLeg": "thigh", "Leg": "shin (knee)", "Foot": "ankle", "ToeBase": "toes",
@@ -98,7 +98,7 @@ def joint_map_template(
         if a in found:
             note = f"  # {how}" if how else (f"  # {notes[a]}" if a in notes else "")
             lines.append(f"{a}: {_yaml_name(found[a])}{note}")
-        elif a in _TEMPLATE_PARTS:
+        elif a in TEMPLATE_PARTS:
             why = f"; {notes[a]}" if a in notes else ""
             lines.append(f"# {a}: ?   # {word}{why}")
     if axes is not None:

@@ -677,7 +677,7 @@ def _fail(
 
 
 # What a template line guesses for each avatar joint from the names alone: (side, parts).
-_TEMPLATE_PARTS = {
+TEMPLATE_PARTS = {
     "Hips": (None, ("root",)), "LowerBack": (None, ("spine",)), "Spine1": (None, ("spine",)),
     "Neck": (None, ("neck",)), "Head": (None, ("head",)),
     **{f"{S}{bone}": (S[0], parts) for S in ("Left", "Right") for bone, parts in (
@@ -692,7 +692,7 @@ def guess_by_name(
 ) -> dict[str, tuple[str | None, str]]:
     """Avatar joint -> (source joint or None, why), from the names and the hierarchy alone.
 
-    For the joints a map file must have (:data:`_TEMPLATE_PARTS`): the first source joint
+    For the joints a map file must have (:data:`TEMPLATE_PARTS`): the first source joint
     named as that part on that side (the chest: the last spine joint), not yet ``taken``
     (source joint -> avatar joint). A sided ``Shoulder`` is the collar when an upper arm
     of that side lies below it, else the upper arm; a sided ``Hip`` is the hip joint when
@@ -731,7 +731,7 @@ def guess_by_name(
         role.append(part)
     used = set(taken or {})
     out: dict[str, tuple[str | None, str]] = {}
-    for a, (side, want) in _TEMPLATE_PARTS.items():
+    for a, (side, want) in TEMPLATE_PARTS.items():
         cands = [
             j
             for j, p in enumerate(parts)
