@@ -329,6 +329,72 @@ def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_
         generate(cfg, tmp_path / "x", workers=1, progress=False, reuse=tmp_path / "none")
 
 
+def test_an_ensemble_simulates_each_clip_once_per_seed_and_resumes(
+    tiny_dataset, tmp_path, monkeypatch
+):
+    """``seeds: [0, 1]`` on the tiny kick, held out: the member of seed 0 is the clip itself
+    (the very frames of the tiny data set's kick_000), the other ``kick_000@seed1``: the same
+    motion, the cloth's start jittered from seed 1, held out too. A run killed after its
+    first member goes on with the other; a finished one simulates nothing; another data set
+    takes the members it shares."""
+    out = tmp_path / "ens"
+    cfg = preset("tiny")
+    cfg.motions.moves, cfg.motions.test_every, cfg.seeds = ("kick",), 1, [0, 1]
+    real_run, real_batch = workers.Worker.run, workers.simulate_batch
+    runs, seeds = [], {}  # the units run, and the jitter seeds the simulator was given
+
+    def run(worker, jobs, out_dir, *rest):
+        if len(runs) == 1:
+            raise KeyboardInterrupt  # killed after its first member
+        runs.append([j.name for j in jobs])
+        return real_run(worker, jobs, out_dir, *rest)
+
+    def batch(avatar, template, motions, *args, **kwargs):
+        seeds.update(zip(runs[-1], kwargs["seeds"], strict=True))
+        return real_batch(avatar, template, motions, *args, **kwargs)
+
+    monkeypatch.setattr(workers.Worker, "run", run)
+    monkeypatch.setattr(workers, "simulate_batch", batch)
+    with pytest.raises(KeyboardInterrupt):
+        generate(cfg, out, workers=1, progress=False)
+    assert list(json.loads((out / "manifest.json").read_text())["sequences"]) == ["kick_000"]
+    runs.append("killed")
+    manifest = generate(cfg, out, workers=1, progress=False)
+    assert runs == [["kick_000"], "killed", ["kick_000@seed1"]]
+    assert manifest["complete"] and manifest["summary"]["clips_ok"] == 2
+    assert manifest["split"] == {"train": [], "test": ["kick_000", "kick_000@seed1"]}
+    assert seeds == {"kick_000": 1000, "kick_000@seed1": 1001}  # the clip's, and one more
+    for s, name in ((0, "kick_000"), (1, "kick_000@seed1")):
+        entry = manifest["sequences"][name]
+        assert (entry["seed"], entry["motion_seed"]) == (1000 + s, 1000)
+        assert (entry["member_seed"], entry["member_of"]) == (s, "kick_000")
+    reader = DatasetReader(out)
+    own, other = reader.read("kick_000"), reader.read("kick_000@seed1")
+    np.testing.assert_array_equal(own.motion.rotations, other.motion.rotations)
+    np.testing.assert_array_equal(own.motion.root_translation, other.motion.root_translation)
+    gap = np.abs(own.garment_vertices - other.garment_vertices).max()
+    assert gap > 1e-4, f"the members' cloth {gap * 1000:.3f} mm apart"  # 4 mm here
+    alone = DatasetReader(tiny_dataset[0]).read("kick_000").garment_vertices
+    np.testing.assert_array_equal(own.garment_vertices, alone)
+    assert "member_seed" not in tiny_dataset[1]["sequences"]["kick_000"]  # no ensemble: as ever
+
+    # finished: nothing simulated again
+    runs.clear()
+    monkeypatch.setattr(workers.Worker, "run", lambda *a: runs.append(a) or [])
+    assert generate(cfg, out, workers=1, progress=False)["complete"] and runs == []
+    # an ensemble of seeds 1 and 2 takes the member of seed 1 (named so in both)
+    cfg.seeds = [1, 2]
+    mine = {"sequences": {}}
+    (tmp_path / "mine" / "sequences").mkdir(parents=True)
+    assert adopt_clips(cfg, plan_jobs(cfg), mine, tmp_path / "mine", out) == ["kick_000@seed1"]
+    assert mine["sequences"]["kick_000@seed1"]["member_of"] == "kick_000"
+    # a data set of no ensemble takes the clip's own member, without the member's keys
+    cfg.seeds, mine = None, {"sequences": {}}
+    (tmp_path / "plain" / "sequences").mkdir(parents=True)
+    assert adopt_clips(cfg, plan_jobs(cfg), mine, tmp_path / "plain", out) == ["kick_000"]
+    assert not {"member_seed", "member_of", "motion_seed"} & set(mine["sequences"]["kick_000"])
+
+
 def test_a_tiny_dress_dataset_simulates_held_by_its_top_band(tmp_path, avatar):
     out = tmp_path / "dress"
     manifest = generate(preset("dress-tiny"), out, workers=1, progress=False)

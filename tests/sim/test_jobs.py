@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -140,3 +142,109 @@ def test_the_pose_correction_runs_on_the_simulation_s_device(avatar, monkeypatch
     gpu = dataclasses.replace(config, cloth=dataclasses.replace(config.cloth, device="cuda:0"))
     job_motion(gpu, job, avatar)
     assert seen == ["cpu", "cuda:0"]
+
+
+def test_an_ensemble_is_each_clip_once_per_seed_with_the_clip_s_motion(avatar):
+    from loosefit.sim.jobs import member_name, split_member
+
+    config = preset("tiny")
+    config.motions = MotionSource(kind="procedural", count=2, seconds=2.0, test_every=2)
+    config.seed, config.seeds = 3, [3, 0, 7]
+    jobs = plan_jobs(config)
+    assert [(j.name, j.seed, j.jitter_seed, j.member_seed, j.test) for j in jobs] == [
+        ("dance_000", 1003, 1003, 3, False), ("dance_000@seed0", 1003, 1000, 0, False),
+        ("dance_000@seed7", 1003, 1007, 7, False), ("dance_001", 1004, 1004, 3, True),
+        ("dance_001@seed0", 1004, 1001, 0, True), ("dance_001@seed7", 1004, 1008, 7, True),
+    ]  # fmt: skip
+    # the members' motion is the clip's, to the bit; the clips' dances differ
+    first, *others = [job_motion(config, j, avatar, unfold=False) for j in jobs[:3]]
+    for motion in others:
+        np.testing.assert_array_equal(motion.rotations, first.rotations)
+        np.testing.assert_array_equal(motion.root_translation, first.root_translation)
+    assert job_motion(config, jobs[3], avatar, unfold=False).meta["moves"] != first.meta["moves"]
+    # no seeds: today's clips, names and seeds; the member of the data set's seed is the clip
+    config.seeds = None
+    plain = plan_jobs(config)
+    assert [(j.name, j.seed, j.jitter_seed, j.member_seed) for j in plain] == [
+        ("dance_000", 1003, 1003, None), ("dance_001", 1004, 1004, None)]  # fmt: skip
+    assert [(j.name, j.seed, j.jitter_seed) for j in jobs[::3]] == [
+        (j.name, j.seed, j.jitter_seed) for j in plain
+    ]
+    # the names, both ways
+    assert member_name("05_02", 1, 0) == "05_02@seed1" and member_name("05_02", 0, 0) == "05_02"
+    assert split_member("05_02@seed1") == ("05_02", 1) and split_member("05_02") == ("05_02", None)
+    assert split_member("chain_a@seed12") == ("chain_a", 12)
+    for name in ("a@seed", "a@seedx", "a@seed01", "@seed1", "a@seed-1"):
+        assert split_member(name) == (name, None)
+
+
+def test_a_clip_named_like_a_member_is_refused_in_an_ensemble(tmp_path):
+    """A file ``take@seed1.bvh`` would read as the member of seed 1 of ``take``."""
+    for name in ("take.bvh", "take@seed1.bvh"):
+        (tmp_path / name).write_text("")  # planned, never read
+    config = DatasetConfig(motions=MotionSource(kind="bvh", folder=str(tmp_path)))
+    assert [j.name for j in plan_jobs(config)] == ["take", "take@seed1"]  # no ensemble: as ever
+    config.seeds = [0, 1]
+    with pytest.raises(LoosefitInputError, match=r"'seeds'.*@seedN.*'take@seed1'"):
+        plan_jobs(config)
+
+
+def test_an_ensemble_of_specs_seeds_each_member_as_a_data_set_of_its_seed_would():
+    """``seeds: [1]`` jitters each clip of motion files as the data set of ``seed: 1`` did
+    (the shared dance-seeds members, made so by hand); the motion files take no seed."""
+    config = DatasetConfig(motions=MotionSource(kind="specs", specs=("a.bvh", "b.bvh")))
+    config.seeds = [1]
+    members = plan_jobs(config)
+    by_hand = DatasetConfig(motions=config.motions, seed=1)
+    assert [(j.name, j.spec, j.jitter_seed) for j in members] == [
+        (f"{j.name}@seed1", j.spec, j.seed) for j in plan_jobs(by_hand)
+    ]
+
+
+@pytest.mark.parametrize("seeds, found", [
+    ([], "an empty list"),
+    ([0, 1, 0], r"0 twice in \[0, 1, 0\]"),
+    ([2, -1], r"-1 in \[2, -1\]"),
+    ([0, "a"], r"'a' in \[0, 'a'\]"),
+    ([0, 1.5], r"1\.5 in \[0, 1\.5\]"),
+    ("0,1", "'0,1'"),
+])  # fmt: skip
+def test_bad_ensemble_seeds_are_refused_before_any_simulation(seeds, found, tmp_path, monkeypatch):
+    import yaml
+
+    import loosefit.sim.workers as workers
+    from loosefit.sim.generate import generate
+
+    with pytest.raises(
+        LoosefitInputError, match=rf"DatasetConfig: field 'seeds': expected .*{found}"
+    ):
+        DatasetConfig(seeds=seeds)
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump({"seeds": seeds}))
+    with pytest.raises(LoosefitInputError, match=rf"c\.yaml: field 'seeds': expected .*{found}"):
+        read_config_file(tmp_path / "c.yaml")
+    config = preset("tiny")
+    config.seeds = seeds  # set after the configuration was made: refused by the run
+    monkeypatch.setattr(workers.Worker, "build", lambda *a, **k: pytest.fail("simulated"))
+    with pytest.raises(LoosefitInputError, match=rf"field 'seeds': expected .*{found}"):
+        generate(config, tmp_path / "out", workers=1, progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_simulate_seeds_on_the_command_line(tmp_path, capsys):
+    from loosefit.cli import main
+
+    cfg = tmp_path / "c.yaml"
+
+    def write(*flags: str) -> int:
+        return main(["simulate", "--preset", "tiny", *flags, "--write-config", str(cfg)])
+
+    assert write("--seeds", "0, 1,3") == 0 and read_config_file(cfg).seeds == [0, 1, 3]
+    assert write() == 0 and read_config_file(cfg).seeds is None
+    for text, message in [
+        ("0,a", r"--seeds: field 'seeds': expected comma-separated integers.*'a' in '0,a'"),
+        ("1,2,1", r"--seeds: field 'seeds': expected distinct integers >= 0, found 1 twice"),
+        ("", r"--seeds: field 'seeds': expected at least one seed.*found an empty list"),
+        ("0,-2", r"found -2 in \[0, -2\]"),
+    ]:  # fmt: skip
+        assert write(f"--seeds={text}") == 2, text
+        assert re.search(message, capsys.readouterr().err), text

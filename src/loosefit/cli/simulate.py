@@ -108,6 +108,14 @@ def add_parser(sub) -> None:
         help="with --batch: processes that load and pose-correct every clip's motion "
         "before the first batch (default: every CPU core)",
     )
+    p.add_argument(
+        "--seeds",
+        default=None,
+        metavar="S,S,...",
+        help="an ensemble: each clip simulated once per seed (e.g. 0,1,2,3), each run a "
+        "member with the clip's motion and its cloth's start jittered from its own seed; "
+        "the member of the data set's seed keeps the clip's name, the others are NAME@seedS",
+    )
     p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
     p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
     p.add_argument(
@@ -128,8 +136,8 @@ def add_parser(sub) -> None:
 
 def dataset_config(args: argparse.Namespace):
     """The data set ``simulate`` makes: ``--config FILE`` or ``--preset``, then
-    ``--garment``, ``--motions``, ``--test``, ``--device``, ``--shape``, ``--max-frames``,
-    ``--keep-poses`` over it."""
+    ``--garment``, ``--motions``, ``--test``, ``--seeds``, ``--device``, ``--shape``,
+    ``--max-frames``, ``--keep-poses`` over it."""
     from loosefit.sim.dataset_config import MotionSource, read_config_file
     from loosefit.sim.presets import preset
 
@@ -147,6 +155,8 @@ def dataset_config(args: argparse.Namespace):
         config.preset = "custom"
     elif args.test:
         config.motions.test = tuple(args.test)
+    if getattr(args, "seeds", None) is not None:
+        config.seeds = parse_seeds(args.seeds)
     if args.device:
         config.cloth.device = args.device
     if getattr(args, "shape", ""):  # the avatar's body: the manifest carries it on to training
@@ -157,6 +167,26 @@ def dataset_config(args: argparse.Namespace):
     if getattr(args, "keep_poses", False):
         config.unfold.enabled = False
     return config
+
+
+def parse_seeds(text: str) -> list[int]:
+    """``--seeds 0,1,2`` as ``[0, 1, 2]``, checked as ``DatasetConfig.seeds`` is
+    (``check_seeds``): distinct integers >= 0, at least one."""
+    from loosefit.errors import LoosefitInputError
+    from loosefit.sim.dataset_config import check_seeds
+
+    seeds = []
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        try:
+            seeds.append(int(item))
+        except ValueError:
+            raise LoosefitInputError(
+                "--seeds",
+                "seeds",
+                "comma-separated integers >= 0, e.g. 0,1,2",
+                f"{item!r} in {text!r}",
+            ) from None
+    return check_seeds(seeds, "--seeds")
 
 
 def _set_garment(config, args: argparse.Namespace) -> None:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import numbers
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -102,7 +103,13 @@ def make_garment(garment, avatar):
 
 @dataclass
 class DatasetConfig:
-    """Everything that decides a dataset's content."""
+    """Everything that decides a dataset's content.
+
+    With ``seeds``, the data set is an ensemble: each clip is simulated once per seed, each
+    run a member of the clip's ensemble. The members share the clip's motion, frame for
+    frame, and differ only in the jitter of the cloth's start, drawn from each member's
+    seed (how they are named and seeded: :func:`loosefit.sim.jobs.plan_jobs`).
+    """
 
     preset: str = "custom"  # name of the preset it came from
     # the garment: a parametric skirt or dress, or a user's file
@@ -118,6 +125,40 @@ class DatasetConfig:
     fps: float = 30.0  # frame rate of the recorded clips
     seed: int = 0  # seeds the dances and each clip's cloth jitter
     shape: dict = field(default_factory=dict)  # avatar phenotype overrides
+    # an ensemble's member seeds, distinct integers >= 0: each clip simulated once per seed
+    # with the same motion and the cloth's start jittered from that seed; None: one member
+    seeds: list[int] | None = None
+
+    def __post_init__(self) -> None:
+        self.seeds = check_seeds(self.seeds)
+
+
+def check_seeds(seeds, source: str | Path = "DatasetConfig") -> list[int] | None:
+    """An ensemble's member seeds (``DatasetConfig.seeds``) as a list, checked: None, or
+    distinct integers >= 0, at least one.
+
+    Raises:
+        LoosefitInputError: naming ``source`` and ``seeds``, what was expected and what
+            was found (an empty list, a repeated seed, a negative one, one not an integer).
+    """
+    if seeds is None:
+        return None
+    expected = "distinct integers >= 0"
+    if isinstance(seeds, str | bytes) or not isinstance(seeds, list | tuple):
+        raise LoosefitInputError(source, "seeds", f"a list of {expected}", repr(seeds))
+    if not seeds:
+        raise LoosefitInputError(
+            source, "seeds", "at least one seed (no ensemble: leave seeds out)", "an empty list"
+        )
+    for s in seeds:
+        if isinstance(s, bool) or not isinstance(s, numbers.Integral):
+            raise LoosefitInputError(source, "seeds", expected, f"{s!r} in {list(seeds)}")
+        if s < 0:
+            raise LoosefitInputError(source, "seeds", expected, f"{s} in {list(seeds)}")
+    twice = next((s for i, s in enumerate(seeds) if s in seeds[:i]), None)
+    if twice is not None:
+        raise LoosefitInputError(source, "seeds", expected, f"{twice} twice in {list(seeds)}")
+    return [int(s) for s in seeds]
 
 
 def config_dict(config: DatasetConfig) -> dict:
@@ -154,6 +195,8 @@ def _check_type(source, where: str, value, default) -> None:
         ok = isinstance(value, dict) and all(
             isinstance(k, str) and plain(v) for k, v in value.items()
         )
+    elif where == "seeds":  # a list (None: no ensemble), checked by check_seeds
+        ok = True
     else:  # None or a nested configuration (checked where it is built)
         ok = plain(value) or dataclasses.is_dataclass(default) or isinstance(value, dict)
     if not ok:
@@ -184,9 +227,8 @@ def config_from_dict(d: dict, source: str | Path = "dataset config") -> DatasetC
         try:
             return cls(**kwargs)
         except LoosefitInputError as exc:
-            raise LoosefitInputError(
-                source, f"{where}.{exc.field}", exc.expected, exc.found, exc.hint
-            ) from exc
+            field_ = f"{where}.{exc.field}" if where else exc.field
+            raise LoosefitInputError(source, field_, exc.expected, exc.found, exc.hint) from exc
         except TypeError as exc:
             raise LoosefitInputError(source, where, "valid settings", str(exc)) from exc
 

@@ -1,4 +1,10 @@
-"""A data set's clips: the jobs a configuration makes, their names, and their motions."""
+"""A data set's clips: the jobs a configuration makes, their names, and their motions.
+
+An ensemble (``DatasetConfig.seeds``) simulates each clip once per seed: its members. A
+member's motion is its clip's; its cloth's start is jittered from its own seed. The member
+of the data set's ``seed`` keeps the clip's name, every other is ``NAME@seedS``
+(:func:`member_name`, :func:`split_member`).
+"""
 
 from __future__ import annotations
 
@@ -10,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.sim.dataset_config import DatasetConfig
+from loosefit.sim.dataset_config import DatasetConfig, check_seeds
 
 if TYPE_CHECKING:
     from loosefit.body.regions import BodyParts
@@ -23,12 +29,73 @@ class Job:
 
     name: str  # the clip's name: its sequence file's and its manifest entry's
     spec: str  # a load_motion spec: a .bvh path, a move name or dance:SECONDS
-    seed: int  # seeds its motion (a dance) and its cloth's jitter
+    seed: int  # seeds its motion (a dance) and, unless jitter_seed is given, its cloth's jitter
     test: bool  # held out for testing
+    jitter_seed: int | None = None  # seeds its cloth's jitter (None: seed)
+    member_seed: int | None = None  # an ensemble member's seed (None: not in an ensemble)
+
+    def __post_init__(self) -> None:
+        if self.jitter_seed is None:
+            self.jitter_seed = self.seed
 
 
 def plan_jobs(config: DatasetConfig) -> list[Job]:
-    """The clips of a dataset, in a fixed order."""
+    """The clips of a dataset, in a fixed order.
+
+    With ``config.seeds`` (an ensemble), each clip is one job per member seed ``s``, in
+    that order: the clip's motion (its motion seed, ``Job.seed``, unchanged), its cloth's
+    jitter seeded ``clip seed - config.seed + s`` (the clip as a data set of ``seed`` ``s``
+    would simulate it), named by :func:`member_name`, held out as the clip is.
+
+    Raises:
+        LoosefitInputError: a bad motion source, ``seeds`` not distinct integers >= 0
+            (refused first), or, with ``seeds``, a clip already named like a member.
+    """
+    seeds = check_seeds(config.seeds)
+    jobs = _clips(config)
+    if seeds is None:
+        return jobs
+    for job in jobs:
+        if split_member(job.name)[1] is not None:
+            raise LoosefitInputError(
+                "DatasetConfig",
+                "seeds",
+                "clips whose names do not end in @seedN (an ensemble names its members so)",
+                f"a clip named {job.name!r}",
+            )
+    return [
+        Job(
+            member_name(job.name, s, config.seed),
+            job.spec,
+            job.seed,
+            job.test,
+            jitter_seed=job.seed - config.seed + s,
+            member_seed=s,
+        )
+        for job in jobs
+        for s in seeds
+    ]
+
+
+def member_name(name: str, seed: int, base_seed: int) -> str:
+    """An ensemble member's clip name: the clip's own ``name`` for the member of the data
+    set's seed ``base_seed``, ``NAME@seedS`` for any other seed ``S``."""
+    return name if seed == base_seed else f"{name}@seed{seed}"
+
+
+_MEMBER = re.compile(r"(.+)@seed(0|[1-9][0-9]*)")
+
+
+def split_member(name: str) -> tuple[str, int | None]:
+    """A clip name's ensemble clip and member seed: ``("NAME", S)`` for ``NAME@seedS``,
+    ``(name, None)`` for any other (a clip's own name: the member of the data set's seed,
+    or a clip of no ensemble). The inverse of :func:`member_name`."""
+    m = _MEMBER.fullmatch(name)
+    return (m.group(1), int(m.group(2))) if m else (name, None)
+
+
+def _clips(config: DatasetConfig) -> list[Job]:
+    """The clips of a dataset, one job each, in a fixed order."""
     m = config.motions
     jobs: list[Job] = []
     folder_stems: set[str] = set()  # the clips of a bvh folder

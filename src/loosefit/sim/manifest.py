@@ -28,7 +28,7 @@ from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import cloth_fingerprint
 from loosefit.garment.quality import PENETRATION_TOLERANCE
 from loosefit.sim.dataset_config import GARMENT_TYPES, DatasetConfig, config_dict, normalized
-from loosefit.sim.jobs import Job, job_motion, limb_parts, short_spec
+from loosefit.sim.jobs import Job, job_motion, limb_parts, short_spec, split_member
 
 
 def package_versions() -> dict[str, str]:
@@ -164,9 +164,11 @@ def adopt_clips(
 
     A clip is taken when the other dataset simulated it with the same garment,
     cloth, body, frame rate and seed, from the same motion (spec, seed and frame
-    range): its sequence is hard-linked (copied across file systems) and its
-    manifest entry copied, marked with where it came from. A clip flagged there
-    is taken as flagged (the simulation is deterministic).
+    range) and the same jitter seed: its sequence is hard-linked (copied across file
+    systems) and its manifest entry copied, marked with where it came from. The ensembles
+    (``seeds``) may differ: an ensemble takes the members another holds (its own clips,
+    from a data set of none), its entries noting this one's :func:`member_fields`. A clip
+    flagged there is taken as flagged (the simulation is deterministic).
 
     Args:
         config: this dataset's configuration.
@@ -206,7 +208,8 @@ def adopt_clips(
             continue
         if (
             entry.get("spec") != short_spec(job.spec)
-            or entry.get("seed") != job.seed
+            or entry.get("seed") != job.jitter_seed
+            or entry.get("motion_seed", entry.get("seed")) != job.seed
             or entry.get("test") != job.test
         ):
             continue
@@ -220,8 +223,10 @@ def adopt_clips(
         elif entry.get("status") != "flagged":
             continue  # neither finished nor flagged there: simulate it here
         # a flagged clip is taken as flagged: the simulation is deterministic
+        # an ensemble's member taken into a data set of none, or a clip into an ensemble
         manifest["sequences"][job.name] = {
-            **entry,
+            **{k: v for k, v in entry.items() if k not in MEMBER_KEYS},
+            **member_fields(job),
             "reused_from": str(source),
             "device": entry.get("device", their_device),
             "cloth_fingerprint": cloth_fingerprint(ours["cloth"]),  # theirs, as compared above
@@ -358,14 +363,34 @@ def recheck_unfold(
     )
 
 
+MEMBER_KEYS = ("member_seed", "member_of", "motion_seed")  # an ensemble member's entry's
+
+
+def member_fields(job: Job) -> dict:
+    """An ensemble member's own entries in its clip's manifest entry (none for a clip of no
+    ensemble): ``member_seed`` (its seed in ``DatasetConfig.seeds``), ``member_of`` (the
+    clip's name) and ``motion_seed`` (the clip's seed, its motion's; the entry's ``seed``
+    is the cloth's jitter's)."""
+    if job.member_seed is None:
+        return {}
+    return {
+        "member_seed": job.member_seed,
+        "member_of": split_member(job.name)[0],
+        "motion_seed": job.seed,
+    }
+
+
 def clip_entry(
     config: DatasetConfig, job: Job, motion, result, seconds: float = 0.0, failure: str = ""
 ) -> dict:
     """A clip's manifest entry: its result's quality, judged by ``config.limits``
-    (``result`` None: the simulation failed with ``failure`` after ``seconds``)."""
+    (``result`` None: the simulation failed with ``failure`` after ``seconds``). Its
+    ``seed`` seeded the cloth's jitter (and the motion, but for an ensemble's member:
+    :func:`member_fields`)."""
     entry = {
         "spec": short_spec(job.spec),
-        "seed": job.seed,
+        "seed": job.jitter_seed,
+        **member_fields(job),
         "frames": motion.num_frames,
         "test": job.test,
         # where it was simulated (a data set may be begun on a GPU and finished on the CPU),

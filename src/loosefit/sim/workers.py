@@ -146,7 +146,7 @@ class Worker:
                 progress=progress,
                 resume=resume_dir / f"{name}.npz",
                 resume_every=resume_every,
-                seeds=[job.seed for job in jobs],
+                seeds=[job.jitter_seed for job in jobs],
                 drape=drape,
             )
         except SimulationError as exc:
