@@ -42,7 +42,7 @@ def main() -> None:
         for name in args.clips.split(","):
             seq = reader.read(name)
             truth = np.asarray(seq.garment_vertices, np.float32)
-            pelvis = avatar.pose_motion(seq.motion).joint_transforms[:, 0, :3, 3].numpy()
+            pelvis = avatar.pose_motion(seq.motion).joint_poses[:, 0, :3, 3].numpy()
             turn = fastest_turn(seq.motion.rotations, seq.motion.fps)
             w = slice(max(turn - TURN_WINDOW, 0), turn + TURN_WINDOW + 1)
             truth_flare = flare(truth, pelvis, hem)[w]

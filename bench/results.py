@@ -29,10 +29,10 @@ import torch
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
+from loosefit.eval.motion_signals import fastest_turn, highest_leg, turn_rate
 from loosefit.garment.quality import edge_strain
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
-from loosefit.model.motion_features import heading_yaw
 from loosefit.sim.presets import BALLET_CLIPS
 from loosefit.train.common import machine
 
@@ -135,18 +135,6 @@ def heldout_sets(reader: DatasetReader) -> dict[str, list[str]]:
 
 SET_TITLES = {"chain": "the held-out salsa chain", "ballet": "the held-out ballet clips",
               "other": "the other held-out clips"}  # fmt: skip
-
-
-def fastest_turn(motion, window: int = 5) -> int:
-    """The motion frame where the heading turns fastest (a centred mean over ``window``)."""
-    return int(np.argmax(turn_rate(motion, window)[1:])) + 1
-
-
-def turn_rate(motion, window: int = 5) -> np.ndarray:
-    """(T,) how fast the heading turns at each frame (rad/s, a centred mean over ``window``)."""
-    yaw = heading_yaw(torch.from_numpy(motion.rotations[:, 0]).double()).numpy()
-    rate = np.abs(np.angle(np.exp(1j * np.diff(yaw)))) * motion.fps  # rad/s
-    return np.concatenate([[0.0], np.convolve(rate, np.ones(window) / window, mode="same")])
 
 
 def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces, faces,
@@ -293,7 +281,7 @@ def clip_data(args, reader: DatasetReader, name: str, cache: Path, ours) -> dict
     body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()
     collider = avatar.collider_faces(arms=ours.arm_collision).cpu().numpy()
     feet = [avatar.joint_names.index(j) for j in ("LeftFoot", "RightFoot")]
-    feet_z = avatar.pose_motion(seq.motion).joint_transforms[:, feet, 2, 3].cpu().numpy()
+    feet_z = avatar.pose_motion(seq.motion).joint_poses[:, feet, 2, 3].cpu().numpy()
     return {"name": name, "seq": seq, "garments": garments, "body": body,
             "collider": collider, "body_faces": avatar.faces.cpu().numpy(),
             "feet_z": feet_z}  # fmt: skip
@@ -309,16 +297,6 @@ def simulation_scores(clips: list[dict], template) -> dict:
             "inside_p99_pct": float(np.percentile(inside, 99)),
             "strain_p50": float(np.median(strain)),
             "strain_p99": float(np.percentile(strain, 99))}  # fmt: skip
-
-
-def highest_leg(joints_z: np.ndarray) -> tuple[int, float]:
-    """The frame where one foot is highest above the other, and that height (m).
-
-    Args:
-        joints_z: (T, 2) the left and right foot joints' heights.
-    """
-    gap = np.abs(joints_z[:, 0] - joints_z[:, 1])
-    return int(np.argmax(gap)), float(gap.max())
 
 
 def clip_renders(c: dict, img: Path, size: int, template) -> dict:

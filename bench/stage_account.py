@@ -144,7 +144,7 @@ def clip_reference(model, seq):
     avatar = model.avatar()
     posed = avatar.pose_motion(motion)
     body = posed.vertices.cpu().numpy()
-    pelvis = posed.joint_transforms[:, 0, :3, 3].cpu().numpy()
+    pelvis = posed.joint_poses[:, 0, :3, 3].cpu().numpy()
     turn = fastest_turn(motion.rotations, motion.fps)
     window = (max(turn - TURN_WINDOW, 0), min(turn + TURN_WINDOW + 1, motion.num_frames))
     faces = {"whole": avatar.collider_faces(arms=True).cpu().numpy(),

@@ -28,6 +28,16 @@ def add_parser(sub) -> None:
         help="a dataset folder, or sequence .npz files (the ground truth of their "
         "motions, e.g. from loosefit.simulate)",
     )
+    p.add_argument(
+        "--members",
+        nargs="+",
+        default=[],
+        metavar="DATASET",
+        help="data sets of the same clips simulated from other seeds (loosefit simulate "
+        "--seeds): scores every model against each clip's members too (the simulation's own "
+        "spread, RMSE to their mean, the energy score, hem flare and speed against their "
+        "range, the raised knee); members inside --data (NAME@seedS) count without it",
+    )
     p.add_argument("--split", default="test", help="with a dataset: train, test or all")
     p.add_argument("--horizons", default="100,500,1200", help="frames for iter-N errors")
     p.add_argument("--max-frames", type=int, default=None, help="roll out at most this many")
@@ -40,6 +50,7 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from loosefit.data.format import DatasetReader, read_any_sequence
+    from loosefit.eval.ensemble import evaluate_ensemble, gather_ensembles
     from loosefit.eval.report import write_rollout_report
     from loosefit.eval.rollouts import evaluate_rollouts
     from loosefit.inference.animator import load_pipeline
@@ -52,6 +63,13 @@ def run(args: argparse.Namespace) -> int:
     else:  # sequences: the ground truth of each motion
         reader = {Path(f).stem: read_any_sequence(f) for f in args.data}
         where = [str(Path(f).resolve()) for f in args.data]
+    gathered = None  # each clip's members, checked before any rollout
+    if args.members and not isinstance(reader, DatasetReader):
+        raise LoosefitInputError(
+            "--members", "--data", "a data set folder to gather members with", "sequence files"
+        )
+    if isinstance(reader, DatasetReader) and (args.members or has_members(reader, args.split)):
+        gathered = gather_ensembles([args.data[0], *args.members], args.split)
     try:
         horizons = tuple(int(h) for h in args.horizons.split(","))
     except ValueError:
@@ -70,7 +88,26 @@ def run(args: argparse.Namespace) -> int:
         )
     result["checkpoint"] = str(Path(args.checkpoint).resolve())
     result["dataset"] = where
+    if gathered is not None:
+        with inference_threads(args):
+            result["ensemble"] = evaluate_ensemble(
+                {Path(args.checkpoint).parent.name: model},
+                [args.data[0], *args.members],
+                args.split,
+                surface=not args.rmse_only,
+                stages=stages(args),
+                progress=log,
+                ensembles=gathered,
+            )
     write_rollout_report(result, args.out, f"Rollouts of {Path(args.checkpoint).parent.name}")
     print(Path(args.out, "evaluation.md").read_text())
     log(f"wrote {args.out}/evaluation.{{md,csv,json}} and rmse_per_frame.png")
     return 0
+
+
+def has_members(reader, split: str) -> bool:
+    """Whether a data set holds a clip of ``split`` simulated from more than one seed."""
+    from loosefit.eval.ensemble import member_clip
+
+    names = reader.split(split)
+    return any(member_clip(n)[1] is not None for n in names)

@@ -175,3 +175,30 @@ def buried_vertices(parts: BodyParts, limb: str, body: np.ndarray, tolerance: fl
     tested, _ = parts.tested_vertices(limb)
     hit = Surface(body, parts.limb_faces[limb]).query(body[tested])
     return tested[hit.inside & (hit.faces >= 0) & (hit.distance > tolerance)]
+
+
+def turn_rate(motion, window: int = 5) -> np.ndarray:
+    """(T,) how fast the heading turns at each frame (rad/s, a centred mean over ``window``
+    frames; the first frame 0)."""
+    import torch
+
+    from loosefit.model.motion_features import heading_yaw
+
+    yaw = heading_yaw(torch.from_numpy(np.asarray(motion.rotations[:, 0], np.float64))).numpy()
+    rate = np.abs(np.angle(np.exp(1j * np.diff(yaw)))) * motion.fps  # rad/s
+    return np.concatenate([[0.0], np.convolve(rate, np.ones(window) / window, mode="same")])
+
+
+def fastest_turn(motion, window: int = 5) -> int:
+    """The motion frame where the heading turns fastest (:func:`turn_rate`)."""
+    return int(np.argmax(turn_rate(motion, window)[1:])) + 1
+
+
+def highest_leg(joints_z: np.ndarray) -> tuple[int, float]:
+    """The frame where one foot is highest above the other, and that height (m).
+
+    Args:
+        joints_z: (T, 2) the left and right foot joints' heights.
+    """
+    gap = np.abs(joints_z[:, 0] - joints_z[:, 1])
+    return int(np.argmax(gap)), float(gap.max())

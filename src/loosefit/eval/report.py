@@ -81,7 +81,12 @@ def write_rollout_report(result: dict, out: str | Path, title: str = "Rollout ev
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "evaluation.json").unlink(missing_ok=True)
-    (out / "evaluation.md").write_text(rollout_markdown(result, title))
+    text = rollout_markdown(result, title)
+    if result.get("ensemble"):  # scored against each clip's members too
+        from loosefit.eval.ensemble import ensemble_markdown
+
+        text = text.rstrip() + "\n\n" + ensemble_markdown(result["ensemble"]) + "\n"
+    (out / "evaluation.md").write_text(text)
     (out / "evaluation.csv").write_text(rollout_csv(result))
     plot_rollout_error(result, out / "rmse_per_frame.png", title)
     write_json_atomic(out / "evaluation.json", result)

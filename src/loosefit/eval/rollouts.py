@@ -9,6 +9,7 @@ import numpy as np
 
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
+from loosefit.eval.ensemble import member_clip
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
 from loosefit.garment.fingerprint import same_garment
 from loosefit.inference.stages import Stages
@@ -28,7 +29,11 @@ def _sequences(model, data, split: str) -> Iterator[tuple[str, AnimatedGarment]]
                 f"the garment {model.path.name} was trained on",
                 "another garment",
             )
-        for name in data.split(split):
+        names = data.split(split)
+        for name in names:
+            clip, seed = member_clip(name)
+            if seed is not None and clip in names:
+                continue  # another member of a clip scored here (loosefit.eval.ensemble)
             yield name, data.read(name)
         return
     for name, seq in data.items():

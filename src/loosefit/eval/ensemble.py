@@ -1,0 +1,706 @@
+"""Dynamics judged against an ensemble: the same motion simulated several times from
+different seeds (members), and a prediction scored against all of them.
+
+Cloth is chaotic: one clip simulated again from a start jittered by 0.1 mm ends
+centimetres away. A deterministic model fitted to one simulation learns an average, which
+swings less than any member; RMSE against one member cannot tell a good swing from a mean
+drape. The measures here treat the members as samples of what the cloth may do:
+
+- :func:`spread`: each member against each other member (the chaos floor);
+- :func:`rmse_to_mean`: against the members' vertex-wise mean;
+- :func:`energy_score`: a proper score of the model's samples against each member taken as
+  the observation; it rewards the right spread and does not reward a mean;
+- :func:`hem_flare`, :func:`hem_speed` and :func:`inside_band`: the hem's swing against the
+  members' range frame by frame;
+- :func:`cloth_in_front`: whether the skirt covers a raised knee.
+
+Members are gathered from one or several data sets (:func:`gather_ensembles`) and checked
+to be of the same garment, avatar, cloth configuration and motion (:func:`check_members`).
+Everything but the gathering is a pure function of arrays.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from loosefit.errors import LoosefitInputError
+
+# A member's motion may differ from another's this much in a rotation matrix entry: the
+# pose correction turns an arm a little differently on a shorter clip (up to about 0.02).
+ROTATION_TOLERANCE = 0.05
+TRANSLATION_TOLERANCE = 1.0e-3  # m, the root's position
+TURN_WINDOW = 30  # frames either side of the fastest turn (61 in all)
+# configuration fields members must share (the seed and the device aside)
+SHARED_CONFIG = ("garment", "cloth", "unfold", "fps", "shape")
+MEMBER_FREE = ("seed", "device")  # cloth fields that may differ between members
+
+
+def member_clip(name: str) -> tuple[str, int | None]:
+    """A sequence's clip and member seed: ``"05_10@seed2"`` -> ``("05_10", 2)``; a plain name
+    is its clip's member of the data set's own seed (``None``).
+    (:func:`loosefit.sim.jobs.split_member`, the naming ``loosefit simulate --seeds`` uses.)"""
+    from loosefit.sim.jobs import split_member
+
+    return split_member(name)
+
+
+def clip_key(name: str) -> str:
+    """The key members of one clip share across data sets: the clip's name without a member
+    suffix, a held-out chain's ``chain_`` prefix left out (a data set of a chain's first
+    frames names it by its parts)."""
+    return member_clip(name)[0].removeprefix("chain_")
+
+
+# --------------------------------------------------------------------------- measures
+
+
+def rms_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(..., T, V, 3) x2 -> (..., T): each frame's RMS vertex distance (m)."""
+    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
+    return np.sqrt((d**2).sum(-1).mean(-1))
+
+
+def _clip_rmse(per_frame: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(per_frame))))
+
+
+def pairwise_rmse(members: np.ndarray) -> np.ndarray:
+    """(M, T, V, 3) -> (M(M-1)/2, T): every pair of members' per-frame RMS distance (m)."""
+    M = len(members)
+    if M < 2:
+        raise LoosefitInputError(
+            "ensemble", "members", "at least two members for a spread", f"{M}",
+            hint="simulate the clip again from other seeds (loosefit simulate --seeds 0,1,2,3) "
+            "or pass more data sets of the same clips",
+        )  # fmt: skip
+    return np.stack([rms_distance(members[i], members[j])
+                     for i in range(M) for j in range(i + 1, M)])  # fmt: skip
+
+
+def rmse_to_mean(pred: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """(T, V, 3), (M, T, V, 3) -> (T,): the prediction against the members' vertex-wise mean."""
+    return rms_distance(pred, np.asarray(members, np.float64).mean(0))
+
+
+def rmse_to_members(pred: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """(T, V, 3), (M, T, V, 3) -> (M,): the prediction's RMSE over the clip against each member."""
+    return np.array([_clip_rmse(rms_distance(pred, m)) for m in members])
+
+
+def energy_score(samples: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """The energy score of a model's samples against each member, per frame.
+
+    With S samples X_1..X_S of the model (S = 1 for a deterministic one) and a member y as
+    the observation, ``ES = mean_i d(X_i, y) - 1/2 mean_ij d(X_i, X_j)``, d the frame's RMS
+    vertex distance; averaged over the members. Lower is better; a proper score: its
+    expectation is lowest when the samples are drawn as the observations are, so it rewards
+    the right spread and does not reward a mean.
+
+    Args:
+        samples: (S, T, V, 3) the model's realisations of one clip.
+        members: (M, T, V, 3) the simulations of it.
+
+    Returns:
+        (T,) metres.
+    """
+    samples = np.asarray(samples)
+    S = len(samples)
+    fit = np.mean([rms_distance(x, y) for x in samples for y in members], axis=0)
+    if S == 1:
+        return fit
+    # mean over all ordered pairs i, j (i == j counts 0): 2 / S^2 of the unordered sum
+    spread = np.zeros(samples.shape[1])
+    for i in range(S):
+        for j in range(i + 1, S):
+            spread += 2 * rms_distance(samples[i], samples[j])
+    return fit - 0.5 * spread / S**2
+
+
+def members_energy_score(members: np.ndarray) -> np.ndarray:
+    """(M, T, V, 3) -> (T,): the simulation's own energy score, each member scored as the
+    observation against the others taken as samples (leave one out), averaged: what a model
+    as good as the simulation would score (its samples fewer by one)."""
+    M = len(members)
+    if M < 3:
+        raise LoosefitInputError(
+            "ensemble", "members", "at least three members for the simulation's own score",
+            f"{M}", hint="simulate the clip again from other seeds (loosefit simulate --seeds)",
+        )  # fmt: skip
+    return np.mean([energy_score(np.delete(members, k, axis=0), members[k : k + 1])
+                    for k in range(M)], axis=0)  # fmt: skip
+
+
+def hem_flare(garment: np.ndarray, pelvis: np.ndarray, hem: np.ndarray) -> np.ndarray:
+    """(T,) the hem's mean horizontal distance (m) from the pelvis's vertical axis (+Z up).
+
+    Args:
+        garment: (T, V, 3) world positions.
+        pelvis: (T, 3) the root joint's world position.
+        hem: (H,) the hem ring's vertices.
+    """
+    d = np.asarray(garment, np.float64)[:, hem, :2] - np.asarray(pelvis, np.float64)[:, None, :2]
+    return np.linalg.norm(d, axis=-1).mean(-1)
+
+
+def hem_speed(garment: np.ndarray, hem: np.ndarray, fps: float) -> np.ndarray:
+    """(T,) the hem ring's mean vertex speed (m/s), backward differences (the first frame 0)."""
+    x = np.asarray(garment, np.float64)[:, hem]
+    v = np.zeros(len(x))
+    v[1:] = np.linalg.norm(np.diff(x, axis=0), axis=-1).mean(-1) * fps
+    return v
+
+
+def inside_band(series: np.ndarray, band: np.ndarray) -> np.ndarray:
+    """(T,), (M, T) -> (T,) bool: the series between the members' lowest and highest."""
+    band = np.asarray(band)
+    return (series >= band.min(0)) & (series <= band.max(0))
+
+
+def turn_window(frame: int, frames: int, half: int = TURN_WINDOW) -> slice:
+    """The frames within ``half`` of ``frame`` (61 in all away from the clip's ends)."""
+    return slice(max(frame - half, 0), min(frame + half + 1, frames))
+
+
+def _ray_hits(origin: np.ndarray, direction: np.ndarray, vertices: np.ndarray,
+              faces: np.ndarray) -> np.ndarray:  # fmt: skip
+    """Distances along a ray (t > 0) at which it crosses a triangle mesh (Moller-Trumbore)."""
+    a, b, c = (np.asarray(vertices, np.float64)[np.asarray(faces)[:, k]] for k in range(3))
+    e1, e2 = b - a, c - a
+    p = np.cross(direction, e2)
+    det = (e1 * p).sum(-1)
+    ok = np.abs(det) > 1e-12
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = origin - a
+    u = (s * p).sum(-1) * inv
+    q = np.cross(s, e1)
+    v = (direction * q).sum(-1) * inv
+    t = (e2 * q).sum(-1) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    return np.sort(t[hit])
+
+
+def cloth_in_front(knee: np.ndarray, pelvis: np.ndarray, garment: np.ndarray,
+                   garment_faces: np.ndarray, body: np.ndarray, body_faces: np.ndarray,
+                   tolerance: float = 0.005) -> bool:  # fmt: skip
+    """Whether the skirt lies in front of a raised knee: the ray from the knee joint out,
+    horizontally away from the pelvis's vertical axis, meets the skirt no nearer than it
+    leaves the knee's skin (less ``tolerance``, m). A knee through the skirt has the skirt
+    behind its skin on that ray, or none on it.
+
+    Args:
+        knee, pelvis: (3,) joint positions (+Z up).
+        garment: (V, 3), garment_faces (F, 3): the skirt at that frame.
+        body: (Vb, 3), body_faces (Fb, 3): the body at that frame.
+    """
+    out = np.asarray(knee, np.float64) - np.asarray(pelvis, np.float64)
+    out[2] = 0.0
+    n = np.linalg.norm(out)
+    if n < 1e-6:
+        return False
+    out /= n
+    skin = _ray_hits(np.asarray(knee, np.float64), out, body, body_faces)
+    cloth = _ray_hits(np.asarray(knee, np.float64), out, garment, garment_faces)
+    leave = skin[0] if len(skin) else 0.0
+    return bool(len(cloth) and cloth[-1] >= leave - tolerance)
+
+
+# --------------------------------------------------------------------------- members
+
+
+@dataclass
+class Member:
+    """One simulation of a clip.
+
+    Attributes:
+        name: the sequence's name in its data set.
+        source: the data set's folder.
+        seed: the member's seed (the manifest's ``member_seed``, else the data set's seed).
+        flagged: the simulator's quality gate's reason where it flagged the clip, else "".
+    """
+
+    name: str
+    source: Path
+    seed: int
+    flagged: str = ""
+    reader: object = field(default=None, repr=False)
+
+    @property
+    def label(self) -> str:
+        return f"seed {self.seed}"
+
+    def read(self):
+        return self.reader.read(self.name)
+
+
+@dataclass
+class Ensemble:
+    """A clip's members, checked to share the garment, avatar, configuration and motion.
+
+    Attributes:
+        clip: the clip's name (the first data set's).
+        members: at least one :class:`Member`.
+        frames: the frames every member has (members of different lengths are scored on
+            the frames they share).
+        motion_difference: the largest difference of the members' joint rotations.
+    """
+
+    clip: str
+    members: list[Member]
+    frames: int
+    motion_difference: float = 0.0
+
+    def sequences(self) -> list:
+        return [m.read() for m in self.members]
+
+    def vertices(self) -> np.ndarray:
+        """(M, T, V, 3) float32 the members' garments on the shared frames."""
+        return np.stack([s.garment_vertices[: self.frames] for s in self.sequences()])
+
+
+def _diff(a, b, path: str = "") -> list[tuple[str, object, object]]:
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in sorted(set(a) | set(b)):
+            out += _diff(a.get(k), b.get(k), f"{path}.{k}" if path else k)
+        return out
+    return [] if a == b else [(path, a, b)]
+
+
+def check_members(clip: str, members: list[Member], configs: list[dict], avatars: list[dict],
+                  sequences: list) -> tuple[int, float]:  # fmt: skip
+    """Refuse members that differ in anything but the seed.
+
+    Args:
+        clip: the clip's name, for messages.
+        members: the members; configs: each one's data set configuration (the manifest's,
+            completed); avatars: each one's body; sequences: each one's sequence.
+
+    Returns:
+        The frames all members share and the largest joint-rotation difference over them.
+
+    Raises:
+        LoosefitInputError: naming the member, the field and both values.
+    """
+    first, cfg0 = members[0], configs[0]
+    seq0 = sequences[0]
+    from loosefit.garment.fingerprint import same_garment
+
+    frames = min(s.motion.num_frames for s in sequences)
+    worst = 0.0
+    for m, cfg, body, seq in zip(members[1:], configs[1:], avatars[1:], sequences[1:], strict=True):
+        where = f"{m.source}:{m.name}"
+        theirs = f"{first.source}:{first.name}"
+        if not same_garment(seq0.template, seq.template):
+            raise LoosefitInputError(where, "template.npz", f"the garment of {theirs}",
+                                     "another garment")  # fmt: skip
+        if body != avatars[0]:
+            raise LoosefitInputError(where, "body", f"{avatars[0]} (as {theirs})", f"{body}")
+        for key in SHARED_CONFIG:
+            a, b = cfg0.get(key), cfg.get(key)
+            if key == "cloth":
+                a = {k: v for k, v in (a or {}).items() if k not in MEMBER_FREE}
+                b = {k: v for k, v in (b or {}).items() if k not in MEMBER_FREE}
+            for path, x, y in _diff(a, b, key):
+                raise LoosefitInputError(
+                    where, f"config.{path}", f"{x!r} (as {theirs}: members differ in the seed "
+                    "alone)", f"{y!r}",
+                )  # fmt: skip
+        ma, mb = seq0.motion, seq.motion
+        if tuple(ma.joint_names) != tuple(mb.joint_names):
+            raise LoosefitInputError(where, "motion.joint_names", f"those of {theirs}",
+                                     "other joints")  # fmt: skip
+        if abs(ma.fps - mb.fps) > 1e-6:
+            raise LoosefitInputError(where, "motion.fps", f"{ma.fps} (as {theirs})", f"{mb.fps}")
+        rot = float(np.abs(ma.rotations[:frames] - mb.rotations[:frames]).max())
+        if rot > ROTATION_TOLERANCE:
+            raise LoosefitInputError(
+                where, "motion.rotations",
+                f"the motion of {theirs} (within {ROTATION_TOLERANCE} in a rotation entry)",
+                f"a difference of {rot:.3f}",
+            )  # fmt: skip
+        move = float(np.abs(ma.root_translation[:frames] - mb.root_translation[:frames]).max())
+        if move > TRANSLATION_TOLERANCE:
+            raise LoosefitInputError(
+                where, "motion.root_translation",
+                f"the motion of {theirs} (within {TRANSLATION_TOLERANCE * 1000:.0f} mm)",
+                f"a difference of {move * 1000:.1f} mm",
+            )  # fmt: skip
+        worst = max(worst, rot)
+    return frames, worst
+
+
+def gather_ensembles(sources: list[str | Path], split: str = "test",
+                     flagged: bool = True) -> dict[str, Ensemble]:  # fmt: skip
+    """The members of each clip across data sets of the same clips.
+
+    A clip's members are its sequences in every data set given: its own name, the name with
+    a member suffix (``NAME@seedS``, :func:`member_clip`), or a chain's name without its
+    ``chain_`` prefix (:func:`clip_key`). The first data set's ``split`` decides the clips;
+    in the others every sequence counts (a member simulated for the ensemble alone).
+
+    Args:
+        sources: data set folders (the corpus first).
+        split: the first data set's clips: "train", "test" or "all".
+        flagged: count members the simulator's quality gate flagged (they are noted).
+
+    Returns:
+        Per clip (the first data set's name), its :class:`Ensemble`, checked by
+        :func:`check_members`.
+    """
+    from loosefit.data.format import DatasetReader
+    from loosefit.sim.manifest import stored_config
+
+    if not sources:
+        raise LoosefitInputError("ensemble", "data", "at least one data set", "none")
+    readers = [DatasetReader(s, allow_incomplete=True) for s in sources]
+    wanted = readers[0].split(split)
+    names: dict[str, str] = {}
+    for n in wanted:
+        names.setdefault(clip_key(n), member_clip(n)[0])
+    found: dict[str, list[tuple[Member, dict, dict]]] = {k: [] for k in names}
+    for i, reader in enumerate(readers):
+        cfg = stored_config(reader.manifest)
+        entries = reader.manifest.get("sequences", {})
+        pool = wanted if i == 0 else list(entries)
+        for n in pool:
+            key = clip_key(n)
+            entry = entries.get(n, {})
+            if key not in found or not reader.sequence_path(n).is_file():
+                continue
+            reason = entry.get("reason", "") if entry.get("status") == "flagged" else ""
+            if reason and not flagged:
+                continue
+            seed = entry.get("member_seed", member_clip(n)[1])
+            seed = int(cfg.get("seed", 0) if seed is None else seed)
+            found[key].append((Member(n, reader.root, seed, reason, reader), cfg, reader.avatar))
+    out = {}
+    for key, got in found.items():
+        if not got:
+            continue
+        members = [g[0] for g in got]
+        seeds = [m.seed for m in members]
+        if len(set(seeds)) != len(seeds):
+            dup = next(s for s in seeds if seeds.count(s) > 1)
+            which = [f"{m.source}:{m.name}" for m in members if m.seed == dup]
+            raise LoosefitInputError(
+                names[key], "members", "one member per seed", f"seed {dup} in {which}"
+            )
+        seqs = [m.read() for m in members]
+        frames, diff = check_members(names[key], members, [g[1] for g in got],
+                                     [g[2] for g in got], seqs)  # fmt: skip
+        out[names[key]] = Ensemble(names[key], members, frames, diff)
+    return out
+
+
+KNEE_LIFT = 0.10  # m: a knee this much above the other is raised (a leg the skirt must cover)
+
+
+@dataclass
+class ClipContext:
+    """What the ensemble measures need of a clip's motion, on ``frames`` frames.
+
+    Attributes:
+        pelvis: (T, 3) the root joint's world position.
+        hem: (H,) the garment's hem ring.
+        faces: (F, 3) the garment's triangles.
+        fps: the motion's frame rate.
+        turn: the frame of the fastest turn; turn_rate: its rad/s.
+        knee_frames: the frames where a knee is raised (:data:`KNEE_LIFT` above the other)
+            and still below the pelvis, where the skirt has to cover it.
+        leg: of those, the frame where the raised knee is highest (None: no raised knee);
+            leg_height: how far above the other knee (m).
+        covers: ``covers(garment (V, 3), t) -> bool``: the skirt at frame ``t`` (one of
+            ``knee_frames``) lies in front of the raised knee (:func:`cloth_in_front`).
+    """
+
+    pelvis: np.ndarray
+    hem: np.ndarray
+    faces: np.ndarray
+    fps: float
+    turn: int
+    turn_rate: float
+    knee_frames: list[int]
+    leg: int | None
+    leg_height: float
+    covers: object
+
+
+def raised_knees(knees: np.ndarray, pelvis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Frames with a raised knee under the pelvis, and which knee.
+
+    Args:
+        knees: (T, 2, 3) the left and right knee joints; pelvis: (T, 3).
+
+    Returns:
+        (K,) the frames, in order; (K,) the raised knee of each (0 left, 1 right).
+    """
+    z = knees[..., 2]
+    up = np.argmax(z, axis=1)
+    lift = np.abs(z[:, 0] - z[:, 1])
+    under = z[np.arange(len(z)), up] < pelvis[:, 2]
+    frames = np.flatnonzero((lift >= KNEE_LIFT) & under)
+    return frames, up[frames]
+
+
+def clip_context(seq, frames: int, avatar) -> ClipContext:
+    """The :class:`ClipContext` of a sequence's first ``frames`` frames on ``avatar`` (the
+    body it was simulated on, :class:`~loosefit.body.avatar.Avatar`)."""
+    from loosefit.eval.motion_signals import fastest_turn, turn_rate
+    from loosefit.garment.mesh_checks import hem_loop
+
+    motion = seq.motion.slice(0, frames)
+    posed = avatar.pose_motion(motion)
+    names = list(avatar.joint_names)
+    joints = posed.joint_poses[:, :, :3, 3].cpu().numpy()  # (T, J, 3) world positions
+    knees = joints[:, [names.index("LeftLeg"), names.index("RightLeg")]]
+    pelvis = joints[:, 0]
+    knee_frames, which = raised_knees(knees, pelvis)
+    lift = np.abs(knees[knee_frames, 0, 2] - knees[knee_frames, 1, 2])
+    leg = int(knee_frames[np.argmax(lift)]) if len(knee_frames) else None
+    body = posed.vertices.cpu().numpy()
+    body_faces = avatar.faces.cpu().numpy()
+    template = seq.template
+    turn = fastest_turn(motion)
+    raised = dict(zip(knee_frames.tolist(), which.tolist(), strict=True))
+
+    def covers(garment: np.ndarray, t: int) -> bool:
+        return cloth_in_front(knees[t, raised[t]], pelvis[t], garment, template.faces, body[t],
+                              body_faces)  # fmt: skip
+
+    return ClipContext(
+        pelvis=pelvis, hem=hem_loop(template.vertices, template.faces),
+        faces=np.asarray(template.faces), fps=float(motion.fps), turn=turn,
+        turn_rate=float(turn_rate(motion)[turn]), knee_frames=knee_frames.tolist(), leg=leg,
+        leg_height=float(lift.max()) if len(lift) else 0.0, covers=covers,
+    )  # fmt: skip
+
+
+# --------------------------------------------------------------------------- report
+
+
+def knee_cover(garments: np.ndarray, ctx: ClipContext) -> np.ndarray:
+    """(M, T, V, 3) -> (M, K) bool: each garment covers the raised knee at each of the clip's
+    raised-knee frames (``ctx.knee_frames``)."""
+    return np.array([[ctx.covers(g[t], t) for t in ctx.knee_frames] for g in garments], bool)
+
+
+def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipContext,
+               surface: bool = True) -> dict:  # fmt: skip
+    """Every ensemble measure of one clip, for each model and for the members themselves.
+
+    Args:
+        preds: per model, its samples (S, T, V, 3) (S = 1 for a deterministic model; longer
+            than the members' T frames: cut to them).
+        members: (M, T, V, 3) the simulations, on the same T frames.
+        ctx: the clip's motion (:func:`clip_context`, on those T frames).
+        surface: also Hausdorff and STED (slower).
+
+    Returns:
+        ``{"members": ..., "models": {name: ...}}``, per-clip figures and per-frame series:
+        the spread (RMSE, Hausdorff, STED: mean and range over the pairs), the members'
+        own energy score, their hem flare and speed around the fastest turn and whether
+        they cover the raised knee; per model: RMSE to the members' mean, RMSE against each
+        member and its mean's ratio to the spread, Hausdorff and STED against the members,
+        the energy score, the share of the turn's frames whose flare and speed lie inside
+        the members' range, and the raised-knee frames where most members cover the knee
+        and the model does not.
+    """
+    from loosefit.eval.metrics import hausdorff, sted
+
+    members = np.asarray(members, np.float32)
+    M, T = members.shape[:2]
+    faces, hem, fps = ctx.faces, ctx.hem, ctx.fps
+    w = turn_window(ctx.turn, T)
+    pairs = pairwise_rmse(members)  # (P, T)
+    pair_rmse = np.sqrt((pairs**2).mean(1))
+    flare = np.stack([hem_flare(m, ctx.pelvis, hem) for m in members])  # (M, T)
+    speed = np.stack([hem_speed(m, hem, fps) for m in members])
+    mean = members.mean(0)
+    covered = knee_cover(members, ctx)  # (M, K)
+    most = covered.sum(0) * 2 > M  # (K,) the frames most members cover
+    leg = ctx.knee_frames.index(ctx.leg) if ctx.leg is not None else None
+    own = {
+        "members": M, "frames": T, "turn": ctx.turn, "turn_rate": ctx.turn_rate,
+        "window": [w.start, w.stop],
+        "spread_rmse_cm": 100 * float(pair_rmse.mean()),
+        "spread_rmse_range_cm": [100 * float(pair_rmse.min()), 100 * float(pair_rmse.max())],
+        "spread_per_frame_cm": (100 * pairs.mean(0)).tolist(),
+        "member_to_mean_cm": [100 * _clip_rmse(rms_distance(m, mean)) for m in members],
+        "flare_turn_m": flare[:, w].tolist(),
+        "speed_turn_m_s": speed[:, w].tolist(),
+        "knee_frames": ctx.knee_frames, "knee_covered_by_most": most.tolist(),
+        "leg": ctx.leg, "leg_height_m": ctx.leg_height,
+        "leg_covered": covered[:, leg].tolist() if leg is not None else [],
+    }  # fmt: skip
+    if M >= 3:
+        own["energy_score_cm"] = 100 * float(members_energy_score(members).mean())
+    if surface:
+        haus, steds = [], []
+        for i in range(M):
+            for j in range(i + 1, M):
+                haus.append(100 * float(hausdorff(members[i], members[j], faces).mean()))
+                steds.append(float(sted(members[i], members[j], faces)["sted"]))
+        own.update(spread_hausdorff_cm=float(np.mean(haus)),
+                   spread_hausdorff_range_cm=[min(haus), max(haus)],
+                   spread_sted=float(np.mean(steds)),
+                   spread_sted_range=[min(steds), max(steds)])  # fmt: skip
+    models = {}
+    for name, samples in preds.items():
+        samples = np.asarray(samples, np.float32)[:, :T]
+        x = samples[0]
+        to_members = rmse_to_members(x, members)
+        fl = hem_flare(x, ctx.pelvis, hem)
+        sp = hem_speed(x, hem, fps)
+        es = energy_score(samples, members)
+        cover = knee_cover(x[None], ctx)[0]
+        r = {
+            "samples": int(len(samples)),
+            "rmse_to_mean_cm": 100 * _clip_rmse(rmse_to_mean(x, members)),
+            "rmse_to_members_cm": (100 * to_members).tolist(),
+            "rmse_members_ratio": float(to_members.mean() / pair_rmse.mean()),
+            "energy_score_cm": 100 * float(es.mean()),
+            "energy_per_frame_cm": (100 * es).tolist(),
+            "flare_turn_m": fl[w].tolist(),
+            "flare_in_band": float(inside_band(fl[w], flare[:, w]).mean()),
+            "flare_turn_ratio": float((fl[w] / flare[:, w].mean(0)).mean()),
+            "speed_turn_m_s": sp[w].tolist(),
+            "speed_in_band": float(inside_band(sp[w], speed[:, w]).mean()),
+            "knee_missed": [t for t, m, c in zip(ctx.knee_frames, most, cover, strict=True)
+                            if m and not c],
+            "leg_covered": bool(cover[leg]) if leg is not None else None,
+        }  # fmt: skip
+        if surface:
+            r["hausdorff_to_members_cm"] = float(np.mean(
+                [100 * hausdorff(x, m, faces).mean() for m in members]))  # fmt: skip
+            r["sted_to_members"] = float(np.mean([sted(x, m, faces)["sted"] for m in members]))
+        models[name] = r
+    return {"members": own, "models": models}
+
+
+def save_json(path: str | Path, data: dict) -> None:
+    from loosefit.data.format import write_json_atomic
+
+    write_json_atomic(Path(path), json.loads(json.dumps(data)))
+
+
+def evaluate_ensemble(models: dict, sources: list[str | Path], split: str = "test",
+                      surface: bool = True, stages=None, flagged: bool = True,
+                      progress=None, ensembles: dict | None = None) -> dict:  # fmt: skip
+    """Roll models out on every clip that has members and score them against the ensemble.
+
+    Args:
+        models: name -> a trained pipeline (:func:`~loosefit.inference.animator.load_pipeline`;
+            ours, a baseline), each rolled out once on each clip's first member's motion.
+        sources: data set folders of the same clips (the corpus first).
+        split: the first data set's clips to score.
+        surface: also Hausdorff and STED.
+        stages: the stages after the decoders (default: each model's, all of them).
+        flagged: count members the simulator's quality gate flagged.
+        progress: ``progress(message)`` or None.
+        ensembles: the members already gathered (:func:`gather_ensembles` of ``sources``).
+
+    Returns:
+        ``{"split", "sources", "clips"}``: per clip, :func:`score_clip`'s figures and the
+        members' labels, sources and flags.
+
+    Raises:
+        LoosefitInputError: no clip with two members (with how to make more), or members
+            that differ in anything but the seed.
+    """
+    from loosefit.inference.model_common import avatar_of
+
+    if ensembles is None:
+        ensembles = gather_ensembles(sources, split, flagged)
+    many = {k: e for k, e in ensembles.items() if len(e.members) >= 2}
+    if not many:
+        raise LoosefitInputError(
+            ", ".join(str(s) for s in sources), "members",
+            "at least one clip simulated from two or more seeds",
+            "one member of every clip",
+            hint="simulate the clips again from other seeds (loosefit simulate --seeds "
+            "0,1,2,3, or --config with another seed) and pass those data sets too",
+        )  # fmt: skip
+    out = {}
+    for clip, ens in many.items():
+        seqs = ens.sequences()
+        first = seqs[0]
+        members = np.stack([s.garment_vertices[: ens.frames] for s in seqs])
+        avatar = avatar_of(ens.members[0].reader.body)
+        ctx = clip_context(first, ens.frames, avatar)
+        motion = first.motion.slice(0, ens.frames)
+        preds = {}
+        for name, model in models.items():
+            if progress:
+                progress(f"{clip}: {name} on {ens.frames} frames")
+            result = model.animate(motion, stages=stages)
+            preds[name] = np.asarray(result.vertices, np.float32)[None]
+        scored = score_clip(preds, members, ctx, surface=surface)
+        scored["members"]["labels"] = [m.label for m in ens.members]
+        scored["members"]["sources"] = [f"{m.source}:{m.name}" for m in ens.members]
+        scored["members"]["flagged"] = [m.flagged for m in ens.members]
+        scored["members"]["motion_difference"] = ens.motion_difference
+        out[clip] = scored
+    return {"split": split, "sources": [str(s) for s in sources], "clips": out}
+
+
+def ensemble_markdown(result: dict) -> str:
+    """The ensemble measures as Markdown tables: per clip, the members' spread and each
+    model's scores against them."""
+    lines = ["## Against an ensemble of simulations", "",
+             "Each clip's members: the same motion simulated from different seeds. Spread: "
+             "each member against each other (the chaos floor, mean and range over the "
+             "pairs). Per model: RMSE to the members' vertex-wise mean; the mean of its RMSE "
+             "against each member and its ratio to the spread; the energy score (lower is "
+             "better; a mean is not rewarded); the share of the 61 frames around the fastest "
+             "turn whose hem flare and hem speed lie within the members' range; the "
+             "raised-knee frames most members cover where the model does not.", ""]  # fmt: skip
+    for clip, c in result["clips"].items():
+        m = c["members"]
+        flagged = [lab for lab, f in zip(m["labels"], m["flagged"], strict=True) if f]
+        lines += [f"### `{clip}` ({m['frames']} frames, {m['members']} members: "
+                  f"{', '.join(m['labels'])}{'; flagged by the simulator: ' + ', '.join(flagged) if flagged else ''})",  # noqa: E501
+                  "",
+                  f"Fastest turn at frame {m['turn']} ({m['turn_rate']:.1f} rad/s); "
+                  + (f"the highest raised knee at frame {m['leg']} ({100 * m['leg_height_m']:.0f} "
+                     f"cm above the other), covered by {sum(m['leg_covered'])} of "
+                     f"{m['members']} members; {sum(m['knee_covered_by_most'])} of "
+                     f"{len(m['knee_frames'])} raised-knee frames covered by most members."
+                     if m["leg"] is not None else "no knee raised under the pelvis."),
+                  ""]  # fmt: skip
+        has_surface = "spread_hausdorff_cm" in m
+        head = "| | RMSE to members cm (x spread) | RMSE to mean cm | energy score cm |"
+        rule = "|---|---:|---:|---:|"
+        if has_surface:
+            head += " Hausdorff cm | STED |"
+            rule += "---:|---:|"
+        head += " flare in band % | speed in band % | flare / members' mean | knee missed |"
+        rule += "---:|---:|---:|---:|"
+        lo, hi = m["spread_rmse_range_cm"]
+        row = (f"| members (spread) | {m['spread_rmse_cm']:.2f} ({lo:.2f}-{hi:.2f}) | "
+               f"{np.mean(m['member_to_mean_cm']):.2f} | "
+               f"{m['energy_score_cm']:.2f} |" if "energy_score_cm" in m else
+               f"| members (spread) | {m['spread_rmse_cm']:.2f} ({lo:.2f}-{hi:.2f}) | "
+               f"{np.mean(m['member_to_mean_cm']):.2f} | - |")  # fmt: skip
+        if has_surface:
+            row += f" {m['spread_hausdorff_cm']:.2f} | {m['spread_sted']:.4f} |"
+        row += " 100 | 100 | 1.00 | - |"
+        lines += [head, rule, row]
+        for name, r in c["models"].items():
+            to = float(np.mean(r["rmse_to_members_cm"]))
+            row = (
+                f"| {name} | {to:.2f} ({r['rmse_members_ratio']:.2f}x) | "
+                f"{r['rmse_to_mean_cm']:.2f} | {r['energy_score_cm']:.2f} |"
+            )
+            if has_surface:
+                row += f" {r['hausdorff_to_members_cm']:.2f} | {r['sted_to_members']:.4f} |"
+            row += (
+                f" {100 * r['flare_in_band']:.0f} | {100 * r['speed_in_band']:.0f} | "
+                f"{r['flare_turn_ratio']:.2f} | {len(r['knee_missed'])} |"
+            )
+            lines.append(row)
+        lines.append("")
+    return "\n".join(lines)
