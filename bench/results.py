@@ -138,7 +138,8 @@ SET_TITLES = {"chain": "the held-out salsa chain", "ballet": "the held-out balle
 
 
 def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces, faces,
-            vmax: float, size: int, where: str = "chain") -> None:  # fmt: skip
+            vmax: float, size: int, where: str = "chain",
+            truth_label: str = "simulation") -> None:  # fmt: skip
     """Simulation | methods at one frame, front and side, coloured by error, with a colour bar."""
     import matplotlib
 
@@ -154,9 +155,9 @@ def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces,
                           frame_counter=False)  # fmt: skip
     images, labels = [], []
     with Renderer(config) as renderer:
-        for label, g in {"simulation": truth[frame], **garments}.items():
+        for label, g in {truth_label: truth[frame], **garments}.items():
             colours = None
-            if label != "simulation":
+            if label != truth_label:
                 err = 100 * np.linalg.norm(g - truth[frame], axis=-1)  # (V,) cm
                 colours = cmap(np.clip(err / vmax, 0, 1))[:, :3]
                 label = f"{label} (RMSE {np.sqrt((err**2).mean()):.1f} cm)"
@@ -169,7 +170,7 @@ def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces,
     sheet = contact_sheet(images, cols=2, labels=labels)
     fig, ax = plt.subplots(figsize=(sheet.shape[1] / 100, 0.8), dpi=100)
     mappable = matplotlib.cm.ScalarMappable(matplotlib.colors.Normalize(0, vmax), cmap)
-    text = f"per-vertex distance to the simulation (cm), {where} frame {frame}"
+    text = f"per-vertex distance to the {truth_label} (cm), {where} frame {frame}"
     fig.colorbar(mappable, cax=ax, orientation="horizontal", label=text)
     fig.subplots_adjust(left=0.05, right=0.95, bottom=0.55, top=0.9)
     fig.canvas.draw()
@@ -469,6 +470,8 @@ def main() -> None:
     p.add_argument("--reference", default=None,
                    help="a data set of held-out motion simulated again with another seed "
                    "(the physical reference row)")  # fmt: skip
+    p.add_argument("--ensemble", default=None, help="docs/ENSEMBLE.md (bench/ensemble.py): "
+                   "every method against an ensemble of simulations, as a section")  # fmt: skip
     p.add_argument("--table1", default=None, help="Table 1's Markdown (bench/motion_ablation.py "
                    "--table), included as a section")  # fmt: skip
     p.add_argument("--table2", default=None, help="Table 2's Markdown (bench/detail_collision.py "
@@ -546,7 +549,8 @@ def main() -> None:
     cloth = {name: cloth_figures(ours, c, cache) for name, c in all_clips.items()}
     shown = {name: clip_renders(c, img, args.size, template) for name, c in all_clips.items()
              if name in BALLET_CLIPS}  # fmt: skip
-    extra = targets_section(sets) + clip_section(shown) + cloth_section(cloth)
+    extra = targets_section(sets) + ensemble_section(args.ensemble) + clip_section(shown)
+    extra += cloth_section(cloth)
     if args.reference:
         extra += reference_section(Path(args.reference), all_clips, cache, template)
     extra += included_tables(args.table1, args.table2)
@@ -709,6 +713,17 @@ def targets_section(sets: dict) -> list[str]:
                      + f" per clip; the worst {worst / chain:.2f}x the chain's (target within "
                      f"1.3x: {'met' if worst <= 1.3 * chain else '**not met**'}).")  # fmt: skip
     return lines + [""]
+
+
+def ensemble_section(path: str | None) -> list[str]:
+    """bench/ensemble.py's tables (docs/ENSEMBLE.md) as a section."""
+    if path is None:
+        return []
+    from ensemble import SECTION
+
+    text = Path(path).read_text().splitlines()
+    body = [line for line in text if not line.startswith("# ")]
+    return [SECTION, "", f"From [{Path(path).name}]({Path(path).name}).", *body, ""]
 
 
 def included_tables(table1: str | None, table2: str | None) -> list[str]:

@@ -29,7 +29,9 @@
 #    docs/DETAIL_DANCE_TABLE.md.
 # 4. results: the generative ablation (Fig. 4, 20 epochs, two seeds), both baselines (two
 #    seeds each) and every method on the held-out chain and the three held-out ballet
-#    clips, with the physical reference row: docs/RESULTS.md.
+#    clips, with the physical reference row, and against the held-out clips' ensembles
+#    (datasets/dance-seeds, unpacked from ../shared/datasets/dance-seeds.lfz, where it is
+#    there): docs/RESULTS.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${BIN:-.venv/bin}
@@ -37,6 +39,7 @@ SHARED=${SHARED:-../shared}
 BVH=${BVH:-$SHARED/mocap/cmu-salsa}
 DATA=${DATA:-datasets/dance}
 REFERENCE=${REFERENCE:-datasets/dance-reference}
+SEEDS=${SEEDS:-datasets/dance-seeds}  # the held-out clips from seeds 1-3 (dance-seeds.lfz)
 RUNS=${RUNS:-runs/dance}
 BASE=${BASE:-checkpoints/salsa}
 SET=${SET:-checkpoints/dance}
@@ -128,7 +131,9 @@ if step results; then
   winner=$(chosen)
   with_detail=""  # the shipped set without its detail stage: ours with it too, as a row
   [ "$winner" = "${winner%-nodetail}" ] || with_detail=$RUNS/${winner%-nodetail}/set/motion.pt
+  members=""
+  [ -d "$SEEDS" ] && members="$SEEDS/seed1 $SEEDS/seed2 $SEEDS/seed3"
   DATA=$DATA RUNS=$RUNS CHECKPOINT=$SET/motion.pt TABLE=docs/GENERATIVE_DANCE_TABLE.md \
-      ABLATION_EPOCHS=20 REFERENCE=$REFERENCE WITH_DETAIL=$with_detail \
+      MEMBERS=$members ABLATION_EPOCHS=20 REFERENCE=$REFERENCE WITH_DETAIL=$with_detail \
       TABLE1=docs/MOTION_DANCE_TABLE.md TABLE2=docs/DETAIL_DANCE_TABLE.md bash scripts/results.sh
 fi

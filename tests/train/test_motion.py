@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -484,3 +485,39 @@ def test_a_data_set_without_a_drape_needs_one_given_or_a_way_to_settle_it(
     tm.train_motion(toy_dataset, generative, tmp_path / "run2", _config(epochs=1),
                     log=lambda *_: None, progress=False, settle=settle)  # fmt: skip
     assert len(calls) == 1 and (tmp_path / "run2" / "rest_state.npy").is_file()
+
+
+def test_evaluate_scores_a_model_against_each_clip_s_members(trained, toy_dataset, tmp_path):
+    """`loosefit evaluate --members`: the held-out clip's second simulation (another data
+    set of the same clip) gives the ensemble's section; a data set of other cloth is refused
+    before any rollout, naming the field."""
+    import shutil
+
+    from loosefit.cli import main
+
+    run, _ = trained
+    seed1 = tmp_path / "seed1"
+    shutil.copytree(toy_dataset, seed1)
+    seq = DatasetReader(seed1).read("c")
+    moved = dataclasses.replace(seq, garment_vertices=seq.garment_vertices + 0.01)
+    moved.save(seed1 / "sequences" / "c.npz")
+    manifest = json.loads((seed1 / "manifest.json").read_text())
+    manifest["config"]["seed"] = 1
+    (seed1 / "manifest.json").write_text(json.dumps(manifest))
+    ev = tmp_path / "eval"
+    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
+                 "--members", str(seed1), "--rmse-only", "--out", str(ev)]) == 0  # fmt: skip
+    result = json.loads((ev / "evaluation.json").read_text())
+    clip = result["ensemble"]["clips"]["c"]
+    assert clip["members"]["labels"] == ["seed 0", "seed 1"]
+    assert clip["members"]["spread_rmse_cm"] == pytest.approx(100 * 0.01 * np.sqrt(3), rel=1e-3)
+    (scores,) = clip["models"].values()
+    assert len(scores["rmse_to_members_cm"]) == 2 and scores["energy_score_cm"] > 0
+    assert "Against an ensemble of simulations" in (ev / "evaluation.md").read_text()
+
+    manifest["config"]["cloth"]["density"] = 0.5
+    (seed1 / "manifest.json").write_text(json.dumps(manifest))
+    bad = tmp_path / "bad"
+    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
+                 "--members", str(seed1), "--out", str(bad)]) == 2  # fmt: skip
+    assert not bad.exists()

@@ -1,4 +1,5 @@
-"""Procedural dance motions for the built-in data: walk, turn, spin, twirl, sway, kick, jump.
+"""Procedural dance motions for the built-in data: walk, turn, spin, twirl, sway, kick, jump,
+bow.
 
 Each move is a function of time that returns, per frame, joint angles (axis-angle
 vectors in the rest pose's world-aligned axes, which is what the avatar's local
@@ -240,6 +241,25 @@ def jump(t, duration, rng, height=None) -> MoveOutput:
     return _output(t, a, height=z - 0.3 * crouch)
 
 
+def bow(t, duration, rng, depth=None) -> MoveOutput:
+    """A deep bow: the torso folds forward (``depth`` radians, 65-85 degrees when drawn), most
+    of it at the hips with the legs kept upright, holds, and rises."""
+    d = rng.uniform(1.13, 1.48) if depth is None else depth
+    env = _envelope(t, duration, duration / 3)
+    n = len(t)
+    a: Angles = {
+        "Hips": _vec(x=0.65 * d * env, n=n),  # the pelvis tips forward
+        "LeftUpLeg": _vec(x=-0.65 * d * env, n=n),  # the legs stay under it
+        "RightUpLeg": _vec(x=-0.65 * d * env, n=n),
+        "LowerBack": _vec(x=0.2 * d * env, n=n),
+        "Spine": _vec(x=0.1 * d * env, n=n),
+        "Spine1": _vec(x=0.05 * d * env, n=n),
+        "LeftArm": _vec(y=RELAXED_ARM * env, n=n),
+        "RightArm": _vec(y=-RELAXED_ARM * env, n=n),
+    }
+    return _output(t, a)
+
+
 def idle(t, duration, rng) -> MoveOutput:
     """Standing, breathing lightly."""
     n = len(t)
@@ -260,6 +280,7 @@ MOVES: dict[str, Callable[..., MoveOutput]] = {
     "sway": sway,
     "kick": kick,
     "jump": jump,
+    "bow": bow,
 }
 
 # Typical durations (seconds) a move is drawn with in a random dance.
@@ -272,6 +293,7 @@ _DURATIONS = {
     "sway": (2.0, 3.5),
     "kick": (0.8, 1.2),
     "jump": (0.9, 1.3),
+    "bow": (2.4, 3.4),
 }
 
 

@@ -365,7 +365,8 @@ def gather_ensembles(sources: list[str | Path], split: str = "test",
     for i, reader in enumerate(readers):
         cfg = stored_config(reader.manifest)
         entries = reader.manifest.get("sequences", {})
-        pool = wanted if i == 0 else list(entries)
+        # the first data set's split; every sequence of the others (a flagged member too)
+        pool = wanted if i == 0 else list(dict.fromkeys([*entries, *reader.split("all")]))
         for n in pool:
             key = clip_key(n)
             entry = entries.get(n, {})
