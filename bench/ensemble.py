@@ -35,8 +35,8 @@ from loosefit.eval.ensemble import (
     clip_context,
     ensemble_markdown,
     gather_ensembles,
-    rms_distance,
-    score_clip,
+    score_members,
+    score_model,
 )
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.model_common import avatar_of
@@ -78,8 +78,10 @@ def rollouts(args, ens, motion, cache: Path) -> dict:
             elif kind not in models:
                 models[kind] = load_pipeline(ckpt)
             t0 = time.perf_counter()
-            if kind == "engine":
-                result = Rollout(rollout_engine(models[key], motion))
+            if kind == "engine":  # a stochastic tier: args.samples realisations (seeds)
+                seeds = range(args.samples if models[key].tier.config.noise else 1)
+                result = Rollout(np.stack([rollout_engine(models[key], motion, seed=k)
+                                           for k in seeds]))  # fmt: skip
             elif key == "oracle":
                 truth = ens.members[0].read().garment_vertices[: ens.frames]
                 result = models[kind].reconstruct(motion, truth)
@@ -110,9 +112,37 @@ def engine_key(path: str) -> str:
 def label_of(key: str) -> str:
     if key in METHODS:
         return METHODS[key][0]
+    if key == "engine:dance":
+        return "the shipped set's engine tier (64 directions, distilled; no push-out)"
     if key.startswith("engine:"):
-        return f"a linear basis and its recurrent step ({key.removeprefix('engine:')})"
+        name = key.removeprefix("engine:")
+        what = {"engine-k128": "128 directions, squared error",
+                "engine-k128-es": "128 directions, stochastic, energy score"}.get(name, name)
+        return f"a linear basis and its recurrent step ({what})"
     return "oracle: the generative model's reconstruction of the first member"
+
+
+def clip_scores(ens, seqs, garments: dict, ctx, cache: Path) -> dict:
+    """The members' figures and each method's against them, each cached in its own file
+    (a method added later is scored alone)."""
+    members = np.stack([s.garment_vertices[: ens.frames] for s in seqs])
+    path = cache / "members.json"
+    if not path.is_file():
+        own = score_members(members, ctx)
+        own["labels"] = [m.label for m in ens.members]
+        own["flagged"] = [m.flagged for m in ens.members]
+        own["sources"] = [f"{m.source}:{m.name}" for m in ens.members]
+        path.write_text(json.dumps(own))
+    own = json.loads(path.read_text())
+    models = {}
+    for key, vertices in garments.items():
+        path = cache / f"{key}.json"
+        if not path.is_file():
+            samples = vertices if vertices.ndim == 4 else vertices[None]  # (S, T, V, 3)
+            path.write_text(json.dumps(score_model(samples, members, ctx, own)))
+            print(f"{ens.clip} {key}: scored", flush=True)
+        models[key] = json.loads(path.read_text())
+    return {"members": own, "models": models}
 
 
 def flare_plot(path: Path, scores: dict) -> None:
@@ -247,6 +277,8 @@ def main() -> None:
     p.add_argument("--baselines", default="runs/dance/baselines")
     p.add_argument("--engines", nargs="*", default=[],
                    help="engine tiers (engine.pt) scored as methods too")  # fmt: skip
+    p.add_argument("--samples", type=int, default=8,
+                   help="realisations (seeds 0, 1, ...) of a stochastic method")  # fmt: skip
     p.add_argument("--cache", default="runs/dance/ensemble")
     p.add_argument("--out", default="docs/ENSEMBLE.md")
     p.add_argument("--img", default="docs/img")
@@ -269,19 +301,7 @@ def main() -> None:
         garments = rollouts(args, ens, motion, cache / clip)
         avatar = avatar_of(ens.members[0].reader.body)
         ctx = clip_context(seqs[0], ens.frames, avatar)
-        path = cache / clip / "scores.json"
-        have = json.loads(path.read_text()) if path.is_file() else {}
-        if sorted(have.get("models", {})) != sorted(garments):  # a method added since
-            members = np.stack([s.garment_vertices[: ens.frames] for s in seqs])
-            preds = {k: v[None] for k, v in garments.items()}
-            scored = score_clip(preds, members, ctx)
-            scored["members"]["labels"] = [m.label for m in ens.members]
-            scored["members"]["flagged"] = [m.flagged for m in ens.members]
-            scored["members"]["sources"] = [f"{m.source}:{m.name}" for m in ens.members]
-            scored["oracle_to_first_cm"] = 100 * float(
-                np.sqrt(np.mean(rms_distance(garments["oracle"], members[0]) ** 2)))  # fmt: skip
-            path.write_text(json.dumps(scored))
-        scores[clip] = json.loads(path.read_text())
+        scores[clip] = clip_scores(ens, seqs, garments, ctx, cache / clip)
         shown[clip] = clip_renders(args, ens, seqs, ctx, garments, img)
         print(f"{clip}: scored", flush=True)
     flare_plot(img / "ensemble_flare.png", scores)

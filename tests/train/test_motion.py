@@ -521,3 +521,28 @@ def test_evaluate_scores_a_model_against_each_clip_s_members(trained, toy_datase
     assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
                  "--members", str(seed1), "--out", str(bad)]) == 2  # fmt: skip
     assert not bad.exists()
+
+
+def test_a_stochastic_engine_tier_gives_one_realisation_a_seed(trained, toy_dataset, tmp_path):
+    """`train engine --noise`: trained with the energy score; a seed gives the same garment
+    on every run, another seed another plausible one."""
+    from loosefit.cli import main
+    from loosefit.inference.engine import load_engine, rollout_engine
+
+    run, _ = trained
+    out = tmp_path / "stochastic"
+    args = ["train", "engine", "--data", str(toy_dataset), "--preset", "cpu", "--epochs", "2",
+            "--max-frames", "8", "--motion", str(run / "model.pt"), "--basis", "4",
+            "--noise", "2", "--samples", "2", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    tier = load_engine(out / "engine.pt")
+    assert tier.tier.config.noise == 2
+    history = torch.load(out / "checkpoint.pt", weights_only=False)["history"]
+    assert all(np.isfinite(h["energy"]) and h["energy"] > 0 for h in history)
+    motion = load_motion("sway", tier.avatar()).slice(0, 20)
+    a, b = rollout_engine(tier, motion, seed=0), rollout_engine(tier, motion, seed=0)
+    c = rollout_engine(tier, motion, seed=1)
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a - c).max() > 1e-5 and np.isfinite(c).all()
+    assert main([*args[:-4], "--samples", "1", "--out", str(tmp_path / "x")]) == 2
+    assert not (tmp_path / "x").exists()

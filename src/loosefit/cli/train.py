@@ -256,6 +256,23 @@ def _add_engine_parser(stages) -> argparse.ArgumentParser:
         help="add N procedural dances (the demo's moves) to the training clips, distilled "
         "from the full model's rollouts of them; default 0",
     )
+    p.add_argument(
+        "--noise",
+        type=int,
+        default=None,
+        metavar="N",
+        help="a stochastic tier: N noise numbers a frame, drawn from a seed (each seed one "
+        "plausible realisation of the cloth), trained with the energy score against the "
+        "simulation; default 0 (deterministic)",
+    )
+    p.add_argument(
+        "--samples",
+        type=int,
+        default=None,
+        metavar="S",
+        help="a stochastic tier's realisations of each clip scored together in training "
+        "(default 2)",
+    )
     add_common_args(p, "runs/engine-PRESET")
     p.set_defaults(func=run_engine)
     return p
@@ -467,6 +484,8 @@ def run_engine(args: argparse.Namespace) -> int:
         mirror=False if args.no_mirror else None,
         membrane=args.membrane_weight,
         procedural=args.procedural,
+        noise=args.noise,
+        samples=args.samples,
     )
     out = args.out or f"runs/engine-{args.preset}"
     motion = args.motion or pretrained_checkpoint()

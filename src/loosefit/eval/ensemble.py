@@ -489,26 +489,19 @@ def knee_cover(garments: np.ndarray, ctx: ClipContext) -> np.ndarray:
     return np.array([[ctx.covers(g[t], t) for t in ctx.knee_frames] for g in garments], bool)
 
 
-def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipContext,
-               surface: bool = True) -> dict:  # fmt: skip
-    """Every ensemble measure of one clip, for each model and for the members themselves.
+def score_members(members: np.ndarray, ctx: ClipContext, surface: bool = True) -> dict:
+    """The members' own figures: what every model is scored against.
 
     Args:
-        preds: per model, its samples (S, T, V, 3) (S = 1 for a deterministic model; longer
-            than the members' T frames: cut to them).
-        members: (M, T, V, 3) the simulations, on the same T frames.
+        members: (M, T, V, 3) the simulations of one clip, on the same T frames.
         ctx: the clip's motion (:func:`clip_context`, on those T frames).
-        surface: also Hausdorff and STED (slower).
+        surface: also Hausdorff and STED between the members (slower).
 
     Returns:
-        ``{"members": ..., "models": {name: ...}}``, per-clip figures and per-frame series:
-        the spread (RMSE, Hausdorff, STED: mean and range over the pairs), the members'
-        own energy score, their hem flare and speed around the fastest turn and whether
-        they cover the raised knee; per model: RMSE to the members' mean, RMSE against each
-        member and its mean's ratio to the spread, Hausdorff and STED against the members,
-        the energy score, the share of the turn's frames whose flare and speed lie inside
-        the members' range, and the raised-knee frames where most members cover the knee
-        and the model does not.
+        The spread (RMSE per frame and over the clip, its mean and range over the pairs;
+        Hausdorff and STED likewise), each member's RMSE to their mean, their own energy
+        score (three members or more), their hem flare and speed over the 61 frames around
+        the fastest turn, and which raised-knee frames most of them cover.
     """
     from loosefit.eval.metrics import hausdorff, sted
 
@@ -522,7 +515,6 @@ def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipConte
     speed = np.stack([hem_speed(m, hem, fps) for m in members])
     mean = members.mean(0)
     covered = knee_cover(members, ctx)  # (M, K)
-    most = covered.sum(0) * 2 > M  # (K,) the frames most members cover
     leg = ctx.knee_frames.index(ctx.leg) if ctx.leg is not None else None
     own = {
         "members": M, "frames": T, "turn": ctx.turn, "turn_rate": ctx.turn_rate,
@@ -533,7 +525,8 @@ def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipConte
         "member_to_mean_cm": [100 * _clip_rmse(rms_distance(m, mean)) for m in members],
         "flare_turn_m": flare[:, w].tolist(),
         "speed_turn_m_s": speed[:, w].tolist(),
-        "knee_frames": ctx.knee_frames, "knee_covered_by_most": most.tolist(),
+        "knee_frames": ctx.knee_frames,
+        "knee_covered_by_most": (covered.sum(0) * 2 > M).tolist(),
         "leg": ctx.leg, "leg_height_m": ctx.leg_height,
         "leg_covered": covered[:, leg].tolist() if leg is not None else [],
     }  # fmt: skip
@@ -549,36 +542,79 @@ def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipConte
                    spread_hausdorff_range_cm=[min(haus), max(haus)],
                    spread_sted=float(np.mean(steds)),
                    spread_sted_range=[min(steds), max(steds)])  # fmt: skip
-    models = {}
-    for name, samples in preds.items():
-        samples = np.asarray(samples, np.float32)[:, :T]
-        x = samples[0]
-        to_members = rmse_to_members(x, members)
-        fl = hem_flare(x, ctx.pelvis, hem)
-        sp = hem_speed(x, hem, fps)
-        es = energy_score(samples, members)
-        cover = knee_cover(x[None], ctx)[0]
-        r = {
-            "samples": int(len(samples)),
-            "rmse_to_mean_cm": 100 * _clip_rmse(rmse_to_mean(x, members)),
-            "rmse_to_members_cm": (100 * to_members).tolist(),
-            "rmse_members_ratio": float(to_members.mean() / pair_rmse.mean()),
-            "energy_score_cm": 100 * float(es.mean()),
-            "energy_per_frame_cm": (100 * es).tolist(),
-            "flare_turn_m": fl[w].tolist(),
-            "flare_in_band": float(inside_band(fl[w], flare[:, w]).mean()),
-            "flare_turn_ratio": float((fl[w] / flare[:, w].mean(0)).mean()),
-            "speed_turn_m_s": sp[w].tolist(),
-            "speed_in_band": float(inside_band(sp[w], speed[:, w]).mean()),
-            "knee_missed": [t for t, m, c in zip(ctx.knee_frames, most, cover, strict=True)
-                            if m and not c],
-            "leg_covered": bool(cover[leg]) if leg is not None else None,
-        }  # fmt: skip
-        if surface:
-            r["hausdorff_to_members_cm"] = float(np.mean(
-                [100 * hausdorff(x, m, faces).mean() for m in members]))  # fmt: skip
-            r["sted_to_members"] = float(np.mean([sted(x, m, faces)["sted"] for m in members]))
-        models[name] = r
+    return own
+
+
+def score_model(samples: np.ndarray, members: np.ndarray, ctx: ClipContext, own: dict,
+                surface: bool = True) -> dict:  # fmt: skip
+    """One model against the members.
+
+    Args:
+        samples: (S, T', V, 3) its realisations of the clip (S = 1 for a deterministic
+            model; T' >= T: cut to the members' frames).
+        members: (M, T, V, 3); ctx: the clip's motion; own: :func:`score_members`' figures.
+        surface: also Hausdorff and STED against the members (slower).
+
+    Returns:
+        RMSE to the members' mean, RMSE against each member and its mean's ratio to the
+        spread, the energy score, the share of the turn's frames whose hem flare and speed
+        lie inside the members' range (and its flare over theirs), the raised-knee frames
+        most members cover where it does not, and whether it covers the highest raised knee.
+    """
+    from loosefit.eval.metrics import hausdorff, sted
+
+    members = np.asarray(members, np.float32)
+    T = members.shape[1]
+    samples = np.asarray(samples, np.float32)[:, :T]
+    x = samples[0]
+    w = slice(*own["window"])
+    band_flare, band_speed = np.asarray(own["flare_turn_m"]), np.asarray(own["speed_turn_m_s"])
+    to_members = rmse_to_members(x, members)
+    fl = hem_flare(x, ctx.pelvis, ctx.hem)[w]
+    sp = hem_speed(x, ctx.hem, ctx.fps)[w]
+    es = energy_score(samples, members)
+    cover = knee_cover(x[None], ctx)[0]
+    most = own["knee_covered_by_most"]
+    leg = ctx.knee_frames.index(ctx.leg) if ctx.leg is not None else None
+    r = {
+        "samples": int(len(samples)),
+        "rmse_to_mean_cm": 100 * _clip_rmse(rmse_to_mean(x, members)),
+        "rmse_to_members_cm": (100 * to_members).tolist(),
+        "rmse_members_ratio": float(100 * to_members.mean() / own["spread_rmse_cm"]),
+        "energy_score_cm": 100 * float(es.mean()),
+        "energy_per_frame_cm": (100 * es).tolist(),
+        "flare_turn_m": fl.tolist(),
+        "flare_in_band": float(inside_band(fl, band_flare).mean()),
+        "flare_turn_ratio": float((fl / band_flare.mean(0)).mean()),
+        "speed_turn_m_s": sp.tolist(),
+        "speed_in_band": float(inside_band(sp, band_speed).mean()),
+        "knee_missed": [t for t, m, c in zip(ctx.knee_frames, most, cover, strict=True)
+                        if m and not c],
+        "leg_covered": bool(cover[leg]) if leg is not None else None,
+    }  # fmt: skip
+    if surface:
+        r["hausdorff_to_members_cm"] = float(np.mean(
+            [100 * hausdorff(x, m, ctx.faces).mean() for m in members]))  # fmt: skip
+        r["sted_to_members"] = float(np.mean([sted(x, m, ctx.faces)["sted"] for m in members]))
+    return r
+
+
+def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipContext,
+               surface: bool = True) -> dict:  # fmt: skip
+    """Every ensemble measure of one clip: the members' own (:func:`score_members`) and
+    each model's against them (:func:`score_model`).
+
+    Args:
+        preds: per model, its samples (S, T', V, 3) (S = 1 for a deterministic model).
+        members: (M, T, V, 3) the simulations, on the same T frames.
+        ctx: the clip's motion (:func:`clip_context`, on those T frames).
+        surface: also Hausdorff and STED (slower).
+
+    Returns:
+        ``{"members": ..., "models": {name: ...}}``.
+    """
+    own = score_members(members, ctx, surface)
+    models = {n: score_model(x, members, ctx, own, surface) for n, x in preds.items()}
     return {"members": own, "models": models}
 
 

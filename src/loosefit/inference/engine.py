@@ -124,7 +124,19 @@ def load_engine(path: str | Path, device="cpu") -> EngineModel:
 
 
 @torch.no_grad()
-def rollout_engine(model: EngineModel, motion: Motion, coefficients: bool = False, collide=None):
+def engine_noise(tier: EngineTier, frames: int, seed: int) -> torch.Tensor | None:
+    """(frames, N) a stochastic tier's noise for one rollout, drawn from ``seed`` on the CPU
+    (the same draws on every machine); None for a deterministic tier."""
+    if not tier.config.noise:
+        return None
+    gen = torch.Generator().manual_seed(int(seed))
+    return torch.randn(frames, tier.config.noise, generator=gen)
+
+
+@torch.no_grad()
+def rollout_engine(
+    model: EngineModel, motion: Motion, coefficients: bool = False, collide=None, seed: int = 0
+):
     """The engine tier's garment through ``motion``, in PyTorch: the rest pose, the blend
     into the motion (as every loosefit rollout), then one step per frame.
 
@@ -134,6 +146,8 @@ def rollout_engine(model: EngineModel, motion: Motion, coefficients: bool = Fals
         coefficients: also return the coefficients of the motion's frames.
         collide: an :class:`~loosefit.inference.engine_export.EngineStep` with capsules:
             its push-out applied to the garments (the exported graph's ``garment``).
+        seed: a stochastic tier's realisation (:func:`engine_noise`); a deterministic tier
+            has one.
 
     Returns:
         (T, V, 3) float32 world garments (and (T, K) coefficients with ``coefficients``).
@@ -153,8 +167,10 @@ def rollout_engine(model: EngineModel, motion: Motion, coefficients: bool = Fals
     H, p = (a.float().to(device) for a in root_frames(rot.double(), root.double()))
     hidden, c = tier.initial_hidden(1, device), tier.initial_coefficients(1)
     out = torch.empty(len(rot) - P, tier.config.basis, device=device)
+    noise = engine_noise(tier, len(rot), seed)
     for t in range(len(rot)):
-        c, hidden = tier(feats[t : t + 1], c, hidden)
+        z = None if noise is None else noise[t : t + 1].to(device)
+        c, hidden = tier(feats[t : t + 1], c, hidden, z)
         if t >= P:
             out[t - P] = c[0]
     garments = from_root_frame(tier.decode(out), H[P:], p[P:])

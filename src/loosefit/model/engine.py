@@ -7,9 +7,14 @@ them to the K coefficients of a linear basis of the garment in the root frame, a
 the training corpus's simulated garments, decoded by one matrix product::
 
     M_t = clamp(features_t, low, high)                       (F,)
-    h_t = GRU(fc([M_t, c_{t-1} / s]), h_{t-1})
+    h_t = GRU(fc([M_t, c_{t-1} / s, z_t]), h_{t-1})
     c_t = s * head([h_t, c_{t-1} / s])                       (K,)
     V_t = mean + c_t @ basis                                 (V, 3), root frame
+
+``z_t`` (N,) is a stochastic tier's noise, drawn from a seed (none where N = 0, the
+deterministic tier): trained with the energy score against the simulation
+(:mod:`loosefit.train.engine`), each seed gives one plausible realisation of the cloth, and
+the same seed the same one on every machine.
 
 ``s`` (K,) are the basis's standard deviations over the corpus (the coefficients enter
 and leave the networks normalised). ``low`` and ``high`` (F,) are the range of each
@@ -43,9 +48,12 @@ class EngineConfig:
     head: int = 256  # the hidden layer of the head to the coefficients
     # the joints whose rotations the features hold (motion_features.JOINT_SETS)
     joints: str = "all"
+    noise: int = 0  # N, the per-frame noise of a stochastic tier; 0: deterministic
 
     def __post_init__(self) -> None:
         joint_set(self.joints)
+        if not (isinstance(self.noise, int) and self.noise >= 0):
+            raise LoosefitInputError("EngineConfig", "noise", "an integer >= 0", self.noise)
         for name in ("basis", "motion_fc", "gru", "head"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v > 0):
@@ -163,7 +171,7 @@ class EngineTier(nn.Module):
         self.register_buffer("basis", basis.basis.float().reshape(K, 3 * V).clone())  # (K, 3V)
         self.register_buffer("scale", basis.scale.float().clamp_min(1e-6).clone())  # (K,)
         self.register_buffer("rest", torch.zeros(K) if rest is None else rest.float().clone())
-        self.motion_fc = nn.Linear(F + K, cfg.motion_fc)
+        self.motion_fc = nn.Linear(F + K + cfg.noise, cfg.motion_fc)
         self.gru = nn.GRUCell(cfg.motion_fc, cfg.gru)
         self.head = nn.Sequential(
             nn.Linear(cfg.gru + K, cfg.head), nn.LeakyReLU(0.2), nn.Linear(cfg.head, K)
@@ -178,7 +186,11 @@ class EngineTier(nn.Module):
         return self.rest[None].expand(batch, -1).clone()
 
     def forward(
-        self, features: torch.Tensor, previous: torch.Tensor, hidden: torch.Tensor
+        self,
+        features: torch.Tensor,
+        previous: torch.Tensor,
+        hidden: torch.Tensor,
+        noise: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """One frame.
 
@@ -186,6 +198,8 @@ class EngineTier(nn.Module):
             features: (B, F) the frame's motion features.
             previous: (B, K) the previous frame's coefficients.
             hidden: (B, G) the recurrent state after the previous frame.
+            noise: (B, N) standard normal draws (a stochastic tier's, N = config.noise);
+                None for a deterministic tier.
 
         Returns:
             The coefficients (B, K) and the new state (B, G).
@@ -197,7 +211,15 @@ class EngineTier(nn.Module):
         inside = torch.minimum(torch.maximum(features, self.feature_low), self.feature_high)
         x = (inside - self.feature_mean) / self.feature_std
         prev = previous / self.scale  # (B, K)
-        m = nn.functional.leaky_relu(self.motion_fc(torch.cat([x, prev], -1)), 0.2)
+        inputs = [x, prev]
+        if self.config.noise:
+            if noise is None or tuple(noise.shape) != (len(features), self.config.noise):
+                raise LoosefitInputError(
+                    "EngineTier", "noise", f"(B, {self.config.noise}) draws (a stochastic tier)",
+                    None if noise is None else tuple(noise.shape),
+                )  # fmt: skip
+            inputs.append(noise)
+        m = nn.functional.leaky_relu(self.motion_fc(torch.cat(inputs, -1)), 0.2)
         hidden = self.gru(m, hidden)
         c = self.head(torch.cat([hidden, prev], -1)) * self.scale
         return c, hidden

@@ -93,6 +93,10 @@ class TrainEngineConfig(StageConfig):
     # which no capture clip holds; 0: none
     procedural: int = 0
     procedural_seconds: int = 12  # the length of each
+    # a stochastic tier (model.noise > 0): realisations of each clip side by side, scored
+    # together against the simulation by the energy score (which replaces the squared
+    # error and the flare term: it rewards the simulation's spread, not its mean)
+    samples: int = 2
 
     PRESETS: ClassVar[dict[str, dict]] = {"cpu": {}, "full": {}, "quick": {"epochs": 40}}
 
@@ -106,6 +110,10 @@ class TrainEngineConfig(StageConfig):
         if not (isinstance(self.procedural, int) and self.procedural >= 0):
             raise LoosefitInputError("TrainEngineConfig", "procedural", "an integer >= 0",
                                      self.procedural)  # fmt: skip
+        if self.model.noise and not (isinstance(self.samples, int) and self.samples >= 2):
+            raise LoosefitInputError(
+                "TrainEngineConfig", "samples", "an integer >= 2 (a stochastic tier)", self.samples
+            )
         for name in ("flare", "membrane"):
             if not getattr(self, name) >= 0:
                 raise LoosefitInputError("TrainEngineConfig", name, "a weight >= 0",
@@ -254,10 +262,14 @@ class EngineStage(Stage):
         cfg = self.config
         s2 = cfg.length_scale**2
         P, L = batch["preroll"], batch["length"]
-        sums = {"geometry": 0.0, "flare": 0.0, "membrane": 0.0}
+        sums = {"geometry": 0.0, "flare": 0.0, "membrane": 0.0, "energy": 0.0}
         count = 0
+        N = self.model.config.noise
+        S = cfg.samples if N else 1  # a stochastic tier's realisations, side by side
+        V = self.template.num_vertices
         for t in range(start, stop):
-            c, hidden = self.model(batch["features"][:, t], previous, hidden)
+            z = None if not N else torch.randn(len(previous), N, generator=self.sampling)
+            c, hidden = self.model(batch["features"][:, t], previous, hidden, z)
             valid = (t >= P) & (t < L)  # (b,)
             previous = c.detach()
             if not valid.any():
@@ -265,11 +277,22 @@ class EngineStage(Stage):
             i = (t - P).clamp(0, batch["latent"].shape[1] - 1)
             truth = batch["latent"][torch.arange(len(P)), i]  # (b, K)
             w = valid.float()
-            V = self.template.num_vertices
-            sums["geometry"] = sums["geometry"] + s2 * (w * (c - truth).pow(2).sum(-1)).sum() / V
-            if cfg.flare > 0:
-                d = self.flare(c) - self.flare(truth)
-                sums["flare"] = sums["flare"] + cfg.flare * s2 * (w * d.pow(2)).sum()
+            if N:
+                # the energy score (cm): mean_s d(X_s, y) - 1/(2 S^2) sum_{s, s'} d(X_s, X_s')
+                def dist(a, b):
+                    return cfg.length_scale * ((a - b).pow(2).sum(-1) / V + 1e-12).sqrt()
+
+                cs, n = c.view(S, -1, c.shape[-1]), len(P) // S
+                fit = dist(cs, truth.view(S, n, -1)).mean(0)  # (n,)
+                spread = sum(dist(cs[a], cs[b]) for a in range(S) for b in range(a + 1, S))
+                es = fit - spread / S**2  # (n,)
+                sums["energy"] = sums["energy"] + (w[:n] * es).sum() * S
+            else:
+                sq = (w * (c - truth).pow(2).sum(-1)).sum()
+                sums["geometry"] = sums["geometry"] + s2 * sq / V
+                if cfg.flare > 0:
+                    d = self.flare(c) - self.flare(truth)
+                    sums["flare"] = sums["flare"] + cfg.flare * s2 * (w * d.pow(2)).sum()
             if cfg.membrane > 0 and t % cfg.membrane_stride == 0:
                 e = membrane_energy(self.model.decode(c), *self.edges)  # (b,)
                 scale = cfg.membrane * cfg.membrane_stride  # the frames it stands for
@@ -293,7 +316,9 @@ class EngineStage(Stage):
         for b in range(0, len(order), cfg.batch_size):
             clips = [self.clips[i] for i in order[b : b + cfg.batch_size]]
             batch = stack_coefficients(clips)
-            n = len(clips)
+            if self.model.config.noise:  # each clip's realisations, the samples in blocks
+                batch = {k: v.repeat(cfg.samples, *[1] * (v.ndim - 1)) for k, v in batch.items()}
+            n = len(batch["preroll"])
             hidden = self.model.initial_hidden(n)
             previous = self.model.initial_coefficients(n)
             L = max(c.length for c in clips)
