@@ -546,3 +546,8 @@ def test_a_stochastic_engine_tier_gives_one_realisation_a_seed(trained, toy_data
     assert np.abs(a - c).max() > 1e-5 and np.isfinite(c).all()
     assert main([*args[:-4], "--samples", "1", "--out", str(tmp_path / "x")]) == 2
     assert not (tmp_path / "x").exists()
+    # the graph has no noise input: refused, saying so, before anything is written
+    onnx = tmp_path / "stochastic.onnx"
+    assert main(["export-model", str(onnx), "--checkpoint", str(out / "engine.pt"),
+                 "--tier", "engine"]) == 2  # fmt: skip
+    assert not onnx.exists()

@@ -315,6 +315,12 @@ def check_engine_exportable(model, source) -> None:
             hint="train one: loosefit train engine --data DATASET --motion MOTION.pt "
             "(writes RUN/engine.pt; put it beside motion.pt or pass --checkpoint)",
         )  # fmt: skip
+    if model.tier.config.noise:
+        raise LoosefitInputError(
+            source, "tier", "a deterministic engine tier (noise 0)",
+            f"a stochastic one ({model.tier.config.noise} noise numbers a frame)",
+            hint="the graph has no noise input yet: export a tier trained without --noise",
+        )  # fmt: skip
 
 
 def export_engine(model, path: str | Path, config: EngineExportConfig | None = None) -> list[Path]:
