@@ -3,7 +3,7 @@
 A model that has learned where the skirt sits relative to the body, not where gravity pulls
 it, keeps the skirt in the pelvis's frame as the torso folds forward: its hem points up and
 back instead of hanging toward the floor. Deep bows (the procedural ``bow`` move, the torso
-65-85 degrees forward) simulated as the dance corpus was (``configs/bows.yaml``) are rolled
+57-76 degrees forward) simulated as the dance corpus was (``configs/bows.yaml``) are rolled
 out by a set and compared at each clip's deepest frame: the hem ring's mean height against
 the simulation's (target: within 5 cm), and whether the hem hangs below the waistband::
 

@@ -33,6 +33,24 @@ def test_spin_is_fast_enough_to_flare_a_skirt(avatar):
     assert np.abs(motion.root_translation[:, :2]).max() < 0.05  # on the spot
 
 
+def test_a_bow_folds_the_torso_forward_with_the_legs_upright(avatar):
+    names = list(avatar.joint_names)
+    pitch = {}
+    for depth in (1.13, 1.48):  # the range a bow's depth is drawn from
+        motion = compose([MoveSpec("idle", 0.5), MoveSpec("bow", 3.0, {"depth": depth})],
+                         avatar.joint_names, avatar.floor_height)  # fmt: skip
+        joints = avatar.pose_motion(motion).joint_poses[:, :, :3, 3].numpy()
+        torso = joints[:, names.index("Neck")] - joints[:, 0]
+        angle = np.degrees(np.arccos(torso[:, 2] / np.linalg.norm(torso, axis=1)))
+        t = int(np.argmax(angle))
+        pitch[depth] = angle[t]
+        assert torso[t, 1] < 0  # forward: the avatar faces -Y
+        for side in ("Left", "Right"):  # the legs stay under the body, near vertical
+            leg = joints[t, names.index(f"{side}Foot")] - joints[t, names.index(f"{side}UpLeg")]
+            assert np.degrees(np.arccos(-leg[2] / np.linalg.norm(leg))) < 20
+    assert 55 < pitch[1.13] < 62 and 72 < pitch[1.48] < 80  # the docstring's 57-76 degrees
+
+
 def test_walk_moves_forward(avatar):
     motion = named_motion("walk", avatar.joint_names, avatar.floor_height, seed=0)
     # Facing -Y: walking goes towards -Y.
