@@ -311,7 +311,7 @@ def markdown(args, scores: dict, renders_shown: dict, started: str,
     lines = [SECTION, "",
              f"Made by `python bench/ensemble.py` (its docstring gives the command) on "
              f"`{args.data}` with members from {', '.join(f'`{m}`' for m in args.members)}; "
-             f"this run started {started} on {machine()}. The oracle row is the floor under "
+             f"this run started {started} on {machine('cpu')}. The oracle row is the floor under "
              "every motion stage on this decoder: the generative model's own code of the "
              "first member's garment, decoded, scored like the methods.", "",
              "![hem flare and speed around each clip's fastest turn against the members' "
@@ -396,7 +396,7 @@ def main() -> None:
                  "models": {n: brief(r) for n, r in v["models"].items()}}
              for k, v in scores.items()}  # fmt: skip
     Path(args.out).with_suffix(".json").write_text(
-        json.dumps({"started": started, "machine": machine(), "clips": light,
+        json.dumps({"started": started, "machine": machine("cpu"), "clips": light,
                     "validation": choice}, indent=1))  # fmt: skip
     if args.results:
         splice(Path(args.results), text)

@@ -107,7 +107,7 @@ def write(args, rows: dict, started: str) -> None:
     lines = [
         "# The skirt under gravity in a deep bow", "",
         f"Made by `python bench/gravity_bows.py --data {args.data} --checkpoint "
-        f"{args.checkpoint}` on {machine()}, {started}; the bows simulated by `loosefit "
+        f"{args.checkpoint}` on {machine('cpu')}, {started}; the bows simulated by `loosefit "
         "simulate --config configs/bows.yaml` (the dance corpus's configuration, the "
         "procedural `bow` move drawn three times). At each clip's deepest frame (the torso's "
         "pitch: the pelvis-to-neck line against the vertical): the hem ring's mean height, "
