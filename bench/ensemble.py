@@ -293,10 +293,25 @@ def targets(scores: dict) -> list[str]:
         misses += [f"{clip}: {n}" for n, ok in zip(names, row, strict=True) if not ok]
         lines.append(f"| {clip} | {decoder:.2f} | {100 * r['flare_in_band']:.0f} % | "
                      f"{r['rmse_members_ratio']:.2f} | {len(r['knee_missed'])} |")  # fmt: skip
-    lines += ["", f"**Missed:** {', '.join(misses)}." if misses else "All met.", "",
-              "The energy score of a stochastic motion stage below the deterministic set's: "
-              "the shipped set is the deterministic one (one sample; no stochastic stage is "
-              "shipped), so its score is the deterministic set's.", ""]  # fmt: skip
+    lines += ["", f"**Missed:** {', '.join(misses)}." if misses else "All met.", ""]
+    stochastic = sorted({k for c in scores.values() for k, r in c["models"].items()
+                         if r["samples"] > 1})  # fmt: skip
+    if not stochastic:
+        lines += ["The energy score of a stochastic motion stage below the deterministic "
+                  "set's: no stochastic candidate was scored (the shipped set is "
+                  "deterministic: one sample).", ""]  # fmt: skip
+    for key in stochastic:
+        cells = []
+        for clip, c in scores.items():
+            mine, det = c["models"][key], c["models"]["ours-full"]
+            cells.append(f"{clip} {mine['energy_score_cm']:.2f} against "
+                         f"{det['energy_score_cm']:.2f}")  # fmt: skip
+        below = all(c["models"][key]["energy_score_cm"] < c["models"]["ours-full"][
+            "energy_score_cm"] for c in scores.values())  # fmt: skip
+        lines += [f"{label_of(key)} ({mine['samples']} realisations, seeds 0-"
+                  f"{mine['samples'] - 1}): energy score below the deterministic set's on "
+                  f"every clip: **{'met' if below else 'not met'}** ({'; '.join(cells)} cm).",
+                  ""]  # fmt: skip
     return lines
 
 
