@@ -116,8 +116,10 @@ def label_of(key: str) -> str:
         return "the shipped set's engine tier (64 directions, distilled; no push-out)"
     if key.startswith("engine:"):
         name = key.removeprefix("engine:")
-        what = {"engine-k128": "128 directions, squared error",
-                "engine-k128-es": "128 directions, stochastic, energy score"}.get(name, name)
+        what = {
+            "engine-k128": "128 directions, squared error",
+            "engine-k128-es": "128 directions, stochastic, energy score",
+        }.get(name, name)
         return f"a linear basis and its recurrent step ({what})"
     return "oracle: the generative model's reconstruction of the first member"
 
@@ -404,6 +406,7 @@ def main() -> None:
     text = markdown(args, scores, shown, started, choice)
     Path(args.out).write_text("# Dynamics against an ensemble of simulations\n\n"
                               + text.replace(SECTION + "\n\n", "", 1))  # fmt: skip
+
     def brief(d: dict) -> dict:  # the per-frame series left out
         return {a: b for a, b in d.items() if "per_frame" not in a}
 
