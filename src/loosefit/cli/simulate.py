@@ -108,6 +108,14 @@ def add_parser(sub) -> None:
         help="with --batch: processes that load and pose-correct every clip's motion "
         "before the first batch (default: every CPU core)",
     )
+    p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
+    p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
+    _add_clip_args(p)
+    p.set_defaults(func=run)
+
+
+def _add_clip_args(p) -> None:
+    """What each clip is: its members (an ensemble), its poses, a clip taken from elsewhere."""
     p.add_argument(
         "--seeds",
         default=None,
@@ -116,8 +124,6 @@ def add_parser(sub) -> None:
         "member with the clip's motion and its cloth's start jittered from its own seed; "
         "the member of the data set's seed keeps the clip's name, the others are NAME@seedS",
     )
-    p.add_argument("--device", default=None, help="warp device: cpu or cuda:0")
-    p.add_argument("--max-frames", type=int, default=None, help="frames kept per clip")
     p.add_argument(
         "--keep-poses",
         action="store_true",
@@ -131,7 +137,6 @@ def add_parser(sub) -> None:
         help="take the clips this dataset shares with the one in FOLDER (simulated "
         "alike) instead of simulating them again",
     )
-    p.set_defaults(func=run)
 
 
 def dataset_config(args: argparse.Namespace):
