@@ -392,7 +392,7 @@ def main() -> None:
         if len(ens.members) < 2:
             print(f"{clip}: one member, left out")
             continue
-        seqs = ens.sequences()
+        seqs = ens.sequences
         motion = seqs[0].motion.slice(0, ens.frames)
         garments = rollouts(args, ens, motion, cache / clip)
         avatar = avatar_of(ens.members[0].reader.body)

@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from loosefit.eval.ensemble import hem_flare
 from loosefit.eval.metrics import hausdorff, rmse, sted
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.garment.quality import PENETRATION_TOLERANCE
@@ -54,7 +55,7 @@ from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.inference.stages.collision import CollisionConfig
 from loosefit.model.motion_features import heading_yaw
-from loosefit.model.physics import ClothStructure, dihedral_angles, hem_radius, signed_edge_change
+from loosefit.model.physics import ClothStructure, dihedral_angles, signed_edge_change
 from loosefit.train.common import machine
 
 STAGES = {  # label: stages (None: not a rollout)
@@ -74,8 +75,7 @@ TURN_WINDOW = 30  # frames either side of the fastest turn
 
 def flare(garment: np.ndarray, pelvis: np.ndarray, hem: np.ndarray) -> np.ndarray:
     """(T,) the hem's mean horizontal distance (m) from the pelvis's vertical axis."""
-    centred = torch.from_numpy(np.asarray(garment, np.float64) - pelvis[:, None])
-    return hem_radius(centred, torch.from_numpy(hem)).numpy()
+    return hem_flare(garment, pelvis, hem)
 
 
 def fastest_turn(rotations: np.ndarray, fps: float) -> int:

@@ -11,6 +11,7 @@ import pytest
 from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
 from loosefit.errors import LoosefitInputError
 from loosefit.eval import ensemble as en
+from loosefit.eval.metrics import rmse_per_frame
 from loosefit.sequence import AnimatedGarment
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.types import GarmentTemplate, Motion
@@ -45,7 +46,7 @@ def test_energy_score_rewards_the_right_spread_and_not_a_mean():
 def test_energy_score_of_one_sample_is_its_mean_distance():
     rng = np.random.default_rng(1)
     x, members = rng.normal(size=(1, T, V, 3)), rng.normal(size=(3, T, V, 3))
-    want = np.mean([en.rms_distance(x[0], m) for m in members], axis=0)
+    want = np.mean([rmse_per_frame(x[0], m) for m in members], axis=0)
     np.testing.assert_allclose(en.energy_score(x, members), want)
     # the members' own score: each against the others as samples
     own = en.members_energy_score(members)

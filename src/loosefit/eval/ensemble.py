@@ -21,13 +21,13 @@ Everything but the gathering is a pure function of arrays.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
+from loosefit.eval.metrics import rmse, rmse_per_frame
 
 # A member's motion may differ from another's this much in a rotation matrix entry: the
 # pose correction turns an arm a little differently on a shorter clip (up to about 0.02).
@@ -58,16 +58,6 @@ def clip_key(name: str) -> str:
 # --------------------------------------------------------------------------- measures
 
 
-def rms_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(..., T, V, 3) x2 -> (..., T): each frame's RMS vertex distance (m)."""
-    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
-    return np.sqrt((d**2).sum(-1).mean(-1))
-
-
-def _clip_rmse(per_frame: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.square(per_frame))))
-
-
 def pairwise_rmse(members: np.ndarray) -> np.ndarray:
     """(M, T, V, 3) -> (M(M-1)/2, T): every pair of members' per-frame RMS distance (m)."""
     M = len(members)
@@ -77,18 +67,18 @@ def pairwise_rmse(members: np.ndarray) -> np.ndarray:
             hint="simulate the clip again from other seeds (loosefit simulate --seeds 0,1,2,3) "
             "or pass more data sets of the same clips",
         )  # fmt: skip
-    return np.stack([rms_distance(members[i], members[j])
+    return np.stack([rmse_per_frame(members[i], members[j])
                      for i in range(M) for j in range(i + 1, M)])  # fmt: skip
 
 
 def rmse_to_mean(pred: np.ndarray, members: np.ndarray) -> np.ndarray:
     """(T, V, 3), (M, T, V, 3) -> (T,): the prediction against the members' vertex-wise mean."""
-    return rms_distance(pred, np.asarray(members, np.float64).mean(0))
+    return rmse_per_frame(pred, np.asarray(members, np.float64).mean(0))
 
 
 def rmse_to_members(pred: np.ndarray, members: np.ndarray) -> np.ndarray:
     """(T, V, 3), (M, T, V, 3) -> (M,): the prediction's RMSE over the clip against each member."""
-    return np.array([_clip_rmse(rms_distance(pred, m)) for m in members])
+    return np.array([rmse(pred, m) for m in members])
 
 
 def energy_score(samples: np.ndarray, members: np.ndarray) -> np.ndarray:
@@ -109,14 +99,14 @@ def energy_score(samples: np.ndarray, members: np.ndarray) -> np.ndarray:
     """
     samples = np.asarray(samples)
     S = len(samples)
-    fit = np.mean([rms_distance(x, y) for x in samples for y in members], axis=0)
+    fit = np.mean([rmse_per_frame(x, y) for x in samples for y in members], axis=0)
     if S == 1:
         return fit
     # mean over all ordered pairs i, j (i == j counts 0): 2 / S^2 of the unordered sum
     spread = np.zeros(samples.shape[1])
     for i in range(S):
         for j in range(i + 1, S):
-            spread += 2 * rms_distance(samples[i], samples[j])
+            spread += 2 * rmse_per_frame(samples[i], samples[j])
     return fit - 0.5 * spread / S**2
 
 
@@ -253,12 +243,11 @@ class Ensemble:
     frames: int
     motion_difference: float = 0.0
 
-    def sequences(self) -> list:
-        return [m.read() for m in self.members]
+    sequences: list = field(default_factory=list, repr=False)  # each member's, as read
 
     def vertices(self) -> np.ndarray:
         """(M, T, V, 3) float32 the members' garments on the shared frames."""
-        return np.stack([s.garment_vertices[: self.frames] for s in self.sequences()])
+        return np.stack([s.garment_vertices[: self.frames] for s in self.sequences])
 
 
 def _diff(a, b, path: str = "") -> list[tuple[str, object, object]]:
@@ -393,7 +382,7 @@ def gather_ensembles(sources: list[str | Path], split: str = "test",
         seqs = [m.read() for m in members]
         frames, diff = check_members(names[key], members, [g[1] for g in got],
                                      [g[2] for g in got], seqs)  # fmt: skip
-        out[names[key]] = Ensemble(names[key], members, frames, diff)
+        out[names[key]] = Ensemble(names[key], members, frames, diff, seqs)
     return out
 
 
@@ -522,7 +511,7 @@ def score_members(members: np.ndarray, ctx: ClipContext, surface: bool = True) -
         "spread_rmse_cm": 100 * float(pair_rmse.mean()),
         "spread_rmse_range_cm": [100 * float(pair_rmse.min()), 100 * float(pair_rmse.max())],
         "spread_per_frame_cm": (100 * pairs.mean(0)).tolist(),
-        "member_to_mean_cm": [100 * _clip_rmse(rms_distance(m, mean)) for m in members],
+        "member_to_mean_cm": [100 * rmse(m, mean) for m in members],
         "flare_turn_m": flare[:, w].tolist(),
         "speed_turn_m_s": speed[:, w].tolist(),
         "knee_frames": ctx.knee_frames,
@@ -578,7 +567,7 @@ def score_model(samples: np.ndarray, members: np.ndarray, ctx: ClipContext, own:
     leg = ctx.knee_frames.index(ctx.leg) if ctx.leg is not None else None
     r = {
         "samples": int(len(samples)),
-        "rmse_to_mean_cm": 100 * _clip_rmse(rmse_to_mean(x, members)),
+        "rmse_to_mean_cm": 100 * float(np.sqrt(np.mean(rmse_to_mean(x, members) ** 2))),
         "rmse_to_members_cm": (100 * to_members).tolist(),
         "rmse_members_ratio": float(100 * to_members.mean() / own["spread_rmse_cm"]),
         "energy_score_cm": 100 * float(es.mean()),
@@ -616,12 +605,6 @@ def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipConte
     own = score_members(members, ctx, surface)
     models = {n: score_model(x, members, ctx, own, surface) for n, x in preds.items()}
     return {"members": own, "models": models}
-
-
-def save_json(path: str | Path, data: dict) -> None:
-    from loosefit.data.format import write_json_atomic
-
-    write_json_atomic(Path(path), json.loads(json.dumps(data)))
 
 
 def evaluate_ensemble(models: dict, sources: list[str | Path], split: str = "test",
@@ -663,9 +646,8 @@ def evaluate_ensemble(models: dict, sources: list[str | Path], split: str = "tes
         )  # fmt: skip
     out = {}
     for clip, ens in many.items():
-        seqs = ens.sequences()
-        first = seqs[0]
-        members = np.stack([s.garment_vertices[: ens.frames] for s in seqs])
+        first = ens.sequences[0]
+        members = ens.vertices()
         avatar = avatar_of(ens.members[0].reader.body)
         ctx = clip_context(first, ens.frames, avatar)
         motion = first.motion.slice(0, ens.frames)

@@ -176,6 +176,30 @@ def stack_coefficients(clips: list[Clip]) -> dict[str, torch.Tensor]:
     }
 
 
+def energy_score_loss(samples: torch.Tensor, truth: torch.Tensor, vertices: int,
+                      scale: float) -> torch.Tensor:  # fmt: skip
+    """The energy score of S realisations against the truth, per clip (differentiable).
+
+    ``mean_s d(X_s, y) - 1/(2 S^2) sum_{s, s'} d(X_s, X_s')``, d the frame's RMS vertex
+    distance times ``scale`` (the coefficients of an orthonormal basis: their distance over
+    sqrt(V) is the vertices').
+
+    Args:
+        samples: (S, n, K) coefficients of each clip's realisations; truth: (n, K).
+        vertices: V; scale: metres to the loss's unit.
+
+    Returns:
+        (n,) the score of each clip.
+    """
+
+    def dist(a, b):
+        return scale * ((a - b).pow(2).sum(-1) / vertices + 1e-12).sqrt()
+
+    S = len(samples)
+    spread = sum(dist(samples[a], samples[b]) for a in range(S) for b in range(a + 1, S))
+    return dist(samples, truth).mean(0) - spread / S**2
+
+
 class EngineStage(Stage):
     """The engine tier's training: the basis, its clips, its windows, its evaluation."""
 
@@ -278,14 +302,8 @@ class EngineStage(Stage):
             truth = batch["latent"][torch.arange(len(P)), i]  # (b, K)
             w = valid.float()
             if N:
-                # the energy score (cm): mean_s d(X_s, y) - 1/(2 S^2) sum_{s, s'} d(X_s, X_s')
-                def dist(a, b):
-                    return cfg.length_scale * ((a - b).pow(2).sum(-1) / V + 1e-12).sqrt()
-
-                cs, n = c.view(S, -1, c.shape[-1]), len(P) // S
-                fit = dist(cs, truth.view(S, n, -1)).mean(0)  # (n,)
-                spread = sum(dist(cs[a], cs[b]) for a in range(S) for b in range(a + 1, S))
-                es = fit - spread / S**2  # (n,)
+                n = len(P) // S
+                es = energy_score_loss(c.view(S, n, -1), truth[:n], V, cfg.length_scale)  # (n,)
                 sums["energy"] = sums["energy"] + (w[:n] * es).sum() * S
             else:
                 sq = (w * (c - truth).pow(2).sum(-1)).sum()
