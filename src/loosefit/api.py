@@ -180,6 +180,7 @@ class Animator:
         runtime: str = "torch",
         collision: str = "full",
         threads: int | None = None,
+        shape: dict | None = None,
     ) -> AnimatedGarment:
         """The garment through a motion.
 
@@ -205,26 +206,52 @@ class Animator:
                 fewer on a busy machine, torch's own count kept where ``OMP_NUM_THREADS``
                 is set). Torch's count before the call comes back after it
                 (docs/THREADS.md).
+            shape: another body, as anny phenotypes (``{"height": 0.8, "weight": 0.3}``,
+                names among gender, age, muscle, weight, height, proportions, each in
+                [0, 1]; those not named as the trained body's). The garment is sized to
+                that body and animated on it (:mod:`loosefit.inference.other_body`;
+                prepared once per body, a few seconds). None: the trained body.
 
         Returns:
             :class:`~loosefit.sequence.AnimatedGarment`, world positions.
 
         Raises:
             LoosefitInputError: an unreadable motion, ``runtime="onnx"`` without
-                onnxruntime or for a baseline, or ``threads`` not an int >= 1.
+                onnxruntime or for a baseline, ``threads`` not an int >= 1, or a
+                ``shape`` with a name anny does not have or a value outside [0, 1].
         """
         from loosefit.inference.threads import inference_threads
 
         with inference_threads(threads):
-            avatar = self.model.avatar()
+            body = self.other_body(shape)
+            avatar = body.avatar if body is not None else self.model.avatar()
             m = motion_for(motion, avatar, self.fps, frames, start_frame, seed)
+            kwargs = {"body": body} if body is not None else {}
             result = self.model.animate(
-                m, progress, stages=stages, runtime=runtime, collision=collision
+                m, progress, stages=stages, runtime=runtime, collision=collision, **kwargs
             )
-        shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
-        return AnimatedGarment(
-            m, self.template, result.vertices, shape, f"loosefit model {self.path}"
-        )
+        template = body.template if body is not None else self.template
+        record = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
+        return AnimatedGarment(m, template, result.vertices, record, f"loosefit model {self.path}")
+
+    def other_body(self, shape: dict | None):
+        """The body of ``shape`` (:meth:`animate`), prepared once and kept; None for None
+        or the trained body's own shape.
+
+        Raises:
+            LoosefitInputError: a model that cannot change body (a baseline), a phenotype
+                name anny does not have, or a value outside [0, 1].
+        """
+        if not shape:
+            return None
+        if not hasattr(self.model, "other_body"):
+            raise LoosefitInputError(
+                self.path,
+                "shape",
+                "our model (a baseline animates on the body it was trained on)",
+                type(self.model).__name__,
+            )
+        return self.model.other_body(shape)
 
     def animate_batch(
         self,
@@ -236,11 +263,12 @@ class Animator:
         runtime: str = "torch",
         collision: str = "full",
         threads: int | None = None,
+        shape: dict | None = None,
     ) -> list[AnimatedGarment]:
         """N motions (files, moves or :class:`~loosefit.types.Motion`) at once, N characters:
         the motion stage runs batched (one network call per frame for all of them). ``seed``
-        seeds procedural motions (the i-th gets ``seed + i``); ``runtime``, ``collision``
-        and ``threads`` as for :meth:`animate`.
+        seeds procedural motions (the i-th gets ``seed + i``); ``runtime``, ``collision``,
+        ``threads`` and ``shape`` (every character on that body) as for :meth:`animate`.
 
         Returns:
             One :class:`~loosefit.sequence.AnimatedGarment` per motion.
@@ -259,16 +287,19 @@ class Animator:
                 type(self.model).__name__,
             )
         with inference_threads(threads):
-            avatar = self.model.avatar()
+            body = self.other_body(shape)
+            avatar = body.avatar if body is not None else self.model.avatar()
             ms = [
                 motion_for(m, avatar, self.fps, frames, 0, seed + i) for i, m in enumerate(motions)
             ]
+            kwargs = {"body": body} if body is not None else {}
             results = self.model.animate_batch(
-                ms, progress, stages=stages, runtime=runtime, collision=collision
+                ms, progress, stages=stages, runtime=runtime, collision=collision, **kwargs
             )
-        shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
+        template = body.template if body is not None else self.template
+        record = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
         return [
-            AnimatedGarment(m, self.template, r.vertices, shape, f"loosefit model {self.path}")
+            AnimatedGarment(m, template, r.vertices, record, f"loosefit model {self.path}")
             for m, r in zip(ms, results, strict=True)
         ]
 

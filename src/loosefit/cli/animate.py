@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import time
 from pathlib import Path
 
 from loosefit.cli.common import (
@@ -40,6 +41,13 @@ def add_parser(sub) -> None:
         "(mirror:MOTION mirrors one left-right; A+B plays one after another)",
     )
     add_generative_arg(p)
+    p.add_argument(
+        "--shape",
+        default="",
+        help="another body, as anny phenotypes in [0, 1]: e.g. 'height=0.8,weight=0.3' "
+        "(gender, age, muscle, weight, height, proportions; those not named as the trained "
+        "body's). The garment is sized to that body and animated on it",
+    )
     p.add_argument(
         "--frames",
         type=int,
@@ -99,7 +107,10 @@ def _checkpoint_and_motion(args: argparse.Namespace) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
+    from loosefit.cli.common import parse_shape
+
     threads_of(args)  # a bad count before the work
+    shape = parse_shape(args.shape)  # and a malformed body
     pretrained = _checkpoint_and_motion(args)
     from loosefit.api import motion_for
     from loosefit.inference.animator import load_pipeline
@@ -110,7 +121,9 @@ def run(args: argparse.Namespace) -> int:
         trained_on_note(args.checkpoint, model)
     on = stages(args)
     physics_note(model, on)
-    avatar = model.avatar()
+    body = other_body(model, shape)
+    avatar = body.avatar if body is not None else model.avatar()
+    template = body.template if body is not None else model.template
     if args.frames is not None and args.frames < 1:
         raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
     motion = motion_for(
@@ -135,14 +148,20 @@ def run(args: argparse.Namespace) -> int:
     log(f"animating {motion.num_frames} frames of '{motion.name}'")
     with inference_threads(args):
         bar = tqdm_bar("rollout", unit="frame")
+        kwargs = {"body": body} if body is not None else {}
         result = model.animate(
-            motion, bar.progress, stages=on, runtime=args.runtime, collision=args.collision
+            motion,
+            bar.progress,
+            stages=on,
+            runtime=args.runtime,
+            collision=args.collision,
+            **kwargs,
         )
         bar.close()
     log(stage_line(model, on, result))
     shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
     source = f"loosefit model {Path(args.checkpoint).resolve()}"
-    seq = AnimatedGarment(motion, model.template, result.vertices, shape, source)
+    seq = AnimatedGarment(motion, template, result.vertices, shape, source)
     path.parent.mkdir(parents=True, exist_ok=True)
     seq.save(path)
     log(f"{throughput(motion, result)}; wrote {path}")
@@ -151,8 +170,26 @@ def run(args: argparse.Namespace) -> int:
     if args.render:
         out = path.with_name(path.stem + "_render")
         title = f"{motion.name} (loosefit rollout)"
-        render(args, avatar, motion, model.template, result.vertices, out, title)
+        render(args, avatar, motion, template, result.vertices, out, title)
     return 0
+
+
+def other_body(model, shape: dict):
+    """``--shape``'s body, prepared (None: the trained body)."""
+    if not shape:
+        return None
+    if not hasattr(model, "other_body"):
+        raise LoosefitInputError(
+            "--shape",
+            "shape",
+            "our model (a baseline animates on the body it was trained on)",
+            type(model).__name__,
+        )
+    t = time.perf_counter()
+    body = model.other_body(shape)
+    changed = ", ".join(f"{k}={v:g}" for k, v in body.shape.items() if k in shape)
+    log(f"body {changed}: prepared in {time.perf_counter() - t:.1f} s (the garment sized to it)")
+    return body
 
 
 def trained_on_note(path: Path, model) -> None:

@@ -41,6 +41,7 @@ from loosefit.inference.model_common import (
     check_motion_joints,
     check_runtime,
 )
+from loosefit.inference.other_body import BodyCarryStage, OtherBody
 from loosefit.inference.references import carried_drape, reconstruction
 from loosefit.inference.rollout import (
     MotionStage,
@@ -109,6 +110,7 @@ class AnimationModel:
     _handler: CollisionHandler | None = None  # Eq. 16's operators, built on first use
     _restorer: LengthRestorer | None = None  # the edge-length operator, built on first use
     _onnx: object = None  # the learned stages in onnxruntime (OnnxStages), built once
+    _bodies: dict = field(default_factory=dict)  # other bodies (OtherBody) by their shape
 
     @classmethod
     def from_checkpoint(
@@ -213,6 +215,7 @@ class AnimationModel:
         stages: Stages | None = None,
         runtime: str = "torch",
         collision: str = "full",
+        body: OtherBody | None = None,
     ) -> RolloutResult:
         """:func:`~loosefit.inference.rollout.rollout` of ``motion`` (checked first) through
         the motion stage, then the detail stage (if the model has one), the edge lengths
@@ -231,21 +234,49 @@ class AnimationModel:
         needs ``pip install 'loosefit[onnx]'`` and a model on the CPU). The edge-length
         stage and collision handling are the same Python code either way; the garments
         before collision handling are PyTorch's within float rounding (micrometres).
+
+        ``body``: another body (:meth:`other_body`), ``motion`` on it; the motion stage runs
+        on the trained body and the garment is carried onto this one, then fitted to it
+        (:mod:`loosefit.inference.other_body`).
         """
         check_runtime(runtime)
         self.check_motion(motion)
         stages = stages or self.stages
+        run_motion = self._trained_motion(motion, body, stages)
         hooks = RolloutHooks(progress=progress)
         if restart_every is not None:
             shape = (motion.num_frames, self.template.num_vertices, 3)
             hooks.restart = RestartFromTruth(truth, restart_every, shape, self.device)
         with self._collision_as(collision):
             step, detail = self._learned(runtime, stages)
-            later = self.later_stages(motion, stages, detail)
+            later = self.later_stages(motion, stages, detail, body)
             options = RolloutOptions(later, feedback=stages.feedback, overlap=stages.overlap)
-            result = rollout(self.motion_stage(step), motion, options, hooks)
+            result = rollout(self.motion_stage(step), run_motion, options, hooks)
         result.collisions = collision_records(later)
         return result
+
+    def other_body(self, shape: dict) -> OtherBody:
+        """Another anny body for :meth:`animate` (``shape``: phenotype names to values in
+        [0, 1], the rest as the trained body's), prepared once per shape and kept."""
+        key = tuple(sorted((str(k), float(v)) for k, v in shape.items()))
+        if key not in self._bodies:
+            self._bodies[key] = OtherBody.prepare(dict(shape), self.avatar(), self.template)
+        return self._bodies[key]
+
+    def _trained_motion(self, motion: Motion, body: OtherBody | None, stages: Stages) -> Motion:
+        """The motion the motion stage runs: ``motion`` itself, or on another body's
+        behalf, the same motion on the trained body."""
+        if body is None:
+            return motion
+        if stages.feedback:
+            raise LoosefitInputError(
+                "stages",
+                "feedback",
+                "False on another body (the motion stage runs on the trained body)",
+                True,
+            )
+        body.avatar.check_motion(motion)
+        return body.trained_motion(motion)
 
     def animate_batch(
         self,
@@ -254,12 +285,13 @@ class AnimationModel:
         stages: Stages | None = None,
         runtime: str = "torch",
         collision: str = "full",
+        body: OtherBody | None = None,
     ) -> list[RolloutResult]:
         """N motions (N characters) at once: the motion stage batched
         (:func:`~loosefit.inference.rollout.rollout_batch`, one network call per frame for
         all), then each motion's later stages (:func:`~loosefit.inference.rollout.refine`).
         The same garments as :meth:`animate` of each, within float rounding; ``runtime`` and
-        ``collision`` as for :meth:`animate`.
+        ``collision`` and ``body`` (every motion on it) as for :meth:`animate`.
 
         Returns:
             One :class:`~loosefit.inference.rollout.RolloutResult` per motion.
@@ -268,13 +300,14 @@ class AnimationModel:
         for m in motions:
             self.check_motion(m)
         stages = stages or self.stages
+        runs = [self._trained_motion(m, body, stages) for m in motions]
         with self._collision_as(collision):
             step, detail = self._learned(runtime, stages)
             motion_stage = self.motion_stage(step)
-            results = rollout_batch(motion_stage, motions, progress)
-            for m, r in zip(motions, results, strict=True):
-                later = self.later_stages(m, stages, detail)
-                refine(r, m, motion_stage, later)
+            results = rollout_batch(motion_stage, runs, progress)
+            for m, run, r in zip(motions, runs, results, strict=True):
+                later = self.later_stages(m, stages, detail, body)
+                refine(r, run, motion_stage, later)
                 if later:
                     r.collisions = collision_records(later)
         return results
@@ -292,18 +325,44 @@ class AnimationModel:
         )
 
     def later_stages(
-        self, motion: Motion, stages: Stages, detail: DetailNetwork | None
+        self,
+        motion: Motion,
+        stages: Stages,
+        detail: DetailNetwork | None,
+        body: OtherBody | None = None,
     ) -> list[Stage]:
         """The stages after the motion stage that ``stages`` asks, in order, for ``motion``:
-        ``detail`` (the detail network to run, or None), the edge lengths, collision."""
+        ``detail`` (the detail network to run, or None), the carry onto ``body`` (another
+        body, ``motion`` on it), the edge lengths, collision (against ``body``)."""
         later: list[Stage] = []
         if detail is not None:
             later.append(DetailStage(detail, self.device))
+        if body is not None:
+            later.append(BodyCarryStage(body, body.trained_motion(motion), motion))
+            return later + self._body_stages(motion, stages, body)
         restorer = self.restorer(stages)
         if restorer is not None:
             later.append(LengthStage(restorer))
         if stages.collision:
             later.append(CollisionStage(self.collider(motion), self.device))
+        return later
+
+    def _body_stages(self, motion: Motion, stages: Stages, body: OtherBody) -> list[Stage]:
+        """The edge lengths and collision handling on another body: its garment's rest
+        lengths, its skin (each built once per body and kept on it)."""
+        later: list[Stage] = []
+        if stages.lengths and self.lengths.iterations:
+            if body.restorer is None:
+                body.restorer = length_restorer(body.template, self.lengths)
+            later.append(LengthStage(body.restorer))
+        if stages.collision:
+            if body.handler is None:
+                t = body.template
+                rest = np.asarray(t.vertices, np.float64)
+                body.handler = CollisionHandler(t.faces, t.num_vertices, self.collision, rest)
+            arms = True if self.collision.whole_body else self.arm_collision
+            collide = body_collider(body.avatar, body.handler, motion, arms, self.device)
+            later.append(CollisionStage(collide, self.device))
         return later
 
     def _learned(self, runtime: str, stages: Stages) -> tuple:

@@ -1,0 +1,260 @@
+"""A trained set on a body it was not trained on: the garment carried from the training
+body onto another anny body, then fitted to it.
+
+The motion stage runs on the body it knows (the training body, the motion's root scaled
+to its legs); each frame's garment is then carried onto the other body posed alike by the
+two bodies' own difference, diffused from the skin to the cloth (:func:`carry_garment`:
+each garment vertex moves as the skin nearest it moves between the two bodies, as
+Santesteban et al. 2019's diffused body model carries skinning away from the surface);
+the edge-length stage then brings the cloth to the other body's garment (the same pattern,
+sized to that body's waist and hips), and collision handling runs against that body.
+
+:class:`OtherBody` holds what is prepared once per body; :class:`BodyCarryStage` is the
+carry as a stage of a rollout (:mod:`loosefit.inference.stages`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from loosefit.errors import LoosefitInputError
+from loosefit.types import GarmentTemplate, Motion
+
+
+@dataclass(frozen=True)
+class CarryConfig:
+    """How the body's difference is diffused to the garment."""
+
+    anchors: int = 1024  # skin points (arms left out) whose difference is carried
+    neighbours: int = 16  # anchors each garment vertex takes its displacement from
+    width: float = 0.04  # m: a neighbour's weight falls off over this beyond the nearest's
+
+
+def carry_weights(
+    garment: torch.Tensor, anchors: torch.Tensor, config: CarryConfig = CarryConfig()
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Which anchors each garment vertex follows, and how much.
+
+    Args:
+        garment: (n, V, 3) garment vertices.
+        anchors: (n, A, 3) skin anchor points of the same frames.
+        config: the neighbours and the kernel's width.
+
+    Returns:
+        indices (n, V, k) into the anchors and weights (n, V, k), each row summing to 1:
+        exp(-((d - d_nearest) / width)^2) of the distance d, normalised.
+    """
+    k = min(config.neighbours, anchors.shape[1])
+    d = torch.cdist(garment, anchors)  # (n, V, A)
+    dist, idx = torch.topk(d, k, dim=-1, largest=False)
+    w = torch.exp(-(((dist - dist[..., :1]) / config.width) ** 2))
+    return idx, w / w.sum(-1, keepdim=True)
+
+
+def carry_garment(
+    garment: torch.Tensor,
+    anchors_from: torch.Tensor,
+    anchors_to: torch.Tensor,
+    config: CarryConfig = CarryConfig(),
+) -> torch.Tensor:
+    """The garment carried from one body to another posed alike.
+
+    Args:
+        garment: (n, V, 3) garment vertices on the first body.
+        anchors_from: (n, A, 3) skin anchors of the first body.
+        anchors_to: (n, A, 3) the same anchors on the second body.
+        config: how the difference is diffused (:func:`carry_weights`).
+
+    Returns:
+        (n, V, 3): each vertex moved by the weighted displacement of its nearest anchors.
+    """
+    idx, w = carry_weights(garment, anchors_from, config)
+    delta = anchors_to - anchors_from  # (n, A, 3)
+    moved = torch.gather(
+        delta[:, None].expand(-1, garment.shape[1], -1, -1),
+        2,
+        idx[..., None].expand(-1, -1, -1, 3),
+    )  # (n, V, k, 3)
+    return garment + (w[..., None] * moved).sum(2)
+
+
+def anchor_indices(avatar, count: int) -> torch.Tensor:
+    """(A,) body vertices spread evenly (farthest points) over the skin, arms left out: the
+    anchors of :func:`carry_garment`, the same indices on every body of anny's mesh."""
+    from loosefit.body.avatar import ARM_BONES, farthest_point_sampling
+
+    bones = tuple(b for b in avatar.joint_names if b not in ARM_BONES)
+    candidates = avatar.vertices_of_bones(bones)
+    pts = avatar.rest_vertices[candidates].double().cpu()
+    start = int(pts.norm(dim=-1).argmin())
+    return candidates[farthest_point_sampling(pts, count, start).to(candidates.device)]
+
+
+def leg_length(avatar) -> float:
+    """Hip to knee to ankle of the avatar's left leg at rest, in metres."""
+    heads, names = avatar.skeleton.heads, avatar.skeleton.names
+    hip, knee, foot = (heads[names.index(n)] for n in ("LeftUpLeg", "LeftLeg", "LeftFoot"))
+    return float(np.linalg.norm(knee - hip) + np.linalg.norm(foot - knee))
+
+
+def motion_on(motion: Motion, source, target) -> Motion:
+    """``motion`` (on ``source``) for ``target``: the same joint rotations, the root's path
+    scaled by the ratio of their legs, its height kept above the floor as the legs scale
+    (as a capture is retargeted to a body: :mod:`loosefit.body.retarget`)."""
+    scale = leg_length(target) / leg_length(source)
+    root = np.asarray(motion.root_translation, np.float64).copy()
+    root[:, :2] *= scale
+    root[:, 2] = target.floor_height + (root[:, 2] - source.floor_height) * scale
+    return Motion(
+        joint_names=motion.joint_names,
+        rotations=motion.rotations,
+        root_translation=root,
+        fps=motion.fps,
+        name=motion.name,
+        meta=dict(motion.meta),
+    )
+
+
+def sized_garment(template: GarmentTemplate, trained, avatar, config: CarryConfig):
+    """The trained set's garment on ``avatar``: a parametric skirt or dress made again from
+    its recorded pattern for that body (its own waist, hips or chest), any other garment
+    carried at rest from the ``trained`` body (:func:`carry_garment`)."""
+    from loosefit.garment.dress import DressConfig
+    from loosefit.garment.skirt import SkirtConfig
+    from loosefit.placement.place import fit_dress, fit_skirt
+
+    recorded = template.meta.get("config") if isinstance(template.meta, dict) else None
+    if isinstance(recorded, dict) and template.meta.get("kind") == "dress":
+        return fit_dress(avatar, DressConfig(**recorded))
+    if isinstance(recorded, dict) and "rings" in recorded:
+        return fit_skirt(avatar, SkirtConfig(**recorded))
+    idx = anchor_indices(trained, config.anchors)
+    rest = torch.as_tensor(template.vertices, dtype=torch.float32)[None]
+    carried = carry_garment(
+        rest,
+        trained.rest_vertices[idx].float().cpu()[None],
+        avatar.rest_vertices[idx].float().cpu()[None],
+        config,
+    )[0]
+    return GarmentTemplate(
+        vertices=carried.numpy(),
+        faces=template.faces,
+        uvs=template.uvs,
+        face_uvs=template.face_uvs,
+        waist=template.waist,
+        name=template.name,
+        meta=dict(template.meta),
+        rest_vertices=template.rest_vertices,
+    )
+
+
+@dataclass
+class OtherBody:
+    """A body the trained set animates on without having been trained on it: everything
+    prepared once (:meth:`prepare`).
+
+    Attributes:
+        shape: the body's anny phenotype (all six values).
+        avatar: the body.
+        trained: the body the set was trained on.
+        template: the garment sized to the body (:func:`sized_garment`).
+        anchors: (A,) the skin points the carry follows.
+        config: how the carry diffuses.
+    """
+
+    shape: dict
+    avatar: object
+    trained: object
+    template: GarmentTemplate
+    anchors: torch.Tensor
+    config: CarryConfig = field(default_factory=CarryConfig)
+    restorer: object = None  # the edge-length stage on its garment, built on first use
+    handler: object = None  # collision handling of its garment, built on first use
+
+    @classmethod
+    def prepare(
+        cls, shape: dict, trained, template: GarmentTemplate, config: CarryConfig = CarryConfig()
+    ) -> OtherBody:
+        """The body of ``shape`` (anny's phenotype names, each in [0, 1]; those not given
+        as the trained body's), beside the ``trained`` avatar and its garment.
+
+        Raises:
+            LoosefitInputError: a phenotype name anny does not have, or a value outside
+                [0, 1].
+        """
+        from loosefit.body.avatar import Avatar, AvatarConfig
+
+        if not isinstance(shape, dict):
+            raise LoosefitInputError(
+                "shape", "shape", "a dict of anny phenotype names to values", type(shape)
+            )
+        unknown = sorted(str(k) for k in shape if k not in trained.shape)
+        if unknown:
+            raise LoosefitInputError(
+                "shape",
+                ", ".join(unknown),
+                f"anny's phenotype names: {', '.join(trained.shape)}",
+                "unknown names",
+            )
+        full = {**trained.shape, **{str(k): _value(k, v) for k, v in shape.items()}}
+        avatar = Avatar(AvatarConfig(rig=trained.config.rig, shape=full))
+        anchors = anchor_indices(trained, config.anchors)
+        garment = sized_garment(template, trained, avatar, config)
+        if garment.num_vertices != template.num_vertices:  # a pattern that meshes per body
+            raise LoosefitInputError(
+                "shape",
+                "garment",
+                f"{template.num_vertices} vertices (the trained garment's) on that body",
+                garment.num_vertices,
+            )
+        return cls(dict(avatar.shape), avatar, trained, garment, anchors, config)
+
+    def trained_motion(self, motion: Motion) -> Motion:
+        """``motion`` (on this body) for the body the set was trained on."""
+        return motion_on(motion, self.avatar, self.trained)
+
+    def anchors_along(self, avatar, motion: Motion, start: int, stop: int) -> torch.Tensor:
+        """(stop - start, A, 3) the anchors of ``avatar`` posed by ``motion``'s frames."""
+        rot = torch.from_numpy(motion.rotations[start:stop])
+        root = torch.from_numpy(np.asarray(motion.root_translation[start:stop]))
+        return avatar.pose(rot, root).vertices[:, self.anchors].float().cpu()
+
+
+def _value(name, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise LoosefitInputError("shape", str(name), "a number in [0, 1]", repr(value)) from None
+    if not 0.0 <= v <= 1.0:
+        raise LoosefitInputError("shape", str(name), "a value in [0, 1]", repr(value))
+    return v
+
+
+class BodyCarryStage:
+    """The garment carried from the trained body onto the other body, a run of frames at a
+    time (the first stage after the detail stage).
+
+    Args:
+        body: the other body.
+        trained_motion: the motion the rollout runs, on the trained body.
+        motion: the same motion on the other body.
+    """
+
+    name = "body"
+
+    def __init__(self, body: OtherBody, trained_motion: Motion, motion: Motion) -> None:
+        self.body, self.trained_motion, self.motion = body, trained_motion, motion
+
+    def __call__(self, frames) -> torch.Tensor:
+        """(n, V, 3) world garments on the other body."""
+        s, e = frames.start, frames.start + len(frames.vertices)
+        b = self.body
+        return carry_garment(
+            frames.vertices.float(),
+            b.anchors_along(b.trained, self.trained_motion, s, e),
+            b.anchors_along(b.avatar, self.motion, s, e),
+            b.config,
+        )
