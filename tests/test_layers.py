@@ -26,7 +26,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("data",),  # the data set format and readers
     ("sim", "render"),  # the simulator and data sets of it; the renderer
     ("inference",),  # the runtime: checkpoints, the rollout and its stages, ONNX
-    ("eval", "fit"),  # metrics and a model's rollouts scored; a garment fitted by draping it
+    ("eval", "fit", "character"),  # metrics and a model's rollouts scored; a garment fitted by
+    # draping it; a user's own character fitted and dressed
     ("view",),  # the viewer (colours by the metrics)
     ("train",),  # the training stages
     ("api",),  # the Python API

@@ -32,7 +32,7 @@ class _Buffer:
         self.accessors: list[dict] = []
 
     def add(self, array: np.ndarray, kind: str, ctype: int = 5126, normalized=False) -> int:
-        dtype = {5126: np.float32, 5122: np.int16}[ctype]
+        dtype = {5126: np.float32, 5122: np.int16, 5123: np.uint16, 5125: np.uint32}[ctype]
         a = np.ascontiguousarray(array, dtype=dtype)
         while len(self.data) % 4:
             self.data.append(0)
@@ -65,6 +65,7 @@ def write_gltf(
     idle_first: bool = False,
     prop_skin: bool = False,
     seed: int = 0,
+    mesh: dict | None = None,
 ) -> Path:
     """Write ``clip`` as a glTF (``.gltf``, buffer embedded) or GLB (``.glb``) file.
 
@@ -80,6 +81,9 @@ def write_gltf(
         idle_first: put a short second animation, "idle", before "dance".
         prop_skin: add a first skin with a single static prop joint.
         seed: seeds the bone frames.
+        mesh: a skinned mesh on the skin: ``positions`` (V, 3) in the bind pose (glTF's
+            world at the clip's rest, metres), ``faces`` (F, 3), ``joints`` (V, 4) indices
+            into the clip's joints, ``weights`` (V, 4); a node with it and the skin.
     """
     rng = np.random.default_rng(seed)
     T, J = clip.num_frames, clip.num_joints
@@ -140,6 +144,20 @@ def write_gltf(
         ibm = np.linalg.inv(bind)
         skin["inverseBindMatrices"] = buf.add(np.swapaxes(ibm, -1, -2).reshape(Jn, 16), "MAT4")
     skins = [skin]
+    meshes = []
+    if mesh is not None:
+        attributes = {
+            "POSITION": buf.add(mesh["positions"], "VEC3"),
+            "JOINTS_0": buf.add(mesh["joints"], "VEC4", 5123),
+            "WEIGHTS_0": buf.add(mesh["weights"], "VEC4"),
+        }
+        lo, hi = np.min(mesh["positions"], 0), np.max(mesh["positions"], 0)
+        buf.accessors[attributes["POSITION"]].update(min=lo.tolist(), max=hi.tolist())
+        indices = buf.add(np.asarray(mesh["faces"]).ravel(), "SCALAR", 5125)
+        meshes.append({"name": "character", "primitives": [
+            {"attributes": attributes, "indices": indices, "mode": 4}]})  # fmt: skip
+        nodes.append({"name": "character", "mesh": 0, "skin": 0})
+        scene_nodes.append(len(nodes) - 1)
     if prop_skin:
         nodes.append({"name": "Prop", "translation": [0.5, 0, 0]})
         scene_nodes.append(len(nodes) - 1)
@@ -174,6 +192,7 @@ def write_gltf(
         "nodes": nodes,
         "skins": skins,
         "animations": animations,
+        **({"meshes": meshes} if meshes else {}),
         "accessors": buf.accessors,
         "bufferViews": buf.views,
         "buffers": [{"byteLength": len(buf.data)}],
