@@ -234,6 +234,33 @@ class Animator:
         record = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
         return AnimatedGarment(m, template, result.vertices, record, f"loosefit model {self.path}")
 
+    def dress(
+        self,
+        character: str | Path,
+        frames: int | None = None,
+        progress: Callable[[int, int], None] | None = None,
+        threads: int | None = None,
+    ):
+        """The garment on a user's own character: a skinned, animated ``.glb``/``.gltf``
+        (Mixamo, Blender, Unity or Unreal export). anny's body is fitted to the
+        character's skin, the garment animated on it, carried onto the character's own mesh
+        and kept out of it (:mod:`loosefit.character`).
+
+        Returns:
+            :class:`~loosefit.character.dress.DressedCharacter`: ``vertices`` in the
+            character's world; ``export("out.glb")`` writes their file with the garment,
+            ``export("garment.usd")`` (``.abc``, ``.pc2``) the garment alone beside it.
+
+        Raises:
+            LoosefitInputError: a file with no mesh, skin or animation; a character anny
+                cannot fit (the misfit measured, and what would help); a baseline.
+        """
+        from loosefit.character import dress_character
+        from loosefit.inference.threads import inference_threads
+
+        with inference_threads(threads):
+            return dress_character(self.model, character, frames, progress)
+
     def other_body(self, shape: dict | None):
         """The body of ``shape`` (:meth:`animate`), prepared once and kept; None for None
         or the trained body's own shape.

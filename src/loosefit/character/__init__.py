@@ -9,7 +9,12 @@
   exports of their character with the garment, and the garment alone in their space.
 """
 
-from loosefit.character.dress import DressedCharacter, dress_character
+from loosefit.character.dress import (
+    DressedCharacter,
+    FittedCharacter,
+    dress_character,
+    fit_character,
+)
 from loosefit.character.fit_body import BodyFit, fit_body
 from loosefit.character.gltf_character import Character, has_skinned_mesh, read_character
 
@@ -17,8 +22,10 @@ __all__ = [
     "BodyFit",
     "Character",
     "DressedCharacter",
+    "FittedCharacter",
     "dress_character",
     "fit_body",
+    "fit_character",
     "has_skinned_mesh",
     "read_character",
 ]

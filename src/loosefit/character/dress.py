@@ -48,7 +48,7 @@ class DressedCharacter:
         motion: the character's animation on the fitted anny (T frames).
         garment: the garment's template (sized to the fitted body).
         vertices: (T, V, 3) the garment in the character's glTF world (m, Y up).
-        on_anny: (T, V, 3) the garment on the fitted anny, before the carry (anny's frame).
+        anny_frame: (T, V, 3) the same garment in anny's frame, on the fitted anny's motion.
         collisions: per frame, collision handling's figures against the character's mesh.
     """
 
@@ -58,7 +58,7 @@ class DressedCharacter:
     motion: Motion
     garment: GarmentTemplate
     vertices: np.ndarray
-    on_anny: np.ndarray
+    anny_frame: np.ndarray
     collisions: list[dict]
 
     @property
@@ -69,6 +69,15 @@ class DressedCharacter:
         """(T, V, 3) the garment in the character's world as Z up (what a glTF importer
         such as Blender's shows, and what loosefit's exporters take)."""
         return self.vertices @ Z_TO_Y_UP
+
+    def sequence(self, source: str = "loosefit"):
+        """The garment on the fitted anny as an
+        :class:`~loosefit.sequence.AnimatedGarment` (what ``loosefit view`` and ``render``
+        show; anny's frame)."""
+        from loosefit.sequence import AnimatedGarment
+
+        record = {"rig": self.body.avatar.config.rig, "shape": dict(self.body.shape)}
+        return AnimatedGarment(self.motion, self.garment, self.anny_frame, record, source)
 
     def export(self, path: str | Path) -> list[Path]:
         """Write the garment beside the character.
@@ -88,6 +97,63 @@ class DressedCharacter:
         if path.suffix.lower() == ".glb":
             return [add_animated_mesh(self.character, mesh, path)]
         return export_animation(path, [mesh], self.fps)
+
+
+@dataclass
+class FittedCharacter:
+    """A character and the anny body fitted to it (:func:`fit_character`).
+
+    Attributes:
+        character: the character read from its file.
+        fit: anny's phenotype and the misfit.
+        axes: (3, 3) C, the retargeting's turn of the file's axes onto anny's.
+        hips: the character's joint that anny's hips follow.
+        skin0: (V, 3) the character's skin in its first frame, turned by C (anny's axes).
+        anny0: (Va, 3) the fitted anny in the same pose, on the character's skin.
+    """
+
+    character: Character
+    fit: BodyFit
+    axes: np.ndarray
+    hips: str
+    skin0: np.ndarray
+    anny0: np.ndarray
+
+
+def fit_character(
+    model, path: str | Path, limits: FitLimits | None = None, retarget=None
+) -> FittedCharacter:
+    """The character of ``path`` read and anny's body fitted to it
+    (:func:`~loosefit.character.fit_body.fit_body`).
+
+    Raises:
+        LoosefitInputError: a file with no mesh, skin or animation; a character anny cannot
+            fit (the misfit measured).
+    """
+    from loosefit.body.avatar import Avatar, AvatarConfig
+
+    path = Path(path)
+    trained = model.avatar()
+    character = read_character(path, model.fps)
+    axes, hips = _axes_and_hips(path, model.fps, retarget)
+    first = _motion(path, trained, model.fps, retarget, 1)
+    skin0 = character.posed(0, 1)[0] @ axes.T
+    hips0 = axes @ character.joint_world(hips)[0]
+    fit = fit_body(
+        skin0,
+        character.faces,
+        hips0,
+        first.rotations[0],
+        trained,
+        limits or FitLimits(),
+        source=str(path),
+    )
+    fitted = Avatar(AvatarConfig(rig=trained.config.rig, shape=fit.shape))
+    motion0 = _motion(path, fitted, model.fps, retarget, 1)
+    posed = fitted.pose_motion(motion0)
+    anny0 = posed.vertices[0].double().cpu().numpy()
+    anny0 = anny0 - posed.joint_poses[0, 0, :3, 3].double().cpu().numpy() + hips0 + fit.offset
+    return FittedCharacter(character, fit, axes, hips, skin0, anny0)
 
 
 def dress_character(
@@ -119,39 +185,27 @@ def dress_character(
             path, "model", "our model (a baseline animates on its own body)", type(model).__name__
         )
     path = Path(path)
-    trained = model.avatar()
-    character = read_character(path, model.fps)
-    axes, hips = _axes_and_hips(path, model.fps, retarget)
-    first = _motion(path, trained, model.fps, retarget, 1)
-    skin0 = character.posed(0, 1)[0] @ axes.T
-    hips0 = axes @ character.joint_world(hips)[0]
-    fit = fit_body(
-        skin0,
-        character.faces,
-        hips0,
-        first.rotations[0],
-        trained,
-        limits or FitLimits(),
-        source=str(path),
-    )
+    fitted = fit_character(model, path, limits, retarget)
+    character, fit, axes = fitted.character, fitted.fit, fitted.axes
     body = model.other_body(fit.shape)
     motion = _motion(path, body.avatar, model.fps, retarget, frames)
     T = min(motion.num_frames, character.num_frames)
     motion = motion.slice(0, T)
     # the character's skin in anny's frame: turned by C, its hips where anny's are
-    shift = motion.root_translation - character.joint_world(hips)[:T] @ axes.T - fit.offset
+    hips = character.joint_world(fitted.hips)[:T] @ axes.T
+    shift = motion.root_translation - hips - fit.offset
     stages = Stages(collision=False, overlap=False)
     result = model.animate(motion, progress, stages=stages, body=body)
-    on_anny = torch.from_numpy(result.vertices).float()
 
     def skin(start: int, stop: int) -> np.ndarray:
         return character.posed(start, stop) @ axes.T + shift[start:stop, None]
 
+    on_anny = torch.from_numpy(result.vertices).float()
     carried = _carry(body, motion, on_anny, skin, character.faces)
     placed, collisions = _collide(model, body, carried, skin, character.faces)
     vertices = (placed - shift[:, None]) @ axes  # back to the character's glTF world
     return DressedCharacter(
-        character, fit, body, motion, body.template, vertices, result.vertices, collisions
+        character, fit, body, motion, body.template, vertices, placed, collisions
     )
 
 

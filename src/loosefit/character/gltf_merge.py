@@ -75,7 +75,7 @@ def add_animated_mesh(character, mesh, path: Path) -> Path:
     doc.setdefault("scenes", [{"nodes": []}])[scene].setdefault("nodes", []).append(n_node)
 
     # the weights on the character's own timeline
-    times = np.asarray(character.times, "<f4")
+    times = np.asarray(character.times[: mesh.num_frames], "<f4")  # the frames dressed
     _pad(data)
     doc["bufferViews"].append({"buffer": 0, "byteOffset": len(data), "byteLength": times.nbytes})
     data += times.tobytes()

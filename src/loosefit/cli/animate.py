@@ -38,7 +38,9 @@ def add_parser(sub) -> None:
         help="a motion run's model.pt or checkpoint.pt (default: the pretrained set in "
         "checkpoints/dance), then a .bvh, .gltf/.glb or .npz (loosefit or SMPL) motion, a "
         "procedural move, or dance:SECONDS "
-        "(mirror:MOTION mirrors one left-right; A+B plays one after another)",
+        "(mirror:MOTION mirrors one left-right; A+B plays one after another). A .glb/.gltf "
+        "with a skinned mesh is a character: the garment goes on its own mesh, and "
+        "NAME_dressed.glb (their file with the garment) is written beside the sequence",
     )
     add_generative_arg(p)
     p.add_argument(
@@ -61,6 +63,11 @@ def add_parser(sub) -> None:
         help="the sequence .npz to write, or a folder for MOTION.npz",
     )
     p.add_argument("--render", action="store_true", help="also render a video and PNGs")
+    p.add_argument(
+        "--on-anny",
+        action="store_true",
+        help="a character's file: read only its animation, and animate on anny",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
         "--export",
@@ -121,6 +128,16 @@ def run(args: argparse.Namespace) -> int:
         trained_on_note(args.checkpoint, model)
     on = stages(args)
     physics_note(model, on)
+    if _is_character(args):
+        from loosefit.cli.character import animate_character
+
+        if shape:
+            raise LoosefitInputError(
+                "--shape", "shape", "none with a character (its body is fitted)", args.shape
+            )
+        out = Path(args.out)
+        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(args.motion).stem) or "character"
+        return animate_character(args, model, out if out.suffix == ".npz" else out / f"{name}.npz")
     body = other_body(model, shape)
     avatar = body.avatar if body is not None else model.avatar()
     template = body.template if body is not None else model.template
@@ -172,6 +189,13 @@ def run(args: argparse.Namespace) -> int:
         title = f"{motion.name} (loosefit rollout)"
         render(args, avatar, motion, template, result.vertices, out, title)
     return 0
+
+
+def _is_character(args: argparse.Namespace) -> bool:
+    """A glTF motion file that holds a skinned mesh (unless ``--on-anny``)."""
+    from loosefit.character import has_skinned_mesh
+
+    return not args.on_anny and has_skinned_mesh(args.motion)
 
 
 def other_body(model, shape: dict):

@@ -6,6 +6,7 @@ import argparse
 
 from loosefit.cli import (
     animate,
+    character,
     dataset,
     demo,
     diagnose,
@@ -39,6 +40,7 @@ COMMANDS = (
     generative.add_interpolate_parser,
     motion.add_motion_parser,
     motion.add_inspect_parser,
+    character.add_inspect_parser,
     garment.add_parser,
 )
 
