@@ -16,6 +16,7 @@ from loosefit.inference.other_body import (
     carry_weights,
     leg_length,
     motion_on,
+    nearest_anchors,
     sized_garment,
 )
 
@@ -28,12 +29,24 @@ def _points(n: int, seed: int) -> torch.Tensor:
 
 def test_weights_are_a_partition_of_one_led_by_the_nearest_anchor():
     garment, anchors = _points(50, 0), _points(80, 1)
-    idx, w = carry_weights(garment, anchors, CarryConfig(neighbours=6, width=0.2))
+    config = CarryConfig(neighbours=6, rebind=1)
+    idx = nearest_anchors(garment, anchors, config)
+    w = carry_weights(garment, anchors, idx, width=0.2)
     assert idx.shape == w.shape == (2, 50, 6)
     torch.testing.assert_close(w.sum(-1), torch.ones(2, 50))
+    assert torch.equal(idx[..., 0], torch.cdist(garment, anchors).argmin(-1))
     assert (w[..., 0] >= w.max(-1).values - 1e-7).all()  # the nearest weighs most
-    nearest = torch.cdist(garment, anchors).argmin(-1)
-    assert torch.equal(idx[..., 0], nearest)
+
+
+def test_the_nearest_anchors_are_found_every_few_frames_and_kept_between():
+    garment, anchors = _points(30, 4).repeat(5, 1, 1)[:9], _points(40, 5).repeat(5, 1, 1)[:9]
+    anchors = anchors + torch.arange(9.0)[:, None, None] * 0.3  # they move away, frame by frame
+    idx = nearest_anchors(garment, anchors, CarryConfig(neighbours=3, rebind=4))
+    assert idx.shape == (9, 30, 3)
+    for t in range(9):
+        s = t - t % 4
+        want = torch.topk(torch.cdist(garment[s], anchors[s]), 3, largest=False).indices
+        assert torch.equal(idx[t], want)
 
 
 def test_a_body_moved_whole_moves_the_garment_whole_and_the_same_body_moves_nothing():
@@ -50,7 +63,7 @@ def test_each_vertex_follows_the_skin_nearest_it():
     to = anchors.clone()
     to[0, 2:, 2] += 0.1
     garment = torch.tensor([[[0.0, 0.05, 0], [1.0, 0.05, 0]]])
-    out = carry_garment(garment, anchors, to, CarryConfig(neighbours=4, width=0.04))
+    out = carry_garment(garment, anchors, to, CarryConfig(neighbours=4, rebind=1, width=0.04))
     torch.testing.assert_close(out[0, 0], garment[0, 0], atol=1e-6, rtol=0)
     torch.testing.assert_close(out[0, 1], garment[0, 1] + torch.tensor([0, 0, 0.1]))
 

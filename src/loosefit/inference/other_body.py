@@ -28,30 +28,42 @@ from loosefit.types import GarmentTemplate, Motion
 class CarryConfig:
     """How the body's difference is diffused to the garment."""
 
-    anchors: int = 1024  # skin points (arms left out) whose difference is carried
-    neighbours: int = 16  # anchors each garment vertex takes its displacement from
+    anchors: int = 256  # skin points (arms left out) whose difference is carried
+    reach: float = 0.25  # m: the anchors lie on the skin within this of the garment at rest
+    neighbours: int = 8  # anchors each garment vertex takes its displacement from
+    rebind: int = 4  # frames between searches for each vertex's nearest anchors
     width: float = 0.04  # m: a neighbour's weight falls off over this beyond the nearest's
 
 
-def carry_weights(
+def nearest_anchors(
     garment: torch.Tensor, anchors: torch.Tensor, config: CarryConfig = CarryConfig()
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Which anchors each garment vertex follows, and how much.
+) -> torch.Tensor:
+    """(n, V, k) the ``config.neighbours`` anchors nearest each garment vertex, found every
+    ``config.rebind`` frames and kept for the frames between (the first frame's for the
+    first ``rebind``).
 
     Args:
         garment: (n, V, 3) garment vertices.
         anchors: (n, A, 3) skin anchor points of the same frames.
-        config: the neighbours and the kernel's width.
-
-    Returns:
-        indices (n, V, k) into the anchors and weights (n, V, k), each row summing to 1:
-        exp(-((d - d_nearest) / width)^2) of the distance d, normalised.
     """
     k = min(config.neighbours, anchors.shape[1])
-    d = torch.cdist(garment, anchors)  # (n, V, A)
-    dist, idx = torch.topk(d, k, dim=-1, largest=False)
-    w = torch.exp(-(((dist - dist[..., :1]) / config.width) ** 2))
-    return idx, w / w.sum(-1, keepdim=True)
+    found = [
+        torch.topk(torch.cdist(garment[s], anchors[s]), k, dim=-1, largest=False).indices
+        for s in range(0, len(garment), config.rebind)
+    ]
+    return torch.stack(found).repeat_interleave(config.rebind, 0)[: len(garment)]
+
+
+def carry_weights(
+    garment: torch.Tensor, anchors: torch.Tensor, idx: torch.Tensor, width: float
+) -> torch.Tensor:
+    """(n, V, k) how much each garment vertex follows each of its anchors ``idx`` (n, V, k):
+    exp(-((d - d_nearest) / width)^2) of the distance d, normalised (each row sums to 1, the
+    nearest weighs most, an anchor a few widths farther than it nothing)."""
+    near = anchors[torch.arange(len(anchors))[:, None, None], idx]  # (n, V, k, 3)
+    d = torch.linalg.vector_norm(near - garment[:, :, None], dim=-1)
+    w = torch.exp(-(((d - d.min(-1, keepdim=True).values) / width) ** 2))
+    return w / w.sum(-1, keepdim=True)
 
 
 def carry_garment(
@@ -66,29 +78,36 @@ def carry_garment(
         garment: (n, V, 3) garment vertices on the first body.
         anchors_from: (n, A, 3) skin anchors of the first body.
         anchors_to: (n, A, 3) the same anchors on the second body.
-        config: how the difference is diffused (:func:`carry_weights`).
+        config: how the difference is diffused (:func:`nearest_anchors`,
+            :func:`carry_weights`).
 
     Returns:
         (n, V, 3): each vertex moved by the weighted displacement of its nearest anchors.
     """
-    idx, w = carry_weights(garment, anchors_from, config)
+    idx = nearest_anchors(garment, anchors_from, config)
+    w = carry_weights(garment, anchors_from, idx, config.width)
     delta = anchors_to - anchors_from  # (n, A, 3)
-    moved = torch.gather(
-        delta[:, None].expand(-1, garment.shape[1], -1, -1),
-        2,
-        idx[..., None].expand(-1, -1, -1, 3),
-    )  # (n, V, k, 3)
+    moved = delta[torch.arange(len(delta))[:, None, None], idx]  # (n, V, k, 3)
     return garment + (w[..., None] * moved).sum(2)
 
 
-def anchor_indices(avatar, count: int) -> torch.Tensor:
-    """(A,) body vertices spread evenly (farthest points) over the skin, arms left out: the
-    anchors of :func:`carry_garment`, the same indices on every body of anny's mesh."""
+def anchor_indices(
+    avatar, count: int, garment: np.ndarray | None = None, reach: float = 0.25
+) -> torch.Tensor:
+    """(A,) body vertices spread evenly (farthest points) over the skin, arms left out (and,
+    with ``garment`` (V, 3) at rest, within ``reach`` of it): the anchors of
+    :func:`carry_garment`, the same indices on every body of anny's mesh."""
+    from scipy.spatial import cKDTree
+
     from loosefit.body.avatar import ARM_BONES, farthest_point_sampling
 
     bones = tuple(b for b in avatar.joint_names if b not in ARM_BONES)
     candidates = avatar.vertices_of_bones(bones)
     pts = avatar.rest_vertices[candidates].double().cpu()
+    if garment is not None:
+        near = cKDTree(np.asarray(garment, np.float64)).query(pts.numpy())[0] <= reach
+        if near.sum() >= count:
+            candidates, pts = candidates[torch.from_numpy(near)], pts[torch.from_numpy(near)]
     start = int(pts.norm(dim=-1).argmin())
     return candidates[farthest_point_sampling(pts, count, start).to(candidates.device)]
 
@@ -131,7 +150,7 @@ def sized_garment(template: GarmentTemplate, trained, avatar, config: CarryConfi
         return fit_dress(avatar, DressConfig(**recorded))
     if isinstance(recorded, dict) and "rings" in recorded:
         return fit_skirt(avatar, SkirtConfig(**recorded))
-    idx = anchor_indices(trained, config.anchors)
+    idx = anchor_indices(trained, config.anchors, template.vertices, config.reach)
     rest = torch.as_tensor(template.vertices, dtype=torch.float32)[None]
     carried = carry_garment(
         rest,
@@ -201,7 +220,7 @@ class OtherBody:
             )
         full = {**trained.shape, **{str(k): _value(k, v) for k, v in shape.items()}}
         avatar = Avatar(AvatarConfig(rig=trained.config.rig, shape=full))
-        anchors = anchor_indices(trained, config.anchors)
+        anchors = anchor_indices(trained, config.anchors, template.vertices, config.reach)
         garment = sized_garment(template, trained, avatar, config)
         if garment.num_vertices != template.num_vertices:  # a pattern that meshes per body
             raise LoosefitInputError(

@@ -1,0 +1,258 @@
+"""docs/OTHER_BODIES.md: the pretrained skirt on anny bodies it was not trained on, against
+simulations on those bodies.
+
+The bodies are ``configs/other_bodies.yaml``'s; each is simulated with
+``configs/bodies.yaml`` (the held-out ballet clips 05_02, 05_10, 05_12, the corpus's
+skirt pattern sized to the body), and one clip again from a second seed (the body's own
+chaos floor). ``simulate`` makes them (about an hour a body on one core)::
+
+    python bench/other_bodies.py simulate --workers 2
+    python bench/other_bodies.py evaluate
+
+``evaluate`` animates each clip with the pretrained set on its body
+(``Animator.animate(..., shape=...)``) and on the trained body (the corpus's own
+simulations of the same clips), and writes per body: RMSE against the simulation, its
+multiple of the body's chaos floor, the cloth's edges and strain, cloth inside the body,
+the waistband's distance from the body's skin, the time per frame on one thread, and a
+render of each body at 05_02's fastest turn (simulation | ours). A row "carry off"
+measures what the carry adds: the trained body's garment sized and kept out of the other
+body by the edge-length stage and collision handling alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+import yaml
+
+import loosefit
+from loosefit.data.format import DatasetReader
+from loosefit.eval.metrics import rmse
+from loosefit.eval.motion_signals import fastest_turn
+from loosefit.garment.quality import quality
+from loosefit.geometry.query import closest_points
+from loosefit.train.common import machine
+
+CONFIG = Path("configs/other_bodies.yaml")
+CLIPS = ("05_02", "05_10", "05_12")
+
+
+def bodies(config: Path = CONFIG) -> dict:
+    return yaml.safe_load(config.read_text())
+
+
+def simulate(args) -> None:
+    """Every body's data set and its chaos-floor clip, by ``loosefit simulate``."""
+    cfg = bodies()
+    dataset = CONFIG.parent / cfg["dataset"]
+    clip = cfg["floor_clip"]
+    spec = next(s for s in yaml.safe_load(dataset.read_text())["motions"]["specs"] if clip in s)
+    spec = str((dataset.parent / spec).resolve())
+    for name, shape in cfg["bodies"].items():
+        phenotype = ",".join(f"{k}={v}" for k, v in shape.items())
+        base = ["loosefit", "simulate", "--config", str(dataset), "--shape", phenotype]
+        runs = [
+            base + ["--out", f"{args.data}/{name}"],
+            base + ["--motions", spec, "--test", clip, "--seeds", str(cfg["floor_seed"]),
+                    "--out", f"{args.data}/{name}-floor"],
+        ]  # fmt: skip
+        for cmd in runs:
+            print(" ".join(cmd), flush=True)
+            subprocess.run(cmd + ["--workers", str(args.workers)], check=True)
+
+
+def waist_gap(garment, waist, body, faces) -> float:
+    """m: the waistband's farthest vertex from the body's skin, over every frame."""
+    return max(
+        float(closest_points(body[t], faces, garment[t, waist], max_distance=1.0).distance.max())
+        for t in range(len(garment))
+    )
+
+
+def measure(animator, seq, shape, faces, carry: bool = True) -> dict:
+    """One clip on one body: the set's rollout against the simulation."""
+    from loosefit.inference import other_body
+
+    template = seq.garment
+    body = animator.other_body(shape).avatar if shape else animator.model.avatar()
+    call = other_body.BodyCarryStage.__call__
+    if not carry:
+        other_body.BodyCarryStage.__call__ = lambda self, frames: frames.vertices.float()
+    try:
+        t0 = time.perf_counter()
+        ours = animator.animate(seq.motion, shape=shape or None, threads=1).garment_vertices
+        seconds = time.perf_counter() - t0
+    finally:
+        other_body.BodyCarryStage.__call__ = call
+    skin = body.pose_motion(seq.motion).vertices.cpu().numpy()
+    q = quality(ours, template, skin, faces)
+    change = (edge_ratio(ours, template) - 1.0).reshape(-1)
+    sim_strain = quality(seq.garment_vertices, template, skin, faces)["strain_p50"]
+    return {
+        "frames": seq.motion.num_frames,
+        "rmse_cm": 100 * rmse(ours, seq.garment_vertices),
+        "edge_change_p50_pct": 100 * float(np.median(change)),
+        "strain_p50": q["strain_p50"],
+        "sim_strain_p50": sim_strain,
+        "inside_max_pct": 100 * q["inside_max"],
+        "depth_max_mm": 1000 * float(np.max(q["inside_depth_max"])),
+        "waist_gap_cm": 100 * waist_gap(ours, template.waist, skin, faces),
+        "ms_per_frame": 1000 * seconds / seq.motion.num_frames,
+        "ours": ours,
+        "skin": skin,
+    }
+
+
+def edge_ratio(garment, template) -> np.ndarray:
+    """(T, E) each edge's length over its rest length."""
+    from loosefit.geometry.edges import unique_edges
+
+    e, _ = unique_edges(template.faces)
+    r = template.rest
+    rest = np.linalg.norm(r[e[:, 0]] - r[e[:, 1]], axis=-1)
+    return np.linalg.norm(garment[:, e[:, 0]] - garment[:, e[:, 1]], axis=-1) / rest
+
+
+def evaluate(args) -> None:
+    torch.set_num_threads(1)
+    started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    cfg = bodies()
+    animator = loosefit.load()
+    faces = animator.model.avatar().faces.cpu().numpy()
+    floor_clip = cfg["floor_clip"]
+    sets = {"default": ({}, Path(args.corpus), Path(args.default_floor))}
+    for name, shape in cfg["bodies"].items():
+        sets[name] = (shape, Path(args.data) / name, Path(args.data) / f"{name}-floor")
+    rows, images = {}, []
+    for name, (shape, folder, floor) in sets.items():
+        if not (folder / "manifest.json").is_file():
+            print(f"{name}: no data set at {folder} (python bench/other_bodies.py simulate)")
+            continue
+        reader = DatasetReader(folder)
+        t0 = time.perf_counter()
+        if shape:
+            animator.other_body(shape)
+        prepare = time.perf_counter() - t0
+        row = {"shape": shape, "prepare_s": prepare, "clips": {}, "carry_off": {}}
+        for clip in CLIPS:
+            seq = reader.read(clip)
+            got = measure(animator, seq, shape, faces)
+            if shape:
+                row["carry_off"][clip] = measure(animator, seq, shape, faces, carry=False)[
+                    "rmse_cm"
+                ]
+            if clip == "05_02":
+                images.append(render(args, name, seq, got, faces))
+            row["clips"][clip] = {k: v for k, v in got.items() if k not in ("ours", "skin")}
+            print(f"{name} {clip}: RMSE {got['rmse_cm']:.2f} cm", flush=True)
+        row["floor_cm"] = floor_of(reader, floor, floor_clip)
+        rows[name] = row
+    sheet(args, images)
+    write(args, rows, started, floor_clip)
+
+
+def floor_of(reader, floor: Path, clip: str) -> float | None:
+    """cm: the RMSE between the body's simulation of ``clip`` and its second seed's."""
+    if not (floor / "manifest.json").is_file():
+        return None
+    other = DatasetReader(floor)
+    name = next(n for n in other.split("all") if n.split("@")[0] == clip)
+    a, b = reader.read(clip).garment_vertices, other.read(name).garment_vertices
+    n = min(len(a), len(b))
+    return 100 * rmse(a[:n], b[:n])
+
+
+def render(args, name, seq, got, faces) -> Path:
+    sys.path.insert(0, str(Path(__file__).parent))
+    from results import renders
+
+    frame = fastest_turn(seq.motion)
+    out = Path(args.img) / f"other_body_{name}.jpg"
+    renders(out, frame, seq.garment_vertices, {"ours": got["ours"][frame]}, got["skin"], faces,
+            seq.garment.faces, 15.0, args.size, where=name)  # fmt: skip
+    return out
+
+
+def sheet(args, images: list[Path]) -> None:
+    """The bodies' renders side by side, one image."""
+    from PIL import Image
+
+    if not images:
+        return
+    tiles = [Image.open(p) for p in images]
+    h = max(t.height for t in tiles)
+    out = Image.new("RGB", (sum(t.width for t in tiles), h), "white")
+    x = 0
+    for t in tiles:
+        out.paste(t, (x, 0))
+        x += t.width
+    out.save(Path(args.img) / "other_bodies.jpg", quality=88)
+
+
+def write(args, rows: dict, started: str, floor_clip: str) -> None:
+    base = rows.get("default")
+    lines = [
+        "# The pretrained skirt on other bodies",
+        "",
+        f"Made by `python bench/other_bodies.py evaluate` on {machine('cpu')}, {started}. "
+        "The bodies of `configs/other_bodies.yaml`, simulated by `python bench/other_bodies.py "
+        "simulate` from `configs/bodies.yaml` (the held-out ballet clips, the corpus's skirt "
+        "pattern sized to each body); `default` is the trained body, the dance corpus's own "
+        "simulations of the same clips. Each clip is animated by the pretrained set on its "
+        "body (`loosefit animate --shape ...`), one thread. The chaos floor is the RMSE "
+        f"between the body's simulation of {floor_clip} and a second seed's.",
+        "",
+        "| body | clip | RMSE cm | x default body's | carry off: RMSE cm | edge change p50 % | "
+        "strain p50 (simulation) | inside max % | deepest mm | waistband to skin cm | "
+        "ms a frame |",
+        "|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|",
+    ]
+    for name, row in rows.items():
+        for clip, c in row["clips"].items():
+            ratio = c["rmse_cm"] / base["clips"][clip]["rmse_cm"] if base else float("nan")
+            off = row["carry_off"].get(clip)
+            lines.append(
+                f"| {name} | {clip} | {c['rmse_cm']:.2f} | {ratio:.2f} | "
+                f"{'' if off is None else f'{off:.2f}'} | {c['edge_change_p50_pct']:+.2f} | "
+                f"{c['strain_p50']:.4f} ({c['sim_strain_p50']:.4f}) | {c['inside_max_pct']:.3f} | "
+                f"{c['depth_max_mm']:.1f} | {c['waist_gap_cm']:.2f} | {c['ms_per_frame']:.0f} |"
+            )
+    lines += ["", f"Against each body's chaos floor ({floor_clip}):", "",
+              "| body | shape | floor cm | RMSE cm | RMSE / floor | preparation s |",
+              "|---|---|---:|---:|---:|---:|"]  # fmt: skip
+    for name, row in rows.items():
+        c = row["clips"][floor_clip]
+        floor = row["floor_cm"]
+        shape = ", ".join(f"{k} {v}" for k, v in row["shape"].items()) or "anny's default"
+        lines.append(
+            f"| {name} | {shape} | {floor or float('nan'):.2f} | {c['rmse_cm']:.2f} | "
+            f"{c['rmse_cm'] / floor if floor else float('nan'):.2f} | {row['prepare_s']:.1f} |"
+        )
+    lines += ["", "![each body at 05_02's fastest turn: simulation | ours](img/other_bodies.jpg)",
+              ""]  # fmt: skip
+    Path(args.out).write_text("\n".join(lines))
+    print(f"wrote {args.out}")
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("command", choices=("simulate", "evaluate"), nargs="?", default="evaluate")
+    p.add_argument("--data", default="datasets/bodies")
+    p.add_argument("--corpus", default="datasets/dance")
+    p.add_argument("--default-floor", default="datasets/dance-seeds/seed1")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--out", default="docs/OTHER_BODIES.md")
+    p.add_argument("--img", default="docs/img")
+    p.add_argument("--size", type=int, default=260)
+    args = p.parse_args()
+    simulate(args) if args.command == "simulate" else evaluate(args)
+
+
+if __name__ == "__main__":
+    main()
