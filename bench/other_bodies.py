@@ -129,6 +129,8 @@ def evaluate(args) -> None:
     sets = {"default": ({}, Path(args.corpus), Path(args.default_floor))}
     for name, shape in cfg["bodies"].items():
         sets[name] = (shape, Path(args.data) / name, Path(args.data) / f"{name}-floor")
+    if args.bodies:
+        sets = {k: v for k, v in sets.items() if k in args.bodies}
     rows, images = {}, []
     for name, (shape, folder, floor) in sets.items():
         if not (folder / "manifest.json").is_file():
@@ -234,15 +236,52 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
             f"| {name} | {shape} | {floor or float('nan'):.2f} | {c['rmse_cm']:.2f} | "
             f"{c['rmse_cm'] / floor if floor else float('nan'):.2f} | {row['prepare_s']:.1f} |"
         )
+    if Path(args.speed_out).is_file():  # python bench/other_bodies.py speed
+        lines += ["", Path(args.speed_out).read_text().strip()]
     lines += ["", "![each body at 05_02's fastest turn: simulation | ours](img/other_bodies.jpg)",
               ""]  # fmt: skip
     Path(args.out).write_text("\n".join(lines))
     print(f"wrote {args.out}")
 
 
+def speed(args) -> None:
+    """CPU seconds a frame on the trained body and on each other body (one thread, the
+    process's CPU time: the machine's other work does not lengthen it), and each body's
+    preparation."""
+    torch.set_num_threads(1)
+    cfg = bodies()
+    animator = loosefit.load()
+    move = "dance:10"
+    rows = {}
+    for name, shape in {"default": {}, **cfg["bodies"]}.items():
+        t0 = time.process_time()
+        if shape:
+            animator.other_body(shape)
+        prepare = time.process_time() - t0
+        best = float("inf")
+        for _ in range(args.repeats):
+            t0 = time.process_time()
+            seq = animator.animate(move, shape=shape or None, threads=1)
+            best = min(best, time.process_time() - t0)
+        rows[name] = (prepare, 1000 * best / len(seq.garment_vertices))
+        print(f"{name}: prepared in {prepare:.1f} s, {rows[name][1]:.1f} ms a frame", flush=True)
+    base = rows["default"][1]
+    lines = ["| body | preparation s | ms a frame | x the trained body's |", "|---|---:|---:|---:|"]
+    lines += [f"| {n} | {p:.1f} | {ms:.1f} | {ms / base:.2f} |" for n, (p, ms) in rows.items()]
+    text = (
+        f"Speed ({move}, {len(seq.garment_vertices)} frames, CPU seconds of one thread, the "
+        f"best of {args.repeats}; {machine('cpu')}, "
+        f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}):\n\n" + "\n".join(lines)
+    )
+    Path(args.speed_out).write_text(text + "\n")
+    print(text)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("command", choices=("simulate", "evaluate"), nargs="?", default="evaluate")
+    p.add_argument(
+        "command", choices=("simulate", "evaluate", "speed"), nargs="?", default="evaluate"
+    )
     p.add_argument("--data", default="datasets/bodies")
     p.add_argument("--corpus", default="datasets/dance")
     p.add_argument("--default-floor", default="datasets/dance-seeds/seed1")
@@ -250,8 +289,11 @@ def main() -> None:
     p.add_argument("--out", default="docs/OTHER_BODIES.md")
     p.add_argument("--img", default="docs/img")
     p.add_argument("--size", type=int, default=260)
+    p.add_argument("--repeats", type=int, default=3, help="speed: runs of each body")
+    p.add_argument("--speed-out", default="bench/other_bodies_speed.md")
+    p.add_argument("--bodies", nargs="*", default=None, help="evaluate: these bodies only")
     args = p.parse_args()
-    simulate(args) if args.command == "simulate" else evaluate(args)
+    {"simulate": simulate, "evaluate": evaluate, "speed": speed}[args.command](args)
 
 
 if __name__ == "__main__":
