@@ -17,17 +17,16 @@ SHAPE = {"gender": 0.6, "age": 0.5, "muscle": 0.5, "weight": 0.75, "height": 0.7
          "proportions": 0.6}  # fmt: skip
 
 
-def clip_joint_of(avatar, conv) -> list[int]:
-    """For each avatar joint, the index of the clip joint that carries it: its own, or its
-    nearest ancestor's the convention has."""
+def clip_joint_of(avatar, conv, clip) -> list[int]:
+    """For each avatar joint, the index in ``clip`` of the joint that carries it: its own,
+    or its nearest ancestor's the convention has."""
     names, parents = avatar.skeleton.names, avatar.skeleton.parents
-    kept = [a for a in names if a in conv.joints]
     out = []
     for j, _ in enumerate(names):
         a = j
         while names[a] not in conv.joints:
             a = parents[a]
-        out.append(kept.index(names[a]))
+        out.append(clip.joint_names.index(conv.joints[names[a]]))
     return out
 
 
@@ -49,7 +48,7 @@ def write_character(
     C = axis_change(MIXAMO.up, MIXAMO.forward)  # the file's axes to anny's
     x0 = body.pose_motion(motion.slice(0, 1)).vertices[0].double().cpu().numpy() @ C
     # anny's weights on the clip's joints, the four largest
-    to_clip = np.asarray(clip_joint_of(body, MIXAMO))
+    to_clip = np.asarray(clip_joint_of(body, MIXAMO, clip))
     w = body.model.vertex_bone_weights.double().cpu().numpy()
     j = to_clip[body.model.vertex_bone_indices.long().cpu().numpy()]
     dense = np.zeros((len(w), clip.num_joints))
