@@ -30,6 +30,7 @@ COMMANDS = [
     "interpolate",
     "motion",
     "inspect-motion",
+    "inspect-character",
     "garment",
 ]
 
