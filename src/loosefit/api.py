@@ -262,14 +262,17 @@ class Animator:
             return dress_character(self.model, character, frames, progress)
 
     def other_body(self, shape: dict | None):
-        """The body of ``shape`` (:meth:`animate`), prepared once and kept; None for None
-        or the trained body's own shape.
+        """The body of ``shape`` (:meth:`animate`), prepared once and kept; None for None,
+        ``{}`` or the trained body's own values.
 
         Raises:
             LoosefitInputError: a model that cannot change body (a baseline), a phenotype
                 name anny does not have, or a value outside [0, 1].
         """
         if not shape:
+            return None
+        trained = getattr(self.model, "body", {}).get("shape", {})
+        if all(k in trained and shape[k] == trained[k] for k in shape):  # the trained body
             return None
         if not hasattr(self.model, "other_body"):
             raise LoosefitInputError(

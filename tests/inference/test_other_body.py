@@ -146,6 +146,8 @@ def test_the_pretrained_set_animates_on_another_body_sized_seated_and_out_of_it(
     change = length(on.vertices[-1]) / length(body.template.vertices) - 1
     assert abs(float(np.median(change))) < 0.02
     assert pretrained.other_body(dict(HEAVY)) is body  # prepared once
+    gender = pretrained.model.body["shape"]["gender"]
+    assert pretrained.other_body({"gender": gender}) is None  # the trained body itself
 
 
 def test_a_baseline_or_feedback_cannot_change_body(pretrained):
