@@ -199,18 +199,17 @@ def render(args, name, seq, got, faces) -> Path:
 
 
 def sheet(args, images: list[Path]) -> None:
-    """The bodies' renders side by side, one image."""
+    """The bodies' renders in one image, a body a row."""
     from PIL import Image
 
-    if not images:
+    tiles = [Image.open(p) for p in images if p.is_file()]
+    if not tiles:
         return
-    tiles = [Image.open(p) for p in images]
-    h = max(t.height for t in tiles)
-    out = Image.new("RGB", (sum(t.width for t in tiles), h), "white")
-    x = 0
+    out = Image.new("RGB", (max(t.width for t in tiles), sum(t.height for t in tiles)), "white")
+    y = 0
     for t in tiles:
-        out.paste(t, (x, 0))
-        x += t.width
+        out.paste(t, (0, y))
+        y += t.height
     out.save(Path(args.img) / "other_bodies.jpg", quality=88)
 
 
@@ -258,7 +257,7 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
         )
     if Path(args.speed_out).is_file():  # python bench/other_bodies.py speed
         lines += ["", Path(args.speed_out).read_text().strip()]
-    lines += ["", "![each body at 05_02's fastest turn, left to right as in the tables: "
+    lines += ["", "![each body at 05_02's fastest turn, top to bottom as in the tables: "
               "simulation | ours](img/other_bodies.jpg)",
               ""]  # fmt: skip
     Path(args.out).write_text("\n".join(lines))
