@@ -144,19 +144,19 @@ def evaluate(args) -> None:
         saved = cache / f"{name}.json"
         if saved.is_file() and not args.force:  # measured before: its row and render
             rows[name] = json.loads(saved.read_text())
-            images.append(Path(args.img) / f"other_body_{name}.jpg")
-            continue
-        if not (folder / "manifest.json").is_file():
+        elif not (folder / "manifest.json").is_file():
             print(f"{name}: no data set at {folder} (python bench/other_bodies.py simulate)")
             continue
-        rows[name] = measure_body(args, animator, name, shape, folder, floor, faces, floor_clip)
+        else:
+            rows[name] = measure_body(args, animator, name, shape, folder, faces, floor_clip)
+            saved.write_text(json.dumps(rows[name], indent=1))
         images.append(Path(args.img) / f"other_body_{name}.jpg")
-        saved.write_text(json.dumps(rows[name], indent=1))
+        rows[name]["floor_cm"] = floor_of(folder, floor, floor_clip)
     sheet(args, images)
     write(args, rows, started, floor_clip)
 
 
-def measure_body(args, animator, name, shape, folder, floor, faces, floor_clip) -> dict:
+def measure_body(args, animator, name, shape, folder, faces, floor_clip) -> dict:
     """One body's clips, its carry-off row (the floor clip) and its render."""
     reader = DatasetReader(folder)
     t0 = time.perf_counter()
@@ -172,15 +172,19 @@ def measure_body(args, animator, name, shape, folder, floor, faces, floor_clip) 
             render(args, name, seq, got, faces)
         row["clips"][clip] = {k: v for k, v in got.items() if k not in ("ours", "skin")}
         print(f"{name} {clip}: RMSE {got['rmse_cm']:.2f} cm", flush=True)
-    row["floor_cm"] = floor_of(reader, floor, floor_clip)
     return row
 
 
-def floor_of(reader, floor: Path, clip: str) -> float | None:
-    """cm: the RMSE between the body's simulation of ``clip`` and its second seed's."""
-    if not (floor / "manifest.json").is_file():
+def floor_of(folder: Path, floor: Path, clip: str) -> float | None:
+    """cm: the RMSE between the body's simulation of ``clip`` and its second seed's (None
+    while that is not simulated)."""
+    from loosefit.errors import LoosefitInputError
+
+    try:
+        reader, other = DatasetReader(folder), DatasetReader(floor)
+    except LoosefitInputError as e:
+        print(f"no chaos floor yet: {e}")
         return None
-    other = DatasetReader(floor)
     name = next(n for n in other.split("all") if n.split("@")[0] == clip)
     a, b = reader.read(clip).garment_vertices, other.read(name).garment_vertices
     n = min(len(a), len(b))

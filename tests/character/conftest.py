@@ -24,3 +24,11 @@ def pretrained():
 def dressed(pretrained, character):
     """The pretrained set's skirt on the character, its first 10 frames."""
     return pretrained.dress(character[0], frames=10, threads=1)
+
+
+@pytest.fixture(scope="session")
+def fitted(pretrained, character):
+    """anny fitted to the character (``fit_character``)."""
+    from loosefit.character import fit_character
+
+    return fit_character(pretrained.model, character[0])

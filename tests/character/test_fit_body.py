@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from loosefit.character import fit_character
+from loosefit.body.motions import load_motion
 from loosefit.character.fit_body import fit_body
 from loosefit.errors import LoosefitInputError
 from tests.character.character_file import SHAPE
 
 
-def test_the_fit_finds_the_body_the_character_was_made_from(pretrained, character):
-    fitted = fit_character(pretrained.model, character[0])
+def test_the_fit_finds_the_body_the_character_was_made_from(fitted):
     fit = fitted.fit
     assert fit.mean < 0.01 and fit.p90 < 0.02  # skins within a centimetre
     for name in ("height", "weight"):
@@ -20,12 +19,9 @@ def test_the_fit_finds_the_body_the_character_was_made_from(pretrained, characte
     assert "cm apart" in fit.describe()
 
 
-def test_a_body_anny_cannot_fit_is_refused_with_the_measured_misfit(pretrained, character):
-    fitted = fit_character(pretrained.model, character[0])
+def test_a_body_anny_cannot_fit_is_refused_with_the_measured_misfit(pretrained, character, fitted):
     wide = fitted.skin0 * [1.8, 1.8, 1.0]  # a creature twice as broad
-    hips = wide[fitted.character.faces[0, 0]] * 0 + fitted.skin0.mean(0) * [1.8, 1.8, 1.0]
-    from loosefit.body.motions import load_motion
-
+    hips = fitted.skin0.mean(0) * [1.8, 1.8, 1.0]
     rotations = load_motion(str(character[0]), pretrained.model.avatar()).rotations[0]
     with pytest.raises(LoosefitInputError, match="cm apart on average.*no loose clothes"):
         fit_body(wide, fitted.character.faces, hips, rotations, pretrained.model.avatar())
