@@ -5,9 +5,11 @@ The motion stage runs on the body it knows (the training body, the motion's root
 to its legs); each frame's garment is then carried onto the other body posed alike by the
 two bodies' own difference, diffused from the skin to the cloth (:func:`carry_garment`:
 each garment vertex moves as the skin nearest it moves between the two bodies, as
-Santesteban et al. 2019's diffused body model carries skinning away from the surface);
-the edge-length stage then brings the cloth to the other body's garment (the same pattern,
-sized to that body's waist and hips), and collision handling runs against that body.
+Santesteban et al. 2019's diffused body model carries skinning away from the surface),
+and the other body's garment's own size added (the same pattern sized to that body's waist
+and hips, less the trained garment carried at rest, turned with the pelvis); the
+edge-length stage then brings the cloth to that garment's rest lengths, and collision
+handling runs against that body.
 
 :class:`OtherBody` holds what is prepared once per body; :class:`BodyCarryStage` is the
 carry as a stage of a rollout (:mod:`loosefit.inference.stages`).
@@ -181,6 +183,9 @@ class OtherBody:
         trained: the body the set was trained on.
         template: the garment sized to the body (:func:`sized_garment`).
         anchors: (A,) the skin points the carry follows.
+        sizing: (V, 3) what the carry leaves of the garment's own size at rest: this body's
+            garment less the trained one carried onto it, in the rest pose's frame (zero for
+            a garment carried at rest).
         config: how the carry diffuses.
     """
 
@@ -189,6 +194,7 @@ class OtherBody:
     trained: object
     template: GarmentTemplate
     anchors: torch.Tensor
+    sizing: torch.Tensor
     config: CarryConfig = field(default_factory=CarryConfig)
     restorer: object = None  # the edge-length stage on its garment, built on first use
     handler: object = None  # collision handling of its garment, built on first use
@@ -229,7 +235,15 @@ class OtherBody:
                 f"{template.num_vertices} vertices (the trained garment's) on that body",
                 garment.num_vertices,
             )
-        return cls(dict(avatar.shape), avatar, trained, garment, anchors, config)
+        rest = torch.as_tensor(template.vertices, dtype=torch.float32)[None]
+        carried = carry_garment(
+            rest,
+            trained.rest_vertices[anchors].float().cpu()[None],
+            avatar.rest_vertices[anchors].float().cpu()[None],
+            config,
+        )[0]
+        sizing = torch.as_tensor(garment.vertices, dtype=torch.float32) - carried
+        return cls(dict(avatar.shape), avatar, trained, garment, anchors, sizing, config)
 
     def trained_motion(self, motion: Motion) -> Motion:
         """``motion`` (on this body) for the body the set was trained on."""
@@ -254,7 +268,8 @@ def _value(name, value) -> float:
 
 class BodyCarryStage:
     """The garment carried from the trained body onto the other body, a run of frames at a
-    time (the first stage after the detail stage).
+    time (the first stage after the detail stage): :func:`carry_garment`, plus the body's
+    garment's own size (:attr:`OtherBody.sizing`) turned as the pelvis turns.
 
     Args:
         body: the other body.
@@ -271,9 +286,11 @@ class BodyCarryStage:
         """(n, V, 3) world garments on the other body."""
         s, e = frames.start, frames.start + len(frames.vertices)
         b = self.body
-        return carry_garment(
+        carried = carry_garment(
             frames.vertices.float(),
             b.anchors_along(b.trained, self.trained_motion, s, e),
             b.anchors_along(b.avatar, self.motion, s, e),
             b.config,
         )
+        pelvis = torch.from_numpy(self.motion.rotations[s:e, 0]).float()  # (n, 3, 3)
+        return carried + torch.einsum("nij,vj->nvi", pelvis, b.sizing)
