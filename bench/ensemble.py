@@ -349,17 +349,9 @@ def markdown(args, scores: dict, renders_shown: dict, started: str,
 def splice(results: Path, section: str) -> None:
     """Put ``section`` into docs/RESULTS.md in place of its ensemble section (before the
     first section after the targets where it has none)."""
-    text = results.read_text()
-    lines = text.splitlines()
-    heads = [i for i, line in enumerate(lines) if line.startswith("## ")]
-    start = next((i for i in heads if lines[i] == SECTION), None)
-    if start is None:
-        start = end = heads[1] if len(heads) > 1 else len(lines)
-    else:
-        end = next((i for i in heads if i > start), len(lines))
-    block = section.rstrip().splitlines()
-    out = lines[:start] + block + [""] + lines[end:]
-    results.write_text("\n".join(out).rstrip() + "\n")
+    from loosefit.eval.report import splice_section
+
+    results.write_text(splice_section(results.read_text(), SECTION, section))
 
 
 def main() -> None:

@@ -44,6 +44,7 @@ from loosefit.train.common import machine
 
 CONFIG = Path("configs/other_bodies.yaml")
 CLIPS = ("05_02", "05_10", "05_12")
+SECTION = "## On other bodies"
 
 
 def bodies(config: Path = CONFIG) -> dict:
@@ -289,6 +290,15 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
               ""]  # fmt: skip
     Path(args.out).write_text("\n".join(lines))
     print(f"wrote {args.out}")
+    if args.results:  # the same tables, as docs/RESULTS.md's section
+        from loosefit.eval.report import splice_section
+
+        section = [SECTION, "", "From [OTHER_BODIES.md](OTHER_BODIES.md), which says how: "
+                   "the pretrained set on anny bodies it was not trained on, against "
+                   "simulations on them.", ""] + lines[4:]  # fmt: skip
+        page = Path(args.results)
+        page.write_text(splice_section(page.read_text(), SECTION, "\n".join(section)))
+        print(f"wrote its section of {page}")
 
 
 def speed(args) -> None:
@@ -338,6 +348,7 @@ def main() -> None:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--out", default="docs/OTHER_BODIES.md")
     p.add_argument("--img", default="docs/img")
+    p.add_argument("--results", default="docs/RESULTS.md", help="its section there too")
     p.add_argument("--size", type=int, default=260)
     p.add_argument("--repeats", type=int, default=3, help="speed: runs of each body")
     p.add_argument("--speed-out", default="bench/other_bodies_speed.md")

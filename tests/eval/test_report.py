@@ -29,3 +29,14 @@ def test_rows_match_the_header(horizons, surface):
     assert [f"iter-{h}" for h in horizons] == [n for n in names if n.startswith("iter-")]
     cells = [c.strip() for c in rows[0].strip("|").split("|")]
     assert cells[:3] == ["c", "16", "1.500"] and cells[-1] == "30"
+
+
+def test_a_section_is_put_in_place_of_its_own_or_after_the_first():
+    from loosefit.eval.report import splice_section
+
+    page = "# T\n\n## A\na\n\n## B\nold\n\n## C\nc\n"
+    new = splice_section(page, "## B", "## B\nnew\n")
+    assert new == "# T\n\n## A\na\n\n## B\nnew\n\n## C\nc\n"
+    added = splice_section("# T\n\n## A\na\n\n## C\nc\n", "## B", "## B\nb")
+    assert added == "# T\n\n## A\na\n\n## B\nb\n\n## C\nc\n"
+    assert splice_section(added, "## B", "## B\nb") == added  # again: the same page

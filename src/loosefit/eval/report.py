@@ -91,3 +91,18 @@ def write_rollout_report(result: dict, out: str | Path, title: str = "Rollout ev
     plot_rollout_error(result, out / "rmse_per_frame.png", title)
     write_json_atomic(out / "evaluation.json", result)
     return out
+
+
+def splice_section(text: str, heading: str, section: str) -> str:
+    """A Markdown page with ``section`` (starting with the line ``heading``, a ``## ``
+    heading) in place of its section of that heading, up to the next ``## `` heading; a
+    page without one gets it before its second ``## `` section (after the first)."""
+    lines = text.splitlines()
+    heads = [i for i, line in enumerate(lines) if line.startswith("## ")]
+    start = next((i for i in heads if lines[i] == heading), None)
+    if start is None:
+        start = end = heads[1] if len(heads) > 1 else len(lines)
+    else:
+        end = next((i for i in heads if i > start), len(lines))
+    out = lines[:start] + section.rstrip().splitlines() + [""] + lines[end:]
+    return "\n".join(out).rstrip() + "\n"
