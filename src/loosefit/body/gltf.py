@@ -200,18 +200,8 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
 
     # 1. The animation and its channels on nodes.
     anims = doc_list(doc, "animations")
-    if not anims:
-        raise gltf_error(
-            doc,
-            "animations",
-            "an animation",
-            "none in the file",
-            hint="export with animation on (Blender: glTF export > Animation)",
-        )
-    a = _pick(doc, "animations", animation, 0, "animation")
-    anim = doc_item(doc, "animations", a, f"animations[{a}]")
+    a, anim, channels = animation_channels(doc, animation, len(nodes))
     anim_name = str(anim.get("name", f"#{a}"))
-    channels = _read_channels(doc, anim, a, len(nodes))
 
     # 2. The skin and its joints, parents first.
     skins = doc_list(doc, "skins")
@@ -286,6 +276,28 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
 
 # A channel: (K,) keyframe times, (K, W) or (3K, W) values, the interpolation.
 _Channel = tuple[np.ndarray, np.ndarray, str]
+
+
+def animation_channels(
+    doc: GltfDocument, animation: str | int | None, num_nodes: int
+) -> tuple[int, dict, dict[tuple[int, str], _Channel]]:
+    """The animation named or numbered ``animation`` (default: the first): its index, its
+    JSON and its channels on nodes.
+
+    Raises:
+        LoosefitInputError: a file with no animation, or none of that name or number.
+    """
+    if not doc_list(doc, "animations"):
+        raise gltf_error(
+            doc,
+            "animations",
+            "an animation",
+            "none in the file",
+            hint="export with animation on (Blender: glTF export > Animation)",
+        )
+    a = _pick(doc, "animations", animation, 0, "animation")
+    anim = doc_item(doc, "animations", a, f"animations[{a}]")
+    return a, anim, _read_channels(doc, anim, a, num_nodes)
 
 
 def _read_channels(

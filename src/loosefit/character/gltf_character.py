@@ -19,10 +19,9 @@ import numpy as np
 from loosefit.body.gltf import (
     _frame_times,
     _node_parents,
-    _pick,
-    _read_channels,
     _skin_joints,
     _world_transforms,
+    animation_channels,
 )
 from loosefit.body.gltf_file import (
     GltfDocument,
@@ -145,18 +144,7 @@ def read_character(path: str | Path, fps: float, animation: str | int | None = N
             "meshes, none of them skinned",
             hint="export the mesh with its armature (Blender: glTF export > Skinning)",
         )
-    anims = doc_list(doc, "animations")
-    if not anims:
-        raise gltf_error(
-            doc,
-            "animations",
-            "an animation",
-            "none in the file",
-            hint="export with animation on (Blender: glTF export > Animation)",
-        )
-    a = _pick(doc, "animations", animation, 0, "animation")
-    anim = doc_item(doc, "animations", a, f"animations[{a}]")
-    channels = _read_channels(doc, anim, a, len(nodes))
+    a, _, channels = animation_channels(doc, animation, len(nodes))
     driven = {n for n, _ in channels}
     skins = sorted({int(n["skin"]) for _, n in skinned})
     k = max(skins, key=lambda s: (len(driven & set(_skin_joints(doc, s, nodes))), -s))

@@ -139,10 +139,22 @@ def motion_on(motion: Motion, source, target) -> Motion:
     )
 
 
-def sized_garment(template: GarmentTemplate, trained, avatar, config: CarryConfig):
+def carried_at_rest(template: GarmentTemplate, trained, avatar, anchors, config: CarryConfig):
+    """(V, 3) the garment at rest carried from the ``trained`` body onto ``avatar``
+    (:func:`carry_garment` on the rest poses, through the skin points ``anchors``)."""
+    return carry_garment(
+        torch.as_tensor(template.vertices, dtype=torch.float32)[None],
+        trained.rest_vertices[anchors].float().cpu()[None],
+        avatar.rest_vertices[anchors].float().cpu()[None],
+        config,
+    )[0]
+
+
+def sized_garment(template: GarmentTemplate, trained, avatar, config: CarryConfig, carried=None):
     """The trained set's garment on ``avatar``: a parametric skirt or dress made again from
     its recorded pattern for that body (its own waist, hips or chest), any other garment
-    carried at rest from the ``trained`` body (:func:`carry_garment`)."""
+    carried at rest from the ``trained`` body (``carried``, :func:`carried_at_rest`, found
+    here when not given)."""
     from loosefit.garment.dress import DressConfig
     from loosefit.garment.skirt import SkirtConfig
     from loosefit.placement.place import fit_dress, fit_skirt
@@ -152,14 +164,9 @@ def sized_garment(template: GarmentTemplate, trained, avatar, config: CarryConfi
         return fit_dress(avatar, DressConfig(**recorded))
     if isinstance(recorded, dict) and "rings" in recorded:
         return fit_skirt(avatar, SkirtConfig(**recorded))
-    idx = anchor_indices(trained, config.anchors, template.vertices, config.reach)
-    rest = torch.as_tensor(template.vertices, dtype=torch.float32)[None]
-    carried = carry_garment(
-        rest,
-        trained.rest_vertices[idx].float().cpu()[None],
-        avatar.rest_vertices[idx].float().cpu()[None],
-        config,
-    )[0]
+    if carried is None:
+        idx = anchor_indices(trained, config.anchors, template.vertices, config.reach)
+        carried = carried_at_rest(template, trained, avatar, idx, config)
     return GarmentTemplate(
         vertices=carried.numpy(),
         faces=template.faces,
@@ -227,7 +234,8 @@ class OtherBody:
         full = {**trained.shape, **{str(k): _value(k, v) for k, v in shape.items()}}
         avatar = Avatar(AvatarConfig(rig=trained.config.rig, shape=full))
         anchors = anchor_indices(trained, config.anchors, template.vertices, config.reach)
-        garment = sized_garment(template, trained, avatar, config)
+        carried = carried_at_rest(template, trained, avatar, anchors, config)
+        garment = sized_garment(template, trained, avatar, config, carried)
         if garment.num_vertices != template.num_vertices:  # a pattern that meshes per body
             raise LoosefitInputError(
                 "shape",
@@ -235,13 +243,6 @@ class OtherBody:
                 f"{template.num_vertices} vertices (the trained garment's) on that body",
                 garment.num_vertices,
             )
-        rest = torch.as_tensor(template.vertices, dtype=torch.float32)[None]
-        carried = carry_garment(
-            rest,
-            trained.rest_vertices[anchors].float().cpu()[None],
-            avatar.rest_vertices[anchors].float().cpu()[None],
-            config,
-        )[0]
         sizing = torch.as_tensor(garment.vertices, dtype=torch.float32) - carried
         return cls(dict(avatar.shape), avatar, trained, garment, anchors, sizing, config)
 
