@@ -4,7 +4,14 @@ import pytest
 import torch
 
 from loosefit.errors import LoosefitInputError
-from loosefit.model.engine import EngineConfig, EngineTier, fit_basis, project, reconstruct
+from loosefit.model.engine import (
+    EngineConfig,
+    EngineTier,
+    correlate_noise,
+    fit_basis,
+    project,
+    reconstruct,
+)
 
 
 def test_basis_is_the_pca():
@@ -53,3 +60,26 @@ def test_features_outside_the_training_range_are_read_at_its_edge():
     far = torch.tensor([[1e3, -1e3, 0.5, 0, 0, 0, 2], [0.1, 0, 0, -3, 0, 0, 0]])
     torch.testing.assert_close(tier(far, c0, h0), tier(far.clamp(-1, 1), c0, h0))
     assert not torch.allclose(tier(far, c0, h0)[0], tier(far * 0, c0, h0)[0])
+
+
+def test_correlated_noise_is_an_ar1_process_of_unit_variance():
+    white = torch.randn(20000, 8, generator=torch.Generator().manual_seed(0))
+    assert correlate_noise(white, 0.0) is white
+    z = correlate_noise(white, 0.9)
+    assert abs(float(z.var()) - 1.0) < 0.1  # stationary: each z_t standard normal
+    lag1 = float((z[1:] * z[:-1]).mean())
+    assert abs(lag1 - 0.9) < 0.05
+    # a plain loop of the recursion
+    ref = [white[0]]
+    for t in range(1, 50):
+        ref.append(0.9 * ref[-1] + (1 - 0.81) ** 0.5 * white[t])
+    torch.testing.assert_close(z[:50], torch.stack(ref))
+    # carried on across windows: the same process as in one piece
+    first = correlate_noise(white[:30], 0.9)
+    second = correlate_noise(white[30:60], 0.9, previous=first[-1])
+    torch.testing.assert_close(torch.cat([first, second]), z[:60])
+
+
+def test_noise_correlation_is_checked():
+    with pytest.raises(LoosefitInputError, match="noise_correlation"):
+        EngineConfig(noise=4, noise_correlation=1.0)

@@ -524,8 +524,8 @@ def test_evaluate_scores_a_model_against_each_clip_s_members(trained, toy_datase
 
 
 def test_a_stochastic_engine_tier_gives_one_realisation_a_seed(trained, toy_dataset, tmp_path):
-    """`train engine --noise`: trained with the energy score; a seed gives the same garment
-    on every run, another seed another plausible one."""
+    """`train engine --noise`: trained with the energy score, its noise correlated in time;
+    a seed gives the same garment on every run, another seed another plausible one."""
     from loosefit.cli import main
     from loosefit.inference.engine import load_engine, rollout_engine
 
@@ -533,10 +533,11 @@ def test_a_stochastic_engine_tier_gives_one_realisation_a_seed(trained, toy_data
     out = tmp_path / "stochastic"
     args = ["train", "engine", "--data", str(toy_dataset), "--preset", "cpu", "--epochs", "2",
             "--max-frames", "8", "--motion", str(run / "model.pt"), "--basis", "4",
-            "--noise", "2", "--samples", "2", "--out", str(out)]  # fmt: skip
+            "--noise", "2", "--noise-correlation", "0.9", "--samples", "2",
+            "--out", str(out)]  # fmt: skip
     assert main(args) == 0
     tier = load_engine(out / "engine.pt")
-    assert tier.tier.config.noise == 2
+    assert tier.tier.config.noise == 2 and tier.tier.config.noise_correlation == 0.9
     history = torch.load(out / "checkpoint.pt", weights_only=False)["history"]
     assert all(np.isfinite(h["energy"]) and h["energy"] > 0 for h in history)
     motion = load_motion("sway", tier.avatar()).slice(0, 20)

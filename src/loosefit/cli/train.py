@@ -266,6 +266,14 @@ def _add_engine_parser(stages) -> argparse.ArgumentParser:
         "simulation; default 0 (deterministic)",
     )
     p.add_argument(
+        "--noise-correlation",
+        type=float,
+        default=None,
+        metavar="RHO",
+        help="a stochastic tier's noise correlated from frame to frame (an AR(1) process, "
+        "RHO in [0, 1); 0.95 at 30 fps holds a draw for about 20 frames); default 0 (white)",
+    )
+    p.add_argument(
         "--samples",
         type=int,
         default=None,
@@ -485,6 +493,7 @@ def run_engine(args: argparse.Namespace) -> int:
         membrane=args.membrane_weight,
         procedural=args.procedural,
         noise=args.noise,
+        noise_correlation=args.noise_correlation,
         samples=args.samples,
     )
     out = args.out or f"runs/engine-{args.preset}"

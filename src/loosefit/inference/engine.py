@@ -26,7 +26,7 @@ from loosefit.inference.checkpoints import (
 from loosefit.inference.model_common import check_motion_joints
 from loosefit.inference.rollout import timeline
 from loosefit.inference.timeline import RolloutConfig
-from loosefit.model.engine import EngineConfig, EngineTier, GarmentBasis
+from loosefit.model.engine import EngineConfig, EngineTier, GarmentBasis, correlate_noise
 from loosefit.model.motion_features import (
     feature_joints,
     from_root_frame,
@@ -126,11 +126,13 @@ def load_engine(path: str | Path, device="cpu") -> EngineModel:
 @torch.no_grad()
 def engine_noise(tier: EngineTier, frames: int, seed: int) -> torch.Tensor | None:
     """(frames, N) a stochastic tier's noise for one rollout, drawn from ``seed`` on the CPU
-    (the same draws on every machine); None for a deterministic tier."""
+    (the same draws on every machine), correlated in time as the tier was trained
+    (:func:`~loosefit.model.engine.correlate_noise`); None for a deterministic tier."""
     if not tier.config.noise:
         return None
     gen = torch.Generator().manual_seed(int(seed))
-    return torch.randn(frames, tier.config.noise, generator=gen)
+    white = torch.randn(frames, tier.config.noise, generator=gen)
+    return correlate_noise(white, float(tier.config.noise_correlation))
 
 
 @torch.no_grad()

@@ -12,7 +12,7 @@ the training corpus's simulated garments, decoded by one matrix product::
     V_t = mean + c_t @ basis                                 (V, 3), root frame
 
 ``z_t`` (N,) is a stochastic tier's noise, drawn from a seed (none where N = 0, the
-deterministic tier): trained with the energy score against the simulation
+deterministic tier), white or correlated in time (:func:`correlate_noise`): trained with the energy score against the simulation
 (:mod:`loosefit.train.engine`), each seed gives one plausible realisation of the cloth, and
 the same seed the same one on every machine.
 
@@ -49,15 +49,44 @@ class EngineConfig:
     # the joints whose rotations the features hold (motion_features.JOINT_SETS)
     joints: str = "all"
     noise: int = 0  # N, the per-frame noise of a stochastic tier; 0: deterministic
+    # rho of the noise's AR(1) process, z_t = rho z_t-1 + sqrt(1 - rho^2) e_t; 0: white
+    noise_correlation: float = 0.0
 
     def __post_init__(self) -> None:
         joint_set(self.joints)
         if not (isinstance(self.noise, int) and self.noise >= 0):
             raise LoosefitInputError("EngineConfig", "noise", "an integer >= 0", self.noise)
+        rho = self.noise_correlation
+        if not (isinstance(rho, (int, float)) and 0.0 <= rho < 1.0):
+            raise LoosefitInputError("EngineConfig", "noise_correlation", "a number in [0, 1)", rho)
         for name in ("basis", "motion_fc", "gru", "head"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v > 0):
                 raise LoosefitInputError("EngineConfig", name, "a positive integer", v)
+
+
+def correlate_noise(white: torch.Tensor, rho: float, previous: torch.Tensor | None = None):
+    """A stationary AR(1) process of unit variance driven by ``white``.
+
+    Args:
+        white: (T, ...) standard normal draws, time first.
+        rho: the correlation of consecutive steps, in [0, 1); 0 returns ``white``.
+        previous: (...) the process's value before the first step (a window carrying on);
+            None starts it at ``white[0]``.
+
+    Returns:
+        (T, ...) ``z_t = rho z_{t-1} + sqrt(1 - rho^2) e_t``, each z_t standard normal.
+    """
+    if rho == 0.0:
+        return white
+    gain = (1.0 - rho * rho) ** 0.5
+    out = torch.empty_like(white)
+    z = white[0] if previous is None else rho * previous + gain * white[0]
+    out[0] = z
+    for t in range(1, len(white)):
+        z = rho * z + gain * white[t]
+        out[t] = z
+    return out
 
 
 @dataclass

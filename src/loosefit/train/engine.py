@@ -45,7 +45,7 @@ from loosefit.inference.engine import (
     rollout_engine,
 )
 from loosefit.inference.timeline import RolloutConfig
-from loosefit.model.engine import EngineConfig, EngineTier, fit_basis, project
+from loosefit.model.engine import EngineConfig, EngineTier, correlate_noise, fit_basis, project
 from loosefit.model.motion_features import to_root_frame
 from loosefit.model.physics import ClothStructure, hem_radius, membrane_energy
 from loosefit.train.clips import (
@@ -291,8 +291,13 @@ class EngineStage(Stage):
         N = self.model.config.noise
         S = cfg.samples if N else 1  # a stochastic tier's realisations, side by side
         V = self.template.num_vertices
+        rho = float(self.model.config.noise_correlation)
         for t in range(start, stop):
-            z = None if not N else torch.randn(len(previous), N, generator=self.sampling)
+            z = None
+            if N:  # carried across windows (and frames, where the tier's noise is correlated)
+                white = torch.randn(1, len(previous), N, generator=self.sampling)
+                z = correlate_noise(white, rho, None if t == 0 else self.noise_state)[0]
+                self.noise_state = z
             c, hidden = self.model(batch["features"][:, t], previous, hidden, z)
             valid = (t >= P) & (t < L)  # (b,)
             previous = c.detach()
