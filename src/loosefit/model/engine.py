@@ -12,9 +12,9 @@ the training corpus's simulated garments, decoded by one matrix product::
     V_t = mean + c_t @ basis                                 (V, 3), root frame
 
 ``z_t`` (N,) is a stochastic tier's noise, drawn from a seed (none where N = 0, the
-deterministic tier), white or correlated in time (:func:`correlate_noise`): trained with the energy score against the simulation
-(:mod:`loosefit.train.engine`), each seed gives one plausible realisation of the cloth, and
-the same seed the same one on every machine.
+deterministic tier), white or correlated in time (:func:`correlate_noise`): trained with
+the energy score against the simulation (:mod:`loosefit.train.engine`), each seed gives one
+plausible realisation of the cloth, and the same seed the same one on every machine.
 
 ``s`` (K,) are the basis's standard deviations over the corpus (the coefficients enter
 and leave the networks normalised). ``low`` and ``high`` (F,) are the range of each
