@@ -68,8 +68,18 @@ def run_child(threads: str, args) -> dict:
     if args.omp_wait_policy:  # read when OpenMP starts: set for the child, not here
         env["OMP_WAIT_POLICY"] = args.omp_wait_policy
     load = os.getloadavg()[0]
-    command = [sys.executable, __file__, "--child", threads, "--motion", args.motion,
-               "--frames", str(args.frames), "--repeats", str(args.repeats)]  # fmt: skip
+    command = [
+        sys.executable,
+        __file__,
+        "--child",
+        threads,
+        "--motion",
+        args.motion,
+        "--frames",
+        str(args.frames),
+        "--repeats",
+        str(args.repeats),
+    ]
     out = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
     if out.returncode != 0:
         raise SystemExit(f"{' '.join(command)} failed:\n{out.stderr[-3000:]}")

@@ -77,8 +77,9 @@ def main() -> None:
     torch.set_num_threads(1)
     config = preset(args.preset, args.bvh)
     config.unfold = dataclasses.replace(config.unfold, **unfold)
-    arms = {"true": True, "false": False, "upper": "upper",
-            "preset": config.cloth.arm_collision}[args.arms]  # fmt: skip
+    arms = {"true": True, "false": False, "upper": "upper", "preset": config.cloth.arm_collision}[
+        args.arms
+    ]
     jobs = {j.name: j for j in plan_jobs(config)}
     avatar = Avatar(AvatarConfig(shape=dict(config.shape)))
     template = fit_skirt(avatar, config.garment)
@@ -100,24 +101,36 @@ def main() -> None:
         # the whole body as two closed meshes that never overlap themselves, the trunk with
         # legs and head (arms cut) and the arms: one mesh's closest face misjudges cloth
         # where a forearm lies pressed into the hip
-        two = quality(g, template, body, (avatar.collider_faces(arms=False).numpy(),
-                                          avatar.cut_limb_faces(False).numpy()))  # fmt: skip
+        two = quality(
+            g,
+            template,
+            body,
+            (avatar.collider_faces(arms=False).numpy(), avatar.cut_limb_faces(False).numpy()),
+        )
         figures["two_mesh_deepest"] = round(two["inside_depth_max"], 4)
         figures["two_mesh_frames_over_5mm"] = int((two["penetration_fraction"] > 0).sum())
         if args.save:  # a sequence that loosefit render / diagnose / export read
             write_sequence(
                 Path(f"{args.save}_{name}_{start}_{stop}.npz"),
-                AnimatedGarment(dataclasses.replace(motion, name=name), template, g,
-                                {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
-                                "newton-vbd"),
-            )  # fmt: skip
+                AnimatedGarment(
+                    dataclasses.replace(motion, name=name),
+                    template,
+                    g,
+                    {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
+                    "newton-vbd",
+                ),
+            )
         figures["released_frames"] = result.stats.get("released_frames", 0)
         figures["released_vertices"] = result.stats.get("released_vertices", 0)
         figures["seconds"] = round(time.perf_counter() - t0, 1)
         figures.update({k: v for k, v in motion.meta.get("unfold", {}).items() if np.isscalar(v)})
-        print(window, f"arm_collision={args.arms}", " ".join(args.set + args.unfold),
-              json.dumps(figures),
-              flush=True)  # fmt: skip
+        print(
+            window,
+            f"arm_collision={args.arms}",
+            " ".join(args.set + args.unfold),
+            json.dumps(figures),
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -68,8 +68,11 @@ def clock(run, repeats: int, device: str) -> tuple[dict, object]:
         out = run()
         if device.startswith("cuda"):
             torch.cuda.synchronize()
-        t = {"wall": time.perf_counter() - w, "process": time.process_time() - pr,
-             "thread": time.thread_time() - th}  # fmt: skip
+        t = {
+            "wall": time.perf_counter() - w,
+            "process": time.process_time() - pr,
+            "thread": time.thread_time() - th,
+        }
         if best is None or t["wall"] < best["wall"]:
             best = t
     return best, out
@@ -77,8 +80,13 @@ def clock(run, repeats: int, device: str) -> tuple[dict, object]:
 
 def row(what: str, n: int, frames: int, t: dict, stage_seconds: dict | None = None) -> dict:
     """One table row: frames/s (wall) and ms per frame of wall, process and thread time."""
-    r = {"what": what, "N": n, "frames": frames, "frames_per_second": frames / t["wall"],
-         **{f"ms_{k}": 1e3 * v / frames for k, v in t.items()}}  # fmt: skip
+    r = {
+        "what": what,
+        "N": n,
+        "frames": frames,
+        "frames_per_second": frames / t["wall"],
+        **{f"ms_{k}": 1e3 * v / frames for k, v in t.items()},
+    }
     if stage_seconds:
         r["ms_stage"] = {k: 1e3 * v / frames for k, v in stage_seconds.items()}
     return r
@@ -104,8 +112,10 @@ def table(rows: list[dict], stage_column: bool = False) -> list[str]:
     head += " ms/frame per stage (busy) |" if stage_column else ""
     lines = [head, "|---|---:|---:|---:|---:|---:|" + ("---|" if stage_column else "")]
     for r in rows:
-        line = (f"| {r['what']} | {r['N']} | {r['frames_per_second']:,.0f} | {r['ms_wall']:.2f} "
-                f"| {r['ms_process']:.2f} | {r['ms_thread']:.2f} |")  # fmt: skip
+        line = (
+            f"| {r['what']} | {r['N']} | {r['frames_per_second']:,.0f} | {r['ms_wall']:.2f} "
+            f"| {r['ms_process']:.2f} | {r['ms_thread']:.2f} |"
+        )
         if stage_column:
             stages = r.get("ms_stage") or {}
             line += " " + ", ".join(f"{k} {v:.2f}" for k, v in stages.items()) + " |"
@@ -123,11 +133,19 @@ def main() -> int:
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--paper", action="store_true", help="also the paper's resolution")
     ap.add_argument("--out", default=None, help="also write the rows here (JSON)")
-    ap.add_argument("--runtime", choices=RUNTIMES, default="torch",
-                    help="what runs the learned stages (onnx: the packaged model's motion "
-                         "stage rows and the whole pipeline)")  # fmt: skip
-    ap.add_argument("--collision", choices=COLLISION_SETTINGS, default="full",
-                    help="the whole pipeline's collision handling")  # fmt: skip
+    ap.add_argument(
+        "--runtime",
+        choices=RUNTIMES,
+        default="torch",
+        help="what runs the learned stages (onnx: the packaged model's motion "
+        "stage rows and the whole pipeline)",
+    )
+    ap.add_argument(
+        "--collision",
+        choices=COLLISION_SETTINGS,
+        default="full",
+        help="the whole pipeline's collision handling",
+    )
     args = ap.parse_args()
 
     if args.threads:
@@ -138,13 +156,18 @@ def main() -> int:
     avatar = m.avatar()
     sizes = [int(n) for n in args.sizes.split(",")]
     whole = [int(n) for n in args.pipeline_sizes.split(",") if n]
-    dances = [motion_for("dance:4", avatar, model.fps, args.frames, seed=i)
-              for i in range(max(sizes + whole))]  # fmt: skip
+    dances = [
+        motion_for("dance:4", avatar, model.fps, args.frames, seed=i)
+        for i in range(max(sizes + whole))
+    ]
     scales = {"motion stage (2,352 vertices)": (m.generative, m.encoder, m.rest_state)}
     if args.paper:
         g, e, rest = paper_scale(model)
-        scales["motion stage (paper, 9,352 vertices)"] = (g.to(args.device), e.to(args.device),
-                                                          rest.to(args.device))  # fmt: skip
+        scales["motion stage (paper, 9,352 vertices)"] = (
+            g.to(args.device),
+            e.to(args.device),
+            rest.to(args.device),
+        )
     motion_rows = []
     for name, (gen, enc, rest) in scales.items():
 
@@ -158,8 +181,9 @@ def main() -> int:
         for n in sizes:
             t, res = clock(lambda n=n, f=motion_stage: f(n), args.repeats, args.device)
             motion_rows.append(row(name, n, sum(r.frames for r in res), t))
-            print(f"{name}: N={n}: {motion_rows[-1]['frames_per_second']:,.0f} frames/s",
-                  flush=True)  # fmt: skip
+            print(
+                f"{name}: N={n}: {motion_rows[-1]['frames_per_second']:,.0f} frames/s", flush=True
+            )
     pipeline_rows = []
     how = {"runtime": args.runtime, "collision": args.collision}
     m.animate_batch(dances[:1], stages=Stages(), **how)  # warm-up (the collider's first build)
@@ -170,35 +194,57 @@ def main() -> int:
             for k, v in (r.stage_seconds or {}).items():
                 busy[k] = busy.get(k, 0.0) + (v if k != "motion" else 0.0)
         busy["motion"] = res[0].stage_seconds["motion"]  # shared by the batch
-        pipeline_rows.append(row("animate_batch (whole pipeline)", n,
-                                 sum(r.frames for r in res), t, busy))  # fmt: skip
-        print(f"animate_batch: N={n}: {pipeline_rows[-1]['frames_per_second']:,.0f} frames/s",
-              flush=True)  # fmt: skip
+        pipeline_rows.append(
+            row("animate_batch (whole pipeline)", n, sum(r.frames for r in res), t, busy)
+        )
+        print(
+            f"animate_batch: N={n}: {pipeline_rows[-1]['frames_per_second']:,.0f} frames/s",
+            flush=True,
+        )
     one_by_one = whole and min(max(whole), 8)
     if one_by_one:
-        t, res = clock(lambda: [m.animate(d, **how) for d in dances[:one_by_one]], 1,
-                       args.device)  # fmt: skip
-        pipeline_rows.append(row("animate, one character after another", one_by_one,
-                                 sum(r.frames for r in res), t))  # fmt: skip
-    dev = (torch.cuda.get_device_name() if args.device.startswith("cuda")
-           else f"{platform.machine()}, {torch.get_num_threads()} torch threads")  # fmt: skip
+        t, res = clock(lambda: [m.animate(d, **how) for d in dances[:one_by_one]], 1, args.device)
+        pipeline_rows.append(
+            row("animate, one character after another", one_by_one, sum(r.frames for r in res), t)
+        )
+    dev = (
+        torch.cuda.get_device_name()
+        if args.device.startswith("cuda")
+        else f"{platform.machine()}, {torch.get_num_threads()} torch threads"
+    )
     load = ", ".join(f"{a:.1f}" for a in (*load_before, *os.getloadavg()))
-    lines = [f"`bench/batch_inference.py` on {dev}, torch {torch.__version__}; "
-             f"{args.frames} motion frames per character (+ the preroll); runtime "
-             f"{args.runtime}, {args.collision} collision handling; load average "
-             f"(1, 5, 15 min) before and after: {load}", "",
-             *table(motion_rows), ""]  # fmt: skip
+    lines = [
+        f"`bench/batch_inference.py` on {dev}, torch {torch.__version__}; "
+        f"{args.frames} motion frames per character (+ the preroll); runtime "
+        f"{args.runtime}, {args.collision} collision handling; load average "
+        f"(1, 5, 15 min) before and after: {load}",
+        "",
+        *table(motion_rows),
+        "",
+    ]
     for name in scales:
         lines.append(f"- {name}: {crossover([r for r in motion_rows if r['what'] == name])}")
     if pipeline_rows:
         batched = [r for r in pipeline_rows if r["what"].startswith("animate_batch")]
-        lines += ["", *table(pipeline_rows, stage_column=True), "",
-                  f"- whole pipeline: {crossover(batched)}"]  # fmt: skip
+        lines += [
+            "",
+            *table(pipeline_rows, stage_column=True),
+            "",
+            f"- whole pipeline: {crossover(batched)}",
+        ]
     print("\n".join(lines))
     if args.out:
-        Path(args.out).write_text(json.dumps({"device": dev, "frames": args.frames,
-                                              "motion": motion_rows,
-                                              "pipeline": pipeline_rows}, indent=1))  # fmt: skip
+        Path(args.out).write_text(
+            json.dumps(
+                {
+                    "device": dev,
+                    "frames": args.frames,
+                    "motion": motion_rows,
+                    "pipeline": pipeline_rows,
+                },
+                indent=1,
+            )
+        )
     return 0
 
 

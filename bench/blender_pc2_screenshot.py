@@ -35,8 +35,18 @@ def blender_sees(files: list[Path], meshes, fps: float, frames: list[int], png: 
     """The largest distance (mm) per mesh between Blender's world vertices and ``meshes``
     at ``frames``, the files opened in one scene (``png``: the picture's arguments)."""
     out = files[0].with_suffix(".seen.npz")
-    cmd = [sys.executable, str(READER), *map(str, files), "--fps", str(fps), "--out", str(out),
-           "--frames", *map(str, frames), *png]  # fmt: skip
+    cmd = [
+        sys.executable,
+        str(READER),
+        *map(str, files),
+        "--fps",
+        str(fps),
+        "--out",
+        str(out),
+        "--frames",
+        *map(str, frames),
+        *png,
+    ]
     subprocess.run(cmd, check=True, capture_output=True)
     seen = np.load(out)
     return {
@@ -79,8 +89,16 @@ def main() -> int:
             skirt, body = Path(tmp) / "skirt.pc2", Path(tmp) / "body.usdc"
             export_animation(skirt, meshes[:1], seq.fps, config)
             export_animation(body, meshes[1:], seq.fps)
-            png = ["--png", str(Path(args.png).resolve()), "--png-frame", str(drawn),
-                   "--png-on", "garment", "--png-distance", str(args.distance)]  # fmt: skip
+            png = [
+                "--png",
+                str(Path(args.png).resolve()),
+                "--png-frame",
+                str(drawn),
+                "--png-on",
+                "garment",
+                "--png-distance",
+                str(args.distance),
+            ]
             err = blender_sees([skirt, body], meshes, seq.fps, frames, png)
             rows.append(
                 f"| the picture: `skirt.pc2` + `skirt.obj`, the body from `body.usdc` | | | "

@@ -40,15 +40,29 @@ def main() -> None:
         print(f"fitted: {dressed.fit.describe()}")
         inside = max(r["inside_after"] for r in dressed.collisions)
         deepest = max(r["depth_after"] for r in dressed.collisions)
-        print(f"dressed {len(dressed.vertices)} frames in {seconds:.1f} s; against the "
-              f"character's mesh: at most {inside} vertices inside in a frame, deepest "
-              f"{1000 * deepest:.1f} mm")  # fmt: skip
+        print(
+            f"dressed {len(dressed.vertices)} frames in {seconds:.1f} s; against the "
+            f"character's mesh: at most {inside} vertices inside in a frame, deepest "
+            f"{1000 * deepest:.1f} mm"
+        )
         glb = dressed.export(Path(tmp) / "dressed.glb")[0]
         reader = Path(loosefit.export.__file__).with_name("blender_read.py")
         png = Path(args.img) / "character_blender.png"
-        cmd = [sys.executable, str(reader), str(glb), "--fps", "30", "--frames", "0",
-               "--out", str(Path(tmp) / "seen.npz"), "--png", str(png), "--png-frame",
-               str(args.frames // 2)]  # fmt: skip
+        cmd = [
+            sys.executable,
+            str(reader),
+            str(glb),
+            "--fps",
+            "30",
+            "--frames",
+            "0",
+            "--out",
+            str(Path(tmp) / "seen.npz"),
+            "--png",
+            str(png),
+            "--png-frame",
+            str(args.frames // 2),
+        ]
         subprocess.run(cmd, check=True, capture_output=True)
         print(f"wrote {png}")
         fitted = fit_character(model.model, path)

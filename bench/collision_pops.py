@@ -52,23 +52,36 @@ def main() -> None:
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
     p.add_argument("--start-frame", type=int, default=10)
     p.add_argument("--frames", type=int, default=150)
-    p.add_argument("--variants", nargs="*", default=["default", "not sticky:sticky=false"],
-                   help="CollisionConfig settings, name:field=value,...")  # fmt: skip
+    p.add_argument(
+        "--variants",
+        nargs="*",
+        default=["default", "not sticky:sticky=false"],
+        help="CollisionConfig settings, name:field=value,...",
+    )
     args = p.parse_args()
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
-    print(f"{time.strftime('%Y-%m-%d')}, {platform.machine()}, torch {torch.__version__}, one "
-          f"thread; {args.frames} frames of each motion from frame {args.start_frame}")  # fmt: skip
+    print(
+        f"{time.strftime('%Y-%m-%d')}, {platform.machine()}, torch {torch.__version__}, one "
+        f"thread; {args.frames} frames of each motion from frame {args.start_frame}"
+    )
     edges, _ = unique_edges(np.asarray(model.template.faces))
     rest = np.asarray(model.template.rest)
     rest_lengths = np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)  # (E,)
-    print("| motion | collision handling | CPU ms/frame | vertex-frames +1 cm | +2 cm | largest "
-          "| 99.9th pct | vertex-frames inside after | longest edge / rest | frames with an "
-          "edge > 2x |")  # fmt: skip
+    print(
+        "| motion | collision handling | CPU ms/frame | vertex-frames +1 cm | +2 cm | largest "
+        "| 99.9th pct | vertex-frames inside after | longest edge / rest | frames with an "
+        "edge > 2x |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for spec in args.motions:
-        motion = load_motion(spec, model.avatar(), fps=model.fps, start_frame=args.start_frame,
-                             max_frames=args.frames)  # fmt: skip
+        motion = load_motion(
+            spec,
+            model.avatar(),
+            fps=model.fps,
+            start_frame=args.start_frame,
+            max_frames=args.frames,
+        )
         free = Stages(overlap=False, collision=False)
         before = accelerations(np.asarray(model.animate(motion, stages=free).vertices))
         for variant in args.variants:
@@ -81,10 +94,12 @@ def main() -> None:
             inside = sum(c["inside_after"] for c in r.collisions)
             ms = 1e3 * r.stage_cpu_seconds["collision"] / motion.num_frames
             pct = 1e3 * np.quantile(extra, 0.999)
-            print(f"| {motion.name} | {name} | {ms:.1f} | {(extra > 0.01).sum()} "
-                  f"| {(extra > 0.02).sum()} | {100 * extra.max():.1f} cm | {pct:.1f} mm "
-                  f"| {inside} | {stretch.max():.2f} | {(stretch.max(1) > 2).sum()} |",
-                  flush=True)  # fmt: skip
+            print(
+                f"| {motion.name} | {name} | {ms:.1f} | {(extra > 0.01).sum()} "
+                f"| {(extra > 0.02).sum()} | {100 * extra.max():.1f} cm | {pct:.1f} mm "
+                f"| {inside} | {stretch.max():.2f} | {(stretch.max(1) > 2).sum()} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -32,18 +32,28 @@ def main() -> None:
     p.add_argument("--motion", default="../shared/mocap/cmu-salsa/60_01.bvh")
     p.add_argument("--start-frame", type=int, default=10)
     p.add_argument("--frames", type=int, default=150)
-    p.add_argument("--before-37", action="store_true",
-                   help="collision handling without its fast path")  # fmt: skip
-    p.add_argument("--collision", choices=COLLISION_SETTINGS, default="full",
-                   help="collision handling's setting (realtime: one round of each)")  # fmt: skip
+    p.add_argument(
+        "--before-37", action="store_true", help="collision handling without its fast path"
+    )
+    p.add_argument(
+        "--collision",
+        choices=COLLISION_SETTINGS,
+        default="full",
+        help="collision handling's setting (realtime: one round of each)",
+    )
     args = p.parse_args()
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
     if args.before_37:
         model.collision = dataclasses.replace(model.collision, fast=False)
     model.collision = collision_setting(model.collision, args.collision)
-    motion = load_motion(args.motion, model.avatar(), fps=model.fps,
-                         start_frame=args.start_frame, max_frames=args.frames)  # fmt: skip
+    motion = load_motion(
+        args.motion,
+        model.avatar(),
+        fps=model.fps,
+        start_frame=args.start_frame,
+        max_frames=args.frames,
+    )
     stages = Stages(overlap=False)
     model.animate(motion.slice(0, min(20, motion.num_frames)), stages=stages)  # warm-up
 
@@ -79,16 +89,22 @@ def main() -> None:
     n = motion.num_frames
     stage_ms = {k: round(1e3 * v / n, 1) for k, v in (result.stage_seconds or {}).items()}
     cpu_ms = {k: round(1e3 * v / n, 1) for k, v in (result.stage_cpu_seconds or {}).items()}
-    print(f"{motion.name}, {n} frames, one thread, fast path {model.collision.fast}, "
-          f"{args.collision} collision handling; ms per "
-          f"frame of each stage: {stage_ms}, CPU: {cpu_ms}")  # fmt: skip
+    print(
+        f"{motion.name}, {n} frames, one thread, fast path {model.collision.fast}, "
+        f"{args.collision} collision handling; ms per "
+        f"frame of each stage: {stage_ms}, CPU: {cpu_ms}"
+    )
     print(f"body BVH refit: {1e3 * refits[0] / n:.1f} ms per frame (CPU {1e3 * refits[1] / n:.1f})")
-    print("| asked by | inside test | queries per frame | points per query | ms per frame "
-          "| CPU ms per frame |")  # fmt: skip
+    print(
+        "| asked by | inside test | queries per frame | points per query | ms per frame "
+        "| CPU ms per frame |"
+    )
     print("|---|---|---:|---:|---:|---:|")
     for (asker, sign), (calls, points, seconds, cpu) in sorted(queries.items(), key=_cpu):
-        print(f"| {asker} | {sign} | {calls / n:.2f} | {points / max(calls, 1):.0f} "
-              f"| {1e3 * seconds / n:.1f} | {1e3 * cpu / n:.1f} |")  # fmt: skip
+        print(
+            f"| {asker} | {sign} | {calls / n:.2f} | {points / max(calls, 1):.0f} "
+            f"| {1e3 * seconds / n:.1f} | {1e3 * cpu / n:.1f} |"
+        )
 
 
 def _cpu(kv) -> float:

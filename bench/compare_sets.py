@@ -56,8 +56,7 @@ def validation_clips(reader: DatasetReader) -> list[str]:
         if name in split or not reader.sequence_path(name).is_file():
             continue
         if strain > EXPLODED_STRAIN_P99:
-            print(f"[compare_sets] {name}: left out (its simulation tore: strain p99 "
-                  f"{strain:.1f})")  # fmt: skip
+            print(f"[compare_sets] {name}: left out (its simulation tore: strain p99 {strain:.1f})")
             continue
         out.append(name)
     return out
@@ -86,9 +85,14 @@ def clip_figures(models: dict, seq, cache: Path, clip: str) -> dict[str, dict]:
         arms = str(model.arm_collision)
         if arms not in references:
             measure, turn, _ = clip_reference(model, seq)
-            truth = _cached(cache / "simulation" / f"{clip}-arms-{arms}.json", lambda: {
-                k: v for k, v in measure(np.asarray(seq.garment_vertices)).items()
-                if k != "flare_turn"})  # fmt: skip
+            truth = _cached(
+                cache / "simulation" / f"{clip}-arms-{arms}.json",
+                lambda: {
+                    k: v
+                    for k, v in measure(np.asarray(seq.garment_vertices)).items()
+                    if k != "flare_turn"
+                },
+            )
             references[arms] = {"measure": measure, "turn": turn, "truth": truth}
         return references[arms]
 
@@ -98,11 +102,18 @@ def clip_figures(models: dict, seq, cache: Path, clip: str) -> dict[str, dict]:
         seconds = time.perf_counter() - t0
         ref = reference(model)
         row = {k: v for k, v in ref["measure"](x).items() if k != "flare_turn"}
-        return {"frames": seq.motion.num_frames, "seconds": seconds, "turn": ref["turn"],
-                "row": row, "simulation": ref["truth"]}  # fmt: skip
+        return {
+            "frames": seq.motion.num_frames,
+            "seconds": seconds,
+            "turn": ref["turn"],
+            "row": row,
+            "simulation": ref["truth"],
+        }
 
-    return {name: _cached(cache / name / f"{clip}.json", lambda m=model: one(m))
-            for name, model in models.items()}  # fmt: skip
+    return {
+        name: _cached(cache / name / f"{clip}.json", lambda m=model: one(m))
+        for name, model in models.items()
+    }
 
 
 def pooled(figures: list[dict]) -> dict:
@@ -122,8 +133,10 @@ def pooled(figures: list[dict]) -> dict:
 
 
 def table(groups: dict, sets: list[str]) -> list[str]:
-    lines = ["| set | clips | " + " | ".join(h for _, h, *_ in COLUMNS) + " |",
-             "|---|---|" + "---:|" * len(COLUMNS)]  # fmt: skip
+    lines = [
+        "| set | clips | " + " | ".join(h for _, h, *_ in COLUMNS) + " |",
+        "|---|---|" + "---:|" * len(COLUMNS),
+    ]
     for group, per_set in groups.items():
         for name in sets:
             p = pooled(per_set[name])
@@ -139,8 +152,12 @@ def main() -> None:
     p.add_argument("--cache", default="runs/dance/compare_sets")
     p.add_argument("--out", default="docs/DANCE_SETS.md")
     p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--max-frames", type=int, default=None, help="each clip's first frames only "
-                   "(a quick look; the choice is made on whole clips)")  # fmt: skip
+    p.add_argument(
+        "--max-frames",
+        type=int,
+        default=None,
+        help="each clip's first frames only (a quick look; the choice is made on whole clips)",
+    )
     args = p.parse_args()
     torch.set_num_threads(args.threads)
     reader = DatasetReader(args.data)
@@ -154,14 +171,18 @@ def main() -> None:
             seq = reader.read(clip)
             if args.max_frames:
                 n = args.max_frames
-                seq = replace(seq, motion=seq.motion.slice(0, n),
-                              garment_vertices=seq.garment_vertices[:n])  # fmt: skip
+                seq = replace(
+                    seq, motion=seq.motion.slice(0, n), garment_vertices=seq.garment_vertices[:n]
+                )
             for name, f in clip_figures(models, seq, Path(args.cache), clip).items():
                 figures[group][name].append(f)
                 per_clip.setdefault(clip, {})[name] = f
-                print(f"{name} {group} {clip}: RMSE {f['row']['rmse_cm']:.2f} cm, edge change "
-                      f"{100 * f['row']['edge_change_p50']:+.1f} %, flare error "
-                      f"{100 * f['row']['flare_turn_error']:.1f} %", flush=True)  # fmt: skip
+                print(
+                    f"{name} {group} {clip}: RMSE {f['row']['rmse_cm']:.2f} cm, edge change "
+                    f"{100 * f['row']['edge_change_p50']:+.1f} %, flare error "
+                    f"{100 * f['row']['flare_turn_error']:.1f} %",
+                    flush=True,
+                )
     val = {n: pooled(figures["validation"][n])["rmse_cm"] for n in sets}
     winner = min(val, key=val.get)
     lines = [
@@ -195,9 +216,18 @@ def main() -> None:
         lines.append(f"| {clip} | {frames} | {cells} |")
     out = Path(args.out)
     out.write_text("\n".join(lines) + "\n")
-    out.with_suffix(".json").write_text(json.dumps(
-        {"sets": sets, "groups": groups, "winner": winner, "validation_rmse_cm": val,
-         "per_clip": per_clip}, indent=1))  # fmt: skip
+    out.with_suffix(".json").write_text(
+        json.dumps(
+            {
+                "sets": sets,
+                "groups": groups,
+                "winner": winner,
+                "validation_rmse_cm": val,
+                "per_clip": per_clip,
+            },
+            indent=1,
+        )
+    )
     print(f"chosen: {winner}; wrote {out}")
 
 

@@ -258,17 +258,27 @@ def machine_line(threads: int) -> str:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", default="datasets/dance")
-    p.add_argument("--seeds", default="datasets/dance-seeds",
-                   help="a folder of data sets of the held-out clips, one per seed")  # fmt: skip
+    p.add_argument(
+        "--seeds",
+        default="datasets/dance-seeds",
+        help="a folder of data sets of the held-out clips, one per seed",
+    )
     p.add_argument("--checkpoint", default="checkpoints/dance/motion.pt")
     p.add_argument("--ks", default=",".join(map(str, KS)))
     p.add_argument("--stride", type=int, default=1, help="every this many training frames")
-    p.add_argument("--no-mirror", dest="mirror", action="store_false",
-                   help="the training clips as they are, not also mirrored")  # fmt: skip
+    p.add_argument(
+        "--no-mirror",
+        dest="mirror",
+        action="store_false",
+        help="the training clips as they are, not also mirrored",
+    )
     p.add_argument("--train-error", action="store_true", help="also the training clips' error")
-    p.add_argument("--check-exact", action="store_true",
-                   help="also the root-frame basis by an exact eigendecomposition, to bound "
-                   "the randomized SVD's shortfall on the held-out clips")  # fmt: skip
+    p.add_argument(
+        "--check-exact",
+        action="store_true",
+        help="also the root-frame basis by an exact eigendecomposition, to bound "
+        "the randomized SVD's shortfall on the held-out clips",
+    )
     p.add_argument("--out", default="docs/DECODER_FLOOR.md")
     p.add_argument("--machine", default=None, help="the machine line in the doc")
     p.add_argument("--date", default=time.strftime("%Y-%m-%d"))

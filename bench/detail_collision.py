@@ -145,9 +145,12 @@ def table2(args, model, collider) -> dict:
     from loosefit.data.format import DatasetReader
 
     reader = DatasetReader(args.data)
-    variants = {"no module": None, "module w/o D_ms": args.detail_nodisc,
-                "full module": args.detail,
-                "full module + edge-length term": args.detail_edge}  # fmt: skip
+    variants = {
+        "no module": None,
+        "module w/o D_ms": args.detail_nodisc,
+        "full module": args.detail,
+        "full module + edge-length term": args.detail_edge,
+    }
     clips: dict[str, dict] = {}
     avatar = model.avatar()
     for name in reader.split("test"):
@@ -173,12 +176,15 @@ def table2(args, model, collider) -> dict:
                     **score(model, seq.motion, v, body, collider),
                 }
                 if result.collisions:
-                    row["laplacian_change_mm"] = 1e3 * float(np.mean(
-                        [x["laplacian_change"] for x in result.collisions]))  # fmt: skip
+                    row["laplacian_change_mm"] = 1e3 * float(
+                        np.mean([x["laplacian_change"] for x in result.collisions])
+                    )
                 rows[f"{label}{' + collision' if collision else ''}"] = row
                 print(name, label, collision, json.dumps(row))
-        rows["simulation"] = {"frames": int(len(truth)),
-                              **score(model, seq.motion, truth, body, collider)}  # fmt: skip
+        rows["simulation"] = {
+            "frames": int(len(truth)),
+            **score(model, seq.motion, truth, body, collider),
+        }
     clips["all"] = pooled(clips)
     return clips
 
@@ -206,13 +212,20 @@ def pooled(clips: dict[str, dict]) -> dict:
 
 
 def markdown(results: dict) -> str:
-    lines = ["# Detail enhancement and collision handling on held-out motion", "",
-             f"Machine: {results['machine']} (`bench/detail_collision.py`).", ""]  # fmt: skip
+    lines = [
+        "# Detail enhancement and collision handling on held-out motion",
+        "",
+        f"Machine: {results['machine']} (`bench/detail_collision.py`).",
+        "",
+    ]
     if results["part_a"]:
-        lines += ["## Without ground truth: the committed pair, collision handling on and off", "",
-                  "| motion | stages | inside mean % | inside p99 % | inside max % | strain p50 | "
-                  "strain p99 | Laplacian change (mm) | ms/frame (motion / detail / collision) |",
-                  "|---|---|---:|---:|---:|---:|---:|---:|---|"]  # fmt: skip
+        lines += [
+            "## Without ground truth: the committed pair, collision handling on and off",
+            "",
+            "| motion | stages | inside mean % | inside p99 % | inside max % | strain p50 | "
+            "strain p99 | Laplacian change (mm) | ms/frame (motion / detail / collision) |",
+            "|---|---|---:|---:|---:|---:|---:|---:|---|",
+        ]
         for name, rows in results["part_a"].items():
             for label, r in rows.items():
                 ms = r["ms_per_frame"]
@@ -225,21 +238,30 @@ def markdown(results: dict) -> str:
                 )
     if "part_b" in results:
         for clip, rows in results["part_b"].items():
-            title = ("all held-out clips (frame-weighted mean; inside max: the worst clip)"
-                     if clip == "all" else clip)  # fmt: skip
-            lines += ["", f"## Table 2: against the simulation, {title}", "",
-                      "| row | RMSE (cm) | Hausdorff (cm) | STED | inside mean % | inside p99 % | "
-                      "strain p50 | strain p99 | Laplacian change (mm) |",
-                      "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+            title = (
+                "all held-out clips (frame-weighted mean; inside max: the worst clip)"
+                if clip == "all"
+                else clip
+            )
+            lines += [
+                "",
+                f"## Table 2: against the simulation, {title}",
+                "",
+                "| row | RMSE (cm) | Hausdorff (cm) | STED | inside mean % | inside p99 % | "
+                "strain p50 | strain p99 | Laplacian change (mm) |",
+                "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+            ]
             for label in sorted(rows, key=lambda k: k == "simulation"):  # the simulation last
                 r = rows[label]
-                cells = [f"{r[k]:.3f}" if k in r else "-"
-                         for k in ("rmse_cm", "hausdorff_cm", "sted")]  # fmt: skip
-                lines.append(f"| {label} | " + " | ".join(cells) + f" | "
-                             f"{r['inside_mean_pct']:.4f} | {r['inside_p99_pct']:.2f} | "
-                             f"{r['strain_p50']:.3f} | {r['strain_p99']:.3f} | "
-                             + (f"{r['laplacian_change_mm']:.2f} |" if "laplacian_change_mm" in r
-                                else "- |"))  # fmt: skip
+                cells = [
+                    f"{r[k]:.3f}" if k in r else "-" for k in ("rmse_cm", "hausdorff_cm", "sted")
+                ]
+                lines.append(
+                    f"| {label} | " + " | ".join(cells) + f" | "
+                    f"{r['inside_mean_pct']:.4f} | {r['inside_p99_pct']:.2f} | "
+                    f"{r['strain_p50']:.3f} | {r['strain_p99']:.3f} | "
+                    + (f"{r['laplacian_change_mm']:.2f} |" if "laplacian_change_mm" in r else "- |")
+                )
     return "\n".join(lines) + "\n"
 
 

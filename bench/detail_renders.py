@@ -65,12 +65,15 @@ def main() -> None:
         "after (detail + collision)": after[picks],
     }
     if args.close:
-        views = (CameraView("front", 0.0, 8.0, distance=1.1), CameraView("side", 90.0, 8.0,
-                 distance=1.1))  # fmt: skip
+        views = (
+            CameraView("front", 0.0, 8.0, distance=1.1),
+            CameraView("side", 90.0, 8.0, distance=1.1),
+        )
     else:
         views = ("front", "side")
-    config = RenderConfig(width=args.size, height=args.size, views=views, follow=True,
-                          frame_counter=False)  # fmt: skip
+    config = RenderConfig(
+        width=args.size, height=args.size, views=views, follow=True, frame_counter=False
+    )
     sheet = comparison_sheet(columns, picks, body, body_faces, model.template.faces, config)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

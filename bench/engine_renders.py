@@ -54,10 +54,16 @@ def main() -> None:
     step = EngineStep(engine, capsules, skeleton).eval()
     columns["engine tier"] = rollout_engine(engine, motion, collide=step)[picks]
     body = avatar.pose_motion(motion).vertices.cpu().numpy()[picks]
-    config = RenderConfig(width=args.size, height=args.size, views=tuple(args.views.split(",")),
-                          follow=True, frame_counter=False)  # fmt: skip
-    sheet = comparison_sheet(columns, picks, body, avatar.faces.cpu().numpy(),
-                             model.template.faces, config)  # fmt: skip
+    config = RenderConfig(
+        width=args.size,
+        height=args.size,
+        views=tuple(args.views.split(",")),
+        follow=True,
+        frame_counter=False,
+    )
+    sheet = comparison_sheet(
+        columns, picks, body, avatar.faces.cpu().numpy(), model.template.faces, config
+    )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(sheet).save(out, quality=args.quality, optimize=True)

@@ -46,8 +46,13 @@ from loosefit.inference.engine_export import EngineExportConfig, EngineStep, exp
 from loosefit.inference.engine_runtime import EngineRuntime, rollout_engine_onnx
 from loosefit.inference.timeline import rollout_timeline
 
-MEASURES = ("rmse_cm", "flare_turn_error", "flare_turn_ratio", "edge_change_p50",
-            "inside_whole_mean")  # fmt: skip
+MEASURES = (
+    "rmse_cm",
+    "flare_turn_error",
+    "flare_turn_ratio",
+    "edge_change_p50",
+    "inside_whole_mean",
+)
 
 
 def time_full(model, motion, n: int, runtime: str, collision: str) -> float:
@@ -84,8 +89,11 @@ def main() -> None:
     p.add_argument("--engine", default=None, help="engine.pt (default: beside --checkpoint)")
     p.add_argument("--batch", default="1,16,256")
     p.add_argument("--frames", type=int, default=60, help="frames of the speed motion")
-    p.add_argument("--full-frames", default="60,10,3",
-                   help="motion frames the full pipeline is timed on, per --batch")  # fmt: skip
+    p.add_argument(
+        "--full-frames",
+        default="60,10,3",
+        help="motion frames the full pipeline is timed on, per --batch",
+    )
     p.add_argument("--sim-frames", type=int, default=3)
     p.add_argument("--out", default="docs/ENGINE_TIER.md")
     p.add_argument("--machine", default=platform.node(), help="the machine's name in the doc")
@@ -98,11 +106,18 @@ def main() -> None:
     tmp = Path(tempfile.mkdtemp())
     export_engine(engine, tmp / "engine.onnx", EngineExportConfig(check_frames=0))
     export_engine(engine, tmp / "free.onnx", EngineExportConfig(capsules=False, check_frames=0))
-    graphs = {"engine tier": EngineRuntime(tmp / "engine.onnx"),
-              "engine tier, no push-out": EngineRuntime(tmp / "free.onnx")}  # fmt: skip
-    result = {"machine": f"{args.machine}, {os.cpu_count()} CPUs, torch {torch.__version__}",
-              "date": time.strftime("%Y-%m-%d"), "checkpoint": str(checkpoint),
-              "engine": str(engine.path), "speed": {}, "quality": {}}  # fmt: skip
+    graphs = {
+        "engine tier": EngineRuntime(tmp / "engine.onnx"),
+        "engine tier, no push-out": EngineRuntime(tmp / "free.onnx"),
+    }
+    result = {
+        "machine": f"{args.machine}, {os.cpu_count()} CPUs, torch {torch.__version__}",
+        "date": time.strftime("%Y-%m-%d"),
+        "checkpoint": str(checkpoint),
+        "engine": str(engine.path),
+        "speed": {},
+        "quality": {},
+    }
 
     # 1. speed, one thread
     motion = load_motion("dance:12", model.avatar(), max_frames=args.frames)
@@ -111,14 +126,21 @@ def main() -> None:
     model.animate(motion.slice(0, 10), runtime="onnx")  # the onnx graphs exported, untimed
     for n, frames in zip(batches, full_frames, strict=True):
         m = motion.slice(0, frames)
-        row = {"full pipeline": time_full(model, m, n, "torch", "full"),
-               "onnx, realtime collision": time_full(model, m, n, "onnx", "realtime")}  # fmt: skip
+        row = {
+            "full pipeline": time_full(model, m, n, "torch", "full"),
+            "onnx, realtime collision": time_full(model, m, n, "onnx", "realtime"),
+        }
         for label, rt in graphs.items():
             row[label] = time_engine(rt, motion, n, engine.floor_height)
         result["speed"][n] = row
         print(n, {k: round(v, 4) for k, v in row.items()}, flush=True)
-    sim = time_simulation(model, model.avatar(), motion.slice(0, args.sim_frames), "cpu",
-                          model_cloth(model, args.data))  # fmt: skip
+    sim = time_simulation(
+        model,
+        model.avatar(),
+        motion.slice(0, args.sim_frames),
+        "cpu",
+        model_cloth(model, args.data),
+    )
     result["simulation_ms_per_frame"] = 1e3 * sim["cpu_seconds_per_frame"]
     print("simulation", result["simulation_ms_per_frame"], flush=True)
 
@@ -130,21 +152,25 @@ def main() -> None:
         rows = {
             "simulation": np.asarray(seq.garment_vertices, np.float32),
             "full pipeline": model.animate(seq.motion).vertices,
-            "onnx, realtime collision": model.animate(seq.motion, runtime="onnx",
-                                                      collision="realtime").vertices,
+            "onnx, realtime collision": model.animate(
+                seq.motion, runtime="onnx", collision="realtime"
+            ).vertices,
             "engine tier": rollout_engine_onnx(graphs["engine tier"], seq.motion),
-            "engine tier, no push-out": rollout_engine_onnx(graphs["engine tier, no push-out"],
-                                                            seq.motion),
-        }  # fmt: skip
+            "engine tier, no push-out": rollout_engine_onnx(
+                graphs["engine tier, no push-out"], seq.motion
+            ),
+        }
         torch_engine = rollout_engine(engine, seq.motion, collide=step)
-        clip = {"frames": seq.motion.num_frames, "turn": turn,
-                "engine_onnx_vs_torch_m": float(np.abs(rows["engine tier"] - torch_engine).max()),
-                "rows": {}}  # fmt: skip
+        clip = {
+            "frames": seq.motion.num_frames,
+            "turn": turn,
+            "engine_onnx_vs_torch_m": float(np.abs(rows["engine tier"] - torch_engine).max()),
+            "rows": {},
+        }
         for label, x in rows.items():
             figures = measure(x)
             clip["rows"][label] = {k: figures[k] for k in MEASURES}
-            print(name, label, {k: round(v, 4) for k, v in clip["rows"][label].items()},
-                  flush=True)  # fmt: skip
+            print(name, label, {k: round(v, 4) for k, v in clip["rows"][label].items()}, flush=True)
         result["quality"][name] = clip
     out = Path(args.out)
     out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
@@ -177,11 +203,17 @@ def markdown(r: dict) -> str:
         cells = [f"{row[label]:.4f}" for row in r["speed"].values()]
         first = next(iter(r["speed"].values()))[label]
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {sim / first:,.0f} |")
-    lines += ["", "Quality against the simulation (flare error: the mean of |flare / "
-              "flare_sim - 1| over the 61 frames around the fastest turn; edge change: the "
-              "median signed change of the edge lengths against rest):", ""]  # fmt: skip
-    head = ("| clip | runtime | RMSE cm | flare error at turn | flare ratio at turn | "
-            "edge change p50 | inside body |")  # fmt: skip
+    lines += [
+        "",
+        "Quality against the simulation (flare error: the mean of |flare / "
+        "flare_sim - 1| over the 61 frames around the fastest turn; edge change: the "
+        "median signed change of the edge lengths against rest):",
+        "",
+    ]
+    head = (
+        "| clip | runtime | RMSE cm | flare error at turn | flare ratio at turn | "
+        "edge change p50 | inside body |"
+    )
     lines += [head, "|---|---|---:|---:|---:|---:|---:|"]
     for name, clip in r["quality"].items():
         for label, q in clip["rows"].items():
@@ -193,8 +225,10 @@ def markdown(r: dict) -> str:
     lines += [""]
     for name, clip in r["quality"].items():
         worst = clip["engine_onnx_vs_torch_m"]
-        lines.append(f"- {name}: the engine tier's graph against its PyTorch model, "
-                     f"{clip['frames']} frames: at most {worst:.2g} m.")  # fmt: skip
+        lines.append(
+            f"- {name}: the engine tier's graph against its PyTorch model, "
+            f"{clip['frames']} frames: at most {worst:.2g} m."
+        )
     return "\n".join(lines) + "\n"
 
 

@@ -49,10 +49,14 @@ def main() -> None:
             for label, collide in (("no", None), ("yes", step)):
                 x = rollout_engine(model, seq.motion, collide=collide)
                 error = np.mean(np.abs(flare(x, pelvis, hem)[w] / truth_flare - 1))
-                change = signed_edge_change(torch.from_numpy(x), structure.edges,
-                                            structure.rest_lengths).numpy()  # fmt: skip
-                print(f"| {path} | {name} | {label} | {100 * rmse(x, truth):.2f} | "
-                      f"{error:.1%} | {np.median(change):+.2%} |", flush=True)  # fmt: skip
+                change = signed_edge_change(
+                    torch.from_numpy(x), structure.edges, structure.rest_lengths
+                ).numpy()
+                print(
+                    f"| {path} | {name} | {label} | {100 * rmse(x, truth):.2f} | "
+                    f"{error:.1%} | {np.median(change):+.2%} |",
+                    flush=True,
+                )
 
 
 if __name__ == "__main__":

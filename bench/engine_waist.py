@@ -93,9 +93,12 @@ def main() -> None:
     p.add_argument("--before", default=None, help="another engine.pt, pushed out as before")
     p.add_argument("--demo", default=DEMO, help="MOVE@SEED, comma-separated")
     p.add_argument("--clips", default=HELD_OUT)
-    p.add_argument("--cache", default=None,
-                   help="a folder for the full pipeline's garments (.npy per motion), reused "
-                   "when there: to measure another tier against the same")  # fmt: skip
+    p.add_argument(
+        "--cache",
+        default=None,
+        help="a folder for the full pipeline's garments (.npy per motion), reused "
+        "when there: to measure another tier against the same",
+    )
     p.add_argument("--out", default="docs/ENGINE_WAIST.md")
     p.add_argument("--machine", default=platform.node(), help="the machine's name in the doc")
     p.add_argument("--date", default=time.strftime("%Y-%m-%d"))
@@ -113,14 +116,21 @@ def main() -> None:
         steps["before"] = EngineStep(tiers["before"], capsules, skeleton, waist_blend=0).eval()
     waist = model.template.waist
     reader = DatasetReader(args.data)
-    result = {"machine": f"{args.machine}, {os.cpu_count()} CPUs, torch {torch.__version__}",
-              "date": args.date, "checkpoint": str(checkpoint),
-              "engines": {k: str(e.path) for k, e in tiers.items()}, "motions": {}}  # fmt: skip
+    result = {
+        "machine": f"{args.machine}, {os.cpu_count()} CPUs, torch {torch.__version__}",
+        "date": args.date,
+        "checkpoint": str(checkpoint),
+        "engines": {k: str(e.path) for k, e in tiers.items()},
+        "motions": {},
+    }
     for name, kind, motion in motions(args, avatar, reader, tiers["engine tier"].fps):
         full = full_garments(model, motion, name, args.cache)
         rf = waist_radius(full, waist)
-        row = {"kind": kind, "frames": len(full),
-               "full_waist_cm": [float(100 * rf.min()), float(100 * rf.max())]}  # fmt: skip
+        row = {
+            "kind": kind,
+            "frames": len(full),
+            "full_waist_cm": [float(100 * rf.min()), float(100 * rf.max())],
+        }
         for label, engine in tiers.items():
             row[label] = engine_figures(engine, steps[label], motion, full, waist)
         result["motions"][name] = row
@@ -173,9 +183,11 @@ def markdown(r: dict, labels: list[str]) -> str:
         cells = f"| {name} | {row['frames']} | {lo:.1f}-{hi:.1f} |"
         for label in labels:
             e = row[label]
-            cells += (f" {e['waist_cm'][0]:.1f}-{e['waist_cm'][1]:.1f} | "
-                      f"{e['waist_gap_cm']:.2f} | {e['rest_gap_cm']:.2f} | "
-                      f"{e['rmse_cm']:.2f} |")  # fmt: skip
+            cells += (
+                f" {e['waist_cm'][0]:.1f}-{e['waist_cm'][1]:.1f} | "
+                f"{e['waist_gap_cm']:.2f} | {e['rest_gap_cm']:.2f} | "
+                f"{e['rmse_cm']:.2f} |"
+            )
         lines.append(cells)
     lines.append("")
     for label, t in r["targets"].items():

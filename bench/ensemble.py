@@ -67,7 +67,8 @@ def rollouts(args, ens, motion, cache: Path) -> dict:
     for key, (_, kind, stages) in [*METHODS.items(), ("oracle", ("", "ours", None)), *engines]:
         path = cache / f"{key}.npz"
         ckpt = {"ours": args.checkpoint, "engine": stages}.get(
-            kind, Path(args.baselines, kind, "model.pt"))  # fmt: skip
+            kind, Path(args.baselines, kind, "model.pt")
+        )
         if not Path(ckpt).is_file():
             continue  # a baseline not trained
         if not path.is_file():
@@ -80,8 +81,9 @@ def rollouts(args, ens, motion, cache: Path) -> dict:
             t0 = time.perf_counter()
             if kind == "engine":  # a stochastic tier: args.samples realisations (seeds)
                 seeds = range(args.samples if models[key].tier.config.noise else 1)
-                result = Rollout(np.stack([rollout_engine(models[key], motion, seed=k)
-                                           for k in seeds]))  # fmt: skip
+                result = Rollout(
+                    np.stack([rollout_engine(models[key], motion, seed=k) for k in seeds])
+                )
             elif key == "oracle":
                 truth = ens.members[0].read().garment_vertices[: ens.frames]
                 result = models[kind].reconstruct(motion, truth)
@@ -179,8 +181,9 @@ def validation_choice(args, cache: Path) -> dict:
                     where = next(e for e in args.engines if engine_key(e) == key)
                     models.setdefault(key, load_engine(where))
                     S = args.samples if models[key].tier.config.noise else 1
-                    x = np.stack([rollout_engine(models[key], seq.motion, seed=k)
-                                  for k in range(S)])  # fmt: skip
+                    x = np.stack(
+                        [rollout_engine(models[key], seq.motion, seed=k) for k in range(S)]
+                    )
                 tmp = path.with_name(path.stem + ".partial.npz")
                 np.savez(tmp, vertices=x.astype(np.float32))
                 tmp.replace(path)
@@ -201,17 +204,24 @@ def validation_section(choice: dict) -> list[str]:
         return []
     best = min(choice, key=lambda k: choice[k]["energy_score_cm"])
     clips = list(next(iter(choice.values()))["clips"])
-    lines = ["### The validation clips' choice", "",
-             "Each candidate against the one simulation of each validation clip (simulated, "
-             "never trained on, not held out: the clips `bench/compare_sets.py` chooses "
-             "with), by the energy score (cm; lower is better; a stochastic candidate with "
-             "its realisations): what chooses the shipped set. The held-out clips above "
-             "never decide.", "",
-             "| candidate | mean | " + " | ".join(f"`{c}`" for c in clips) + " |",
-             "|---|---:|" + "---:|" * len(clips)]  # fmt: skip
+    lines = [
+        "### The validation clips' choice",
+        "",
+        "Each candidate against the one simulation of each validation clip (simulated, "
+        "never trained on, not held out: the clips `bench/compare_sets.py` chooses "
+        "with), by the energy score (cm; lower is better; a stochastic candidate with "
+        "its realisations): what chooses the shipped set. The held-out clips above "
+        "never decide.",
+        "",
+        "| candidate | mean | " + " | ".join(f"`{c}`" for c in clips) + " |",
+        "|---|---:|" + "---:|" * len(clips),
+    ]
     for key, entry in choice.items():
-        lines.append(f"| {label_of(key)} | {entry['energy_score_cm']:.2f} | "
-                     + " | ".join(f"{entry['clips'][c]:.2f}" for c in clips) + " |")  # fmt: skip
+        lines.append(
+            f"| {label_of(key)} | {entry['energy_score_cm']:.2f} | "
+            + " | ".join(f"{entry['clips'][c]:.2f}" for c in clips)
+            + " |"
+        )
     lines += ["", f"Chosen: {label_of(best)}.", ""]
     return lines
 
@@ -245,8 +255,9 @@ def flare_plot(path: Path, scores: dict) -> None:
             ax.set_xlabel("frame")
             ax.set_ylabel(unit)
             if row == 0:
-                ax.set_title(f"{clip} (turn at {m['turn']}, {m['turn_rate']:.1f} rad/s)",
-                             fontsize=9)  # fmt: skip
+                ax.set_title(
+                    f"{clip} (turn at {m['turn']}, {m['turn_rate']:.1f} rad/s)", fontsize=9
+                )
     axes[0, 0].legend(fontsize=6, loc="best")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -269,80 +280,126 @@ def clip_renders(args, ens, seqs, ctx, garments: dict, img: Path, missed: list[i
     frames = {"turn": ctx.turn, **({"leg": knee} if knee is not None else {})}
     for what, frame in frames.items():
         path = img / f"ensemble_{ens.clip}_{what}.jpg"
-        picks = {f"member, {m.label}": s.garment_vertices[frame]
-                 for m, s in zip(ens.members[1:], seqs[1:], strict=True)}  # fmt: skip
+        picks = {
+            f"member, {m.label}": s.garment_vertices[frame]
+            for m, s in zip(ens.members[1:], seqs[1:], strict=True)
+        }
         picks["ours"] = garments["ours-full"][frame]
-        renders(path, frame, truth, picks, body, body_faces, seqs[0].template.faces, 15.0,
-                args.size, where=ens.clip,
-                truth_label=f"member, {ens.members[0].label}")  # fmt: skip
+        renders(
+            path,
+            frame,
+            truth,
+            picks,
+            body,
+            body_faces,
+            seqs[0].template.faces,
+            15.0,
+            args.size,
+            where=ens.clip,
+            truth_label=f"member, {ens.members[0].label}",
+        )
         shown[what] = {"frame": frame, "path": str(path)}
     return shown
 
 
 def targets(scores: dict) -> list[str]:
     """The targets, clip by clip, ours (the shipped set) against the members."""
-    lines = ["### The targets, read off the tables", "",
-             "| clip | decoder / floor (<= 0.5) | flare in band (>= 80 %) | RMSE to members / "
-             "spread (<= 1.25) | knee frames missed (0) |",
-             "|---|---:|---:|---:|---:|"]  # fmt: skip
+    lines = [
+        "### The targets, read off the tables",
+        "",
+        "| clip | decoder / floor (<= 0.5) | flare in band (>= 80 %) | RMSE to members / "
+        "spread (<= 1.25) | knee frames missed (0) |",
+        "|---|---:|---:|---:|---:|",
+    ]
     misses = []
     for clip, c in scores.items():
         m, r = c["members"], c["models"]["ours-full"]
         decoder = c["models"]["oracle"]["rmse_to_members_cm"][0] / m["spread_rmse_cm"]
-        row = [decoder <= DECODER_SHARE, r["flare_in_band"] >= FLARE_SHARE,
-               r["rmse_members_ratio"] <= RMSE_RATIO, not r["knee_missed"]]  # fmt: skip
+        row = [
+            decoder <= DECODER_SHARE,
+            r["flare_in_band"] >= FLARE_SHARE,
+            r["rmse_members_ratio"] <= RMSE_RATIO,
+            not r["knee_missed"],
+        ]
         names = ["decoder", "flare", "RMSE", "knee"]
         misses += [f"{clip}: {n}" for n, ok in zip(names, row, strict=True) if not ok]
-        lines.append(f"| {clip} | {decoder:.2f} | {100 * r['flare_in_band']:.0f} % | "
-                     f"{r['rmse_members_ratio']:.2f} | {len(r['knee_missed'])} |")  # fmt: skip
+        lines.append(
+            f"| {clip} | {decoder:.2f} | {100 * r['flare_in_band']:.0f} % | "
+            f"{r['rmse_members_ratio']:.2f} | {len(r['knee_missed'])} |"
+        )
     lines += ["", f"**Missed:** {', '.join(misses)}." if misses else "All met.", ""]
-    stochastic = sorted({k for c in scores.values() for k, r in c["models"].items()
-                         if r["samples"] > 1})  # fmt: skip
+    stochastic = sorted(
+        {k for c in scores.values() for k, r in c["models"].items() if r["samples"] > 1}
+    )
     if not stochastic:
-        lines += ["The energy score of a stochastic motion stage below the deterministic "
-                  "set's: no stochastic candidate was scored (the shipped set is "
-                  "deterministic: one sample).", ""]  # fmt: skip
+        lines += [
+            "The energy score of a stochastic motion stage below the deterministic "
+            "set's: no stochastic candidate was scored (the shipped set is "
+            "deterministic: one sample).",
+            "",
+        ]
     for key in stochastic:
         cells = []
         for clip, c in scores.items():
             mine, det = c["models"][key], c["models"]["ours-full"]
-            cells.append(f"{clip} {mine['energy_score_cm']:.2f} against "
-                         f"{det['energy_score_cm']:.2f}")  # fmt: skip
-        below = all(c["models"][key]["energy_score_cm"] < c["models"]["ours-full"][
-            "energy_score_cm"] for c in scores.values())  # fmt: skip
-        lines += [f"{label_of(key)} ({mine['samples']} realisations, seeds 0-"
-                  f"{mine['samples'] - 1}): energy score below the deterministic set's on "
-                  f"every clip: **{'met' if below else 'not met'}** ({'; '.join(cells)} cm).",
-                  ""]  # fmt: skip
+            cells.append(
+                f"{clip} {mine['energy_score_cm']:.2f} against {det['energy_score_cm']:.2f}"
+            )
+        below = all(
+            c["models"][key]["energy_score_cm"] < c["models"]["ours-full"]["energy_score_cm"]
+            for c in scores.values()
+        )
+        lines += [
+            f"{label_of(key)} ({mine['samples']} realisations, seeds 0-"
+            f"{mine['samples'] - 1}): energy score below the deterministic set's on "
+            f"every clip: **{'met' if below else 'not met'}** ({'; '.join(cells)} cm).",
+            "",
+        ]
     return lines
 
 
-def markdown(args, scores: dict, renders_shown: dict, started: str,
-             choice: dict | None = None) -> str:  # fmt: skip
+def markdown(
+    args, scores: dict, renders_shown: dict, started: str, choice: dict | None = None
+) -> str:
     labelled = {"split": "test", "sources": [], "clips": {}}
     for clip, c in scores.items():
         models = {label_of(k): v for k, v in c["models"].items()}
         labelled["clips"][clip] = {"members": c["members"], "models": models}
     table = ensemble_markdown(labelled).splitlines()
     body = [("#" + line if line.startswith("### ") else line) for line in table[1:]]
-    lines = [SECTION, "",
-             f"Made by `python bench/ensemble.py` (its docstring gives the command) on "
-             f"`{args.data}` with members from {', '.join(f'`{m}`' for m in args.members)}; "
-             f"this run started {started} on {machine('cpu')}. The oracle row is the floor under "
-             "every motion stage on this decoder: the generative model's own code of the "
-             "first member's garment, decoded, scored like the methods.", "",
-             "![hem flare and speed around each clip's fastest turn against the members' "
-             "range](img/ensemble_flare.png)", "", *targets(scores),
-             *validation_section(choice or {}), *body]  # fmt: skip
+    lines = [
+        SECTION,
+        "",
+        f"Made by `python bench/ensemble.py` (its docstring gives the command) on "
+        f"`{args.data}` with members from {', '.join(f'`{m}`' for m in args.members)}; "
+        f"this run started {started} on {machine('cpu')}. The oracle row is the floor under "
+        "every motion stage on this decoder: the generative model's own code of the "
+        "first member's garment, decoded, scored like the methods.",
+        "",
+        "![hem flare and speed around each clip's fastest turn against the members' "
+        "range](img/ensemble_flare.png)",
+        "",
+        *targets(scores),
+        *validation_section(choice or {}),
+        *body,
+    ]
     for clip, shown in renders_shown.items():
         for what, s in shown.items():
             missed = scores[clip]["models"]["ours-full"]["knee_missed"]
-            title = ("its fastest turn" if what == "turn" else
-                     "a raised knee most members cover and ours does not" if missed else
-                     "its highest raised knee")  # fmt: skip
-            lines += [f"`{clip}` at {title} (frame {s['frame']}): the first member | the "
-                      "others | ours, coloured by the distance to the first member.", "",
-                      f"![{clip} at {title}](img/{Path(s['path']).name})", ""]  # fmt: skip
+            title = (
+                "its fastest turn"
+                if what == "turn"
+                else "a raised knee most members cover and ours does not"
+                if missed
+                else "its highest raised knee"
+            )
+            lines += [
+                f"`{clip}` at {title} (frame {s['frame']}): the first member | the "
+                "others | ours, coloured by the distance to the first member.",
+                "",
+                f"![{clip} at {title}](img/{Path(s['path']).name})",
+                "",
+            ]
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -360,13 +417,21 @@ def main() -> None:
     p.add_argument("--members", nargs="+", required=True, help="data sets of other seeds")
     p.add_argument("--checkpoint", default="checkpoints/dance/motion.pt", help="ours")
     p.add_argument("--baselines", default="runs/dance/baselines")
-    p.add_argument("--engines", nargs="*", default=[],
-                   help="engine tiers (engine.pt) scored as methods too")  # fmt: skip
-    p.add_argument("--validation", action="store_true",
-                   help="also choose among ours and the engine tiers by the energy score on "
-                   "the validation clips")  # fmt: skip
-    p.add_argument("--samples", type=int, default=8,
-                   help="realisations (seeds 0, 1, ...) of a stochastic method")  # fmt: skip
+    p.add_argument(
+        "--engines", nargs="*", default=[], help="engine tiers (engine.pt) scored as methods too"
+    )
+    p.add_argument(
+        "--validation",
+        action="store_true",
+        help="also choose among ours and the engine tiers by the energy score on "
+        "the validation clips",
+    )
+    p.add_argument(
+        "--samples",
+        type=int,
+        default=8,
+        help="realisations (seeds 0, 1, ...) of a stochastic method",
+    )
     p.add_argument("--cache", default="runs/dance/ensemble")
     p.add_argument("--out", default="docs/ENSEMBLE.md")
     p.add_argument("--img", default="docs/img")
@@ -396,18 +461,23 @@ def main() -> None:
     flare_plot(img / "ensemble_flare.png", scores)
     choice = validation_choice(args, cache) if args.validation else {}
     text = markdown(args, scores, shown, started, choice)
-    Path(args.out).write_text("# Dynamics against an ensemble of simulations\n\n"
-                              + text.replace(SECTION + "\n\n", "", 1))  # fmt: skip
+    Path(args.out).write_text(
+        "# Dynamics against an ensemble of simulations\n\n" + text.replace(SECTION + "\n\n", "", 1)
+    )
 
     def brief(d: dict) -> dict:  # the per-frame series left out
         return {a: b for a, b in d.items() if "per_frame" not in a}
 
-    light = {k: {"members": brief(v["members"]),
-                 "models": {n: brief(r) for n, r in v["models"].items()}}
-             for k, v in scores.items()}  # fmt: skip
+    light = {
+        k: {"members": brief(v["members"]), "models": {n: brief(r) for n, r in v["models"].items()}}
+        for k, v in scores.items()
+    }
     Path(args.out).with_suffix(".json").write_text(
-        json.dumps({"started": started, "machine": machine("cpu"), "clips": light,
-                    "validation": choice}, indent=1))  # fmt: skip
+        json.dumps(
+            {"started": started, "machine": machine("cpu"), "clips": light, "validation": choice},
+            indent=1,
+        )
+    )
     if args.results:
         splice(Path(args.results), text)
     print(f"wrote {args.out}" + (f" and the section of {args.results}" if args.results else ""))

@@ -40,8 +40,17 @@ FORMATS = {  # label: (file name, config)
 def blender_errors(path: Path, meshes, fps: float, frames: list[int], png: Path | None):
     """The largest distance (mm) per mesh between Blender's vertices and ``meshes``."""
     out = path.with_suffix(path.suffix + ".npz")
-    cmd = [sys.executable, str(READER), str(path), "--fps", str(fps), "--out", str(out),
-           "--frames", *map(str, frames)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        str(READER),
+        str(path),
+        "--fps",
+        str(fps),
+        "--out",
+        str(out),
+        "--frames",
+        *map(str, frames),
+    ]
     if png is not None:
         cmd += ["--png", str(png), "--png-frame", str(frames[1])]
     subprocess.run(cmd, check=True, capture_output=True)

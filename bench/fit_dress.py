@@ -64,8 +64,9 @@ def fitted_dress(out: Path, avatar: Avatar) -> tuple[GarmentTemplate, dict]:
     if done.is_file():
         template = GarmentTemplate.load(done)
         return template, template.meta["fit"]
-    dress = fit_dress(Avatar(AvatarConfig(shape=OTHER_BODY)),
-                      DressConfig.preset("cpu", "strapless"))  # fmt: skip
+    dress = fit_dress(
+        Avatar(AvatarConfig(shape=OTHER_BODY)), DressConfig.preset("cpu", "strapless")
+    )
     export_cm_y_up(dress, path)
     try:
         import_garment(path, avatar, kind="dress")
@@ -95,8 +96,15 @@ def main() -> int:
     cloth = ClothConfig(arm_collision="upper")
     bar = tqdm_bar("simulate", unit="frame")
     t0 = time.perf_counter()
-    result = simulate(avatar, template, motion, cloth, progress=bar.progress,
-                      resume=args.out / "resume.npz", resume_every=10)  # fmt: skip
+    result = simulate(
+        avatar,
+        template,
+        motion,
+        cloth,
+        progress=bar.progress,
+        resume=args.out / "resume.npz",
+        resume_every=10,
+    )
     bar.close()
     wall = time.perf_counter() - t0
 
@@ -104,10 +112,12 @@ def main() -> int:
         body = avatar.pose_motion(motion).vertices.numpy()
     _, _, meshes = collider_meshes(avatar, cloth)
     g = result.garment_vertices
-    deepest = np.array([
-        quality(g[t : t + 1], template, body[t : t + 1], meshes)["inside_depth_max"]
-        for t in range(len(g))
-    ])  # fmt: skip
+    deepest = np.array(
+        [
+            quality(g[t : t + 1], template, body[t : t + 1], meshes)["inside_depth_max"]
+            for t in range(len(g))
+        ]
+    )
     q = result.quality
     worst = int(deepest.argmax())
     lines = [

@@ -42,17 +42,23 @@ def edge_lengths(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def describe(r: np.ndarray) -> str:
     """A relative change of edge lengths (E,) in one line."""
-    return (f"median {np.median(r):+.2%}, 5th-95th percentile {np.percentile(r, 5):+.2%} to "
-            f"{np.percentile(r, 95):+.2%}, largest {np.abs(r).max():.1%}")  # fmt: skip
+    return (
+        f"median {np.median(r):+.2%}, 5th-95th percentile {np.percentile(r, 5):+.2%} to "
+        f"{np.percentile(r, 95):+.2%}, largest {np.abs(r).max():.1%}"
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--fitted", help="a template fitted already (bench/fit_dress.py's "
-                        "fitted.npz, the same dress): measured, not fitted again")  # fmt: skip
+    parser.add_argument(
+        "--fitted",
+        help="a template fitted already (bench/fit_dress.py's "
+        "fitted.npz, the same dress): measured, not fitted again",
+    )
     args = parser.parse_args()
-    dress = fit_dress(Avatar(AvatarConfig(shape=OTHER_BODY)),
-                      DressConfig.preset("cpu", "strapless"))  # fmt: skip
+    dress = fit_dress(
+        Avatar(AvatarConfig(shape=OTHER_BODY)), DressConfig.preset("cpu", "strapless")
+    )
     v = dress.vertices.astype(np.float64) * 100.0  # centimetres, Y up, as another tool writes
     v = np.stack([v[:, 0], v[:, 2], -v[:, 1]], 1)
     with tempfile.TemporaryDirectory() as tmp:
@@ -69,10 +75,14 @@ def main() -> None:
             how = f"fitted in {time.perf_counter() - t0:.0f} s; {report.format()}"
     file = edge_lengths(placed.vertices, placed.faces)
     print(f"fit: {fitted.num_vertices} vertices, {how}")
-    print("rest lengths the simulator uses against the file's: "
-          + describe(edge_lengths(fitted.rest, placed.faces) / file - 1))  # fmt: skip
-    print("the drape (where the simulation starts) against them: "
-          + describe(edge_lengths(fitted.vertices, placed.faces) / file - 1))  # fmt: skip
+    print(
+        "rest lengths the simulator uses against the file's: "
+        + describe(edge_lengths(fitted.rest, placed.faces) / file - 1)
+    )
+    print(
+        "the drape (where the simulation starts) against them: "
+        + describe(edge_lengths(fitted.vertices, placed.faces) / file - 1)
+    )
 
 
 if __name__ == "__main__":

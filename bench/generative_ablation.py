@@ -66,9 +66,12 @@ def main() -> None:
                 report = json.loads(report_path.read_text())
             else:
                 cfg = TrainGenerativeConfig.preset(
-                    args.preset, decoder=decoder, epochs=args.epochs, device=args.device,
+                    args.preset,
+                    decoder=decoder,
+                    epochs=args.epochs,
+                    device=args.device,
                     seed=seed,
-                )  # fmt: skip
+                )
                 report = train_generative(args.data, run, cfg)
             rows.setdefault(decoder, []).append({"seed": seed, **report})
     if args.train_only:
@@ -79,13 +82,19 @@ def main() -> None:
         Path(args.table).write_text(text)
     if args.json:
         summary = {
-            d: {"runs": [{k: r[k] for k in ("seed", "epochs", "parameters", "seconds_per_epoch",
-                                              "machine")} | {"test": _brief(r["test"]),
-                                                              "train": _brief(r["train"])}
-                         for r in runs],
-                "test_rmse_cm": _spread([r["test"]["rmse_cm"] for r in runs])}
+            d: {
+                "runs": [
+                    {
+                        k: r[k]
+                        for k in ("seed", "epochs", "parameters", "seconds_per_epoch", "machine")
+                    }
+                    | {"test": _brief(r["test"]), "train": _brief(r["train"])}
+                    for r in runs
+                ],
+                "test_rmse_cm": _spread([r["test"]["rmse_cm"] for r in runs]),
+            }
             for d, runs in rows.items()
-        }  # fmt: skip
+        }
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         Path(args.json).write_text(json.dumps(summary, indent=1))
 
@@ -130,8 +139,10 @@ def format_table(rows: dict[str, list[dict]], data: str, preset: str) -> str:
             s = _spread([r["test"]["rmse_cm"] for r in runs])
             h = np.mean([r["test"]["hausdorff_cm"] for r in runs])
             st = np.mean([r["test"]["sted"] for r in runs])
-            lines.append(f"| {DECODERS[decoder]} | {len(runs)} | {s['mean']:.3f} +- "
-                         f"{s['half_range']:.3f} | {h:.3f} | {st:.4f} |")  # fmt: skip
+            lines.append(
+                f"| {DECODERS[decoder]} | {len(runs)} | {s['mean']:.3f} +- "
+                f"{s['half_range']:.3f} | {h:.3f} | {st:.4f} |"
+            )
     lines += ["", f"Machine: {first['machine']}.", ""]
     return "\n".join(lines)
 

@@ -78,8 +78,12 @@ def main() -> None:
         ours = model.animate(seq.motion).vertices
         seconds = time.perf_counter() - t0
         sim = seq.garment_vertices
-        row = {"frames": seq.motion.num_frames, "deepest": deep, "pitch_deg": float(pitch[deep]),
-               "seconds": seconds}  # fmt: skip
+        row = {
+            "frames": seq.motion.num_frames,
+            "deepest": deep,
+            "pitch_deg": float(pitch[deep]),
+            "seconds": seconds,
+        }
         for who, g in (("simulation", sim), ("ours", ours)):
             row[who] = {
                 "hem_z_m": float(g[deep, hem, 2].mean()),
@@ -90,17 +94,30 @@ def main() -> None:
                 "hem_z_series_m": g[:, hem, 2].mean(1).tolist(),
             }
         row["hem_height_error_m"] = row["ours"]["hem_z_m"] - row["simulation"]["hem_z_m"]
-        row["rmse_deepest_cm"] = 100 * float(rmse_per_frame(ours[deep : deep + 1],
-                                                            sim[deep : deep + 1])[0])  # fmt: skip
+        row["rmse_deepest_cm"] = 100 * float(
+            rmse_per_frame(ours[deep : deep + 1], sim[deep : deep + 1])[0]
+        )
         rows[clip] = row
-        print(f"{clip}: deepest frame {deep} ({pitch[deep]:.0f} deg), hem "
-              f"{100 * row['ours']['hem_z_m']:.1f} cm (simulation "
-              f"{100 * row['simulation']['hem_z_m']:.1f})", flush=True)  # fmt: skip
+        print(
+            f"{clip}: deepest frame {deep} ({pitch[deep]:.0f} deg), hem "
+            f"{100 * row['ours']['hem_z_m']:.1f} cm (simulation "
+            f"{100 * row['simulation']['hem_z_m']:.1f})",
+            flush=True,
+        )
         from results import renders
 
-        renders(Path(args.img) / f"gravity_{clip}.jpg", deep, sim, {"ours": ours[deep]},
-                posed.vertices.cpu().numpy(), avatar.faces.cpu().numpy(),
-                reader.template.faces, 15.0, args.size, where=clip)  # fmt: skip
+        renders(
+            Path(args.img) / f"gravity_{clip}.jpg",
+            deep,
+            sim,
+            {"ours": ours[deep]},
+            posed.vertices.cpu().numpy(),
+            avatar.faces.cpu().numpy(),
+            reader.template.faces,
+            15.0,
+            args.size,
+            where=clip,
+        )
     write(args, rows, started)
 
 
@@ -109,7 +126,8 @@ def write(args, rows: dict, started: str) -> None:
     ok_height = all(abs(r["hem_height_error_m"]) <= HEIGHT_TOLERANCE for r in deep.values())
     ok_below = all(r["ours"]["hem_below_waist"] for r in deep.values())
     lines = [
-        "# The skirt under gravity in a deep bow", "",
+        "# The skirt under gravity in a deep bow",
+        "",
         f"Made by `python bench/gravity_bows.py --data {args.data} --checkpoint "
         f"{args.checkpoint}` on {machine('cpu')}, {started}; the bows simulated by `loosefit "
         "simulate --config configs/bows.yaml` (the dance corpus's configuration, the "
@@ -123,7 +141,7 @@ def write(args, rows: dict, started: str) -> None:
         "error cm | hem tilt cm, simulation | ours | hem below the waistband (simulation, "
         "ours) | RMSE there cm |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---|---:|",
-    ]  # fmt: skip
+    ]
     for clip, r in rows.items():
         s, o = r["simulation"], r["ours"]
         lines.append(
@@ -133,20 +151,30 @@ def write(args, rows: dict, started: str) -> None:
             f"{'yes' if s['hem_below_waist'] else 'no'}, {'yes' if o['hem_below_waist'] else 'no'}"
             f" | {r['rmse_deepest_cm']:.1f} |"
         )
-    lines += ["", f"Targets on bows past {DEEP:.0f} degrees ({len(deep)} clips): the hem's mean "
-              f"height within {100 * HEIGHT_TOLERANCE:.0f} cm of the simulation's at the "
-              f"deepest frame: **{'met' if ok_height else 'not met'}**; the hem below the "
-              f"waistband: **{'met' if ok_below else 'not met'}**.", ""]  # fmt: skip
+    lines += [
+        "",
+        f"Targets on bows past {DEEP:.0f} degrees ({len(deep)} clips): the hem's mean "
+        f"height within {100 * HEIGHT_TOLERANCE:.0f} cm of the simulation's at the "
+        f"deepest frame: **{'met' if ok_height else 'not met'}**; the hem below the "
+        f"waistband: **{'met' if ok_below else 'not met'}**.",
+        "",
+    ]
     if rows:
         t = {w: [100 * r[w]["hem_tilt_m"] for r in rows.values()] for w in ("simulation", "ours")}
         level = max(t["ours"]) < 0.5 * min(t["simulation"])
-        lines += [f"The mean height hides the shape: the hem's tilt is {min(t['ours']):.1f}-"
-                  f"{max(t['ours']):.1f} cm in ours against {min(t['simulation']):.1f}-"
-                  f"{max(t['simulation']):.1f} cm in the simulation"
-                  + (": ours keeps the nearly level bell of a standing skirt, flared out in "
-                     "front of the thighs, where the simulation's cloth falls from the tipped "
-                     "waistband and lies against the front of the thighs (the renders)."
-                     if level else " (the renders)."), ""]  # fmt: skip
+        lines += [
+            f"The mean height hides the shape: the hem's tilt is {min(t['ours']):.1f}-"
+            f"{max(t['ours']):.1f} cm in ours against {min(t['simulation']):.1f}-"
+            f"{max(t['simulation']):.1f} cm in the simulation"
+            + (
+                ": ours keeps the nearly level bell of a standing skirt, flared out in "
+                "front of the thighs, where the simulation's cloth falls from the tipped "
+                "waistband and lies against the front of the thighs (the renders)."
+                if level
+                else " (the renders)."
+            ),
+            "",
+        ]
     for clip in rows:
         lines += [f"![{clip} at its deepest frame](img/gravity_{clip}.jpg)", ""]
     Path(args.out).write_text("\n".join(lines))

@@ -104,31 +104,48 @@ def main() -> None:
         x = np.asarray(result.vertices)
         worst = (np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=-1) / rest).max(1)
         reported = np.array([c["depth_after"] for c in result.collisions])
-        r = {"frames": motion.num_frames, "frames_inside": int((deep > 0).sum()),
-             "frames_deep": int((deep > PENETRATION_TOLERANCE).sum()),
-             "deepest_cm": 100 * float(deep.max()), "inside_mean": float(share.mean()),
-             "reported_deepest_cm": 100 * float(reported.max()) if len(reported) else 0.0,
-             "trunk_frames_deep": int((trunk_deep > PENETRATION_TOLERANCE).sum()),
-             "trunk_deepest_cm": 100 * float(trunk_deep.max()),
-             "worst_edge": float(worst.max()), "frames_edge_over_2x": int((worst > 2).sum()),
-             "ms_per_frame": 1000 * seconds / motion.num_frames}  # fmt: skip
+        r = {
+            "frames": motion.num_frames,
+            "frames_inside": int((deep > 0).sum()),
+            "frames_deep": int((deep > PENETRATION_TOLERANCE).sum()),
+            "deepest_cm": 100 * float(deep.max()),
+            "inside_mean": float(share.mean()),
+            "reported_deepest_cm": 100 * float(reported.max()) if len(reported) else 0.0,
+            "trunk_frames_deep": int((trunk_deep > PENETRATION_TOLERANCE).sum()),
+            "trunk_deepest_cm": 100 * float(trunk_deep.max()),
+            "worst_edge": float(worst.max()),
+            "frames_edge_over_2x": int((worst > 2).sum()),
+            "ms_per_frame": 1000 * seconds / motion.num_frames,
+        }
         record[name] = r
         print(name, r, flush=True)
-        rows.append(f"| {name} | {r['frames']} | {r['frames_inside']} | {r['frames_deep']} | "
-                    f"{r['deepest_cm']:.2f} | {100 * r['inside_mean']:.4f} | "
-                    f"{r['reported_deepest_cm']:.2f} | {r['trunk_frames_deep']} | "
-                    f"{r['trunk_deepest_cm']:.2f} | {r['worst_edge']:.2f} | "
-                    f"{r['frames_edge_over_2x']} | {r['ms_per_frame']:.0f} |")  # fmt: skip
-    head = ("| clip | frames | frames with cloth inside | frames > 5 mm | deepest (cm) | "
-            "inside, mean % of vertices | handler's own deepest (cm) | "
-            "frames > 5 mm into the trunk | deepest into the trunk (cm) | longest edge / rest | "
-            "frames with an edge > 2x rest | ms / frame |\n"
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")  # fmt: skip
+        rows.append(
+            f"| {name} | {r['frames']} | {r['frames_inside']} | {r['frames_deep']} | "
+            f"{r['deepest_cm']:.2f} | {100 * r['inside_mean']:.4f} | "
+            f"{r['reported_deepest_cm']:.2f} | {r['trunk_frames_deep']} | "
+            f"{r['trunk_deepest_cm']:.2f} | {r['worst_edge']:.2f} | "
+            f"{r['frames_edge_over_2x']} | {r['ms_per_frame']:.0f} |"
+        )
+    head = (
+        "| clip | frames | frames with cloth inside | frames > 5 mm | deepest (cm) | "
+        "inside, mean % of vertices | handler's own deepest (cm) | "
+        "frames > 5 mm into the trunk | deepest into the trunk (cm) | longest edge / rest | "
+        "frames with an edge > 2x rest | ms / frame |\n"
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    )
     out = Path(args.out)
-    out.with_suffix(".json").write_text(json.dumps(
-        {"checkpoint": args.checkpoint, "collision": dataclasses.asdict(model.collision),
-         "machine": machine("cpu"),
-         "platform": platform.platform(), "clips": record}, indent=1))  # fmt: skip
+    out.with_suffix(".json").write_text(
+        json.dumps(
+            {
+                "checkpoint": args.checkpoint,
+                "collision": dataclasses.asdict(model.collision),
+                "machine": machine("cpu"),
+                "platform": platform.platform(),
+                "clips": record,
+            },
+            indent=1,
+        )
+    )
     marker = "<!-- hard poses table -->"
     body = head + "\n" + "\n".join(rows)
     if out.is_file() and marker in out.read_text():

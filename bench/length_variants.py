@@ -37,8 +37,15 @@ VARIANTS = {  # label: the edge-length stage (None: as committed)
     "all edges, tie 1e-2": LengthConfig(edges="all", tie=1.0e-2),
     "all edges, tie 3e-2": LengthConfig(edges="all", tie=3.0e-2),
 }
-KEYS = ("strain_p50", "strain_p99", "edge_change_p50", "flare_turn_error", "inside_whole_mean",
-        "deep_whole_frames", "rmse_cm")  # fmt: skip
+KEYS = (
+    "strain_p50",
+    "strain_p99",
+    "edge_change_p50",
+    "flare_turn_error",
+    "inside_whole_mean",
+    "deep_whole_frames",
+    "rmse_cm",
+)
 
 
 def clip_variants(model, name: str, seq) -> dict:
@@ -51,29 +58,36 @@ def clip_variants(model, name: str, seq) -> dict:
         with model.configured(lengths=lengths):
             pre = model.restorer(Stages())(torch.from_numpy(detail)).numpy()
             collide = model.collider(motion)
-            post = np.stack([collide(t, torch.from_numpy(pre[t])).vertices.numpy()
-                             for t in range(len(pre))])  # fmt: skip
+            post = np.stack(
+                [collide(t, torch.from_numpy(pre[t])).vertices.numpy() for t in range(len(pre))]
+            )
         for when, x in (("before collision", pre), ("after collision", post)):
             r = measure_garment(x)
             rows[f"{label}, {when}"] = {k: r[k] for k in KEYS}
-            print(f"  {name} {label}, {when}: strain p99 {r['strain_p99']:.3f}, edge change "
-                  f"{100 * r['edge_change_p50']:+.1f} %, flare error "
-                  f"{100 * r['flare_turn_error']:.1f} %, RMSE {r['rmse_cm']:.2f} cm",
-                  flush=True)  # fmt: skip
+            print(
+                f"  {name} {label}, {when}: strain p99 {r['strain_p99']:.3f}, edge change "
+                f"{100 * r['edge_change_p50']:+.1f} %, flare error "
+                f"{100 * r['flare_turn_error']:.1f} %, RMSE {r['rmse_cm']:.2f} cm",
+                flush=True,
+            )
     sim = measure_garment(truth)
     return {"frames": motion.num_frames, "simulation": {k: sim[k] for k in KEYS}, "rows": rows}
 
 
 def table(clips: dict) -> str:
-    head = ("| clip | variant | strain p50 | strain p99 | edge change % | flare error at turn % "
-            "| inside whole body % | frames > 5 mm | RMSE cm |")  # fmt: skip
+    head = (
+        "| clip | variant | strain p50 | strain p99 | edge change % | flare error at turn % "
+        "| inside whole body % | frames > 5 mm | RMSE cm |"
+    )
     lines = [head, "|---|---|" + "---:|" * 7]
 
     def row(clip, label, r):
-        return (f"| {clip} | {label} | {r['strain_p50']:.3f} | {r['strain_p99']:.3f} | "
-                f"{100 * r['edge_change_p50']:+.1f} | {100 * r['flare_turn_error']:.1f} | "
-                f"{100 * r['inside_whole_mean']:.3f} | {r['deep_whole_frames']} | "
-                f"{r['rmse_cm']:.2f} |")  # fmt: skip
+        return (
+            f"| {clip} | {label} | {r['strain_p50']:.3f} | {r['strain_p99']:.3f} | "
+            f"{100 * r['edge_change_p50']:+.1f} | {100 * r['flare_turn_error']:.1f} | "
+            f"{100 * r['inside_whole_mean']:.3f} | {r['deep_whole_frames']} | "
+            f"{r['rmse_cm']:.2f} |"
+        )
 
     for name, c in clips.items():
         lines.append(row(name, "simulation", c["simulation"]))
@@ -94,17 +108,24 @@ def main() -> None:
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
     reader = DatasetReader(args.data, allow_incomplete=True)
-    sources = {f.stem: reader.read(f.stem)
-               for f in sorted((Path(args.data) / "sequences").glob("*.npz"))}  # fmt: skip
+    sources = {
+        f.stem: reader.read(f.stem) for f in sorted((Path(args.data) / "sequences").glob("*.npz"))
+    }
     sources.update({Path(f).stem: read_any_sequence(f) for f in args.sequence})
     clips = {}
     for name, seq in sources.items():
         print(f"{name}: {seq.motion.num_frames} frames", flush=True)
         clips[name] = clip_variants(model, name, seq)
     out = Path(args.out)
-    record = {"checkpoint": str(Path(args.checkpoint).resolve()), "machine": machine("cpu"),
-              "platform": platform.platform(), "torch": torch.__version__, "threads": 1,
-              "cpus": os.cpu_count(), "clips": clips}  # fmt: skip
+    record = {
+        "checkpoint": str(Path(args.checkpoint).resolve()),
+        "machine": machine("cpu"),
+        "platform": platform.platform(),
+        "torch": torch.__version__,
+        "threads": 1,
+        "cpus": os.cpu_count(),
+        "clips": clips,
+    }
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(record, indent=1))
     body = table(clips)

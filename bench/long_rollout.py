@@ -62,8 +62,12 @@ def main() -> int:
         e = per_frame[start : start + 1000]
         e = e[np.isfinite(e)]
         if len(e):
-            blocks.append({"frames": f"{start}-{min(start + 1000, len(g)) - 1}",
-                           "rmse_cm": float(np.sqrt(np.mean(e**2)))})  # fmt: skip
+            blocks.append(
+                {
+                    "frames": f"{start}-{min(start + 1000, len(g)) - 1}",
+                    "rmse_cm": float(np.sqrt(np.mean(e**2))),
+                }
+            )
     root = chain.root_translation[:, None, :]
     report = {
         "checkpoint": args.checkpoint,
@@ -93,12 +97,14 @@ def main() -> int:
         ax.hlines(rmse, first, first + n, color="black", lw=1.2)
     ax.set_xlabel("frame of the rollout (30 fps)")
     ax.set_ylabel("RMSE per frame (cm)")
-    ax.set_title(f"{args.repeats} x the held-out chain {name} in one rollout of {len(g)} frames "
-                 "(black: RMSE of each repetition)", fontsize=9)  # fmt: skip
+    ax.set_title(
+        f"{args.repeats} x the held-out chain {name} in one rollout of {len(g)} frames "
+        "(black: RMSE of each repetition)",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(out.with_suffix(".png"))
-    print(json.dumps({k: v for k, v in report.items() if k != "rmse_per_1000_frames_cm"},
-                     indent=1))  # fmt: skip
+    print(json.dumps({k: v for k, v in report.items() if k != "rmse_per_1000_frames_cm"}, indent=1))
     print("| frames | RMSE (cm) |\n|---|---:|")
     for b in blocks:
         print(f"| {b['frames']} | {b['rmse_cm']:.2f} |")

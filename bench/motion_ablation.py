@@ -37,7 +37,7 @@ RUNS = {
     "ps-teacher-noise": (
         "with ps, teacher forcing, 3 cm noise on the previous state",
         dict(previous="teacher", previous_noise=0.03),
-    ),  # fmt: skip
+    ),
     "ps-unroll": (
         "with ps, scheduled sampling, unrolled through its own predictions",
         dict(unroll=True),
@@ -102,8 +102,12 @@ RUNS = {
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--data", default="datasets/salsa")
-    p.add_argument("--datasets", default=None, help="the folder of the other data sets some runs "
-                   "train on (salsa-speed, salsa-speeds; default: --data's folder)")  # fmt: skip
+    p.add_argument(
+        "--datasets",
+        default=None,
+        help="the folder of the other data sets some runs "
+        "train on (salsa-speed, salsa-speeds; default: --data's folder)",
+    )
     p.add_argument("--generative", required=True, help="the generative checkpoint")
     p.add_argument("--preset", default="cpu", help="cpu or full")
     p.add_argument("--epochs", type=int, default=None)
@@ -112,8 +116,12 @@ def main() -> None:
     p.add_argument("--table", default=None, help="write the table here (Markdown)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
-    p.add_argument("--no-table", action="store_true", help="train and evaluate only; e.g. one "
-                   "run per process, side by side, then one call for the table")  # fmt: skip
+    p.add_argument(
+        "--no-table",
+        action="store_true",
+        help="train and evaluate only; e.g. one "
+        "run per process, side by side, then one call for the table",
+    )
     args = p.parse_args()
     if args.threads > 0:
         torch.set_num_threads(args.threads)
@@ -149,11 +157,13 @@ def main() -> None:
     # the best any motion encoder can do through the frozen decoders.
     model = None  # loaded once, if either row is not scored yet
     for name, kw, label in (
-        ("reference", dict(reference=True),
-         "reference: rest drape carried by the root, no dynamics"),
-        ("oracle", dict(oracle=True),
-         "oracle: the simulation's own code Z*, decoded (the floor)"),
-    ):  # fmt: skip
+        (
+            "reference",
+            dict(reference=True),
+            "reference: rest drape carried by the root, no dynamics",
+        ),
+        ("oracle", dict(oracle=True), "oracle: the simulation's own code Z*, decoded (the floor)"),
+    ):
         ref = Path(args.out) / name / "evaluation.json"
         if ref.is_file():
             result = json.loads(ref.read_text())
@@ -182,11 +192,12 @@ def main() -> None:
         h = r["horizons"]
         cells = [f"{h[k]:.3f}" if k in h else "-" for k in hs]
         growth = f"{100 * (h['1200'] / h['100'] - 1):+.1f}%" if "1200" in h and "100" in h else "-"
-        lines.append(f"| {label} | " + " | ".join(cells) + f" | {growth} | {r['rmse_cm']:.3f} | "
-                     f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} | "
-                     + (f"{rep['seconds_per_epoch']:.1f}" if rep else "-")
-                     + (f" [{machines.index(rep['machine']) + 1}] |"
-                        if rep and len(machines) > 1 else " |"))  # fmt: skip
+        lines.append(
+            f"| {label} | " + " | ".join(cells) + f" | {growth} | {r['rmse_cm']:.3f} | "
+            f"{r['hausdorff_cm']:.3f} | {r['sted']:.4f} | "
+            + (f"{rep['seconds_per_epoch']:.1f}" if rep else "-")
+            + (f" [{machines.index(rep['machine']) + 1}] |" if rep and len(machines) > 1 else " |")
+        )
     if len(machines) == 1:
         lines += ["", f"Machine: {machines[0]}.", ""]
     else:

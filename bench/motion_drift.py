@@ -39,8 +39,7 @@ def _drift(path: Path, reader: DatasetReader) -> tuple[dict, int]:
     """RMSE (cm) per restart interval of the model at ``path``, and the frames scored."""
     cache = path.parent / "drift.json"
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    key = {"model_sha256": digest, "data": str(reader.root.resolve()),
-           "test": reader.split("test")}  # fmt: skip
+    key = {"model_sha256": digest, "data": str(reader.root.resolve()), "test": reader.split("test")}
     if cache.is_file():
         saved = json.loads(cache.read_text())
         if all(saved.get(k) == v for k, v in key.items()):
@@ -52,8 +51,9 @@ def _drift(path: Path, reader: DatasetReader) -> tuple[dict, int]:
             model, reader, "test", surface=False, restart_every=every, stages=MOTION_ONLY
         )
         errors[every], frames = result["rmse_cm"], result["frames"]
-    cache.write_text(json.dumps({**key, "frames": frames,
-                                 "rmse_cm": {str(e): v for e, v in errors.items()}}))  # fmt: skip
+    cache.write_text(
+        json.dumps({**key, "frames": frames, "rmse_cm": {str(e): v for e, v in errors.items()}})
+    )
     return errors, frames
 
 

@@ -39,11 +39,16 @@ def main() -> None:
         truth = seq.garment_vertices
         pred = model.animate(seq.motion).vertices
         print(f"{name}: RMSE (cm) per {args.block}-frame block, rollout / reference / oracle")
-        for label, v in (("rollout", pred), ("reference", model.carry_drape(seq.motion).vertices),
-                         ("oracle", model.reconstruct(seq.motion, truth).vertices)):  # fmt: skip
+        for label, v in (
+            ("rollout", pred),
+            ("reference", model.carry_drape(seq.motion).vertices),
+            ("oracle", model.reconstruct(seq.motion, truth).vertices),
+        ):
             per = 100 * rmse_per_frame(v, truth)
-            blocks = [np.sqrt(np.mean(per[i : i + args.block] ** 2))
-                      for i in range(0, len(per), args.block)]  # fmt: skip
+            blocks = [
+                np.sqrt(np.mean(per[i : i + args.block] ** 2))
+                for i in range(0, len(per), args.block)
+            ]
             print(f"  {label:9s} " + " ".join(f"{b:.1f}" for b in blocks))
         for label, v in (("simulation", truth), ("rollout", pred)):
             strain, _ = edge_strain(v, model.template)
@@ -52,9 +57,11 @@ def main() -> None:
         body = avatar.pose_motion(seq.motion).vertices
         for label, v in (("simulation", truth), ("rollout", pred)):
             inside = 100 * inside_fraction(v, body, collider)
-            print(f"  vertices inside the body, {label}: mean {inside.mean():.2f} %, "
-                  f"p99 {np.percentile(inside, 99):.1f} %, max {inside.max():.1f} % "
-                  f"per frame")  # fmt: skip
+            print(
+                f"  vertices inside the body, {label}: mean {inside.mean():.2f} %, "
+                f"p99 {np.percentile(inside, 99):.1f} %, max {inside.max():.1f} % "
+                f"per frame"
+            )
     motion = load_motion("spin", avatar, fps=model.fps).slice(0, 40)
     body = avatar.pose_motion(motion)
     inside = inside_fraction(model.animate(motion).vertices, body.vertices, collider)

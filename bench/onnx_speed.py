@@ -54,9 +54,17 @@ def print_batches(args, model, frames: int) -> None:
 
     sizes = [int(b) for b in args.batch.split(",")]
     rc = model.rollout_config
-    lines = [(rollout_timeline(motion_for("dance:12", model.avatar(), model.fps, frames,
-                                          seed=i), model.floor_height, rc.warm_frames,
-                               rc.blend_seconds)) for i in range(max(sizes))]  # fmt: skip
+    lines = [
+        (
+            rollout_timeline(
+                motion_for("dance:12", model.avatar(), model.fps, frames, seed=i),
+                model.floor_height,
+                rc.warm_frames,
+                rc.blend_seconds,
+            )
+        )
+        for i in range(max(sizes))
+    ]
     rot = np.stack([r for r, _, _ in lines]).astype(np.float32)  # (B, P + T, J, 3, 3)
     root = np.stack([q for _, q, _ in lines]).astype(np.float32)  # (B, P + T, 3)
     with tempfile.TemporaryDirectory() as tmp:
@@ -69,8 +77,10 @@ def print_batches(args, model, frames: int) -> None:
             for t in range(rot.shape[1]):
                 _, state = runtime.step(rot[:B, t], root[:B, t], state, start=t == 0)
 
-        print("| characters B | frames/s (wall) | ms/frame wall | ms/frame thread CPU | "
-              "ms/frame process CPU |")  # fmt: skip
+        print(
+            "| characters B | frames/s (wall) | ms/frame wall | ms/frame thread CPU | "
+            "ms/frame process CPU |"
+        )
         print("|---:|---:|---:|---:|---:|")
         run(1)  # warm-up
         for B in sizes:
@@ -100,8 +110,10 @@ def main() -> None:
     total = None
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for label, stages, detail in (("motion stage", MOTION_ONLY, False),
-                                      ("motion stage + detail", WITH_DETAIL, True)):  # fmt: skip
+        for label, stages, detail in (
+            ("motion stage", MOTION_ONLY, False),
+            ("motion stage + detail", WITH_DETAIL, True),
+        ):
             if detail and model.detail is None:
                 continue
             path = Path(tmp) / f"{'detail' if detail else 'motion'}.onnx"
@@ -115,20 +127,26 @@ def main() -> None:
             gap = float(np.linalg.norm(got - ref.vertices, axis=-1).max())
             for what, t in (("PyTorch", t_torch), ("onnxruntime", t_onnx)):
                 ms = {k: 1e3 * v / total for k, v in t.items()}
-                rows.append((label, what, total / t["wall"], ms["wall"], ms["thread"],
-                             ms["process"], gap))  # fmt: skip
+                rows.append(
+                    (label, what, total / t["wall"], ms["wall"], ms["thread"], ms["process"], gap)
+                )
             print(f"{label}: largest difference {gap:.2e} m", flush=True)
-    print(f"\n{platform.machine()}, torch {torch.__version__}, onnxruntime "
-          f"{__import__('onnxruntime').__version__}, 1 thread each; {motion.name}, "
-          f"{motion.num_frames} frames + {total - motion.num_frames} of preroll\n")  # fmt: skip
+    print(
+        f"\n{platform.machine()}, torch {torch.__version__}, onnxruntime "
+        f"{__import__('onnxruntime').__version__}, 1 thread each; {motion.name}, "
+        f"{motion.num_frames} frames + {total - motion.num_frames} of preroll\n"
+    )
     if args.batch:
         print_batches(args, model, motion.num_frames)
-    print("| stages | runtime | frames/s (wall) | ms/frame wall | ms/frame thread CPU | "
-          "ms/frame process CPU | largest difference (m) |")  # fmt: skip
+    print(
+        "| stages | runtime | frames/s (wall) | ms/frame wall | ms/frame thread CPU | "
+        "ms/frame process CPU | largest difference (m) |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|")
     for label, what, fps, wall, thread, proc, gap in rows:
-        print(f"| {label} | {what} | {fps:.0f} | {wall:.2f} | {thread:.2f} | {proc:.2f} | "
-              f"{gap:.1e} |")  # fmt: skip
+        print(
+            f"| {label} | {what} | {fps:.0f} | {wall:.2f} | {thread:.2f} | {proc:.2f} | {gap:.1e} |"
+        )
 
 
 if __name__ == "__main__":

@@ -63,9 +63,18 @@ def simulate(args) -> None:
         base = ["loosefit", "simulate", "--config", str(dataset), "--shape", phenotype]
         runs = [
             base + ["--out", f"{args.data}/{name}"],
-            base + ["--motions", spec, "--test", clip, "--seeds", str(cfg["floor_seed"]),
-                    "--out", f"{args.data}/{name}-floor"],
-        ]  # fmt: skip
+            base
+            + [
+                "--motions",
+                spec,
+                "--test",
+                clip,
+                "--seeds",
+                str(cfg["floor_seed"]),
+                "--out",
+                f"{args.data}/{name}-floor",
+            ],
+        ]
         for cmd in runs:
             print(" ".join(cmd), flush=True)
             subprocess.run(cmd + ["--workers", str(args.workers)], check=True)
@@ -73,10 +82,14 @@ def simulate(args) -> None:
 
 def waist_gap(garment, waist, body, faces) -> np.ndarray:
     """(T,) m: each frame, the waistband's farthest vertex from the body's skin."""
-    return np.array([
-        float(closest_points(body[t], faces, garment[t, waist], max_distance=1.0).distance.max())
-        for t in range(len(garment))
-    ])  # fmt: skip
+    return np.array(
+        [
+            float(
+                closest_points(body[t], faces, garment[t, waist], max_distance=1.0).distance.max()
+            )
+            for t in range(len(garment))
+        ]
+    )
 
 
 def measure(animator, seq, shape, faces, carry: bool = True) -> dict:
@@ -221,8 +234,18 @@ def render(args, name, seq, got, faces) -> Path:
 
     frame = fastest_turn(seq.motion)
     out = Path(args.img) / f"other_body_{name}.jpg"
-    renders(out, frame, seq.garment_vertices, {"ours": got["ours"][frame]}, got["skin"], faces,
-            seq.garment.faces, 15.0, args.size, where=name)  # fmt: skip
+    renders(
+        out,
+        frame,
+        seq.garment_vertices,
+        {"ours": got["ours"][frame]},
+        got["skin"],
+        faces,
+        seq.garment.faces,
+        15.0,
+        args.size,
+        where=name,
+    )
     return out
 
 
@@ -272,9 +295,13 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
                 f"{c['waist_over_2cm_pct']:.0f} | "
                 f"{c['ms_per_frame']:.0f} |"
             )
-    lines += ["", f"Against each body's chaos floor ({floor_clip}):", "",
-              "| body | shape | floor cm | RMSE cm | RMSE / floor | preparation s |",
-              "|---|---|---:|---:|---:|---:|"]  # fmt: skip
+    lines += [
+        "",
+        f"Against each body's chaos floor ({floor_clip}):",
+        "",
+        "| body | shape | floor cm | RMSE cm | RMSE / floor | preparation s |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
     for name, row in rows.items():
         c = row["clips"][floor_clip]
         floor = row["floor_cm"]
@@ -285,17 +312,25 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
         )
     if Path(args.speed_out).is_file():  # python bench/other_bodies.py speed
         lines += ["", Path(args.speed_out).read_text().strip()]
-    lines += ["", "![each body at 05_02's fastest turn, top to bottom as in the tables: "
-              "simulation | ours](img/other_bodies.jpg)",
-              ""]  # fmt: skip
+    lines += [
+        "",
+        "![each body at 05_02's fastest turn, top to bottom as in the tables: "
+        "simulation | ours](img/other_bodies.jpg)",
+        "",
+    ]
     Path(args.out).write_text("\n".join(lines))
     print(f"wrote {args.out}")
     if args.results:  # the same tables, as docs/RESULTS.md's section
         from loosefit.eval.report import splice_section
 
-        section = [SECTION, "", "From [OTHER_BODIES.md](OTHER_BODIES.md), which says how: "
-                   "the pretrained set on anny bodies it was not trained on, against "
-                   "simulations on them.", ""] + lines[4:]  # fmt: skip
+        section = [
+            SECTION,
+            "",
+            "From [OTHER_BODIES.md](OTHER_BODIES.md), which says how: "
+            "the pretrained set on anny bodies it was not trained on, against "
+            "simulations on them.",
+            "",
+        ] + lines[4:]
         page = Path(args.results)
         page.write_text(splice_section(page.read_text(), SECTION, "\n".join(section)))
         print(f"wrote its section of {page}")

@@ -123,12 +123,16 @@ def table(results: dict) -> str:
     for variant, rows in results.items():
         for name, r in rows.items():
             if "frames" not in r:
-                lines.append(f"| {variant} | {name} | | | | | | | | | | | {r['status']}: "
-                             f"{r['reason']} |")  # fmt: skip
+                lines.append(
+                    f"| {variant} | {name} | | | | | | | | | | | {r['status']}: {r['reason']} |"
+                )
                 continue
             spf = r["seconds_per_frame"]
-            overlap = (f"{r['overlap_frames']}, {r['overlap_depth_cm']:.2f}"
-                       if r["overlap_frames"] is not None else "-")  # fmt: skip
+            overlap = (
+                f"{r['overlap_frames']}, {r['overlap_depth_cm']:.2f}"
+                if r["overlap_frames"] is not None
+                else "-"
+            )
             lines.append(
                 f"| {variant} | {name} | {r['frames']} | {r['inside_mean_pct']:.3f} | "
                 f"{r['inside_folded_pct']:.3f} | {r['inside_collider_pct']:.3f} | "
@@ -167,8 +171,10 @@ def main() -> int:
         generate(config, folder, workers=args.workers, progress=True)
         print(f"{variant}: simulated in {time.perf_counter() - t0:.0f} s", flush=True)
         results[variant] = judge(folder)
-    print(f"machine: {platform.platform()}, {os.cpu_count()} CPUs; tolerance "
-          f"{PENETRATION_TOLERANCE * 1000:.0f} mm")  # fmt: skip
+    print(
+        f"machine: {platform.platform()}, {os.cpu_count()} CPUs; tolerance "
+        f"{PENETRATION_TOLERANCE * 1000:.0f} mm"
+    )
     print(table(results))
     if args.json:
         write_json_atomic(Path(args.json), results)

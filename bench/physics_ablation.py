@@ -78,8 +78,11 @@ def means(clips: dict, label: str) -> dict:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--base", default="checkpoints/salsa/motion.pt",
-                   help="the pipeline the generative runs' oracle rows are taken with")  # fmt: skip
+    p.add_argument(
+        "--base",
+        default="checkpoints/salsa/motion.pt",
+        help="the pipeline the generative runs' oracle rows are taken with",
+    )
     p.add_argument("--generative", nargs="*", default=[], help="NAME=checkpoint.pt")
     p.add_argument("--motion", nargs="*", default=[], help="NAME=model.pt")
     p.add_argument("--data", nargs="*", default=["datasets/account"])
@@ -99,9 +102,14 @@ def main() -> None:
     for f in args.sequence:
         seqs[Path(f).stem] = read_any_sequence(f)
     if args.max_frames:
-        seqs = {n: replace(s, motion=s.motion.slice(0, args.max_frames),
-                           garment_vertices=s.garment_vertices[: args.max_frames])
-                for n, s in seqs.items()}  # fmt: skip
+        seqs = {
+            n: replace(
+                s,
+                motion=s.motion.slice(0, args.max_frames),
+                garment_vertices=s.garment_vertices[: args.max_frames],
+            )
+            for n, s in seqs.items()
+        }
 
     runs = {}  # name: (stage, rows, model)
     base = load_pipeline(args.base)
@@ -112,29 +120,48 @@ def main() -> None:
     for name, path in named(args.motion, "--motion").items():
         runs[name] = ("motion", ("motion stage", "after"), load_pipeline(path), path)
 
-    record = {"machine": machine("cpu"), "platform": platform.platform(),
-              "cpus": os.cpu_count(), "threads": 1, "runs": {}}  # fmt: skip
-    lines = ["| run | stage | rows | " + " | ".join(h for _, h, _ in COLUMNS)
-             + " | the run's own test split: RMSE / Hausdorff / STED |",
-             "|---|---|---|" + "---:|" * len(COLUMNS) + "---|"]  # fmt: skip
+    record = {
+        "machine": machine("cpu"),
+        "platform": platform.platform(),
+        "cpus": os.cpu_count(),
+        "threads": 1,
+        "runs": {},
+    }
+    lines = [
+        "| run | stage | rows | "
+        + " | ".join(h for _, h, _ in COLUMNS)
+        + " | the run's own test split: RMSE / Hausdorff / STED |",
+        "|---|---|---|" + "---:|" * len(COLUMNS) + "---|",
+    ]
     for name, (stage, labels, model, path) in runs.items():
         clips = {}
         for clip, seq in seqs.items():
             print(f"{name}: {clip}", flush=True)
             clips[clip] = clip_account(model, clip, seq, labels)
         own = run_report(path)
-        record["runs"][name] = {"path": str(path), "stage": stage, "clips": clips,
-                                "report": own,
-                                "physics_terms": list(model.physics_terms)}  # fmt: skip
+        record["runs"][name] = {
+            "path": str(path),
+            "stage": stage,
+            "clips": clips,
+            "report": own,
+            "physics_terms": list(model.physics_terms),
+        }
         for label in labels:
             m = means(clips, label)
             record["runs"][name].setdefault("means", {})[label] = m
-            held = (" / ".join(f"{own[k]:.{d}f}" for k, d in
-                               (("rmse_cm", 2), ("hausdorff_cm", 2), ("sted", 4)) if k in own)
-                    or "-")  # fmt: skip
-            lines.append(f"| {name} | {stage} | {label} | "
-                         + " | ".join(f.format(m[k]) for k, _, f in COLUMNS)
-                         + f" | {held} |")  # fmt: skip
+            held = (
+                " / ".join(
+                    f"{own[k]:.{d}f}"
+                    for k, d in (("rmse_cm", 2), ("hausdorff_cm", 2), ("sted", 4))
+                    if k in own
+                )
+                or "-"
+            )
+            lines.append(
+                f"| {name} | {stage} | {label} | "
+                + " | ".join(f.format(m[k]) for k, _, f in COLUMNS)
+                + f" | {held} |"
+            )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(record, indent=1))

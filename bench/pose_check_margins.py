@@ -41,8 +41,11 @@ def main() -> int:
     specs = [f"{m}" for m in PROCEDURAL_NAMES if m != "dance"]
     specs = [(s, seed) for s in specs for seed in (0, 1, 2)]
     specs += [(f"dance:{d}", seed) for d, seed in ((12, 0), (12, 1), (30, 2))]
-    specs += [(str(f), 0) for folder in ("cmu-salsa", "cmu-ballet")
-              for f in sorted((MOCAP / folder).glob("*.bvh"))]  # fmt: skip
+    specs += [
+        (str(f), 0)
+        for folder in ("cmu-salsa", "cmu-ballet")
+        for f in sorted((MOCAP / folder).glob("*.bvh"))
+    ]
     config = RetargetConfig(check_pose=False, fps=None)  # files at their own rate
     print(
         f"thresholds: upright >= {MIN_UPRIGHT}, contact (< {CONTACT_M} m) >= {MIN_CONTACT}, "
@@ -62,8 +65,9 @@ def main() -> int:
         m = measure_pose(motion, avatar.skeleton, avatar.floor_height)
         contact = float((m.sole < CONTACT_M).mean())
         near = " ".join(f"{(m.sole < h).mean():.2f}" for h in (0.05, 0.15))
-        rise = " ".join(f"{((m.torso_rise > k) & (m.legs_rise > k)).mean():.2f}"
-                        for k in (0.0, 0.3, 0.7))  # fmt: skip
+        rise = " ".join(
+            f"{((m.torso_rise > k) & (m.legs_rise > k)).mean():.2f}" for k in (0.0, 0.3, 0.7)
+        )
         t, j = np.unravel_index(np.argmax(m.turn), m.turn.shape)
         label = Path(spec).stem if spec.endswith(".bvh") else f"{spec}/{seed}"
         print(
@@ -72,10 +76,12 @@ def main() -> int:
             f"{motion.fps:.0f} fps; contact at 5, 15 cm: {near}; upright by 0, 0.3, "
             f"0.7: {rise}"
         )
-        worst = {"upright": min(worst["upright"], float(m.upright.mean())),
-                 "contact": min(worst["contact"], contact),
-                 "sole": min(worst["sole"], float(m.sole.min())),
-                 "turn": max(worst["turn"], float(m.turn.max()))}  # fmt: skip
+        worst = {
+            "upright": min(worst["upright"], float(m.upright.mean())),
+            "contact": min(worst["contact"], contact),
+            "sole": min(worst["sole"], float(m.sole.min())),
+            "turn": max(worst["turn"], float(m.turn.max())),
+        }
     print("worst:", {k: round(v, 3) for k, v in worst.items()})
     return 0
 

@@ -51,8 +51,10 @@ MOTIONS = (
     "frames:290:370:mirror:{salsa}/60_02.bvh",
     "frames:150:220:{salsa}/60_01.bvh",
 )
-LIMB_ROOTS = {"left leg": ("LeftUpLeg", "LeftLeg", "LeftFoot"),
-              "right leg": ("RightUpLeg", "RightLeg", "RightFoot")}  # fmt: skip
+LIMB_ROOTS = {
+    "left leg": ("LeftUpLeg", "LeftLeg", "LeftFoot"),
+    "right leg": ("RightUpLeg", "RightLeg", "RightFoot"),
+}
 
 
 class Turn:
@@ -113,8 +115,9 @@ class Turn:
         return math.inf
 
 
-def measure(avatar, parts, spec: str, clearance: float, max_degrees: float, cap: float,
-            steps: int = 6) -> dict:  # fmt: skip
+def measure(
+    avatar, parts, spec: str, clearance: float, max_degrees: float, cap: float, steps: int = 6
+) -> dict:
     """Per folded frame and way of turning: the smallest angle that clears, and its cost."""
     from loosefit.body.motions import load_motion
 
@@ -150,19 +153,27 @@ def measure(avatar, parts, spec: str, clearance: float, max_degrees: float, cap:
                 at, sign = found["clear"]
                 capped = turn.pose(cap, sign)
                 moved = (turn.pose(at, sign)[1] if math.isfinite(at) else capped[1]) - joints
-                rows.append({
-                    "motion": spec, "limb": limb, "frame": t, "depth_cm": 100 * depth,
-                    "way": way, "clear_deg": at, "clearance_deg": found["clearance"][0],
-                    "ankle_cm": 100 * float(np.linalg.norm(moved[ja])),
-                    "knee_cm": 100 * float(np.linalg.norm(moved[jk])),
-                    "capped_depth_cm": 100 * max(-float(test.signed(capped[0])[0].min()), 0.0),
-                    "capped_ankle_cm": 100 * float(np.linalg.norm(capped[1][ja] - joints[ja])),
-                })  # fmt: skip
+                rows.append(
+                    {
+                        "motion": spec,
+                        "limb": limb,
+                        "frame": t,
+                        "depth_cm": 100 * depth,
+                        "way": way,
+                        "clear_deg": at,
+                        "clearance_deg": found["clearance"][0],
+                        "ankle_cm": 100 * float(np.linalg.norm(moved[ja])),
+                        "knee_cm": 100 * float(np.linalg.norm(moved[jk])),
+                        "capped_depth_cm": 100 * max(-float(test.signed(capped[0])[0].min()), 0.0),
+                        "capped_ankle_cm": 100 * float(np.linalg.norm(capped[1][ja] - joints[ja])),
+                    }
+                )
     return {"frames": motion.num_frames, "rows": rows}
 
 
-def simulate_pair(avatar, parts, spec: str, clearance: float, cap: float, out: Path,
-                  workers: int) -> dict:  # fmt: skip
+def simulate_pair(
+    avatar, parts, spec: str, clearance: float, cap: float, out: Path, workers: int
+) -> dict:
     """Simulate ``spec`` as captured and as :func:`~loosefit.body.unfold.unfold_motion`
     corrects it; per clip the figures of bench/penetration_regression.py, the turn, and
     the feet."""
@@ -174,8 +185,9 @@ def simulate_pair(avatar, parts, spec: str, clearance: float, cap: float, out: P
     from loosefit.sim.generate import generate
 
     motion = load_motion(spec, avatar, fps=30.0)
-    unfolded = unfold_motion(avatar, motion, parts, UnfoldConfig(clearance=clearance,
-                                                                 max_degrees=cap))  # fmt: skip
+    unfolded = unfold_motion(
+        avatar, motion, parts, UnfoldConfig(clearance=clearance, max_degrees=cap)
+    )
     fixed, degrees = unfolded.motion, unfolded.degrees
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"corrected_{cap:g}deg.npz"
@@ -197,8 +209,12 @@ def simulate_pair(avatar, parts, spec: str, clearance: float, cap: float, out: P
             "ankle_moved_cm_max": 100 * float(moved.max()),
             "toe_lowest_cm": [100 * float(x.joint_poses[:, toe, 2, 3].min()) for x in (a, b)],
         }
-    return {"clips": rows, "degrees_max": float(degrees.max()),
-            "frames_turned": int((degrees > 0).sum()), "feet": feet}  # fmt: skip
+    return {
+        "clips": rows,
+        "degrees_max": float(degrees.max()),
+        "frames_turned": int((degrees > 0).sum()),
+        "feet": feet,
+    }
 
 
 def survey(avatar, parts, folder: Path) -> str:
@@ -229,18 +245,25 @@ def summarize(rows: list[dict]) -> list[dict]:
     for motion, way in keys:
         rs = [r for r in rows if r["motion"] == motion and r["way"] == way]
         clear = np.array([r["clear_deg"] for r in rs])
-        out.append({
-            "motion": motion, "way": way, "folded_frames": len(rs),
-            "depth_max_cm": max(r["depth_cm"] for r in rs),
-            "clear_deg_median": float(np.median(clear)), "clear_deg_max": float(clear.max()),
-            "clearance_deg_max": float(max(r["clearance_deg"] for r in rs)),
-            "ankle_cm_max": max(r["ankle_cm"] for r in rs if math.isfinite(r["clear_deg"]))
-            if np.isfinite(clear).any() else math.inf,
-            "knee_cm_max": max(r["knee_cm"] for r in rs if math.isfinite(r["clear_deg"]))
-            if np.isfinite(clear).any() else math.inf,
-            "capped_depth_cm_max": max(r["capped_depth_cm"] for r in rs),
-            "capped_ankle_cm_max": max(r["capped_ankle_cm"] for r in rs),
-        })  # fmt: skip
+        out.append(
+            {
+                "motion": motion,
+                "way": way,
+                "folded_frames": len(rs),
+                "depth_max_cm": max(r["depth_cm"] for r in rs),
+                "clear_deg_median": float(np.median(clear)),
+                "clear_deg_max": float(clear.max()),
+                "clearance_deg_max": float(max(r["clearance_deg"] for r in rs)),
+                "ankle_cm_max": max(r["ankle_cm"] for r in rs if math.isfinite(r["clear_deg"]))
+                if np.isfinite(clear).any()
+                else math.inf,
+                "knee_cm_max": max(r["knee_cm"] for r in rs if math.isfinite(r["clear_deg"]))
+                if np.isfinite(clear).any()
+                else math.inf,
+                "capped_depth_cm_max": max(r["capped_depth_cm"] for r in rs),
+                "capped_ankle_cm_max": max(r["capped_ankle_cm"] for r in rs),
+            }
+        )
     return out
 
 
@@ -295,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
         "FOLDER (from frame 10, as the salsa preset plays them)",
     )
     ap.add_argument("--workers", type=int, default=2)
-    args = ap.parse_args(argv)  # fmt: skip
+    args = ap.parse_args(argv)
     from loosefit.body.avatar import Avatar
     from loosefit.body.regions import body_parts
 
@@ -318,8 +341,9 @@ def main(argv: list[str] | None = None) -> int:
     result = {"summary": summary, "rows": rows}
     if args.simulate:
         torch.set_num_threads(1)
-        sim = simulate_pair(avatar, parts, specs[0], args.clearance, args.cap, args.out,
-                            args.workers)  # fmt: skip
+        sim = simulate_pair(
+            avatar, parts, specs[0], args.clearance, args.cap, args.out, args.workers
+        )
         result["simulated"] = sim
         print(json.dumps(sim, indent=1))
     if args.json:

@@ -61,8 +61,11 @@ def _same(a: Path, b: Path) -> bool:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--compare", action="store_true",
-                        help="also make the tiny preset locally and on Ray (minutes)")  # fmt: skip
+    parser.add_argument(
+        "--compare",
+        action="store_true",
+        help="also make the tiny preset locally and on Ray (minutes)",
+    )
     args = parser.parse_args()
 
     port = _free_port()
@@ -79,8 +82,18 @@ def main() -> None:
             print(f"{what:<14} {seconds:7.3f} s  ({found})")
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
-        cmd = [sys.executable, "-m", "loosefit.cli", "simulate", "--preset", "tiny", "--out",
-               str(Path(tmp) / "x"), "--ray", f"127.0.0.1:{port}"]  # fmt: skip
+        cmd = [
+            sys.executable,
+            "-m",
+            "loosefit.cli",
+            "simulate",
+            "--preset",
+            "tiny",
+            "--out",
+            str(Path(tmp) / "x"),
+            "--ray",
+            f"127.0.0.1:{port}",
+        ]
         run = subprocess.run(cmd, capture_output=True, text=True)
         seconds = time.perf_counter() - t0
         print(f"command line   {seconds:7.3f} s  (exit {run.returncode}, imports included)")

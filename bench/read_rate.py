@@ -125,10 +125,16 @@ def main() -> None:
         verdicts[verdict] += 1
         rows.append((path.relative_to(folder), verdict, what))
         rate = (k + 1) / (time.perf_counter() - t0)
-        print(f"[{k + 1}/{len(files)}, {rate:.2f} files/s, ETA {(len(files) - k - 1) / rate:.0f} "
-              f"s] {path.name}: {verdict}: {what}", file=sys.stderr)  # fmt: skip
-    reasons = Counter(what.split(":")[0] + ": " + what.split(":", 1)[1][:50]
-                      for _, v, what in rows if v == "refused")  # fmt: skip
+        print(
+            f"[{k + 1}/{len(files)}, {rate:.2f} files/s, ETA {(len(files) - k - 1) / rate:.0f} "
+            f"s] {path.name}: {verdict}: {what}",
+            file=sys.stderr,
+        )
+    reasons = Counter(
+        what.split(":")[0] + ": " + what.split(":", 1)[1][:50]
+        for _, v, what in rows
+        if v == "refused"
+    )
     share = verdicts["read"] / len(files)
     lines = [
         f"# Read without a joint map: {folder.name}",

@@ -65,7 +65,8 @@ def rollouts(args, reader: DatasetReader, name: str, cache: Path) -> dict:
     for key, (_, kind, stages) in METHODS.items():
         path = cache / f"{key}.npz"
         ckpt = {"ours": args.checkpoint, "ours-detail": args.with_detail}.get(
-            kind, Path(args.baselines, kind, "model.pt"))  # fmt: skip
+            kind, Path(args.baselines, kind, "model.pt")
+        )
         if ckpt is None or not Path(ckpt).is_file():
             continue  # a baseline (or its second seed) not trained, or no --with-detail
         if not path.is_file():
@@ -75,13 +76,20 @@ def rollouts(args, reader: DatasetReader, name: str, cache: Path) -> dict:
             result = models[kind].animate(seq.motion, stages=stages)
             seconds = time.perf_counter() - t0
             tmp = path.with_name(path.stem + ".partial.npz")
-            np.savez(tmp, vertices=result.vertices.astype(np.float32), seconds=seconds,
-                     frames=result.frames)  # fmt: skip
+            np.savez(
+                tmp,
+                vertices=result.vertices.astype(np.float32),
+                seconds=seconds,
+                frames=result.frames,
+            )
             tmp.replace(path)
             print(f"{key}: rolled out in {seconds:.1f} s")
         with np.load(path) as z:
-            out[key] = {"vertices": z["vertices"], "seconds": float(z["seconds"]),
-                        "frames": int(z["frames"])}  # fmt: skip
+            out[key] = {
+                "vertices": z["vertices"],
+                "seconds": float(z["seconds"]),
+                "frames": int(z["frames"]),
+            }
     return out
 
 
@@ -127,19 +135,33 @@ def heldout_sets(reader: DatasetReader) -> dict[str, list[str]]:
     (``dance``), any other held-out clip; each clip rolled out whole."""
     sets: dict[str, list[str]] = {}
     for name in reader.split("test"):
-        key = ("chain" if name.startswith("chain_") else
-               "ballet" if name in BALLET_CLIPS else "other")  # fmt: skip
+        key = (
+            "chain" if name.startswith("chain_") else "ballet" if name in BALLET_CLIPS else "other"
+        )
         sets.setdefault(key, []).append(name)
     return sets
 
 
-SET_TITLES = {"chain": "the held-out salsa chain", "ballet": "the held-out ballet clips",
-              "other": "the other held-out clips"}  # fmt: skip
+SET_TITLES = {
+    "chain": "the held-out salsa chain",
+    "ballet": "the held-out ballet clips",
+    "other": "the other held-out clips",
+}
 
 
-def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces, faces,
-            vmax: float, size: int, where: str = "chain",
-            truth_label: str = "simulation") -> None:  # fmt: skip
+def renders(
+    out_path: Path,
+    frame: int,
+    truth,
+    garments: dict,
+    body,
+    body_faces,
+    faces,
+    vmax: float,
+    size: int,
+    where: str = "chain",
+    truth_label: str = "simulation",
+) -> None:
     """Simulation | methods at one frame, front and side, coloured by error, with a colour bar."""
     import matplotlib
 
@@ -151,8 +173,9 @@ def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces,
     from loosefit.render.video import contact_sheet
 
     cmap = plt.get_cmap("inferno")
-    config = RenderConfig(width=size, height=size, views=("front", "side"), follow=True,
-                          frame_counter=False)  # fmt: skip
+    config = RenderConfig(
+        width=size, height=size, views=("front", "side"), follow=True, frame_counter=False
+    )
     images, labels = [], []
     with Renderer(config) as renderer:
         for label, g in {truth_label: truth[frame], **garments}.items():
@@ -181,16 +204,18 @@ def renders(out_path: Path, frame: int, truth, garments: dict, body, body_faces,
     Image.fromarray(np.concatenate([pad(sheet), pad(bar)])).save(out_path, quality=88)
 
 
-def plot_per_frame(path: Path, scores: dict, clips: list[str], spins: list[int],
-                   title: str) -> None:  # fmt: skip
+def plot_per_frame(
+    path: Path, scores: dict, clips: list[str], spins: list[int], title: str
+) -> None:
     """Every method's RMSE per frame, one panel per clip of the set."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(clips), 1, figsize=(10, 1 + 3 * len(clips)), dpi=110,
-                             squeeze=False)  # fmt: skip
+    fig, axes = plt.subplots(
+        len(clips), 1, figsize=(10, 1 + 3 * len(clips)), dpi=110, squeeze=False
+    )
     for i, (ax, clip, spin) in enumerate(zip(axes[:, 0], clips, spins, strict=True)):
         for key, s in scores.items():
             ax.plot(s["rmse_per_frame_cm"][i], lw=0.9, label=METHODS[key][0])
@@ -222,8 +247,9 @@ def ablation_section(ablation: Path) -> list[str]:
     return format_table(rows, Path(ablation).parent.name, "cpu").splitlines()
 
 
-def ablation_figures(ablation: Path, cache: Path, reader, seq, body, body_faces, spin: int,
-                     img: Path, size: int) -> dict:  # fmt: skip
+def ablation_figures(
+    ablation: Path, cache: Path, reader, seq, body, body_faces, spin: int, img: Path, size: int
+) -> dict:
     """Each decoder's (seed 0) reconstruction of the chain: per-frame RMSE and a render.
 
     Returns:
@@ -266,11 +292,23 @@ def ablation_figures(ablation: Path, cache: Path, reader, seq, body, body_faces,
     fig.tight_layout()
     fig.savefig(img / "results_ablation_per_frame.png")
     plt.close(fig)
-    labels = {"decomposed": "decomposed (ours)", "vertex": "single vertex decoder",
-              "ssdr": "SSDR linear decoder"}  # fmt: skip
+    labels = {
+        "decomposed": "decomposed (ours)",
+        "vertex": "single vertex decoder",
+        "ssdr": "SSDR linear decoder",
+    }
     picks = {labels[d]: v[spin] for d, v in recon.items()}
-    renders(img / "results_ablation_spin.jpg", spin, truth, picks, body, body_faces,
-            reader.template.faces, 8.0, size)  # fmt: skip
+    renders(
+        img / "results_ablation_spin.jpg",
+        spin,
+        truth,
+        picks,
+        body,
+        body_faces,
+        reader.template.faces,
+        8.0,
+        size,
+    )
     return {d: e.tolist() for d, e in per.items()}
 
 
@@ -283,21 +321,31 @@ def clip_data(args, reader: DatasetReader, name: str, cache: Path, ours) -> dict
     collider = avatar.collider_faces(arms=ours.arm_collision).cpu().numpy()
     feet = [avatar.joint_names.index(j) for j in ("LeftFoot", "RightFoot")]
     feet_z = avatar.pose_motion(seq.motion).joint_poses[:, feet, 2, 3].cpu().numpy()
-    return {"name": name, "seq": seq, "garments": garments, "body": body,
-            "collider": collider, "body_faces": avatar.faces.cpu().numpy(),
-            "feet_z": feet_z}  # fmt: skip
+    return {
+        "name": name,
+        "seq": seq,
+        "garments": garments,
+        "body": body,
+        "collider": collider,
+        "body_faces": avatar.faces.cpu().numpy(),
+        "feet_z": feet_z,
+    }
 
 
 def simulation_scores(clips: list[dict], template) -> dict:
     """The simulation's own inside and strain figures over a set's frames."""
-    inside = np.concatenate([100 * inside_fraction(c["seq"].garment_vertices, c["body"],
-                                                   c["collider"]) for c in clips])  # fmt: skip
-    strain = np.concatenate([edge_strain(c["seq"].garment_vertices, template)[0].reshape(-1)
-                             for c in clips])  # fmt: skip
-    return {"inside_mean_pct": float(inside.mean()),
-            "inside_p99_pct": float(np.percentile(inside, 99)),
-            "strain_p50": float(np.median(strain)),
-            "strain_p99": float(np.percentile(strain, 99))}  # fmt: skip
+    inside = np.concatenate(
+        [100 * inside_fraction(c["seq"].garment_vertices, c["body"], c["collider"]) for c in clips]
+    )
+    strain = np.concatenate(
+        [edge_strain(c["seq"].garment_vertices, template)[0].reshape(-1) for c in clips]
+    )
+    return {
+        "inside_mean_pct": float(inside.mean()),
+        "inside_p99_pct": float(np.percentile(inside, 99)),
+        "strain_p50": float(np.median(strain)),
+        "strain_p99": float(np.percentile(strain, 99)),
+    }
 
 
 def clip_renders(c: dict, img: Path, size: int, template) -> dict:
@@ -307,15 +355,34 @@ def clip_renders(c: dict, img: Path, size: int, template) -> dict:
     leg, leg_height = highest_leg(c["feet_z"])
     frames = {"turn": fastest_turn(motion), "leg": leg}
     for what, frame in frames.items():
-        picks = {label: c["garments"][key]["vertices"][frame] for label, key in (
-            ("ours", "ours-full"), ("virtual bones", "virtual-bones"),
-            ("Santesteban + push-out", "santesteban-push")) if key in c["garments"]}  # fmt: skip
+        picks = {
+            label: c["garments"][key]["vertices"][frame]
+            for label, key in (
+                ("ours", "ours-full"),
+                ("virtual bones", "virtual-bones"),
+                ("Santesteban + push-out", "santesteban-push"),
+            )
+            if key in c["garments"]
+        }
         path = img / f"results_{c['name']}_{what}.jpg"
-        renders(path, frame, c["seq"].garment_vertices, picks, c["body"], c["body_faces"],
-                template.faces, 15.0, size, where=c["name"])  # fmt: skip
-    return {"turn": frames["turn"], "leg": frames["leg"],
-            "leg_height_m": leg_height,
-            "turn_rad_per_s": float(turn_rate(motion)[frames["turn"]])}  # fmt: skip
+        renders(
+            path,
+            frame,
+            c["seq"].garment_vertices,
+            picks,
+            c["body"],
+            c["body_faces"],
+            template.faces,
+            15.0,
+            size,
+            where=c["name"],
+        )
+    return {
+        "turn": frames["turn"],
+        "leg": frames["leg"],
+        "leg_height_m": leg_height,
+        "turn_rad_per_s": float(turn_rate(motion)[frames["turn"]]),
+    }
 
 
 # The cloth targets on every held-out clip (ours, the whole pipeline): key, text, test
@@ -339,26 +406,37 @@ def cloth_figures(ours, c: dict, cache: Path) -> dict:
 
     measure, turn, window = clip_reference(ours, c["seq"])
     drop = ("flare_turn",)
-    out = {"turn": turn, "window": list(window),
-           "ours": {k: v for k, v in measure(c["garments"]["ours-full"]["vertices"]).items()
-                    if k not in drop},
-           "simulation": {k: v for k, v in measure(c["seq"].garment_vertices).items()
-                          if k not in drop}}  # fmt: skip
+    out = {
+        "turn": turn,
+        "window": list(window),
+        "ours": {
+            k: v
+            for k, v in measure(c["garments"]["ours-full"]["vertices"]).items()
+            if k not in drop
+        },
+        "simulation": {
+            k: v for k, v in measure(c["seq"].garment_vertices).items() if k not in drop
+        },
+    }
     path.write_text(json.dumps(out))
     return out
 
 
 def cloth_section(cloth: dict) -> list[str]:
     """The cloth targets, clip by clip: ours (full) against the simulation."""
-    lines = ["## The cloth on every held-out clip", "",
-             "Ours (the whole pipeline) and the simulation, measured as `bench/stage_account.py` "
-             "measures (the waistband's own edges left out of the strain; flare: the hem's mean "
-             "distance from the pelvis's vertical axis, the mean of |ours / simulation - 1| "
-             "frame by frame over the 61 frames around the clip's fastest turn; inside: the "
-             "whole body, arms and hands included).", "",
-             "| clip | edge change p50 % (sim) | strain p50 (sim) | flare error at the turn % | "
-             "inside mean % | inside worst frame % (sim) | frames > 5 mm (sim) | deepest cm |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+    lines = [
+        "## The cloth on every held-out clip",
+        "",
+        "Ours (the whole pipeline) and the simulation, measured as `bench/stage_account.py` "
+        "measures (the waistband's own edges left out of the strain; flare: the hem's mean "
+        "distance from the pelvis's vertical axis, the mean of |ours / simulation - 1| "
+        "frame by frame over the 61 frames around the clip's fastest turn; inside: the "
+        "whole body, arms and hands included).",
+        "",
+        "| clip | edge change p50 % (sim) | strain p50 (sim) | flare error at the turn % | "
+        "inside mean % | inside worst frame % (sim) | frames > 5 mm (sim) | deepest cm |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     misses = []
     for name, f in cloth.items():
         r, s = f["ours"], f["simulation"]
@@ -390,8 +468,7 @@ def match_reference(name: str, ref_seq, clips: dict) -> tuple[str, int, float, l
             continue
         n = min(len(a), len(b))
         per_joint = np.abs(a[:n] - b[:n]).max(axis=(0, 2, 3))
-        joints = [j for j, d in zip(ref_seq.motion.joint_names, per_joint, strict=True)
-                  if d > 1e-3]  # fmt: skip
+        joints = [j for j, d in zip(ref_seq.motion.joint_names, per_joint, strict=True) if d > 1e-3]
         hit = (clip, n, float(per_joint.max()), joints)
         if best is None or len(hit[3]) < len(best[3]):
             best = hit
@@ -405,13 +482,16 @@ def reference_section(reference: Path, clips: dict, cache: Path, template) -> li
     0.1 mm apart), scored against the data set's simulation like every method, on the
     frames it covers."""
     ref = DatasetReader(reference, allow_incomplete=True)
-    lines = ["## The physical reference: the simulation against itself", "",
-             "Cloth is chaotic: the same motion simulated again with another seed (the "
-             "cloth's start jittered by 0.1 mm; `loosefit simulate --config "
-             "configs/reference_seed.yaml`) drifts from the first simulation. That second "
-             "simulation, scored like every method against the first on the frames it "
-             "covers, is the error no deterministic model can be expected to beat by much.",
-             ""]  # fmt: skip
+    lines = [
+        "## The physical reference: the simulation against itself",
+        "",
+        "Cloth is chaotic: the same motion simulated again with another seed (the "
+        "cloth's start jittered by 0.1 mm; `loosefit simulate --config "
+        "configs/reference_seed.yaml`) drifts from the first simulation. That second "
+        "simulation, scored like every method against the first on the frames it "
+        "covers, is the error no deterministic model can be expected to beat by much.",
+        "",
+    ]
     rows = []
     for path in sorted((reference / "sequences").glob("*.npz")):
         seq = ref.read(path.stem)
@@ -425,8 +505,12 @@ def reference_section(reference: Path, clips: dict, cache: Path, template) -> li
         if not out.is_file():
 
             def part(v, c=c, n=n) -> dict:
-                return {"vertices": v[:n], "truth": c["seq"].garment_vertices[:n],
-                        "body": c["body"][:n], "collider": c["collider"]}  # fmt: skip
+                return {
+                    "vertices": v[:n],
+                    "truth": c["seq"].garment_vertices[:n],
+                    "body": c["body"][:n],
+                    "collider": c["collider"],
+                }
 
             scores = {"simulation, another seed": score([part(seq.garment_vertices)], template)}
             for key, g in c["garments"].items():  # by method key: labels may change
@@ -435,17 +519,29 @@ def reference_section(reference: Path, clips: dict, cache: Path, template) -> li
         scores = json.loads(out.read_text())
         rows.append((name, n, diff, joints, scores))
     for name, n, diff, joints, scores in rows:
-        same = ("the same motion" if not joints else "the same motion but for "
-                + ", ".join(joints) + f" (up to {diff:.2f} in a rotation entry: the pose "
-                "correction turns it a little differently on the shorter clip)")  # fmt: skip
-        lines += [f"### `{name}`, its first {n} frames", "", f"({same})", "",
-                  "| method | RMSE cm | Hausdorff cm | STED | RMSE / the reference's |",
-                  "|---|---:|---:|---:|---:|"]  # fmt: skip
+        same = (
+            "the same motion"
+            if not joints
+            else "the same motion but for "
+            + ", ".join(joints)
+            + f" (up to {diff:.2f} in a rotation entry: the pose "
+            "correction turns it a little differently on the shorter clip)"
+        )
+        lines += [
+            f"### `{name}`, its first {n} frames",
+            "",
+            f"({same})",
+            "",
+            "| method | RMSE cm | Hausdorff cm | STED | RMSE / the reference's |",
+            "|---|---:|---:|---:|---:|",
+        ]
         base = scores["simulation, another seed"]["rmse_cm"]
         for key, s in scores.items():
             label = METHODS[key][0] if key in METHODS else key
-            lines.append(f"| {label} | {s['rmse_cm']:.2f} | {s['hausdorff_cm']:.2f} | "
-                         f"{s['sted']:.4f} | {s['rmse_cm'] / base:.2f} |")  # fmt: skip
+            lines.append(
+                f"| {label} | {s['rmse_cm']:.2f} | {s['hausdorff_cm']:.2f} | "
+                f"{s['sted']:.4f} | {s['rmse_cm'] / base:.2f} |"
+            )
         lines.append("")
     return lines
 
@@ -467,15 +563,28 @@ def main() -> None:
     p.add_argument("--img", default="docs/img")
     p.add_argument("--size", type=int, default=320, help="pixels per view of the renders")
     p.add_argument("--threads", type=int, default=2)
-    p.add_argument("--reference", default=None,
-                   help="a data set of held-out motion simulated again with another seed "
-                   "(the physical reference row)")  # fmt: skip
-    p.add_argument("--ensemble", default=None, help="docs/ENSEMBLE.md (bench/ensemble.py): "
-                   "every method against an ensemble of simulations, as a section")  # fmt: skip
-    p.add_argument("--table1", default=None, help="Table 1's Markdown (bench/motion_ablation.py "
-                   "--table), included as a section")  # fmt: skip
-    p.add_argument("--table2", default=None, help="Table 2's Markdown (bench/detail_collision.py "
-                   "--out), included as a section")  # fmt: skip
+    p.add_argument(
+        "--reference",
+        default=None,
+        help="a data set of held-out motion simulated again with another seed "
+        "(the physical reference row)",
+    )
+    p.add_argument(
+        "--ensemble",
+        default=None,
+        help="docs/ENSEMBLE.md (bench/ensemble.py): "
+        "every method against an ensemble of simulations, as a section",
+    )
+    p.add_argument(
+        "--table1",
+        default=None,
+        help="Table 1's Markdown (bench/motion_ablation.py --table), included as a section",
+    )
+    p.add_argument(
+        "--table2",
+        default=None,
+        help="Table 2's Markdown (bench/detail_collision.py --out), included as a section",
+    )
     args = p.parse_args()
     torch.set_num_threads(args.threads)
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
@@ -495,14 +604,20 @@ def main() -> None:
         for method in present:
             path = cache / "scores" / f"{key}-{method}.json"
             if not path.is_file():
-                parts = [{"vertices": c["garments"][method]["vertices"],
-                          "truth": c["seq"].garment_vertices, "body": c["body"],
-                          "collider": c["collider"], "fps": c["seq"].motion.fps}
-                         for c in clips]  # fmt: skip
+                parts = [
+                    {
+                        "vertices": c["garments"][method]["vertices"],
+                        "truth": c["seq"].garment_vertices,
+                        "body": c["body"],
+                        "collider": c["collider"],
+                        "fps": c["seq"].motion.fps,
+                    }
+                    for c in clips
+                ]
                 s = score(parts, template)
-                s["frames_per_second"] = (sum(c["garments"][method]["frames"] for c in clips)
-                                          / sum(c["garments"][method]["seconds"]
-                                                for c in clips))  # fmt: skip
+                s["frames_per_second"] = sum(c["garments"][method]["frames"] for c in clips) / sum(
+                    c["garments"][method]["seconds"] for c in clips
+                )
                 path.write_text(json.dumps(s))
             scores[method] = json.loads(path.read_text())
             print(
@@ -522,41 +637,83 @@ def main() -> None:
         spins = [int(np.argmax(r)) for r in rates]
         best = int(np.argmax([r[f] for r, f in zip(rates, spins, strict=True)]))
         c, spin = clips[best], spins[best]
-        plot_per_frame(img / f"results_rmse_per_frame_{key}.png", scores, names, spins,
-                       f"{SET_TITLES[key]}: RMSE of each method per frame")  # fmt: skip
-        picks = {label: c["garments"][k]["vertices"][spin] for label, k in (
-            ("ours", "ours-full"), ("virtual bones", "virtual-bones"),
-            ("Santesteban + push-out", "santesteban-push")) if k in c["garments"]}  # fmt: skip
-        renders(img / f"results_spin_{key}.jpg", spin, c["seq"].garment_vertices, picks,
-                c["body"], c["body_faces"], template.faces, 15.0, args.size,
-                where=c["name"])  # fmt: skip
-        sets[key] = {"clips": names, "frames": [c["seq"].motion.num_frames for c in clips],
-                     "scores": scores, "simulation": json.loads(sim.read_text()),
-                     "turn": {"clip": c["name"], "frame": spin,
-                              "rad_per_s": float(rates[best][spin])}}  # fmt: skip
+        plot_per_frame(
+            img / f"results_rmse_per_frame_{key}.png",
+            scores,
+            names,
+            spins,
+            f"{SET_TITLES[key]}: RMSE of each method per frame",
+        )
+        picks = {
+            label: c["garments"][k]["vertices"][spin]
+            for label, k in (
+                ("ours", "ours-full"),
+                ("virtual bones", "virtual-bones"),
+                ("Santesteban + push-out", "santesteban-push"),
+            )
+            if k in c["garments"]
+        }
+        renders(
+            img / f"results_spin_{key}.jpg",
+            spin,
+            c["seq"].garment_vertices,
+            picks,
+            c["body"],
+            c["body_faces"],
+            template.faces,
+            15.0,
+            args.size,
+            where=c["name"],
+        )
+        sets[key] = {
+            "clips": names,
+            "frames": [c["seq"].motion.num_frames for c in clips],
+            "scores": scores,
+            "simulation": json.loads(sim.read_text()),
+            "turn": {"clip": c["name"], "frame": spin, "rad_per_s": float(rates[best][spin])},
+        }
         if key == "chain":
             chain = c
     ablation_per_frame = {}
     if "chain" in sets:
         ablation_per_frame = ablation_figures(
-            Path(args.ablation), cache, reader, chain["seq"], chain["body"],
-            chain["body_faces"], sets["chain"]["turn"]["frame"], img, args.size,
-        )  # fmt: skip
-    reports = {k: json.loads(Path(args.baselines, k, "report.json").read_text())
-               for k in ("santesteban", "virtual-bones", "santesteban-s1", "virtual-bones-s1")
-               if Path(args.baselines, k, "report.json").is_file()}  # fmt: skip
+            Path(args.ablation),
+            cache,
+            reader,
+            chain["seq"],
+            chain["body"],
+            chain["body_faces"],
+            sets["chain"]["turn"]["frame"],
+            img,
+            args.size,
+        )
+    reports = {
+        k: json.loads(Path(args.baselines, k, "report.json").read_text())
+        for k in ("santesteban", "virtual-bones", "santesteban-s1", "virtual-bones-s1")
+        if Path(args.baselines, k, "report.json").is_file()
+    }
     spin = sets["chain"]["turn"]["frame"] if "chain" in sets else 0
     cloth = {name: cloth_figures(ours, c, cache) for name, c in all_clips.items()}
-    shown = {name: clip_renders(c, img, args.size, template) for name, c in all_clips.items()
-             if name in BALLET_CLIPS}  # fmt: skip
+    shown = {
+        name: clip_renders(c, img, args.size, template)
+        for name, c in all_clips.items()
+        if name in BALLET_CLIPS
+    }
     extra = targets_section(sets) + ensemble_section(args.ensemble) + clip_section(shown)
     extra += cloth_section(cloth)
     if args.reference:
         extra += reference_section(Path(args.reference), all_clips, cache, template)
     extra += included_tables(args.table1, args.table2)
-    text = markdown(args.data, sets, reports,
-                    ablation_section(Path(args.ablation)) + ablation_verdict(Path(args.ablation))
-                    + ablation_plots(ablation_per_frame, spin), started, extra)  # fmt: skip
+    text = markdown(
+        args.data,
+        sets,
+        reports,
+        ablation_section(Path(args.ablation))
+        + ablation_verdict(Path(args.ablation))
+        + ablation_plots(ablation_per_frame, spin),
+        started,
+        extra,
+    )
     Path(args.out).write_text(text)
     (cache / "results.json").write_text(json.dumps(sets))
     print(f"wrote {args.out}")
@@ -573,10 +730,16 @@ def verdicts(scores: dict, turn: dict, clips: list[str], around: int = 30) -> li
     lines = []
     for key in [k for k in METHODS if k.startswith(("santesteban", "virtual")) and k in scores]:
         b = scores[key]
-        won = [m for m, k in (("RMSE", "rmse_cm"), ("Hausdorff", "hausdorff_cm"), ("STED", "sted"))
-               if b[k] < ours[k]]  # fmt: skip
-        verdict = f"**the baseline is better on {', '.join(won)}**" if won else (
-            "ours is better on RMSE, Hausdorff and STED")  # fmt: skip
+        won = [
+            m
+            for m, k in (("RMSE", "rmse_cm"), ("Hausdorff", "hausdorff_cm"), ("STED", "sted"))
+            if b[k] < ours[k]
+        ]
+        verdict = (
+            f"**the baseline is better on {', '.join(won)}**"
+            if won
+            else ("ours is better on RMSE, Hausdorff and STED")
+        )
         theirs = np.concatenate([np.asarray(p) for p in b["rmse_per_frame_cm"]])
         a, t = np.asarray(ours["rmse_per_frame_cm"][i]), np.asarray(b["rmse_per_frame_cm"][i])
         lines.append(
@@ -592,11 +755,15 @@ def ablation_plots(per_frame: dict, spin: int) -> list[str]:
     """The ablation's figures, where they were made."""
     if not per_frame:
         return []
-    return ["", "Each decoder's (seed 0) reconstruction error per frame over the chain, and at "
-            f"its fastest turn (frame {spin}; colour scale 0-8 cm):", "",
-            "![Reconstruction RMSE per frame by decoder](img/results_ablation_per_frame.png)", "",
-            "![The fastest turn reconstructed by each decoder]"
-            "(img/results_ablation_spin.jpg)"]  # fmt: skip
+    return [
+        "",
+        "Each decoder's (seed 0) reconstruction error per frame over the chain, and at "
+        f"its fastest turn (frame {spin}; colour scale 0-8 cm):",
+        "",
+        "![Reconstruction RMSE per frame by decoder](img/results_ablation_per_frame.png)",
+        "",
+        "![The fastest turn reconstructed by each decoder](img/results_ablation_spin.jpg)",
+    ]
 
 
 def gaps(ablation: Path) -> dict[str, float]:
@@ -605,7 +772,8 @@ def gaps(ablation: Path) -> dict[str, float]:
     for report in sorted(ablation.glob("*/report.json")):
         r = json.loads(report.read_text())
         out.setdefault(report.parent.name.split("-s")[0], []).append(
-            r["test"]["rmse_cm"] - r["train"]["rmse_cm"])  # fmt: skip
+            r["test"]["rmse_cm"] - r["train"]["rmse_cm"]
+        )
     return {d: float(np.mean(v)) for d, v in out.items()}
 
 
@@ -619,10 +787,13 @@ def ablation_verdict(ablation: Path) -> list[str]:
         return []
     noise = max((np.ptp(v) / 2 for v in runs.values() if len(v) > 1), default=float("nan"))
     ours = float(np.mean(runs["decomposed"]))
-    lines = ["", f"Run-to-run noise (half the largest spread of a decoder's test RMSE over its "
-             f"seeds): {noise:.3f} cm. Generalisation gap (test minus train RMSE, mean over "
-             "seeds): " + ", ".join(f"{d} {g:.2f} cm" for d, g in gaps(ablation).items())
-             + ".", ""]  # fmt: skip
+    lines = [
+        "",
+        f"Run-to-run noise (half the largest spread of a decoder's test RMSE over its "
+        f"seeds): {noise:.3f} cm. Generalisation gap (test minus train RMSE, mean over "
+        "seeds): " + ", ".join(f"{d} {g:.2f} cm" for d, g in gaps(ablation).items()) + ".",
+        "",
+    ]
     for decoder in ("vertex", "ssdr"):
         if decoder in runs:
             gap = float(np.mean(runs[decoder])) - ours
@@ -632,25 +803,29 @@ def ablation_verdict(ablation: Path) -> list[str]:
                 ahead = "**behind it** by more than the noise"
             else:
                 ahead = "**not** ahead by more than the noise"
-            lines.append(f"- Decomposed against `{decoder}`: {gap:+.3f} cm of mean test RMSE "
-                         f"({ahead}).")  # fmt: skip
+            lines.append(
+                f"- Decomposed against `{decoder}`: {gap:+.3f} cm of mean test RMSE ({ahead})."
+            )
     return lines
 
 
 def set_section(key: str, st: dict) -> list[str]:
     """One held-out set's Table 3, ratios, verdicts, plot and render."""
     scores, simulation, turn = st["scores"], st["simulation"], st["turn"]
-    clips = ", ".join(f"`{n}` ({f} frames)" for n, f in zip(st["clips"], st["frames"],
-                                                           strict=True))  # fmt: skip
-    lines = [f"## Table 3 on {SET_TITLES[key]}: {clips}", "",
-             "Never seen in training; every method rolled out once from each clip's first "
-             "frame on the same motion; the clips' frames pooled; lengths in cm; inside: % of "
-             "the garment's vertices inside the body (the simulation's collider), mean and "
-             "99th percentile over frames; strain: |edge length / rest length - 1|, median "
-             "and 99th percentile over edges and frames.", "",
-             "| method | RMSE | Hausdorff | STED | inside mean % | inside p99 % | strain p50 | "
-             "strain p99 | frames/s |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]  # fmt: skip
+    clips = ", ".join(f"`{n}` ({f} frames)" for n, f in zip(st["clips"], st["frames"], strict=True))
+    lines = [
+        f"## Table 3 on {SET_TITLES[key]}: {clips}",
+        "",
+        "Never seen in training; every method rolled out once from each clip's first "
+        "frame on the same motion; the clips' frames pooled; lengths in cm; inside: % of "
+        "the garment's vertices inside the body (the simulation's collider), mean and "
+        "99th percentile over frames; strain: |edge length / rest length - 1|, median "
+        "and 99th percentile over edges and frames.",
+        "",
+        "| method | RMSE | Hausdorff | STED | inside mean % | inside p99 % | strain p50 | "
+        "strain p99 | frames/s |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     for method, s in scores.items():
         lines.append(
             f"| {METHODS[method][0]} | {s['rmse_cm']:.2f} | {s['hausdorff_cm']:.2f} | "
@@ -663,35 +838,58 @@ def set_section(key: str, st: dict) -> list[str]:
         f"{simulation['strain_p99']:.3f} | - |"
     )
     if len(st["clips"]) > 1:
-        lines += ["", "RMSE per clip (cm): " + "; ".join(
-            f"{METHODS[m][0]}: " + ", ".join(f"{v:.2f}" for v in s["rmse_per_clip_cm"])
-            for m, s in scores.items()) + "."]  # fmt: skip
+        lines += [
+            "",
+            "RMSE per clip (cm): "
+            + "; ".join(
+                f"{METHODS[m][0]}: " + ", ".join(f"{v:.2f}" for v in s["rmse_per_clip_cm"])
+                for m, s in scores.items()
+            )
+            + ".",
+        ]
     ours = scores["ours-full"]
-    lines += ["", "Ours (the shipped pipeline) against each baseline (ratio < 1: ours is "
-              "better); the paper's Table 3 gives 0.62 against Santesteban and 0.75 "
-              "against virtual bones on RMSE:",
-              "", "| against | RMSE | Hausdorff | STED | paper, RMSE |",
-              "|---|---:|---:|---:|---:|"]  # fmt: skip
+    lines += [
+        "",
+        "Ours (the shipped pipeline) against each baseline (ratio < 1: ours is "
+        "better); the paper's Table 3 gives 0.62 against Santesteban and 0.75 "
+        "against virtual bones on RMSE:",
+        "",
+        "| against | RMSE | Hausdorff | STED | paper, RMSE |",
+        "|---|---:|---:|---:|---:|",
+    ]
     for method, base in (("santesteban-push", "santesteban"), ("virtual-bones", "virtual-bones")):
         seeds = [m for m in (method, f"{method}-s1") if m in scores]  # none: not trained
         for m in seeds:
             b = scores[m]
-            lines.append(f"| {METHODS[m][0]} | {ours['rmse_cm'] / b['rmse_cm']:.2f} | "
-                         f"{ours['hausdorff_cm'] / b['hausdorff_cm']:.2f} | "
-                         f"{ours['sted'] / b['sted']:.2f} | {PAPER_RATIOS[base]} |")  # fmt: skip
+            lines.append(
+                f"| {METHODS[m][0]} | {ours['rmse_cm'] / b['rmse_cm']:.2f} | "
+                f"{ours['hausdorff_cm'] / b['hausdorff_cm']:.2f} | "
+                f"{ours['sted'] / b['sted']:.2f} | {PAPER_RATIOS[base]} |"
+            )
         if len(seeds) > 1:
-            mean = {k: np.mean([scores[m][k] for m in seeds])
-                    for k in ("rmse_cm", "hausdorff_cm", "sted")}  # fmt: skip
-            lines.append(f"| {METHODS[method][0]}, mean of the seeds | "
-                         f"{ours['rmse_cm'] / mean['rmse_cm']:.2f} | "
-                         f"{ours['hausdorff_cm'] / mean['hausdorff_cm']:.2f} | "
-                         f"{ours['sted'] / mean['sted']:.2f} | {PAPER_RATIOS[base]} |")  # fmt: skip
-    lines += ["", *verdicts(scores, turn, st["clips"]), "",
-              f"![RMSE per frame on {SET_TITLES[key]}](img/results_rmse_per_frame_{key}.png)",
-              "", f"The set's fastest turn ({turn['clip']}, frame {turn['frame']}, "
-              f"{turn['rad_per_s']:.1f} rad/s), per-vertex error to the simulation:", "",
-              "![The fastest turn: simulation, ours, virtual bones, Santesteban]"
-              f"(img/results_spin_{key}.jpg)", ""]  # fmt: skip
+            mean = {
+                k: np.mean([scores[m][k] for m in seeds])
+                for k in ("rmse_cm", "hausdorff_cm", "sted")
+            }
+            lines.append(
+                f"| {METHODS[method][0]}, mean of the seeds | "
+                f"{ours['rmse_cm'] / mean['rmse_cm']:.2f} | "
+                f"{ours['hausdorff_cm'] / mean['hausdorff_cm']:.2f} | "
+                f"{ours['sted'] / mean['sted']:.2f} | {PAPER_RATIOS[base]} |"
+            )
+    lines += [
+        "",
+        *verdicts(scores, turn, st["clips"]),
+        "",
+        f"![RMSE per frame on {SET_TITLES[key]}](img/results_rmse_per_frame_{key}.png)",
+        "",
+        f"The set's fastest turn ({turn['clip']}, frame {turn['frame']}, "
+        f"{turn['rad_per_s']:.1f} rad/s), per-vertex error to the simulation:",
+        "",
+        "![The fastest turn: simulation, ours, virtual bones, Santesteban]"
+        f"(img/results_spin_{key}.jpg)",
+        "",
+    ]
     return lines
 
 
@@ -700,18 +898,24 @@ def targets_section(sets: dict) -> list[str]:
     if "chain" not in sets:
         return []
     chain = sets["chain"]["scores"]["ours-full"]["rmse_cm"]
-    lines = ["## The targets, read off the tables below", "",
-             f"- Held-out salsa chain, ours (full pipeline): RMSE {chain:.2f} cm "
-             f"(target below 7.0: {'met' if chain < 7.0 else '**not met**'})."]  # fmt: skip
+    lines = [
+        "## The targets, read off the tables below",
+        "",
+        f"- Held-out salsa chain, ours (full pipeline): RMSE {chain:.2f} cm "
+        f"(target below 7.0: {'met' if chain < 7.0 else '**not met**'}).",
+    ]
     if "ballet" in sets:
         st = sets["ballet"]["scores"]["ours-full"]
         worst = max(st["rmse_per_clip_cm"])
-        lines.append(f"- Held-out ballet clips: RMSE {st['rmse_cm']:.2f} cm pooled, "
-                     + ", ".join(f"{n} {v:.2f}" for n, v in zip(sets["ballet"]["clips"],
-                                                                st["rmse_per_clip_cm"],
-                                                                strict=True))
-                     + f" per clip; the worst {worst / chain:.2f}x the chain's (target within "
-                     f"1.3x: {'met' if worst <= 1.3 * chain else '**not met**'}).")  # fmt: skip
+        lines.append(
+            f"- Held-out ballet clips: RMSE {st['rmse_cm']:.2f} cm pooled, "
+            + ", ".join(
+                f"{n} {v:.2f}"
+                for n, v in zip(sets["ballet"]["clips"], st["rmse_per_clip_cm"], strict=True)
+            )
+            + f" per clip; the worst {worst / chain:.2f}x the chain's (target within "
+            f"1.3x: {'met' if worst <= 1.3 * chain else '**not met**'})."
+        )
     return lines + [""]
 
 
@@ -731,20 +935,35 @@ def included_tables(table1: str | None, table2: str | None) -> list[str]:
     level down)."""
     lines = []
     for path, title, how in (
-        (table1, "Table 1: the motion encoder with and without the previous state",
-         "`bench/motion_ablation.py`: the motion stage alone, rolled out from each held-out "
-         "clip's first frame; iter-N is the RMSE over the first N frames"),
-        (table2, "Table 2: the detail module with and without its discriminator",
-         "`bench/detail_collision.py`: each variant rolled out whole on each held-out clip, "
-         "the edge-length stage after it, with and without collision handling"),
-    ):  # fmt: skip
+        (
+            table1,
+            "Table 1: the motion encoder with and without the previous state",
+            "`bench/motion_ablation.py`: the motion stage alone, rolled out from each held-out "
+            "clip's first frame; iter-N is the RMSE over the first N frames",
+        ),
+        (
+            table2,
+            "Table 2: the detail module with and without its discriminator",
+            "`bench/detail_collision.py`: each variant rolled out whole on each held-out clip, "
+            "the edge-length stage after it, with and without collision handling",
+        ),
+    ):
         if path is None:
             continue
         text = Path(path).read_text().splitlines()
-        body = [("#" + line if line.startswith("#") else line) for line in text
-                if not line.startswith("# ")]  # fmt: skip
-        lines += [f"## {title}", "", f"From [{Path(path).name}]({Path(path).name}) ({how}).",
-                  "", *body, ""]  # fmt: skip
+        body = [
+            ("#" + line if line.startswith("#") else line)
+            for line in text
+            if not line.startswith("# ")
+        ]
+        lines += [
+            f"## {title}",
+            "",
+            f"From [{Path(path).name}]({Path(path).name}) ({how}).",
+            "",
+            *body,
+            "",
+        ]
     return lines
 
 
@@ -752,20 +971,30 @@ def clip_section(shown: dict) -> list[str]:
     """Each held-out ballet clip at its fastest turn and at its highest leg."""
     if not shown:
         return []
-    lines = ["## Each held-out ballet clip at its fastest turn and its highest leg", "",
-             "Simulation | ours | virtual bones | Santesteban + push-out (seed 0), the "
-             "whole body drawn, per-vertex distance to the simulation (0-15 cm).", ""]  # fmt: skip
+    lines = [
+        "## Each held-out ballet clip at its fastest turn and its highest leg",
+        "",
+        "Simulation | ours | virtual bones | Santesteban + push-out (seed 0), the "
+        "whole body drawn, per-vertex distance to the simulation (0-15 cm).",
+        "",
+    ]
     for name, f in shown.items():
-        lines += [f"`{name}`: the fastest turn at frame {f['turn']} "
-                  f"({f['turn_rad_per_s']:.1f} rad/s); the highest leg at frame {f['leg']} "
-                  f"(one foot {100 * f['leg_height_m']:.0f} cm above the other).", "",
-                  f"![{name} at its fastest turn](img/results_{name}_turn.jpg)", "",
-                  f"![{name} at its highest leg](img/results_{name}_leg.jpg)", ""]  # fmt: skip
+        lines += [
+            f"`{name}`: the fastest turn at frame {f['turn']} "
+            f"({f['turn_rad_per_s']:.1f} rad/s); the highest leg at frame {f['leg']} "
+            f"(one foot {100 * f['leg_height_m']:.0f} cm above the other).",
+            "",
+            f"![{name} at its fastest turn](img/results_{name}_turn.jpg)",
+            "",
+            f"![{name} at its highest leg](img/results_{name}_leg.jpg)",
+            "",
+        ]
     return lines
 
 
-def markdown(data: str, sets: dict, reports: dict, ablation: list[str], started: str,
-             extra: list[str] = ()) -> str:  # fmt: skip
+def markdown(
+    data: str, sets: dict, reports: dict, ablation: list[str], started: str, extra: list[str] = ()
+) -> str:
     lines = [
         "# Results: every method against the simulation",
         "",
@@ -780,33 +1009,54 @@ def markdown(data: str, sets: dict, reports: dict, ablation: list[str], started:
     lines += list(extra)
     for key, st in sets.items():
         lines += set_section(key, st)
-    lines += ["Training of the baselines (`loosefit train baseline --preset cpu --mirror`, "
-              "the committed motion stage's data and epochs):", "",
-              "| baseline | epochs | parameters | s/epoch | machine |",
-              "|---|---:|---:|---:|---|"]  # fmt: skip
+    lines += [
+        "Training of the baselines (`loosefit train baseline --preset cpu --mirror`, "
+        "the committed motion stage's data and epochs):",
+        "",
+        "| baseline | epochs | parameters | s/epoch | machine |",
+        "|---|---:|---:|---:|---|",
+    ]
     for key, r in reports.items():
-        lines.append(f"| {key} | {r['epochs']} | {r['parameters']:,} | "
-                     f"{r['seconds_per_epoch']:.1f} | {r['machine']} |")  # fmt: skip
+        lines.append(
+            f"| {key} | {r['epochs']} | {r['parameters']:,} | "
+            f"{r['seconds_per_epoch']:.1f} | {r['machine']} |"
+        )
     minutes = sum(r["epochs"] * r["seconds_per_epoch"] for r in reports.values()) / 60
     seeds = {k: r for k, r in reports.items() if k.endswith("-s1")}
     if seeds:
-        lines += ["", "Run-to-run noise: each baseline's held-out rollouts (no post-process, "
-                  "every held-out clip) with a second training seed:", "",
-                  "| baseline | seed 0 RMSE | seed 1 RMSE | seed 0 STED | seed 1 STED |",
-                  "|---|---:|---:|---:|---:|"]  # fmt: skip
+        lines += [
+            "",
+            "Run-to-run noise: each baseline's held-out rollouts (no post-process, "
+            "every held-out clip) with a second training seed:",
+            "",
+            "| baseline | seed 0 RMSE | seed 1 RMSE | seed 0 STED | seed 1 STED |",
+            "|---|---:|---:|---:|---:|",
+        ]
         for key, r1 in seeds.items():
             r0 = reports[key.removesuffix("-s1")]
-            lines.append(f"| {key.removesuffix('-s1')} | {r0['test']['rmse_cm']:.2f} | "
-                         f"{r1['test']['rmse_cm']:.2f} | {r0['test']['sted']:.4f} | "
-                         f"{r1['test']['sted']:.4f} |")  # fmt: skip
-    lines += ["", f"Their training loops took {minutes:.0f} min in all (one core each; the "
-              "virtual-bones run's skinning decomposition and the evaluations come on "
-              "top)."]  # fmt: skip
-    lines += ["", "## The generative model's ablation (Fig. 4)", "",
-              "Reconstruction (encode, decode the posterior mean) of the held-out clips by "
-              "each decoder, trained on the data set's training clips (`bench/"
-              "generative_ablation.py`, cpu preset, the same epochs for every decoder), "
-              "two seeds each:", "", *ablation, ""]  # fmt: skip
+            lines.append(
+                f"| {key.removesuffix('-s1')} | {r0['test']['rmse_cm']:.2f} | "
+                f"{r1['test']['rmse_cm']:.2f} | {r0['test']['sted']:.4f} | "
+                f"{r1['test']['sted']:.4f} |"
+            )
+    lines += [
+        "",
+        f"Their training loops took {minutes:.0f} min in all (one core each; the "
+        "virtual-bones run's skinning decomposition and the evaluations come on "
+        "top).",
+    ]
+    lines += [
+        "",
+        "## The generative model's ablation (Fig. 4)",
+        "",
+        "Reconstruction (encode, decode the posterior mean) of the held-out clips by "
+        "each decoder, trained on the data set's training clips (`bench/"
+        "generative_ablation.py`, cpu preset, the same epochs for every decoder), "
+        "two seeds each:",
+        "",
+        *ablation,
+        "",
+    ]
     return "\n".join(lines)
 
 

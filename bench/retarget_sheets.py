@@ -49,8 +49,14 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     avatar = Avatar()
     motion = load_motion(args.motion, avatar, seed=3)
-    for conv, glb in ((STUDIO_X, False), (MIXAMO, False), (UNREAL, False), (STUDIO_FAR, True),
-                      (STUDIO_ZERO, False), (MIXAMO_ZERO, False)):  # fmt: skip
+    for conv, glb in (
+        (STUDIO_X, False),
+        (MIXAMO, False),
+        (UNREAL, False),
+        (STUDIO_FAR, True),
+        (STUDIO_ZERO, False),
+        (MIXAMO_ZERO, False),
+    ):
         bvh = out / f".retarget_{conv.name}.bvh"
         write_convention_bvh(bvh, conv, avatar.skeleton, motion, avatar.floor_height)
         files = {conv.name: bvh}
@@ -60,8 +66,16 @@ def main() -> None:
             )
         for name, path in files.items():
             sheet = out / f"retarget_{name}.{args.format}"
-            code = cli(["inspect-motion", str(path), "--sheet", str(sheet), "--sheet-frames",
-                        str(args.frames)])  # fmt: skip
+            code = cli(
+                [
+                    "inspect-motion",
+                    str(path),
+                    "--sheet",
+                    str(sheet),
+                    "--sheet-frames",
+                    str(args.frames),
+                ]
+            )
             if code != 0:
                 raise SystemExit(f"{name}: inspect-motion refused it (exit {code})")
             print(f"{name}: {sheet}")

@@ -29,8 +29,11 @@ def main() -> int:
     args = ap.parse_args()
     model, reader = load_pipeline(args.checkpoint), DatasetReader(args.data)
     rows = {}
-    for name, kw in (("model", {}), ("rigid drape", {"reference": True}),
-                     ("reconstruction (floor)", {"oracle": True})):  # fmt: skip
+    for name, kw in (
+        ("model", {}),
+        ("rigid drape", {"reference": True}),
+        ("reconstruction (floor)", {"oracle": True}),
+    ):
         r = evaluate_rollouts(model, reader, args.split, surface=False, **kw)
         rows[name] = {"rmse_cm": r["rmse_cm"], "frames": r["frames"]}
     rows["machine"] = (

@@ -75,22 +75,30 @@ def pipelines(model) -> dict[str, tuple[Stages, CollisionConfig | None]]:
     rows[d + "+ collision, whole body"] = (Stages(lengths=False), None)
     rows[d + "+ lengths + collision, no fast path"] = (Stages(), NO_FAST_PATH)
     rows[d + "+ lengths + collision, realtime"] = (
-        Stages(), collision_setting(model.collision, "realtime"))  # fmt: skip
+        Stages(),
+        collision_setting(model.collision, "realtime"),
+    )
     rows[d + "+ lengths + collision (all)"] = (Stages(), None)
     return rows
 
 
-def time_rollout(model, motion, threads: int, repeats: int,
-                 pipeline: tuple[Stages, CollisionConfig | None],
-                 runtime: str = "torch") -> tuple[dict, np.ndarray]:  # fmt: skip
+def time_rollout(
+    model,
+    motion,
+    threads: int,
+    repeats: int,
+    pipeline: tuple[Stages, CollisionConfig | None],
+    runtime: str = "torch",
+) -> tuple[dict, np.ndarray]:
     """The figures of a row and the garments (T, V, 3) of its last run."""
     stages, collision = pipeline
     with model.configured(collision):
         return _time_rollout(model, motion, threads, repeats, stages, runtime)
 
 
-def _time_rollout(model, motion, threads: int, repeats: int, stages: Stages, runtime: str
-                  ) -> tuple[dict, np.ndarray]:  # fmt: skip
+def _time_rollout(
+    model, motion, threads: int, repeats: int, stages: Stages, runtime: str
+) -> tuple[dict, np.ndarray]:
     torch.set_num_threads(threads)
     # one thread: the stages one after another; more: detail and collision on a second
     # thread beside the motion stage
@@ -112,17 +120,21 @@ def _time_rollout(model, motion, threads: int, repeats: int, stages: Stages, run
         per_frame_cpu.append((clock() - marks["cpu"]) / motion.num_frames)
         # the motion stage's own figure includes the preroll: per frame computed
         per_stage.append(_per_frame(result.stage_seconds, motion.num_frames, result.frames))
-        per_stage_cpu.append(_per_frame(result.stage_cpu_seconds, motion.num_frames,
-                                        result.frames))  # fmt: skip
+        per_stage_cpu.append(_per_frame(result.stage_cpu_seconds, motion.num_frames, result.frames))
 
     def ms(per: list[dict]) -> dict:
         return {k: 1e3 * float(np.median([d[k] for d in per])) for k in per[0]}
 
     s = float(np.median(per_frame))
-    return {"threads": threads, "runtime": runtime, "seconds_per_frame": s,
-            "frames_per_second": 1.0 / s, "cpu_seconds_per_frame": float(np.median(per_frame_cpu)),
-            "ms_per_frame_of": ms(per_stage),
-            "cpu_ms_per_frame_of": ms(per_stage_cpu)}, result.vertices  # fmt: skip
+    return {
+        "threads": threads,
+        "runtime": runtime,
+        "seconds_per_frame": s,
+        "frames_per_second": 1.0 / s,
+        "cpu_seconds_per_frame": float(np.median(per_frame_cpu)),
+        "ms_per_frame_of": ms(per_stage),
+        "cpu_ms_per_frame_of": ms(per_stage_cpu),
+    }, result.vertices
 
 
 def _per_frame(seconds: dict | None, frames: int, computed: int) -> dict:
@@ -174,16 +186,24 @@ def main() -> None:
         default="checkpoints/salsa/motion.pt",
         help="a motion run's model.pt or a packaged motion.pt (its detail.pt too)",
     )
-    p.add_argument("--motion", nargs="+", default=MOTIONS,
-                   help="motion specs; PATH@START: from frame START on")  # fmt: skip
+    p.add_argument(
+        "--motion", nargs="+", default=MOTIONS, help="motion specs; PATH@START: from frame START on"
+    )
     p.add_argument("--start-frame", type=int, default=10, help="as load_motion's")
     p.add_argument("--frames", type=int, default=300, help="rollout frames (of each motion)")
     p.add_argument("--threads", default="1", help="thread counts, e.g. 1,2 ('all': the CPUs)")
-    p.add_argument("--quick", action="store_true",
-                   help="only the motion stage, + detail and the whole pipeline with and "
-                   "without collision's fast path (not the legs-and-trunk rows)")  # fmt: skip
-    p.add_argument("--sim-frames", type=int, default=40,
-                   help="simulated frames (of the same); 0: take --sim-seconds")  # fmt: skip
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="only the motion stage, + detail and the whole pipeline with and "
+        "without collision's fast path (not the legs-and-trunk rows)",
+    )
+    p.add_argument(
+        "--sim-frames",
+        type=int,
+        default=40,
+        help="simulated frames (of the same); 0: take --sim-seconds",
+    )
     p.add_argument(
         "--sim-seconds",
         type=float,
@@ -191,9 +211,12 @@ def main() -> None:
         help="with --sim-frames 0: the simulation's s/frame to compare with",
     )
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--runtime", default="torch,onnx",
-                   help="what runs the learned stages, each row with each: torch, onnx "
-                   "(onnxruntime; left out with a note when it is not installed)")  # fmt: skip
+    p.add_argument(
+        "--runtime",
+        default="torch,onnx",
+        help="what runs the learned stages, each row with each: torch, onnx "
+        "(onnxruntime; left out with a note when it is not installed)",
+    )
     p.add_argument(
         "--cloth-from",
         default=None,
@@ -211,8 +234,13 @@ def main() -> None:
     for spec in args.motion:
         path, _, at = spec.rpartition("@") if "@" in spec else (spec, "", "")
         start = int(at) if at else 0
-        m = load_motion(path, avatar, fps=model.fps, start_frame=args.start_frame,
-                        max_frames=None if start else args.frames)  # fmt: skip
+        m = load_motion(
+            path,
+            avatar,
+            fps=model.fps,
+            start_frame=args.start_frame,
+            max_frames=None if start else args.frames,
+        )
         motions.append((spec, m.slice(start, min(start + args.frames, m.num_frames))))
     motion = motions[0][1]
     runtimes = [r.strip() for r in args.runtime.split(",")]
@@ -237,8 +265,9 @@ def main() -> None:
                 torch_garments = None
                 for runtime in runtimes:
                     row, garments = time_rollout(model, m, t, args.repeats, stages, runtime)
-                    row.update(stages=label, motion=_name(spec, args.start_frame),
-                               frames=m.num_frames)  # fmt: skip
+                    row.update(
+                        stages=label, motion=_name(spec, args.start_frame), frames=m.num_frames
+                    )
                     if runtime == "torch":
                         torch_garments = garments
                     elif torch_garments is not None:  # the largest difference from torch's
@@ -258,8 +287,7 @@ def main() -> None:
         cloth = model_cloth(model, args.cloth_from)
         result["simulation"] = [time_simulation(model, avatar, sim_motion, "cpu", cloth)]
         if torch.cuda.is_available():
-            result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0",
-                                                        cloth))  # fmt: skip
+            result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0", cloth))
         sim = result["simulation"][0]["seconds_per_frame"]
     else:  # not simulated this run: the figure of docs/BENCHMARKS.md's last run
         sim = args.sim_seconds
@@ -276,22 +304,29 @@ def main() -> None:
     print(json.dumps(result, indent=2))
     for r in result["rollout"]:
         cpu = {k: round(v, 2) for k, v in r["cpu_ms_per_frame_of"].items()}
-        gap = f", largest difference {r['largest_difference_m']:.1e} m" if (
-            "largest_difference_m" in r) else ""  # fmt: skip
+        gap = (
+            f", largest difference {r['largest_difference_m']:.1e} m"
+            if ("largest_difference_m" in r)
+            else ""
+        )
         print(
             f"{r['motion'][:28]:>28} {r['stages']:>44} [{r['runtime']}], {r['threads']} "
             f"thread(s): {1e3 * r['seconds_per_frame']:6.1f} ms/frame (CPU "
             f"{1e3 * r['cpu_seconds_per_frame']:6.1f}; stages' CPU ms {json.dumps(cpu)}), "
             f"{r['speedup_cpu']:.0f}x faster than the simulation{gap}"
         )
-    print(f"simulation {sim:.2f} s/frame (CPU {sim_cpu:.2f}); the whole pipeline, one thread "
-          "(then with --collision realtime):")  # fmt: skip
+    print(
+        f"simulation {sim:.2f} s/frame (CPU {sim_cpu:.2f}); the whole pipeline, one thread "
+        "(then with --collision realtime):"
+    )
     for r in full + quick:
         if r["threads"] == 1:
-            print(f"  {r['motion']} [{r['runtime']}]: {r['frames_per_second']:.1f} frames/s "
-                  f"wall, {1 / r['cpu_seconds_per_frame']:.1f} by CPU time "
-                  f"({1e3 * r['cpu_seconds_per_frame']:.1f} ms); {r['speedup_cpu']:.0f}x "
-                  f"the simulation (wall), {r['speedup_cpu_time']:.0f}x (CPU time)")  # fmt: skip
+            print(
+                f"  {r['motion']} [{r['runtime']}]: {r['frames_per_second']:.1f} frames/s "
+                f"wall, {1 / r['cpu_seconds_per_frame']:.1f} by CPU time "
+                f"({1e3 * r['cpu_seconds_per_frame']:.1f} ms); {r['speedup_cpu']:.0f}x "
+                f"the simulation (wall), {r['speedup_cpu_time']:.0f}x (CPU time)"
+            )
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(json.dumps(result, indent=2))

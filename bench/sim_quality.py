@@ -75,8 +75,9 @@ def _key(clip: str, frames: int, seed_shift: int, changes: dict) -> str:
     return f"{clip}-{frames}-{hashlib.sha256(text.encode()).hexdigest()[:10]}"
 
 
-def simulate_run(preset_name: str, clip: str, frames: int, seed_shift: int, changes: dict,
-                 cache: str) -> dict:  # fmt: skip
+def simulate_run(
+    preset_name: str, clip: str, frames: int, seed_shift: int, changes: dict, cache: str
+) -> dict:
     """One run, in a process of its own (one torch thread), cached in ``cache``."""
     path = Path(cache) / f"{_key(clip, frames, seed_shift, changes)}.npz"
     if path.is_file():

@@ -54,9 +54,11 @@ def main(argv: list[str] | None = None) -> None:
             raise SystemExit(f"{name}: the run diverged ({run['reason']})")
         garments[name] = run["garment"]
     look = RenderConfig(
-        width=args.size, height=int(args.size * 7 / 6), views=("front", "side"),
+        width=args.size,
+        height=int(args.size * 7 / 6),
+        views=("front", "side"),
         frame_counter=False,
-    )  # fmt: skip
+    )
     rows = []
     with Renderer(look) as renderer:
         for f in (int(f) for f in args.frames.split(",")):

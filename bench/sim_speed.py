@@ -47,8 +47,12 @@ def main() -> None:
     motion = load_motion(args.motion, avatar, max_frames=args.frames)
     config = ClothConfig(device=args.device, self_contact=not args.no_self_contact)
     # Compile warp's kernels outside the timing.
-    simulate(avatar, template, motion.slice(0, 2), ClothConfig(**{**config.__dict__,
-             "settle_seconds": 0.0, "blend_seconds": 0.0}))  # fmt: skip
+    simulate(
+        avatar,
+        template,
+        motion.slice(0, 2),
+        ClothConfig(**{**config.__dict__, "settle_seconds": 0.0, "blend_seconds": 0.0}),
+    )
     t0 = time.perf_counter()
     result = simulate(avatar, template, motion, config)
     wall = time.perf_counter() - t0

@@ -79,8 +79,10 @@ def main() -> None:
     ]
     print("max edge strain per 10 frames:", ", ".join(blocks))
     bad = np.nonzero(strain > 0.5)[0]
-    print(f"frames with an edge stretched > 50 %: {len(bad)}" + (
-        f", first {args.start + bad[0]}" if len(bad) else ""))  # fmt: skip
+    print(
+        f"frames with an edge stretched > 50 %: {len(bad)}"
+        + (f", first {args.start + bad[0]}" if len(bad) else "")
+    )
     scalars = {k: round(float(v), 4) for k, v in result.quality.items() if np.ndim(v) == 0}
     print("quality:", scalars)
     if args.save:

@@ -100,8 +100,9 @@ def inside(garment: np.ndarray, body: np.ndarray, faces: np.ndarray) -> tuple[np
     return share, deep
 
 
-def measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles, fps,
-            template) -> dict:  # fmt: skip
+def measure(
+    x, truth, structure, hem, pelvis, window, body, faces, truth_angles, fps, template
+) -> dict:
     """The figures of one stage's garment (T, V, 3) against the simulation."""
     xt = torch.from_numpy(np.ascontiguousarray(x))
     change = signed_edge_change(xt, structure.edges, structure.rest_lengths).numpy()
@@ -147,14 +148,28 @@ def clip_reference(model, seq):
     pelvis = posed.joint_poses[:, 0, :3, 3].cpu().numpy()
     turn = fastest_turn(motion.rotations, motion.fps)
     window = (max(turn - TURN_WINDOW, 0), min(turn + TURN_WINDOW + 1, motion.num_frames))
-    faces = {"whole": avatar.collider_faces(arms=True).cpu().numpy(),
-             "collider": avatar.collider_faces(arms=model.arm_collision).cpu().numpy()}  # fmt: skip
-    truth_angles = np.abs(dihedral_angles(torch.from_numpy(truth[::5]).double(),
-                                          structure.hinges).numpy()).ravel()  # fmt: skip
+    faces = {
+        "whole": avatar.collider_faces(arms=True).cpu().numpy(),
+        "collider": avatar.collider_faces(arms=model.arm_collision).cpu().numpy(),
+    }
+    truth_angles = np.abs(
+        dihedral_angles(torch.from_numpy(truth[::5]).double(), structure.hinges).numpy()
+    ).ravel()
 
     def measure_garment(x: np.ndarray) -> dict:
-        return measure(x, truth, structure, hem, pelvis, window, body, faces, truth_angles,
-                       motion.fps, template)  # fmt: skip
+        return measure(
+            x,
+            truth,
+            structure,
+            hem,
+            pelvis,
+            window,
+            body,
+            faces,
+            truth_angles,
+            motion.fps,
+            template,
+        )
 
     return measure_garment, turn, window
 
@@ -184,13 +199,21 @@ def clip_account(model, name: str, seq, labels=tuple(STAGES), before=None) -> di
                 x = which.animate(motion, stages=stages).vertices
         seconds[label] = time.perf_counter() - t0
         rows[label] = measure_garment(x)
-        print(f"  {name} {label}: strain {rows[label]['strain_p50']:.3f}, edge change "
-              f"{100 * rows[label]['edge_change_p50']:+.1f} %, flare error at the turn "
-              f"{100 * rows[label]['flare_turn_error']:.1f} %, inside (whole body) "
-              f"{100 * rows[label]['inside_whole_mean']:.3f} %, RMSE "
-              f"{rows[label]['rmse_cm']:.2f} cm", flush=True)  # fmt: skip
-    return {"frames": motion.num_frames, "turn_frame": turn, "window": window, "rows": rows,
-            "seconds": seconds}  # fmt: skip
+        print(
+            f"  {name} {label}: strain {rows[label]['strain_p50']:.3f}, edge change "
+            f"{100 * rows[label]['edge_change_p50']:+.1f} %, flare error at the turn "
+            f"{100 * rows[label]['flare_turn_error']:.1f} %, inside (whole body) "
+            f"{100 * rows[label]['inside_whole_mean']:.3f} %, RMSE "
+            f"{rows[label]['rmse_cm']:.2f} cm",
+            flush=True,
+        )
+    return {
+        "frames": motion.num_frames,
+        "turn_frame": turn,
+        "window": window,
+        "rows": rows,
+        "seconds": seconds,
+    }
 
 
 COLUMNS = [  # key, header, format
@@ -221,13 +244,15 @@ def cell(key: str, fmt: str, value) -> str:
 def table(clips: dict) -> str:
     lines = []
     for name, c in clips.items():
-        lines.append(f"\n### {name} ({c['frames']} frames, fastest turn at frame "
-                     f"{c['turn_frame']})\n")  # fmt: skip
+        lines.append(
+            f"\n### {name} ({c['frames']} frames, fastest turn at frame {c['turn_frame']})\n"
+        )
         lines.append("| stage | " + " | ".join(h for _, h, _ in COLUMNS) + " |")
         lines.append("|---|" + "---:|" * len(COLUMNS))
         for label, r in c["rows"].items():
-            lines.append(f"| {label} | " + " | ".join(cell(k, f, r[k]) for k, _, f in COLUMNS)
-                         + " |")  # fmt: skip
+            lines.append(
+                f"| {label} | " + " | ".join(cell(k, f, r[k]) for k, _, f in COLUMNS) + " |"
+            )
     return "\n".join(lines)
 
 
@@ -254,11 +279,18 @@ def plot(clips: dict, path: Path) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
-    p.add_argument("--before", default=None,
-                   help="the pipeline of the 'today' row (default: --checkpoint's), e.g. the "
-                   "set before the physics terms in out/salsa-before-34/motion.pt")  # fmt: skip
-    p.add_argument("--data", nargs="*", default=["datasets/account"],
-                   help="data set folders (every clip, or --clips)")  # fmt: skip
+    p.add_argument(
+        "--before",
+        default=None,
+        help="the pipeline of the 'today' row (default: --checkpoint's), e.g. the "
+        "set before the physics terms in out/salsa-before-34/motion.pt",
+    )
+    p.add_argument(
+        "--data",
+        nargs="*",
+        default=["datasets/account"],
+        help="data set folders (every clip, or --clips)",
+    )
     p.add_argument("--clips", nargs="*", default=None, help="only these clips")
     p.add_argument("--sequence", nargs="*", default=[], help="simulated sequence .npz files")
     p.add_argument("--max-frames", type=int, default=None)
@@ -284,16 +316,24 @@ def main() -> None:
     for name, (reader, what) in sources.items():
         seq = reader.read(what) if reader is not None else read_any_sequence(what)
         if args.max_frames:
-            seq = replace(seq, motion=seq.motion.slice(0, args.max_frames),
-                          garment_vertices=seq.garment_vertices[: args.max_frames])  # fmt: skip
+            seq = replace(
+                seq,
+                motion=seq.motion.slice(0, args.max_frames),
+                garment_vertices=seq.garment_vertices[: args.max_frames],
+            )
         print(f"{name}: {seq.motion.num_frames} frames", flush=True)
         clips[name] = clip_account(model, name, seq, before=before)
     out = Path(args.out)
-    record = {"checkpoint": str(Path(args.checkpoint).resolve()),
-              "before": str(Path(args.before).resolve()) if args.before else None,
-              "machine": machine("cpu"),
-              "platform": platform.platform(), "torch": torch.__version__,
-              "threads": 1, "cpus": os.cpu_count(), "clips": clips}  # fmt: skip
+    record = {
+        "checkpoint": str(Path(args.checkpoint).resolve()),
+        "before": str(Path(args.before).resolve()) if args.before else None,
+        "machine": machine("cpu"),
+        "platform": platform.platform(),
+        "torch": torch.__version__,
+        "threads": 1,
+        "cpus": os.cpu_count(),
+        "clips": clips,
+    }
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(record, indent=1))
     plot(clips, Path(args.plot))

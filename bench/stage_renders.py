@@ -32,9 +32,12 @@ TODAY = CollisionConfig(finish=0, whole_body=False)  # no arms, no last projecti
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
-    p.add_argument("--before", default=None,
-                   help="the set of the 'today' column (default: --checkpoint's), e.g. "
-                   "out/salsa-before-34/motion.pt")  # fmt: skip
+    p.add_argument(
+        "--before",
+        default=None,
+        help="the set of the 'today' column (default: --checkpoint's), e.g. "
+        "out/salsa-before-34/motion.pt",
+    )
     p.add_argument("--data", default="datasets/account", help="a data set folder")
     p.add_argument("--clip", default=None, help="the clip (default: the first)")
     p.add_argument("--sequence", default=None, help="a simulated sequence .npz instead")
@@ -60,12 +63,21 @@ def main() -> None:
         today = before.animate(seq.motion, stages=Stages(lengths=False)).vertices
     avatar = model.avatar()
     body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()[picks]
-    columns = {"simulation": np.asarray(seq.garment_vertices)[picks], "today": today[picks],
-               "after": after[picks]}  # fmt: skip
-    config = RenderConfig(width=args.size, height=args.size, views=tuple(args.views.split(",")),
-                          follow=True, frame_counter=False)  # fmt: skip
-    sheet = comparison_sheet(columns, picks, body, avatar.faces.cpu().numpy(),
-                             model.template.faces, config)  # fmt: skip
+    columns = {
+        "simulation": np.asarray(seq.garment_vertices)[picks],
+        "today": today[picks],
+        "after": after[picks],
+    }
+    config = RenderConfig(
+        width=args.size,
+        height=args.size,
+        views=tuple(args.views.split(",")),
+        follow=True,
+        frame_counter=False,
+    )
+    sheet = comparison_sheet(
+        columns, picks, body, avatar.faces.cpu().numpy(), model.template.faces, config
+    )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(sheet).save(out, quality=85)

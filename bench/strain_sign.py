@@ -49,10 +49,12 @@ def main() -> None:
     for name, v in garments.items():
         s = signed(v)
         lap = torch.stack([L @ torch.from_numpy(x).float() for x in v[::50]])
-        out[name] = {"signed_strain_p10": float(np.percentile(s, 10)),
-                     "signed_strain_p50": float(np.median(s)),
-                     "signed_strain_p90": float(np.percentile(s, 90)),
-                     "laplacian_mm": 1e3 * float(lap.norm(dim=-1).mean())}  # fmt: skip
+        out[name] = {
+            "signed_strain_p10": float(np.percentile(s, 10)),
+            "signed_strain_p50": float(np.median(s)),
+            "signed_strain_p90": float(np.percentile(s, 90)),
+            "laplacian_mm": 1e3 * float(lap.norm(dim=-1).mean()),
+        }
     x = torch.from_numpy(learned[::50]).float()
     out["smoothed"] = {}
     y, done = x.clone(), 0
@@ -61,8 +63,10 @@ def main() -> None:
             y = y - 0.5 * torch.stack([L @ a for a in y])
         done = steps
         s = np.abs(signed(y.numpy()))
-        out["smoothed"][steps] = {"strain_p50": float(np.median(s)),
-                                  "strain_p99": float(np.percentile(s, 99))}  # fmt: skip
+        out["smoothed"][steps] = {
+            "strain_p50": float(np.median(s)),
+            "strain_p99": float(np.percentile(s, 99)),
+        }
     print(json.dumps(out, indent=1))
 
 

@@ -205,8 +205,11 @@ def run_tests(target: str, tests: list[str], hook: Path) -> dict:
     hook.mkdir(parents=True, exist_ok=True)
     (hook / "sitecustomize.py").write_text(_SITECUSTOMIZE)
     root = Path(__file__).resolve().parents[1]
-    env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([str(hook), str(root / "src"),
-                                                                str(root)])}  # fmt: skip
+    env = {
+        **os.environ,
+        **env,
+        "PYTHONPATH": os.pathsep.join([str(hook), str(root / "src"), str(root)]),
+    }
     if flags is not None:
         env["LOOSEFIT_BENCH_WARP_CPU_FLAGS"] = flags
     cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *tests]
@@ -232,39 +235,65 @@ def table(runs: list[dict], when: str, command: str) -> str:
         return lambda r: f"{mm(r[value])} / {mm(r[bound])}"
 
     rows = [
-        row("seed spread of the tiny clip: mean gap to seeds 1, 2, 3 (mm)",
-            lambda r: ", ".join(mm(g) for g in r["seed_gaps"])),
+        row(
+            "seed spread of the tiny clip: mean gap to seeds 1, 2, 3 (mm)",
+            lambda r: ", ".join(mm(g) for g in r["seed_gaps"]),
+        ),
         row("start moved 1e-6 m: mean gap (mm)", lambda r: mm(r["perturbed_gap"])),
-        row("settle_once clip vs settled on its own: mean gap / bound (mm)",
-            ratio("once_gap", "once_bound")),
-        row("... the spin at its own 4 deg heading, as the test was (mm; failed above 10)",
-            lambda r: mm(r["once_gap_4deg"])),
-        row("... start moved 1e-6 m; vs seeds 1, 2 (mm)",
-            lambda r: f"{mm(r['once_gap_perturbed'])}; "
-            + ", ".join(mm(g) for g in r["once_gap_seeds"])),
-        row("... broken: started from the template; the drape turned 20 deg (mm)",
-            lambda r: f"{mm(r['broken_template'])}; {mm(r['broken_turned'])}"),
-        row("settle() vs the clip's settle: mean gap / bound (mm)",
-            ratio("settle_gap", "settle_bound")),
-        row("one self-contact pass vs two: mean gap / bound = seed spread (mm)",
-            ratio("one_pass_gap", "seed_spread")),
+        row(
+            "settle_once clip vs settled on its own: mean gap / bound (mm)",
+            ratio("once_gap", "once_bound"),
+        ),
+        row(
+            "... the spin at its own 4 deg heading, as the test was (mm; failed above 10)",
+            lambda r: mm(r["once_gap_4deg"]),
+        ),
+        row(
+            "... start moved 1e-6 m; vs seeds 1, 2 (mm)",
+            lambda r: (
+                f"{mm(r['once_gap_perturbed'])}; " + ", ".join(mm(g) for g in r["once_gap_seeds"])
+            ),
+        ),
+        row(
+            "... broken: started from the template; the drape turned 20 deg (mm)",
+            lambda r: f"{mm(r['broken_template'])}; {mm(r['broken_turned'])}",
+        ),
+        row(
+            "settle() vs the clip's settle: mean gap / bound (mm)",
+            ratio("settle_gap", "settle_bound"),
+        ),
+        row(
+            "one self-contact pass vs two: mean gap / bound = seed spread (mm)",
+            ratio("one_pass_gap", "seed_spread"),
+        ),
         row("hem drop / bound (mm)", lambda r: f"{mm(r['drop'])} / > {mm(r['drop_bound'])}"),
-        row("strain p99 (bound 0.1); inside max (bound 5 mm)",
-            lambda r: f"{r['strain_p99']:.4f}; {mm(r['inside_max'])}"),
+        row(
+            "strain p99 (bound 0.1); inside max (bound 5 mm)",
+            lambda r: f"{r['strain_p99']:.4f}; {mm(r['inside_max'])}",
+        ),
         row("batch: first world equal to the bit", lambda r: str(r["batch_first_exact"])),
         row("batch: second world (sway) mean gap / bound (mm)", ratio("batch_gap", "batch_bound")),
-        row("... sway's seed spread (mm); strain p99 difference (bound 0.01)",
-            lambda r: f"{mm(r['sway_seed_spread'])}; {r['batch_strain_diff']:.4f}"),
-    ]  # fmt: skip
+        row(
+            "... sway's seed spread (mm); strain p99 difference (bound 0.01)",
+            lambda r: f"{mm(r['sway_seed_spread'])}; {r['batch_strain_diff']:.4f}",
+        ),
+    ]
     for name in runs[0]["data_set_clips"]:
         label = f"data set batch, {name}: equal to the bit; mean gap; max; seed spread (mm)"
-        rows.append(row(label,
-                        lambda r, n=name: f"{r[n + '_exact']}; {mm(r[n + '_gap'])}; "
-                        f"{mm(r[n + '_max'])}; {mm(r[n + '_spread'])}"))  # fmt: skip
+        rows.append(
+            row(
+                label,
+                lambda r, n=name: (
+                    f"{r[n + '_exact']}; {mm(r[n + '_gap'])}; "
+                    f"{mm(r[n + '_max'])}; {mm(r[n + '_spread'])}"
+                ),
+            )
+        )
     rows.append(row("seconds (compiling the kernels included)", lambda r: f"{r['seconds']:.0f}"))
     if all("tests" in r for r in runs):
-        rows.append(row(f"pytest {' '.join(runs[0]['tests']['args'])}",
-                        lambda r: r["tests"]["summary"]))  # fmt: skip
+        rows.append(
+            row(f"pytest {' '.join(runs[0]['tests']['args'])}", lambda r: r["tests"]["summary"])
+        )
         rows.append(row("... failed", lambda r: ", ".join(r["tests"]["failed"]) or "none"))
     flags = "\n".join(
         f"* `{r['target']}`: Warp flags `{r['flags']!r}`; "

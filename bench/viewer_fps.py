@@ -43,17 +43,32 @@ def main() -> None:
     ap.add_argument("--port", type=int, default=8090)
     ap.add_argument("--size", default="1280x800", help="the browser's window")
     ap.add_argument("--pixel-ratio", type=float, default=None, help="view --pixel-ratio")
-    ap.add_argument("--antialias", action="store_true",
-                    help="WebGL with multisampled edges (a browser's default)")  # fmt: skip
-    ap.add_argument("--flag", action="append", default=[],
-                    help="another Chromium switch (repeatable), e.g. --flag=--num-raster-threads=1"
-                    )  # fmt: skip
+    ap.add_argument(
+        "--antialias",
+        action="store_true",
+        help="WebGL with multisampled edges (a browser's default)",
+    )
+    ap.add_argument(
+        "--flag",
+        action="append",
+        default=[],
+        help="another Chromium switch (repeatable), e.g. --flag=--num-raster-threads=1",
+    )
     args = ap.parse_args()
 
     seq = AnimatedGarment.load(args.sequences[0])
     T, V = seq.garment_vertices.shape[:2]
-    cmd = [sys.executable, "-m", "loosefit.cli", "view", *args.sequences, "--port",
-           str(args.port), "--colour", args.colour]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "loosefit.cli",
+        "view",
+        *args.sequences,
+        "--port",
+        str(args.port),
+        "--colour",
+        args.colour,
+    ]
     if args.pixel_ratio is not None:
         cmd += ["--pixel-ratio", str(args.pixel_ratio)]
     env = dict(os.environ, OMP_NUM_THREADS=os.environ.get("OMP_NUM_THREADS", "1"))
@@ -68,18 +83,22 @@ def main() -> None:
                 break
         if url is None:
             raise SystemExit(f"loosefit view exited ({server.wait()}) without a URL")
-        print(f"{len(args.sequences)} sequence(s) of {T} frames at {seq.fps:g} fps, garment "
-              f"{V} vertices: loosefit view printed its URL {time.perf_counter() - t0:.1f} s "
-              "after it started (Python's start, reading, posing the bodies, serving)")  # fmt: skip
+        print(
+            f"{len(args.sequences)} sequence(s) of {T} frames at {seq.fps:g} fps, garment "
+            f"{V} vertices: loosefit view printed its URL {time.perf_counter() - t0:.1f} s "
+            "after it started (Python's start, reading, posing the bodies, serving)"
+        )
         width, height = (int(v) for v in args.size.split("x"))
-        with Chromium(width=width, height=height, antialias=args.antialias,
-                      flags=args.flag) as browser:  # fmt: skip
+        with Chromium(
+            width=width, height=height, antialias=args.antialias, flags=args.flag
+        ) as browser:
             t1 = time.perf_counter()
             browser.open(url, settle=0.0)
             while not (browser.evaluate("window.__draws") or 0):
                 time.sleep(0.1)
-            print(f"page loaded and drawing {time.perf_counter() - t1:.1f} s after Chromium "
-                  "started")  # fmt: skip
+            print(
+                f"page loaded and drawing {time.perf_counter() - t1:.1f} s after Chromium started"
+            )
             time.sleep(3.0)  # past the first frames' set-up
             gpu = _gpu_process(browser.process.pid)
             procs = _descendants(browser.process.pid)
@@ -91,17 +110,19 @@ def main() -> None:
             gpu_cpu, browser_cpu, server_cpu = cpu[0], sum(cpu[1:-1]), cpu[-1]
         big = got.messages >= BODY_BYTES
         gaps = np.diff(got.times[big]) * 1000.0 if big.sum() > 1 else np.zeros(1)
-        print(f"in {args.seconds:g} s the browser received {int(big.sum())} frame messages "
-              f"({got.rate(BODY_BYTES):.1f} per second; {got.messages[big].mean() / 1e3:.0f} kB "
-              f"each; gaps median {np.median(gaps):.1f} ms, 95th percentile "
-              f"{np.percentile(gaps, 95):.1f} ms) and drew {got.draws} frames "
-              f"({got.draws / args.seconds:.1f} per second, {got.new_draws / args.seconds:.1f} "
-              f"of them a new frame; the GPU process used {gpu_cpu / args.seconds:.2f} of a "
-              f"core, {1000 * gpu_cpu / max(got.draws, 1):.0f} ms per frame drawn; all the "
-              f"browser's processes {browser_cpu / args.seconds:.2f}, "
-              f"{1000 * browser_cpu / max(got.draws, 1):.0f} ms; the server "
-              f"{server_cpu / args.seconds:.2f}; load average "
-              f"{os.getloadavg()[0]:.1f})")  # fmt: skip
+        print(
+            f"in {args.seconds:g} s the browser received {int(big.sum())} frame messages "
+            f"({got.rate(BODY_BYTES):.1f} per second; {got.messages[big].mean() / 1e3:.0f} kB "
+            f"each; gaps median {np.median(gaps):.1f} ms, 95th percentile "
+            f"{np.percentile(gaps, 95):.1f} ms) and drew {got.draws} frames "
+            f"({got.draws / args.seconds:.1f} per second, {got.new_draws / args.seconds:.1f} "
+            f"of them a new frame; the GPU process used {gpu_cpu / args.seconds:.2f} of a "
+            f"core, {1000 * gpu_cpu / max(got.draws, 1):.0f} ms per frame drawn; all the "
+            f"browser's processes {browser_cpu / args.seconds:.2f}, "
+            f"{1000 * browser_cpu / max(got.draws, 1):.0f} ms; the server "
+            f"{server_cpu / args.seconds:.2f}; load average "
+            f"{os.getloadavg()[0]:.1f})"
+        )
     finally:
         server.terminate()
         server.wait(timeout=30)

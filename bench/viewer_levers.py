@@ -117,8 +117,13 @@ def trial(sequences, condition: Condition, seconds: float) -> dict:
     try:
         condition.apply(viewer)
         width, height = condition.size
-        with Chromium(width=width, height=height, antialias=condition.antialias,
-                      flags=condition.flags, scripts=condition.scripts) as browser:  # fmt: skip
+        with Chromium(
+            width=width,
+            height=height,
+            antialias=condition.antialias,
+            flags=condition.flags,
+            scripts=condition.scripts,
+        ) as browser:
             browser.open(viewer.url, settle=0.0)
             while not (browser.evaluate("window.__draws") or 0):
                 time.sleep(0.1)
@@ -159,18 +164,22 @@ def main() -> None:
     seq = AnimatedGarment.load(args.sequence)
     if args.frames:
         n = args.frames
-        seq = AnimatedGarment(seq.motion.slice(0, n), seq.garment, seq.garment_vertices[:n],
-                              seq.avatar, seq.source)  # fmt: skip
+        seq = AnimatedGarment(
+            seq.motion.slice(0, n), seq.garment, seq.garment_vertices[:n], seq.avatar, seq.source
+        )
     sequences = from_animated([seq], [os.path.basename(args.sequence)])
     for round_ in range(args.repeat):
         for condition in conditions:
             r = trial(sequences, condition, args.seconds)
-            print(f"{condition.name:40s} round {round_ + 1}: received "
-                  f"{r['frames_received_per_s']:.1f}/s, drew {r['drawn_per_s']:.1f}/s "
-                  f"({r['new_drawn_per_s']:.1f} new); GPU process {r['gpu_ms_per_draw']:.0f} "
-                  f"ms per frame drawn, all the browser's processes "
-                  f"{r['browser_ms_per_draw']:.0f} ms ({r['browser_cores']:.2f} of a core); "
-                  f"canvas {r['canvas']}; load average {r['load']:.1f}", flush=True)  # fmt: skip
+            print(
+                f"{condition.name:40s} round {round_ + 1}: received "
+                f"{r['frames_received_per_s']:.1f}/s, drew {r['drawn_per_s']:.1f}/s "
+                f"({r['new_drawn_per_s']:.1f} new); GPU process {r['gpu_ms_per_draw']:.0f} "
+                f"ms per frame drawn, all the browser's processes "
+                f"{r['browser_ms_per_draw']:.0f} ms ({r['browser_cores']:.2f} of a core); "
+                f"canvas {r['canvas']}; load average {r['load']:.1f}",
+                flush=True,
+            )
             if args.jsonl:
                 with open(args.jsonl, "a") as f:
                     f.write(json.dumps(r) + "\n")

@@ -30,16 +30,23 @@ def main() -> None:
     ap.add_argument("--size", default="1200x860", help="the browser's window")
     ap.add_argument("--colours", type=int, default=256, help="palette size of the PNG")
     ap.add_argument("--pixel-ratio", type=float, default=None, help="view --pixel-ratio")
-    ap.add_argument("--antialias", action="store_true",
-                    help="multisampled edges (a browser's default; the docs' picture)")  # fmt: skip
+    ap.add_argument(
+        "--antialias",
+        action="store_true",
+        help="multisampled edges (a browser's default; the docs' picture)",
+    )
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
 
     seqs = [AnimatedGarment.load(p) for p in args.sequences]
     if args.frames:
         n = args.frames
-        seqs = [AnimatedGarment(s.motion.slice(0, n), s.garment, s.garment_vertices[:n],
-                                s.avatar, s.source) for s in seqs]  # fmt: skip
+        seqs = [
+            AnimatedGarment(
+                s.motion.slice(0, n), s.garment, s.garment_vertices[:n], s.avatar, s.source
+            )
+            for s in seqs
+        ]
     names = args.names.split(",") if args.names else None
     config = ViewerConfig(port=0, play=False, colouring=args.colour, pixel_ratio=args.pixel_ratio)
     viewer = view(seqs, names, config)

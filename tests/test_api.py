@@ -156,8 +156,11 @@ def _imports_in_fresh_interpreter(modules: list[str]) -> set[str]:
     import subprocess
     import sys
 
-    code = ("import json, sys\n" + "".join(f"import {m}\n" for m in modules)
-            + "print(json.dumps(sorted(sys.modules)))\n")  # fmt: skip
+    code = (
+        "import json, sys\n"
+        + "".join(f"import {m}\n" for m in modules)
+        + "print(json.dumps(sorted(sys.modules)))\n"
+    )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     return set(json.loads(run.stdout.splitlines()[-1]))
@@ -174,16 +177,26 @@ def test_the_model_package_imports_neither_the_simulator_nor_the_datasets():
     assert "loosefit.model.generative" in modules and len(modules) >= 8
     modules += ["loosefit.inference.rollout", "loosefit.inference.timeline"]
     loaded = _imports_in_fresh_interpreter(modules)
-    bad = [m for m in loaded if m.split(".")[0] in ("newton", "warp")
-           or m.startswith(("loosefit.sim", "loosefit.data", "loosefit.train"))]  # fmt: skip
+    bad = [
+        m
+        for m in loaded
+        if m.split(".")[0] in ("newton", "warp")
+        or m.startswith(("loosefit.sim", "loosefit.data", "loosefit.train"))
+    ]
     assert not bad
 
 
 def test_the_runtime_loads_and_animates_without_the_training_code():
     """The API and the inference module (load, animate, package) import nothing of train/."""
-    loaded = _imports_in_fresh_interpreter(["loosefit.api", "loosefit.inference.animator",
-                                            "loosefit.inference.package", "loosefit.export",
-                                            "loosefit.eval.rollouts"])  # fmt: skip
+    loaded = _imports_in_fresh_interpreter(
+        [
+            "loosefit.api",
+            "loosefit.inference.animator",
+            "loosefit.inference.package",
+            "loosefit.export",
+            "loosefit.eval.rollouts",
+        ]
+    )
     assert not [m for m in loaded if m.startswith("loosefit.train")]
 
 
@@ -208,8 +221,13 @@ def test_nothing_outside_training_imports_train():
                 for node in ast.walk(top):
                     owner.setdefault(node, top.name) if node is not top else None
         for node in ast.walk(tree):
-            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
-                     [node.module or ""] if isinstance(node, ast.ImportFrom) else [])  # fmt: skip
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module or ""]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             if not any(n == "loosefit.train" or n.startswith("loosefit.train.") for n in names):
                 continue
             fn = owner.get(node)

@@ -44,8 +44,9 @@ def test_usd_holds_time_sampled_points_uvs_and_the_stage_units(tmp_path, suffix)
             got = np.asarray(mesh.GetPointsAttr().Get(Usd.TimeCode(t)))
             np.testing.assert_array_equal(got, m.vertices[t])
     st = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/loosefit/garment")).GetPrimvar("st")
-    np.testing.assert_allclose(np.asarray(st.ComputeFlattened()),
-                               meshes[0].uvs[meshes[0].face_uvs.ravel()])  # fmt: skip
+    np.testing.assert_allclose(
+        np.asarray(st.ComputeFlattened()), meshes[0].uvs[meshes[0].face_uvs.ravel()]
+    )
 
 
 def test_bad_exports_are_clear_errors_and_leave_nothing(tmp_path):
@@ -64,8 +65,11 @@ def test_bad_exports_are_clear_errors_and_leave_nothing(tmp_path):
     finally:
         os.chmod(locked, 0o700)
     with pytest.raises(LoosefitInputError, match="frames each"):
-        export_animation(tmp_path / "a.usd", [meshes[0], AnimatedMesh(
-            "body", meshes[1].faces, meshes[1].vertices[:2])], fps=30.0)  # fmt: skip
+        export_animation(
+            tmp_path / "a.usd",
+            [meshes[0], AnimatedMesh("body", meshes[1].faces, meshes[1].vertices[:2])],
+            fps=30.0,
+        )
     nan = meshes[0].vertices.copy()
     nan[2, 1, 0] = np.nan
     with pytest.raises(LoosefitInputError, match="frame 2"):
@@ -88,29 +92,42 @@ def test_bad_exports_are_clear_errors_and_leave_nothing(tmp_path):
     assert not list(tmp_path.glob("x*")) and not list(tmp_path.glob(".x*"))
 
 
-def test_export_command_writes_a_dataset_sequence_with_the_posed_body(toy_dataset, avatar,
-                                                                      tmp_path):  # fmt: skip
+def test_export_command_writes_a_dataset_sequence_with_the_posed_body(
+    toy_dataset, avatar, tmp_path
+):
     from loosefit.cli import main
     from loosefit.data.format import DatasetReader
 
     seq = DatasetReader(toy_dataset).read("c")
-    assert main(["export", str(toy_dataset / "sequences" / "c.npz"),
-                 str(tmp_path / "c.pc2")]) == 0  # fmt: skip
+    assert main(["export", str(toy_dataset / "sequences" / "c.npz"), str(tmp_path / "c.pc2")]) == 0
     garment, _, _ = read_pc2(tmp_path / "c.pc2")  # Y up, as the OBJ beside it
     np.testing.assert_array_equal(garment, in_up_axis(seq.garment_vertices, "Y"))
     body, _, _ = read_pc2(tmp_path / "c_body.pc2")
     posed = avatar.pose_motion(seq.motion).vertices.numpy()
     np.testing.assert_allclose(body, in_up_axis(posed, "Y"), atol=1e-5)
-    assert main(["export", str(toy_dataset / "sequences" / "c.npz"), str(tmp_path / "g.usda"),
-                 "--no-body"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "export",
+                str(toy_dataset / "sequences" / "c.npz"),
+                str(tmp_path / "g.usda"),
+                "--no-body",
+            ]
+        )
+        == 0
+    )
     assert "body" not in (tmp_path / "g.usda").read_text()
     assert main(["export", str(toy_dataset / "template.npz"), str(tmp_path / "t.usd")]) == 2
     assert main(["export", str(toy_dataset / "manifest.json"), str(tmp_path / "t.usd")]) == 2
     # an AnimatedGarment's own file (what the API's save() and the demo write)
     from loosefit.sequence import AnimatedGarment
 
-    own = AnimatedGarment(seq.motion, DatasetReader(toy_dataset).template, seq.garment_vertices,
-                          {"rig": "cmu_mb", "shape": {}}).save(tmp_path / "own.npz")  # fmt: skip
+    own = AnimatedGarment(
+        seq.motion,
+        DatasetReader(toy_dataset).template,
+        seq.garment_vertices,
+        {"rig": "cmu_mb", "shape": {}},
+    ).save(tmp_path / "own.npz")
     assert main(["export", str(own), str(tmp_path / "own.pc2"), "--no-body"]) == 0
     own_cache = read_pc2(tmp_path / "own.pc2")[0]
     np.testing.assert_array_equal(own_cache, in_up_axis(seq.garment_vertices, "Y"))
@@ -126,11 +143,15 @@ def test_export_command_axes_and_body_as_points(toy_dataset, tmp_path):
 
     seq = DatasetReader(toy_dataset).read("c")
     src = str(toy_dataset / "sequences" / "c.npz")
-    for name, extra in (("skin.usda", []), ("points.usda", ["--body-points"]),
-                        ("y.usda", ["--up-axis", "Y"])):  # fmt: skip
+    for name, extra in (
+        ("skin.usda", []),
+        ("points.usda", ["--body-points"]),
+        ("y.usda", ["--up-axis", "Y"]),
+    ):
         assert main(["export", src, str(tmp_path / name), *extra]) == 0
-    skin, points, y = (Usd.Stage.Open(str(tmp_path / n))
-                       for n in ("skin.usda", "points.usda", "y.usda"))  # fmt: skip
+    skin, points, y = (
+        Usd.Stage.Open(str(tmp_path / n)) for n in ("skin.usda", "points.usda", "y.usda")
+    )
     assert skin.GetPrimAtPath("/loosefit/body_rig").IsValid()
     assert not points.GetPrimAtPath("/loosefit/body_rig").IsValid()
     assert points.GetPrimAtPath("/loosefit/body").IsValid()

@@ -109,10 +109,12 @@ def test_a_closed_surface_round_the_body_cannot_be_fitted(tmp_path, avatar):
 
 
 def test_a_garment_far_from_the_body_cannot_be_fitted(other_dress, avatar):
-    with pytest.raises(LoosefitInputError, match=r"other\.obj.*placement.*within 10 cm.*cm "
-                       r"from it"):  # fmt: skip
-        fit_garment(other_dress, config=QUICK, kind="dress", offset=(0.0, 0.4, 0.0),
-                    avatar=avatar)  # fmt: skip
+    with pytest.raises(
+        LoosefitInputError,
+        match=r"other\.obj.*placement.*within 10 cm.*cm "
+        r"from it",
+    ):
+        fit_garment(other_dress, config=QUICK, kind="dress", offset=(0.0, 0.4, 0.0), avatar=avatar)
 
 
 def test_a_garment_that_stays_inside_after_the_push_is_refused(other_dress, avatar):
@@ -126,9 +128,14 @@ def test_a_fitted_template_refuses_another_avatar(fitted):
     template, _, avatar = fitted
     check_fitted_shape(template, avatar)  # its own: fine
     other = {**template.meta["fit"]["shape"], "weight": 0.1}
-    template = type(template)(template.vertices, template.faces, template.uvs,
-                              template.face_uvs, template.waist,
-                              meta={**template.meta, "fit": {"shape": other}})  # fmt: skip
+    template = type(template)(
+        template.vertices,
+        template.faces,
+        template.uvs,
+        template.face_uvs,
+        template.waist,
+        meta={**template.meta, "fit": {"shape": other}},
+    )
     with pytest.raises(LoosefitInputError, match=r"fit\.shape.*--shape .*weight=0\.1"):
         check_fitted_shape(template, avatar, "d.npz")
 
@@ -137,9 +144,10 @@ def test_the_shape_search_finds_the_body_a_garment_was_made_for(other_dress):
     """From the project's avatar, one round of steps: the body is heavier and taller."""
     calls = []
     shape, body, tried = best_shape(
-        lambda a: import_garment(other_dress, a, kind="dress", check=False)[0], rounds=1,
+        lambda a: import_garment(other_dress, a, kind="dress", check=False)[0],
+        rounds=1,
         progress=lambda done, total: calls.append((done, total)),
-    )  # fmt: skip
+    )
     assert shape["weight"] > 0.5 and shape["height"] > 0.5, shape
     assert body.shape == shape and tried >= 4
     assert calls == [(k, 0) for k in range(1, tried + 1)]  # shape by shape, no total known
@@ -169,8 +177,9 @@ def test_the_garment_command_fits_and_says_what_it_did(other_dress, tmp_path, ca
     assert "--fit" in capsys.readouterr().err and not (tmp_path / "y").exists()
 
 
-def test_the_garment_command_shows_the_fit_s_stages_and_writes_a_preview(other_dress, tmp_path,
-                                                                        capsys):  # fmt: skip
+def test_the_garment_command_shows_the_fit_s_stages_and_writes_a_preview(
+    other_dress, tmp_path, capsys
+):
     from PIL import Image
 
     from loosefit.cli import main

@@ -21,18 +21,50 @@ from hypothesis import strategies as st
 
 from loosefit.errors import LoosefitInputError
 
-settings.register_profile("ci", max_examples=40, deadline=None, derandomize=True,
-                          suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                                 HealthCheck.too_slow])  # fmt: skip
-settings.register_profile("slow", max_examples=1500, deadline=None,
-                          suppress_health_check=[HealthCheck.function_scoped_fixture,
-                                                 HealthCheck.too_slow])  # fmt: skip
+settings.register_profile(
+    "ci",
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+settings.register_profile(
+    "slow",
+    max_examples=1500,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 settings.load_profile(os.environ.get("LOOSEFIT_FUZZ", "ci"))
 
 # what a token of a text file is replaced by
-WEIRD = st.sampled_from(["nan", "NaN", "inf", "-inf", "1e400", "-1e308", "0", "-1", "3.5",
-                         "999999999999", "x", "", "１", "é", "\u202e", "1/2", "//", "-",
-                         "ROOT", "}", "{", "f", "v", "0x10"])  # fmt: skip
+WEIRD = st.sampled_from(
+    [
+        "nan",
+        "NaN",
+        "inf",
+        "-inf",
+        "1e400",
+        "-1e308",
+        "0",
+        "-1",
+        "3.5",
+        "999999999999",
+        "x",
+        "",
+        "１",
+        "é",
+        "\u202e",
+        "1/2",
+        "//",
+        "-",
+        "ROOT",
+        "}",
+        "{",
+        "f",
+        "v",
+        "0x10",
+    ]
+)
 TOKEN = st.one_of(WEIRD, st.text(max_size=6), st.floats().map(repr), st.integers().map(str))
 
 
@@ -136,9 +168,18 @@ def test_dataset_config_file(tmp_path, text):
         accepts(lambda: plan_jobs(config))
 
 
-@given(spec=st.one_of(TOKEN, st.builds("{}:{}".format, st.sampled_from(
-    ["dance", "mirror", "speed", "speed:2", "speed:0", "speed:nan", "spin+", "dance:-1"]),
-    TOKEN)))  # fmt: skip
+@given(
+    spec=st.one_of(
+        TOKEN,
+        st.builds(
+            "{}:{}".format,
+            st.sampled_from(
+                ["dance", "mirror", "speed", "speed:2", "speed:0", "speed:nan", "spin+", "dance:-1"]
+            ),
+            TOKEN,
+        ),
+    )
+)
 def test_motion_specs(avatar, spec):
     from loosefit.body.motions import load_motion
 
@@ -179,8 +220,9 @@ def _arrays(draw, like: np.ndarray):
     if how == "shape":
         return np.zeros(tuple(draw(st.lists(st.integers(0, 5), max_size=4))), like.dtype)
     if how == "dtype" and like.dtype.kind in "fiub":
-        return like.astype(draw(st.sampled_from([np.float64, np.int64, np.int8, np.bool_,
-                                                 np.complex64])))  # fmt: skip
+        return like.astype(
+            draw(st.sampled_from([np.float64, np.int64, np.int8, np.bool_, np.complex64]))
+        )
     if how == "nan" and like.dtype.kind == "f" and like.size:
         bad = like.copy()
         bad.flat[draw(st.integers(0, like.size - 1))] = draw(st.sampled_from([np.nan, np.inf]))
@@ -244,8 +286,20 @@ def test_manifest(tmp_path, toy_dataset, data):
     if not root.exists():
         shutil.copytree(toy_dataset, root)
     manifest = json.loads((toy_dataset / "manifest.json").read_text())
-    key = data.draw(st.sampled_from(["format", "complete", "split", "body", "split.train",
-                                     "split.test", "body.shape", "body.floor_height"]))  # fmt: skip
+    key = data.draw(
+        st.sampled_from(
+            [
+                "format",
+                "complete",
+                "split",
+                "body",
+                "split.train",
+                "split.test",
+                "body.shape",
+                "body.floor_height",
+            ]
+        )
+    )
     value = data.draw(
         st.one_of(
             st.none(),
@@ -299,9 +353,16 @@ def test_checkpoints(tmp_path, data):
         if how == "delete":
             del saved[key]
         else:
-            saved[key] = data.draw(st.one_of(st.none(), st.integers(), st.text(max_size=4),
-                                             st.just(torch.full((2, 2), float("nan"))),
-                                             st.just({"x": 1}), st.just([1, 2])))  # fmt: skip
+            saved[key] = data.draw(
+                st.one_of(
+                    st.none(),
+                    st.integers(),
+                    st.text(max_size=4),
+                    st.just(torch.full((2, 2), float("nan"))),
+                    st.just({"x": 1}),
+                    st.just([1, 2]),
+                )
+            )
         torch.save(saved, path)
     model = accepts(lambda: load_pipeline(tmp_path / "motion.pt"))
     if model is not None:

@@ -48,8 +48,9 @@ def test_config_values_of_the_wrong_kind(tmp_path, text, field):
         read_config_file(tmp_path / "c.yaml")
 
 
-@pytest.mark.parametrize("spec", ["dance:999999999999", "dance:1e400", "dance:-1",
-                                  "speed:1e-9:spin", "speed:1000:spin"])  # fmt: skip
+@pytest.mark.parametrize(
+    "spec", ["dance:999999999999", "dance:1e400", "dance:-1", "speed:1e-9:spin", "speed:1000:spin"]
+)
 def test_motion_specs_that_ask_for_unbounded_memory(avatar, spec):
     from loosefit.body.motions import load_motion
 
@@ -66,9 +67,12 @@ def test_npz_fields_of_another_kind(tmp_path, avatar, skirt):
     g = carry_rigidly(skirt, avatar.pose_motion(motion), avatar).numpy()
     path = AnimatedGarment(motion, skirt, g, {}, "t").save(tmp_path / "s.npz")
     good = dict(np.load(path))
-    cases = [("joint_names", np.array("Hips")), ("avatar", np.array([1.0, 2.0])),
-             ("rotations", np.full(good["rotations"].shape, "x")),
-             ("fps", np.array("30"))]  # fmt: skip
+    cases = [
+        ("joint_names", np.array("Hips")),
+        ("avatar", np.array([1.0, 2.0])),
+        ("rotations", np.full(good["rotations"].shape, "x")),
+        ("fps", np.array("30")),
+    ]
     for field, value in cases:
         np.savez(path, **{**good, field: value})
         with pytest.raises(LoosefitInputError, match=rf"s\.npz.*{field}"):
@@ -80,8 +84,10 @@ def test_npz_fields_of_another_kind(tmp_path, avatar, skirt):
         GarmentTemplate.load(path)
 
 
-@pytest.mark.parametrize("key, value", [("split.train", None), ("body", None),
-                                        ("body.floor_height", "high"), ("split", [1])])  # fmt: skip
+@pytest.mark.parametrize(
+    "key, value",
+    [("split.train", None), ("body", None), ("body.floor_height", "high"), ("split", [1])],
+)
 def test_manifests_of_the_wrong_shape(tmp_path, toy_dataset, key, value):
     import shutil
 
@@ -102,11 +108,16 @@ def test_manifests_of_the_wrong_shape(tmp_path, toy_dataset, key, value):
         DatasetReader(root)
 
 
-@pytest.mark.parametrize("stage, key, value", [("motion", "body", "\x9a"),
-                                               ("detail", "fingerprints", None),
-                                               ("motion", "rest_state", torch.zeros(2, 2)),
-                                               ("generative", "garment", [1, 2]),
-                                               ("detail", "format", {"x": 1})])  # fmt: skip
+@pytest.mark.parametrize(
+    "stage, key, value",
+    [
+        ("motion", "body", "\x9a"),
+        ("detail", "fingerprints", None),
+        ("motion", "rest_state", torch.zeros(2, 2)),
+        ("generative", "garment", [1, 2]),
+        ("detail", "format", {"x": 1}),
+    ],
+)
 def test_checkpoint_fields_of_another_type(tmp_path, stage, key, value):
     from loosefit.inference.animator import load_pipeline
     from loosefit.inference.checkpoints import load_torch
@@ -127,8 +138,9 @@ def test_a_glb_whose_triangles_name_missing_vertices(tmp_path):
     from loosefit.garment.importer import read_garment_mesh
 
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float64)
-    raw = bytearray(trimesh.Trimesh(v, [[0, 1, 2], [1, 3, 2]], process=False).export(
-        file_type="glb"))  # fmt: skip
+    raw = bytearray(
+        trimesh.Trimesh(v, [[0, 1, 2], [1, 3, 2]], process=False).export(file_type="glb")
+    )
     raw[645] = 1  # what the fuzzing changed: an index byte, now 256 of 4 vertices
     (tmp_path / "g.glb").write_bytes(bytes(raw))
     with pytest.raises(LoosefitInputError, match=r"g\.glb.*faces.*vertex indices below 4"):

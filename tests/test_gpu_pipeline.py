@@ -10,8 +10,20 @@ SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "gpu_pipeline.py"
 
 
 def pipeline(work: Path, out: Path, budget: float) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, str(SCRIPT), "run", "--tiny", "--device", "cpu", "--work", str(work),
-           "--out", str(out), "--budget", str(budget)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        str(SCRIPT),
+        "run",
+        "--tiny",
+        "--device",
+        "cpu",
+        "--work",
+        str(work),
+        "--out",
+        str(out),
+        "--budget",
+        str(budget),
+    ]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=900)
 
 
@@ -34,9 +46,16 @@ def test_the_pipeline_runs_in_budgeted_calls_and_brings_back_the_model(tmp_path)
             break
         assert "call again" in call.stdout
     assert call.returncode == 0 and call.stdout.strip().endswith("done"), call.stdout
-    for name in ("manifest.json", "model/generative.pt", "model/motion.pt", "table1.md",
-                 "table3.md", "generative_report.md", "motion_report.md",
-                 "BATCH_INFERENCE.md"):  # fmt: skip
+    for name in (
+        "manifest.json",
+        "model/generative.pt",
+        "model/motion.pt",
+        "table1.md",
+        "table3.md",
+        "generative_report.md",
+        "motion_report.md",
+        "BATCH_INFERENCE.md",
+    ):
         path = out / name
         assert path.is_file() and path.stat().st_size < 16 * 2**20, name
     assert "spin_001" in (out / "table1.md").read_text()
@@ -54,14 +73,34 @@ def test_the_dance_pipeline_trains_every_stage_and_brings_back_the_set(tmp_path,
     work, out = tmp_path / "work", tmp_path / "out"
     shutil.copytree(toy_dataset, work / "data")
     (work / "simulate.done").write_text("{}")
-    cmd = [sys.executable, str(SCRIPT), "run", "--preset", "dance", "--tiny", "--device", "cpu",
-           "--work", str(work), "--out", str(out), "--budget", "600"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        str(SCRIPT),
+        "run",
+        "--preset",
+        "dance",
+        "--tiny",
+        "--device",
+        "cpu",
+        "--work",
+        str(work),
+        "--out",
+        str(out),
+        "--budget",
+        "600",
+    ]
     call = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert call.returncode == 0 and call.stdout.strip().endswith("done"), call.stdout
     for step in ("generative", "motion", "detail", "package", "table1", "table3"):
         assert f"{step}: done" in call.stdout, step
-    for name in ("model/generative.pt", "model/motion.pt", "model/detail.pt", "table1.md",
-                 "table3.md", "detail_report.md"):  # fmt: skip
+    for name in (
+        "model/generative.pt",
+        "model/motion.pt",
+        "model/detail.pt",
+        "table1.md",
+        "table3.md",
+        "detail_report.md",
+    ):
         path = out / name
         assert path.is_file() and path.stat().st_size < 16 * 2**20, name
     # The toy set's test clip is rolled out by both tables.
@@ -74,11 +113,38 @@ def test_the_simulator_s_speed_call_runs_the_corpus_and_the_table(tmp_path):
     import json
 
     work, out = tmp_path / "work", tmp_path / "out"
-    cmd = [sys.executable, str(SCRIPT), "sim-speed", "--tiny", "--device", "cpu", "--work",
-           str(work), "--out", str(out), "--budget", "600", "--corpus-budget", "300",
-           "--corpus-batch", "2", "--corpus-workers", "1", "--corpus-prepare-workers", "1",
-           "--batches", "1,2", "--frames", "2",
-           "--clips", "1", "--capture", "on", "--set", "settle_once=true"]  # fmt: skip
+    cmd = [
+        sys.executable,
+        str(SCRIPT),
+        "sim-speed",
+        "--tiny",
+        "--device",
+        "cpu",
+        "--work",
+        str(work),
+        "--out",
+        str(out),
+        "--budget",
+        "600",
+        "--corpus-budget",
+        "300",
+        "--corpus-batch",
+        "2",
+        "--corpus-workers",
+        "1",
+        "--corpus-prepare-workers",
+        "1",
+        "--batches",
+        "1,2",
+        "--frames",
+        "2",
+        "--clips",
+        "1",
+        "--capture",
+        "on",
+        "--set",
+        "settle_once=true",
+    ]
     call = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert call.returncode == 0, call.stdout[-3000:] + call.stderr[-3000:]
     corpus = json.loads((out / "corpus.json").read_text())

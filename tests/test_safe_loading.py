@@ -38,8 +38,10 @@ def _checkpoint(path, fmt: str, marker) -> pathlib.Path:
     return path
 
 
-@pytest.mark.parametrize("fmt", ["loosefit.generative/1", "loosefit.motion/1",
-                                 "loosefit.detail/1", "loosefit.baseline/1"])  # fmt: skip
+@pytest.mark.parametrize(
+    "fmt",
+    ["loosefit.generative/1", "loosefit.motion/1", "loosefit.detail/1", "loosefit.baseline/1"],
+)
 def test_a_checkpoint_with_a_pickled_object_is_refused(tmp_path, marker, fmt):
     from loosefit.inference.animator import load_pipeline
     from loosefit.inference.baseline import load_baseline
@@ -80,8 +82,9 @@ def test_npz_files_with_a_pickled_object_are_refused(tmp_path, marker, skirt):
         "decomposition": SkinningDecomposition.load,
     }
     for name, read in readers.items():
-        path = _npz_with_payload(tmp_path / f"{name}.npz", marker,
-                                 format=np.array("loosefit.sequence/1"))  # fmt: skip
+        path = _npz_with_payload(
+            tmp_path / f"{name}.npz", marker, format=np.array("loosefit.sequence/1")
+        )
         with pytest.raises(LoosefitInputError, match=rf"{name}\.npz.*pickled object"):
             read(path)
 
@@ -89,8 +92,7 @@ def test_npz_files_with_a_pickled_object_are_refused(tmp_path, marker, skirt):
 def test_the_simulation_s_resume_file_is_never_unpickled(tmp_path, marker):
     from loosefit.sim.resume import read_resume
 
-    path = _npz_with_payload(tmp_path / "resume.npz", marker, key=np.array("k"),
-                             frame=np.array(1))  # fmt: skip
+    path = _npz_with_payload(tmp_path / "resume.npz", marker, key=np.array("k"), frame=np.array(1))
     assert read_resume(path, "k", 10) is None  # an unreadable state: the run starts over
 
 
@@ -98,9 +100,11 @@ def test_a_newer_format_version_asks_for_an_upgrade(tmp_path, skirt):
     from loosefit.inference.checkpoints import read_checkpoint_file
 
     torch.save({"format": "loosefit.motion/2", "loosefit_version": "9.0"}, tmp_path / "new.pt")
-    with pytest.raises(LoosefitInputError,
-                       match=r"new\.pt.*'loosefit.motion/1'.*'loosefit.motion/2', written by "
-                       r"loosefit 9\.0.*upgrade loosefit"):  # fmt: skip
+    with pytest.raises(
+        LoosefitInputError,
+        match=r"new\.pt.*'loosefit.motion/1'.*'loosefit.motion/2', written by "
+        r"loosefit 9\.0.*upgrade loosefit",
+    ):
         read_checkpoint_file(tmp_path / "new.pt", "loosefit.motion/1")
 
 
@@ -111,8 +115,10 @@ def test_every_checkpoint_says_what_it_is():
     from loosefit.api import pretrained_checkpoint
     from loosefit.inference.checkpoints import load_torch
 
-    sets = {pretrained_checkpoint().parent: ("generative", "motion", "engine"),
-            WITH_DETAIL: ("generative", "motion", "detail")}  # fmt: skip
+    sets = {
+        pretrained_checkpoint().parent: ("generative", "motion", "engine"),
+        WITH_DETAIL: ("generative", "motion", "detail"),
+    }
     for root, names in sets.items():
         assert sorted(p.stem for p in root.glob("*.pt")) == sorted(names)
         for name in names:

@@ -23,8 +23,9 @@ print(hit.faces.tolist())
 def _python(code: str) -> subprocess.CompletedProcess:
     """``code`` run by a fresh Python on this checkout's loosefit."""
     env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          cwd=REPO, env=env, timeout=600)  # fmt: skip
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, env=env, timeout=600
+    )
 
 
 def test_warp_messages_go_to_standard_error_and_standard_output_keeps_the_result():

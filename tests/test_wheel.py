@@ -34,8 +34,20 @@ def _run(cmd: list, cwd: Path | None = None) -> str:
 def test_the_wheel_runs_the_api_and_the_demo_without_a_checkout(tmp_path):
     # 1. the wheel, from this source tree
     dist = tmp_path / "dist"
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q",
-          "-w", dist, REPO])  # fmt: skip
+    _run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            dist,
+            REPO,
+        ]
+    )
     (wheel,) = dist.glob("loosefit-*.whl")
     # 2. a fresh environment: it sees the dependencies installed beside this interpreter
     #    (plain paths in a .pth, so their own .pth files, the editable checkout's among
@@ -46,21 +58,52 @@ def test_the_wheel_runs_the_api_and_the_demo_without_a_checkout(tmp_path):
     deps = [p for p in sys.path if p.endswith("site-packages")]
     (site / "_deps.pth").write_text("\n".join(deps) + "\n")
     # --ignore-installed: never touch the loosefit installed beside this interpreter
-    _run([sys.executable, "-m", "pip", "install", "--no-deps", "--ignore-installed", "-q",
-          "--prefix", venv, wheel])  # fmt: skip
+    _run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--no-deps",
+            "--ignore-installed",
+            "-q",
+            "--prefix",
+            venv,
+            wheel,
+        ]
+    )
     # 3. in an empty folder: the README's API example, then the main job
     empty = tmp_path / "elsewhere"
     empty.mkdir()
     python = venv / "bin" / "python"
-    out = dict(line.split(" ", 1) for line in _run([python, "-c", API_EXAMPLE], cwd=empty)
-               .splitlines() if line.startswith(("FILE ", "SHAPE ")))  # fmt: skip
+    out = dict(
+        line.split(" ", 1)
+        for line in _run([python, "-c", API_EXAMPLE], cwd=empty).splitlines()
+        if line.startswith(("FILE ", "SHAPE "))
+    )
     assert out["FILE"].startswith(str(site)), out  # the installed copy, not the checkout
     assert out["SHAPE"] == "(12, 2352, 3)"
     assert (empty / "kick.usda").is_file() and (empty / "kick.npz").is_file()
     # the README's example itself, word for word, with no ../shared and no checkout
     _run([python, "-c", readme_example()], cwd=empty)
     assert (empty / "dance.usdc").is_file()
-    _run([python, venv / "bin" / "loosefit", "demo", "--motion", "kick", "--max-frames", "15",
-          "--size", "48", "--views", "front", "--out", "demo"], cwd=empty)  # fmt: skip
+    _run(
+        [
+            python,
+            venv / "bin" / "loosefit",
+            "demo",
+            "--motion",
+            "kick",
+            "--max-frames",
+            "15",
+            "--size",
+            "48",
+            "--views",
+            "front",
+            "--out",
+            "demo",
+        ],
+        cwd=empty,
+    )
     for name in ("video.mp4", "demo.usdc", "demo.pc2", "sequence.npz"):
         assert (empty / "demo" / name).is_file(), name

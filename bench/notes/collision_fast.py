@@ -42,9 +42,15 @@ def compare(model, motion) -> dict:
             inside[k] += r.inside_after
     gap = np.linalg.norm(np.stack(out[0]) - np.stack(out[1]), axis=-1)  # (T, V)
     n = motion.num_frames
-    return {"frames": n, "ms_before": 1e3 * seconds[0] / n, "ms_fast": 1e3 * seconds[1] / n,
-            "max_mm": 1e3 * float(gap.max()), "frames_over_half_mm": int((gap.max(1) > 5e-4).sum()),
-            "inside_before": inside[0], "inside_fast": inside[1]}  # fmt: skip
+    return {
+        "frames": n,
+        "ms_before": 1e3 * seconds[0] / n,
+        "ms_fast": 1e3 * seconds[1] / n,
+        "max_mm": 1e3 * float(gap.max()),
+        "frames_over_half_mm": int((gap.max(1) > 5e-4).sum()),
+        "inside_before": inside[0],
+        "inside_fast": inside[1],
+    }
 
 
 def main() -> None:
@@ -56,16 +62,25 @@ def main() -> None:
     args = p.parse_args()
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
-    print("| motion | frames | ms/frame before (CPU) | fast | largest gap (mm) | frames > 0.5 mm "
-          "| inside after, before | fast |")  # fmt: skip
+    print(
+        "| motion | frames | ms/frame before (CPU) | fast | largest gap (mm) | frames > 0.5 mm "
+        "| inside after, before | fast |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for spec in args.motion:
-        motion = load_motion(spec, model.avatar(), fps=model.fps, start_frame=args.start_frame,
-                             max_frames=args.frames)  # fmt: skip
+        motion = load_motion(
+            spec,
+            model.avatar(),
+            fps=model.fps,
+            start_frame=args.start_frame,
+            max_frames=args.frames,
+        )
         r = compare(model, motion)
-        print(f"| {motion.name} | {r['frames']} | {r['ms_before']:.1f} | {r['ms_fast']:.1f} "
-              f"| {r['max_mm']:.3f} | {r['frames_over_half_mm']} | {r['inside_before']} "
-              f"| {r['inside_fast']} |")  # fmt: skip
+        print(
+            f"| {motion.name} | {r['frames']} | {r['ms_before']:.1f} | {r['ms_fast']:.1f} "
+            f"| {r['max_mm']:.3f} | {r['frames_over_half_mm']} | {r['inside_before']} "
+            f"| {r['inside_fast']} |"
+        )
 
 
 if __name__ == "__main__":

@@ -98,8 +98,9 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
-    motion = load_motion(args.motion, model.avatar(), fps=model.fps, start_frame=10,
-                         max_frames=args.frames)  # fmt: skip
+    motion = load_motion(
+        args.motion, model.avatar(), fps=model.fps, start_frame=10, max_frames=args.frames
+    )
     restorer = model.restorer(Stages())
     # the stage's input: the pipeline up to edge lengths
     frames = model.animate(motion, stages=Stages(lengths=False, collision=False)).vertices

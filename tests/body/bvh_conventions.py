@@ -51,22 +51,45 @@ def _sided(
 def tpose(sign: float) -> dict[str, np.ndarray]:
     """Limb directions of a T-pose for one side (sign +1 left, -1 right), avatar axes."""
     out = OUT * [sign, 1, 1]
-    return {"Shoulder": out, "Arm": out, "ForeArm": out, "Hand": out, "UpLeg": DOWN,
-            "Leg": DOWN, "Foot": np.array([0, -0.5, -1.0]), "ToeBase": FWD}  # fmt: skip
+    return {
+        "Shoulder": out,
+        "Arm": out,
+        "ForeArm": out,
+        "Hand": out,
+        "UpLeg": DOWN,
+        "Leg": DOWN,
+        "Foot": np.array([0, -0.5, -1.0]),
+        "ToeBase": FWD,
+    }
 
 
 def apose(sign: float) -> dict[str, np.ndarray]:
     """An A-pose: arms 45 degrees down, legs a little apart."""
     d = np.array([sign, 0, -1.0])
-    return {"Shoulder": OUT * [sign, 1, 1], "Arm": d, "ForeArm": d, "Hand": d,
-            "UpLeg": np.array([0.1 * sign, 0, -1]), "Leg": DOWN, "Foot": np.array([0, -1, -1.0]),
-            "ToeBase": FWD}  # fmt: skip
+    return {
+        "Shoulder": OUT * [sign, 1, 1],
+        "Arm": d,
+        "ForeArm": d,
+        "Hand": d,
+        "UpLeg": np.array([0.1 * sign, 0, -1]),
+        "Leg": DOWN,
+        "Foot": np.array([0, -1, -1.0]),
+        "ToeBase": FWD,
+    }
 
 
 def arms_down(sign: float) -> dict[str, np.ndarray]:
     """Arms hanging along the sides, feet flat: bones along -Z, +-X and -Y."""
-    return {"Shoulder": OUT * [sign, 1, 1], "Arm": DOWN, "ForeArm": DOWN, "Hand": DOWN,
-            "UpLeg": DOWN, "Leg": DOWN, "Foot": FWD, "ToeBase": FWD}  # fmt: skip
+    return {
+        "Shoulder": OUT * [sign, 1, 1],
+        "Arm": DOWN,
+        "ForeArm": DOWN,
+        "Hand": DOWN,
+        "UpLeg": DOWN,
+        "Leg": DOWN,
+        "Foot": FWD,
+        "ToeBase": FWD,
+    }
 
 
 @dataclass
@@ -109,57 +132,151 @@ class Convention:
     zero_offsets: bool = False
 
 
-CMU_MB = Convention("cmu_mb", {n: n for n in (
-        "Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase LowerBack Spine Spine1 "
-        "LeftShoulder LeftArm LeftForeArm LeftHand LThumb LeftFingerBase LeftHandFinger1 "
-        "Neck Neck1 Head RightShoulder RightArm RightForeArm RightHand RThumb "
-        "RightFingerBase RightHandFinger1 RHipJoint RightUpLeg RightLeg RightFoot "
-        "RightToeBase").split()}, order="ZYX")  # fmt: skip
-DAZ = Convention("daz", _sided({
-        "Hips": "hip", "LowerBack": "abdomen", "Spine1": "chest", "Neck": "neck",
-        "Head": "head", "{s}HipJoint": "{x}Buttock", "{S}UpLeg": "{x}Thigh",
-        "{S}Leg": "{x}Shin", "{S}Foot": "{x}Foot", "{S}Shoulder": "{x}Collar",
-        "{S}Arm": "{x}Shldr", "{S}ForeArm": "{x}ForeArm", "{S}Hand": "{x}Hand"}),
-        units=100)  # fmt: skip
-MIXAMO = Convention("mixamo", _sided({
-        "Hips": "mixamorig:Hips", "LowerBack": "mixamorig:Spine",
-        "Spine": "mixamorig:Spine1", "Spine1": "mixamorig:Spine2",
-        "Neck": "mixamorig:Neck", "Head": "mixamorig:Head",
-        **{f"{{S}}{b}": f"mixamorig:{{S}}{b}" for b in (
-            "UpLeg", "Leg", "Foot", "ToeBase", "Shoulder", "Arm", "ForeArm", "Hand")}}),
-        extras=[("mixamorig:HeadTop_End", "mixamorig:Head", "Head"),
-                ("mixamorig:LeftHandIndex1", "mixamorig:LeftHand", "LeftHand"),
-                ("mixamorig:RightHandIndex1", "mixamorig:RightHand", "RightHand"),
-                ("mixamorig:LeftToe_End", "mixamorig:LeftToeBase", "LeftToeBase"),
-                ("mixamorig:RightToe_End", "mixamorig:RightToeBase", "RightToeBase")],
-        units=100, order="XYZ")  # fmt: skip
-UNREAL = Convention("unreal", _sided({
-        "Hips": "pelvis", "LowerBack": "spine_01", "Spine": "spine_02", "Spine1": "spine_03",
-        "Neck": "neck_01", "Head": "head", "{S}Shoulder": "clavicle_{x}",
-        "{S}Arm": "upperarm_{x}", "{S}ForeArm": "lowerarm_{x}", "{S}Hand": "hand_{x}",
-        "{S}UpLeg": "thigh_{x}", "{S}Leg": "calf_{x}", "{S}Foot": "foot_{x}",
-        "{S}ToeBase": "ball_{x}"}), pose=apose, units=100)  # fmt: skip
-STUDIO = Convention("studio", _sided({
-        "Hips": "Hips", "LowerBack": "Spine", "Spine1": "Chest", "Neck": "Neck",
-        "Head": "Head", "{S}Shoulder": "Shoulder_{s}", "{S}Arm": "UpperArm_{s}",
-        "{S}ForeArm": "LowerArm_{s}", "{S}Hand": "Hand_{s}", "{S}UpLeg": "UpperLeg_{s}",
-        "{S}Leg": "LowerLeg_{s}", "{S}Foot": "Foot_{s}", "{S}ToeBase": "Toes_{s}"}),
-        pose=arms_down, extras=[("joint_Root", None, None)], units=100,
-        six_channels=True, order="YXZ")  # fmt: skip
-SMPL = Convention("smpl", _sided({
-        "Hips": "pelvis", "{S}UpLeg": "{w}_hip", "{S}Leg": "{w}_knee",
-        "{S}Foot": "{w}_ankle", "{S}ToeBase": "{w}_foot", "LowerBack": "spine1",
-        "Spine": "spine2", "Spine1": "spine3", "Neck": "neck", "Head": "head",
-        "{S}Shoulder": "{w}_collar", "{S}Arm": "{w}_shoulder", "{S}ForeArm": "{w}_elbow",
-        "{S}Hand": "{w}_wrist"}),
-        extras=[("left_hand", "left_wrist", "LeftHand"),
-                ("right_hand", "right_wrist", "RightHand")])  # fmt: skip
+CMU_MB = Convention(
+    "cmu_mb",
+    {
+        n: n
+        for n in (
+            "Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase LowerBack Spine Spine1 "
+            "LeftShoulder LeftArm LeftForeArm LeftHand LThumb LeftFingerBase LeftHandFinger1 "
+            "Neck Neck1 Head RightShoulder RightArm RightForeArm RightHand RThumb "
+            "RightFingerBase RightHandFinger1 RHipJoint RightUpLeg RightLeg RightFoot "
+            "RightToeBase"
+        ).split()
+    },
+    order="ZYX",
+)
+DAZ = Convention(
+    "daz",
+    _sided(
+        {
+            "Hips": "hip",
+            "LowerBack": "abdomen",
+            "Spine1": "chest",
+            "Neck": "neck",
+            "Head": "head",
+            "{s}HipJoint": "{x}Buttock",
+            "{S}UpLeg": "{x}Thigh",
+            "{S}Leg": "{x}Shin",
+            "{S}Foot": "{x}Foot",
+            "{S}Shoulder": "{x}Collar",
+            "{S}Arm": "{x}Shldr",
+            "{S}ForeArm": "{x}ForeArm",
+            "{S}Hand": "{x}Hand",
+        }
+    ),
+    units=100,
+)
+MIXAMO = Convention(
+    "mixamo",
+    _sided(
+        {
+            "Hips": "mixamorig:Hips",
+            "LowerBack": "mixamorig:Spine",
+            "Spine": "mixamorig:Spine1",
+            "Spine1": "mixamorig:Spine2",
+            "Neck": "mixamorig:Neck",
+            "Head": "mixamorig:Head",
+            **{
+                f"{{S}}{b}": f"mixamorig:{{S}}{b}"
+                for b in ("UpLeg", "Leg", "Foot", "ToeBase", "Shoulder", "Arm", "ForeArm", "Hand")
+            },
+        }
+    ),
+    extras=[
+        ("mixamorig:HeadTop_End", "mixamorig:Head", "Head"),
+        ("mixamorig:LeftHandIndex1", "mixamorig:LeftHand", "LeftHand"),
+        ("mixamorig:RightHandIndex1", "mixamorig:RightHand", "RightHand"),
+        ("mixamorig:LeftToe_End", "mixamorig:LeftToeBase", "LeftToeBase"),
+        ("mixamorig:RightToe_End", "mixamorig:RightToeBase", "RightToeBase"),
+    ],
+    units=100,
+    order="XYZ",
+)
+UNREAL = Convention(
+    "unreal",
+    _sided(
+        {
+            "Hips": "pelvis",
+            "LowerBack": "spine_01",
+            "Spine": "spine_02",
+            "Spine1": "spine_03",
+            "Neck": "neck_01",
+            "Head": "head",
+            "{S}Shoulder": "clavicle_{x}",
+            "{S}Arm": "upperarm_{x}",
+            "{S}ForeArm": "lowerarm_{x}",
+            "{S}Hand": "hand_{x}",
+            "{S}UpLeg": "thigh_{x}",
+            "{S}Leg": "calf_{x}",
+            "{S}Foot": "foot_{x}",
+            "{S}ToeBase": "ball_{x}",
+        }
+    ),
+    pose=apose,
+    units=100,
+)
+STUDIO = Convention(
+    "studio",
+    _sided(
+        {
+            "Hips": "Hips",
+            "LowerBack": "Spine",
+            "Spine1": "Chest",
+            "Neck": "Neck",
+            "Head": "Head",
+            "{S}Shoulder": "Shoulder_{s}",
+            "{S}Arm": "UpperArm_{s}",
+            "{S}ForeArm": "LowerArm_{s}",
+            "{S}Hand": "Hand_{s}",
+            "{S}UpLeg": "UpperLeg_{s}",
+            "{S}Leg": "LowerLeg_{s}",
+            "{S}Foot": "Foot_{s}",
+            "{S}ToeBase": "Toes_{s}",
+        }
+    ),
+    pose=arms_down,
+    extras=[("joint_Root", None, None)],
+    units=100,
+    six_channels=True,
+    order="YXZ",
+)
+SMPL = Convention(
+    "smpl",
+    _sided(
+        {
+            "Hips": "pelvis",
+            "{S}UpLeg": "{w}_hip",
+            "{S}Leg": "{w}_knee",
+            "{S}Foot": "{w}_ankle",
+            "{S}ToeBase": "{w}_foot",
+            "LowerBack": "spine1",
+            "Spine": "spine2",
+            "Spine1": "spine3",
+            "Neck": "neck",
+            "Head": "head",
+            "{S}Shoulder": "{w}_collar",
+            "{S}Arm": "{w}_shoulder",
+            "{S}ForeArm": "{w}_elbow",
+            "{S}Hand": "{w}_wrist",
+        }
+    ),
+    extras=[("left_hand", "left_wrist", "LeftHand"), ("right_hand", "right_wrist", "RightHand")],
+)
 # No names to go by: everything from the structure (sides from the rest pose).
-NAMELESS = Convention("nameless", {n: f"node{i:02d}" for i, n in enumerate(
-        "Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase LowerBack Spine Spine1 "
-        "LeftShoulder LeftArm LeftForeArm LeftHand Neck Neck1 Head RightShoulder RightArm "
-        "RightForeArm RightHand RHipJoint RightUpLeg RightLeg RightFoot "
-        "RightToeBase".split())}, units=100)  # fmt: skip
+NAMELESS = Convention(
+    "nameless",
+    {
+        n: f"node{i:02d}"
+        for i, n in enumerate(
+            "Hips LHipJoint LeftUpLeg LeftLeg LeftFoot LeftToeBase LowerBack Spine Spine1 "
+            "LeftShoulder LeftArm LeftForeArm LeftHand Neck Neck1 Head RightShoulder RightArm "
+            "RightForeArm RightHand RHipJoint RightUpLeg RightLeg RightFoot "
+            "RightToeBase".split()
+        )
+    },
+    units=100,
+)
 
 CONVENTIONS = {c.name: c for c in (CMU_MB, DAZ, MIXAMO, UNREAL, STUDIO, SMPL, NAMELESS)}
 
@@ -278,12 +395,19 @@ def write_convention_bvh(
                 d = C.T @ A[j] @ (tails[j] - heads[j])
             sign = -1.0 if a.startswith(("Right", "RHip")) else 1.0
             R0 = rotation_between((sign * axis)[None], d[None])[0].astype(np.float64)
-            O[a] = Rotation.from_rotvec(np.radians(conv.orient_twist * i)
-                                        * d / np.linalg.norm(d)).as_matrix() @ R0  # fmt: skip
+            O[a] = (
+                Rotation.from_rotvec(
+                    np.radians(conv.orient_twist * i) * d / np.linalg.norm(d)
+                ).as_matrix()
+                @ R0
+            )
     Ot = {a: O[a].T for a in kept}
-    local = {a: Q[a] @ O[a] if src_parent[a] is None else
-             Ot[src_parent[a]] @ np.swapaxes(Q[src_parent[a]], -1, -2) @ Q[a] @ O[a]
-             for a in kept}  # fmt: skip
+    local = {
+        a: Q[a] @ O[a]
+        if src_parent[a] is None
+        else Ot[src_parent[a]] @ np.swapaxes(Q[src_parent[a]], -1, -2) @ Q[a] @ O[a]
+        for a in kept
+    }
 
     # 3. The hierarchy: (name, offset in file units, End Site or None, frame values).
     def to_file(v):
@@ -303,8 +427,9 @@ def write_convention_bvh(
 
     def channels(position: bool) -> str:
         rot = " ".join(f"{c}rotation" for c in euler)
-        return f"CHANNELS 6 Xposition Yposition Zposition {rot}" if position \
-            else f"CHANNELS 3 {rot}"  # fmt: skip
+        return (
+            f"CHANNELS 6 Xposition Yposition Zposition {rot}" if position else f"CHANNELS 3 {rot}"
+        )
 
     def emit(name, offset, rotations, positions, end, kids_fn, depth, keyword="JOINT"):
         pad = "  " * depth
@@ -357,8 +482,16 @@ def write_convention_bvh(
         emit(conv.joints[a], offset, local[a], positions, end, kids_fn, depth, keyword)
 
     if root_extra:
-        emit(root_extra[0], np.zeros(3), eye, np.zeros((T, 3)), None,
-             lambda d: emit_avatar("Hips", d), 0, "ROOT")  # fmt: skip
+        emit(
+            root_extra[0],
+            np.zeros(3),
+            eye,
+            np.zeros((T, 3)),
+            None,
+            lambda d: emit_avatar("Hips", d),
+            0,
+            "ROOT",
+        )
     else:
         emit_avatar("Hips", 0, "ROOT")
     data = np.concatenate([np.asarray(c).reshape(T, -1) for c in columns], axis=1)  # (T, C)

@@ -38,8 +38,12 @@ class _Buffer:
             self.data.append(0)
         self.views.append({"buffer": 0, "byteOffset": len(self.data), "byteLength": a.nbytes})
         self.data += a.tobytes()
-        acc = {"bufferView": len(self.views) - 1, "componentType": ctype, "count": len(a),
-               "type": kind}  # fmt: skip
+        acc = {
+            "bufferView": len(self.views) - 1,
+            "componentType": ctype,
+            "count": len(a),
+            "type": kind,
+        }
         if normalized:
             acc["normalized"] = True
         if kind == "SCALAR":
@@ -125,15 +129,19 @@ def write_gltf(
     nodes = []
     for j in range(Jn):
         kids = [c for c in range(Jn) if parents[c] == j]
-        node = {"name": names[j], "translation": node_tr[j].tolist(),
-                "rotation": _quat(node_rot[j]).tolist()}  # fmt: skip
+        node = {
+            "name": names[j],
+            "translation": node_tr[j].tolist(),
+            "rotation": _quat(node_rot[j]).tolist(),
+        }
         if kids:
             node["children"] = kids
         nodes.append(node)
     roots = [j for j in range(Jn) if parents[j] < 0]
     armature = len(nodes)
-    nodes.append({"name": "Armature", "children": roots, "rotation": _quat(A).tolist(),
-                  "scale": [s, s, s]})  # fmt: skip
+    nodes.append(
+        {"name": "Armature", "children": roots, "rotation": _quat(A).tolist(), "scale": [s, s, s]}
+    )
     scene_nodes = [armature]
     skin = {"name": "body", "joints": list(range(Jn)), "skeleton": roots[0]}
     if inverse_bind:
@@ -154,8 +162,12 @@ def write_gltf(
         lo, hi = np.min(mesh["positions"], 0), np.max(mesh["positions"], 0)
         buf.accessors[attributes["POSITION"]].update(min=lo.tolist(), max=hi.tolist())
         indices = buf.add(np.asarray(mesh["faces"]).ravel(), "SCALAR", 5125)
-        meshes.append({"name": "character", "primitives": [
-            {"attributes": attributes, "indices": indices, "mode": 4}]})  # fmt: skip
+        meshes.append(
+            {
+                "name": "character",
+                "primitives": [{"attributes": attributes, "indices": indices, "mode": 4}],
+            }
+        )
         nodes.append({"name": "character", "mesh": 0, "skin": 0})
         scene_nodes.append(len(nodes) - 1)
     if prop_skin:
@@ -170,21 +182,27 @@ def write_gltf(
             continue  # End Site leaves: still
         q = _quat(rot_t[:, j])
         q *= np.where(q[:, 3:] < 0, -1, 1)  # a continuous sign: slerp takes the short way
-        out = (buf.add(np.round(q * 32767), "VEC4", 5122, normalized=True) if quantize
-               else buf.add(q, "VEC4"))  # fmt: skip
+        out = (
+            buf.add(np.round(q * 32767), "VEC4", 5122, normalized=True)
+            if quantize
+            else buf.add(q, "VEC4")
+        )
         samplers.append({"input": times, "output": out, "interpolation": "LINEAR"})
         channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
         if parents[j] < 0 or np.ptp(tr_t[:, j], axis=0).max() > 1e-9:  # a root, or moving
             samplers.append({"input": times, "output": buf.add(tr_t[:, j], "VEC3")})
-            channels.append({"sampler": len(samplers) - 1,
-                             "target": {"node": j, "path": "translation"}})  # fmt: skip
+            channels.append(
+                {"sampler": len(samplers) - 1, "target": {"node": j, "path": "translation"}}
+            )
     animations = [{"name": "dance", "channels": channels, "samplers": samplers}]
     if idle_first:
         two = buf.add(np.array([0.0, 1.0], np.float32), "SCALAR")
         still = buf.add(np.stack([_quat(bind_rot[0])] * 2), "VEC4")
         channel = {"sampler": 0, "target": {"node": 0, "path": "rotation"}}
-        animations.insert(0, {"name": "idle", "samplers": [{"input": two, "output": still}],
-                              "channels": [channel]})  # fmt: skip
+        animations.insert(
+            0,
+            {"name": "idle", "samplers": [{"input": two, "output": still}], "channels": [channel]},
+        )
     doc = {
         "asset": {"version": "2.0", "generator": "loosefit tests"},
         "scene": 0,

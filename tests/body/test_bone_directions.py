@@ -86,11 +86,14 @@ def direction_errors(skeleton, want, got, joints) -> dict[str, np.ndarray]:
 @pytest.mark.parametrize("label, conv, spec, fps", CASES, ids=[c[0] for c in CASES])
 def test_any_rig_gives_the_motion_back(avatar, tmp_path, label, conv, spec, fps):
     motion = load_motion(spec, avatar, fps=fps, seed=3)
-    path = write_convention_bvh(tmp_path / "clip.bvh", conv, avatar.skeleton, motion,
-                                avatar.floor_height)  # fmt: skip
+    path = write_convention_bvh(
+        tmp_path / "clip.bvh", conv, avatar.skeleton, motion, avatar.floor_height
+    )
     back = load_motion(str(path), avatar, fps=fps)  # as `loosefit animate` reads it
     assert back.num_frames == motion.num_frames and back.meta["joint_map"] in (
-        "auto-matched", conv.name)  # fmt: skip
+        "auto-matched",
+        conv.name,
+    )
     stands = conv.bone_axis is None
     assert back.meta["reference"] == ("zero-pose" if stands else "clip"), back.meta
     assert back.meta["axes"].startswith(f"up {conv.up}")
@@ -115,8 +118,9 @@ def test_the_zero_pose_calibration_on_a_rig_that_does_not_stand_is_refused(avata
     # The measure has teeth: calibrated on a zero pose with every bone along X (what
     # retargeting did before), the body comes out contorted, and the pose check says so.
     motion = load_motion("dance:2", avatar, seed=3)
-    path = write_convention_bvh(tmp_path / "studio.bvh", STUDIO_X, avatar.skeleton, motion,
-                                avatar.floor_height)  # fmt: skip
+    path = write_convention_bvh(
+        tmp_path / "studio.bvh", STUDIO_X, avatar.skeleton, motion, avatar.floor_height
+    )
     clip = read_bvh(path)
     cfg = RetargetConfig(fps=None, reference="zero-pose")
     with pytest.raises(LoosefitInputError) as err:
@@ -124,22 +128,23 @@ def test_the_zero_pose_calibration_on_a_rig_that_does_not_stand_is_refused(avata
     text = str(err.value)
     assert "studio.bvh" in text and "poses" in text and "does not stand" in text
     assert "Head not above Hips in frames 0-" in text
-    bad = retarget_bvh(clip, avatar.skeleton, avatar.floor_height,
-                       dataclasses.replace(cfg, check_pose=False))  # fmt: skip
+    bad = retarget_bvh(
+        clip, avatar.skeleton, avatar.floor_height, dataclasses.replace(cfg, check_pose=False)
+    )
     errors = direction_errors(avatar.skeleton, motion, bad, STUDIO_X.joints)
     assert max(e.max() for e in errors.values()) > 45.0
 
 
 def test_a_rigs_zero_pose_is_told_standing_or_not():
     up, down = np.array([0, 0, 1.0]), np.array([0, 0, -1.0])
-    present = {"Hips": 0, "LeftUpLeg": 1, "LeftFoot": 2, "RightUpLeg": 3, "RightFoot": 4,
-               "Head": 5}  # fmt: skip
-    tpose = np.array([[0, 0, 0], [0.1, 0, 0], [0.1, 0, 0], [-0.1, 0, 0], [-0.1, 0, 0],
-                      [0, 0, 0]]) + np.stack([0 * up, 0 * up, 0.8 * down, 0 * up, 0.8 * down,
-                                              0.6 * up])  # fmt: skip
+    present = {"Hips": 0, "LeftUpLeg": 1, "LeftFoot": 2, "RightUpLeg": 3, "RightFoot": 4, "Head": 5}
+    tpose = np.array(
+        [[0, 0, 0], [0.1, 0, 0], [0.1, 0, 0], [-0.1, 0, 0], [-0.1, 0, 0], [0, 0, 0]]
+    ) + np.stack([0 * up, 0 * up, 0.8 * down, 0 * up, 0.8 * down, 0.6 * up])
     assert zero_pose_stands(tpose, present) == (True, "")
-    along_x = np.array([[0, 0, 0], [0.1, 0, 0], [0.9, 0, 0], [-0.1, 0, 0], [-0.9, 0, 0],
-                        [0.6, 0, 0]])  # fmt: skip
+    along_x = np.array(
+        [[0, 0, 0], [0.1, 0, 0], [0.9, 0, 0], [-0.1, 0, 0], [-0.9, 0, 0], [0.6, 0, 0]]
+    )
     ok, why = zero_pose_stands(along_x, present)
     assert not ok and "the left leg points down" in why and "the torso points up" in why
     mirrored = tpose * [-1, 1, 1]  # facing away: the left thigh on the right
@@ -189,16 +194,25 @@ def test_salsa_calibrated_on_the_clip_moves_as_on_its_zero_pose(avatar):
     # 31 CMU clips: limbs 0.0 degrees; torso bones up to 9.3 (salsa, Hips->LowerBack) and
     # 22.7 (ballet 05_09, the pelvis), the rest of the torso 10 at most.
     clip = read_bvh(SALSA / "61_01.bvh")
-    a, b = (retarget_bvh(clip, avatar.skeleton, avatar.floor_height,
-                         RetargetConfig(reference=r)) for r in ("zero-pose", "clip"))  # fmt: skip
+    a, b = (
+        retarget_bvh(clip, avatar.skeleton, avatar.floor_height, RetargetConfig(reference=r))
+        for r in ("zero-pose", "clip")
+    )
     assert a.meta["reference"] == "zero-pose" and b.meta["reference"] == "clip"
     pa, pb = joint_positions(avatar.skeleton, a), joint_positions(avatar.skeleton, b)
     names = avatar.skeleton.names
-    limbs = [(f"{S}{x}", f"{S}{y}") for S in ("Left", "Right") for x, y in
-             (("UpLeg", "Leg"), ("Leg", "Foot"), ("Arm", "ForeArm"), ("ForeArm", "Hand"),
-              ("Shoulder", "Arm"))]  # fmt: skip
-    torso = [("Hips", "LowerBack"), ("LowerBack", "Spine1"), ("Spine1", "Neck"),
-             ("Neck", "Head")]  # fmt: skip
+    limbs = [
+        (f"{S}{x}", f"{S}{y}")
+        for S in ("Left", "Right")
+        for x, y in (
+            ("UpLeg", "Leg"),
+            ("Leg", "Foot"),
+            ("Arm", "ForeArm"),
+            ("ForeArm", "Hand"),
+            ("Shoulder", "Arm"),
+        )
+    ]
+    torso = [("Hips", "LowerBack"), ("LowerBack", "Spine1"), ("Spine1", "Neck"), ("Neck", "Head")]
     for pairs, limit in ((limbs, 0.5), (torso, 10.0)):
         for x, y in pairs:
             i, j = names.index(x), names.index(y)

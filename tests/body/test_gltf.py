@@ -43,8 +43,9 @@ def _clip(tmp_path, avatar, dance, conv="mixamo"):
         ("studio-far", "far.glb", {}),  # hips metres from a still root joint, bones along X
     ],
 )
-def test_a_gltf_animation_round_trips_to_the_same_motion(avatar, dance, tmp_path, conv, file,
-                                                         options):  # fmt: skip
+def test_a_gltf_animation_round_trips_to_the_same_motion(
+    avatar, dance, tmp_path, conv, file, options
+):
     from loosefit.body.motions import load_motion
 
     path = write_gltf(tmp_path / file, _clip(tmp_path, avatar, dance, conv), **options)
@@ -55,8 +56,10 @@ def test_a_gltf_animation_round_trips_to_the_same_motion(avatar, dance, tmp_path
     joints = ALL_CONVENTIONS[conv].joints
     assert resolve_joint_map(read_gltf(path)).joint_map.joints == joints
     mean, worst = motion_error(avatar, dance, back, joints)
-    print(f"{file}: mean joint error {mean / CM:.2g} cm, max {worst / CM:.2g} cm, "
-          f"{path.stat().st_size / 1e3:.0f} kB read and retargeted in {seconds:.2f} s")  # fmt: skip
+    print(
+        f"{file}: mean joint error {mean / CM:.2g} cm, max {worst / CM:.2g} cm, "
+        f"{path.stat().st_size / 1e3:.0f} kB read and retargeted in {seconds:.2f} s"
+    )
     assert mean < 1 * CM and worst < 2 * CM
 
 
@@ -71,8 +74,10 @@ def test_animation_and_skin_picked_by_name_or_index(avatar, dance, tmp_path):
     for pick in ("dance", "1", 1):
         assert read_gltf(path, animation=pick).num_frames == dance.num_frames
     joints = ALL_CONVENTIONS["mixamo"].joints
-    for spec, cfg in ((f"animation:dance:{path}", None),
-                      (str(path), RetargetConfig(animation="dance"))):  # fmt: skip
+    for spec, cfg in (
+        (f"animation:dance:{path}", None),
+        (str(path), RetargetConfig(animation="dance")),
+    ):
         back = load_motion(spec, avatar, retarget=cfg)
         assert motion_error(avatar, dance, back, joints)[0] < 1 * CM
     with pytest.raises(LoosefitInputError, match=r"two\.glb.*'animations'.*'walk'.*idle"):
@@ -117,13 +122,10 @@ def test_samplers_interpolate_as_gltf_says():
     half = sample_channel(t[:2], q, "LINEAR", np.array([0.5]), True)[0]
     assert np.allclose(half, [0, 0, np.sin(np.pi / 8), np.cos(np.pi / 8)])
     # The short way round: a key written with the opposite sign changes nothing.
-    assert (
-        np.allclose(
-            sample_channel(t[:2], q * [[1], [-1]], "LINEAR", np.array([0.5]), True), half[None]
-        )
-        or np.allclose(  # fmt: skip
-            -sample_channel(t[:2], q * [[1], [-1]], "LINEAR", np.array([0.5]), True), half[None]
-        )
+    assert np.allclose(
+        sample_channel(t[:2], q * [[1], [-1]], "LINEAR", np.array([0.5]), True), half[None]
+    ) or np.allclose(
+        -sample_channel(t[:2], q * [[1], [-1]], "LINEAR", np.array([0.5]), True), half[None]
     )
 
 
@@ -149,22 +151,30 @@ def test_bad_gltf_files_name_the_file_and_the_field(avatar, dance, tmp_path):
     cases = {
         broken("noskin.glb", lambda d: d.pop("skins")): r"noskin\.glb.*'skins'.*a skin.*none",
         broken("noanim.glb", lambda d: d.pop("animations")): r"noanim\.glb.*'animations'.*none",
-        broken("elsewhere.glb", lambda d: [c["target"].update(node=len(d["nodes"]) - 1)
-                                           for c in d["animations"][0]["channels"]]):
-            r"elsewhere\.glb.*'animations\[0\]\.channels'.*drives none of its",
+        broken(
+            "elsewhere.glb",
+            lambda d: [
+                c["target"].update(node=len(d["nodes"]) - 1) for c in d["animations"][0]["channels"]
+            ],
+        ): r"elsewhere\.glb.*'animations\[0\]\.channels'.*drives none of its",
         broken("v1.glb", lambda d: d["asset"].update(version="1.0")): r"v1\.glb.*asset\.version",
-        broken("acc.glb", lambda d: d["accessors"][1].update(count=10**6)):
-            r"acc\.glb.*'accessors\[1\]'.*inside bufferViews",
-        broken("interp.glb", lambda d: d["animations"][0]["samplers"][0].update(
-            interpolation="SMOOTH")): r"interp\.glb.*samplers\[0\]\.interpolation",
-        broken("node.glb", lambda d: d["animations"][0]["channels"][0]["target"].update(
-            node=999)): r"node\.glb.*channels\[0\]\.target\.node",
+        broken(
+            "acc.glb", lambda d: d["accessors"][1].update(count=10**6)
+        ): r"acc\.glb.*'accessors\[1\]'.*inside bufferViews",
+        broken(
+            "interp.glb", lambda d: d["animations"][0]["samplers"][0].update(interpolation="SMOOTH")
+        ): r"interp\.glb.*samplers\[0\]\.interpolation",
+        broken(
+            "node.glb", lambda d: d["animations"][0]["channels"][0]["target"].update(node=999)
+        ): r"node\.glb.*channels\[0\]\.target\.node",
         broken("cycle.glb", lambda d: d["nodes"][1].update(children=[0])): r"cycle\.glb.*nodes",
-        broken("ibm.glb", lambda d: d["skins"][0]["joints"].pop()):
-            r"ibm\.glb.*inverseBindMatrices.*one per joint",
-        broken("type.glb", lambda d: d["nodes"][0].update(rotation="up")):
-            r"type\.glb.*'nodes\[0\]\.rotation'",
-    }  # fmt: skip
+        broken(
+            "ibm.glb", lambda d: d["skins"][0]["joints"].pop()
+        ): r"ibm\.glb.*inverseBindMatrices.*one per joint",
+        broken(
+            "type.glb", lambda d: d["nodes"][0].update(rotation="up")
+        ): r"type\.glb.*'nodes\[0\]\.rotation'",
+    }
     raw = good.read_bytes()
     (tmp_path / "magic.glb").write_bytes(b"GLTF" + raw[4:])
     cases[str(tmp_path / "magic.glb")] = r"magic\.glb.*GLB header.*'glTF'"
@@ -172,8 +182,9 @@ def test_bad_gltf_files_name_the_file_and_the_field(avatar, dance, tmp_path):
     cases[str(tmp_path / "cut.glb")] = r"cut\.glb.*GLB header length.*truncated"
     (tmp_path / "text.gltf").write_text('{"asset": {"version": "2.0"}, "nodes": [')
     cases[str(tmp_path / "text.gltf")] = r"text\.gltf.*'<json>'.*valid JSON"
-    (tmp_path / "far.gltf").write_text(json.dumps({**doc, "buffers": [
-        {"byteLength": len(data), "uri": "far.bin"}]}))  # fmt: skip
+    (tmp_path / "far.gltf").write_text(
+        json.dumps({**doc, "buffers": [{"byteLength": len(data), "uri": "far.bin"}]})
+    )
     cases[str(tmp_path / "far.gltf")] = r"far\.gltf.*'buffers\[0\]\.uri'.*far\.bin"
     for file, pattern in cases.items():
         with pytest.raises(LoosefitInputError, match=pattern):
@@ -189,9 +200,16 @@ def test_inspect_motion_reads_gltf(avatar, dance, tmp_path):
 
     path = write_gltf(tmp_path / "m.glb", _clip(tmp_path, avatar, dance), idle_first=True)
     text = inspect_motion(path, RetargetConfig(animation="dance")).format()
-    for part in ("m.glb", "frames: 90 at 30 fps", "units: m (glTF", "animation: 'dance' (2 of 2",
-                 "skin: 'body'", "rest pose: the skin's bind pose", "mixamorig:LeftUpLeg",
-                 "joint map: auto-matched"):  # fmt: skip
+    for part in (
+        "m.glb",
+        "frames: 90 at 30 fps",
+        "units: m (glTF",
+        "animation: 'dance' (2 of 2",
+        "skin: 'body'",
+        "rest pose: the skin's bind pose",
+        "mixamorig:LeftUpLeg",
+        "joint map: auto-matched",
+    ):
         assert part in text, (part, text)
 
 
@@ -207,20 +225,35 @@ def test_accessors_read_strides_normalized_integers_and_sparse_values(tmp_path):
     data = strided.tobytes() + shorts.tobytes() + indices.tobytes() + values.tobytes()
     o = [0, 80, 88, 92]
     gltf = {
-        "bufferViews": [{"buffer": 0, "byteOffset": o[0], "byteLength": 80, "byteStride": 20},
-                        {"buffer": 0, "byteOffset": o[1], "byteLength": 8},
-                        {"buffer": 0, "byteOffset": o[2], "byteLength": 4},
-                        {"buffer": 0, "byteOffset": o[3], "byteLength": 24}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": o[0], "byteLength": 80, "byteStride": 20},
+            {"buffer": 0, "byteOffset": o[1], "byteLength": 8},
+            {"buffer": 0, "byteOffset": o[2], "byteLength": 4},
+            {"buffer": 0, "byteOffset": o[3], "byteLength": 24},
+        ],
         "accessors": [
             {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
-            {"bufferView": 1, "componentType": 5122, "count": 1, "type": "VEC4",
-             "normalized": True},
-            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
-             "sparse": {"count": 2, "indices": {"bufferView": 2, "componentType": 5123},
-                        "values": {"bufferView": 3}}},
+            {
+                "bufferView": 1,
+                "componentType": 5122,
+                "count": 1,
+                "type": "VEC4",
+                "normalized": True,
+            },
+            {
+                "bufferView": 0,
+                "componentType": 5126,
+                "count": 4,
+                "type": "VEC3",
+                "sparse": {
+                    "count": 2,
+                    "indices": {"bufferView": 2, "componentType": 5123},
+                    "values": {"bufferView": 3},
+                },
+            },
             {"componentType": 5126, "count": 2, "type": "SCALAR"},
         ],
-    }  # fmt: skip
+    }
     doc = GltfDocument(tmp_path / "a.gltf", gltf, [data])
     assert np.array_equal(read_accessor(doc, 0, "x"), floats)
     assert np.allclose(read_accessor(doc, 1, "x"), [[1, -1, 0, -1]])

@@ -101,8 +101,11 @@ def test_captures_that_are_no_dancer_are_refused_and_nothing_is_written(
     from tests.body.bvh_conventions import STUDIO_FAR
 
     dance = load_motion("dance:1", avatar, seed=1)
-    legless = {a: s for a, s in STUDIO_FAR.joints.items() if "Leg" not in a and "Foot" not in a
-               and "Toe" not in a}  # fmt: skip
+    legless = {
+        a: s
+        for a, s in STUDIO_FAR.joints.items()
+        if "Leg" not in a and "Foot" not in a and "Toe" not in a
+    }
     armless = {a: s for a, s in STUDIO_FAR.joints.items() if "Arm" not in a and "Hand" not in a}
     cases = {}
     for name, keep in (("legless", legless), ("armless", armless)):
@@ -124,19 +127,42 @@ def test_captures_that_are_no_dancer_are_refused_and_nothing_is_written(
     far = str(rig_files["studio-far"])
     for name, (path, field) in cases.items():
         out = tmp_path / f"{name}.usdc"
-        assert main(["animate", str(path), "--frames", "4", "--export", str(out),
-                     "--out", str(tmp_path / f"{name}.npz")]) == 2  # fmt: skip
+        assert (
+            main(
+                [
+                    "animate",
+                    str(path),
+                    "--frames",
+                    "4",
+                    "--export",
+                    str(out),
+                    "--out",
+                    str(tmp_path / f"{name}.npz"),
+                ]
+            )
+            == 2
+        )
         err = capsys.readouterr().err
         assert f"{path.name}: field '{field}'" in err, err
         assert not out.exists() and not (tmp_path / f"{name}.npz").exists()
-    assert "nothing for ['LeftUpLeg'" in _err(main, ["inspect-motion", str(cases["legless"][0])],
-                                              capsys)  # fmt: skip
-    assert "nothing for ['LeftArm'" in _err(main, ["inspect-motion", str(cases["armless"][0])],
-                                            capsys)  # fmt: skip
+    assert "nothing for ['LeftUpLeg'" in _err(
+        main, ["inspect-motion", str(cases["legless"][0])], capsys
+    )
+    assert "nothing for ['LeftArm'" in _err(
+        main, ["inspect-motion", str(cases["armless"][0])], capsys
+    )
     for name, field in maps.items():
         out = tmp_path / f"{name}.usdc"
-        args = ["animate", far, "--joint-map", str(tmp_path / f"{name}.yaml"), "--frames", "4",
-                "--export", str(out)]  # fmt: skip
+        args = [
+            "animate",
+            far,
+            "--joint-map",
+            str(tmp_path / f"{name}.yaml"),
+            "--frames",
+            "4",
+            "--export",
+            str(out),
+        ]
         assert main(args) == 2
         err = capsys.readouterr().err
         assert f"{name}.yaml: field '{field}'" in err, err

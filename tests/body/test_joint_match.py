@@ -123,19 +123,29 @@ def test_a_wrong_map_is_far_off(avatar, dance, tmp_path):
     # The measure has teeth: Mixamo's arms swapped left for right in a map file.
     conv = CONVENTIONS["mixamo"]
     clip = _write(tmp_path, "m.bvh", conv, avatar, dance)
-    swapped = {a: s.replace("Left", "@").replace("Right", "Left").replace("@", "Right")
-               if "Arm" in a or "Hand" in a or "Shoulder" in a else s
-               for a, s in conv.joints.items()}  # fmt: skip
+    swapped = {
+        a: s.replace("Left", "@").replace("Right", "Left").replace("@", "Right")
+        if "Arm" in a or "Hand" in a or "Shoulder" in a
+        else s
+        for a, s in conv.joints.items()
+    }
     path = tmp_path / "swapped.yaml"
     path.write_text("".join(f"{a}: '{s}'\n" for a, s in swapped.items()))
     cfg = RetargetConfig(fps=None, joint_map=str(path))
     assert _retarget_error(avatar, dance, conv, clip, cfg)[0] > 5 * CM
     # Only the arms below the collars swapped: the map cannot be this skeleton's.
-    half = {a: s.replace("Left", "@").replace("Right", "Left").replace("@", "Right")
-            if "Arm" in a or "Hand" in a else s for a, s in conv.joints.items()}  # fmt: skip
+    half = {
+        a: s.replace("Left", "@").replace("Right", "Left").replace("@", "Right")
+        if "Arm" in a or "Hand" in a
+        else s
+        for a, s in conv.joints.items()
+    }
     path.write_text("".join(f"{a}: '{s}'\n" for a, s in half.items()))
-    with pytest.raises(LoosefitInputError, match=r"swapped\.yaml.*'LeftArm'.*not below "
-                       r"LeftShoulder 'mixamorig:LeftShoulder'"):  # fmt: skip
+    with pytest.raises(
+        LoosefitInputError,
+        match=r"swapped\.yaml.*'LeftArm'.*not below "
+        r"LeftShoulder 'mixamorig:LeftShoulder'",
+    ):
         resolve_joint_map(clip, cfg)
 
 
@@ -154,8 +164,11 @@ def test_a_skeleton_with_made_up_names_and_z_up_maps_with_a_file(avatar, dance, 
     assert "loosefit inspect-motion z.bvh --write-joint-map my_map.yaml" in text
     # A YAML file: joints and axes.
     path = tmp_path / "map.yaml"
-    path.write_text("# my rig\n" + "".join(f"{a}: {s}\n" for a, s in names.items())
-                    + "source_up: +z\nsource_forward: -y\n")  # fmt: skip
+    path.write_text(
+        "# my rig\n"
+        + "".join(f"{a}: {s}\n" for a, s in names.items())
+        + "source_up: +z\nsource_forward: -y\n"
+    )
     cfg = RetargetConfig(fps=None, joint_map=str(path))
     match = resolve_joint_map(clip, cfg)
     assert match.joint_map.joints == names and set(match.how.values()) == {"map file"}
@@ -177,18 +190,34 @@ def test_a_skeleton_the_matcher_cannot_map_is_a_clear_error(avatar, dance, tmp_p
     with pytest.raises(LoosefitInputError) as err:
         retarget_bvh(clip, avatar.skeleton, avatar.floor_height)
     text = str(err.value)
-    for part in ("half.bvh", "HIERARCHY", "'RightUpLeg'", "'RightHand'", "no joint named like",
-                 "--joint-map", "LeftUpLeg: my_thigh_L", "inspect-motion"):  # fmt: skip
+    for part in (
+        "half.bvh",
+        "HIERARCHY",
+        "'RightUpLeg'",
+        "'RightHand'",
+        "no joint named like",
+        "--joint-map",
+        "LeftUpLeg: my_thigh_L",
+        "inspect-motion",
+    ):
         assert part in text, part
     assert "LeftUpLeg'" not in text.split("nothing for")[1].split("]")[0]  # found, not missing
     # A chain with no branches at all.
     chain = tmp_path / "snake.bvh"
-    joints = "".join(f"JOINT s{i}\n{{\nOFFSET 0 10 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n"
-                     for i in range(5))  # fmt: skip
-    chain.write_text("HIERARCHY\nROOT s\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition "
-                     "Zposition Zrotation Xrotation Yrotation\n" + joints
-                     + "End Site\n{\nOFFSET 0 10 0\n}\n" + "}\n" * 6
-                     + "MOTION\nFrames: 1\nFrame Time: 0.04\n" + "0 " * 21 + "\n")  # fmt: skip
+    joints = "".join(
+        f"JOINT s{i}\n{{\nOFFSET 0 10 0\nCHANNELS 3 Zrotation Xrotation Yrotation\n"
+        for i in range(5)
+    )
+    chain.write_text(
+        "HIERARCHY\nROOT s\n{\nOFFSET 0 0 0\nCHANNELS 6 Xposition Yposition "
+        "Zposition Zrotation Xrotation Yrotation\n"
+        + joints
+        + "End Site\n{\nOFFSET 0 10 0\n}\n"
+        + "}\n" * 6
+        + "MOTION\nFrames: 1\nFrame Time: 0.04\n"
+        + "0 " * 21
+        + "\n"
+    )
     with pytest.raises(LoosefitInputError, match=r"snake\.bvh.*no joint branches"):
         resolve_joint_map(read_bvh(chain))
 
@@ -252,8 +281,9 @@ def test_map_file_errors_name_the_file_and_the_key(tmp_path):
 def test_a_motion_spec_names_the_joint_map(avatar, dance, tmp_path):
     from loosefit.body.motions import load_motion
 
-    path = write_convention_bvh(tmp_path / "m.bvh", CONVENTIONS["mixamo"], avatar.skeleton,
-                                dance, avatar.floor_height)  # fmt: skip
+    path = write_convention_bvh(
+        tmp_path / "m.bvh", CONVENTIONS["mixamo"], avatar.skeleton, dance, avatar.floor_height
+    )
     assert load_motion(str(path), avatar).meta["joint_map"] == "auto-matched"
     with pytest.raises(LoosefitInputError, match="'cmu_mb' joint map"):
         load_motion(f"joint-map:cmu_mb:{path}", avatar)
@@ -277,14 +307,35 @@ def test_any_tree_is_matched_or_refused_clearly():
     from loosefit.body.joint_match import match_skeleton
 
     rng = np.random.default_rng(0)
-    words = ["Hips", "pelvis", "Spine", "chest", "neck", "head", "HeadTop_End", "LeftUpLeg",
-             "left_hip", "thigh_l", "calf_r", "RightFoot", "ball_l", "LeftArm", "clavicle_l",
-             "RightShoulder", "left_wrist", "Hand_R", "LowerArm_L", "bone"]  # fmt: skip
+    words = [
+        "Hips",
+        "pelvis",
+        "Spine",
+        "chest",
+        "neck",
+        "head",
+        "HeadTop_End",
+        "LeftUpLeg",
+        "left_hip",
+        "thigh_l",
+        "calf_r",
+        "RightFoot",
+        "ball_l",
+        "LeftArm",
+        "clavicle_l",
+        "RightShoulder",
+        "left_wrist",
+        "Hand_R",
+        "LowerArm_L",
+        "bone",
+    ]
     for _ in range(300):
         J = int(rng.integers(1, 30))
         parents = np.array([-1] + [int(rng.integers(0, j)) for j in range(1, J)])
-        names = [f"{rng.choice(words)}{i}" if rng.random() < 0.5 else f"{rng.choice(words)}_{i}"
-                 for i in range(J)]  # fmt: skip
+        names = [
+            f"{rng.choice(words)}{i}" if rng.random() < 0.5 else f"{rng.choice(words)}_{i}"
+            for i in range(J)
+        ]
         try:
             jmap = match_skeleton(names, parents, rng.normal(size=(J, 3))).joint_map
         except LoosefitInputError:
@@ -312,8 +363,13 @@ def test_a_joint_map_template_is_filled_in_and_loads(avatar, dance, tmp_path):
     )
     # Not matched (the right side gone): the left guessed by name, the right left to fill in.
     keep = {a: s for a, s in CONVENTIONS["mixamo"].joints.items() if "Right" not in a}
-    half = _write(tmp_path, "h.bvh", dataclasses.replace(CONVENTIONS["mixamo"], joints=keep,
-                                                         extras=[]), avatar, dance)  # fmt: skip
+    half = _write(
+        tmp_path,
+        "h.bvh",
+        dataclasses.replace(CONVENTIONS["mixamo"], joints=keep, extras=[]),
+        avatar,
+        dance,
+    )
     text = joint_map_template(half.joint_names, None, "h.bvh")
     assert "LeftUpLeg: 'mixamorig:LeftUpLeg'  # guessed by name" in text
     assert "# RightUpLeg: ?   # thigh" in text and "# RightHand: ?   # wrist" in text
@@ -366,8 +422,10 @@ def test_the_template_never_takes_an_empty_root_and_tells_a_collar_from_an_upper
     # named so is never taken, and the line says why.
     names = ["joint_Root", "Body", "UpperLeg_L", "UpperLeg_R", "Spine"]
     parents = np.array([-1, 0, 1, 1, 1])
-    assert guess_by_name(names, parents)["Hips"] == ("Body", "by structure: the first joint "
-                                                     "that branches")  # fmt: skip
+    assert guess_by_name(names, parents)["Hips"] == (
+        "Body",
+        "by structure: the first joint that branches",
+    )
     out = guess_by_name(["Root", "Hips"], np.array([-1, 0]))
     assert out["Hips"][0] is None and "'Root' is named so but does not branch" in out["Hips"][1]
 
@@ -393,14 +451,26 @@ def test_a_map_that_cannot_be_the_skeletons_is_refused(avatar, dance, tmp_path):
     assert resolve_joint_map(clip, cfg).joint_map.joints == good  # the right map passes
     # The shoulder as the upper arm, the collar left out: the upper arm bends in between.
     wrong = {a: s for a, s in good.items() if a != "LeftShoulder"} | {"LeftArm": "Shoulder_L"}
-    refused(wrong, r"m\.yaml.*'LeftArm'.*'Shoulder_L' to LeftForeArm 'LowerArm_L' passing "
-                   r"over 'UpperArm_L', where the limb bends by up to \d+ degrees.*map LeftArm "
-                   r"to 'UpperArm_L'")  # fmt: skip
+    refused(
+        wrong,
+        r"m\.yaml.*'LeftArm'.*'Shoulder_L' to LeftForeArm 'LowerArm_L' passing "
+        r"over 'UpperArm_L', where the limb bends by up to \d+ degrees.*map LeftArm "
+        r"to 'UpperArm_L'",
+    )
     # The pelvis on the root of no geometry above the hips.
-    refused(good | {"Hips": "joint_Root"}, r"m\.yaml.*'Hips'.*'joint_Root', a joint with one "
-                                           r"child 'Hips'")  # fmt: skip
+    refused(
+        good | {"Hips": "joint_Root"},
+        r"m\.yaml.*'Hips'.*'joint_Root', a joint with one "
+        r"child 'Hips'",
+    )
     # A joint the file does not have; two avatar joints on one source joint.
-    refused(good | {"LeftHand": "Hand_X"}, r"m\.yaml.*'LeftHand'.*a joint of the motion file.*"
-                                           r"'Hand_X'.*did you mean .*'Hand_L'")  # fmt: skip
-    refused(good | {"LeftFoot": "LowerLeg_L"}, r"m\.yaml.*LeftLeg and LeftFoot both mapped "
-                                               r"to 'LowerLeg_L'")  # fmt: skip
+    refused(
+        good | {"LeftHand": "Hand_X"},
+        r"m\.yaml.*'LeftHand'.*a joint of the motion file.*"
+        r"'Hand_X'.*did you mean .*'Hand_L'",
+    )
+    refused(
+        good | {"LeftFoot": "LowerLeg_L"},
+        r"m\.yaml.*LeftLeg and LeftFoot both mapped "
+        r"to 'LowerLeg_L'",
+    )

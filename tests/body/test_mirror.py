@@ -50,8 +50,9 @@ def test_the_mirrored_body_is_the_body_mirrored(avatar):
     original = avatar.pose_motion(motion).vertices.numpy() @ REFLECT
     # the same body surface, mirrored (vertex order aside): centroids and extents agree
     np.testing.assert_allclose(body.mean(1), original.mean(1), atol=5e-3)
-    np.testing.assert_allclose(body.max(1) - body.min(1), original.max(1) - original.min(1),
-                               atol=1e-2)  # fmt: skip
+    np.testing.assert_allclose(
+        body.max(1) - body.min(1), original.max(1) - original.min(1), atol=1e-2
+    )
 
 
 def test_mirror_spec_and_a_skeleton_without_twins(avatar):

@@ -29,8 +29,16 @@ def test_every_procedural_motion_passes(avatar, spec):
     assert m.upright.all() and m.turn.max() < MAX_TURN_DEG_S / 5
 
 
-@pytest.mark.parametrize("clip", ["cmu-salsa/60_01", "cmu-salsa/60_04", "cmu-ballet/05_06",
-                                  "cmu-ballet/05_16", "cmu-ballet/05_05"])  # fmt: skip
+@pytest.mark.parametrize(
+    "clip",
+    [
+        "cmu-salsa/60_01",
+        "cmu-salsa/60_04",
+        "cmu-ballet/05_06",
+        "cmu-ballet/05_16",
+        "cmu-ballet/05_05",
+    ],
+)
 def test_the_hardest_cmu_clips_pass(avatar, clip):
     # 60_01: feet flipped for 100 frames; 60_04: a hip jump; 05_06: a cartwheel (the fewest
     # frames upright); 05_16: a thigh flipping over four frames (the fastest bone); 05_05:
@@ -58,8 +66,9 @@ def test_a_body_lying_down_is_refused_naming_frames_and_joints(avatar):
 def test_feet_off_the_floor_or_through_it_are_refused(avatar):
     motion = load_motion("walk", avatar)
     up = dataclasses.replace(motion, root_translation=motion.root_translation + [0, 0, 0.6])
-    problems = pose_problems(measure_pose(up, avatar.skeleton, avatar.floor_height),
-                             avatar.skeleton.names)  # fmt: skip
+    problems = pose_problems(
+        measure_pose(up, avatar.skeleton, avatar.floor_height), avatar.skeleton.names
+    )
     assert len(problems) == 1 and "the feet meet the floor (within 10 cm) in 0%" in problems[0]
     down = dataclasses.replace(motion, root_translation=motion.root_translation - [0, 0, 0.4])
     with pytest.raises(LoosefitInputError, match=r"a foot is 0\.4\d m below the floor"):
@@ -77,13 +86,16 @@ def test_a_joint_that_flips_in_one_frame_is_refused_at_the_clips_rate(avatar, tm
     with pytest.raises(LoosefitInputError) as err:
         _check(avatar, flipped)
     text = str(err.value)
-    assert "LeftForeArm 111 degrees at frame 199" in text and "75 degrees in one frame at " \
-        "120 fps" in text  # fmt: skip
+    assert (
+        "LeftForeArm 111 degrees at frame 199" in text
+        and "75 degrees in one frame at 120 fps" in text
+    )
     assert "frames 199, 259 (2 frames)" in text
     # Read from a file, the same: refused where it is read, at the file's rate; let
     # through on request.
-    path = write_convention_bvh(tmp_path / "flip.bvh", CONVENTIONS["mixamo"], avatar.skeleton,
-                                flipped, avatar.floor_height)  # fmt: skip
+    path = write_convention_bvh(
+        tmp_path / "flip.bvh", CONVENTIONS["mixamo"], avatar.skeleton, flipped, avatar.floor_height
+    )
     with pytest.raises(LoosefitInputError, match=r"flip\.bvh.*LeftForeArm 111 degrees"):
         load_motion(str(path), avatar)
     loose = RetargetConfig(check_pose=False)
@@ -94,13 +106,17 @@ def test_the_studio_rig_passes_and_its_report_says_how_it_was_read(avatar, tmp_p
     from loosefit.body.inspect_motion import inspect_motion
 
     motion = load_motion("dance:2", avatar, seed=5)
-    path = write_convention_bvh(tmp_path / "studio.bvh", STUDIO_X, avatar.skeleton, motion,
-                                avatar.floor_height)  # fmt: skip
+    path = write_convention_bvh(
+        tmp_path / "studio.bvh", STUDIO_X, avatar.skeleton, motion, avatar.floor_height
+    )
     load_motion(str(path), avatar)
     text = inspect_motion(path).format()
-    for part in ("axes: up +y (found from the frames (feet to head)), forward +z",
-                 "calibration: clip", "the zero pose does not stand",
-                 "matched on frame 0: the zero pose shows no legs below the pelvis",
-                 "above the ankles at frame"):  # fmt: skip
+    for part in (
+        "axes: up +y (found from the frames (feet to head)), forward +z",
+        "calibration: clip",
+        "the zero pose does not stand",
+        "matched on frame 0: the zero pose shows no legs below the pelvis",
+        "above the ankles at frame",
+    ):
         assert part in text, part
     assert "rest skeleton's extent" not in text

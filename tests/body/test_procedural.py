@@ -37,8 +37,11 @@ def test_a_bow_folds_the_torso_forward_with_the_legs_upright(avatar):
     names = list(avatar.joint_names)
     pitch = {}
     for depth in (1.13, 1.48):  # the range a bow's depth is drawn from
-        motion = compose([MoveSpec("idle", 0.5), MoveSpec("bow", 3.0, {"depth": depth})],
-                         avatar.joint_names, avatar.floor_height)  # fmt: skip
+        motion = compose(
+            [MoveSpec("idle", 0.5), MoveSpec("bow", 3.0, {"depth": depth})],
+            avatar.joint_names,
+            avatar.floor_height,
+        )
         joints = avatar.pose_motion(motion).joint_poses[:, :, :3, 3].numpy()
         torso = joints[:, names.index("Neck")] - joints[:, 0]
         angle = np.degrees(np.arccos(torso[:, 2] / np.linalg.norm(torso, axis=1)))

@@ -223,7 +223,8 @@ def test_dancer_height_is_measured_standing_on_the_frames(tmp_path):
     assert measure.height == pytest.approx(1.33 / HEAD_ANKLE_TO_HEIGHT, rel=1e-5)
     assert measure.frame == 0 and "above the ankles at frame 0" in measure.how
     assert source_height(read_bvh(tmp_path / "t.bvh", scale=0.5))[0] == pytest.approx(
-        measure.height / 2)  # fmt: skip
+        measure.height / 2
+    )
 
 
 def test_a_dancer_who_never_stands_straight_is_measured_by_the_legs(tmp_path):
@@ -265,8 +266,9 @@ def test_a_height_only_a_scale_fixes_names_the_scale_and_none_names_neither(avat
 
     def refusal(units_per_metre: float) -> str:
         conv = dataclasses.replace(CONVENTIONS["daz"], units=units_per_metre)
-        path = write_convention_bvh(tmp_path / "d.bvh", conv, avatar.skeleton, motion,
-                                    avatar.floor_height)  # fmt: skip
+        path = write_convention_bvh(
+            tmp_path / "d.bvh", conv, avatar.skeleton, motion, avatar.floor_height
+        )
         with pytest.raises(LoosefitInputError) as err:
             retarget_bvh(read_bvh(path), avatar.skeleton, avatar.floor_height)
         return str(err.value)
@@ -294,8 +296,9 @@ def test_motion_specs_set_a_bvh_files_unit(avatar, tmp_path):
             load_motion(bad, avatar)
 
 
-@pytest.mark.skipif(not BALLET.is_dir(), reason="../shared/mocap/cmu-ballet is not present "
-                    "beside the repository")  # fmt: skip
+@pytest.mark.skipif(
+    not BALLET.is_dir(), reason="../shared/mocap/cmu-ballet is not present beside the repository"
+)
 def test_the_ballet_clips_units_are_right(avatar):
     # cmu-ballet is in the converter's own unit. Its dancer stands with the head 141 units
     # above the ankles (legs 82.2 units hip to ankle), and a dancer's legs are 0.8 m: the
@@ -307,8 +310,11 @@ def test_the_ballet_clips_units_are_right(avatar):
     clip = read_bvh(BALLET / "05_02.bvh")
     assert clip.units_scale == 0.01
     assert 1.6 < source_height(clip)[0] < 1.8  # the head 1.41 m above the ankles at frame 0
-    with pytest.raises(LoosefitInputError, match=r"1\d\d\.\d\d m \(head 141 m above the ankles "
-                       r"at frame 0.*read in cm it is 1\.66 m: --units cm"):  # fmt: skip
+    with pytest.raises(
+        LoosefitInputError,
+        match=r"1\d\d\.\d\d m \(head 141 m above the ankles "
+        r"at frame 0.*read in cm it is 1\.66 m: --units cm",
+    ):
         load_motion(f"units:m:{BALLET / '05_02.bvh'}", avatar)
     # Read in any accepted unit, the motion on the avatar is the same (legs set the scale).
     a = load_motion(str(BALLET / "05_02.bvh"), avatar, max_frames=20)

@@ -98,8 +98,9 @@ def smpl_arrays(avatar, motion, width=156, world=Z_UP):
 
 
 def _save(path, poses, trans, **extra):
-    np.savez(path, poses=poses, trans=trans, betas=np.zeros(16), gender=np.array("neutral"),
-             **extra)  # fmt: skip
+    np.savez(
+        path, poses=poses, trans=trans, betas=np.zeros(16), gender=np.array("neutral"), **extra
+    )
     return path
 
 
@@ -125,8 +126,7 @@ def test_an_smpl_npz_round_trips_to_the_same_motion(avatar, dance, tmp_path, wid
     assert np.allclose(given.rotations, back.rotations, atol=1e-6)
     with pytest.raises(LoosefitInputError, match="does not stand"):  # the pose check
         load_motion(str(path), avatar, retarget=RetargetConfig(smpl_up="+x"))
-    wrong = load_motion(str(path), avatar,
-                        retarget=RetargetConfig(smpl_up="+x", check_pose=False))  # fmt: skip
+    wrong = load_motion(str(path), avatar, retarget=RetargetConfig(smpl_up="+x", check_pose=False))
     assert motion_error(avatar, dance, wrong, SMPL_MAP)[0] > 10 * CM
 
 
@@ -200,9 +200,16 @@ def test_inspect_motion_reads_smpl(avatar, dance, tmp_path):
     poses, trans = smpl_arrays(avatar, dance)
     path = _save(tmp_path / "amass.npz", poses, trans, mocap_framerate=np.array(30.0))
     text = inspect_motion(path).format()
-    parts = ("amass.npz", "frames: 90 at 30 fps", "units: m (SMPL)", "SMPL-H, 52 joints",
-             "up: +z in the file's world (detected", "left_knee", "LeftLeg",
-             "auto-matched")  # fmt: skip
+    parts = (
+        "amass.npz",
+        "frames: 90 at 30 fps",
+        "units: m (SMPL)",
+        "SMPL-H, 52 joints",
+        "up: +z in the file's world (detected",
+        "left_knee",
+        "LeftLeg",
+        "auto-matched",
+    )
     for part in parts:
         assert part in text, (part, text)
 
@@ -221,8 +228,9 @@ def test_the_template_skeleton_is_the_avatar_s_own_in_a_t_pose(avatar):
             o = offsets[SMPL_JOINTS.index(smpl)]
             j = sk.index(side.capitalize() + bone)
             assert o[0] * sign > 0 and np.allclose(o[1:], 0)  # level, along the body's side
-            assert np.linalg.norm(o) == pytest.approx(np.linalg.norm(sk.tails[j] - sk.heads[j]),
-                                                      abs=1e-4)  # fmt: skip
+            assert np.linalg.norm(o) == pytest.approx(
+                np.linalg.norm(sk.tails[j] - sk.heads[j]), abs=1e-4
+            )
     knee, hip = SMPL_JOINTS.index("left_knee"), SMPL_JOINTS.index("left_hip")
     thigh = sk.heads[sk.index("LeftLeg")] - sk.heads[sk.index("LeftUpLeg")]
     assert np.linalg.norm(offsets[knee]) == pytest.approx(np.linalg.norm(thigh), abs=1e-4)

@@ -81,8 +81,12 @@ def test_a_motion_that_never_folds_is_returned_as_it_is(avatar, parts):
     motion = knee_lift(avatar, 45.0, frames=10)
     done = unfold_motion(avatar, motion, parts)
     assert done.motion is motion and done.frames == 0
-    assert done.stats() == {"unfold_frames": 0, "unfold_degrees_max": 0.0,
-                            "fold_depth_before": 0.0, "fold_depth_after": 0.0}  # fmt: skip
+    assert done.stats() == {
+        "unfold_frames": 0,
+        "unfold_degrees_max": 0.0,
+        "fold_depth_before": 0.0,
+        "fold_depth_after": 0.0,
+    }
 
 
 def test_a_thigh_raised_into_the_belly_is_turned_out_at_most_the_cap(avatar, parts):
@@ -152,11 +156,20 @@ def test_same_correction_tells_whether_two_caps_change_a_motion(avatar, parts):
 
 
 def test_the_configuration_is_checked():
-    for bad in ({"max_degrees": -1.0}, {"max_degrees": 120.0}, {"clearance": float("nan")},
-                {"steps": 0}, {"enabled": "yes"}, {"ramp_seconds": True},
-                {"deep_degrees": 5.0}, {"deep_degrees": 95.0}, {"deep_degrees": float("inf")},
-                {"deep_depth": -0.01}, {"deep_depth": float("nan")},
-                {"deep_limbs": ("tail",)}):  # fmt: skip
+    for bad in (
+        {"max_degrees": -1.0},
+        {"max_degrees": 120.0},
+        {"clearance": float("nan")},
+        {"steps": 0},
+        {"enabled": "yes"},
+        {"ramp_seconds": True},
+        {"deep_degrees": 5.0},
+        {"deep_degrees": 95.0},
+        {"deep_degrees": float("inf")},
+        {"deep_depth": -0.01},
+        {"deep_depth": float("nan")},
+        {"deep_limbs": ("tail",)},
+    ):
         with pytest.raises(LoosefitInputError, match="UnfoldConfig"):
             UnfoldConfig(**bad)
 

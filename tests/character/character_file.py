@@ -13,8 +13,14 @@ from loosefit.body.retarget import axis_change
 from tests.body.bvh_conventions import MIXAMO, write_convention_bvh
 from tests.body.gltf_writer import write_gltf
 
-SHAPE = {"gender": 0.6, "age": 0.5, "muscle": 0.5, "weight": 0.75, "height": 0.7,
-         "proportions": 0.6}  # fmt: skip
+SHAPE = {
+    "gender": 0.6,
+    "age": 0.5,
+    "muscle": 0.5,
+    "weight": 0.75,
+    "height": 0.7,
+    "proportions": 0.6,
+}
 
 
 def clip_joint_of(avatar, conv, clip) -> list[int]:
@@ -62,6 +68,10 @@ def write_character(
     A = np.einsum("vk,vkab->vab", weights, R[joints])
     b = np.einsum("vk,vka->va", weights, t[joints])
     bind = np.linalg.solve(A, (x0 - b)[..., None])[..., 0]
-    mesh = {"positions": bind, "faces": body.faces.cpu().numpy(), "joints": joints,
-            "weights": weights}  # fmt: skip
+    mesh = {
+        "positions": bind,
+        "faces": body.faces.cpu().numpy(),
+        "joints": joints,
+        "weights": weights,
+    }
     return write_gltf(path, clip, mesh=mesh), body, motion

@@ -16,13 +16,36 @@ def test_demo_writes_video_and_sequence(tmp_path, capsys, avatar):
     assert frames.shape[0] > 30 and frames.shape[-1] == 3
     assert not list(out.glob("*partial*"))
     # The saved sequence renders again from the file.
-    code = main(["render", "--sequence", str(out / "sequence.npz"), "--out", str(out / "again"),
-                 "--size", "64", "--views", "side", "--start-frame", "20",
-                 "--max-frames", "5"])  # fmt: skip
+    code = main(
+        [
+            "render",
+            "--sequence",
+            str(out / "sequence.npz"),
+            "--out",
+            str(out / "again"),
+            "--size",
+            "64",
+            "--views",
+            "side",
+            "--start-frame",
+            "20",
+            "--max-frames",
+            "5",
+        ]
+    )
     assert code == 0 and iio.imread(out / "again" / "video.mp4").shape[0] == 5
     # A start past the clip's end names the option and the range.
-    code = main(["render", "--sequence", str(out / "sequence.npz"), "--out", str(out / "late"),
-                 "--start-frame", "100000"])  # fmt: skip
+    code = main(
+        [
+            "render",
+            "--sequence",
+            str(out / "sequence.npz"),
+            "--out",
+            str(out / "late"),
+            "--start-frame",
+            "100000",
+        ]
+    )
     assert code == 2 and not (out / "late" / "video.mp4").exists()
     assert "--start-frame" in capsys.readouterr().err
 
@@ -36,8 +59,19 @@ def test_demo_animates_the_pretrained_model_and_exports_it(tmp_path, capsys):
     from loosefit.sequence import DressedSequence
 
     out = tmp_path / "demo"
-    args = ["demo", "--out", str(out), "--motion", "kick", "--max-frames", "30", "--size", "64",
-            "--views", "front"]  # fmt: skip
+    args = [
+        "demo",
+        "--out",
+        str(out),
+        "--motion",
+        "kick",
+        "--max-frames",
+        "30",
+        "--size",
+        "64",
+        "--views",
+        "front",
+    ]
     assert main(args) == 0
     seq = DressedSequence.load(out / "sequence.npz")
     assert seq.source.startswith("loosefit model") and seq.garment_vertices.shape[0] == 30
@@ -56,8 +90,18 @@ def test_demo_animates_the_pretrained_model_and_exports_it(tmp_path, capsys):
 def test_demo_with_physics(tmp_path, avatar):
     """The README's main job as it runs, on a short clip (minutes on a CPU)."""
     out = tmp_path / "demo"
-    args = ["demo", "--out", str(out), "--max-frames", "10", "--size", "64", "--views", "front",
-            "--physics"]  # fmt: skip
+    args = [
+        "demo",
+        "--out",
+        str(out),
+        "--max-frames",
+        "10",
+        "--size",
+        "64",
+        "--views",
+        "front",
+        "--physics",
+    ]
     assert main(args) == 0
     from loosefit.sequence import DressedSequence
 

@@ -34,13 +34,20 @@ def test_inspect_motion_prints_the_matches(tmp_path, capsys, avatar):
     from tests.body.bvh_conventions import CONVENTIONS, write_convention_bvh
 
     motion = load_motion("spin", avatar).slice(0, 12)
-    path = write_convention_bvh(tmp_path / "mixamo.bvh", CONVENTIONS["mixamo"], avatar.skeleton,
-                                motion, avatar.floor_height)  # fmt: skip
+    path = write_convention_bvh(
+        tmp_path / "mixamo.bvh", CONVENTIONS["mixamo"], avatar.skeleton, motion, avatar.floor_height
+    )
     assert main(["inspect-motion", str(path)]) == 0
     out = capsys.readouterr().out
-    parts = ("frames: 12 at 30 fps", "units: cm (guessed", "dancer: 1.", "joints (27):",
-             "joint map: auto-matched", "mixamorig:HeadTop_End",
-             "source joints not used")  # fmt: skip
+    parts = (
+        "frames: 12 at 30 fps",
+        "units: cm (guessed",
+        "dancer: 1.",
+        "joints (27):",
+        "joint map: auto-matched",
+        "mixamorig:HeadTop_End",
+        "source joints not used",
+    )
     for part in parts:
         assert part in out, part
     rows = {line.split()[0]: line.split()[1:] for line in out.splitlines()[1:] if line.strip()}
@@ -52,8 +59,9 @@ def test_inspect_motion_prints_the_matches(tmp_path, capsys, avatar):
     # A skeleton it cannot map: the joints, then the error.
     keep = {a: s for a, s in CONVENTIONS["mixamo"].joints.items() if "Right" not in a}
     half = dataclasses.replace(CONVENTIONS["mixamo"], joints=keep, extras=[])
-    path = write_convention_bvh(tmp_path / "half.bvh", half, avatar.skeleton, motion,
-                                avatar.floor_height)  # fmt: skip
+    path = write_convention_bvh(
+        tmp_path / "half.bvh", half, avatar.skeleton, motion, avatar.floor_height
+    )
     assert main(["inspect-motion", str(path)]) == 2
     captured = capsys.readouterr()
     assert "mixamorig:LeftUpLeg" in captured.out and "RightUpLeg" in captured.err
@@ -69,11 +77,13 @@ def test_motion_takes_a_joint_map_file(tmp_path, capsys, avatar):
     names = {a: f"Knochen{i}" for i, a in enumerate(NAMELESS.joints)}  # made-up names
     conv = dataclasses.replace(NAMELESS, joints=names, up="+z", forward="-y")
     motion = load_motion("kick", avatar).slice(0, 10)
-    bvh = write_convention_bvh(tmp_path / "k.bvh", conv, avatar.skeleton, motion,
-                               avatar.floor_height)  # fmt: skip
+    bvh = write_convention_bvh(
+        tmp_path / "k.bvh", conv, avatar.skeleton, motion, avatar.floor_height
+    )
     mapping = tmp_path / "k.yaml"
-    mapping.write_text("".join(f"{a}: {s}\n" for a, s in names.items())
-                       + "source_up: +z\nsource_forward: -y\n")  # fmt: skip
+    mapping.write_text(
+        "".join(f"{a}: {s}\n" for a, s in names.items()) + "source_up: +z\nsource_forward: -y\n"
+    )
     out = tmp_path / "k.npz"
     assert main(["motion", str(bvh), "--out", str(out), "--joint-map", str(mapping)]) == 0
     assert Motion.load(out).num_frames == 10
@@ -98,8 +108,9 @@ def test_motion_commands_take_gltf_and_smpl_files(tmp_path, capsys, avatar):
     from tests.body.gltf_writer import write_gltf
 
     motion = load_motion("spin", avatar).slice(0, 12)
-    bvh = write_convention_bvh(tmp_path / "m.bvh", CONVENTIONS["mixamo"], avatar.skeleton,
-                               motion, avatar.floor_height)  # fmt: skip
+    bvh = write_convention_bvh(
+        tmp_path / "m.bvh", CONVENTIONS["mixamo"], avatar.skeleton, motion, avatar.floor_height
+    )
     glb = write_gltf(tmp_path / "m.glb", read_bvh(bvh), idle_first=True)
     out = tmp_path / "m.npz"
     assert main(["motion", str(glb), "--out", str(out), "--animation", "dance"]) == 0
@@ -126,8 +137,9 @@ def test_inspect_motion_draws_the_capture_beside_the_avatar(tmp_path, capsys, av
     from tests.body.bvh_conventions import STUDIO_X, write_convention_bvh
 
     motion = load_motion("spin", avatar).slice(0, 20)
-    path = write_convention_bvh(tmp_path / "studio.bvh", STUDIO_X, avatar.skeleton, motion,
-                                avatar.floor_height)  # fmt: skip
+    path = write_convention_bvh(
+        tmp_path / "studio.bvh", STUDIO_X, avatar.skeleton, motion, avatar.floor_height
+    )
     mapping = tmp_path / "studio.yaml"
     args = ["inspect-motion", str(path), "--write-joint-map", str(mapping)]
     try:

@@ -78,9 +78,15 @@ def test_a_clip_written_before_the_sequence_format_is_still_read(dataset):
     path = dataset / "sequences" / "s1.npz"
     ref = _sequence("s1", 7, 1.0)
     m = ref.motion
-    np.savez(path, joint_names=np.array(m.joint_names), rotations=m.rotations,
-             root_translation=m.root_translation, fps=np.float64(30.0),
-             garment_vertices=ref.garment_vertices, name=np.array("s1"))  # fmt: skip
+    np.savez(
+        path,
+        joint_names=np.array(m.joint_names),
+        rotations=m.rotations,
+        root_translation=m.root_translation,
+        fps=np.float64(30.0),
+        garment_vertices=ref.garment_vertices,
+        name=np.array("s1"),
+    )
     seq = DatasetReader(dataset).read("s1")
     assert np.array_equal(seq.garment_vertices, ref.garment_vertices)
     assert seq.template.name == "toy" and seq.name == "s1"
@@ -92,8 +98,9 @@ def test_a_clip_of_another_garment_is_refused(dataset):
     other = _template()
     other.vertices = other.vertices + 0.01
     path = dataset / "sequences" / "s0.npz"
-    AnimatedGarment(_sequence("s0", 10).motion, other, _sequence("s0", 10).garment_vertices,
-                    {}, "test").save(path)  # fmt: skip
+    AnimatedGarment(
+        _sequence("s0", 10).motion, other, _sequence("s0", 10).garment_vertices, {}, "test"
+    ).save(path)
     with pytest.raises(LoosefitInputError, match=r"s0\.npz.*another garment") as err:
         DatasetReader(dataset).read("s0")
     # Both fingerprints, to find which data set each clip came from.
@@ -109,8 +116,9 @@ def test_a_clip_on_another_avatar_is_refused_with_both_fingerprints(dataset):
 
     ref = _sequence("s0", 10)
     body = {"rig": "cmu_mb", "shape": {"height": 0.9}}
-    AnimatedGarment(ref.motion, ref.garment, ref.garment_vertices, body,
-                    "test").save(dataset / "sequences" / "s0.npz")  # fmt: skip
+    AnimatedGarment(ref.motion, ref.garment, ref.garment_vertices, body, "test").save(
+        dataset / "sequences" / "s0.npz"
+    )
     reader = DatasetReader(dataset)
     with pytest.raises(LoosefitInputError, match=r"s0\.npz.*avatar") as err:
         reader.read("s0")
@@ -199,8 +207,10 @@ def _with_cloth(root, fingerprints: dict) -> dict:
     manifest = json.loads((root / "manifest.json").read_text())
     manifest["config"] = {"cloth": {"substeps": 20, "device": "cuda:0"}}
     ours = cloth_fingerprint(manifest["config"]["cloth"])
-    manifest["sequences"] = {n: ({"cloth_fingerprint": fp.replace("OURS", ours)} if fp else {})
-                             for n, fp in fingerprints.items()}  # fmt: skip
+    manifest["sequences"] = {
+        n: ({"cloth_fingerprint": fp.replace("OURS", ours)} if fp else {})
+        for n, fp in fingerprints.items()
+    }
     write_json_atomic(root / "manifest.json", manifest)
     return manifest
 

@@ -33,8 +33,10 @@ def test_energy_score_rewards_the_right_spread_and_not_a_mean():
     narrow = _gaussian(rng, centre, 0.01, 8)
     wide = _gaussian(rng, centre, 0.2, 8)
     mean = members.mean(0)[None]
-    score = {k: en.energy_score(x, members).mean() for k, x in
-             (("right", right), ("narrow", narrow), ("wide", wide), ("mean", mean))}  # fmt: skip
+    score = {
+        k: en.energy_score(x, members).mean()
+        for k, x in (("right", right), ("narrow", narrow), ("wide", wide), ("mean", mean))
+    }
     assert score["right"] < score["mean"]
     assert score["right"] < score["narrow"] and score["right"] < score["wide"]
     # RMSE to the members prefers the mean: why the energy score is reported
@@ -101,8 +103,22 @@ def _cylinder(radius: float, z0: float, z1: float, n: int = 24):
 def _box(centre, half: float):
     c = np.asarray(centre, float)
     v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * half + c
-    f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])  # fmt: skip
+    f = np.array(
+        [
+            [0, 1, 3],
+            [0, 3, 2],
+            [4, 6, 7],
+            [4, 7, 5],
+            [0, 4, 5],
+            [0, 5, 1],
+            [2, 3, 7],
+            [2, 7, 6],
+            [0, 2, 6],
+            [0, 6, 4],
+            [1, 5, 7],
+            [1, 7, 3],
+        ]
+    )
     return v, f
 
 
@@ -162,7 +178,7 @@ def _dataset(root, seed: int, clips: dict, cloth: dict | None = None):
         "config": {
             "seed": seed,
             "cloth": {**asdict(ClothConfig.tiny()), "seed": seed, **(cloth or {})},
-        },  # fmt: skip
+        },
         "body": {"model": "anny", "rig": "cmu_mb", "shape": {}, "floor_height": 0.9},
         "sequences": {n: {"status": "done", "seed": seed} for n in clips},
         "split": {"train": [], "test": list(clips)},
@@ -172,9 +188,11 @@ def _dataset(root, seed: int, clips: dict, cloth: dict | None = None):
 
 
 def test_members_gather_across_data_sets_and_inside_one(tmp_path):
-    corpus = _dataset(tmp_path / "corpus", 0, {"chain_x_y": _sequence(10, 0.0),
-                                               "z": _sequence(8, 0.0),
-                                               "z@seed5": _sequence(8, 0.02)})  # fmt: skip
+    corpus = _dataset(
+        tmp_path / "corpus",
+        0,
+        {"chain_x_y": _sequence(10, 0.0), "z": _sequence(8, 0.0), "z@seed5": _sequence(8, 0.02)},
+    )
     other = _dataset(tmp_path / "seed1", 1, {"x_y": _sequence(7, 0.01), "z": _sequence(8, 0.01)})
     ens = en.gather_ensembles([corpus, other])
     assert set(ens) == {"chain_x_y", "z"}
@@ -187,8 +205,7 @@ def test_members_gather_across_data_sets_and_inside_one(tmp_path):
 
 def test_members_that_differ_in_more_than_the_seed_are_refused(tmp_path):
     corpus = _dataset(tmp_path / "corpus", 0, {"c": _sequence(6, 0.0)})
-    stiff = _dataset(tmp_path / "stiff", 1, {"c": _sequence(6, 0.01)},
-                     cloth={"stretch_ke": 123.0})  # fmt: skip
+    stiff = _dataset(tmp_path / "stiff", 1, {"c": _sequence(6, 0.01)}, cloth={"stretch_ke": 123.0})
     with pytest.raises(LoosefitInputError) as err:
         en.gather_ensembles([corpus, stiff])
     assert "config.cloth.stretch_ke" in str(err.value) and "123.0" in str(err.value)

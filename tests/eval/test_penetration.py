@@ -29,8 +29,12 @@ def boxes() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A body of four closed boxes, one region each: hips (0.4 m, at the origin), the
     thighs (0.2 m, 15 cm either side of it along x) and the left hand (0.1 m, 10 cm in
     front of the hips): vertices (32, 3), faces (48, 3), region (32,)."""
-    parts = [(0.4, (0.0, 0.0, 0.0)), (0.2, (0.45, 0.0, 0.0)), (0.2, (-0.45, 0.0, 0.0)),
-             (0.1, (0.0, -0.35, 0.0))]  # fmt: skip
+    parts = [
+        (0.4, (0.0, 0.0, 0.0)),
+        (0.2, (0.45, 0.0, 0.0)),
+        (0.2, (-0.45, 0.0, 0.0)),
+        (0.1, (0.0, -0.35, 0.0)),
+    ]
     verts, faces = [], []
     for i, (size, centre) in enumerate(parts):
         v, f = cube(size)
@@ -71,8 +75,13 @@ def test_detector_finds_exactly_the_deep_vertices(body):
     np.testing.assert_allclose(pen.max_depth, [0, 0.02, 0.03, 0, 0.04, 0], atol=1e-6)
     np.testing.assert_array_equal(pen.at(4), [2, 3])
     # The same shares as the data set's quality figures.
-    template = GarmentTemplate(g[0], np.array([[0, 1, 2], [2, 3, 4]]), np.zeros((1, 2)),
-                               np.zeros((2, 3), np.int64), np.zeros(0, np.int64))  # fmt: skip
+    template = GarmentTemplate(
+        g[0],
+        np.array([[0, 1, 2], [2, 3, 4]]),
+        np.zeros((1, 2)),
+        np.zeros((2, 3), np.int64),
+        np.zeros(0, np.int64),
+    )
     q = quality(g, template, static(v, T), f, tolerance=0.005)
     np.testing.assert_allclose(q["penetration_fraction"], pen.deep_fraction)
     with pytest.raises(LoosefitInputError):
@@ -133,7 +142,12 @@ def test_diagnosis_names_the_cause(body):
     yaw[7:] = 2 * FAST_SPIN * np.arange(T - 7) / 30.0
     R = np.zeros((T, 3, 3))
     R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = (
-        np.cos(yaw), -np.sin(yaw), np.sin(yaw), np.cos(yaw), 1.0)  # fmt: skip
+        np.cos(yaw),
+        -np.sin(yaw),
+        np.sin(yaw),
+        np.cos(yaw),
+        1.0,
+    )
     diag = diagnose_clip(g, b, R, 30.0, parts, tolerance=0.005)
     first, second = diag.events
     assert (first.start, first.stop, first.worst_frame) == (3, 6, 3)
@@ -141,10 +155,16 @@ def test_diagnosis_names_the_cause(body):
     assert first.self_intersecting and first.thigh_gap > 0.5
     (caught,) = first.self_intersections
     assert (caught.limb, caught.part, caught.region, caught.frame) == (
-        "left leg", "left thigh", "hips", 3)  # fmt: skip
+        "left leg",
+        "left thigh",
+        "hips",
+        3,
+    )
     assert caught.depth == pytest.approx(0.03, abs=1e-6) and caught.site < 0.035
-    assert first.causes == ["self-intersecting body: the left thigh 3.0 cm inside the hips "
-                            "(frame 3, 3 cm from the deepest cloth)"]  # fmt: skip
+    assert first.causes == [
+        "self-intersecting body: the left thigh 3.0 cm inside the hips "
+        "(frame 3, 3 cm from the deepest cloth)"
+    ]
     assert not any("spin" in c for c in first.causes)
     assert (second.start, second.stop) == (9, 11) and second.region == "hips"
     assert second.deepest == pytest.approx(0.03, abs=1e-5) and not second.self_intersecting
@@ -187,8 +207,12 @@ def test_regions_of_the_avatar(avatar):
     parts = body_parts(avatar, arms=False)  # a skirt's collider: no arms
     names = [parts.names[r] for r in parts.region]
     assert set(names) == set(REGIONS) and len(names) == avatar.rest_vertices.shape[0]
-    assert parts.limb_collides == {"left arm": False, "right arm": False, "left leg": True,
-                                   "right leg": True}  # fmt: skip
+    assert parts.limb_collides == {
+        "left arm": False,
+        "right arm": False,
+        "left leg": True,
+        "right leg": True,
+    }
     assert not parts.collides(parts.hand_vertices[0])
     rest = avatar.rest_vertices.cpu().numpy()[None]
     s = motion_signals(rest, np.eye(3)[None], 30.0, parts)
@@ -206,8 +230,21 @@ def test_diagnose_command_on_a_data_set(toy_dataset, tmp_path, capsys):
     except RuntimeError as exc:
         pytest.skip(f"no headless OpenGL (EGL) context: {exc}")
     out = tmp_path / "diag"
-    code = main(["diagnose", str(toy_dataset), "c", "--out", str(out), "--top", "1",
-                 "--size", "64", "--tolerance", "0.001"])  # fmt: skip
+    code = main(
+        [
+            "diagnose",
+            str(toy_dataset),
+            "c",
+            "--out",
+            str(out),
+            "--top",
+            "1",
+            "--size",
+            "64",
+            "--tolerance",
+            "0.001",
+        ]
+    )
     assert code == 0
     printed = capsys.readouterr().out
     report = json.loads((out / "diagnosis.json").read_text())
@@ -221,8 +258,18 @@ def test_diagnose_command_on_a_data_set(toy_dataset, tmp_path, capsys):
     assert report["renders"] == [str(out / "worst1_frame00014.png")]
     assert (out / "worst1_frame00014.png").is_file() and "11-15" in printed
     # A sequence file (a data set's) reads the same; a data set without a clip is refused.
-    code = main(["diagnose", str(toy_dataset / "sequences" / "c.npz"), "--out",
-                 str(tmp_path / "seq"), "--top", "0", "--tolerance", "0.001"])  # fmt: skip
+    code = main(
+        [
+            "diagnose",
+            str(toy_dataset / "sequences" / "c.npz"),
+            "--out",
+            str(tmp_path / "seq"),
+            "--top",
+            "0",
+            "--tolerance",
+            "0.001",
+        ]
+    )
     again = json.loads((tmp_path / "seq" / "diagnosis.json").read_text())
     assert code == 0 and again["per_frame"] == report["per_frame"]
     assert main(["diagnose", str(toy_dataset), "--out", str(tmp_path / "x")]) == 2

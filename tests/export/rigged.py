@@ -40,8 +40,9 @@ def rigged_body(T: int = 5) -> tuple[np.ndarray, np.ndarray, Skin]:
         poses[t, 0] = local[0]
         poses[t, 1] = poses[t, 0] @ local[1]
         poses[t, 2] = poses[t, 1] @ local[2]
-    skin = Skin(("Hips", "Spine", "Neck"), np.array([-1, 0, 1]), rest, bind, weights, indices,
-                poses)  # fmt: skip
+    skin = Skin(
+        ("Hips", "Spine", "Neck"), np.array([-1, 0, 1]), rest, bind, weights, indices, poses
+    )
     return f, skin.skinned().astype(np.float32), skin
 
 

@@ -74,8 +74,11 @@ def test_blender_sees_the_exported_vertices_at_three_frames(tmp_path, monkeypatc
         np.testing.assert_array_equal(seen["garment.faces"], g.faces)
     # the garment's UVs: at each Blender face corner, the UV loosefit gave that corner
     source = split_uvs(g)[0] if name.endswith(".glb") else np.arange(g.vertices.shape[1])
-    corner_uv = {(frozenset(f), v): g.uvs[u] for f, fu in zip(g.faces, g.face_uvs, strict=True)
-                 for v, u in zip(f, fu, strict=True)}  # fmt: skip
+    corner_uv = {
+        (frozenset(f), v): g.uvs[u]
+        for f, fu in zip(g.faces, g.face_uvs, strict=True)
+        for v, u in zip(f, fu, strict=True)
+    }
     faces, uv = seen["garment.faces"], seen["garment.uv"].reshape(-1, 3, 2)
     for f, uvs in zip(source[faces], uv, strict=True):
         for v, got in zip(f, uvs, strict=True):

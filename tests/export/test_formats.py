@@ -90,8 +90,9 @@ def test_usd_saved_in_pieces_reads_back_every_frame(tmp_path, monkeypatch, suffi
     garment = UsdGeom.Mesh(stage.GetPrimAtPath("/loosefit/garment"))
     assert garment.GetPointsAttr().GetTimeSamples() == list(range(11))
     for t in range(11):
-        np.testing.assert_array_equal(np.asarray(garment.GetPointsAttr().Get(t)),
-                                      meshes[0].vertices[t])  # fmt: skip
+        np.testing.assert_array_equal(
+            np.asarray(garment.GetPointsAttr().Get(t)), meshes[0].vertices[t]
+        )
     hi = np.asarray(garment.GetExtentAttr().Get(10))[1]
     np.testing.assert_allclose(hi, meshes[0].vertices[10].max(0), atol=1e-7)
     assert stage.GetEndTimeCode() == 10 and not list(tmp_path.glob(".*partial*"))
@@ -161,8 +162,11 @@ def _accessor(doc, blob, i):
         bv = doc["bufferViews"][v]
         return np.frombuffer(blob, dt, count * w, bv["byteOffset"]).reshape(count, w)
 
-    out = (view(a["bufferView"], a["count"], width, dtype) if "bufferView" in a
-           else np.zeros((a["count"], width), dtype))  # fmt: skip
+    out = (
+        view(a["bufferView"], a["count"], width, dtype)
+        if "bufferView" in a
+        else np.zeros((a["count"], width), dtype)
+    )
     if "sparse" in a:
         s, out = a["sparse"], out.copy()
         idx = view(s["indices"]["bufferView"], s["count"], 1, "<u4")[:, 0]
@@ -171,11 +175,13 @@ def _accessor(doc, blob, i):
 
 
 def _quat_matrix(x, y, z, w):
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])  # fmt: skip
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def test_gltf_skinned_body_and_morph_target_garment_evaluate_to_the_meshes(tmp_path):

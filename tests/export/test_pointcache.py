@@ -36,8 +36,14 @@ def test_pc2_and_its_obj_share_the_axes_y_up_by_default(tmp_path, up):
         cache, start, rate = read_pc2(tmp_path / f"{stem}.pc2")
         assert (start, rate) == (0.0, 1.0)
         raw = (tmp_path / f"{stem}.pc2").read_bytes()  # the layout, read from the spec
-        assert struct.unpack_from("<12siiffi", raw) == (b"POINTCACHE2\0", 1, m.vertices.shape[1],
-                                                        0.0, 1.0, 3)  # fmt: skip
+        assert struct.unpack_from("<12siiffi", raw) == (
+            b"POINTCACHE2\0",
+            1,
+            m.vertices.shape[1],
+            0.0,
+            1.0,
+            3,
+        )
         np.testing.assert_array_equal(np.frombuffer(raw, "<f4", offset=32).reshape(3, -1, 3), cache)
         np.testing.assert_array_equal(cache @ to_z.T, m.vertices)  # exact: a permutation
         obj, objects = _obj_vertices_and_name(tmp_path / f"{stem}.obj")

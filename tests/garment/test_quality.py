@@ -46,8 +46,9 @@ def test_strain_is_measured_against_the_rest_shape_not_the_start():
 
     v, f = cube(1.0)
     start = (1.1 * v).astype(np.float32)
-    garment = GarmentTemplate(start, f, np.zeros((1, 2)), np.zeros_like(f),
-                              np.zeros(0, np.int64), rest_vertices=v)  # fmt: skip
+    garment = GarmentTemplate(
+        start, f, np.zeros((1, 2)), np.zeros_like(f), np.zeros(0, np.int64), rest_vertices=v
+    )
     strain, _ = edge_strain(start[None], garment)
     np.testing.assert_allclose(strain, 0.1, atol=1e-5)
     plain = GarmentTemplate(start, f, np.zeros((1, 2)), np.zeros_like(f), np.zeros(0, np.int64))

@@ -55,8 +55,12 @@ def test_boundary_loops_follow_the_faces_edges():
     open_tube = f[~(v[f][:, :, 2] > 0.9).all(1)]  # the top cap goes, its ring stays
     loops = boundary_loops(open_tube)
     assert len(loops) == 1 and sorted(loops[0].tolist()) == list(range(10, 15))
-    directed = {tuple(e) for e in np.concatenate([open_tube[:, [0, 1]], open_tube[:, [1, 2]],
-                                                  open_tube[:, [2, 0]]]).tolist()}  # fmt: skip
+    directed = {
+        tuple(e)
+        for e in np.concatenate(
+            [open_tube[:, [0, 1]], open_tube[:, [1, 2]], open_tube[:, [2, 0]]]
+        ).tolist()
+    }
     loop = loops[0].tolist()
     assert all((loop[i], loop[(i + 1) % len(loop)]) in directed for i in range(len(loop)))
 

@@ -79,8 +79,13 @@ def test_capsule_frames_are_the_avatars_bones(avatar):
     G = joint_frames(rot, root, parents, offsets)
     np.testing.assert_allclose(G[..., :3, 3], posed, atol=1e-5)
     joints = [avatar.joint_names.index(n) for n in ("LeftLeg", "Spine", "Hips")]
-    R, p = chain_frames(torch.from_numpy(rot), torch.from_numpy(root), parents.tolist(),
-                        torch.from_numpy(offsets), joints)  # fmt: skip
+    R, p = chain_frames(
+        torch.from_numpy(rot),
+        torch.from_numpy(root),
+        parents.tolist(),
+        torch.from_numpy(offsets),
+        joints,
+    )
     np.testing.assert_allclose(p.numpy(), posed[:, joints], atol=1e-5)
     np.testing.assert_allclose(R.numpy(), G[:, joints, :3, :3], atol=1e-9)
 

@@ -37,8 +37,9 @@ def test_linear_blend_skinning_is_the_plain_loop_on_a_tiny_rig():
 def test_dense_weights_scatter_onto_their_joints():
     w = torch.tensor([[0.75, 0.25], [1.0, 0.0]])
     idx = torch.tensor([[2, 0], [1, 1]])
-    torch.testing.assert_close(dense_weights(w, idx, 3), torch.tensor([[0.25, 0, 0.75],
-                                                                       [0, 1.0, 0]]))  # fmt: skip
+    torch.testing.assert_close(
+        dense_weights(w, idx, 3), torch.tensor([[0.25, 0, 0.75], [0, 1.0, 0]])
+    )
 
 
 def test_root_frame_transforms_are_the_world_ones_seen_from_the_root_frame():
@@ -57,8 +58,9 @@ def test_root_frame_transforms_are_the_world_ones_seen_from_the_root_frame():
         for j in range(J):
             x_world = world[t, j, :3, :3] @ x[t] + world[t, j, :3, 3]
             want = H[t].T @ (x_world - p[t])
-            torch.testing.assert_close(got[t, j, :, :3] @ x[t] + got[t, j, :, 3], want,
-                                       atol=1e-5, rtol=1e-5)  # fmt: skip
+            torch.testing.assert_close(
+                got[t, j, :, :3] @ x[t] + got[t, j, :, 3], want, atol=1e-5, rtol=1e-5
+            )
 
 
 def test_far_vertices_get_the_harmonic_blend_of_the_near_ones():

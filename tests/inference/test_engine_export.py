@@ -23,12 +23,18 @@ def engine_run(toy_dataset, tmp_path_factory):
     from loosefit.train.loop import Run, train
 
     reader = DatasetReader(toy_dataset)
-    full = SimpleNamespace(rest_state=torch.from_numpy(reader.read("a").garment_vertices[0]) * 0,
-                           path="toy-motion.pt")  # fmt: skip
+    full = SimpleNamespace(
+        rest_state=torch.from_numpy(reader.read("a").garment_vertices[0]) * 0, path="toy-motion.pt"
+    )
     full.rest_state = full.rest_state + torch.from_numpy(reader.template.vertices)
     out = tmp_path_factory.mktemp("engine")
-    cfg = TrainEngineConfig(epochs=2, window=8, eval_every=1, membrane=10.0,
-                            model=EngineConfig(basis=6, motion_fc=16, gru=12, head=16))  # fmt: skip
+    cfg = TrainEngineConfig(
+        epochs=2,
+        window=8,
+        eval_every=1,
+        membrane=10.0,
+        model=EngineConfig(basis=6, motion_fc=16, gru=12, head=16),
+    )
     run = Run.open(out, {"toy": 1}, 0, log=lambda *_: None, progress=False)
     report = train(EngineStage(reader, full, cfg, run), run, str(toy_dataset))
     return load_engine(out / "engine.pt"), report, out

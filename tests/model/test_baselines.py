@@ -32,8 +32,9 @@ def _network(method: str, seed: int = 0) -> BaselineNetwork:
     weights = weights / weights.sum(1, keepdim=True)
     mean = torch.randn(K, 3, 4, generator=g)
     cfg = BaselineConfig(method=method, motion_fc=8, gru=10, head_hidden=12)
-    return BaselineNetwork(cfg, F, rest, weights, bone_mean=mean if method != "santesteban"
-                           else None)  # fmt: skip
+    return BaselineNetwork(
+        cfg, F, rest, weights, bone_mean=mean if method != "santesteban" else None
+    )
 
 
 def test_santesteban_skins_the_template_plus_displacements_to_the_joints():
@@ -48,8 +49,9 @@ def test_santesteban_skins_the_template_plus_displacements_to_the_joints():
     with torch.no_grad():
         net.displacement[-1].bias.fill_(0.1)
     out = net.decode(h, joints)["vertices"]
-    torch.testing.assert_close(out[0, 2], _loop_skin(net.rest + 0.1, net.skin_weights,
-                                                     joints[0, 2]))  # fmt: skip
+    torch.testing.assert_close(
+        out[0, 2], _loop_skin(net.rest + 0.1, net.skin_weights, joints[0, 2])
+    )
     with pytest.raises(LoosefitInputError, match="joints"):
         net.decode(h, joints[:, :, :2])
 
@@ -75,15 +77,21 @@ def test_virtual_bones_skin_the_rest_by_predicted_bones_plus_a_residual():
 
 
 def test_the_loss_has_each_methods_terms_and_is_zero_on_the_truth():
-    for method, keys in (("santesteban", {"geometry"}),
-                         ("virtual-bones", {"geometry", "coarse", "transforms"})):  # fmt: skip
+    for method, keys in (
+        ("santesteban", {"geometry"}),
+        ("virtual-bones", {"geometry", "coarse", "transforms"}),
+    ):
         net = _network(method)
         h, _ = net.encode(torch.zeros(1, 2, F), net.initial_hidden(1))
         joints = torch.randn(1, 2, K, 3, 4) if method == "santesteban" else None
         out = net.decode(h, joints)
         bones = out.get("transforms")
-        terms = baseline_loss(out, out["vertices"].detach(), None if bones is None
-                              else bones.detach(), BaselineLossConfig())  # fmt: skip
+        terms = baseline_loss(
+            out,
+            out["vertices"].detach(),
+            None if bones is None else bones.detach(),
+            BaselineLossConfig(),
+        )
         assert set(terms) == keys | {"total"}
         assert float(terms["geometry"].detach()) == 0.0
         shifted = baseline_loss(out, out["vertices"].detach() + 0.01, None, BaselineLossConfig())
@@ -99,8 +107,13 @@ def test_bad_configurations_and_inputs_are_clear_errors():
     with pytest.raises(LoosefitInputError, match="rest"):
         BaselineNetwork(BaselineConfig(), F, torch.zeros(V + 1, 3), torch.ones(V, K) / K)
     with pytest.raises(LoosefitInputError, match="bone_mean"):
-        BaselineNetwork(BaselineConfig(method="virtual-bones"), F, torch.zeros(V, 3),
-                        torch.ones(V, K) / K, bone_mean=torch.zeros(K + 1, 3, 4))  # fmt: skip
+        BaselineNetwork(
+            BaselineConfig(method="virtual-bones"),
+            F,
+            torch.zeros(V, 3),
+            torch.ones(V, K) / K,
+            bone_mean=torch.zeros(K + 1, 3, 4),
+        )
     net = _network("santesteban")
     with pytest.raises(LoosefitInputError, match="features"):
         net.encode(torch.zeros(1, 2, F + 1), net.initial_hidden(1))

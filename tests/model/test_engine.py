@@ -54,8 +54,13 @@ def test_step_shapes_and_decode():
 def test_features_outside_the_training_range_are_read_at_its_edge():
     x = torch.randn(60, 6, 3, generator=torch.Generator().manual_seed(3))
     low, high = -torch.ones(7), torch.ones(7)
-    tier = EngineTier(7, EngineConfig(basis=3, motion_fc=8, gru=5, head=6), fit_basis(x, 3),
-                      feature_low=low, feature_high=high)  # fmt: skip
+    tier = EngineTier(
+        7,
+        EngineConfig(basis=3, motion_fc=8, gru=5, head=6),
+        fit_basis(x, 3),
+        feature_low=low,
+        feature_high=high,
+    )
     c0, h0 = tier.initial_coefficients(2), tier.initial_hidden(2)
     far = torch.tensor([[1e3, -1e3, 0.5, 0, 0, 0, 2], [0.1, 0, 0, -3, 0, 0, 0]])
     torch.testing.assert_close(tier(far, c0, h0), tier(far.clamp(-1, 1), c0, h0))

@@ -90,17 +90,22 @@ def test_root_frame_takes_out_translation_and_heading():
 
 def _config(**kw) -> TrainGenerativeConfig:
     cfg = TrainGenerativeConfig(
-        model=GenerativeConfig(**SMALL), epochs=25, batch_size=8, lr=2e-3, eval_every=1000,
+        model=GenerativeConfig(**SMALL),
+        epochs=25,
+        batch_size=8,
+        lr=2e-3,
+        eval_every=1000,
         checkpoint_every=1,
-    )  # fmt: skip
+    )
     for k, v in kw.items():
         setattr(cfg, k, v)
     return cfg
 
 
 def test_training_lowers_the_loss_and_reports(toy_dataset, skirt, tmp_path):
-    report = train_generative(toy_dataset, tmp_path / "run", _config(), log=lambda *_: None,
-                              progress=False)  # fmt: skip
+    report = train_generative(
+        toy_dataset, tmp_path / "run", _config(), log=lambda *_: None, progress=False
+    )
     history = torch.load(tmp_path / "run" / "checkpoint.pt", weights_only=False)["history"]
     assert history[-1]["total"] < 0.5 * history[0]["total"]
     assert report["test"]["frames"] == 16 and report["train"]["frames"] == 32
@@ -115,8 +120,9 @@ def test_training_lowers_the_loss_and_reports(toy_dataset, skirt, tmp_path):
 
 
 def test_checkpoint_of_another_garment_is_refused(toy_dataset, tmp_path, avatar):
-    train_generative(toy_dataset, tmp_path / "run", _config(epochs=1), log=lambda *_: None,
-                     progress=False)  # fmt: skip
+    train_generative(
+        toy_dataset, tmp_path / "run", _config(epochs=1), log=lambda *_: None, progress=False
+    )
     other = fit_skirt(avatar, SkirtConfig(style="aline", rings=5, segments=16))
     with pytest.raises(LoosefitInputError, match="garment"):
         load_checkpoint(tmp_path / "run" / "checkpoint.pt", other)
@@ -144,8 +150,12 @@ def test_a_killed_run_resumes(toy_dataset, tmp_path):
         f"tg.train_generative({str(toy_dataset)!r}, {str(run)!r}, _config(epochs=12),"
         " progress=False)\n"
     )
-    proc = subprocess.run([sys.executable, "-c", code], stdout=subprocess.DEVNULL,
-                          stderr=subprocess.DEVNULL, timeout=300)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        timeout=300,
+    )
     assert proc.returncode == -signal.SIGKILL
     ckpt = run / "checkpoint.pt"
     done = torch.load(ckpt, weights_only=False)["epoch"]
@@ -166,17 +176,38 @@ def test_train_and_interpolate_commands(toy_dataset, tmp_path):
     assert (run / "report.md").is_file() and (run / "checkpoint.pt").is_file()
     out = tmp_path / "interp"
     common = ["interpolate", "--checkpoint", str(run / "checkpoint.pt"), "--data", str(toy_dataset)]
-    assert main([*common, "--a", "a:0", "--b", "b:3", "--steps", "3", "--size", "64",
-                 "--out", str(out)]) == 0  # fmt: skip
+    assert (
+        main(
+            [*common, "--a", "a:0", "--b", "b:3", "--steps", "3", "--size", "64", "--out", str(out)]
+        )
+        == 0
+    )
     with np.load(out / "interpolation.npz") as z:
         assert z["vertices"].shape[0] == 3 and np.isfinite(z["vertices"]).all()
     assert any(out.glob("*.mp4"))
     # a frame the clip does not have is an error naming the option
     assert main([*common, "--a", "a:99", "--b", "b:0", "--out", str(out)]) == 2
     rec = tmp_path / "rec"
-    assert main(["reconstruct", "--checkpoint", str(run / "checkpoint.pt"), "--data",
-                 str(toy_dataset), "--clip", "c", "--max-frames", "3", "--size", "64",
-                 "--out", str(rec)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "reconstruct",
+                "--checkpoint",
+                str(run / "checkpoint.pt"),
+                "--data",
+                str(toy_dataset),
+                "--clip",
+                "c",
+                "--max-frames",
+                "3",
+                "--size",
+                "64",
+                "--out",
+                str(rec),
+            ]
+        )
+        == 0
+    )
     from loosefit.sequence import AnimatedGarment
 
     seq = AnimatedGarment.load(rec / "reconstruction.npz")  # the one sequence format
@@ -185,8 +216,13 @@ def test_train_and_interpolate_commands(toy_dataset, tmp_path):
 
 def test_physics_terms_train_and_are_recorded(toy_dataset, skirt, tmp_path):
     loss = GenerativeLossConfig(membrane=20.0, bending=0.5, collision=0.1)
-    train_generative(toy_dataset, tmp_path / "phys", _config(loss=loss, epochs=8),
-                     log=lambda *_: None, progress=False)  # fmt: skip
+    train_generative(
+        toy_dataset,
+        tmp_path / "phys",
+        _config(loss=loss, epochs=8),
+        log=lambda *_: None,
+        progress=False,
+    )
     data = torch.load(tmp_path / "phys" / "checkpoint.pt", weights_only=False)
     assert data["physics_terms"] == ["membrane", "bending", "collision"]
     history = data["history"]
@@ -194,20 +230,36 @@ def test_physics_terms_train_and_are_recorded(toy_dataset, skirt, tmp_path):
     assert history[-1]["membrane"] < history[0]["membrane"]
     assert all(np.isfinite(h["total"]) for h in history)
     # a run without them records none
-    train_generative(toy_dataset, tmp_path / "plain", _config(epochs=1), log=lambda *_: None,
-                     progress=False)  # fmt: skip
-    assert torch.load(tmp_path / "plain" / "checkpoint.pt", weights_only=False)[
-        "physics_terms"] == []  # fmt: skip
+    train_generative(
+        toy_dataset, tmp_path / "plain", _config(epochs=1), log=lambda *_: None, progress=False
+    )
+    assert (
+        torch.load(tmp_path / "plain" / "checkpoint.pt", weights_only=False)["physics_terms"] == []
+    )
 
 
 def test_physics_loss_weights_are_checked():
     with pytest.raises(LoosefitInputError, match="membrane"):
         GenerativeLossConfig(membrane=-1.0)
     with pytest.raises(ValueError, match="ClothStructure"):
-        out = type("Out", (), {"vertices": torch.zeros(1, 3, 3), "mu": torch.zeros(1, 2),
-                               "logvar": torch.zeros(1, 2), "unposed": None})()  # fmt: skip
-        generative_loss(out, torch.zeros(1, 3, 3), None, torch.zeros(3, 3), lambda x: 0 * x,
-                        GenerativeLossConfig(membrane=1.0))  # fmt: skip
+        out = type(
+            "Out",
+            (),
+            {
+                "vertices": torch.zeros(1, 3, 3),
+                "mu": torch.zeros(1, 2),
+                "logvar": torch.zeros(1, 2),
+                "unposed": None,
+            },
+        )()
+        generative_loss(
+            out,
+            torch.zeros(1, 3, 3),
+            None,
+            torch.zeros(3, 3),
+            lambda x: 0 * x,
+            GenerativeLossConfig(membrane=1.0),
+        )
 
 
 def test_warm_start_begins_from_the_given_weights(toy_dataset, tmp_path):
@@ -215,10 +267,13 @@ def test_warm_start_begins_from_the_given_weights(toy_dataset, tmp_path):
     train_generative(toy_dataset, tmp_path / "base", _config(epochs=2), **quiet)
     base = tmp_path / "base" / "checkpoint.pt"
     # one epoch at learning rate 0 from the base run's weights keeps them exactly
-    train_generative(toy_dataset, tmp_path / "fine", _config(epochs=1, lr=0.0, init=str(base)),
-                     **quiet)  # fmt: skip
-    a, b = (torch.load(p, weights_only=False)["model"]
-            for p in (base, tmp_path / "fine" / "checkpoint.pt"))  # fmt: skip
+    train_generative(
+        toy_dataset, tmp_path / "fine", _config(epochs=1, lr=0.0, init=str(base)), **quiet
+    )
+    a, b = (
+        torch.load(p, weights_only=False)["model"]
+        for p in (base, tmp_path / "fine" / "checkpoint.pt")
+    )
     assert all(torch.equal(a[k], b[k]) for k in a)
     # ... and a fresh run does not start there
     train_generative(toy_dataset, tmp_path / "fresh", _config(epochs=1, lr=0.0), **quiet)

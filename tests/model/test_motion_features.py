@@ -80,8 +80,9 @@ def test_lower_body_features_are_the_spine_and_legs_alone(avatar):
     full = motion_features(rot, root, m.fps, avatar.floor_height)
     # the same joint blocks and the same root features as the full set
     blocks = full[:, : 6 * (len(names) - 1)].view(20, -1, 6)
-    torch.testing.assert_close(f[:, : 6 * len(lower)].view(20, -1, 6),
-                               blocks[:, [i - 1 for i in lower]])  # fmt: skip
+    torch.testing.assert_close(
+        f[:, : 6 * len(lower)].view(20, -1, 6), blocks[:, [i - 1 for i in lower]]
+    )
     torch.testing.assert_close(f[:, 6 * len(lower) :], full[:, 6 * (len(names) - 1) :])
     # moving an arm changes the full features only
     waved = rot.clone()
@@ -108,8 +109,9 @@ def test_frame_features_one_frame_at_a_time_in_float32(avatar):
     whole = motion_features(rot, root, m.fps, avatar.floor_height)
     before = torch.cat([rot[:1, 0], rot[:-1, 0]])
     root_before = torch.cat([root[:1], root[:-1]])
-    frames = frame_features(rot, root.float(), before, root_before.float(), m.fps,
-                            avatar.floor_height)  # fmt: skip
+    frames = frame_features(
+        rot, root.float(), before, root_before.float(), m.fps, avatar.floor_height
+    )
     assert frames.dtype == torch.float32
     torch.testing.assert_close(frames, whole, atol=1e-4, rtol=0)
     J = len(avatar.joint_names)

@@ -93,8 +93,9 @@ def test_bending_energy_by_hand():
 
 def test_bending_weights_discrete_shells():
     # two hinges: edge lengths 1 and 2 over the same faces' areas -> weights 1 : 4
-    x = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0],
-                  [5, 0, 0], [7, 0, 0], [5, 1, 0], [5, -1, 0]])  # fmt: skip
+    x = np.array(
+        [[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [5, 0, 0], [7, 0, 0], [5, 1, 0], [5, -1, 0]]
+    )
     f = np.array([[0, 1, 2], [1, 0, 3], [4, 5, 6], [5, 4, 7]])
     s = ClothStructure.from_mesh(x, f)
     w = s.hinge_weights.numpy()

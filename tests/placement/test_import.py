@@ -49,8 +49,11 @@ def test_a_dress_in_centimetres_with_y_up_lands_where_the_parametric_one_is(
     path = _export(dress, tmp_path / "dress.obj", "cm", "y", shift=(0.4, -1.2, 0.9))
     kind = None if style == "straps" else "dress"  # a strapless dress looks like a skirt
     placed, report = import_garment(path, avatar, kind=kind)
-    assert report["units"] == {"value": "cm", "guessed": True, **{
-        k: report["units"][k] for k in ("height_m", "width_m")}}  # fmt: skip
+    assert report["units"] == {
+        "value": "cm",
+        "guessed": True,
+        **{k: report["units"][k] for k in ("height_m", "width_m")},
+    }
     assert report["up"] == {"value": "y", "guessed": True}
     assert report["kind"]["value"] == "dress"
     err = np.abs(placed.vertices - dress.vertices).max()
@@ -75,8 +78,7 @@ def test_the_dress_is_made_for_the_body(dresses, avatar):
         check_clear_of_body(dress, avatar)  # no vertex inside the body
         assert ((dress.uvs >= 0) & (dress.uvs <= 1)).all()
     # the straps rest on the shoulders, the strapless top band at the chest
-    assert straps.vertices[:, 2].max() == pytest.approx(
-        straps.meta["strap_top"], abs=1e-6)  # fmt: skip
+    assert straps.vertices[:, 2].max() == pytest.approx(straps.meta["strap_top"], abs=1e-6)
     assert strapless.vertices[strapless.waist, 2] == pytest.approx(chest_height(avatar), abs=1e-5)
     assert straps.meta["strap_top"] > chest_height(avatar) + 0.1 + STRAP_CLEARANCE
     # the paper resolution: about the paper's 9,352 vertices
@@ -98,14 +100,18 @@ def test_a_skirt_in_metres_with_z_up_keeps_its_units_and_lands_at_the_waist(avat
     path = _export(skirt, tmp_path / "skirt.obj", "m", "z", shift=(0.0, 0.0, 0.93))
     placed, report = import_garment(path, avatar)
     assert (report["units"]["value"], report["up"]["value"], report["kind"]["value"]) == (
-        "m", "z", "skirt")  # fmt: skip
+        "m",
+        "z",
+        "skirt",
+    )
     waistband = placed.vertices[placed.waist]
     assert waistband[:, 2].mean() == pytest.approx(natural_waist_height(avatar), abs=2e-3)
     assert np.abs(placed.vertices - skirt.vertices).max() < 0.01  # where fit_skirt puts it
     # --offset moves it after placement
     up, _ = import_garment(path, avatar, offset=(0.0, 0.0, 0.02))
-    np.testing.assert_allclose(up.vertices - placed.vertices, [[0.0, 0.0, 0.02]] * len(up.vertices),
-                               atol=1e-6)  # fmt: skip
+    np.testing.assert_allclose(
+        up.vertices - placed.vertices, [[0.0, 0.0, 0.02]] * len(up.vertices), atol=1e-6
+    )
 
 
 def test_a_glb_reads_like_the_obj(dresses, avatar, tmp_path):
@@ -145,8 +151,11 @@ def test_several_pieces_are_refused_with_their_sizes(dresses, tmp_path, avatar):
     v = np.concatenate([d.vertices, d.vertices[:3] + [0, 0, 2.0]])
     f = np.concatenate([d.faces, [[len(d.vertices), len(d.vertices) + 1, len(d.vertices) + 2]]])
     write_obj(tmp_path / "pieces.obj", v, f)
-    with pytest.raises(LoosefitInputError, match=rf"pieces\.obj.*2 disconnected pieces of "
-                       rf"{d.num_vertices}, 3 vertices"):  # fmt: skip
+    with pytest.raises(
+        LoosefitInputError,
+        match=rf"pieces\.obj.*2 disconnected pieces of "
+        rf"{d.num_vertices}, 3 vertices",
+    ):
         read_garment_mesh(tmp_path / "pieces.obj")
 
 
@@ -172,9 +181,11 @@ def test_an_implausible_size_asks_for_the_units(dresses, tmp_path, avatar):
 
 def test_a_garment_that_cannot_hang_clear_of_the_body_says_where(dresses, tmp_path, avatar):
     path = _export(dresses["strapless"], tmp_path / "low.obj", "cm", "y")
-    with pytest.raises(LoosefitInputError,
-                       match=r"low\.obj.*placement.*vertices inside it, the deepest "
-                       r"\(vertex \d+.*cm in\) at height .* m in the \w+") as caught:  # fmt: skip
+    with pytest.raises(
+        LoosefitInputError,
+        match=r"low\.obj.*placement.*vertices inside it, the deepest "
+        r"\(vertex \d+.*cm in\) at height .* m in the \w+",
+    ) as caught:
         import_garment(path, avatar, kind="dress", offset=(0.0, 0.06, -0.1))
     # the fix named first, as a command to run with the options this import was given;
     # the import's own options after it
@@ -185,8 +196,7 @@ def test_a_garment_that_cannot_hang_clear_of_the_body_says_where(dresses, tmp_pa
     # deeper than --fit pushes (10 cm): the options come first, --fit's reach after them
     from loosefit.placement.place import _fit_hint
 
-    deep = _fit_hint(path, import_garment(path, avatar, kind="dress", check=False)[0], avatar,
-                     0.25)  # fmt: skip
+    deep = _fit_hint(path, import_garment(path, avatar, kind="dress", check=False)[0], avatar, 0.25)
     assert deep.index("--units") < deep.index("--fit") and "no deeper than 10 cm" in deep
 
 
@@ -201,9 +211,13 @@ def test_a_closed_surface_has_no_up_axis_to_guess(tmp_path, avatar):
 
 def test_bad_options_are_named(dresses, tmp_path, avatar):
     path = _export(dresses["straps"], tmp_path / "d.obj", "cm", "y")
-    for kwargs, field in ((dict(units="ft"), "--units"), (dict(up="x"), "--up"),
-                          (dict(kind="coat"), "--kind"), (dict(attach="none"), "--attach"),
-                          (dict(attach=np.array([0, 99999])), "--attach")):  # fmt: skip
+    for kwargs, field in (
+        (dict(units="ft"), "--units"),
+        (dict(up="x"), "--up"),
+        (dict(kind="coat"), "--kind"),
+        (dict(attach="none"), "--attach"),
+        (dict(attach=np.array([0, 99999])), "--attach"),
+    ):
         with pytest.raises(LoosefitInputError, match=field):
             import_garment(path, avatar, **kwargs)
 

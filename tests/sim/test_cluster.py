@@ -62,10 +62,21 @@ def head():
         mp.setenv("RAY_AUTH_MODE", "disabled")  # a cluster of this machine only, for the test
         mp.delenv("RAY_ADDRESS", raising=False)
         proc = subprocess.Popen(
-            [ray_cli, "start", "--head", "--block", f"--port={port}", "--num-cpus=2",
-             "--include-dashboard=false", f"--temp-dir={temp}", "--disable-usage-stats"],
-            stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ),
-        )  # fmt: skip
+            [
+                ray_cli,
+                "start",
+                "--head",
+                "--block",
+                f"--port={port}",
+                "--num-cpus=2",
+                "--include-dashboard=false",
+                f"--temp-dir={temp}",
+                "--disable-usage-stats",
+            ],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            env=dict(os.environ),
+        )
         try:
             deadline = time.monotonic() + 180
             while True:
@@ -103,8 +114,9 @@ def assert_same_data_set(got: Path, want: Path) -> None:
         assert a[key] == b[key], key
     assert a["sequences"].keys() == b["sequences"].keys()
     for name in a["sequences"]:
-        ea, eb = ({k: v for k, v in m["sequences"][name].items() if k not in RUN_FIELDS}
-                  for m in (a, b))  # fmt: skip
+        ea, eb = (
+            {k: v for k, v in m["sequences"][name].items() if k not in RUN_FIELDS} for m in (a, b)
+        )
         assert ea == eb, name
     assert {k: v for k, v in a["summary"].items() if k not in RUN_SUMMARY} == {
         k: v for k, v in b["summary"].items() if k not in RUN_SUMMARY
@@ -224,8 +236,9 @@ def test_a_clip_whose_task_dies_for_good_is_missing_until_the_rerun_goes_on_from
     with pytest.raises(LoosefitInputError, match="unfinished"):
         DatasetReader(out)
     saved = int(np.load(out / "resume" / "spin_001.npz")["frame"])
-    manifest = generate(preset("tiny"), out, progress=False, resume_every=2,
-                            cluster=ClusterConfig(head[1]))  # fmt: skip
+    manifest = generate(
+        preset("tiny"), out, progress=False, resume_every=2, cluster=ClusterConfig(head[1])
+    )
     assert manifest["sequences"]["spin_001"]["resumed_frame"] == saved
     assert_same_data_set(out, local_tiny)
 
@@ -235,12 +248,15 @@ def test_an_address_where_no_cluster_answers_fails_at_once_naming_it(tmp_path, c
     port = free_port()  # nothing listens there
     for address in (f"127.0.0.1:{port}", "no-such-host.invalid:6379"):
         with pytest.raises(LoosefitInputError, match=f"nothing answering at {address}"):
-            generate(preset("tiny"), tmp_path / "a", progress=False,
-                         cluster=ClusterConfig(address, connect_timeout=2.0))  # fmt: skip
+            generate(
+                preset("tiny"),
+                tmp_path / "a",
+                progress=False,
+                cluster=ClusterConfig(address, connect_timeout=2.0),
+            )
     assert not (tmp_path / "a").exists()  # no data set begun
     with pytest.raises(LoosefitInputError, match="HOST:PORT"):
-        generate(preset("tiny"), tmp_path / "a", progress=False,
-                     cluster=ClusterConfig("head:port"))  # fmt: skip
+        generate(preset("tiny"), tmp_path / "a", progress=False, cluster=ClusterConfig("head:port"))
     # the command line: an error naming the address, no traceback
     out = tmp_path / "b"
     argv = ["simulate", "--preset", "tiny", "--out", str(out), "--ray", f"127.0.0.1:{port}"]
@@ -268,8 +284,9 @@ def test_a_port_that_does_not_speak_as_a_ray_head_is_refused_at_once():
 
         thread = threading.Thread(target=greet, daemon=True)
         thread.start()
-        with pytest.raises(LoosefitInputError, match=f"something at {address} that does not "
-                           "answer as a Ray head"):  # fmt: skip
+        with pytest.raises(
+            LoosefitInputError, match=f"something at {address} that does not answer as a Ray head"
+        ):
             check_reachable(address, 5.0)
         thread.join()
 

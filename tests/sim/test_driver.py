@@ -59,10 +59,12 @@ def seed_spread(avatar, tiny) -> float:
     jitter is drawn with another seed: the larger of two seeds, this run, this machine."""
     skirt, motion, result, _ = tiny
     return max(
-        mean_gap(simulate(avatar, skirt, motion, ClothConfig.tiny(seed=s)).garment_vertices,
-                 result.garment_vertices)
+        mean_gap(
+            simulate(avatar, skirt, motion, ClothConfig.tiny(seed=s)).garment_vertices,
+            result.garment_vertices,
+        )
         for s in (1, 2)
-    )  # fmt: skip
+    )
 
 
 def test_tiny_skirt_stays_finite_attached_and_outside(avatar, tiny):
@@ -191,14 +193,20 @@ def test_killed_run_resumes_from_its_saved_state(avatar, tiny, tmp_path):
             raise _Kill
 
     with pytest.raises(_Kill):
-        simulate(avatar, skirt, motion, ClothConfig.tiny(), progress=kill, resume=path,
-                 resume_every=4)  # fmt: skip
+        simulate(
+            avatar, skirt, motion, ClothConfig.tiny(), progress=kill, resume=path, resume_every=4
+        )
     assert path.is_file()
     seen = []
     again = simulate(
-        avatar, skirt, motion, ClothConfig.tiny(), progress=lambda d, t: seen.append(d),
-        resume=path, resume_every=4,
-    )  # fmt: skip
+        avatar,
+        skirt,
+        motion,
+        ClothConfig.tiny(),
+        progress=lambda d, t: seen.append(d),
+        resume=path,
+        resume_every=4,
+    )
     assert seen[0] > 1  # it did not start over
     np.testing.assert_array_equal(again.garment_vertices, result.garment_vertices)
     assert not path.exists()  # removed once the run is whole
@@ -232,11 +240,19 @@ def test_resume_takes_a_run_saved_without_the_release_it_never_needed(avatar, ti
             raise _Kill
 
     with pytest.raises(_Kill):  # saved without the release
-        simulate(avatar, skirt, motion, ClothConfig.tiny(), progress=kill, resume=path,
-                 resume_every=4)  # fmt: skip
+        simulate(
+            avatar, skirt, motion, ClothConfig.tiny(), progress=kill, resume=path, resume_every=4
+        )
     seen = []
-    again = simulate(avatar, skirt, motion, ClothConfig.tiny(release_depth=0.01), resume=path,
-                     resume_every=4, progress=lambda d, t: seen.append(d))  # fmt: skip
+    again = simulate(
+        avatar,
+        skirt,
+        motion,
+        ClothConfig.tiny(release_depth=0.01),
+        resume=path,
+        resume_every=4,
+        progress=lambda d, t: seen.append(d),
+    )
     assert seen[0] > 1  # nothing was ever 1 cm inside: the saved frames are the same run's
     np.testing.assert_array_equal(again.garment_vertices, result.garment_vertices)
     assert again.stats["released_frames"] == 0
@@ -247,8 +263,9 @@ def test_resume_ignores_the_state_of_another_run(avatar, tiny, tmp_path):
     path = tmp_path / "run.npz"
     np.savez(path, key=np.array("another run"), frame=np.int64(3))
     seen = []
-    again = simulate(avatar, skirt, motion, ClothConfig.tiny(), resume=path,
-                     progress=lambda d, t: seen.append(d))  # fmt: skip
+    again = simulate(
+        avatar, skirt, motion, ClothConfig.tiny(), resume=path, progress=lambda d, t: seen.append(d)
+    )
     assert seen[0] == 1
     np.testing.assert_array_equal(again.garment_vertices, result.garment_vertices)
 
@@ -352,8 +369,14 @@ def batch(avatar, tiny):
     skirt, motion, _, _ = tiny
     sway = load_motion("sway", avatar).slice(0, 4)
     done = []
-    results = simulate_batch(avatar, skirt, [motion, sway], ClothConfig.tiny(), seeds=[0, 0],
-                             progress=lambda d, t: done.append((d, t)))  # fmt: skip
+    results = simulate_batch(
+        avatar,
+        skirt,
+        [motion, sway],
+        ClothConfig.tiny(),
+        seeds=[0, 0],
+        progress=lambda d, t: done.append((d, t)),
+    )
     return sway, results, done
 
 
@@ -398,13 +421,27 @@ def test_batched_run_resumes_and_checks_its_motions(avatar, tiny, batch, tmp_pat
             raise _Kill
 
     with pytest.raises(_Kill):
-        simulate_batch(avatar, skirt, [motion, sway], ClothConfig.tiny(), progress=kill,
-                       resume=path, resume_every=4, seeds=[0, 0])  # fmt: skip
+        simulate_batch(
+            avatar,
+            skirt,
+            [motion, sway],
+            ClothConfig.tiny(),
+            progress=kill,
+            resume=path,
+            resume_every=4,
+            seeds=[0, 0],
+        )
     seen = []
     again = simulate_batch(
-        avatar, skirt, [motion, sway], ClothConfig.tiny(), resume=path, resume_every=4,
-        seeds=[0, 0], progress=lambda d, t: seen.append(d),
-    )  # fmt: skip
+        avatar,
+        skirt,
+        [motion, sway],
+        ClothConfig.tiny(),
+        resume=path,
+        resume_every=4,
+        seeds=[0, 0],
+        progress=lambda d, t: seen.append(d),
+    )
     assert seen[0] > 1
     for got, want in zip(again, results, strict=True):
         np.testing.assert_array_equal(got.garment_vertices, want.garment_vertices)
@@ -426,13 +463,15 @@ def test_the_collider_with_arms_stops_a_hand_sweeping_through_a_tiny_skirt(avata
     motion = avatar.rest_motion(n)
     y = 0.3 + 0.6 * np.clip(np.arange(n) / 14, 0, 1)
     motion.rotations[:, avatar.joint_names.index("LeftArm")] = axis_angle_to_matrix(
-        np.stack([np.zeros(n), y, np.zeros(n)], 1))  # fmt: skip
+        np.stack([np.zeros(n), y, np.zeros(n)], 1)
+    )
     body = avatar.pose_motion(motion).vertices.numpy()
     faces = avatar.faces.numpy()  # the whole body, arms and hands included
 
     def deepest(arms, arm_friction) -> float:
-        config = dataclasses.replace(ClothConfig.tiny(), arm_collision=arms,
-                                     arm_friction=arm_friction)  # fmt: skip
+        config = dataclasses.replace(
+            ClothConfig.tiny(), arm_collision=arms, arm_friction=arm_friction
+        )
         g = simulate(avatar, skirt, motion, config).garment_vertices
         depth = 0.0
         for t in range(n):

@@ -85,8 +85,9 @@ def test_report_shows_the_inside_mean_and_the_poses_that_fold(tiny_dataset):
     manifest = json.loads(json.dumps(manifest))
     assert "loosefit diagnose" not in format_report(manifest)  # the tiny moves never fold
     entry = manifest["sequences"]["kick_000"]
-    entry.update(overlap_frames=21, overlap_depth_max=0.0348, unfold_frames=31,
-                 unfold_degrees_max=10.0)  # fmt: skip
+    entry.update(
+        overlap_frames=21, overlap_depth_max=0.0348, unfold_frames=31, unfold_degrees_max=10.0
+    )
     entry["quality"]["inside_mean"] = 0.00103
     report = format_report(manifest)
     row = next(line for line in report.splitlines() if line.startswith("kick_000"))
@@ -165,8 +166,9 @@ def test_clips_simulated_in_a_batch_are_the_same_data_set(
         return real(config, jobs, processes, on_done)
 
     monkeypatch.setattr(gen, "prepare_motions", spy)
-    manifest = generate(preset("tiny"), tmp_path / "b", workers=2, progress=False,
-                            batch=2, prepare_workers=2)  # fmt: skip
+    manifest = generate(
+        preset("tiny"), tmp_path / "b", workers=2, progress=False, batch=2, prepare_workers=2
+    )
     assert [sorted(names) for names, _ in prepared] == [["kick_000", "spin_001"]]
     assert prepared[0][1] == 2
     assert manifest["complete"] and manifest["split"] == single["split"]
@@ -213,8 +215,7 @@ def test_a_batch_with_a_diverging_clip_is_run_again_clip_by_clip(tmp_path, monke
         return real(avatar, template, motions, *a, **k)
 
     monkeypatch.setattr(workers, "simulate_batch", spin_explodes)
-    manifest = generate(preset("tiny"), tmp_path / "d", progress=False, batch=2,
-                        prepare_workers=1)  # fmt: skip
+    manifest = generate(preset("tiny"), tmp_path / "d", progress=False, batch=2, prepare_workers=1)
     assert sizes == [2, 1, 1]
     assert manifest["sequences"]["kick_000"]["status"] == "done"
     assert manifest["sequences"]["spin_001"]["status"] == "flagged"
@@ -317,8 +318,7 @@ def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_
     (flagged / "sequences").mkdir()
     mine = {"sequences": {}}
     (tmp_path / "mine" / "sequences").mkdir(parents=True)
-    taken = adopt_clips(preset("tiny"), plan_jobs(preset("tiny")), mine,
-                            tmp_path / "mine", flagged)  # fmt: skip
+    taken = adopt_clips(preset("tiny"), plan_jobs(preset("tiny")), mine, tmp_path / "mine", flagged)
     assert taken == ["spin_001"] and mine["sequences"]["spin_001"]["status"] == "flagged"
 
     other = preset("tiny")
@@ -428,12 +428,28 @@ def test_simulate_a_garment_file_on_named_motions_from_the_command_line(tmp_path
 
     dress = fit_dress(avatar, DressConfig(style="strapless", rings=10, segments=24, length=0.5))
     v = dress.vertices * 100.0  # centimetres, Y up: as a garment tool writes it
-    write_obj(tmp_path / "my_dress.obj", np.stack([v[:, 0], v[:, 2], -v[:, 1]], 1), dress.faces,
-              dress.uvs, dress.face_uvs)  # fmt: skip
+    write_obj(
+        tmp_path / "my_dress.obj",
+        np.stack([v[:, 0], v[:, 2], -v[:, 1]], 1),
+        dress.faces,
+        dress.uvs,
+        dress.face_uvs,
+    )
     out = tmp_path / "ds"
     cfg = tmp_path / "mine.yaml"
-    args = ["simulate", "--preset", "tiny", "--garment", str(tmp_path / "my_dress.obj"),
-            "--kind", "dress", "--motions", "spin,kick", "--test", "kick"]  # fmt: skip
+    args = [
+        "simulate",
+        "--preset",
+        "tiny",
+        "--garment",
+        str(tmp_path / "my_dress.obj"),
+        "--kind",
+        "dress",
+        "--motions",
+        "spin,kick",
+        "--test",
+        "kick",
+    ]
     assert main([*args, "--write-config", str(cfg)]) == 0  # a file to start from
     assert main(["simulate", "--config", str(cfg), "--out", str(out), "--workers", "1"]) == 0
     reader = DatasetReader(out)
@@ -452,12 +468,18 @@ def test_the_collider_follows_the_garment_file_s_kind(tmp_path, avatar):
     from loosefit.garment.obj import write_obj
     from loosefit.placement.place import fit_dress, fit_skirt
 
-    for name, template, arms in (("skirt", fit_skirt(avatar), False),
-                                 ("dress", fit_dress(avatar, DressConfig()), "upper")):  # fmt: skip
+    for name, template, arms in (
+        ("skirt", fit_skirt(avatar), False),
+        ("dress", fit_dress(avatar, DressConfig()), "upper"),
+    ):
         write_obj(tmp_path / f"{name}.obj", template.vertices, template.faces)
         cfg = tmp_path / f"{name}.yaml"
-        assert main(["simulate", "--garment", str(tmp_path / f"{name}.obj"),
-                     "--write-config", str(cfg)]) == 0  # fmt: skip
+        assert (
+            main(
+                ["simulate", "--garment", str(tmp_path / f"{name}.obj"), "--write-config", str(cfg)]
+            )
+            == 0
+        )
         assert yaml.safe_load(cfg.read_text())["cloth"]["arm_collision"] == arms, name
 
 

@@ -16,12 +16,15 @@ from tests.conftest import needs_salsa
 
 def test_motions_as_specs_are_named_and_held_out_by_name(tmp_path):
     config = preset("tiny")
-    config.motions = MotionSource(kind="specs", specs=("spin", "mirror:kick", "dance:2"),
-                                      test=("mirror_kick",))  # fmt: skip
+    config.motions = MotionSource(
+        kind="specs", specs=("spin", "mirror:kick", "dance:2"), test=("mirror_kick",)
+    )
     jobs = plan_jobs(config)
     assert [(j.name, j.spec, j.test) for j in jobs] == [
-        ("spin", "spin", False), ("mirror_kick", "mirror:kick", True),
-        ("dance_2", "dance:2", False)]  # fmt: skip
+        ("spin", "spin", False),
+        ("mirror_kick", "mirror:kick", True),
+        ("dance_2", "dance:2", False),
+    ]
     assert spec_name("speed:1.25:/data/mocap/61_01.bvh") == "speed_1.25_61_01"
     config.motions.test = ("nope",)
     with pytest.raises(LoosefitInputError, match="test.*names of the motions"):
@@ -46,15 +49,15 @@ def test_a_folder_of_mixed_motion_files_is_a_data_set_s_motions(tmp_path, avatar
     folder = tmp_path / "mocap"
     folder.mkdir()
     daz = CONVENTIONS["daz"]
-    write_convention_bvh(folder / "a_studio.bvh", daz, avatar.skeleton, dance,
-                         avatar.floor_height)  # fmt: skip
+    write_convention_bvh(folder / "a_studio.bvh", daz, avatar.skeleton, dance, avatar.floor_height)
     write_gltf(folder / "b_blender.glb", read_bvh(folder / "a_studio.bvh"))
     poses, trans = smpl_arrays(avatar, dance)
     np.savez(folder / "c_amass.npz", poses=poses, trans=trans, mocap_framerate=np.array(30.0))
     dance.save(folder / "d_loosefit.npz")
     (folder / "notes.txt").write_text("not a motion")
-    args = build_parser().parse_args(["simulate", "--preset", "tiny", "--motions", str(folder),
-                                      "--test", "c_amass"])  # fmt: skip
+    args = build_parser().parse_args(
+        ["simulate", "--preset", "tiny", "--motions", str(folder), "--test", "c_amass"]
+    )
     jobs = plan_jobs(dataset_config(args))
     assert [(j.name, j.test) for j in jobs] == [
         ("a_studio", False),
@@ -152,10 +155,13 @@ def test_an_ensemble_is_each_clip_once_per_seed_with_the_clip_s_motion(avatar):
     config.seed, config.seeds = 3, [3, 0, 7]
     jobs = plan_jobs(config)
     assert [(j.name, j.seed, j.jitter_seed, j.member_seed, j.test) for j in jobs] == [
-        ("dance_000", 1003, 1003, 3, False), ("dance_000@seed0", 1003, 1000, 0, False),
-        ("dance_000@seed7", 1003, 1007, 7, False), ("dance_001", 1004, 1004, 3, True),
-        ("dance_001@seed0", 1004, 1001, 0, True), ("dance_001@seed7", 1004, 1008, 7, True),
-    ]  # fmt: skip
+        ("dance_000", 1003, 1003, 3, False),
+        ("dance_000@seed0", 1003, 1000, 0, False),
+        ("dance_000@seed7", 1003, 1007, 7, False),
+        ("dance_001", 1004, 1004, 3, True),
+        ("dance_001@seed0", 1004, 1001, 0, True),
+        ("dance_001@seed7", 1004, 1008, 7, True),
+    ]
     # the members' motion is the clip's, to the bit; the clips' dances differ
     first, *others = [job_motion(config, j, avatar, unfold=False) for j in jobs[:3]]
     for motion in others:
@@ -166,7 +172,9 @@ def test_an_ensemble_is_each_clip_once_per_seed_with_the_clip_s_motion(avatar):
     config.seeds = None
     plain = plan_jobs(config)
     assert [(j.name, j.seed, j.jitter_seed, j.member_seed) for j in plain] == [
-        ("dance_000", 1003, 1003, None), ("dance_001", 1004, 1004, None)]  # fmt: skip
+        ("dance_000", 1003, 1003, None),
+        ("dance_001", 1004, 1004, None),
+    ]
     assert [(j.name, j.seed, j.jitter_seed) for j in jobs[::3]] == [
         (j.name, j.seed, j.jitter_seed) for j in plain
     ]
@@ -245,6 +253,6 @@ def test_simulate_seeds_on_the_command_line(tmp_path, capsys):
         ("1,2,1", r"--seeds: field 'seeds': expected distinct integers >= 0, found 1 twice"),
         ("", r"--seeds: field 'seeds': expected at least one seed.*found an empty list"),
         ("0,-2", r"found -2 in \[0, -2\]"),
-    ]:  # fmt: skip
+    ]:
         assert write(f"--seeds={text}") == 2, text
         assert re.search(message, capsys.readouterr().err), text

@@ -14,8 +14,11 @@ def test_unknown_preset_and_empty_bvh_folder(tmp_path):
     expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, paper"
     with pytest.raises(LoosefitInputError, match=expected):
         preset("huge")
-    with pytest.raises(LoosefitInputError, match=r"motion files \(\.bvh, \.gltf, \.glb, \.npz\)"
-                       r".*no motion file"):  # fmt: skip
+    with pytest.raises(
+        LoosefitInputError,
+        match=r"motion files \(\.bvh, \.gltf, \.glb, \.npz\)"
+        r".*no motion file",
+    ):
         plan_jobs(preset("salsa", bvh_folder=str(tmp_path)))
 
 
@@ -25,8 +28,10 @@ def test_salsa_holds_out_its_test_clips_as_one_long_sequence(tmp_path):
     cfg = preset("salsa", bvh_folder=str(tmp_path))
     jobs = plan_jobs(cfg)
     assert [(j.name, j.test) for j in jobs] == [
-        ("60_01", False), ("60_02", False), ("chain_60_03_61_03", True),
-    ]  # fmt: skip
+        ("60_01", False),
+        ("60_02", False),
+        ("chain_60_03_61_03", True),
+    ]
     assert jobs[-1].spec == f"{tmp_path / '60_03.bvh'}+{tmp_path / '61_03.bvh'}"
 
 

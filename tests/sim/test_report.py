@@ -11,8 +11,13 @@ def test_summary_quality_covers_the_kept_clips_only():
         return {"status": status, "frames": frames, "seconds_per_frame": spf, "quality": q}
 
     crashed = {"status": "flagged", "frames": 10, "reason": "NaN"}
-    manifest = {"sequences": {"a": entry("done", 100, 0.01, 2.0),
-                              "b": entry("flagged", 50, 0.40, 4.0), "c": crashed}}  # fmt: skip
+    manifest = {
+        "sequences": {
+            "a": entry("done", 100, 0.01, 2.0),
+            "b": entry("flagged", 50, 0.40, 4.0),
+            "c": crashed,
+        }
+    }
     s = summarize(manifest)
     assert s["clips"] == 3 and s["clips_ok"] == 1 and s["frames"] == 100
     assert s["inside_max"] == 0.01  # not the flagged clip's 0.40

@@ -24,8 +24,17 @@ def test_every_body_shape_is_culled_by_the_whole_motions_box(avatar):
     for K in (1, 2):
         g = np.stack([skirt.vertices] * K) if K > 1 else skirt.vertices
         b = np.stack([body] * K) if K > 1 else body
-        sim = ClothSimulator(g, skirt.faces, skirt.waist, b, faces, config, 1 / 30, bounds,
-                             limb_faces=limb_collider_faces(avatar, config))  # fmt: skip
+        sim = ClothSimulator(
+            g,
+            skirt.faces,
+            skirt.waist,
+            b,
+            faces,
+            config,
+            1 / 30,
+            bounds,
+            limb_faces=limb_collider_faces(avatar, config),
+        )
         lower = sim.model.shape_collision_aabb_lower.numpy()
         assert lower.shape == (2 * K, 3)
         want = np.repeat(bounds[0][None] + sim.offsets, 2, 0)

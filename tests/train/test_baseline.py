@@ -25,16 +25,22 @@ RAW = Stages(detail=False, lengths=False, collision=False)
 def _config(method: str, epochs: int = 6) -> tb.TrainBaselineConfig:
     return tb.TrainBaselineConfig(
         model=BaselineConfig(method=method, motion_fc=16, gru=24, head_hidden=32, bones=4),
-        epochs=epochs, batch_size=2, window=8, lr=3e-3, eval_every=1000, checkpoint_every=2,
+        epochs=epochs,
+        batch_size=2,
+        window=8,
+        lr=3e-3,
+        eval_every=1000,
+        checkpoint_every=2,
         ssdr_iterations=5,
-    )  # fmt: skip
+    )
 
 
 @pytest.fixture(scope="module", params=["santesteban", "virtual-bones"])
 def trained(request, toy_dataset, tmp_path_factory):
     out = tmp_path_factory.mktemp(request.param)
-    report = tb.train_baseline(toy_dataset, out, _config(request.param), log=lambda *_: None,
-                               progress=False)  # fmt: skip
+    report = tb.train_baseline(
+        toy_dataset, out, _config(request.param), log=lambda *_: None, progress=False
+    )
     return out, report, BaselineModel.from_checkpoint(out / "model.pt")
 
 
@@ -63,8 +69,9 @@ def test_evaluation_scores_the_rollout_as_the_same_vertices_given_directly(train
     np.testing.assert_allclose(clip["rmse_per_frame_cm"], per, rtol=1e-6)
     assert ev["rmse_cm"] == pytest.approx(float(np.sqrt(np.mean(per**2))), rel=1e-6)
     assert ev["horizons"]["4"] == pytest.approx(float(np.sqrt(np.mean(per[:4] ** 2))), rel=1e-6)
-    assert ev["hausdorff_cm"] == pytest.approx(100 * float(hausdorff(pred, true, faces).mean()),
-                                               rel=1e-6)  # fmt: skip
+    assert ev["hausdorff_cm"] == pytest.approx(
+        100 * float(hausdorff(pred, true, faces).mean()), rel=1e-6
+    )
     assert ev["sted"] == pytest.approx(sted(pred, true, faces)["sted"], rel=1e-6)
 
 
@@ -134,32 +141,93 @@ def test_train_baseline_evaluate_and_animate_commands(toy_dataset, tmp_path):
     from loosefit.cli import main
 
     run = tmp_path / "sb"
-    assert main(["train", "baseline", "--method", "santesteban", "--data", str(toy_dataset),
-                 "--preset", "cpu", "--epochs", "1", "--max-frames", "8", "--mirror",
-                 "--out", str(run)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "train",
+                "baseline",
+                "--method",
+                "santesteban",
+                "--data",
+                str(toy_dataset),
+                "--preset",
+                "cpu",
+                "--epochs",
+                "1",
+                "--max-frames",
+                "8",
+                "--mirror",
+                "--out",
+                str(run),
+            ]
+        )
+        == 0
+    )
     assert torch.load(run / "model.pt", weights_only=False)["config"]["mirror"] is True
     ev = tmp_path / "eval"
-    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
-                 "--horizons", "4", "--out", str(ev)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "evaluate",
+                "--checkpoint",
+                str(run / "model.pt"),
+                "--data",
+                str(toy_dataset),
+                "--horizons",
+                "4",
+                "--out",
+                str(ev),
+            ]
+        )
+        == 0
+    )
     assert "iter-4" in (ev / "evaluation.md").read_text()
     # the ground truth as sequence files (a simulate()'s save(), or a data set's clips)
     ev2 = tmp_path / "eval2"
-    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data",
-                 str(toy_dataset / "sequences" / "c.npz"), "--horizons", "4",
-                 "--out", str(ev2)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "evaluate",
+                "--checkpoint",
+                str(run / "model.pt"),
+                "--data",
+                str(toy_dataset / "sequences" / "c.npz"),
+                "--horizons",
+                "4",
+                "--out",
+                str(ev2),
+            ]
+        )
+        == 0
+    )
     a, b = (json.loads((e / "evaluation.json").read_text()) for e in (ev, ev2))
     assert a["clips"]["c"]["rmse_cm"] == pytest.approx(b["clips"]["c"]["rmse_cm"], rel=1e-6)
     out = tmp_path / "anim"
-    assert main(["animate", str(run / "model.pt"), "sway", "--frames", "20",
-                 "--out", str(out), "--export", str(tmp_path / "sway.usdc")]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "animate",
+                str(run / "model.pt"),
+                "sway",
+                "--frames",
+                "20",
+                "--out",
+                str(out),
+                "--export",
+                str(tmp_path / "sway.usdc"),
+            ]
+        )
+        == 0
+    )
     seq = AnimatedGarment.load(out / "sway.npz")
     assert seq.garment_vertices.shape == (20, DatasetReader(toy_dataset).template.num_vertices, 3)
     from pxr import Usd, UsdGeom
 
     stage = Usd.Stage.Open(str(tmp_path / "sway.usdc"))
     points = UsdGeom.Mesh(stage.GetPrimAtPath("/loosefit/garment")).GetPointsAttr()
-    np.testing.assert_array_equal(np.asarray(points.Get(Usd.TimeCode(19))),
-                                  seq.garment_vertices[19])  # fmt: skip
+    np.testing.assert_array_equal(
+        np.asarray(points.Get(Usd.TimeCode(19))), seq.garment_vertices[19]
+    )
     assert (
         main(["train", "baseline", "--data", str(toy_dataset), "--out", str(tmp_path / "x")]) == 2
     )
@@ -176,12 +244,25 @@ def test_a_broken_baseline_checkpoint_is_a_clear_error(trained, tmp_path):
     out, _, _ = trained
     saved = load_torch(out / "model.pt")
 
-    @settings(max_examples=30, deadline=None, derandomize=True,
-              suppress_health_check=[HealthCheck.too_slow])  # fmt: skip
-    @given(key=st.sampled_from(sorted(saved)), how=st.sampled_from(["delete", "value", "cut"]),
-           value=st.one_of(st.none(), st.integers(), st.text(max_size=3), st.just([1, 2]),
-                           st.just({"x": 1}), st.just(torch.full((2, 2), float("nan")))),
-           cut=st.floats(0.0, 0.99))  # fmt: skip
+    @settings(
+        max_examples=30,
+        deadline=None,
+        derandomize=True,
+        suppress_health_check=[HealthCheck.too_slow],
+    )
+    @given(
+        key=st.sampled_from(sorted(saved)),
+        how=st.sampled_from(["delete", "value", "cut"]),
+        value=st.one_of(
+            st.none(),
+            st.integers(),
+            st.text(max_size=3),
+            st.just([1, 2]),
+            st.just({"x": 1}),
+            st.just(torch.full((2, 2), float("nan"))),
+        ),
+        cut=st.floats(0.0, 0.99),
+    )
     def check(key, how, value, cut):
         path = tmp_path / "broken.pt"
         if how == "cut":

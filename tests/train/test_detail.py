@@ -33,10 +33,22 @@ def motion(toy_dataset, generative, skirt, tmp_path_factory):
     cfg = tm.TrainMotionConfig(
         model=MotionEncoderConfig(motion_fc=16, gru=24),
         rollout=RolloutConfig(warm_frames=2, blend_seconds=0.1),
-        epochs=6, batch_size=2, window=6, lr=3e-3, checkpoint_every=1, eval_every=1000,
-    )  # fmt: skip
-    tm.train_motion(toy_dataset, generative, out, cfg, log=lambda *_: None, progress=False,
-                    rest_state=torch.from_numpy(skirt.vertices))  # fmt: skip
+        epochs=6,
+        batch_size=2,
+        window=6,
+        lr=3e-3,
+        checkpoint_every=1,
+        eval_every=1000,
+    )
+    tm.train_motion(
+        toy_dataset,
+        generative,
+        out,
+        cfg,
+        log=lambda *_: None,
+        progress=False,
+        rest_state=torch.from_numpy(skirt.vertices),
+    )
     return out / "model.pt"
 
 
@@ -48,8 +60,9 @@ def _config(**kw) -> td.TrainDetailConfig:
 @pytest.fixture(scope="module")
 def trained(toy_dataset, motion, tmp_path_factory):
     out = tmp_path_factory.mktemp("detail")
-    report = td.train_detail(toy_dataset, motion, out, _config(), log=lambda *_: None,
-                             progress=False)  # fmt: skip
+    report = td.train_detail(
+        toy_dataset, motion, out, _config(), log=lambda *_: None, progress=False
+    )
     return out, report
 
 
@@ -75,8 +88,14 @@ def test_the_pairs_are_the_motion_stages_own_rollouts(trained, motion, toy_datas
 
 
 def test_without_discriminator_has_no_adversarial_terms(toy_dataset, motion, tmp_path):
-    report = td.train_detail(toy_dataset, motion, tmp_path, _config(epochs=2, discriminator=False),
-                             log=lambda *_: None, progress=False)  # fmt: skip
+    report = td.train_detail(
+        toy_dataset,
+        motion,
+        tmp_path,
+        _config(epochs=2, discriminator=False),
+        log=lambda *_: None,
+        progress=False,
+    )
     assert "discriminator" not in report["history"][0]
     assert not report["discriminator"]
     assert "edge" not in report["history"][0]  # the paper's Eq. 13 unless asked
@@ -85,8 +104,9 @@ def test_without_discriminator_has_no_adversarial_terms(toy_dataset, motion, tmp
 def test_the_edge_length_term_is_trained_when_weighted(toy_dataset, motion, tmp_path):
     cfg = _config(epochs=2, discriminator=False)
     cfg.loss.edge = 1.0
-    report = td.train_detail(toy_dataset, motion, tmp_path, cfg, log=lambda *_: None,
-                             progress=False)  # fmt: skip
+    report = td.train_detail(
+        toy_dataset, motion, tmp_path, cfg, log=lambda *_: None, progress=False
+    )
     assert report["history"][0]["edge"] > 0
     assert report["history"][-1]["total"] < report["history"][0]["total"]
 
@@ -174,8 +194,16 @@ def test_animate_without_later_stages_is_the_motion_stage_rollout(
     motion_file = tmp_path / "c.npz"
     seq.motion.save(motion_file)
     dest = tmp_path / "anim"
-    args = ["animate", str(out / "model.pt"), str(motion_file), "--out", str(dest),
-            "--no-detail", "--no-lengths", "--no-collision"]  # fmt: skip
+    args = [
+        "animate",
+        str(out / "model.pt"),
+        str(motion_file),
+        "--out",
+        str(dest),
+        "--no-detail",
+        "--no-lengths",
+        "--no-collision",
+    ]
     assert main(args) == 0
     got = np.load(next(dest.glob("*.npz")))["garment_vertices"]
     model = inf.load_animation_model(motion)
@@ -186,13 +214,22 @@ def test_animate_without_later_stages_is_the_motion_stage_rollout(
 def test_warm_start_begins_from_the_given_generator(trained, toy_dataset, motion, tmp_path):
     run, _ = trained
     quiet = dict(log=lambda *_: None, progress=False)
-    td.train_detail(toy_dataset, motion, tmp_path / "fine",
-                    _config(epochs=1, lr=0.0, init=str(run / "model.pt")), **quiet)  # fmt: skip
+    td.train_detail(
+        toy_dataset,
+        motion,
+        tmp_path / "fine",
+        _config(epochs=1, lr=0.0, init=str(run / "model.pt")),
+        **quiet,
+    )
     a = torch.load(run / "model.pt", weights_only=False)["model"]
     b = torch.load(tmp_path / "fine" / "checkpoint.pt", weights_only=False)["model"]
     assert all(torch.equal(a[k].float(), b[k].float()) for k in a)
     other = DetailConfig(disc_channels=(4, 8, 8), patches=(32, 16), global_hidden=(8, 4))
     with pytest.raises(LoosefitInputError, match="model"):
-        td.train_detail(toy_dataset, motion, tmp_path / "other",
-                        _config(epochs=1, model=other, init=str(run / "model.pt")),
-                        **quiet)  # fmt: skip
+        td.train_detail(
+            toy_dataset,
+            motion,
+            tmp_path / "other",
+            _config(epochs=1, model=other, init=str(run / "model.pt")),
+            **quiet,
+        )

@@ -33,12 +33,22 @@ if world > 1:
 def test_two_processes_follow_one_process_s_loss_curve(toy_dataset, tmp_path):
     one, two = tmp_path / "one", tmp_path / "two"
     init = f"file://{tmp_path / 'rendezvous'}"
-    single = subprocess.run([sys.executable, "-c", RUN, "0", "1", init, str(toy_dataset),
-                             str(one)], capture_output=True, text=True, timeout=600)  # fmt: skip
+    single = subprocess.run(
+        [sys.executable, "-c", RUN, "0", "1", init, str(toy_dataset), str(one)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert single.returncode == 0, single.stderr[-3000:]
-    procs = [subprocess.Popen([sys.executable, "-c", RUN, str(r), "2", init, str(toy_dataset),
-                               str(two)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              text=True) for r in range(2)]  # fmt: skip
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", RUN, str(r), "2", init, str(toy_dataset), str(two)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for r in range(2)
+    ]
     for p in procs:
         _, err = p.communicate(timeout=600)
         assert p.returncode == 0, err[-3000:]
@@ -60,8 +70,9 @@ def test_two_processes_follow_one_process_s_loss_curve(toy_dataset, tmp_path):
     ga, _ = load_generative(one / "checkpoint.pt")
     gb, _ = load_generative(two / "checkpoint.pt")
     with torch.no_grad():
-        torch.testing.assert_close(gb.reconstruct_all(x, 8), ga.reconstruct_all(x, 8),
-                                   rtol=1e-3, atol=1e-4)  # fmt: skip
+        torch.testing.assert_close(
+            gb.reconstruct_all(x, 8), ga.reconstruct_all(x, 8), rtol=1e-3, atol=1e-4
+        )
     assert (two / "report.json").is_file()  # written once, by the first process
 
 
@@ -95,12 +106,22 @@ def test_two_processes_train_the_motion_stage_as_one(toy_dataset, generative, sk
     rest = tmp_path / "rest.npy"
     np.save(rest, skirt.vertices.astype(np.float32))
     common = [init, str(toy_dataset), str(generative), str(rest)]
-    single = subprocess.run([sys.executable, "-c", RUN_MOTION, "0", "1", *common, str(one)],
-                            capture_output=True, text=True, timeout=600)  # fmt: skip
+    single = subprocess.run(
+        [sys.executable, "-c", RUN_MOTION, "0", "1", *common, str(one)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert single.returncode == 0, single.stderr[-3000:]
-    procs = [subprocess.Popen([sys.executable, "-c", RUN_MOTION, str(r), "2", *common, str(two)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for r in range(2)]  # fmt: skip
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", RUN_MOTION, str(r), "2", *common, str(two)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for r in range(2)
+    ]
     for p in procs:
         _, err = p.communicate(timeout=600)
         assert p.returncode == 0, err[-3000:]
@@ -125,10 +146,32 @@ def test_torchrun_trains_the_motion_stage_once_reported(toy_dataset, generative,
     run = tmp_path / "run"
     run.mkdir()
     np.save(run / "rest_state.npy", skirt.vertices.astype(np.float32))  # no cloth to settle
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc-per-node", "2",
-           "-m", "loosefit.cli", "train", "motion", "--data", str(toy_dataset), "--generative",
-           str(generative), "--preset", "cpu", "--epochs", "1", "--max-frames", "8",
-           "--threads", "1", "--out", str(run)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "torch.distributed.run",
+        "--standalone",
+        "--nproc-per-node",
+        "2",
+        "-m",
+        "loosefit.cli",
+        "train",
+        "motion",
+        "--data",
+        str(toy_dataset),
+        "--generative",
+        str(generative),
+        "--preset",
+        "cpu",
+        "--epochs",
+        "1",
+        "--max-frames",
+        "8",
+        "--threads",
+        "1",
+        "--out",
+        str(run),
+    ]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stdout.count("# Dynamic motion encoder") == 1  # the report, once
@@ -141,9 +184,24 @@ def test_torchrun_refuses_the_detail_and_baseline_stages(toy_dataset, tmp_path):
     env = {**os.environ, "WORLD_SIZE": "2", "RANK": "0", "LOCAL_RANK": "0"}
     own = {"detail": ["--motion", "x.pt"], "baseline": ["--method", "santesteban"]}
     for stage in ("detail", "baseline"):
-        run = subprocess.run([sys.executable, "-m", "loosefit.cli", "train", stage, "--data",
-                              str(toy_dataset), *own[stage], "--out", str(tmp_path / stage)],
-                             capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
+        run = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "loosefit.cli",
+                "train",
+                stage,
+                "--data",
+                str(toy_dataset),
+                *own[stage],
+                "--out",
+                str(tmp_path / stage),
+            ],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=300,
+        )
         assert run.returncode == 2 and "torchrun" in run.stderr, run.stderr[-2000:]
         assert "generative or motion" in run.stderr
         assert not (tmp_path / stage).exists()

@@ -22,14 +22,31 @@ def test_a_dress_trains_and_animates_a_motion_it_never_saw(tmp_path, avatar):
     data = tmp_path / "dress"
     generate(preset("dress-tiny"), data, workers=1, progress=False)
     quiet = dict(log=lambda *_: None, progress=False)
-    gcfg = TrainGenerativeConfig(model=GenerativeConfig(**SMALL), epochs=6, batch_size=8,
-                                 lr=2e-3, eval_every=1000, checkpoint_every=3)  # fmt: skip
+    gcfg = TrainGenerativeConfig(
+        model=GenerativeConfig(**SMALL),
+        epochs=6,
+        batch_size=8,
+        lr=2e-3,
+        eval_every=1000,
+        checkpoint_every=3,
+    )
     train_generative(data, tmp_path / "gen", gcfg, **quiet)
-    mcfg = TrainMotionConfig(model=MotionEncoderConfig(motion_fc=16, gru=24),
-                             rollout=RolloutConfig(warm_frames=2, blend_seconds=0.1), epochs=3,
-                             batch_size=2, window=6, lr=3e-3, eval_every=1000)  # fmt: skip
-    report = train_motion(data, tmp_path / "gen" / "checkpoint.pt", tmp_path / "motion",
-                          dataclasses.replace(mcfg), **quiet)  # fmt: skip
+    mcfg = TrainMotionConfig(
+        model=MotionEncoderConfig(motion_fc=16, gru=24),
+        rollout=RolloutConfig(warm_frames=2, blend_seconds=0.1),
+        epochs=3,
+        batch_size=2,
+        window=6,
+        lr=3e-3,
+        eval_every=1000,
+    )
+    report = train_motion(
+        data,
+        tmp_path / "gen" / "checkpoint.pt",
+        tmp_path / "motion",
+        dataclasses.replace(mcfg),
+        **quiet,
+    )
     assert np.isfinite(report["test"]["rmse_cm"])
     model = loosefit.load(tmp_path / "motion" / "model.pt")
     # as the data was simulated: the upper arms in the body, the forearms a mesh of their own

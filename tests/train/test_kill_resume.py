@@ -56,8 +56,9 @@ train_detail(sys.argv[1], sys.argv[3], sys.argv[2], cfg, log=print, progress=Fal
 
 
 def _run(code: str, *args) -> subprocess.CompletedProcess:
-    run = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True,
-                         text=True, timeout=600)  # fmt: skip
+    run = subprocess.run(
+        [sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True, timeout=600
+    )
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:]
     return run
 
@@ -66,8 +67,11 @@ def _kill_when(code: str, args: list, appears: Path, seed: int) -> None:
     """Start the run, SIGKILL it a random moment after ``appears`` exists, and before the file
     is written again three times (a toy run's epochs can be shorter than the random wait: it
     must still be killed before its end)."""
-    proc = subprocess.Popen([sys.executable, "-c", code, *map(str, args)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, *map(str, args)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.monotonic() + 300
         while not appears.exists():
@@ -99,12 +103,15 @@ def motion_stage(toy_dataset, generative, tmp_path_factory):
 
 
 @pytest.mark.parametrize("stage", ["generative", "motion", "detail"])
-def test_a_killed_training_resumes_to_the_same_weights(stage, toy_dataset, generative, tmp_path,
-                                                       request):  # fmt: skip
+def test_a_killed_training_resumes_to_the_same_weights(
+    stage, toy_dataset, generative, tmp_path, request
+):
     code = {"generative": TRAIN_GENERATIVE, "motion": TRAIN_MOTION, "detail": TRAIN_DETAIL}[stage]
-    extra = {"generative": [], "motion": [generative],
-             "detail": [request.getfixturevalue("motion_stage")] if stage == "detail" else []
-             }[stage]  # fmt: skip
+    extra = {
+        "generative": [],
+        "motion": [generative],
+        "detail": [request.getfixturevalue("motion_stage")] if stage == "detail" else [],
+    }[stage]
     whole, killed = tmp_path / "whole", tmp_path / "killed"
     _run(code, toy_dataset, whole, *extra)
     _kill_when(code, [toy_dataset, killed, *extra], killed / "checkpoint.pt", seed=len(stage))

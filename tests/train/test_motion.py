@@ -31,14 +31,26 @@ def _config(**kw) -> tm.TrainMotionConfig:
     cfg = tm.TrainMotionConfig(
         model=MotionEncoderConfig(motion_fc=16, gru=24),
         rollout=RolloutConfig(warm_frames=2, blend_seconds=0.1),
-        epochs=12, batch_size=2, window=6, lr=3e-3, checkpoint_every=1, eval_every=1000,
-    )  # fmt: skip
+        epochs=12,
+        batch_size=2,
+        window=6,
+        lr=3e-3,
+        checkpoint_every=1,
+        eval_every=1000,
+    )
     return dataclasses.replace(cfg, **kw)
 
 
 def _train(toy_dataset, generative, skirt, out, **kw):
-    return tm.train_motion(toy_dataset, generative, out, _config(**kw), log=lambda *_: None,
-                           progress=False, rest_state=torch.from_numpy(skirt.vertices))  # fmt: skip
+    return tm.train_motion(
+        toy_dataset,
+        generative,
+        out,
+        _config(**kw),
+        log=lambda *_: None,
+        progress=False,
+        rest_state=torch.from_numpy(skirt.vertices),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -78,8 +90,9 @@ def _windows(trained, toy_dataset, skirt):
     """The trained toy model, its training clips stacked (features differentiable), a Laplacian."""
     model = inf.load_animation_model(trained[0] / "model.pt")
     reader = DatasetReader(toy_dataset)
-    clips = prepare_clips(reader, "train", model.generative, model.floor_height,
-                             model.rollout_config)  # fmt: skip
+    clips = prepare_clips(
+        reader, "train", model.generative, model.floor_height, model.rollout_config
+    )
     batch = stack_clips(clips)
     batch["features"] = batch["features"].clone().requires_grad_(True)
     model.encoder.train()
@@ -92,16 +105,18 @@ def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, ski
     hidden = enc.initial_hidden(2)
     prev = model.rest_state[None].expand(2, -1, -1)
     loss = tm.MotionLossConfig()
-    first, hidden, prev = tm.run_window(enc, model.generative, lap, batch, 0, 10, hidden, prev,
-                                        0.0, loss)  # fmt: skip
+    first, hidden, prev = tm.run_window(
+        enc, model.generative, lap, batch, 0, 10, hidden, prev, 0.0, loss
+    )
     second, _, _ = tm.run_window(enc, model.generative, lap, batch, 10, 20, hidden, prev, 0.0, loss)
     (g,) = torch.autograd.grad(second["total"], batch["features"])
     assert g[:, :10].abs().max() == 0  # nothing flows back into the previous window
     assert g[:, 10:20].abs().max() > 0
 
 
-def test_resume_after_a_kill_gives_the_same_model(toy_dataset, generative, skirt, tmp_path,
-                                                  monkeypatch, trained):  # fmt: skip
+def test_resume_after_a_kill_gives_the_same_model(
+    toy_dataset, generative, skirt, tmp_path, monkeypatch, trained
+):
     saves = []
     real = loop.save_checkpoint
 
@@ -117,8 +132,15 @@ def test_resume_after_a_kill_gives_the_same_model(toy_dataset, generative, skirt
     monkeypatch.setattr(loop, "save_checkpoint", real)
     assert not (tmp_path / "run" / "report.json").exists()  # nothing that looks finished
     lines = []
-    tm.train_motion(toy_dataset, generative, tmp_path / "run", _config(), log=lines.append,
-                    progress=False, rest_state=torch.from_numpy(skirt.vertices))  # fmt: skip
+    tm.train_motion(
+        toy_dataset,
+        generative,
+        tmp_path / "run",
+        _config(),
+        log=lines.append,
+        progress=False,
+        rest_state=torch.from_numpy(skirt.vertices),
+    )
     assert any("resumed" in s and "epoch 5" in s for s in lines)
     whole = torch.load(trained[0] / "model.pt", weights_only=False)["model"]
     resumed = torch.load(tmp_path / "run" / "model.pt", weights_only=False)["model"]
@@ -141,8 +163,14 @@ def test_ablation_without_previous_state_trains(toy_dataset, generative, skirt, 
 
 
 def test_encoder_on_the_lower_body_joints(toy_dataset, generative, skirt, tmp_path, avatar):
-    report = _train(toy_dataset, generative, skirt, tmp_path / "lower", epochs=2,
-                    model=MotionEncoderConfig(motion_fc=16, gru=24, joints="lower"))  # fmt: skip
+    report = _train(
+        toy_dataset,
+        generative,
+        skirt,
+        tmp_path / "lower",
+        epochs=2,
+        model=MotionEncoderConfig(motion_fc=16, gru=24, joints="lower"),
+    )
     assert np.isfinite(report["test"]["rmse_cm"])
     model = inf.load_animation_model(tmp_path / "lower" / "model.pt")
     assert model.encoder.config.joints == "lower"
@@ -168,8 +196,13 @@ def test_bad_inputs_are_clear_errors(trained, toy_dataset, generative, avatar, t
     out, _ = trained
     model = inf.load_animation_model(out / "model.pt")
     motion = DatasetReader(toy_dataset).read("c").motion
-    fewer = Motion(motion.joint_names[:-1], motion.rotations[:, :-1], motion.root_translation,
-                   motion.fps, "fewer")  # fmt: skip
+    fewer = Motion(
+        motion.joint_names[:-1],
+        motion.rotations[:, :-1],
+        motion.root_translation,
+        motion.fps,
+        "fewer",
+    )
     with pytest.raises(LoosefitInputError, match="joint_names"):
         model.animate(fewer)
     # A generative checkpoint where the motion stage's is expected.
@@ -177,8 +210,9 @@ def test_bad_inputs_are_clear_errors(trained, toy_dataset, generative, avatar, t
         inf.load_animation_model(generative)
     # Another generative model than the encoder was trained on.
     other = torch.load(generative, weights_only=False)
-    other["model"] = {k: v + 0.01 if v.is_floating_point() else v
-                      for k, v in other["model"].items()}  # fmt: skip
+    other["model"] = {
+        k: v + 0.01 if v.is_floating_point() else v for k, v in other["model"].items()
+    }
     torch.save(other, tmp_path / "other.pt")
     with pytest.raises(LoosefitInputError, match="fingerprint"):
         inf.load_animation_model(out / "model.pt", generative=tmp_path / "other.pt")
@@ -203,8 +237,7 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     data = ["--data", str(toy_dataset), "--preset", "cpu", "--epochs", "1", "--max-frames", "8"]
     assert main(["train", "generative", *data, "--out", str(gen_run)]) == 0
     gen = str(gen_run / "checkpoint.pt")
-    assert main(["train", "motion", *data, "--generative", gen, "--out", str(run),
-                 "--mirror"]) == 0  # fmt: skip
+    assert main(["train", "motion", *data, "--generative", gen, "--out", str(run), "--mirror"]) == 0
     assert (run / "model.pt").is_file() and (run / "rest_state.npy").is_file()
     assert torch.load(run / "model.pt", weights_only=False)["config"]["mirror"] is True
 
@@ -216,8 +249,22 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     assert np.isfinite(seq.garment_vertices).all()
 
     ev = tmp_path / "eval"
-    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
-                 "--horizons", "4,8", "--out", str(ev)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "evaluate",
+                "--checkpoint",
+                str(run / "model.pt"),
+                "--data",
+                str(toy_dataset),
+                "--horizons",
+                "4,8",
+                "--out",
+                str(ev),
+            ]
+        )
+        == 0
+    )
     for name in ("evaluation.md", "evaluation.csv", "evaluation.json", "rmse_per_frame.png"):
         assert (ev / name).is_file(), name
     assert "iter-8" in (ev / "evaluation.md").read_text()
@@ -228,19 +275,37 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     # its engine tier, trained from the command line, beside it, and exported from it
     eng = tmp_path / "engine"
     engine_args = ["--basis", "4", "--targets", "rollout", "--membrane-weight", "10"]
-    assert main(["train", "engine", *data, "--motion", str(run / "model.pt"), *engine_args,
-                 "--out", str(eng)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "train",
+                "engine",
+                *data,
+                "--motion",
+                str(run / "model.pt"),
+                *engine_args,
+                "--out",
+                str(eng),
+            ]
+        )
+        == 0
+    )
     tier = torch.load(eng / "engine.pt", weights_only=False)
     assert tier["config"]["targets"] == "rollout" and tier["model_config"]["engine"]["basis"] == 4
     assert (eng / "report.md").is_file()
     onnx = tmp_path / "engine.onnx"
-    assert main(["export-model", str(onnx), "--checkpoint", str(eng / "engine.pt"),
-                 "--tier", "engine"]) == 0  # fmt: skip
+    assert (
+        main(
+            ["export-model", str(onnx), "--checkpoint", str(eng / "engine.pt"), "--tier", "engine"]
+        )
+        == 0
+    )
     assert onnx.is_file() and onnx.with_suffix(".json").is_file()
 
 
-def test_package_writes_a_pair_that_loads_and_animates_alike(trained, toy_dataset, generative,
-                                                              tmp_path):  # fmt: skip
+def test_package_writes_a_pair_that_loads_and_animates_alike(
+    trained, toy_dataset, generative, tmp_path
+):
     out, _ = trained
     gout, mout = package_model(out / "model.pt", tmp_path / "shared")
     assert {p.name for p in (tmp_path / "shared").iterdir()} == {"generative.pt", "motion.pt"}
@@ -290,12 +355,15 @@ def test_reference_carries_the_rest_drape_with_the_root(trained, toy_dataset):
     assert moved.shape == (16, model.template.num_vertices, 3)
     # A rigid copy of the drape in every frame: the same edge lengths, on the root.
     i, j = model.template.faces[:, 0], model.template.faces[:, 1]
-    np.testing.assert_allclose(np.linalg.norm(moved[:, i] - moved[:, j], axis=-1),
-                               np.broadcast_to(np.linalg.norm(rest[i] - rest[j], axis=-1),
-                                               (16, len(i))), atol=1e-5)  # fmt: skip
+    np.testing.assert_allclose(
+        np.linalg.norm(moved[:, i] - moved[:, j], axis=-1),
+        np.broadcast_to(np.linalg.norm(rest[i] - rest[j], axis=-1), (16, len(i))),
+        atol=1e-5,
+    )
     offset = moved.mean(1) - motion.root_translation
-    np.testing.assert_allclose(np.linalg.norm(offset, axis=-1),
-                               np.linalg.norm(rest.mean(0)), atol=1e-4)  # fmt: skip
+    np.testing.assert_allclose(
+        np.linalg.norm(offset, axis=-1), np.linalg.norm(rest.mean(0)), atol=1e-4
+    )
     # Scored like a rollout, and not the rollout's score.
     ref = evaluate_rollouts(model, reader, "test", surface=False, reference=True)
     learned = evaluate_rollouts(model, reader, "test", surface=False)
@@ -310,13 +378,15 @@ def test_oracle_scores_the_generative_models_own_code_of_the_truth(trained, toy_
     oracle = evaluate_rollouts(model, reader, "test", surface=False, oracle=True)
     # The same thing in the root frame, from the training targets (Z* decoded): RMSE is
     # rigid-invariant, so the world-frame score must match.
-    (clip,) = prepare_clips(reader, "test", model.generative, model.floor_height,
-                               model.rollout_config)  # fmt: skip
+    (clip,) = prepare_clips(
+        reader, "test", model.generative, model.floor_height, model.rollout_config
+    )
     with torch.no_grad():
         decoded = model.generative.decode(clip.latent)["vertices"]
     expected = 100 * (decoded - clip.target).pow(2).sum(-1).mean(-1).sqrt()
-    np.testing.assert_allclose(oracle["clips"][clip.name]["rmse_per_frame_cm"], expected.numpy(),
-                               rtol=1e-4, atol=1e-4)  # fmt: skip
+    np.testing.assert_allclose(
+        oracle["clips"][clip.name]["rmse_per_frame_cm"], expected.numpy(), rtol=1e-4, atol=1e-4
+    )
     learned = evaluate_rollouts(model, reader, "test", surface=False)
     assert oracle["rmse_cm"] != learned["rmse_cm"]
 
@@ -345,8 +415,10 @@ def test_restarts_reset_the_previous_state_to_the_truth(trained, toy_dataset):
         model.animate(seq.motion, truth=truth[:3], restart_every=k)
     # Scored like a rollout: no restart within the clip is the plain rollout's score.
     reader = DatasetReader(toy_dataset)
-    score = {n: evaluate_rollouts(model, reader, "test", surface=False, restart_every=n)
-             for n in (None, 16, k)}  # fmt: skip
+    score = {
+        n: evaluate_rollouts(model, reader, "test", surface=False, restart_every=n)
+        for n in (None, 16, k)
+    }
     assert score[16]["rmse_cm"] == score[None]["rmse_cm"] != score[k]["rmse_cm"]
 
 
@@ -356,8 +428,7 @@ def test_noise_on_the_previous_state(toy_dataset, generative, skirt, tmp_path):
     kw = dict(epochs=2, previous="teacher")
     _train(toy_dataset, generative, skirt, tmp_path / "a", **kw)
     _train(toy_dataset, generative, skirt, tmp_path / "b", previous_noise=0.03, **kw)
-    a, b = (torch.load(tmp_path / r / "checkpoint.pt", weights_only=False)["model"]
-            for r in "ab")  # fmt: skip
+    a, b = (torch.load(tmp_path / r / "checkpoint.pt", weights_only=False)["model"] for r in "ab")
     assert any(not torch.equal(a[k], b[k]) for k in a)  # the noise reaches the training
 
 
@@ -373,17 +444,26 @@ def test_teacher_schedule_falls_to_its_floor():
             _config(**bad)
 
 
-def test_unrolled_training_differentiates_through_its_own_predictions(trained, toy_dataset,
-                                                                       skirt):  # fmt: skip
+def test_unrolled_training_differentiates_through_its_own_predictions(trained, toy_dataset, skirt):
     model, batch, lap = _windows(trained, toy_dataset, skirt)
     enc = model.encoder
     prev = model.rest_state[None].expand(2, -1, -1)
 
     def grads(teacher: float, unroll: bool, start: int = 0, stop: int = 20):
         hidden = enc.initial_hidden(2)
-        terms, _, carried = tm.run_window(enc, model.generative, lap, batch, start, stop,
-                                          hidden, prev, teacher, tm.MotionLossConfig(),
-                                          unroll=unroll)  # fmt: skip
+        terms, _, carried = tm.run_window(
+            enc,
+            model.generative,
+            lap,
+            batch,
+            start,
+            stop,
+            hidden,
+            prev,
+            teacher,
+            tm.MotionLossConfig(),
+            unroll=unroll,
+        )
         assert not carried.requires_grad  # the next window starts detached either way
         return terms["total"], torch.autograd.grad(terms["total"], batch["features"])[0]
 
@@ -410,17 +490,18 @@ def test_mirrored_clips_are_the_clips_mirrored(trained, toy_dataset):
     twins = vertex_twins(reader.template.vertices)
     for c, m in zip(both[::2], both[1::2], strict=True):
         # Root frames follow the mirror, so the targets in them are mirrored too.
-        np.testing.assert_allclose(m.target.numpy(), mirror_garment(c.target.numpy(), twins),
-                                   atol=1e-4)  # fmt: skip
-        np.testing.assert_allclose(m.motion.root_translation,
-                                   c.motion.root_translation @ REFLECT)  # fmt: skip
+        np.testing.assert_allclose(
+            m.target.numpy(), mirror_garment(c.target.numpy(), twins), atol=1e-4
+        )
+        np.testing.assert_allclose(m.motion.root_translation, c.motion.root_translation @ REFLECT)
         assert not torch.allclose(m.features, c.features)  # a different dance for the encoder
     with pytest.raises(LoosefitInputError, match="mirror"):
         tm.TrainMotionConfig.preset("cpu", mirror="yes")
 
 
-def test_membrane_and_bending_terms_train_and_are_recorded(toy_dataset, generative, skirt,
-                                                            tmp_path):  # fmt: skip
+def test_membrane_and_bending_terms_train_and_are_recorded(
+    toy_dataset, generative, skirt, tmp_path
+):
     loss = tm.MotionLossConfig(membrane=20.0, bending=0.5)
     _train(toy_dataset, generative, skirt, tmp_path / "phys", epochs=3, loss=loss)
     history = torch.load(tmp_path / "phys" / "checkpoint.pt", weights_only=False)["history"]
@@ -444,19 +525,34 @@ def test_flare_term_trains_and_pulls_the_hem_out(toy_dataset, generative, skirt,
 def test_warm_start_from_a_packaged_encoder(trained, toy_dataset, generative, skirt, tmp_path):
     run, _ = trained
     package_model(run / "model.pt", tmp_path / "pack")  # half precision, as shipped
-    _train(toy_dataset, generative, skirt, tmp_path / "fine", epochs=1, lr=0.0,
-           init=str(tmp_path / "pack" / "motion.pt"))  # fmt: skip
+    _train(
+        toy_dataset,
+        generative,
+        skirt,
+        tmp_path / "fine",
+        epochs=1,
+        lr=0.0,
+        init=str(tmp_path / "pack" / "motion.pt"),
+    )
     src = torch.load(tmp_path / "pack" / "motion.pt", weights_only=False)["model"]
     got = torch.load(tmp_path / "fine" / "checkpoint.pt", weights_only=False)["model"]
     assert all(torch.equal(src[k].float(), got[k].float().half().float()) for k in src)
     with pytest.raises(LoosefitInputError, match="model_config.encoder"):
         other = MotionEncoderConfig(motion_fc=16, gru=32)
-        _train(toy_dataset, generative, skirt, tmp_path / "other", epochs=1, model=other,
-               init=str(run / "model.pt"))  # fmt: skip
+        _train(
+            toy_dataset,
+            generative,
+            skirt,
+            tmp_path / "other",
+            epochs=1,
+            model=other,
+            init=str(run / "model.pt"),
+        )
 
 
-def test_rollouts_start_from_the_data_set_s_recorded_drape(toy_dataset, generative, skirt,
-                                                           tmp_path):  # fmt: skip
+def test_rollouts_start_from_the_data_set_s_recorded_drape(
+    toy_dataset, generative, skirt, tmp_path
+):
     import shutil
 
     data = tmp_path / "ds"
@@ -474,16 +570,29 @@ def test_a_data_set_without_a_drape_needs_one_given_or_a_way_to_settle_it(
     toy_dataset, generative, tmp_path
 ):
     with pytest.raises(LoosefitInputError, match=r"rest_drape\.npy.*settle="):
-        tm.train_motion(toy_dataset, generative, tmp_path / "run", _config(epochs=1),
-                        log=lambda *_: None, progress=False)  # fmt: skip
+        tm.train_motion(
+            toy_dataset,
+            generative,
+            tmp_path / "run",
+            _config(epochs=1),
+            log=lambda *_: None,
+            progress=False,
+        )
     calls = []
 
     def settle(reader, fps):
         calls.append(fps)
         return torch.from_numpy(reader.template.vertices)
 
-    tm.train_motion(toy_dataset, generative, tmp_path / "run2", _config(epochs=1),
-                    log=lambda *_: None, progress=False, settle=settle)  # fmt: skip
+    tm.train_motion(
+        toy_dataset,
+        generative,
+        tmp_path / "run2",
+        _config(epochs=1),
+        log=lambda *_: None,
+        progress=False,
+        settle=settle,
+    )
     assert len(calls) == 1 and (tmp_path / "run2" / "rest_state.npy").is_file()
 
 
@@ -505,8 +614,23 @@ def test_evaluate_scores_a_model_against_each_clip_s_members(trained, toy_datase
     manifest["config"]["seed"] = 1
     (seed1 / "manifest.json").write_text(json.dumps(manifest))
     ev = tmp_path / "eval"
-    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
-                 "--members", str(seed1), "--rmse-only", "--out", str(ev)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "evaluate",
+                "--checkpoint",
+                str(run / "model.pt"),
+                "--data",
+                str(toy_dataset),
+                "--members",
+                str(seed1),
+                "--rmse-only",
+                "--out",
+                str(ev),
+            ]
+        )
+        == 0
+    )
     result = json.loads((ev / "evaluation.json").read_text())
     clip = result["ensemble"]["clips"]["c"]
     assert clip["members"]["labels"] == ["seed 0", "seed 1"]
@@ -518,8 +642,22 @@ def test_evaluate_scores_a_model_against_each_clip_s_members(trained, toy_datase
     manifest["config"]["cloth"]["density"] = 0.5
     (seed1 / "manifest.json").write_text(json.dumps(manifest))
     bad = tmp_path / "bad"
-    assert main(["evaluate", "--checkpoint", str(run / "model.pt"), "--data", str(toy_dataset),
-                 "--members", str(seed1), "--out", str(bad)]) == 2  # fmt: skip
+    assert (
+        main(
+            [
+                "evaluate",
+                "--checkpoint",
+                str(run / "model.pt"),
+                "--data",
+                str(toy_dataset),
+                "--members",
+                str(seed1),
+                "--out",
+                str(bad),
+            ]
+        )
+        == 2
+    )
     assert not bad.exists()
 
 
@@ -531,10 +669,30 @@ def test_a_stochastic_engine_tier_gives_one_realisation_a_seed(trained, toy_data
 
     run, _ = trained
     out = tmp_path / "stochastic"
-    args = ["train", "engine", "--data", str(toy_dataset), "--preset", "cpu", "--epochs", "2",
-            "--max-frames", "8", "--motion", str(run / "model.pt"), "--basis", "4",
-            "--noise", "2", "--noise-correlation", "0.9", "--samples", "2",
-            "--out", str(out)]  # fmt: skip
+    args = [
+        "train",
+        "engine",
+        "--data",
+        str(toy_dataset),
+        "--preset",
+        "cpu",
+        "--epochs",
+        "2",
+        "--max-frames",
+        "8",
+        "--motion",
+        str(run / "model.pt"),
+        "--basis",
+        "4",
+        "--noise",
+        "2",
+        "--noise-correlation",
+        "0.9",
+        "--samples",
+        "2",
+        "--out",
+        str(out),
+    ]
     assert main(args) == 0
     tier = load_engine(out / "engine.pt")
     assert tier.tier.config.noise == 2 and tier.tier.config.noise_correlation == 0.9
@@ -549,6 +707,10 @@ def test_a_stochastic_engine_tier_gives_one_realisation_a_seed(trained, toy_data
     assert not (tmp_path / "x").exists()
     # the graph has no noise input: refused, saying so, before anything is written
     onnx = tmp_path / "stochastic.onnx"
-    assert main(["export-model", str(onnx), "--checkpoint", str(out / "engine.pt"),
-                 "--tier", "engine"]) == 2  # fmt: skip
+    assert (
+        main(
+            ["export-model", str(onnx), "--checkpoint", str(out / "engine.pt"), "--tier", "engine"]
+        )
+        == 2
+    )
     assert not onnx.exists()

@@ -34,15 +34,30 @@ def one_thread():
 
 
 def _generative_config(**kw) -> TrainGenerativeConfig:
-    return TrainGenerativeConfig(model=GenerativeConfig(**SMALL), epochs=3, batch_size=8,
-                                 lr=2e-3, eval_every=1000, checkpoint_every=1000, **kw)  # fmt: skip
+    return TrainGenerativeConfig(
+        model=GenerativeConfig(**SMALL),
+        epochs=3,
+        batch_size=8,
+        lr=2e-3,
+        eval_every=1000,
+        checkpoint_every=1000,
+        **kw,
+    )
 
 
 def _motion_config(**kw) -> tm.TrainMotionConfig:
-    return tm.TrainMotionConfig(model=MotionEncoderConfig(motion_fc=16, gru=24),
-                                rollout=RolloutConfig(warm_frames=2, blend_seconds=0.1),
-                                epochs=3, batch_size=2, window=6, lr=3e-3, previous="teacher",
-                                checkpoint_every=1000, eval_every=1000, **kw)  # fmt: skip
+    return tm.TrainMotionConfig(
+        model=MotionEncoderConfig(motion_fc=16, gru=24),
+        rollout=RolloutConfig(warm_frames=2, blend_seconds=0.1),
+        epochs=3,
+        batch_size=2,
+        window=6,
+        lr=3e-3,
+        previous="teacher",
+        checkpoint_every=1000,
+        eval_every=1000,
+        **kw,
+    )
 
 
 def _history(run) -> list[dict]:
@@ -68,8 +83,18 @@ def test_precision_is_fp32_or_bf16(toy_dataset, tmp_path):
         TrainGenerativeConfig.preset("cpu", precision="half")
     from loosefit.cli import main
 
-    detail = ["train", "detail", "--data", str(toy_dataset), "--motion", "x.pt",
-              "--precision", "bf16", "--out", str(tmp_path / "d")]  # fmt: skip
+    detail = [
+        "train",
+        "detail",
+        "--data",
+        str(toy_dataset),
+        "--motion",
+        "x.pt",
+        "--precision",
+        "bf16",
+        "--out",
+        str(tmp_path / "d"),
+    ]
     with pytest.raises(SystemExit) as exit_:  # fp32 only there: not a flag of the stage
         main(detail)
     assert exit_.value.code == 2 and not (tmp_path / "d").exists()
@@ -79,8 +104,13 @@ def test_bf16_generative_training_follows_fp32(toy_dataset, tmp_path, one_thread
     runs = {}
     for precision in ("fp32", "bf16"):
         runs[precision] = tmp_path / precision
-        train_generative(toy_dataset, runs[precision], _generative_config(precision=precision),
-                         log=lambda *_: None, progress=False)  # fmt: skip
+        train_generative(
+            toy_dataset,
+            runs[precision],
+            _generative_config(precision=precision),
+            log=lambda *_: None,
+            progress=False,
+        )
     _close(_history(runs["fp32"]), _history(runs["bf16"]))
     weights = torch.load(runs["bf16"] / "checkpoint.pt", weights_only=False)["model"]
     for k, w in weights.items():
@@ -108,16 +138,27 @@ def test_bf16_motion_training_follows_fp32(toy_dataset, generative, skirt, tmp_p
     runs = {}
     for precision in ("fp32", "bf16"):
         runs[precision] = tmp_path / precision
-        tm.train_motion(toy_dataset, generative, runs[precision],
-                        _motion_config(precision=precision), log=lambda *_: None,
-                        progress=False, rest_state=rest)  # fmt: skip
+        tm.train_motion(
+            toy_dataset,
+            generative,
+            runs[precision],
+            _motion_config(precision=precision),
+            log=lambda *_: None,
+            progress=False,
+            rest_state=rest,
+        )
     _close(_history(runs["fp32"]), _history(runs["bf16"]))
     model = load_animation_model(runs["bf16"] / "model.pt")
     assert all(torch.isfinite(p).all() for p in model.encoder.parameters())
 
     # one window of the same weights: float32 state carried on, terms close to fp32's
-    clips = prepare_clips(DatasetReader(toy_dataset), "train", model.generative,
-                             model.floor_height, model.rollout_config)  # fmt: skip
+    clips = prepare_clips(
+        DatasetReader(toy_dataset),
+        "train",
+        model.generative,
+        model.floor_height,
+        model.rollout_config,
+    )
     batch = stack_clips(clips)
     lap = Laplacian(skirt.faces, skirt.num_vertices)
     terms = {}
@@ -125,13 +166,26 @@ def test_bf16_motion_training_follows_fp32(toy_dataset, generative, skirt, tmp_p
         hidden = model.encoder.initial_hidden(2)
         prev = model.rest_state[None].expand(2, -1, -1)
         terms[precision], hidden, prev = tm.run_window(
-            model.encoder, model.generative, lap, batch, 0, 12, hidden, prev, 0.0,
-            tm.MotionLossConfig(), precision=precision,
-        )  # fmt: skip
+            model.encoder,
+            model.generative,
+            lap,
+            batch,
+            0,
+            12,
+            hidden,
+            prev,
+            0.0,
+            tm.MotionLossConfig(),
+            precision=precision,
+        )
         assert hidden.dtype == prev.dtype == terms[precision]["total"].dtype == torch.float32
     for k, v in terms["fp32"].items():  # (measured: total 0.5%, the Laplacian term 2% apart)
-        np.testing.assert_allclose(float(terms["bf16"][k].detach()), float(v.detach()),
-                                   rtol=0.02 if k == "total" else 0.05, err_msg=k)  # fmt: skip
+        np.testing.assert_allclose(
+            float(terms["bf16"][k].detach()),
+            float(v.detach()),
+            rtol=0.02 if k == "total" else 0.05,
+            err_msg=k,
+        )
 
 
 def test_runs_from_before_the_precision_field_resume_as_fp32(tmp_path):

@@ -30,8 +30,9 @@ def test_training_refuses_a_clip_of_another_garment_naming_both_fingerprints(tmp
     other = _template()
     other.vertices = other.vertices + 0.01
     ref = _sequence("s1", 7, 1.0)
-    AnimatedGarment(ref.motion, other, ref.garment_vertices, ref.avatar,
-                    "test").save(root / "sequences" / "s1.npz")  # fmt: skip
+    AnimatedGarment(ref.motion, other, ref.garment_vertices, ref.avatar, "test").save(
+        root / "sequences" / "s1.npz"
+    )
     with pytest.raises(LoosefitInputError, match=r"s1\.npz.*another garment") as err:
         READERS["motion"](DatasetReader(root))
     for garment in (_template(), other):

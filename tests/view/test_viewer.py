@@ -47,8 +47,13 @@ def clips(toy_dataset):
     """The toy data set's clip 'a' (its hem swings) and the same clip, hem still."""
     seqs, labels, sources = read_sequences(data=toy_dataset, clip="a")
     a = seqs[0]
-    still = AnimatedGarment(a.motion, a.garment, np.repeat(a.garment_vertices[:1], a.num_frames,
-                                                           axis=0), a.avatar, "still")  # fmt: skip
+    still = AnimatedGarment(
+        a.motion,
+        a.garment,
+        np.repeat(a.garment_vertices[:1], a.num_frames, axis=0),
+        a.avatar,
+        "still",
+    )
     return a, still
 
 
@@ -90,13 +95,25 @@ def test_the_panel_lists_the_controls_it_shows(clips):
     a, still = clips
     viewer = view([a], names=["clip a"], config=ViewerConfig(port=0, play=False))
     try:  # one sequence, plain: no reference to pick, no scale
-        assert viewer.panel_labels == ["Playback", "Sequences", "Colour", "Play", "frame",
-                                       "speed", "camera follows", "loop", "layout", "bodies",
-                                       "clip a", "colour by"]  # fmt: skip
+        assert viewer.panel_labels == [
+            "Playback",
+            "Sequences",
+            "Colour",
+            "Play",
+            "frame",
+            "speed",
+            "camera follows",
+            "loop",
+            "layout",
+            "bodies",
+            "clip a",
+            "colour by",
+        ]
     finally:
         viewer.close()
-    viewer = view([a, still], names=["a", "still"],
-                  config=ViewerConfig(port=0, play=True, colouring="error"))  # fmt: skip
+    viewer = view(
+        [a, still], names=["a", "still"], config=ViewerConfig(port=0, play=True, colouring="error")
+    )
     try:
         labels = viewer.panel_labels
         assert "Pause" in labels and {"a", "still", "reference", "scale max"} <= set(labels)
@@ -112,8 +129,9 @@ def test_a_screenshot_waits_for_the_whole_panel(clips, chromium_binary, tmp_path
     from loosefit.view.headless import PANEL
 
     a, still = clips
-    viewer = view([a, still], names=["a", "still"],
-                  config=ViewerConfig(port=0, play=False, colouring="error"))  # fmt: skip
+    viewer = view(
+        [a, still], names=["a", "still"], config=ViewerConfig(port=0, play=False, colouring="error")
+    )
     try:
         labels = viewer.panel_labels
         with Chromium(chromium_binary, width=1000, height=800) as browser:
@@ -178,8 +196,9 @@ def test_frames_drawn_and_new_frames_are_counted(clips, chromium_binary):
 
 def test_frames_and_colourings_through_the_api(clips):
     a, still = clips
-    viewer = view([a, still], names=["a", "still"],
-                  config=ViewerConfig(port=0, play=False, colouring="error"))  # fmt: skip
+    viewer = view(
+        [a, still], names=["a", "still"], config=ViewerConfig(port=0, play=False, colouring="error")
+    )
     try:
         viewer.set_frame(5)
         assert viewer.frame == 5 and int(viewer.slider.value) == 5
@@ -271,8 +290,23 @@ def test_demo_view_opens_the_demo_result(tmp_path, monkeypatch, capsys, avatar):
 
     served = []
     monkeypatch.setattr(Viewer, "wait", lambda self: (served.append(self), self.close()))
-    args = ["demo", "--out", str(tmp_path), "--motion", "kick", "--no-physics", "--size", "48",
-            "--views", "front", "--max-frames", "6", "--view", "--port", "0"]  # fmt: skip
+    args = [
+        "demo",
+        "--out",
+        str(tmp_path),
+        "--motion",
+        "kick",
+        "--no-physics",
+        "--size",
+        "48",
+        "--views",
+        "front",
+        "--max-frames",
+        "6",
+        "--view",
+        "--port",
+        "0",
+    ]
     assert main(args) == 0
     (viewer,) = served
     assert viewer.num_frames == 6 and viewer.sequences[0].name == "demo (rigid)"

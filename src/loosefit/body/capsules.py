@@ -49,8 +49,13 @@ class Capsule:
     radius: float
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "joint": self.joint, "start": list(self.start),
-                "end": list(self.end), "radius": self.radius}  # fmt: skip
+        return {
+            "name": self.name,
+            "joint": self.joint,
+            "start": list(self.start),
+            "end": list(self.end),
+            "radius": self.radius,
+        }
 
 
 def _point(spec: str, names: tuple[str, ...], heads: np.ndarray) -> np.ndarray:
@@ -92,8 +97,7 @@ def fit_capsules(
         along = (t >= 0) & (t <= 1)
         radius = float(np.median(d[along] if along.any() else d))
         h = heads[names.index(joint)]
-        out.append(Capsule(name, joint, tuple(map(float, a - h)), tuple(map(float, b - h)),
-                           radius))  # fmt: skip
+        out.append(Capsule(name, joint, tuple(map(float, a - h)), tuple(map(float, b - h)), radius))
     return out
 
 
@@ -109,9 +113,12 @@ def avatar_capsules(avatar) -> list[Capsule]:
 
 
 def joint_frames(
-    rotations: np.ndarray, root: np.ndarray, parents: np.ndarray, offsets: np.ndarray,
+    rotations: np.ndarray,
+    root: np.ndarray,
+    parents: np.ndarray,
+    offsets: np.ndarray,
     wanted: list[int] | None = None,
-) -> np.ndarray:  # fmt: skip
+) -> np.ndarray:
     """World frames (B, J, 4, 4) of the joints (rows ``wanted`` and their ancestors filled,
     the rest identity): ``G_root = [R_root, root]``, ``G_j = G_parent T(offset_j) R_j``.
 

@@ -18,11 +18,21 @@ import numpy as np
 from loosefit.body.joint_match import TEMPLATE_PARTS, JointMatch, guess_by_name
 from loosefit.errors import LoosefitInputError
 
-_TEMPLATE_WORDS = {"UpLeg": "thigh", "Leg": "shin (knee)", "Foot": "ankle", "ToeBase": "toes",
-                   "Shoulder": "collar bone", "Arm": "upper arm", "ForeArm": "forearm (elbow)",
-                   "Hand": "wrist", "Hips": "pelvis, the legs' and spine's parent",
-                   "LowerBack": "lowest spine joint", "Spine1": "chest: the arms' parent",
-                   "Neck": "neck", "Head": "head"}  # fmt: skip
+_TEMPLATE_WORDS = {
+    "UpLeg": "thigh",
+    "Leg": "shin (knee)",
+    "Foot": "ankle",
+    "ToeBase": "toes",
+    "Shoulder": "collar bone",
+    "Arm": "upper arm",
+    "ForeArm": "forearm (elbow)",
+    "Hand": "wrist",
+    "Hips": "pelvis, the legs' and spine's parent",
+    "LowerBack": "lowest spine joint",
+    "Spine1": "chest: the arms' parent",
+    "Neck": "neck",
+    "Head": "head",
+}
 
 
 def joint_map_template(
@@ -169,28 +179,37 @@ def check_joint_map(
 
     def refuse(avatar: str, found: str, hint: str) -> None:
         raise LoosefitInputError(
-            map_name, avatar, f"a joint map that fits {Path(source).name}'s skeleton", found,
+            map_name,
+            avatar,
+            f"a joint map that fits {Path(source).name}'s skeleton",
+            found,
             hint=hint,
-        )  # fmt: skip
+        )
 
     for chain in _CHAINS:
         mapped = [a for a in chain if a in joints]
         for a, b in zip(mapped, mapped[1:], strict=False):
             ja, jb = index[joints[a]], index[joints[b]]
             if not above(ja, jb):
-                refuse(b, f"'{joints[b]}', which is not below {a} '{joints[a]}' in the file's "
-                          "hierarchy", f"the joints below '{joints[a]}': "
-                          f"{', '.join(names[k] for k in range(len(names)) if above(ja, k))[:300]}"
-                          " (`loosefit inspect-motion FILE` prints the hierarchy)")  # fmt: skip
+                refuse(
+                    b,
+                    f"'{joints[b]}', which is not below {a} '{joints[a]}' in the file's hierarchy",
+                    f"the joints below '{joints[a]}': "
+                    f"{', '.join(names[k] for k in range(len(names)) if above(ja, k))[:300]}"
+                    " (`loosefit inspect-motion FILE` prints the hierarchy)",
+                )
     if "Hips" in joints:
         hips = index[joints["Hips"]]
         kids = [k for k in range(len(names)) if parents[k] == hips]
         others = [index[s] for a, s in joints.items() if a != "Hips"]
         if len(kids) == 1 and others and all(k == kids[0] or above(kids[0], k) for k in others):
-            refuse("Hips", f"'{joints['Hips']}', a joint with one child '{names[kids[0]]}' above "
-                           "every other mapped joint (no geometry of its own)",
-                   f"map Hips to the joint where the legs and the spine part, e.g. "
-                   f"'{names[kids[0]]}' or below it")  # fmt: skip
+            refuse(
+                "Hips",
+                f"'{joints['Hips']}', a joint with one child '{names[kids[0]]}' above "
+                "every other mapped joint (no geometry of its own)",
+                f"map Hips to the joint where the legs and the spine part, e.g. "
+                f"'{names[kids[0]]}' or below it",
+            )
     steps = np.linspace(0, len(positions) - 1, min(len(positions), 40)).round().astype(int)
     pos = np.asarray(positions, dtype=np.float64)[steps]  # (K, J, 3)
     for a, b in _SEGMENTS:
@@ -211,9 +230,12 @@ def check_joint_map(
             cos = (u[ok] * v[ok]).sum(-1) / (lu[ok] * lv[ok])
             bend = float(np.degrees(np.arccos(np.clip(cos, -1, 1))).max())
             if bend > BEND_SKIPPED_DEG:
-                refuse(a, f"'{joints[a]}' to {b} '{joints[b]}' passing over '{names[k]}', where "
-                          f"the limb bends by up to {bend:.0f} degrees in the frames",
-                       f"'{names[k]}' is a joint of the limb the map leaves out: map {a} to "
-                       f"'{names[k]}' (and the joint above it to the one before), or "
-                       "`loosefit inspect-motion FILE --write-joint-map MAP` for a map "
-                       "filled in from what the matcher finds")  # fmt: skip
+                refuse(
+                    a,
+                    f"'{joints[a]}' to {b} '{joints[b]}' passing over '{names[k]}', where "
+                    f"the limb bends by up to {bend:.0f} degrees in the frames",
+                    f"'{names[k]}' is a joint of the limb the map leaves out: map {a} to "
+                    f"'{names[k]}' (and the joint above it to the one before), or "
+                    "`loosefit inspect-motion FILE --write-joint-map MAP` for a map "
+                    "filled in from what the matcher finds",
+                )

@@ -517,8 +517,14 @@ def match_skeleton(
     # 1. The pelvis.
     pelvis, how_pelvis = _find_pelvis(tree)
     if pelvis is None:
-        _fail(source, names, tree.parts, found, ["no joint branches into legs and a spine"],
-              parents=tree.parents)  # fmt: skip
+        _fail(
+            source,
+            names,
+            tree.parts,
+            found,
+            ["no joint branches into legs and a spine"],
+            parents=tree.parents,
+        )
     found["Hips"], how["Hips"] = pelvis, how_pelvis
     notes.append(f"pelvis: '{names[pelvis]}' ({how_pelvis})")
     unbranched = [
@@ -535,8 +541,10 @@ def match_skeleton(
     found_legs = ", ".join(f"'{names[c]}' ({s})" for s, c in leg_side.items())
     if not found_legs:
         others = [c for c in tree.kids[pelvis] if c != torso]
-        drop = max((tree.rest[pelvis, 2] - tree.rest[tree.subtree[c], 2].min() for c in others),
-                   default=0.0)  # fmt: skip
+        drop = max(
+            (tree.rest[pelvis, 2] - tree.rest[tree.subtree[c], 2].min() for c in others),
+            default=0.0,
+        )
         found_legs = (
             f"none reach below the pelvis: of its {len(others)} other branches the lowest "
             f"reaches {drop:.3g} below it, a leg {0.25 * tree.extent:.3g} (a quarter of the "
@@ -749,8 +757,11 @@ def guess_by_name(
                     used.add(names[first])
                     continue
                 if empty:
-                    out[a] = (None, f"'{names[empty[0]]}' is named so but does not branch "
-                                    "into legs and a spine (no geometry of its own)")  # fmt: skip
+                    out[a] = (
+                        None,
+                        f"'{names[empty[0]]}' is named so but does not branch "
+                        "into legs and a spine (no geometry of its own)",
+                    )
                 continue
         if cands:
             out[a] = (names[cands[0]], "guessed by name")

@@ -92,9 +92,12 @@ def add_animated_mesh(character, mesh, path: Path) -> Path:
     sampler = extra.gltf["animations"][0]["samplers"][0]
     anim = doc["animations"][character.animation]
     anim["samplers"].append(
-        {"input": len(doc["accessors"]) - 1, "output": sampler["output"] + n_acc,
-         "interpolation": "LINEAR"}
-    )  # fmt: skip
+        {
+            "input": len(doc["accessors"]) - 1,
+            "output": sampler["output"] + n_acc,
+            "interpolation": "LINEAR",
+        }
+    )
     anim["channels"].append(
         {"sampler": len(anim["samplers"]) - 1, "target": {"node": n_node, "path": "weights"}}
     )

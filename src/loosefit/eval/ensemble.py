@@ -63,12 +63,16 @@ def pairwise_rmse(members: np.ndarray) -> np.ndarray:
     M = len(members)
     if M < 2:
         raise LoosefitInputError(
-            "ensemble", "members", "at least two members for a spread", f"{M}",
+            "ensemble",
+            "members",
+            "at least two members for a spread",
+            f"{M}",
             hint="simulate the clip again from other seeds (loosefit simulate --seeds 0,1,2,3) "
             "or pass more data sets of the same clips",
-        )  # fmt: skip
-    return np.stack([rmse_per_frame(members[i], members[j])
-                     for i in range(M) for j in range(i + 1, M)])  # fmt: skip
+        )
+    return np.stack(
+        [rmse_per_frame(members[i], members[j]) for i in range(M) for j in range(i + 1, M)]
+    )
 
 
 def rmse_to_mean(pred: np.ndarray, members: np.ndarray) -> np.ndarray:
@@ -117,11 +121,15 @@ def members_energy_score(members: np.ndarray) -> np.ndarray:
     M = len(members)
     if M < 3:
         raise LoosefitInputError(
-            "ensemble", "members", "at least three members for the simulation's own score",
-            f"{M}", hint="simulate the clip again from other seeds (loosefit simulate --seeds)",
-        )  # fmt: skip
-    return np.mean([energy_score(np.delete(members, k, axis=0), members[k : k + 1])
-                    for k in range(M)], axis=0)  # fmt: skip
+            "ensemble",
+            "members",
+            "at least three members for the simulation's own score",
+            f"{M}",
+            hint="simulate the clip again from other seeds (loosefit simulate --seeds)",
+        )
+    return np.mean(
+        [energy_score(np.delete(members, k, axis=0), members[k : k + 1]) for k in range(M)], axis=0
+    )
 
 
 def hem_flare(garment: np.ndarray, pelvis: np.ndarray, hem: np.ndarray) -> np.ndarray:
@@ -155,8 +163,9 @@ def turn_window(frame: int, frames: int, half: int = TURN_WINDOW) -> slice:
     return slice(max(frame - half, 0), min(frame + half + 1, frames))
 
 
-def _ray_hits(origin: np.ndarray, direction: np.ndarray, vertices: np.ndarray,
-              faces: np.ndarray) -> np.ndarray:  # fmt: skip
+def _ray_hits(
+    origin: np.ndarray, direction: np.ndarray, vertices: np.ndarray, faces: np.ndarray
+) -> np.ndarray:
     """Distances along a ray (t > 0) at which it crosses a triangle mesh (Moller-Trumbore)."""
     a, b, c = (np.asarray(vertices, np.float64)[np.asarray(faces)[:, k]] for k in range(3))
     e1, e2 = b - a, c - a
@@ -173,9 +182,15 @@ def _ray_hits(origin: np.ndarray, direction: np.ndarray, vertices: np.ndarray,
     return np.sort(t[hit])
 
 
-def cloth_in_front(knee: np.ndarray, pelvis: np.ndarray, garment: np.ndarray,
-                   garment_faces: np.ndarray, body: np.ndarray, body_faces: np.ndarray,
-                   tolerance: float = 0.005) -> bool:  # fmt: skip
+def cloth_in_front(
+    knee: np.ndarray,
+    pelvis: np.ndarray,
+    garment: np.ndarray,
+    garment_faces: np.ndarray,
+    body: np.ndarray,
+    body_faces: np.ndarray,
+    tolerance: float = 0.005,
+) -> bool:
     """Whether the skirt lies in front of a raised knee: the ray from the knee joint out,
     horizontally away from the pelvis's vertical axis, meets the skirt no nearer than it
     leaves the knee's skin (less ``tolerance``, m). A knee through the skirt has the skirt
@@ -259,8 +274,9 @@ def _diff(a, b, path: str = "") -> list[tuple[str, object, object]]:
     return [] if a == b else [(path, a, b)]
 
 
-def check_members(clip: str, members: list[Member], configs: list[dict], avatars: list[dict],
-                  sequences: list) -> tuple[int, float]:  # fmt: skip
+def check_members(
+    clip: str, members: list[Member], configs: list[dict], avatars: list[dict], sequences: list
+) -> tuple[int, float]:
     """Refuse members that differ in anything but the seed.
 
     Args:
@@ -284,8 +300,9 @@ def check_members(clip: str, members: list[Member], configs: list[dict], avatars
         where = f"{m.source}:{m.name}"
         theirs = f"{first.source}:{first.name}"
         if not same_garment(seq0.template, seq.template):
-            raise LoosefitInputError(where, "template.npz", f"the garment of {theirs}",
-                                     "another garment")  # fmt: skip
+            raise LoosefitInputError(
+                where, "template.npz", f"the garment of {theirs}", "another garment"
+            )
         if body != avatars[0]:
             raise LoosefitInputError(where, "body", f"{avatars[0]} (as {theirs})", f"{body}")
         for key in SHARED_CONFIG:
@@ -295,35 +312,41 @@ def check_members(clip: str, members: list[Member], configs: list[dict], avatars
                 b = {k: v for k, v in (b or {}).items() if k not in MEMBER_FREE}
             for path, x, y in _diff(a, b, key):
                 raise LoosefitInputError(
-                    where, f"config.{path}", f"{x!r} (as {theirs}: members differ in the seed "
-                    "alone)", f"{y!r}",
-                )  # fmt: skip
+                    where,
+                    f"config.{path}",
+                    f"{x!r} (as {theirs}: members differ in the seed alone)",
+                    f"{y!r}",
+                )
         ma, mb = seq0.motion, seq.motion
         if tuple(ma.joint_names) != tuple(mb.joint_names):
-            raise LoosefitInputError(where, "motion.joint_names", f"those of {theirs}",
-                                     "other joints")  # fmt: skip
+            raise LoosefitInputError(
+                where, "motion.joint_names", f"those of {theirs}", "other joints"
+            )
         if abs(ma.fps - mb.fps) > 1e-6:
             raise LoosefitInputError(where, "motion.fps", f"{ma.fps} (as {theirs})", f"{mb.fps}")
         rot = float(np.abs(ma.rotations[:frames] - mb.rotations[:frames]).max())
         if rot > ROTATION_TOLERANCE:
             raise LoosefitInputError(
-                where, "motion.rotations",
+                where,
+                "motion.rotations",
                 f"the motion of {theirs} (within {ROTATION_TOLERANCE} in a rotation entry)",
                 f"a difference of {rot:.3f}",
-            )  # fmt: skip
+            )
         move = float(np.abs(ma.root_translation[:frames] - mb.root_translation[:frames]).max())
         if move > TRANSLATION_TOLERANCE:
             raise LoosefitInputError(
-                where, "motion.root_translation",
+                where,
+                "motion.root_translation",
                 f"the motion of {theirs} (within {TRANSLATION_TOLERANCE * 1000:.0f} mm)",
                 f"a difference of {move * 1000:.1f} mm",
-            )  # fmt: skip
+            )
         worst = max(worst, rot)
     return frames, worst
 
 
-def gather_ensembles(sources: list[str | Path], split: str = "test",
-                     flagged: bool = True) -> dict[str, Ensemble]:  # fmt: skip
+def gather_ensembles(
+    sources: list[str | Path], split: str = "test", flagged: bool = True
+) -> dict[str, Ensemble]:
     """The members of each clip across data sets of the same clips.
 
     A clip's members are its sequences in every data set given: its own name, the name with
@@ -380,8 +403,9 @@ def gather_ensembles(sources: list[str | Path], split: str = "test",
                 names[key], "members", "one member per seed", f"seed {dup} in {which}"
             )
         seqs = [m.read() for m in members]
-        frames, diff = check_members(names[key], members, [g[1] for g in got],
-                                     [g[2] for g in got], seqs)  # fmt: skip
+        frames, diff = check_members(
+            names[key], members, [g[1] for g in got], [g[2] for g in got], seqs
+        )
         out[names[key]] = Ensemble(names[key], members, frames, diff, seqs)
     return out
 
@@ -458,15 +482,22 @@ def clip_context(seq, frames: int, avatar) -> ClipContext:
     raised = dict(zip(knee_frames.tolist(), which.tolist(), strict=True))
 
     def covers(garment: np.ndarray, t: int) -> bool:
-        return cloth_in_front(knees[t, raised[t]], pelvis[t], garment, template.faces, body[t],
-                              body_faces)  # fmt: skip
+        return cloth_in_front(
+            knees[t, raised[t]], pelvis[t], garment, template.faces, body[t], body_faces
+        )
 
     return ClipContext(
-        pelvis=pelvis, hem=hem_loop(template.vertices, template.faces),
-        faces=np.asarray(template.faces), fps=float(motion.fps), turn=turn,
-        turn_rate=float(turn_rate(motion)[turn]), knee_frames=knee_frames.tolist(), leg=leg,
-        leg_height=float(lift.max()) if len(lift) else 0.0, covers=covers,
-    )  # fmt: skip
+        pelvis=pelvis,
+        hem=hem_loop(template.vertices, template.faces),
+        faces=np.asarray(template.faces),
+        fps=float(motion.fps),
+        turn=turn,
+        turn_rate=float(turn_rate(motion)[turn]),
+        knee_frames=knee_frames.tolist(),
+        leg=leg,
+        leg_height=float(lift.max()) if len(lift) else 0.0,
+        covers=covers,
+    )
 
 
 # --------------------------------------------------------------------------- report
@@ -506,7 +537,10 @@ def score_members(members: np.ndarray, ctx: ClipContext, surface: bool = True) -
     covered = knee_cover(members, ctx)  # (M, K)
     leg = ctx.knee_frames.index(ctx.leg) if ctx.leg is not None else None
     own = {
-        "members": M, "frames": T, "turn": ctx.turn, "turn_rate": ctx.turn_rate,
+        "members": M,
+        "frames": T,
+        "turn": ctx.turn,
+        "turn_rate": ctx.turn_rate,
         "window": [w.start, w.stop],
         "spread_rmse_cm": 100 * float(pair_rmse.mean()),
         "spread_rmse_range_cm": [100 * float(pair_rmse.min()), 100 * float(pair_rmse.max())],
@@ -516,9 +550,10 @@ def score_members(members: np.ndarray, ctx: ClipContext, surface: bool = True) -
         "speed_turn_m_s": speed[:, w].tolist(),
         "knee_frames": ctx.knee_frames,
         "knee_covered_by_most": (covered.sum(0) * 2 > M).tolist(),
-        "leg": ctx.leg, "leg_height_m": ctx.leg_height,
+        "leg": ctx.leg,
+        "leg_height_m": ctx.leg_height,
         "leg_covered": covered[:, leg].tolist() if leg is not None else [],
-    }  # fmt: skip
+    }
     if M >= 3:
         own["energy_score_cm"] = 100 * float(members_energy_score(members).mean())
     if surface:
@@ -527,15 +562,18 @@ def score_members(members: np.ndarray, ctx: ClipContext, surface: bool = True) -
             for j in range(i + 1, M):
                 haus.append(100 * float(hausdorff(members[i], members[j], faces).mean()))
                 steds.append(float(sted(members[i], members[j], faces)["sted"]))
-        own.update(spread_hausdorff_cm=float(np.mean(haus)),
-                   spread_hausdorff_range_cm=[min(haus), max(haus)],
-                   spread_sted=float(np.mean(steds)),
-                   spread_sted_range=[min(steds), max(steds)])  # fmt: skip
+        own.update(
+            spread_hausdorff_cm=float(np.mean(haus)),
+            spread_hausdorff_range_cm=[min(haus), max(haus)],
+            spread_sted=float(np.mean(steds)),
+            spread_sted_range=[min(steds), max(steds)],
+        )
     return own
 
 
-def score_model(samples: np.ndarray, members: np.ndarray, ctx: ClipContext, own: dict,
-                surface: bool = True) -> dict:  # fmt: skip
+def score_model(
+    samples: np.ndarray, members: np.ndarray, ctx: ClipContext, own: dict, surface: bool = True
+) -> dict:
     """One model against the members.
 
     Args:
@@ -577,19 +615,22 @@ def score_model(samples: np.ndarray, members: np.ndarray, ctx: ClipContext, own:
         "flare_turn_ratio": float((fl / band_flare.mean(0)).mean()),
         "speed_turn_m_s": sp.tolist(),
         "speed_in_band": float(inside_band(sp, band_speed).mean()),
-        "knee_missed": [t for t, m, c in zip(ctx.knee_frames, most, cover, strict=True)
-                        if m and not c],
+        "knee_missed": [
+            t for t, m, c in zip(ctx.knee_frames, most, cover, strict=True) if m and not c
+        ],
         "leg_covered": bool(cover[leg]) if leg is not None else None,
-    }  # fmt: skip
+    }
     if surface:
-        r["hausdorff_to_members_cm"] = float(np.mean(
-            [100 * hausdorff(x, m, ctx.faces).mean() for m in members]))  # fmt: skip
+        r["hausdorff_to_members_cm"] = float(
+            np.mean([100 * hausdorff(x, m, ctx.faces).mean() for m in members])
+        )
         r["sted_to_members"] = float(np.mean([sted(x, m, ctx.faces)["sted"] for m in members]))
     return r
 
 
-def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipContext,
-               surface: bool = True) -> dict:  # fmt: skip
+def score_clip(
+    preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipContext, surface: bool = True
+) -> dict:
     """Every ensemble measure of one clip: the members' own (:func:`score_members`) and
     each model's against them (:func:`score_model`).
 
@@ -607,9 +648,16 @@ def score_clip(preds: dict[str, np.ndarray], members: np.ndarray, ctx: ClipConte
     return {"members": own, "models": models}
 
 
-def evaluate_ensemble(models: dict, sources: list[str | Path], split: str = "test",
-                      surface: bool = True, stages=None, flagged: bool = True,
-                      progress=None, ensembles: dict | None = None) -> dict:  # fmt: skip
+def evaluate_ensemble(
+    models: dict,
+    sources: list[str | Path],
+    split: str = "test",
+    surface: bool = True,
+    stages=None,
+    flagged: bool = True,
+    progress=None,
+    ensembles: dict | None = None,
+) -> dict:
     """Roll models out on every clip that has members and score them against the ensemble.
 
     Args:
@@ -638,12 +686,13 @@ def evaluate_ensemble(models: dict, sources: list[str | Path], split: str = "tes
     many = {k: e for k, e in ensembles.items() if len(e.members) >= 2}
     if not many:
         raise LoosefitInputError(
-            ", ".join(str(s) for s in sources), "members",
+            ", ".join(str(s) for s in sources),
+            "members",
             "at least one clip simulated from two or more seeds",
             "one member of every clip",
             hint="simulate the clips again from other seeds (loosefit simulate --seeds "
             "0,1,2,3, or --config with another seed) and pass those data sets too",
-        )  # fmt: skip
+        )
     out = {}
     for clip, ens in many.items():
         first = ens.sequences[0]
@@ -669,27 +718,36 @@ def evaluate_ensemble(models: dict, sources: list[str | Path], split: str = "tes
 def ensemble_markdown(result: dict) -> str:
     """The ensemble measures as Markdown tables: per clip, the members' spread and each
     model's scores against them."""
-    lines = ["## Against an ensemble of simulations", "",
-             "Each clip's members: the same motion simulated from different seeds. Spread: "
-             "each member against each other (the chaos floor, mean and range over the "
-             "pairs). Per model: RMSE to the members' vertex-wise mean; the mean of its RMSE "
-             "against each member and its ratio to the spread; the energy score (lower is "
-             "better; a mean is not rewarded); the share of the 61 frames around the fastest "
-             "turn whose hem flare and hem speed lie within the members' range; the "
-             "raised-knee frames most members cover where the model does not.", ""]  # fmt: skip
+    lines = [
+        "## Against an ensemble of simulations",
+        "",
+        "Each clip's members: the same motion simulated from different seeds. Spread: "
+        "each member against each other (the chaos floor, mean and range over the "
+        "pairs). Per model: RMSE to the members' vertex-wise mean; the mean of its RMSE "
+        "against each member and its ratio to the spread; the energy score (lower is "
+        "better; a mean is not rewarded); the share of the 61 frames around the fastest "
+        "turn whose hem flare and hem speed lie within the members' range; the "
+        "raised-knee frames most members cover where the model does not.",
+        "",
+    ]
     for clip, c in result["clips"].items():
         m = c["members"]
         flagged = [lab for lab, f in zip(m["labels"], m["flagged"], strict=True) if f]
-        lines += [f"### `{clip}` ({m['frames']} frames, {m['members']} members: "
-                  f"{', '.join(m['labels'])}{'; flagged by the simulator: ' + ', '.join(flagged) if flagged else ''})",  # noqa: E501
-                  "",
-                  f"Fastest turn at frame {m['turn']} ({m['turn_rate']:.1f} rad/s); "
-                  + (f"the highest raised knee at frame {m['leg']} ({100 * m['leg_height_m']:.0f} "
-                     f"cm above the other), covered by {sum(m['leg_covered'])} of "
-                     f"{m['members']} members; {sum(m['knee_covered_by_most'])} of "
-                     f"{len(m['knee_frames'])} raised-knee frames covered by most members."
-                     if m["leg"] is not None else "no knee raised under the pelvis."),
-                  ""]  # fmt: skip
+        lines += [
+            f"### `{clip}` ({m['frames']} frames, {m['members']} members: "
+            f"{', '.join(m['labels'])}{'; flagged by the simulator: ' + ', '.join(flagged) if flagged else ''})",  # noqa: E501
+            "",
+            f"Fastest turn at frame {m['turn']} ({m['turn_rate']:.1f} rad/s); "
+            + (
+                f"the highest raised knee at frame {m['leg']} ({100 * m['leg_height_m']:.0f} "
+                f"cm above the other), covered by {sum(m['leg_covered'])} of "
+                f"{m['members']} members; {sum(m['knee_covered_by_most'])} of "
+                f"{len(m['knee_frames'])} raised-knee frames covered by most members."
+                if m["leg"] is not None
+                else "no knee raised under the pelvis."
+            ),
+            "",
+        ]
         has_surface = "spread_hausdorff_cm" in m
         head = "| | RMSE to members cm (x spread) | RMSE to mean cm | energy score cm |"
         rule = "|---|---:|---:|---:|"
@@ -699,11 +757,14 @@ def ensemble_markdown(result: dict) -> str:
         head += " flare in band % | speed in band % | flare / members' mean | knee missed |"
         rule += "---:|---:|---:|---:|"
         lo, hi = m["spread_rmse_range_cm"]
-        row = (f"| members (spread) | {m['spread_rmse_cm']:.2f} ({lo:.2f}-{hi:.2f}) | "
-               f"{np.mean(m['member_to_mean_cm']):.2f} | "
-               f"{m['energy_score_cm']:.2f} |" if "energy_score_cm" in m else
-               f"| members (spread) | {m['spread_rmse_cm']:.2f} ({lo:.2f}-{hi:.2f}) | "
-               f"{np.mean(m['member_to_mean_cm']):.2f} | - |")  # fmt: skip
+        row = (
+            f"| members (spread) | {m['spread_rmse_cm']:.2f} ({lo:.2f}-{hi:.2f}) | "
+            f"{np.mean(m['member_to_mean_cm']):.2f} | "
+            f"{m['energy_score_cm']:.2f} |"
+            if "energy_score_cm" in m
+            else f"| members (spread) | {m['spread_rmse_cm']:.2f} ({lo:.2f}-{hi:.2f}) | "
+            f"{np.mean(m['member_to_mean_cm']):.2f} | - |"
+        )
         if has_surface:
             row += f" {m['spread_hausdorff_cm']:.2f} | {m['spread_sted']:.4f} |"
         row += " 100 | 100 | 1.00 | - |"

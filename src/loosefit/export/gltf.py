@@ -168,12 +168,14 @@ def export_gltf(
                 if kids:
                     joints[-1]["children"] = [int(k) for k in kids]
             inverse_bind = np.linalg.inv(skin.bind_poses).transpose(0, 2, 1)  # column-major
-            skins.append({
-                "name": f"{m.name}_rig",
-                "joints": list(range(first, first + len(joints))),
-                "skeleton": first,
-                "inverseBindMatrices": lay.array(inverse_bind.reshape(-1, 16), "MAT4"),
-            })  # fmt: skip
+            skins.append(
+                {
+                    "name": f"{m.name}_rig",
+                    "joints": list(range(first, first + len(joints))),
+                    "skeleton": first,
+                    "inverseBindMatrices": lay.array(inverse_bind.reshape(-1, 16), "MAT4"),
+                }
+            )
             node["skin"] = len(skins) - 1
             local = skin.local_poses()  # (T, J, 4, 4)
             quats = continuous_quaternions(local[..., :3, :3])[..., [1, 2, 3, 0]]  # x, y, z, w

@@ -132,8 +132,10 @@ def _write_skinned(stage, root: str, m: AnimatedMesh, skin: Skin, rotation, mods
         code = Usd.TimeCode(t)
         translations.Set(Vt.Vec3fArray.FromNumpy(local[t, :, :3, 3].astype(np.float32)), code)
         q = quats[t]
-        rotations.Set(Vt.QuatfArray([Gf.Quatf(float(a), float(b), float(c), float(d))
-                                     for a, b, c, d in q]), code)  # fmt: skip
+        rotations.Set(
+            Vt.QuatfArray([Gf.Quatf(float(a), float(b), float(c), float(d)) for a, b, c, d in q]),
+            code,
+        )
     UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets(
         [anim.GetPath()]
     )

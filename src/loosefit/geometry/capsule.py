@@ -11,9 +11,12 @@ import torch
 
 
 def chain_frames(
-    rotations: torch.Tensor, root: torch.Tensor, parents: list[int], offsets: torch.Tensor,
+    rotations: torch.Tensor,
+    root: torch.Tensor,
+    parents: list[int],
+    offsets: torch.Tensor,
     joints: list[int],
-) -> torch.Tensor:  # fmt: skip
+) -> torch.Tensor:
     """World frames of some joints, ``G_root = [R_root | root]``, ``G_j = G_parent
     T(offset_j) R_j`` (:func:`loosefit.body.capsules.joint_frames`, its numpy twin).
 
@@ -48,9 +51,13 @@ DEEP = 0.25  # the share of the radius under which a point is pushed out partly 
 
 
 def push_out(
-    x: torch.Tensor, start: torch.Tensor, end: torch.Tensor, radius: torch.Tensor,
-    origin: torch.Tensor | None = None, weight: torch.Tensor | None = None,
-) -> torch.Tensor:  # fmt: skip
+    x: torch.Tensor,
+    start: torch.Tensor,
+    end: torch.Tensor,
+    radius: torch.Tensor,
+    origin: torch.Tensor | None = None,
+    weight: torch.Tensor | None = None,
+) -> torch.Tensor:
     """Points pushed out of capsules: a point at distance ``n < r`` from a capsule's segment
     moves by ``r - n`` along the direction from the segment's nearest point (by
     ``(r - n) n / (DEEP r)`` where ``n < DEEP r``), the moves of every capsule it is inside

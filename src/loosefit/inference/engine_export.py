@@ -215,9 +215,14 @@ def skeleton_record(avatar) -> dict:
 
 
 def export_metadata(
-    model, onnx_name: str, opset: int, capsules: list, skeleton: dict, in_graph: bool,
+    model,
+    onnx_name: str,
+    opset: int,
+    capsules: list,
+    skeleton: dict,
+    in_graph: bool,
     waist_blend: float = EngineExportConfig.waist_blend,
-) -> dict:  # fmt: skip
+) -> dict:
     """What the graph's inputs and outputs mean, the skeleton and the capsules: the JSON."""
     J, V = len(model.joint_names), model.template.num_vertices
     G, K = model.tier.config.gru, model.tier.config.basis
@@ -251,7 +256,7 @@ def export_metadata(
             "previous_root_translation": io(
                 ["B", 3], f32, "next_root_translation of the frame before"
             ),
-        },  # fmt: skip
+        },
         "outputs": {
             "garment": io(
                 ["B", V, 3],
@@ -274,7 +279,7 @@ def export_metadata(
             "next_root_translation": io(
                 ["B", 3], f32, "the next frame's previous_root_translation"
             ),
-        },  # fmt: skip
+        },
         "state": dict(STATE),
         "skeleton": skeleton,
         "capsules": [c.to_dict() for c in capsules],
@@ -310,17 +315,21 @@ def check_engine_exportable(model, source) -> None:
 
     if not isinstance(model, EngineModel):
         raise LoosefitInputError(
-            source, "tier", "a model with an engine tier (engine.pt)",
+            source,
+            "tier",
+            "a model with an engine tier (engine.pt)",
             f"{type(model).__name__}, which has none",
             hint="train one: loosefit train engine --data DATASET --motion MOTION.pt "
             "(writes RUN/engine.pt; put it beside motion.pt or pass --checkpoint)",
-        )  # fmt: skip
+        )
     if model.tier.config.noise:
         raise LoosefitInputError(
-            source, "tier", "a deterministic engine tier (noise 0)",
+            source,
+            "tier",
+            "a deterministic engine tier (noise 0)",
             f"a stochastic one ({model.tier.config.noise} noise numbers a frame)",
             hint="the graph has no noise input yet: export a tier trained without --noise",
-        )  # fmt: skip
+        )
 
 
 def export_engine(model, path: str | Path, config: EngineExportConfig | None = None) -> list[Path]:
@@ -344,10 +353,14 @@ def export_engine(model, path: str | Path, config: EngineExportConfig | None = N
 
     avatar = model.avatar()
     capsules, skeleton = avatar_capsules(avatar), skeleton_record(avatar)
-    step = EngineStep(model, capsules if config.capsules else None, skeleton,
-                      config.waist_blend).cpu().eval()  # fmt: skip
-    meta = export_metadata(model, path.name, config.opset, capsules, skeleton, config.capsules,
-                           config.waist_blend)  # fmt: skip
+    step = (
+        EngineStep(model, capsules if config.capsules else None, skeleton, config.waist_blend)
+        .cpu()
+        .eval()
+    )
+    meta = export_metadata(
+        model, path.name, config.opset, capsules, skeleton, config.capsules, config.waist_blend
+    )
 
     def check(graph: Path, meta_path: Path) -> dict:  # the reference loop reads the JSON
         return check_frames(model, step, graph, meta_path, config)
@@ -380,7 +393,15 @@ def check_frames(
     want = rollout_engine(model, motion, collide=step)
     worst = float(np.abs(got - want).max())
     if not worst <= config.tolerance:
-        raise LoosefitInputError(graph, "graph", f"onnxruntime within {config.tolerance} m of "
-                                 f"PyTorch over {len(want)} frames", f"{worst:.3g} m")  # fmt: skip
-    return {"frames": len(want), "motion": "dance:12", "max_difference_m": worst,
-            "onnxruntime": ort.__version__}  # fmt: skip
+        raise LoosefitInputError(
+            graph,
+            "graph",
+            f"onnxruntime within {config.tolerance} m of PyTorch over {len(want)} frames",
+            f"{worst:.3g} m",
+        )
+    return {
+        "frames": len(want),
+        "motion": "dance:12",
+        "max_difference_m": worst,
+        "onnxruntime": ort.__version__,
+    }

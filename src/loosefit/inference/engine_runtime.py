@@ -53,18 +53,22 @@ class EngineRuntime(OnnxRuntime):
         for j, (a, b) in enumerate(zip(mine, theirs, strict=False)):
             if a != b:
                 raise LoosefitInputError(
-                    source, f"joint_names[{j}]", repr(a), repr(b),
+                    source,
+                    f"joint_names[{j}]",
+                    repr(a),
+                    repr(b),
                     hint=f"the {len(mine)} joints of {self.path.with_suffix('.json').name}, "
                     "in its order (retarget, or reorder the rotations)",
-                )  # fmt: skip
+                )
         if len(mine) != len(theirs):
             j = min(len(mine), len(theirs))
             raise LoosefitInputError(
-                source, f"joint_names[{j}]",
+                source,
+                f"joint_names[{j}]",
                 repr(mine[j]) if j < len(mine) else "no more joints",
                 repr(theirs[j]) if j < len(theirs) else "no more joints",
                 hint=f"the {len(mine)} joints of {self.path.with_suffix('.json').name}",
-            )  # fmt: skip
+            )
 
 
 def rollout_engine_onnx(runtime: EngineRuntime, motion: Motion) -> np.ndarray:
@@ -82,11 +86,17 @@ def rollout_engine_onnx(runtime: EngineRuntime, motion: Motion) -> np.ndarray:
     meta = runtime.meta
     runtime.check_skeleton(motion.joint_names, f"motion '{motion.name}'")
     if abs(motion.fps - runtime.fps) > 1e-6:
-        raise LoosefitInputError(f"motion '{motion.name}'", "fps", f"{runtime.fps:g}",
-                                 f"{motion.fps:g}", hint="resample it")  # fmt: skip
+        raise LoosefitInputError(
+            f"motion '{motion.name}'",
+            "fps",
+            f"{runtime.fps:g}",
+            f"{motion.fps:g}",
+            hint="resample it",
+        )
     s = meta["start_of_motion"]
-    rot, root, P = rollout_timeline(motion, float(meta["floor_height"]), int(s["warm_frames"]),
-                                    float(s["blend_seconds"]))  # fmt: skip
+    rot, root, P = rollout_timeline(
+        motion, float(meta["floor_height"]), int(s["warm_frames"]), float(s["blend_seconds"])
+    )
     rot, root = rot.astype(np.float32), root.astype(np.float32)
     out = np.empty((motion.num_frames, int(meta["vertex_count"]), 3), np.float32)
     state = runtime.initial_state(1)

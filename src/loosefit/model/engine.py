@@ -187,8 +187,9 @@ class EngineTier(nn.Module):
             raise LoosefitInputError("EngineTier", "basis", f"{cfg.basis} directions", K)
         self.num_features, self.num_vertices = num_features, V
         F = num_features
-        self.register_buffer("feature_mean", torch.zeros(F) if feature_mean is None else
-                             feature_mean.float().clone())  # fmt: skip
+        self.register_buffer(
+            "feature_mean", torch.zeros(F) if feature_mean is None else feature_mean.float().clone()
+        )
         std = torch.ones(F) if feature_std is None else feature_std.float()
         self.register_buffer("feature_std", std.clamp_min(1e-4).clone())
         inf = torch.full((F,), float("inf"))
@@ -244,9 +245,11 @@ class EngineTier(nn.Module):
         if self.config.noise:
             if noise is None or tuple(noise.shape) != (len(features), self.config.noise):
                 raise LoosefitInputError(
-                    "EngineTier", "noise", f"(B, {self.config.noise}) draws (a stochastic tier)",
+                    "EngineTier",
+                    "noise",
+                    f"(B, {self.config.noise}) draws (a stochastic tier)",
                     None if noise is None else tuple(noise.shape),
-                )  # fmt: skip
+                )
             inputs.append(noise)
         m = nn.functional.leaky_relu(self.motion_fc(torch.cat(inputs, -1)), 0.2)
         hidden = self.gru(m, hidden)

@@ -43,8 +43,25 @@ SALSA_TEST = ("60_03", "61_03", "60_07", "61_07")
 # every training (chosen before any training on ballet: a pirouette with expressive arms,
 # an attitude / arabesque with the leg raised, arms held high with the upper body
 # turning); the stage account's clips
-BALLET_CLIPS = ("05_01", "05_02", "05_03", "05_04", "05_05", "05_06", "05_08", "05_09", "05_10",
-                "05_11", "05_12", "05_14", "05_15", "05_16", "05_18", "05_19", "05_20")  # fmt: skip
+BALLET_CLIPS = (
+    "05_01",
+    "05_02",
+    "05_03",
+    "05_04",
+    "05_05",
+    "05_06",
+    "05_08",
+    "05_09",
+    "05_10",
+    "05_11",
+    "05_12",
+    "05_14",
+    "05_15",
+    "05_16",
+    "05_18",
+    "05_19",
+    "05_20",
+)
 BALLET_TEST = ("05_02", "05_10", "05_12")
 
 CPU_SKIRT = {"type": "skirt", "resolution": "cpu", "style": "flared"}

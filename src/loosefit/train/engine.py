@@ -108,16 +108,18 @@ class TrainEngineConfig(StageConfig):
         if not (isinstance(self.window, int) and self.window >= 1):
             raise LoosefitInputError("TrainEngineConfig", "window", "an integer >= 1", self.window)
         if not (isinstance(self.procedural, int) and self.procedural >= 0):
-            raise LoosefitInputError("TrainEngineConfig", "procedural", "an integer >= 0",
-                                     self.procedural)  # fmt: skip
+            raise LoosefitInputError(
+                "TrainEngineConfig", "procedural", "an integer >= 0", self.procedural
+            )
         if self.model.noise and not (isinstance(self.samples, int) and self.samples >= 2):
             raise LoosefitInputError(
                 "TrainEngineConfig", "samples", "an integer >= 2 (a stochastic tier)", self.samples
             )
         for name in ("flare", "membrane"):
             if not getattr(self, name) >= 0:
-                raise LoosefitInputError("TrainEngineConfig", name, "a weight >= 0",
-                                         getattr(self, name))  # fmt: skip
+                raise LoosefitInputError(
+                    "TrainEngineConfig", name, "a weight >= 0", getattr(self, name)
+                )
 
     def teacher_probability(self, epoch: int) -> float:
         span = self.teacher_fraction * self.epochs
@@ -176,8 +178,9 @@ def stack_coefficients(clips: list[Clip]) -> dict[str, torch.Tensor]:
     }
 
 
-def energy_score_loss(samples: torch.Tensor, truth: torch.Tensor, vertices: int,
-                      scale: float) -> torch.Tensor:  # fmt: skip
+def energy_score_loss(
+    samples: torch.Tensor, truth: torch.Tensor, vertices: int, scale: float
+) -> torch.Tensor:
     """The energy score of S realisations against the truth, per clip (differentiable).
 
     ``mean_s d(X_s, y) - 1/(2 S^2) sum_{s, s'} d(X_s, X_s')``, d the frame's RMS vertex
@@ -221,26 +224,37 @@ class EngineStage(Stage):
         t0 = time.perf_counter()
         # 1. the clips on the rollout timeline, and the targets
         self.clips = clips = prepare_clips(
-            reader, "train", None, self.floor, config.rollout, config.max_frames,
-            config.mirror, config.model.joints,
-        )  # fmt: skip
+            reader,
+            "train",
+            None,
+            self.floor,
+            config.rollout,
+            config.max_frames,
+            config.mirror,
+            config.model.joints,
+        )
         if config.targets == "rollout":
             for c, x in zip(clips, rollout_targets(full_model, clips), strict=True):
                 c.target = x
         self.fps = clips[0].motion.fps
         clips += procedural_clips(full_model, config, self.floor, self.fps)
         frames = torch.cat([c.target for c in clips])  # (N, V, 3)
-        run.log(f"prepared {len(clips)} train clips ({len(frames)} frames) "
-                f"in {time.perf_counter() - t0:.1f} s")  # fmt: skip
+        run.log(
+            f"prepared {len(clips)} train clips ({len(frames)} frames) "
+            f"in {time.perf_counter() - t0:.1f} s"
+        )
         # 2. the basis, the tier
         basis = fit_basis(frames, config.model.basis)
-        run.log(f"basis of {config.model.basis}: {100 * float(basis.explained.sum()):.3f} % of "
-                "the variance")  # fmt: skip
+        run.log(
+            f"basis of {config.model.basis}: {100 * float(basis.explained.sum()):.3f} % of "
+            "the variance"
+        )
         F, mean, std = feature_statistics(reader, clips, config.model.joints)
         rest = full_model.rest_state.float().cpu()
         low, high = feature_range(clips)
-        self.model = EngineTier(F, config.model, basis, mean, std, feature_low=low,
-                                feature_high=high)  # fmt: skip
+        self.model = EngineTier(
+            F, config.model, basis, mean, std, feature_low=low, feature_high=high
+        )
         self.model.rest.copy_(rest_coefficients(self.model, rest))
         for c in clips:
             c.latent = project(c.target, basis.mean, basis.basis)  # (T, K) the targets
@@ -357,11 +371,16 @@ class EngineStage(Stage):
 
     def current(self) -> EngineModel:
         return EngineModel(
-            tier=self.model, template=self.template, joint_names=self.joint_names,
-            floor_height=self.floor, fps=self.fps, body=dict(self.reader.body),
-            rollout_config=self.config.rollout, path=self.run.checkpoint,
+            tier=self.model,
+            template=self.template,
+            joint_names=self.joint_names,
+            floor_height=self.floor,
+            fps=self.fps,
+            body=dict(self.reader.body),
+            rollout_config=self.config.rollout,
+            path=self.run.checkpoint,
             record=self.meta["record"],
-        )  # fmt: skip
+        )
 
     def evaluate_now(self, epoch: int) -> bool:
         return epoch % self.config.eval_every == 0 or epoch == self.config.epochs
@@ -378,8 +397,12 @@ class EngineStage(Stage):
         weights = {k: v.detach().cpu() for k, v in self.model.state_dict().items()}
         save_atomic({"format": ENGINE_FORMAT, **self.meta, "model": weights, "epoch": epoch}, path)
         model = load_engine(path)
-        return {**common, "targets": self.config.targets, "basis": self.config.model.basis,
-                "test": held_out_errors(model, self.reader)}  # fmt: skip
+        return {
+            **common,
+            "targets": self.config.targets,
+            "basis": self.config.model.basis,
+            "test": held_out_errors(model, self.reader),
+        }
 
     def format_report(self, report: dict) -> str:
         t = report["test"]
@@ -441,12 +464,14 @@ def train_engine(
     full = load_pipeline(motion)
     if not same_garment(full.template, reader.template):
         raise LoosefitInputError(
-            motion, "garment", f"the garment of {reader.root}", "another garment",
+            motion,
+            "garment",
+            f"the garment of {reader.root}",
+            "another garment",
             hint="the motion checkpoint of a model trained on this data set",
-        )  # fmt: skip
+        )
     dataset = str(Path(data).resolve())
-    stored = {"dataset": dataset, "motion": str(Path(motion).resolve()),
-              "train": config.to_dict()}  # fmt: skip
+    stored = {"dataset": dataset, "motion": str(Path(motion).resolve()), "train": config.to_dict()}
     run = Run.open(out, stored, config.seed, log, progress)
     stage = EngineStage(reader, full, config, run)
     return train(stage, run, dataset)
@@ -467,9 +492,15 @@ def record_feature_range(path: str | Path, data: str | Path) -> tuple[torch.Tens
     data_dict = read_checkpoint_file(path, ENGINE_FORMAT)
     cfg = TrainEngineConfig.from_dict(data_dict["config"])  # the run's clips, as trained
     clips = prepare_clips(
-        DatasetReader(data), "train", None, float(data_dict["floor_height"]), cfg.rollout,
-        cfg.max_frames, cfg.mirror, cfg.model.joints,
-    )  # fmt: skip
+        DatasetReader(data),
+        "train",
+        None,
+        float(data_dict["floor_height"]),
+        cfg.rollout,
+        cfg.max_frames,
+        cfg.mirror,
+        cfg.model.joints,
+    )
     low, high = feature_range(clips)
     F = int(data_dict["num_features"])
     if low.shape != (F,):
