@@ -22,9 +22,9 @@ import torch
 
 from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.data.format import write_sequence
+from loosefit.fitting.place import fit_skirt
 from loosefit.garment.quality import quality
-from loosefit.placement.place import fit_skirt
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.sim.driver import simulate
 from loosefit.sim.jobs import job_motion, plan_jobs
 from loosefit.sim.presets import preset
@@ -112,7 +112,7 @@ def main() -> None:
         if args.save:  # a sequence that loosefit render / diagnose / export read
             write_sequence(
                 Path(f"{args.save}_{name}_{start}_{stop}.npz"),
-                AnimatedGarment(
+                GarmentSequence(
                     dataclasses.replace(motion, name=name),
                     template,
                     g,

@@ -47,10 +47,10 @@ from loosefit.inference.stages.collision import COLLISION_SETTINGS
 
 def paper_scale(model):
     """The packaged networks' configuration on the paper's 9,352-vertex skirt."""
+    from loosefit.fitting.place import fit_skirt
     from loosefit.garment.skirt import SkirtConfig
     from loosefit.model.generative import GarmentGenerativeModel
     from loosefit.model.motion_encoder import DynamicMotionEncoder
-    from loosefit.placement.place import fit_skirt
 
     m = model.model
     skirt = fit_skirt(m.avatar(), SkirtConfig.preset("paper", "flared"))

@@ -26,7 +26,7 @@ import numpy as np
 
 import loosefit.export
 from loosefit.export import ExportConfig, export_animation, garment_and_body
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 
 READER = Path(loosefit.export.__file__).with_name("blender_read.py")
 
@@ -64,7 +64,7 @@ def main() -> int:
     p.add_argument("--distance", type=float, default=1.6, help="the camera's distance, x")
     args = p.parse_args()
 
-    seq = AnimatedGarment.load(args.sequence)
+    seq = GarmentSequence.load(args.sequence)
     meshes = garment_and_body(
         seq.garment, seq.garment_vertices, seq.body_vertices, seq.body_faces, seq.body_skin
     )

@@ -23,10 +23,10 @@ import time
 import numpy as np
 import torch
 
-from loosefit.body.motions import load_motion
 from loosefit.geometry.edges import unique_edges
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
+from loosefit.motion.motions import load_motion
 
 
 def accelerations(x: np.ndarray) -> np.ndarray:

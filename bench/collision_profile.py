@@ -19,11 +19,11 @@ from collections import defaultdict
 
 import torch
 
-from loosefit.body.motions import load_motion
 from loosefit.geometry import query
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
 from loosefit.inference.stages.collision import COLLISION_SETTINGS, collision_setting
+from loosefit.motion.motions import load_motion
 
 
 def main() -> None:

@@ -96,7 +96,7 @@ def main() -> None:
     args = p.parse_args()
     torch.set_num_threads(args.threads)
 
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
     from loosefit.sim.jobs import job_motion, plan_jobs
     from loosefit.sim.presets import preset
 

@@ -18,10 +18,10 @@ from PIL import Image
 
 from loosefit.api import pretrained_checkpoint
 from loosefit.body.capsules import avatar_capsules
-from loosefit.body.motions import load_motion
 from loosefit.inference.animator import load_pipeline
-from loosefit.inference.engine import engine_path_of, load_engine, rollout_engine
-from loosefit.inference.engine_export import EngineStep, skeleton_record
+from loosefit.inference.engine.export import EngineStep, skeleton_record
+from loosefit.inference.engine.model import engine_path_of, load_engine, rollout_engine
+from loosefit.motion.motions import load_motion
 from loosefit.render.renderer import RenderConfig
 from loosefit.render.video import comparison_sheet
 

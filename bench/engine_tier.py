@@ -5,8 +5,8 @@ shared), for 1, 16 and 256 characters:
 
 * ``full pipeline``: ``animate`` (``animate_batch`` for N > 1), PyTorch, full collision;
 * ``onnx, realtime collision``: the same with ``runtime="onnx", collision="realtime"``;
-* ``engine tier``: the exported graph (:mod:`loosefit.inference.engine_export`) through
-  the reference loop (:mod:`loosefit.inference.engine_runtime`), with the capsule push-out
+* ``engine tier``: the exported graph (:mod:`loosefit.inference.engine.export`) through
+  the reference loop (:mod:`loosefit.inference.engine.runtime`), with the capsule push-out
   in the graph, and without it (the graph exported with ``capsules=False``);
 * the simulation of the same skirt on the same machine (Newton, one thread), for the
   speed-up.
@@ -38,13 +38,13 @@ from rollout_speed import model_cloth, time_simulation
 from stage_account import clip_reference
 
 from loosefit.api import pretrained_checkpoint
-from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.inference.animator import load_pipeline
-from loosefit.inference.engine import engine_path_of, load_engine, rollout_engine
-from loosefit.inference.engine_export import EngineExportConfig, EngineStep, export_engine
-from loosefit.inference.engine_runtime import EngineRuntime, rollout_engine_onnx
+from loosefit.inference.engine.export import EngineExportConfig, EngineStep, export_engine
+from loosefit.inference.engine.model import engine_path_of, load_engine, rollout_engine
+from loosefit.inference.engine.runtime import EngineRuntime, rollout_engine_onnx
 from loosefit.inference.timeline import rollout_timeline
+from loosefit.motion.motions import load_motion
 
 MEASURES = (
     "rmse_cm",
@@ -180,7 +180,7 @@ def main() -> None:
 
 def _capsules(engine):
     from loosefit.body.capsules import avatar_capsules
-    from loosefit.inference.engine_export import skeleton_record
+    from loosefit.inference.engine.export import skeleton_record
 
     avatar = engine.avatar()
     return avatar_capsules(avatar), skeleton_record(avatar)

@@ -18,9 +18,9 @@ from loosefit.body.capsules import avatar_capsules
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import rmse
 from loosefit.garment.mesh_checks import hem_loop
-from loosefit.inference.engine import load_engine, rollout_engine
-from loosefit.inference.engine_export import EngineStep, skeleton_record
-from loosefit.model.physics import ClothStructure, signed_edge_change
+from loosefit.inference.engine.export import EngineStep, skeleton_record
+from loosefit.inference.engine.model import load_engine, rollout_engine
+from loosefit.model.losses import ClothStructure, signed_edge_change
 
 
 def main() -> None:

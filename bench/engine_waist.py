@@ -2,7 +2,7 @@
 and the held-out clips, one command.
 
 For each motion, the full pipeline (``animate``: PyTorch, every stage) and the engine tier
-(:func:`~loosefit.inference.engine.rollout_engine` with the capsule push-out, as the
+(:func:`~loosefit.inference.engine.model.rollout_engine` with the capsule push-out, as the
 exported graph runs it) animate the same frames; per frame, the waist ring's radius (the
 mean horizontal distance of the waistband's vertices from their centroid) of each, and over
 the motion the RMSE of the engine tier against the full pipeline. ``--before`` adds the same
@@ -29,11 +29,11 @@ import torch
 
 from loosefit.api import pretrained_checkpoint
 from loosefit.body.capsules import avatar_capsules
-from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.inference.animator import load_pipeline
-from loosefit.inference.engine import engine_path_of, load_engine, rollout_engine
-from loosefit.inference.engine_export import EngineStep, skeleton_record
+from loosefit.inference.engine.export import EngineStep, skeleton_record
+from loosefit.inference.engine.model import engine_path_of, load_engine, rollout_engine
+from loosefit.motion.motions import load_motion
 
 # the demo's moves: `loosefit demo` (dance:20, seed 0), the README's `animate("dance:4")`,
 # the export's check (dance:12), and other seeds of the demo's `--seed`

@@ -73,7 +73,7 @@ def rollouts(args, ens, motion, cache: Path) -> dict:
             continue  # a baseline not trained
         if not path.is_file():
             if kind == "engine":
-                from loosefit.inference.engine import load_engine, rollout_engine
+                from loosefit.inference.engine.model import load_engine, rollout_engine
 
                 models[key] = load_engine(ckpt)
             elif kind not in models:
@@ -176,7 +176,7 @@ def validation_choice(args, cache: Path) -> dict:
                     models.setdefault(key, load_pipeline(args.checkpoint))
                     x = models[key].animate(seq.motion).vertices[None]
                 else:
-                    from loosefit.inference.engine import load_engine, rollout_engine
+                    from loosefit.inference.engine.model import load_engine, rollout_engine
 
                     where = next(e for e in args.engines if engine_key(e) == key)
                     models.setdefault(key, load_engine(where))

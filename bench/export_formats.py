@@ -26,7 +26,7 @@ import numpy as np
 import loosefit.export
 from loosefit.export import ExportConfig, export_animation, garment_and_body
 from loosefit.export.gltf import split_uvs
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 
 READER = Path(loosefit.export.__file__).with_name("blender_read.py")
 FORMATS = {  # label: (file name, config)
@@ -96,7 +96,7 @@ def main() -> int:
     p.add_argument("--out", default=None)
     args = p.parse_args()
 
-    seq = AnimatedGarment.load(args.sequence)
+    seq = GarmentSequence.load(args.sequence)
     t0 = time.perf_counter()
     body, faces, skin = seq.body_vertices, seq.body_faces, seq.body_skin
     pose_s = time.perf_counter() - t0

@@ -1,5 +1,5 @@
 """A dress made for another body, fitted (``garment --fit``) and simulated through a 4 s clip:
-its target at full resolution (tests/test_fit.py's slow test is the coarse version).
+its target at full resolution (tests/fitting/test_drape.py's slow test is the coarse version).
 
 The parametric strapless dress (the ``cpu`` preset, 2,312 vertices) is made for a markedly
 different anny body (heavier, taller, other proportions), written in centimetres with Y up as
@@ -34,18 +34,18 @@ from loosefit.api import motion_for
 from loosefit.atomic import atomic_path
 from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.errors import LoosefitInputError
-from loosefit.fit import FitConfig, FitReport, fit_garment
+from loosefit.fitting.drape import FitConfig, FitReport, fit_garment
+from loosefit.fitting.place import fit_dress, import_garment
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.obj import write_obj
 from loosefit.garment.quality import PENETRATION_TOLERANCE, quality
-from loosefit.placement.place import fit_dress, import_garment
 from loosefit.progress import tqdm_bar
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.driver import simulate
 from loosefit.sim.timeline import collider_meshes
 from loosefit.types import GarmentTemplate
 
-OTHER_BODY = {"weight": 0.8, "height": 0.9, "proportions": 0.0}  # as tests/test_fit.py
+OTHER_BODY = {"weight": 0.8, "height": 0.9, "proportions": 0.0}  # as tests/fitting/test_drape.py
 MOTION, FRAMES, FPS = "dance:4", 120, 30.0
 
 

@@ -1,6 +1,6 @@
 """The rest lengths a garment fitted with ``garment --fit`` is simulated with, against the
 garment file's, and how far the fit's drape stretches it from them, on the parametric
-strapless dress made for another body (as tests/test_fit.py makes it, at full resolution)
+strapless dress made for another body (as tests/fitting/test_drape.py makes it, at full resolution)
 and fitted to the default avatar.
 
 The simulator takes the cloth's rest shape from the template's ``rest_vertices`` (the file
@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.body.avatar import Avatar, AvatarConfig
-from loosefit.fit import FitConfig, fit_garment
+from loosefit.fitting.drape import FitConfig, fit_garment
+from loosefit.fitting.place import fit_dress, import_garment
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.obj import write_obj
-from loosefit.placement.place import fit_dress, import_garment
 from loosefit.types import GarmentTemplate
 
 OTHER_BODY = {"weight": 0.8, "height": 0.9, "proportions": 0.0}

@@ -2,7 +2,7 @@
 grow? (docs/RELIABILITY.md)
 
 The held-out salsa chain (never trained on) is played ``--repeats`` times in a row
-(:func:`~loosefit.body.chain.chain_motions`, half-second blends between), and the packaged
+(:func:`~loosefit.motion.chain.chain_motions`, half-second blends between), and the packaged
 model rolls the whole of it out in one go. Each repetition is scored against the simulation
 of the chain, in the body's root frame (so where the chain placed the repetition on the
 floor does not matter); the blends have no ground truth and are left out. Reported: RMSE
@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from loosefit.body.chain import chain_motions
 from loosefit.data.format import DatasetReader
 from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import garment_in_root_frame
+from loosefit.motion.chain import chain_motions
 
 
 def main() -> int:

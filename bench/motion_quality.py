@@ -17,11 +17,11 @@ import argparse
 import numpy as np
 
 from loosefit.body.avatar import Avatar, AvatarConfig
-from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import inside_fraction, rmse_per_frame
 from loosefit.garment.quality import edge_strain
 from loosefit.inference.animator import load_animation_model
+from loosefit.motion.motions import load_motion
 
 
 def main() -> None:

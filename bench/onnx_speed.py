@@ -2,7 +2,7 @@
 
 For the packaged model (or ``--checkpoint``): the graph of ``loosefit export-model`` with
 and without the detail stage, rolled out by the reference loop
-(:func:`loosefit.inference.onnx_runtime.rollout_onnx`, onnxruntime with
+(:func:`loosefit.inference.onnx.runtime.rollout_onnx`, onnxruntime with
 ``intra_op_num_threads=1``), and the PyTorch rollout of the same stages
 (``torch.set_num_threads(1)``, no overlap), on one motion. Every frame computed counts
 (the preroll's too, in both). Wall time is the best of ``--repeats``; beside it the
@@ -28,8 +28,8 @@ import torch
 
 from loosefit.api import motion_for
 from loosefit.inference.animator import load_pipeline
-from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
-from loosefit.inference.onnx_runtime import OnnxRuntime, rollout_onnx
+from loosefit.inference.onnx.export import OnnxExportConfig, export_onnx
+from loosefit.inference.onnx.runtime import OnnxRuntime, rollout_onnx
 from loosefit.inference.stages import MOTION_ONLY, Stages
 
 WITH_DETAIL = Stages(lengths=False, collision=False, overlap=False)

@@ -45,7 +45,7 @@ from loosefit.sim.manifest import LEGACY_CLOTH
 ROOT = Path(__file__).resolve().parents[1]
 VARIANTS = {
     "after": {},  # the defaults: the pose correction and the flattened collider
-    # the defaults before the pose correction (loosefit.body.unfold)
+    # the defaults before the pose correction (loosefit.motion.pose_correction)
     "flatten": {"unfold": {"enabled": False}},
     "before": {"cloth": {"flatten_overlaps": False}, "unfold": {"enabled": False}},
     # the experiments on the way to the flattened collider (docs/PENETRATION.md)

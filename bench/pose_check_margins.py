@@ -1,6 +1,6 @@
 """How far every known-good motion is from the pose check's thresholds.
 
-The pose check (``loosefit.body.pose_check``) refuses imported motions a dancer could not
+The pose check (``loosefit.motion.pose_check``) refuses imported motions a dancer could not
 dance. Its thresholds were set from this script's output: each procedural move (three
 seeds) and dance, and every clip of ``../shared/mocap/cmu-salsa`` and ``cmu-ballet``
 (skipped when absent), retargeted as ``loosefit animate`` loads them, at their own
@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.body.avatar import Avatar
-from loosefit.body.motion_files import read_clip
-from loosefit.body.motions import PROCEDURAL_NAMES, load_motion
-from loosefit.body.pose_check import (
+from loosefit.motion.files import read_clip
+from loosefit.motion.motions import PROCEDURAL_NAMES, load_motion
+from loosefit.motion.pose_check import (
     CONTACT_M,
     MAX_BELOW_M,
     MAX_TURN_DEG_S,
@@ -30,7 +30,7 @@ from loosefit.body.pose_check import (
     MIN_UPRIGHT,
     measure_pose,
 )
-from loosefit.body.retarget import RetargetConfig, retarget_bvh
+from loosefit.motion.retarget import RetargetConfig, retarget_bvh
 
 MOCAP = Path(__file__).resolve().parents[2] / "shared" / "mocap"
 

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from loosefit.body.unfold import LimbTest, fastest_axis, world_rotations
+from loosefit.motion.pose_correction import LimbTest, fastest_axis, world_rotations
 
 ROOT = Path(__file__).resolve().parents[1]
 SALSA = ROOT.parent / "shared" / "mocap" / "cmu-salsa"
@@ -61,7 +61,7 @@ class Turn:
     """One frame's limb turned at its root joint by some degrees, one way of turning."""
 
     def __init__(self, avatar, motion, t: int, j: int, test: LimbTest, axis) -> None:
-        from loosefit.body.rotations import rotation_angle
+        from loosefit.geometry.rotations import rotation_angle
 
         self.avatar, self.root = avatar, torch.from_numpy(motion.root_translation[t : t + 1])
         self.R, self.j, self.test = motion.rotations[t].astype(np.float64), j, test
@@ -71,7 +71,7 @@ class Turn:
 
     def rotations(self, deg: float, sign: float) -> np.ndarray:
         """(J, 3, 3) the frame's rotations with the turn (no axis: towards the reference)."""
-        from loosefit.body.rotations import (
+        from loosefit.geometry.rotations import (
             axis_angle_to_matrix,
             matrix_to_quat,
             quat_slerp,
@@ -119,7 +119,7 @@ def measure(
     avatar, parts, spec: str, clearance: float, max_degrees: float, cap: float, steps: int = 6
 ) -> dict:
     """Per folded frame and way of turning: the smallest angle that clears, and its cost."""
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     motion = load_motion(spec, avatar, fps=30.0)
     names, parents = avatar.joint_names, avatar.skeleton.parents
@@ -174,13 +174,13 @@ def measure(
 def simulate_pair(
     avatar, parts, spec: str, clearance: float, cap: float, out: Path, workers: int
 ) -> dict:
-    """Simulate ``spec`` as captured and as :func:`~loosefit.body.unfold.unfold_motion`
+    """Simulate ``spec`` as captured and as :func:`~loosefit.motion.pose_correction.unfold_motion`
     corrects it; per clip the figures of bench/penetration_regression.py, the turn, and
     the feet."""
     import penetration_regression as regression
 
-    from loosefit.body.motions import load_motion
-    from loosefit.body.unfold import UnfoldConfig, unfold_motion
+    from loosefit.motion.motions import load_motion
+    from loosefit.motion.pose_correction import UnfoldConfig, unfold_motion
     from loosefit.sim.dataset_config import read_config_file
     from loosefit.sim.generate import generate
 
@@ -219,8 +219,8 @@ def simulate_pair(
 
 def survey(avatar, parts, folder: Path) -> str:
     """A table: per take, the frames the default correction turns and how far it turns."""
-    from loosefit.body.motions import load_motion
-    from loosefit.body.unfold import unfold_motion
+    from loosefit.motion.motions import load_motion
+    from loosefit.motion.pose_correction import unfold_motion
 
     lines = [
         "| take | frames | frames turned (ramps included) | largest turn deg | "

@@ -14,7 +14,7 @@ the error's field and its first words) and each file's line::
 
 ``--studio N`` makes a studio-style data set to read first (into ``--work``): the real
 captures of ``../shared/mocap`` (CMU ballet and salsa) retargeted to the avatar and written
-back as one studio rig writes them (``tests/body/bvh_conventions.py``: centimetres, Y up,
+back as one studio rig writes them (``tests/motion/bvh_conventions.py``: centimetres, Y up,
 bones along their local X at zero pose, a ``joint_Root`` at the origin; the capture's start
 position baked into the hips' OFFSET, metres away, in some files; no OFFSETs at all in
 others), N clips of up to ``--seconds`` each.
@@ -36,8 +36,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from loosefit.body.avatar import Avatar  # noqa: E402
-from loosefit.body.motions import load_motion  # noqa: E402
 from loosefit.errors import LoosefitInputError  # noqa: E402
+from loosefit.motion.motions import load_motion  # noqa: E402
 
 SUFFIXES = (".bvh", ".gltf", ".glb", ".npz")
 
@@ -52,9 +52,9 @@ def fixed_sample(folder: Path, n: int) -> list[Path]:
 
 def judge(path: Path, avatar: Avatar) -> tuple[str, str]:
     """("read", what) for a plausible dancer, ("refused", why) or ("implausible", why)."""
-    from loosefit.body.motion_files import read_clip
-    from loosefit.body.retarget import RetargetConfig, source_height
-    from tests.body.bvh_conventions import joint_positions
+    from loosefit.motion.files import read_clip
+    from loosefit.motion.retarget import RetargetConfig, source_height
+    from tests.motion.bvh_conventions import joint_positions
 
     try:
         motion = load_motion(str(path), avatar, fps=None)
@@ -75,7 +75,7 @@ def judge(path: Path, avatar: Avatar) -> tuple[str, str]:
 
 def make_studio(out: Path, n: int, seconds: float, avatar: Avatar) -> None:
     """N studio-rig BVH files from the shared real captures (see the module docstring)."""
-    from tests.body.bvh_conventions import STUDIO_X, write_convention_bvh
+    from tests.motion.bvh_conventions import STUDIO_X, write_convention_bvh
 
     mocap = ROOT.parent / "shared" / "mocap"
     sources = sorted(mocap.glob("cmu-*/*.bvh"))

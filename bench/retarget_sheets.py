@@ -1,7 +1,7 @@
 """Contact sheets of retargeting: a capture's skeleton beside the avatar, in three conventions.
 
 A procedural dance on the avatar is written as a BVH file in a rig convention of another
-tool (built in code by ``tests/body/bvh_conventions.py``: no outside file), read back as
+tool (built in code by ``tests/motion/bvh_conventions.py``: no outside file), read back as
 ``loosefit animate`` reads it, without a joint map, and drawn by ``loosefit inspect-motion
 --sheet`` (the file's skeleton from its own forward kinematics, left; the retargeted avatar,
 right). The conventions: a studio rig whose every bone lies along its own local X axis at
@@ -23,10 +23,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from loosefit.body.avatar import Avatar  # noqa: E402
-from loosefit.body.bvh import read_bvh  # noqa: E402
-from loosefit.body.motions import load_motion  # noqa: E402
 from loosefit.cli import main as cli  # noqa: E402
-from tests.body.bvh_conventions import (  # noqa: E402
+from loosefit.motion.bvh import read_bvh  # noqa: E402
+from loosefit.motion.motions import load_motion  # noqa: E402
+from tests.motion.bvh_conventions import (  # noqa: E402
     MIXAMO,
     MIXAMO_ZERO,
     STUDIO_FAR,
@@ -35,7 +35,7 @@ from tests.body.bvh_conventions import (  # noqa: E402
     UNREAL,
     write_convention_bvh,
 )
-from tests.body.gltf_writer import write_gltf  # noqa: E402
+from tests.motion.gltf_writer import write_gltf  # noqa: E402
 
 
 def main() -> None:

@@ -44,10 +44,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from loosefit.body.motions import load_motion
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.inference.stages.collision import CollisionConfig, collision_setting
+from loosefit.motion.motions import load_motion
 
 LEGS_ONLY = CollisionConfig(iterations=6, finish=0, whole_body=False, fast=False)  # no arms
 NO_FAST_PATH = CollisionConfig(fast=False)  # collision handling without its fast path

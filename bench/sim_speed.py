@@ -23,9 +23,9 @@ import time
 import torch
 
 from loosefit.body.avatar import Avatar
-from loosefit.body.motions import load_motion
+from loosefit.fitting.place import fit_skirt
 from loosefit.garment.skirt import SkirtConfig
-from loosefit.placement.place import fit_skirt
+from loosefit.motion.motions import load_motion
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.driver import simulate, simulate_batch
 

@@ -28,8 +28,8 @@ import numpy as np
 import torch
 
 from loosefit.body.avatar import Avatar, AvatarConfig
+from loosefit.fitting.place import fit_skirt
 from loosefit.garment.quality import edge_strain
-from loosefit.placement.place import fit_skirt
 from loosefit.sequence import DressedSequence
 from loosefit.sim.driver import simulate
 from loosefit.sim.jobs import job_motion, plan_jobs

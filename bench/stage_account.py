@@ -54,8 +54,8 @@ from loosefit.geometry.query import Surface
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.inference.stages.collision import CollisionConfig
+from loosefit.model.losses import ClothStructure, dihedral_angles, signed_edge_change
 from loosefit.model.motion_features import heading_yaw
-from loosefit.model.physics import ClothStructure, dihedral_angles, signed_edge_change
 from loosefit.train.common import machine
 
 STAGES = {  # label: stages (None: not a rollout)

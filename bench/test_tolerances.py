@@ -69,8 +69,8 @@ def measure(target: str) -> dict:
     import numpy as np
 
     from loosefit.body.avatar import Avatar
-    from loosefit.body.motions import load_motion
-    from loosefit.placement.place import fit_skirt
+    from loosefit.fitting.place import fit_skirt
+    from loosefit.motion.motions import load_motion
     from loosefit.sim.cloth_config import ClothConfig
     from loosefit.sim.driver import settle, simulate, simulate_batch
 
@@ -123,8 +123,8 @@ def measure(target: str) -> dict:
     # test_settle_alone_gives_the_drape_every_clip_starts_from
     import torch
 
-    from loosefit.body.chain import preroll
     from loosefit.model.motion_features import root_frames
+    from loosefit.motion.chain import preroll
 
     cfg = tiny()
     rot, root, _ = preroll(motion, avatar.floor_height, cfg.settle_seconds, cfg.blend_seconds)

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.view.headless import BODY_BYTES, Chromium
 
 
@@ -56,7 +56,7 @@ def main() -> None:
     )
     args = ap.parse_args()
 
-    seq = AnimatedGarment.load(args.sequences[0])
+    seq = GarmentSequence.load(args.sequences[0])
     T, V = seq.garment_vertices.shape[:2]
     cmd = [
         sys.executable,

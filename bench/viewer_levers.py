@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 from viewer_fps import _cpu_seconds, _descendants, _gpu_process  # bench/, beside this file
 
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.view import ViewerConfig
 from loosefit.view.headless import BODY_BYTES, Chromium
 from loosefit.view.scene import from_animated
@@ -161,10 +161,10 @@ def main() -> None:
     args = ap.parse_args()
 
     conditions = [Condition.parse(name) for name in args.conditions.split(",")]
-    seq = AnimatedGarment.load(args.sequence)
+    seq = GarmentSequence.load(args.sequence)
     if args.frames:
         n = args.frames
-        seq = AnimatedGarment(
+        seq = GarmentSequence(
             seq.motion.slice(0, n), seq.garment, seq.garment_vertices[:n], seq.avatar, seq.source
         )
     sequences = from_animated([seq], [os.path.basename(args.sequence)])

@@ -14,7 +14,7 @@ import argparse
 
 from PIL import Image
 
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.view import ViewerConfig, view
 from loosefit.view.headless import Chromium
 
@@ -38,11 +38,11 @@ def main() -> None:
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
 
-    seqs = [AnimatedGarment.load(p) for p in args.sequences]
+    seqs = [GarmentSequence.load(p) for p in args.sequences]
     if args.frames:
         n = args.frames
         seqs = [
-            AnimatedGarment(
+            GarmentSequence(
                 s.motion.slice(0, n), s.garment, s.garment_vertices[:n], s.avatar, s.source
             )
             for s in seqs

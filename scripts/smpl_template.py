@@ -1,6 +1,6 @@
-"""Print the SMPL template skeleton of ``loosefit.body.smpl`` (``SMPL_OFFSETS`` and
+"""Print the SMPL template skeleton of ``loosefit.motion.smpl`` (``SMPL_OFFSETS`` and
 ``SMPL_END_OFFSETS``) as derived from the project's default avatar (anny) in a T-pose
-(:func:`loosefit.body.smpl.template_from_skeleton`), as Python to paste there.
+(:func:`loosefit.motion.smpl.template_from_skeleton`), as Python to paste there.
 
     .venv/bin/python scripts/smpl_template.py
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from loosefit.body.avatar import Avatar
-from loosefit.body.smpl import SMPL_JOINTS, template_from_skeleton
+from loosefit.motion.smpl import SMPL_JOINTS, template_from_skeleton
 
 
 def main() -> None:

@@ -31,8 +31,8 @@ def avatar():
 @pytest.fixture(scope="session")
 def skirt(avatar):
     """A coarse skirt (96 vertices) for the learned stages' tests."""
+    from loosefit.fitting.place import fit_skirt
     from loosefit.garment.skirt import SkirtConfig
-    from loosefit.placement.place import fit_skirt
 
     return fit_skirt(avatar, SkirtConfig(style="aline", rings=6, segments=16))
 
@@ -42,10 +42,10 @@ def toy_dataset(avatar, skirt, tmp_path_factory):
     """Two train clips and one test clip: the skirt carried by the hips, swaying sideways."""
     import numpy as np
 
-    from loosefit.body.motions import load_motion
     from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
-    from loosefit.placement.place import carry_rigidly
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.fitting.place import carry_rigidly
+    from loosefit.motion.motions import load_motion
+    from loosefit.sequence import GarmentSequence
 
     root = tmp_path_factory.mktemp("toy") / "ds"
     (root / "sequences").mkdir(parents=True)
@@ -59,7 +59,7 @@ def toy_dataset(avatar, skirt, tmp_path_factory):
         g[..., 0] += 0.3 * depth[None] * phase  # the hem swings, the waist stays
         shape = {"rig": "cmu_mb", "shape": dict(avatar.shape)}
         write_sequence(
-            root / "sequences" / f"{name}.npz", AnimatedGarment(motion, skirt, g, shape, "toy")
+            root / "sequences" / f"{name}.npz", GarmentSequence(motion, skirt, g, shape, "toy")
         )
     from dataclasses import asdict
 

@@ -111,7 +111,7 @@ def test_the_committed_set_keeps_its_edges_and_one_from_before_the_terms_says_so
     from loosefit.inference.checkpoints import load_torch
     from loosefit.inference.stages import Stages
     from loosefit.inference.stages.lengths import hanging_edges
-    from loosefit.model.physics import PHYSICS_TERMS, ClothStructure, signed_edge_change
+    from loosefit.model.losses import PHYSICS_TERMS, ClothStructure, signed_edge_change
 
     # the committed set was trained with every physics term
     assert model.model.missing_physics_terms == ()

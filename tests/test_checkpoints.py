@@ -37,9 +37,9 @@ def model():
 
 
 def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
-    from loosefit.body.motions import load_motion
     from loosefit.eval.metrics import inside_fraction
     from loosefit.garment.quality import edge_strain
+    from loosefit.motion.motions import load_motion
 
     motion = load_motion("spin", avatar, fps=model.fps).slice(0, 40)
     result = model.animate(motion)  # every stage it has: motion, edge lengths, collision
@@ -78,11 +78,11 @@ def test_the_default_set_says_it_was_trained_on_dance():
 
 def test_animate_without_a_checkpoint_takes_the_pretrained_pair(tmp_path):
     from loosefit.cli import main
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.sequence import GarmentSequence
 
     out = tmp_path / "anim"
     assert main(["animate", "sway", "--frames", "12", "--out", str(out)]) == 0
-    seq = AnimatedGarment.load(out / "sway.npz")  # the one sequence format
+    seq = GarmentSequence.load(out / "sway.npz")  # the one sequence format
     assert seq.source == f"loosefit model {(PAIR / 'motion.pt').resolve()}"
     assert seq.num_frames == 12 and seq.garment_vertices.shape == (12, 2352, 3)
     # a chain is named after all of its parts, not its last file
@@ -90,7 +90,7 @@ def test_animate_without_a_checkpoint_takes_the_pretrained_pair(tmp_path):
     assert (out / "sway_mirror_spin.npz").is_file()
     # or a file of the user's choice; any other suffix is refused before anything runs
     assert main(["animate", "sway", "--frames", "3", "--out", str(tmp_path / "s.npz")]) == 0
-    assert AnimatedGarment.load(tmp_path / "s.npz").num_frames == 3
+    assert GarmentSequence.load(tmp_path / "s.npz").num_frames == 3
     assert main(["animate", "sway", "--frames", "3", "--out", str(tmp_path / "s.txt")]) == 2
     assert not (tmp_path / "s.txt").exists()
     # an export suffix nobody writes is refused before the rollout, and nothing is written

@@ -79,8 +79,10 @@ def test_every_dotted_loosefit_name_in_the_docs_resolves():
 
 
 def test_dotted_names_are_found_across_lines_and_a_missing_one_fails():
-    text = "see `loosefit.body.\n  bvh.read_bvh`, format `loosefit.motion/1`, and loosefit.nowhere."
-    assert dotted_names(text) == {"loosefit.body.bvh.read_bvh", "loosefit.nowhere"}
-    assert callable(resolve("loosefit.body.bvh.read_bvh"))
+    text = (
+        "see `loosefit.motion.\n  bvh.read_bvh`, format `loosefit.motion/1`, and loosefit.nowhere."
+    )
+    assert dotted_names(text) == {"loosefit.motion.bvh.read_bvh", "loosefit.nowhere"}
+    assert callable(resolve("loosefit.motion.bvh.read_bvh"))
     with pytest.raises(AttributeError):
-        resolve("loosefit.body.chain.rollout_timeline")
+        resolve("loosefit.motion.chain.rollout_timeline")

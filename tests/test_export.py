@@ -119,10 +119,10 @@ def test_export_command_writes_a_dataset_sequence_with_the_posed_body(
     assert "body" not in (tmp_path / "g.usda").read_text()
     assert main(["export", str(toy_dataset / "template.npz"), str(tmp_path / "t.usd")]) == 2
     assert main(["export", str(toy_dataset / "manifest.json"), str(tmp_path / "t.usd")]) == 2
-    # an AnimatedGarment's own file (what the API's save() and the demo write)
-    from loosefit.sequence import AnimatedGarment
+    # an GarmentSequence's own file (what the API's save() and the demo write)
+    from loosefit.sequence import GarmentSequence
 
-    own = AnimatedGarment(
+    own = GarmentSequence(
         seq.motion,
         DatasetReader(toy_dataset).template,
         seq.garment_vertices,

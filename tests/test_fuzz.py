@@ -116,15 +116,15 @@ def _write(tmp_path: Path, name: str, data: str | bytes) -> Path:
 # -- text formats ---------------------------------------------------------------------------
 
 
-from tests.body.test_bvh import chain_bvh  # noqa: E402
 from tests.conftest import WITH_DETAIL  # noqa: E402
+from tests.motion.test_bvh import chain_bvh  # noqa: E402
 
 BVH = chain_bvh("ZXY")
 
 
 @given(text=broken_text(BVH))
 def test_bvh(tmp_path, text):
-    from loosefit.body.bvh import read_bvh
+    from loosefit.motion.bvh import read_bvh
 
     clip = accepts(lambda: read_bvh(_write(tmp_path, "clip.bvh", text)))
     if clip is not None:
@@ -181,7 +181,7 @@ def test_dataset_config_file(tmp_path, text):
     )
 )
 def test_motion_specs(avatar, spec):
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     motion = accepts(lambda: load_motion(spec, avatar, max_frames=20))
     if motion is not None:
@@ -238,19 +238,19 @@ def _arrays(draw, like: np.ndarray):
 
 @pytest.fixture(scope="module")
 def sequence_file(tmp_path_factory, avatar, skirt):
-    from loosefit.placement.place import carry_rigidly
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.fitting.place import carry_rigidly
+    from loosefit.sequence import GarmentSequence
 
     motion = avatar.rest_motion(3)
     g = carry_rigidly(skirt, avatar.pose_motion(motion), avatar).numpy()
     path = tmp_path_factory.mktemp("seq") / "good.npz"
-    AnimatedGarment(motion, skirt, g, {"rig": "cmu_mb", "shape": {}}, "test").save(path)
+    GarmentSequence(motion, skirt, g, {"rig": "cmu_mb", "shape": {}}, "test").save(path)
     return path
 
 
 @given(data=st.data())
 def test_sequence_template_and_motion_npz(tmp_path, sequence_file, data):
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.sequence import GarmentSequence
     from loosefit.types import GarmentTemplate, Motion
 
     fields = dict(np.load(sequence_file))
@@ -261,7 +261,7 @@ def test_sequence_template_and_motion_npz(tmp_path, sequence_file, data):
         del fields[name]
     path = tmp_path / "broken.npz"
     np.savez(path, **fields)
-    seq = accepts(lambda: AnimatedGarment.load(path))
+    seq = accepts(lambda: GarmentSequence.load(path))
     if seq is not None:
         finite(seq.garment_vertices, seq.motion.rotations, seq.garment.vertices)
     # the same fields read as a motion and as a template (their own names)

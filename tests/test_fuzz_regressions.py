@@ -52,20 +52,20 @@ def test_config_values_of_the_wrong_kind(tmp_path, text, field):
     "spec", ["dance:999999999999", "dance:1e400", "dance:-1", "speed:1e-9:spin", "speed:1000:spin"]
 )
 def test_motion_specs_that_ask_for_unbounded_memory(avatar, spec):
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     with pytest.raises(LoosefitInputError, match="dance:SECONDS|speed:FACTOR"):
         load_motion(spec, avatar)
 
 
 def test_npz_fields_of_another_kind(tmp_path, avatar, skirt):
-    from loosefit.placement.place import carry_rigidly
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.fitting.place import carry_rigidly
+    from loosefit.sequence import GarmentSequence
     from loosefit.types import GarmentTemplate, Motion
 
     motion = avatar.rest_motion(2)
     g = carry_rigidly(skirt, avatar.pose_motion(motion), avatar).numpy()
-    path = AnimatedGarment(motion, skirt, g, {}, "t").save(tmp_path / "s.npz")
+    path = GarmentSequence(motion, skirt, g, {}, "t").save(tmp_path / "s.npz")
     good = dict(np.load(path))
     cases = [
         ("joint_names", np.array("Hips")),
@@ -76,7 +76,7 @@ def test_npz_fields_of_another_kind(tmp_path, avatar, skirt):
     for field, value in cases:
         np.savez(path, **{**good, field: value})
         with pytest.raises(LoosefitInputError, match=rf"s\.npz.*{field}"):
-            AnimatedGarment.load(path)
+            GarmentSequence.load(path)
     np.savez(path, **{**good, "name": np.array(["a", "b"])})
     with pytest.raises(LoosefitInputError, match=r"s\.npz.*name"):
         Motion.load(path)

@@ -1,10 +1,13 @@
 """The package's layers: every import points down.
 
-The units are ``src/loosefit``'s top-level modules and subpackages; :data:`LAYERS` orders
-them bottom to top. A unit imports only units of lower layers (and itself): never one of
-its own layer, never one above. Every ``import`` statement counts, however deep in a
-function (a static reading of the source with :mod:`ast`, relative imports resolved), so a
-convenience that reaches up (``AnimatedGarment.view``) lives in the upper layer.
+The units are ``src/loosefit``'s top-level modules and subpackages, and the few modules of a
+package that sit in a higher layer than the rest of it (``fitting.drape`` drapes with the
+runtime's collision handling, while the simulator places garments with ``fitting.place``);
+:data:`LAYERS` orders them bottom to top. A unit imports only units of lower layers (and
+itself): never one of its own layer, never one above. Every ``import`` statement counts,
+however deep in a function (a static reading of the source with :mod:`ast`, relative
+imports resolved), so a convenience that reaches up (``AnimatedGarment.view``) lives in
+the upper layer.
 """
 
 from __future__ import annotations
@@ -19,15 +22,17 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("types", "atomic", "progress", "warp_log"),  # Motion, GarmentTemplate; atomic writes;
     # progress bars; warp imported with its messages on standard error
     ("geometry",),  # pure mesh geometry: edges, normals, skinning, queries, signed distances
-    ("body",),  # the avatar, motions, body regions
+    ("body",),  # the avatar, its capsules and regions
+    ("motion",),  # motion files read, retargeted, checked, corrected; procedural motions
     ("garment",),  # parametric garments, garment files, mesh checks, quality figures
-    ("placement", "export", "model"),  # garments on the body; exporters; the networks
-    ("sequence",),  # AnimatedGarment, in memory and on disk
+    ("fitting", "export", "model"),  # garments made for and placed on the body; exporters;
+    # the networks and their losses
+    ("sequence",),  # GarmentSequence, in memory and on disk
     ("data",),  # the data set format and readers
     ("sim", "render"),  # the simulator and data sets of it; the renderer
     ("inference",),  # the runtime: checkpoints, the rollout and its stages, ONNX
-    ("eval", "fit", "character"),  # metrics and a model's rollouts scored; a garment fitted by
-    # draping it; a user's own character fitted and dressed
+    ("eval", "fitting.drape", "character"),  # metrics and a model's rollouts scored; a
+    # garment fitted by draping it; a user's own character fitted and dressed
     ("view",),  # the viewer (colours by the metrics)
     ("train",),  # the training stages
     ("api",),  # the Python API
@@ -41,6 +46,10 @@ def _layer_of() -> dict[str, int]:
 
 
 def _unit(rel: Path) -> str:
+    dotted = ".".join(rel.with_suffix("").parts)
+    for unit in _layer_of():
+        if "." in unit and (dotted == unit or dotted.startswith(unit + ".")):
+            return unit
     return rel.parts[0].removesuffix(".py")
 
 
@@ -60,8 +69,11 @@ def _imported_units(rel: Path, tree: ast.AST, units: set[str]) -> list[tuple[int
             else:
                 targets = [module]
         for parts in targets:
-            if len(parts) >= 2 and parts[0] == "loosefit" and parts[1] in units:
-                found.append((node.lineno, parts[1], ast.unparse(node)))
+            if len(parts) >= 2 and parts[0] == "loosefit":
+                sub = ".".join(parts[1:3])
+                unit = sub if sub in units else parts[1]
+                if unit in units:
+                    found.append((node.lineno, unit, ast.unparse(node)))
     return sorted(found)
 
 

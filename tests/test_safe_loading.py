@@ -71,12 +71,12 @@ def _npz_with_payload(path, marker, **arrays) -> pathlib.Path:
 def test_npz_files_with_a_pickled_object_are_refused(tmp_path, marker, skirt):
     from loosefit.data.format import read_sequence
     from loosefit.model.ssdr import SkinningDecomposition
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.sequence import GarmentSequence
     from loosefit.types import GarmentTemplate, Motion
 
     readers = {
         "template": GarmentTemplate.load,
-        "sequence": AnimatedGarment.load,
+        "sequence": GarmentSequence.load,
         "motion": Motion.load,
         "clip": lambda p: read_sequence(p, skirt),
         "decomposition": SkinningDecomposition.load,

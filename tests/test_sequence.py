@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from loosefit.errors import LoosefitInputError
-from loosefit.placement.place import carry_rigidly, fit_skirt
-from loosefit.sequence import DressedSequence
+from loosefit.fitting.place import carry_rigidly, fit_skirt
+from loosefit.sequence import GarmentSequence
 
 
 @pytest.fixture(scope="module")
@@ -11,12 +11,12 @@ def dressed(avatar):
     motion = avatar.rest_motion(4)
     skirt = fit_skirt(avatar)
     g = carry_rigidly(skirt, avatar.pose_motion(motion), avatar).numpy()
-    return DressedSequence(motion, skirt, g, {"rig": "cmu_mb", "shape": avatar.shape}, "rigid")
+    return GarmentSequence(motion, skirt, g, {"rig": "cmu_mb", "shape": avatar.shape}, "rigid")
 
 
 def test_round_trip(dressed, tmp_path):
     path = dressed.save(tmp_path / "seq.npz")
-    back = DressedSequence.load(path)
+    back = GarmentSequence.load(path)
     assert np.array_equal(back.garment_vertices, dressed.garment_vertices)
     assert np.array_equal(back.motion.rotations, dressed.motion.rotations)
     assert np.array_equal(back.garment.faces, dressed.garment.faces)
@@ -26,7 +26,7 @@ def test_round_trip(dressed, tmp_path):
 
 def test_wrong_vertex_count_is_rejected(dressed):
     with pytest.raises(LoosefitInputError, match=r"garment_vertices.*shape \(4, \d+, 3\)"):
-        DressedSequence(
+        GarmentSequence(
             dressed.motion, dressed.garment, dressed.garment_vertices[:, :-1], dressed.avatar
         )
 
@@ -35,12 +35,12 @@ def test_nan_is_rejected_with_its_frame(dressed):
     g = dressed.garment_vertices.copy()
     g[2, 5, 1] = np.nan
     with pytest.raises(LoosefitInputError, match=r"garment_vertices.*NaN.*first at \(2, 5, 1\)"):
-        DressedSequence(dressed.motion, dressed.garment, g, dressed.avatar)
+        GarmentSequence(dressed.motion, dressed.garment, g, dressed.avatar)
 
 
 def test_foreign_file_is_rejected(tmp_path):
     np.savez(tmp_path / "other.npz", x=np.zeros(3))
     with pytest.raises(LoosefitInputError, match=r"other\.npz.*format"):
-        DressedSequence.load(tmp_path / "other.npz")
+        GarmentSequence.load(tmp_path / "other.npz")
     with pytest.raises(LoosefitInputError, match="no such file"):
-        DressedSequence.load(tmp_path / "missing.npz")
+        GarmentSequence.load(tmp_path / "missing.npz")

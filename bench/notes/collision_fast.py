@@ -19,10 +19,10 @@ import time
 import numpy as np
 import torch
 
-from loosefit.body.motions import load_motion
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
 from loosefit.inference.stages.collision import CollisionConfig
+from loosefit.motion.motions import load_motion
 
 
 def compare(model, motion) -> dict:

@@ -31,9 +31,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from loosefit.body.motions import load_motion
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
+from loosefit.motion.motions import load_motion
 from loosefit.train.common import machine
 
 CHUNK = 64  # frames a call (the rollout's chunk)

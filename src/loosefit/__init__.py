@@ -32,7 +32,7 @@ def __getattr__(name: str):
 
         return getattr(api, name)
     if name == "fit_garment":
-        from loosefit.fit import fit_garment
+        from loosefit.fitting.drape import fit_garment
 
         return fit_garment
     raise AttributeError(f"module 'loosefit' has no attribute {name!r}")

@@ -27,14 +27,14 @@ PRETRAINED = "dance"  # the default set's folder under loosefit/pretrained
 
 
 def show(
-    *sequences: sequence.AnimatedGarment,
+    *sequences: sequence.GarmentSequence,
     names: list[str] | None = None,
     wait: bool = True,
     **config,
 ):
     """Open animated garments in the browser viewer (:mod:`loosefit.view`;
     ``pip install 'loosefit[viewer]'``): one, or several of the same garment and frames
-    side by side. Any :class:`~loosefit.sequence.AnimatedGarment` will do: a rollout, a
+    side by side. Any :class:`~loosefit.sequence.GarmentSequence` will do: a rollout, a
     file read with ``AnimatedGarment.load``, a data set's clip
     (``DatasetReader(folder).read(name)``).
 
@@ -52,7 +52,7 @@ def show(
     return viewer
 
 
-class AnimatedGarment(sequence.AnimatedGarment):
+class AnimatedGarment(sequence.GarmentSequence):
     """An animated garment as the API returns it (``loosefit.AnimatedGarment``): the
     sequence of :mod:`loosefit.sequence` (its fields, file, export) and :meth:`view`, the
     browser viewer, which sits in a layer above the sequence's and is reached from here
@@ -60,7 +60,7 @@ class AnimatedGarment(sequence.AnimatedGarment):
 
     def view(
         self,
-        *others: sequence.AnimatedGarment,
+        *others: sequence.GarmentSequence,
         names: list[str] | None = None,
         wait: bool = True,
         **config,
@@ -101,7 +101,7 @@ def motion_for(
 
     Args:
         spec: a :class:`~loosefit.types.Motion`, or what
-            :func:`~loosefit.body.motions.load_motion` reads (a ``.bvh``/``.npz`` file, a
+            :func:`~loosefit.motion.motions.load_motion` reads (a ``.bvh``/``.npz`` file, a
             procedural move, ``dance:SECONDS``, ``mirror:...``, ``A+B``).
         avatar: the avatar it must fit.
         fps: the frame rate the model runs at.
@@ -109,10 +109,10 @@ def motion_for(
         start_frame: drop the frames before this one.
         seed: seeds procedural motions.
         retarget: how a BVH file is read and mapped
-            (:class:`~loosefit.body.retarget.RetargetConfig`; default: its defaults).
+            (:class:`~loosefit.motion.retarget.RetargetConfig`; default: its defaults).
     """
-    from loosefit.body.chain import chain_motions
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.chain import chain_motions
+    from loosefit.motion.motions import load_motion
 
     if isinstance(spec, Motion):
         avatar.check_motion(spec)
@@ -213,7 +213,7 @@ class Animator:
                 prepared once per body, a few seconds). None: the trained body.
 
         Returns:
-            :class:`~loosefit.sequence.AnimatedGarment`, world positions.
+            :class:`~loosefit.sequence.GarmentSequence`, world positions.
 
         Raises:
             LoosefitInputError: an unreadable motion, ``runtime="onnx"`` without
@@ -301,7 +301,7 @@ class Animator:
         ``threads`` and ``shape`` (every character on that body) as for :meth:`animate`.
 
         Returns:
-            One :class:`~loosefit.sequence.AnimatedGarment` per motion.
+            One :class:`~loosefit.sequence.GarmentSequence` per motion.
 
         Raises:
             LoosefitInputError: a motion on other joints, at another rate, or unreadable;
@@ -337,7 +337,7 @@ class Animator:
         """The learned runtime (motion features, the motion encoder's step, the decoders, the
         detail generator) as one ONNX graph at ``path``, its GRU state and previous garment
         explicit inputs and outputs, a JSON beside it saying what they mean and the
-        garment's mesh as OBJ (:func:`~loosefit.inference.onnx_export.export_onnx`;
+        garment's mesh as OBJ (:func:`~loosefit.inference.onnx.export.export_onnx`;
         docs/ENGINE_EXPORT.md).
 
         Args:
@@ -352,7 +352,7 @@ class Animator:
             LoosefitInputError: a stage that cannot be exported (a baseline), or the
                 ``onnx`` extra missing (``pip install 'loosefit[onnx]'``).
         """
-        from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
+        from loosefit.inference.onnx.export import OnnxExportConfig, export_onnx
 
         return export_onnx(self.model, path, OnnxExportConfig(detail=detail, check=check))
 
@@ -397,28 +397,28 @@ def simulate(
         shape: the avatar's phenotype (anny's names); default the project's avatar.
         progress: called as ``progress(done, total)``.
         unfold: first turn a limb that passes into the body out of it, a few degrees at most,
-            as data sets do (:mod:`loosefit.body.unfold`; the returned motion is the one
+            as data sets do (:mod:`loosefit.motion.pose_correction`; the returned motion is the one
             simulated); False simulates the motion exactly as given.
     """
     from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.placement.place import garment_for
+    from loosefit.fitting.place import garment_for
     from loosefit.sim.driver import simulate as run
 
     avatar = Avatar(AvatarConfig(shape=dict(shape or {})) if shape else None)
     template = garment if isinstance(garment, GarmentTemplate) else garment_for(garment, avatar)
     if isinstance(garment, GarmentTemplate):  # one fitted to a body (fit_garment): that body
-        from loosefit.placement.place import check_fitted_shape
+        from loosefit.fitting.place import check_fitted_shape
 
         check_fitted_shape(template, avatar, "garment")
     m = motion_for(motion, avatar, 30.0, frames, start_frame, seed)
     if config is None:  # a dress's bodice reaches the upper arms: they collide
-        from loosefit.placement.place import collider_arms
+        from loosefit.fitting.place import collider_arms
         from loosefit.sim.cloth_config import ClothConfig
 
         config = ClothConfig(arm_collision=collider_arms(template))
     if unfold:
         from loosefit.body.regions import body_parts
-        from loosefit.body.unfold import unfold_motion
+        from loosefit.motion.pose_correction import unfold_motion
 
         m = unfold_motion(avatar, m, body_parts(avatar, arms=config.colliding_arms)).motion
     result = run(avatar, template, m, config, progress=progress)

@@ -2,7 +2,7 @@
 
 What ``loosefit.load().animate()``, ``loosefit.simulate()``, ``loosefit animate`` and
 ``loosefit simulate`` (each clip of a data set) write, and what ``render``, ``evaluate``,
-``export`` and :meth:`AnimatedGarment.load` read. A file is a plain ``.npz`` (numpy alone
+``export`` and :meth:`GarmentSequence.load` read. A file is a plain ``.npz`` (numpy alone
 reads it; no pickle), written atomically, with the fields::
 
     format            "loosefit.sequence/1"
@@ -53,7 +53,7 @@ FORMAT = "loosefit.sequence/1"
 
 
 @dataclass
-class AnimatedGarment:
+class GarmentSequence:
     """A garment animated on a moving avatar: what ``loosefit.load().animate()`` and
     ``loosefit.simulate()`` return, and what ``.npz`` sequences hold.
 
@@ -156,7 +156,7 @@ class AnimatedGarment:
         if np.issubdtype(gv.dtype, np.floating):
             gv = gv.astype(np.float32, copy=False)
         T, V = self.motion.num_frames, self.garment.num_vertices
-        _check_array("AnimatedGarment", "garment_vertices", gv, (T, V, 3))
+        _check_array("GarmentSequence", "garment_vertices", gv, (T, V, 3))
         self.garment_vertices = gv
 
     @property
@@ -192,7 +192,7 @@ class AnimatedGarment:
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> AnimatedGarment:
+    def load(cls, path: str | Path) -> GarmentSequence:
         """Read and validate a file written by :meth:`save`.
 
         Raises:
@@ -265,5 +265,3 @@ _FIELDS = (
     "joint_names rotations root_translation fps vertices faces uvs face_uvs waist "
     "garment_vertices avatar"
 ).split()
-
-DressedSequence = AnimatedGarment  # the earlier name

@@ -36,7 +36,7 @@ def test_rest_pose_reproduces_rest_mesh(avatar):
 def test_skinning_transforms_reproduce_posed_mesh(avatar):
     """Linear blend skinning with our transforms and anny's weights gives anny's vertices."""
     rng = np.random.default_rng(0)
-    from loosefit.body.rotations import axis_angle_to_matrix
+    from loosefit.geometry.rotations import axis_angle_to_matrix
 
     rot = axis_angle_to_matrix(rng.normal(0, 0.3, (2, avatar.num_joints, 3))).astype(np.float32)
     body = avatar.pose(torch.from_numpy(rot), torch.tensor([[0.1, 0.2, 0.9], [0.0, 0.0, 1.0]]))
@@ -75,7 +75,7 @@ def test_seed_points_are_spread_and_rigid(avatar):
     d = torch.cdist(seeds.rest, seeds.rest) + torch.eye(64) * 10
     assert float(d.min()) > 0.02  # regularly spread, no clumps
     rng = np.random.default_rng(1)
-    from loosefit.body.rotations import axis_angle_to_matrix
+    from loosefit.geometry.rotations import axis_angle_to_matrix
 
     rot = axis_angle_to_matrix(rng.normal(0, 0.2, (3, avatar.num_joints, 3))).astype(np.float32)
     body = avatar.pose(torch.from_numpy(rot), torch.zeros(3, 3))

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.body.bvh import forward_kinematics, read_bvh, rest_positions
-from loosefit.body.retarget import axis_change
-from tests.body.bvh_conventions import MIXAMO, write_convention_bvh
-from tests.body.gltf_writer import write_gltf
+from loosefit.motion.bvh import forward_kinematics, read_bvh, rest_positions
+from loosefit.motion.retarget import axis_change
+from tests.motion.bvh_conventions import MIXAMO, write_convention_bvh
+from tests.motion.gltf_writer import write_gltf
 
 SHAPE = {
     "gender": 0.6,
@@ -41,7 +41,7 @@ def write_character(
 ):
     """Write the character; returns (path, its avatar, its motion on that avatar)."""
     from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     body = Avatar(AvatarConfig(shape=shape))
     motion = load_motion(move, body, seed=seed).slice(0, frames)

@@ -74,14 +74,14 @@ def test_blender_opens_their_character_unchanged_with_the_garment_on_it(
 
 def test_cli_animate_a_character_writes_their_file_with_the_garment(character, tmp_path, capsys):
     from loosefit.cli import main
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.sequence import GarmentSequence
 
     out = tmp_path / "anim"
     assert main(["animate", str(character[0]), "--frames", "4", "--out", str(out)]) == 0
     err = capsys.readouterr().err
     assert "a character (a skinned mesh)" in err and "cm apart" in err
     assert (out / "character_dressed.glb").is_file()
-    assert len(AnimatedGarment.load(out / "character.npz").garment_vertices) == 4
+    assert len(GarmentSequence.load(out / "character.npz").garment_vertices) == 4
     bad = ["animate", str(character[0]), "--shape", "height=0.7", "--out", str(out)]
     assert main(bad) != 0
     assert "its body is fitted" in capsys.readouterr().err

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from loosefit.body.motions import load_motion
 from loosefit.character.fit_body import fit_body
 from loosefit.errors import LoosefitInputError
+from loosefit.motion.motions import load_motion
 from tests.character.character_file import SHAPE
 
 

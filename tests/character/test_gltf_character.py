@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from loosefit.body.gltf_file import read_document
-from loosefit.body.retarget import axis_change
 from loosefit.character import has_skinned_mesh, read_character
 from loosefit.errors import LoosefitInputError
-from tests.body.gltf_writer import write_document
+from loosefit.motion.gltf_file import read_document
+from loosefit.motion.retarget import axis_change
+from tests.motion.gltf_writer import write_document
 
 
 def test_the_skin_poses_the_mesh_as_the_body_it_was_made_from(character):

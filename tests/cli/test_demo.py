@@ -56,7 +56,7 @@ def test_demo_animates_the_pretrained_model_and_exports_it(tmp_path, capsys):
 
     from loosefit.export import read_pc2
     from loosefit.export.meshes import in_up_axis
-    from loosefit.sequence import DressedSequence
+    from loosefit.sequence import GarmentSequence
 
     out = tmp_path / "demo"
     args = [
@@ -73,7 +73,7 @@ def test_demo_animates_the_pretrained_model_and_exports_it(tmp_path, capsys):
         "front",
     ]
     assert main(args) == 0
-    seq = DressedSequence.load(out / "sequence.npz")
+    seq = GarmentSequence.load(out / "sequence.npz")
     assert seq.source.startswith("loosefit model") and seq.garment_vertices.shape[0] == 30
     err = capsys.readouterr().err  # throughput apart from the clip's own rate
     assert "animated 30 frames of a 30 fps clip (1.0 s) in" in err and "frames per second" in err
@@ -103,9 +103,9 @@ def test_demo_with_physics(tmp_path, avatar):
         "--physics",
     ]
     assert main(args) == 0
-    from loosefit.sequence import DressedSequence
+    from loosefit.sequence import GarmentSequence
 
-    seq = DressedSequence.load(out / "sequence.npz")
+    seq = GarmentSequence.load(out / "sequence.npz")
     assert seq.source == "newton-vbd" and seq.garment_vertices.shape[0] == 10
 
 

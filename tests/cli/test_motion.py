@@ -30,8 +30,8 @@ def test_motion_from_bvh(tmp_path, avatar):
 def test_inspect_motion_prints_the_matches(tmp_path, capsys, avatar):
     import dataclasses
 
-    from loosefit.body.motions import load_motion
-    from tests.body.bvh_conventions import CONVENTIONS, write_convention_bvh
+    from loosefit.motion.motions import load_motion
+    from tests.motion.bvh_conventions import CONVENTIONS, write_convention_bvh
 
     motion = load_motion("spin", avatar).slice(0, 12)
     path = write_convention_bvh(
@@ -70,9 +70,9 @@ def test_inspect_motion_prints_the_matches(tmp_path, capsys, avatar):
 def test_motion_takes_a_joint_map_file(tmp_path, capsys, avatar):
     import dataclasses
 
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
     from loosefit.types import Motion
-    from tests.body.bvh_conventions import NAMELESS, write_convention_bvh
+    from tests.motion.bvh_conventions import NAMELESS, write_convention_bvh
 
     names = {a: f"Knochen{i}" for i, a in enumerate(NAMELESS.joints)}  # made-up names
     conv = dataclasses.replace(NAMELESS, joints=names, up="+z", forward="-y")
@@ -101,11 +101,11 @@ def test_motion_takes_a_joint_map_file(tmp_path, capsys, avatar):
 def test_motion_commands_take_gltf_and_smpl_files(tmp_path, capsys, avatar):
     import numpy as np
 
-    from loosefit.body.bvh import read_bvh
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.bvh import read_bvh
+    from loosefit.motion.motions import load_motion
     from loosefit.types import Motion
-    from tests.body.bvh_conventions import CONVENTIONS, write_convention_bvh
-    from tests.body.gltf_writer import write_gltf
+    from tests.motion.bvh_conventions import CONVENTIONS, write_convention_bvh
+    from tests.motion.gltf_writer import write_gltf
 
     motion = load_motion("spin", avatar).slice(0, 12)
     bvh = write_convention_bvh(
@@ -131,10 +131,10 @@ def test_inspect_motion_draws_the_capture_beside_the_avatar(tmp_path, capsys, av
     import numpy as np
     from PIL import Image
 
-    from loosefit.body.joint_maps import load_joint_map_file
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.joint_maps import load_joint_map_file
+    from loosefit.motion.motions import load_motion
     from loosefit.render.renderer import Renderer
-    from tests.body.bvh_conventions import STUDIO_X, write_convention_bvh
+    from tests.motion.bvh_conventions import STUDIO_X, write_convention_bvh
 
     motion = load_motion("spin", avatar).slice(0, 20)
     path = write_convention_bvh(

@@ -13,7 +13,7 @@ from loosefit.data.format import (
     write_sequence,
 )
 from loosefit.errors import LoosefitInputError
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.types import GarmentTemplate, Motion
 
 J, V = 3, 6
@@ -26,12 +26,12 @@ def _template() -> GarmentTemplate:
     return GarmentTemplate(v, f, uv, f, np.array([0, 1]), name="toy")
 
 
-def _sequence(name: str, T: int, offset: float = 0.0) -> AnimatedGarment:
+def _sequence(name: str, T: int, offset: float = 0.0) -> GarmentSequence:
     rot = np.tile(np.eye(3, dtype=np.float32), (T, J, 1, 1))
     root = np.zeros((T, 3), np.float32) + offset
     motion = Motion(("a", "b", "c"), rot, root, 30.0, name)
     g = np.arange(T * V * 3, dtype=np.float32).reshape(T, V, 3) + offset
-    return AnimatedGarment(motion, _template(), g, {"rig": "cmu_mb", "shape": {}}, "test")
+    return GarmentSequence(motion, _template(), g, {"rig": "cmu_mb", "shape": {}}, "test")
 
 
 @pytest.fixture
@@ -67,7 +67,7 @@ def test_round_trip(dataset):
     # Plain numpy reads it too, and the API: a clip is an animated garment's file
     d = np.load(dataset / "sequences" / "s1.npz")
     assert d["garment_vertices"].shape == (7, V, 3) and str(d["format"]) == "loosefit.sequence/1"
-    same = AnimatedGarment.load(dataset / "sequences" / "s1.npz")
+    same = GarmentSequence.load(dataset / "sequences" / "s1.npz")
     assert np.array_equal(same.garment_vertices, seq.garment_vertices)
     assert not list(dataset.rglob("*partial*")) and not list(dataset.rglob("*.tmp*"))
 
@@ -91,14 +91,14 @@ def test_a_clip_written_before_the_sequence_format_is_still_read(dataset):
     assert np.array_equal(seq.garment_vertices, ref.garment_vertices)
     assert seq.template.name == "toy" and seq.name == "s1"
     with pytest.raises(LoosefitInputError, match=r"s1\.npz.*format.*through its data set"):
-        AnimatedGarment.load(path)  # alone, it has no template: the error says where to go
+        GarmentSequence.load(path)  # alone, it has no template: the error says where to go
 
 
 def test_a_clip_of_another_garment_is_refused(dataset):
     other = _template()
     other.vertices = other.vertices + 0.01
     path = dataset / "sequences" / "s0.npz"
-    AnimatedGarment(
+    GarmentSequence(
         _sequence("s0", 10).motion, other, _sequence("s0", 10).garment_vertices, {}, "test"
     ).save(path)
     with pytest.raises(LoosefitInputError, match=r"s0\.npz.*another garment") as err:
@@ -116,7 +116,7 @@ def test_a_clip_on_another_avatar_is_refused_with_both_fingerprints(dataset):
 
     ref = _sequence("s0", 10)
     body = {"rig": "cmu_mb", "shape": {"height": 0.9}}
-    AnimatedGarment(ref.motion, ref.garment, ref.garment_vertices, body, "test").save(
+    GarmentSequence(ref.motion, ref.garment, ref.garment_vertices, body, "test").save(
         dataset / "sequences" / "s0.npz"
     )
     reader = DatasetReader(dataset)

@@ -18,7 +18,7 @@ from loosefit.data.format import FORMAT, DatasetReader, write_json_atomic, write
 from loosefit.data.pack import INDEX, PACK_FORMAT, pack, unpack
 from loosefit.data.pieces import PieceReader, find_pieces
 from loosefit.errors import LoosefitInputError
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.types import GarmentTemplate, Motion
 from tests.data.conftest import DANCE_PACK, LFZ, needs_corpus
 
@@ -33,7 +33,7 @@ def _template() -> GarmentTemplate:
     return GarmentTemplate(v, f, rng.uniform(0.1, 0.9, size=(V, 2)), f, np.arange(4), name="t")
 
 
-def _clip(name: str, T: int, seed: int) -> AnimatedGarment:
+def _clip(name: str, T: int, seed: int) -> GarmentSequence:
     rng = np.random.default_rng(seed)
     rot = np.tile(np.eye(3, dtype=np.float32), (T, 3, 1, 1))
     root = rng.normal(size=(T, 3)).astype(np.float32)
@@ -42,7 +42,7 @@ def _clip(name: str, T: int, seed: int) -> AnimatedGarment:
     if name == "wild":  # jumps of a metre a frame: second differences beyond int16
         walk += rng.uniform(-1.5, 1.5, size=(T, 1, 1))
     g = (_template().vertices[None] + walk).astype(np.float32)
-    return AnimatedGarment(motion, _template(), g, {"rig": "cmu_mb", "shape": {}}, "test")
+    return GarmentSequence(motion, _template(), g, {"rig": "cmu_mb", "shape": {}}, "test")
 
 
 @pytest.fixture

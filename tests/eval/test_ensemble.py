@@ -12,7 +12,7 @@ from loosefit.data.format import FORMAT, write_json_atomic, write_sequence
 from loosefit.errors import LoosefitInputError
 from loosefit.eval import ensemble as en
 from loosefit.eval.metrics import rmse_per_frame
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.types import GarmentTemplate, Motion
 
@@ -157,13 +157,13 @@ def _template() -> GarmentTemplate:
     return GarmentTemplate(v, f, uv, f, np.array([0, 1]), name="toy")
 
 
-def _sequence(frames: int, shift: float, turn: float = 0.0) -> AnimatedGarment:
+def _sequence(frames: int, shift: float, turn: float = 0.0) -> GarmentSequence:
     rot = np.tile(np.eye(3, dtype=np.float32), (frames, J, 1, 1))
     c, s = np.cos(turn), np.sin(turn)  # joint b turned about Z: entries change by sin(turn)
     rot[:, 1, :2, :2] = [[c, -s], [s, c]]
     motion = Motion(("a", "b", "c"), rot, np.zeros((frames, 3), np.float32), 30.0, "m")
     g = np.tile(_template().vertices.astype(np.float32), (frames, 1, 1)) + shift
-    return AnimatedGarment(motion, _template(), g, {"rig": "cmu_mb", "shape": {}}, "test")
+    return GarmentSequence(motion, _template(), g, {"rig": "cmu_mb", "shape": {}}, "test")
 
 
 def _dataset(root, seed: int, clips: dict, cloth: dict | None = None):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from loosefit.body.rotations import axis_angle_to_matrix
 from loosefit.export import AnimatedMesh, Skin
+from loosefit.geometry.rotations import axis_angle_to_matrix
 from tests.meshes import grid
 
 

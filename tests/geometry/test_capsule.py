@@ -67,7 +67,7 @@ def test_a_pushed_point_lies_on_the_surface():
 
 
 def test_capsule_frames_are_the_avatars_bones(avatar):
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     motion = load_motion("spin", avatar).slice(0, 5)
     posed = avatar.pose_motion(motion).joint_poses[..., :3, 3].double().numpy()  # (T, J, 3)

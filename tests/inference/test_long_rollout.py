@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from loosefit.body.chain import chain_motions
 from loosefit.inference.stages import MOTION_ONLY
 from loosefit.model.motion_features import garment_in_root_frame
+from loosefit.motion.chain import chain_motions
 
 
 @pytest.mark.slow

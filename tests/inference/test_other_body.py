@@ -70,7 +70,7 @@ def test_each_vertex_follows_the_skin_nearest_it():
 
 def test_the_motion_on_a_longer_legged_body_keeps_its_feet_on_the_floor(avatar):
     from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     tall = Avatar(AvatarConfig(shape={**avatar.shape, "height": 0.9}))
     motion = load_motion("sway", avatar).slice(0, 12)
@@ -159,13 +159,13 @@ def test_a_baseline_or_feedback_cannot_change_body(pretrained):
 
 def test_cli_animate_on_another_body(tmp_path, capsys):
     from loosefit.cli import main
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.sequence import GarmentSequence
 
     out = tmp_path / "a.npz"
     assert (
         main(["animate", "spin", "--frames", "6", "--shape", "height=0.8", "--out", str(out)]) == 0
     )
-    seq = AnimatedGarment.load(out)
+    seq = GarmentSequence.load(out)
     assert seq.avatar["shape"]["height"] == 0.8 and len(seq.vertices) == 6
     assert "body height=0.8: prepared" in capsys.readouterr().err
     bad = ["animate", "spin", "--frames", "6", "--shape", "height", "--out", str(out)]

@@ -139,7 +139,7 @@ def test_from_checkpoint_is_what_load_pipeline_gives():
 
 def test_the_onnx_modules_do_not_import_the_animator():
     code = (
-        "import json, sys\nimport loosefit.inference.onnx_stages\n"
+        "import json, sys\nimport loosefit.inference.onnx.stages\n"
         "print(json.dumps(sorted(sys.modules)))\n"
     )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

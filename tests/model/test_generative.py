@@ -13,6 +13,7 @@ import pytest
 import torch
 
 from loosefit.errors import LoosefitInputError
+from loosefit.fitting.place import fit_skirt
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.model.generative import (
     GarmentGenerativeModel,
@@ -22,7 +23,6 @@ from loosefit.model.generative import (
     kl_divergence,
 )
 from loosefit.model.motion_features import from_root_frame, heading_frames, to_root_frame
-from loosefit.placement.place import fit_skirt
 from loosefit.train.generative import TrainGenerativeConfig, load_checkpoint, train_generative
 
 SMALL = dict(uv_size=32, channels=(4, 8, 8, 8), rec_hidden=(16, 16, 16))
@@ -208,9 +208,9 @@ def test_train_and_interpolate_commands(toy_dataset, tmp_path):
         )
         == 0
     )
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.sequence import GarmentSequence
 
-    seq = AnimatedGarment.load(rec / "reconstruction.npz")  # the one sequence format
+    seq = GarmentSequence.load(rec / "reconstruction.npz")  # the one sequence format
     assert seq.garment_vertices.shape == (3, 96, 3) and seq.num_frames == 3
 
 

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 import torch
 
-from loosefit.body.motions import load_motion
 from loosefit.errors import LoosefitInputError
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import (
@@ -22,6 +21,7 @@ from loosefit.model.motion_features import (
     root_frames,
     yaw_matrix,
 )
+from loosefit.motion.motions import load_motion
 
 
 def _moved(rotations, root, yaw: float, shift: tuple[float, float]):

@@ -13,12 +13,12 @@ import math
 import numpy as np
 import pytest
 
-from loosefit.body.chain import place_motion, preroll
-from loosefit.body.motions import load_motion
 from loosefit.errors import LoosefitInputError
+from loosefit.fitting.place import fit_skirt
 from loosefit.garment.skirt import SkirtConfig
 from loosefit.geometry.query import closest_points
-from loosefit.placement.place import fit_skirt
+from loosefit.motion.chain import place_motion, preroll
+from loosefit.motion.motions import load_motion
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.driver import SimulationError, _guard, settle, simulate, simulate_batch
 from loosefit.sim.resume import run_key
@@ -455,8 +455,8 @@ def test_batched_run_resumes_and_checks_its_motions(avatar, tiny, batch, tmp_pat
 def test_the_collider_with_arms_stops_a_hand_sweeping_through_a_tiny_skirt(avatar):
     # the left arm lowered from the A-pose past hanging: the hand sweeps 18 cm inward at
     # hip height, through the skirt's side, and stops 4 cm from the hip
-    from loosefit.body.rotations import axis_angle_to_matrix
     from loosefit.garment.quality import PENETRATION_TOLERANCE
+    from loosefit.geometry.rotations import axis_angle_to_matrix
 
     skirt = fit_skirt(avatar, TINY_SKIRT)
     n = 20

@@ -422,9 +422,9 @@ def test_a_dress_needs_the_upper_arms_in_its_collider(tmp_path):
 
 def test_simulate_a_garment_file_on_named_motions_from_the_command_line(tmp_path, avatar):
     from loosefit.cli import main
+    from loosefit.fitting.place import fit_dress
     from loosefit.garment.dress import DressConfig
     from loosefit.garment.obj import write_obj
-    from loosefit.placement.place import fit_dress
 
     dress = fit_dress(avatar, DressConfig(style="strapless", rings=10, segments=24, length=0.5))
     v = dress.vertices * 100.0  # centimetres, Y up: as a garment tool writes it
@@ -464,9 +464,9 @@ def test_the_collider_follows_the_garment_file_s_kind(tmp_path, avatar):
     import yaml
 
     from loosefit.cli import main
+    from loosefit.fitting.place import fit_dress, fit_skirt
     from loosefit.garment.dress import DressConfig
     from loosefit.garment.obj import write_obj
-    from loosefit.placement.place import fit_dress, fit_skirt
 
     for name, template, arms in (
         ("skirt", fit_skirt(avatar), False),
@@ -503,7 +503,7 @@ def test_a_new_pose_correction_keeps_the_clips_whose_motion_it_leaves(spied_copy
     assert manifest["config"]["unfold"]["deep_degrees"] == 30.0
 
     # a correction that changes a clip's motion (here: says it does): it is simulated again
-    import loosefit.body.unfold as unfold
+    import loosefit.motion.pose_correction as unfold
 
     seen = []
 

@@ -37,13 +37,13 @@ def test_motions_as_specs_are_named_and_held_out_by_name(tmp_path):
 def test_a_folder_of_mixed_motion_files_is_a_data_set_s_motions(tmp_path, avatar):
     """BVH, GLB, SMPL .npz and loosefit .npz files side by side, from the command line: each
     a clip named after its file, each read to the motion it was written from."""
-    from loosefit.body.bvh import read_bvh
-    from loosefit.body.motions import load_motion
     from loosefit.cli import build_parser
     from loosefit.cli.simulate import dataset_config
-    from tests.body.bvh_conventions import CONVENTIONS, motion_error, write_convention_bvh
-    from tests.body.gltf_writer import write_gltf
-    from tests.body.test_smpl import SMPL_MAP, smpl_arrays
+    from loosefit.motion.bvh import read_bvh
+    from loosefit.motion.motions import load_motion
+    from tests.motion.bvh_conventions import CONVENTIONS, motion_error, write_convention_bvh
+    from tests.motion.gltf_writer import write_gltf
+    from tests.motion.test_smpl import SMPL_MAP, smpl_arrays
 
     dance = load_motion("dance:2", avatar, seed=3)
     folder = tmp_path / "mocap"
@@ -97,7 +97,7 @@ def test_the_committed_penetration_sets_load_every_motion(name, clips, avatar):
     # bench/penetration_regression.py runs these (docs/PENETRATION.md): each spec must still
     # name a clip of ../shared and a window inside it, with the frame counts of the tables.
     # The pose correction keeps the frame count (job_motion's docstring) and is tested on its
-    # own (tests/body/test_unfold.py): left out here, where it took most of CI's time.
+    # own (tests/motion/test_pose_correction.py): left out here, where it took most of CI's time.
     from pathlib import Path
 
     config = read_config_file(Path(__file__).parents[2] / "configs" / name)
@@ -129,7 +129,7 @@ def test_the_pose_correction_runs_on_the_simulation_s_device(avatar, monkeypatch
     are most of a clip's preparation on the CPU)."""
     import dataclasses
 
-    import loosefit.body.unfold as unfold
+    import loosefit.motion.pose_correction as unfold
 
     seen = []
     real = unfold.unfold_motion

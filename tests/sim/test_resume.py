@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import loosefit.sim.resume as resume
+from loosefit.fitting.place import fit_skirt
 from loosefit.garment.skirt import SkirtConfig
-from loosefit.placement.place import fit_skirt
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.release import TrappedRelease
 from loosefit.sim.resume import resumed_release

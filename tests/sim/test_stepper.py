@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from loosefit.fitting.place import fit_skirt
 from loosefit.garment.skirt import SkirtConfig
-from loosefit.placement.place import fit_skirt
 from loosefit.sim.cloth_config import ClothConfig
 from loosefit.sim.stepper import ClothSimulator
 from loosefit.sim.timeline import limb_collider_faces

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from loosefit.body.chain import preroll
+from loosefit.motion.chain import preroll
 from loosefit.sim.timeline import body_moves, substep_schedule
 from loosefit.types import Motion
 

@@ -96,9 +96,9 @@ def test_chebyshevs_weights():
 def test_accelerated_sweeps_stretch_the_hanging_skirt_less_and_keep_it_out(avatar):
     """The same sweeps, accelerated: the drape nearer its rest lengths (the iterations
     converge further), finite, its waistband on the body and no vertex in the body."""
+    from loosefit.fitting.place import fit_skirt
     from loosefit.garment.quality import edge_strain
     from loosefit.geometry.query import closest_points
-    from loosefit.placement.place import fit_skirt
     from loosefit.sim.driver import settle
 
     skirt = fit_skirt(avatar, TINY_SKIRT)

@@ -16,7 +16,7 @@ from loosefit.eval.rollouts import evaluate_rollouts
 from loosefit.inference.baseline import BaselineModel
 from loosefit.inference.stages import Stages
 from loosefit.model.baselines import BaselineConfig
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.train import baseline as tb
 
 RAW = Stages(detail=False, lengths=False, collision=False)
@@ -219,7 +219,7 @@ def test_train_baseline_evaluate_and_animate_commands(toy_dataset, tmp_path):
         )
         == 0
     )
-    seq = AnimatedGarment.load(out / "sway.npz")
+    seq = GarmentSequence.load(out / "sway.npz")
     assert seq.garment_vertices.shape == (20, DatasetReader(toy_dataset).template.num_vertices, 3)
     from pxr import Usd, UsdGeom
 

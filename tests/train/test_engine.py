@@ -12,10 +12,10 @@ from loosefit.train.engine import PROCEDURAL_SEED, TrainEngineConfig, procedural
 @pytest.mark.slow  # the pretrained set and its avatar: 1-2 minutes on a shared 2-core machine
 def test_procedural_clips_are_the_full_models_rollouts_in_the_root_frame():
     from loosefit.api import pretrained_checkpoint
-    from loosefit.body.motions import load_motion
     from loosefit.inference.animator import load_pipeline
     from loosefit.inference.stages import MOTION_ONLY
     from loosefit.model.motion_features import from_root_frame
+    from loosefit.motion.motions import load_motion
 
     full = load_pipeline(pretrained_checkpoint())
     config = TrainEngineConfig(procedural=1, procedural_seconds=1)

@@ -106,7 +106,7 @@ def test_a_checkpoint_is_written_whole_or_not_at_all(tmp_path, monkeypatch):
 
 
 @dataclass
-class TinyConfig(loop.StageConfig):
+class TinyConfig(loop.TrainerConfig):
     """A least-squares fit, for the scaffold's tests."""
 
     epochs: int = 6
@@ -118,7 +118,7 @@ class TinyConfig(loop.StageConfig):
     PRESETS: ClassVar[dict[str, dict]] = {"default": {}}
 
 
-class TinyStage(loop.Stage):
+class TinyTrainer(loop.Trainer):
     label = "tiny"
     tags: ClassVar[dict[str, str]] = {"lr": "train/lr"}
 
@@ -165,7 +165,7 @@ class TinyStage(loop.Stage):
 
 def _train(out: Path, cfg: TinyConfig, log=lambda *_: None) -> dict:
     run = loop.Run.open(out, {"train": cfg.to_dict()}, cfg.seed, log, progress=False)
-    return loop.train(TinyStage(cfg, run), run, "toy")
+    return loop.train(TinyTrainer(cfg, run), run, "toy")
 
 
 def test_the_loop_trains_logs_checkpoints_and_reports(tmp_path):

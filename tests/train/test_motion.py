@@ -13,7 +13,6 @@ import torch
 import loosefit.inference.animator as inf
 import loosefit.train.loop as loop
 import loosefit.train.motion as tm
-from loosefit.body.motions import load_motion
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
@@ -22,7 +21,8 @@ from loosefit.inference.package import package_model
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import feature_joints, num_features
-from loosefit.sequence import AnimatedGarment
+from loosefit.motion.motions import load_motion
+from loosefit.sequence import GarmentSequence
 from loosefit.train.clips import prepare_clips, stack_clips
 from loosefit.types import Motion
 
@@ -244,7 +244,7 @@ def test_train_animate_and_evaluate_commands(toy_dataset, tmp_path):
     out = tmp_path / "anim"
     args = ["animate", str(run / "model.pt"), "mirror:sway", "--frames", "150", "--out", str(out)]
     assert main(args) == 0
-    seq = AnimatedGarment.load(next(out.glob("*.npz")))
+    seq = GarmentSequence.load(next(out.glob("*.npz")))
     assert seq.garment_vertices.shape == (150, DatasetReader(toy_dataset).template.num_vertices, 3)
     assert np.isfinite(seq.garment_vertices).all()
 
@@ -479,7 +479,7 @@ def test_unrolled_training_differentiates_through_its_own_predictions(trained, t
 
 
 def test_mirrored_clips_are_the_clips_mirrored(trained, toy_dataset):
-    from loosefit.body.mirror import REFLECT, mirror_garment, vertex_twins
+    from loosefit.motion.mirror import REFLECT, mirror_garment, vertex_twins
 
     out, _ = trained
     model = inf.load_animation_model(out / "model.pt")
@@ -665,7 +665,7 @@ def test_a_stochastic_engine_tier_gives_one_realisation_a_seed(trained, toy_data
     """`train engine --noise`: trained with the energy score, its noise correlated in time;
     a seed gives the same garment on every run, another seed another plausible one."""
     from loosefit.cli import main
-    from loosefit.inference.engine import load_engine, rollout_engine
+    from loosefit.inference.engine.model import load_engine, rollout_engine
 
     run, _ = trained
     out = tmp_path / "stochastic"

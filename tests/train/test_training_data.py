@@ -11,7 +11,7 @@ from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import garment_fingerprint
 from loosefit.inference.timeline import RolloutConfig
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.train.clips import prepare_clips
 from loosefit.train.detail import rollout_pairs
 from loosefit.train.frames import prepare_split
@@ -30,7 +30,7 @@ def test_training_refuses_a_clip_of_another_garment_naming_both_fingerprints(tmp
     other = _template()
     other.vertices = other.vertices + 0.01
     ref = _sequence("s1", 7, 1.0)
-    AnimatedGarment(ref.motion, other, ref.garment_vertices, ref.avatar, "test").save(
+    GarmentSequence(ref.motion, other, ref.garment_vertices, ref.avatar, "test").save(
         root / "sequences" / "s1.npz"
     )
     with pytest.raises(LoosefitInputError, match=r"s1\.npz.*another garment") as err:

@@ -20,7 +20,7 @@ pytest.importorskip("viser", reason="the viewer's optional extra: pip install 'l
 
 from loosefit.cli import main  # noqa: E402
 from loosefit.errors import LoosefitInputError  # noqa: E402
-from loosefit.sequence import AnimatedGarment  # noqa: E402
+from loosefit.sequence import GarmentSequence  # noqa: E402
 from loosefit.view import ViewerConfig, view  # noqa: E402
 from loosefit.view.headless import BODY_BYTES, Chromium, find_chromium  # noqa: E402
 from loosefit.view.scene import read_sequences  # noqa: E402
@@ -47,7 +47,7 @@ def clips(toy_dataset):
     """The toy data set's clip 'a' (its hem swings) and the same clip, hem still."""
     seqs, labels, sources = read_sequences(data=toy_dataset, clip="a")
     a = seqs[0]
-    still = AnimatedGarment(
+    still = GarmentSequence(
         a.motion,
         a.garment,
         np.repeat(a.garment_vertices[:1], a.num_frames, axis=0),
@@ -240,7 +240,7 @@ def test_the_floor_follows_the_bodies_in_whole_metres(clips):
 
 def test_sequences_of_other_frame_counts_are_refused(clips, tmp_path, capsys):
     a, _ = clips
-    short = AnimatedGarment(a.motion.slice(0, 10), a.garment, a.garment_vertices[:10], a.avatar)
+    short = GarmentSequence(a.motion.slice(0, 10), a.garment, a.garment_vertices[:10], a.avatar)
     pa, pb = a.save(tmp_path / "long.npz"), short.save(tmp_path / "short.npz")
     assert main(["view", str(pa), str(pb), "--port", "0"]) == 2
     err = capsys.readouterr().err
@@ -248,13 +248,13 @@ def test_sequences_of_other_frame_counts_are_refused(clips, tmp_path, capsys):
 
 
 def test_other_garments_are_refused(clips, skirt, avatar):
+    from loosefit.fitting.place import carry_rigidly, fit_skirt
     from loosefit.garment.skirt import SkirtConfig
-    from loosefit.placement.place import carry_rigidly, fit_skirt
 
     a, _ = clips
     other = fit_skirt(avatar, SkirtConfig(style="aline", rings=5, segments=12))
     g = carry_rigidly(other, avatar.pose_motion(a.motion), avatar).numpy()
-    b = AnimatedGarment(a.motion, other, g, a.avatar)
+    b = GarmentSequence(a.motion, other, g, a.avatar)
     with pytest.raises(LoosefitInputError, match=r"sequence 1 and sequence 2.*another garment"):
         view([a, b], config=ViewerConfig(port=0))
 
@@ -331,7 +331,7 @@ def test_animated_garment_view_returns_the_running_viewer(clips, capsys):
 def test_show_opens_a_data_set_s_clips_as_they_are_read(clips, capsys):
     import loosefit
 
-    viewer = loosefit.show(*clips, wait=False, port=0)  # no conversion: any AnimatedGarment
+    viewer = loosefit.show(*clips, wait=False, port=0)  # no conversion: any GarmentSequence
     try:
         assert len(viewer.sequences) == 2 and viewer.url in capsys.readouterr().out
     finally:

@@ -1,2 +1,2 @@
-"""The body: BVH reading, rotations, resampling, the avatar, its regions (:mod:`.regions`)
-and retargeting."""
+"""The body: the avatar (anny, posed by a motion), its capsules for the engine tier and its
+regions as cloth diagnostics see them. Motion files and retargeting: :mod:`loosefit.motion`."""

@@ -291,7 +291,7 @@ class Avatar(torch.nn.Module):
                 "joint_names",
                 f"the avatar's {self.num_joints} joints ({self.config.rig} rig) in its order",
                 f"{motion.num_joints} joints; missing {missing[:5]}, unknown {extra[:5]}",
-                hint="retarget the motion to the avatar first (loosefit.body.retarget)",
+                hint="retarget the motion to the avatar first (loosefit.motion.retarget)",
             )
 
     def pose(

@@ -3,7 +3,7 @@
 :func:`dress_character`:
 
 1. reads the character (:func:`~loosefit.character.gltf_character.read_character`) and its
-   animation retargeted onto anny (:func:`~loosefit.body.motions.load_motion`);
+   animation retargeted onto anny (:func:`~loosefit.motion.motions.load_motion`);
 2. fits anny's phenotype to the character's skin in its first frame
    (:func:`~loosefit.character.fit_body.fit_body`), refusing a character anny cannot fit;
 3. animates the garment on the fitted anny (the trained set on another body,
@@ -72,12 +72,12 @@ class DressedCharacter:
 
     def sequence(self, source: str = "loosefit"):
         """The garment on the fitted anny as an
-        :class:`~loosefit.sequence.AnimatedGarment` (what ``loosefit view`` and ``render``
+        :class:`~loosefit.sequence.GarmentSequence` (what ``loosefit view`` and ``render``
         show; anny's frame)."""
-        from loosefit.sequence import AnimatedGarment
+        from loosefit.sequence import GarmentSequence
 
         record = {"rig": self.body.avatar.config.rig, "shape": dict(self.body.shape)}
-        return AnimatedGarment(self.motion, self.garment, self.anny_frame, record, source)
+        return GarmentSequence(self.motion, self.garment, self.anny_frame, record, source)
 
     def export(self, path: str | Path) -> list[Path]:
         """Write the garment beside the character.
@@ -172,7 +172,7 @@ def dress_character(
         frames: the first frames only (None: all).
         progress: ``progress(done, total)`` of the rollout.
         limits: the fit's misfit refused (default :class:`FitLimits`).
-        retarget: how its animation is read (:class:`~loosefit.body.retarget.RetargetConfig`).
+        retarget: how its animation is read (:class:`~loosefit.motion.retarget.RetargetConfig`).
 
     Raises:
         LoosefitInputError: a file with no mesh, skin or animation, a character anny cannot
@@ -210,7 +210,7 @@ def dress_character(
 
 
 def _motion(path: Path, avatar, fps: float, retarget, frames: int | None) -> Motion:
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     motion = load_motion(str(path), avatar, fps=fps, retarget=retarget)
     return motion if frames is None else motion.slice(0, min(frames, motion.num_frames))
@@ -219,8 +219,8 @@ def _motion(path: Path, avatar, fps: float, retarget, frames: int | None) -> Mot
 def _axes_and_hips(path: Path, fps: float, retarget) -> tuple[np.ndarray, str]:
     """The retargeting's axis change C (file axes to the avatar's) and the character's joint
     it maps onto anny's hips."""
-    from loosefit.body.gltf import read_gltf
-    from loosefit.body.retarget import (
+    from loosefit.motion.gltf import read_gltf
+    from loosefit.motion.retarget import (
         RetargetConfig,
         axis_change,
         resolve_joint_map,

@@ -1,7 +1,7 @@
 """anny's phenotype fitted to a character's mesh, or the misfit measured and refused.
 
 Both bodies are compared in one pose: the character's first frame, and anny posed by the
-same frame retargeted (:func:`loosefit.body.motions.load_motion`), its hips on the
+same frame retargeted (:func:`loosefit.motion.motions.load_motion`), its hips on the
 character's hips, then moved (translation only) onto the character's skin by a few
 rounds of closest points. The misfit is the mean distance between the two skins, both
 ways (each skin's points to the other's surface). A coordinate search over anny's height,

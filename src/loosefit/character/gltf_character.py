@@ -1,10 +1,10 @@
 """A character's skinned mesh and animation from its glTF (``.gltf``, ``.glb``).
 
 The mesh is every triangle primitive of the nodes skinned by one skin (the skin the
-animation drives most, as :func:`loosefit.body.gltf.read_gltf` picks it), joined; each
+animation drives most, as :func:`loosefit.motion.gltf.read_gltf` picks it), joined; each
 frame is posed by the glTF's own linear blend skinning (the joints' world transforms
 times their inverse bind matrices, blended by ``JOINTS_n``/``WEIGHTS_n``), sampled at
-the times :func:`~loosefit.body.gltf.read_gltf` samples the animation at, so frame t of
+the times :func:`~loosefit.motion.gltf.read_gltf` samples the animation at, so frame t of
 the character is frame t of the motion read from the same file. Positions are in the
 glTF's world: metres, +Y up.
 """
@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.body.gltf import (
+from loosefit.motion.gltf import (
     _frame_times,
     _node_parents,
     _skin_joints,
     _world_transforms,
     animation_channels,
 )
-from loosefit.body.gltf_file import (
+from loosefit.motion.gltf_file import (
     GltfDocument,
     doc_item,
     doc_list,

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.atomic import atomic_path
-from loosefit.body.gltf_file import read_document
+from loosefit.motion.gltf_file import read_document
 
 
 def _pad(data: bytearray, to: int = 4) -> None:

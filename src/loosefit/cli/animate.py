@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     pretrained = _checkpoint_and_motion(args)
     from loosefit.api import motion_for
     from loosefit.inference.animator import load_pipeline
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.sequence import GarmentSequence
 
     model = load_pipeline(args.checkpoint, args.generative, args.detail)
     if pretrained:  # what it was trained on, from the record it loaded with
@@ -178,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
     log(stage_line(model, on, result))
     shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
     source = f"loosefit model {Path(args.checkpoint).resolve()}"
-    seq = AnimatedGarment(motion, template, result.vertices, shape, source)
+    seq = GarmentSequence(motion, template, result.vertices, shape, source)
     path.parent.mkdir(parents=True, exist_ok=True)
     seq.save(path)
     log(f"{throughput(motion, result)}; wrote {path}")

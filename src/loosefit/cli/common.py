@@ -92,7 +92,7 @@ def stored_clip(args: argparse.Namespace, shape: dict, motion, garment):
 def add_bvh_args(p: argparse.ArgumentParser) -> None:
     """How a motion capture file is read and mapped: --units, --scale, --joint-map (BVH,
     glTF), --animation, --skin (glTF), --smpl-up (SMPL .npz), --no-pose-check."""
-    from loosefit.body.bvh import BVH_UNITS  # numpy only: the parser stays quick to build
+    from loosefit.motion.bvh import BVH_UNITS  # numpy only: the parser stays quick to build
 
     p.add_argument(
         "--units",
@@ -148,7 +148,7 @@ def add_bvh_args(p: argparse.ArgumentParser) -> None:
 def retarget_config(args: argparse.Namespace):
     """The RetargetConfig that --units, --scale, --joint-map, --animation, --skin,
     --smpl-up and --no-pose-check ask for."""
-    from loosefit.body.retarget import RetargetConfig
+    from loosefit.motion.retarget import RetargetConfig
 
     return RetargetConfig(
         units=args.units,
@@ -165,7 +165,7 @@ def retarget_config(args: argparse.Namespace):
 
 
 def add_import_args(p: argparse.ArgumentParser) -> None:
-    """How a garment file is read and placed (loosefit.placement.place.import_garment)."""
+    """How a garment file is read and placed (loosefit.fitting.place.import_garment)."""
     p.add_argument(
         "--units",
         default=None,
@@ -215,7 +215,7 @@ def offset(text: str | None) -> tuple[float, float, float]:
 
 def garment_template(spec: str, avatar, resolution: str = "cpu", length: float | None = None):
     """A garment template in the avatar's rest frame from a style name or an OBJ file."""
-    from loosefit.placement.place import garment_for
+    from loosefit.fitting.place import garment_for
 
     try:
         return garment_for(spec, avatar, resolution, length)

@@ -84,9 +84,9 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """The main job: the pretrained model animating its skirt on a dance (``--physics``: the
     simulator instead; ``--no-physics``: the skirt carried rigidly)."""
-    from loosefit.body.motions import load_motion
-    from loosefit.placement.place import carry_rigidly
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.fitting.place import carry_rigidly
+    from loosefit.motion.motions import load_motion
+    from loosefit.sequence import GarmentSequence
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -146,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
         source = "rigid"
     else:
         garment, source = _simulate(args, avatar, template, motion), "newton-vbd"
-    seq = AnimatedGarment(
+    seq = GarmentSequence(
         motion, template, garment, {"rig": avatar.config.rig, "shape": avatar.shape}, source
     )
     seq.save(out / "sequence.npz")
@@ -172,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _simulate(args: argparse.Namespace, avatar, template, motion):
     """``demo --physics``: the skirt simulated with Newton's VBD solver, (T, V, 3)."""
-    from loosefit.placement.place import collider_arms
+    from loosefit.fitting.place import collider_arms
     from loosefit.sim.cloth_config import ClothConfig
     from loosefit.sim.driver import simulate
 

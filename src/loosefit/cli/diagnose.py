@@ -105,8 +105,8 @@ def _clip_and_arms(args: argparse.Namespace, source: Path):
     import json
 
     from loosefit.data.format import DatasetReader, read_any_sequence
+    from loosefit.fitting.place import collider_arms
     from loosefit.inference.model_common import arm_collision_of
-    from loosefit.placement.place import collider_arms
 
     if source.is_dir():
         if not args.clip:

@@ -92,7 +92,7 @@ def run_export_model(args: argparse.Namespace) -> int:
 
     from loosefit.api import pretrained_checkpoint
     from loosefit.inference.animator import load_pipeline
-    from loosefit.inference.onnx_export import OnnxExportConfig, export_onnx
+    from loosefit.inference.onnx.export import OnnxExportConfig, export_onnx
 
     checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
     if args.tier == "engine":
@@ -124,7 +124,7 @@ def engine_checkpoint(checkpoint: Path) -> Path:
         LoosefitInputError: neither, saying how to train one.
     """
     from loosefit.inference.checkpoints import checkpoint_format
-    from loosefit.inference.engine import ENGINE_FORMAT, engine_path_of
+    from loosefit.inference.engine.model import ENGINE_FORMAT, engine_path_of
 
     if checkpoint.is_file() and checkpoint_format(checkpoint) == ENGINE_FORMAT:
         return checkpoint
@@ -144,8 +144,8 @@ def engine_checkpoint(checkpoint: Path) -> Path:
 def _export_engine(checkpoint: Path, args: argparse.Namespace) -> int:
     import json
 
-    from loosefit.inference.engine import load_engine
-    from loosefit.inference.engine_export import EngineExportConfig, export_engine
+    from loosefit.inference.engine.export import EngineExportConfig, export_engine
+    from loosefit.inference.engine.model import load_engine
 
     path = engine_checkpoint(checkpoint)
     config = EngineExportConfig(opset=args.opset, check_frames=0 if args.no_check else 300)

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.fit:
         template, report, fit, avatar = _fit_file(args)
     elif is_file:
-        from loosefit.placement.place import import_garment
+        from loosefit.fitting.place import import_garment
 
         avatar = build_avatar(args)
         template, report = import_garment(
@@ -127,7 +127,7 @@ def _log_import(report: dict) -> None:
 def _fit_file(args: argparse.Namespace):
     """``garment FILE --fit``: the file fitted to the avatar (or, ``--shape auto``, to the
     anny body it fits best); the template, the import's report, the fit's, the avatar."""
-    from loosefit.fit import STAGE_UNITS, FitConfig, fit_garment
+    from loosefit.fitting.drape import STAGE_UNITS, FitConfig, fit_garment
     from loosefit.progress import StageBars
 
     auto = args.shape.strip() == "auto"

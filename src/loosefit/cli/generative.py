@@ -45,7 +45,7 @@ def run_reconstruct(args: argparse.Namespace) -> int:
         garment_in_root_frame,
         motion_root_frames_of,
     )
-    from loosefit.sequence import AnimatedGarment
+    from loosefit.sequence import GarmentSequence
 
     reader = DatasetReader(args.data)
     model, _ = load_generative(args.checkpoint, reader.template)
@@ -61,7 +61,7 @@ def run_reconstruct(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     source = f"generative reconstruction {Path(args.checkpoint).resolve()}"
-    AnimatedGarment(motion, reader.template, world, reader.avatar, source).save(
+    GarmentSequence(motion, reader.template, world, reader.avatar, source).save(
         out / "reconstruction.npz"
     )
     log(

@@ -63,7 +63,7 @@ def add_inspect_parser(sub) -> None:
 
 
 def run_motion(args: argparse.Namespace) -> int:
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     avatar = build_avatar(args)
     motion = load_motion(
@@ -82,8 +82,8 @@ def run_motion(args: argparse.Namespace) -> int:
 
 
 def run_inspect(args: argparse.Namespace) -> int:
-    from loosefit.body.inspect_motion import inspect_motion
-    from loosefit.body.joint_map_files import joint_map_template
+    from loosefit.motion.inspect import inspect_motion
+    from loosefit.motion.joint_map_files import joint_map_template
 
     config = retarget_config(args)
     report = inspect_motion(args.file, config)
@@ -110,9 +110,9 @@ def _motion_sheet(args: argparse.Namespace, clip, config) -> None:
 
     from PIL import Image
 
-    from loosefit.body.inspect_motion import sheet_inputs
-    from loosefit.body.pose_check import check_pose
-    from loosefit.body.retarget import retarget_bvh
+    from loosefit.motion.inspect import sheet_inputs
+    from loosefit.motion.pose_check import check_pose
+    from loosefit.motion.retarget import retarget_bvh
     from loosefit.render.skeleton_sheet import skeleton_sheet
 
     avatar = build_avatar(args)

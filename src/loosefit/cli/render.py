@@ -45,9 +45,9 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from loosefit.body.motions import load_motion
     from loosefit.data.format import read_any_sequence
-    from loosefit.placement.place import carry_rigidly
+    from loosefit.fitting.place import carry_rigidly
+    from loosefit.motion.motions import load_motion
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -43,7 +43,7 @@ from loosefit.garment.fingerprint import (
     garment_fingerprint,
     same_garment,
 )
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.types import GarmentTemplate, Motion, _check_array, load_npz
 
 FORMAT = "loosefit.dataset/1"
@@ -66,14 +66,14 @@ def _jsonable(x):
     raise TypeError(f"not JSON serialisable: {type(x).__name__}")
 
 
-def write_sequence(path: Path, seq: AnimatedGarment) -> Path:
-    """Write one clip atomically (:meth:`~loosefit.sequence.AnimatedGarment.save`)."""
+def write_sequence(path: Path, seq: GarmentSequence) -> Path:
+    """Write one clip atomically (:meth:`~loosefit.sequence.GarmentSequence.save`)."""
     return seq.save(path)
 
 
 def read_sequence(
     path: Path, template: GarmentTemplate | None = None, avatar: dict | None = None
-) -> AnimatedGarment:
+) -> GarmentSequence:
     """Read and validate one clip, named after its file; with ``template``, check that it
     is of that garment.
 
@@ -89,7 +89,7 @@ def read_sequence(
     if "format" not in d.files and "garment_vertices" in d.files and template is not None:
         seq = _read_legacy(path, d, template, avatar or {})
     else:
-        seq = AnimatedGarment.load(path)
+        seq = GarmentSequence.load(path)
     if template is not None and not same_garment(seq.garment, template):
         raise LoosefitInputError(
             path,
@@ -116,7 +116,7 @@ def _garment_print(garment: GarmentTemplate) -> str:
     return garment_fingerprint(np.asarray(garment.vertices), np.asarray(garment.faces))
 
 
-def _read_legacy(path: Path, d, template: GarmentTemplate, avatar: dict) -> AnimatedGarment:
+def _read_legacy(path: Path, d, template: GarmentTemplate, avatar: dict) -> GarmentSequence:
     missing = sorted(set(LEGACY_FIELDS) - set(d.files))
     if missing:
         raise LoosefitInputError(path, ", ".join(missing), "present", "missing")
@@ -128,7 +128,7 @@ def _read_legacy(path: Path, d, template: GarmentTemplate, avatar: dict) -> Anim
             raise LoosefitInputError(path, key, "dtype float32", f"dtype {d[key].dtype}")
     names = tuple(str(n) for n in d["joint_names"])
     _check_array(str(path), "rotations", d["rotations"], (T, len(names), 3, 3))
-    return AnimatedGarment(Motion.from_npz(d, path), template, gv, avatar, "simulation")
+    return GarmentSequence(Motion.from_npz(d, path), template, gv, avatar, "simulation")
 
 
 def _check_manifest(path: Path, m: dict) -> None:
@@ -284,7 +284,7 @@ class DatasetReader:
         """The body as a sequence records it: ``{"rig": ..., "shape": {...}}``."""
         return {"rig": self.body.get("rig", "cmu_mb"), "shape": dict(self.body.get("shape", {}))}
 
-    def read(self, name: str) -> AnimatedGarment:
+    def read(self, name: str) -> GarmentSequence:
         """One validated sequence by name."""
         path = self.sequence_path(name)
         if not path.is_file():
@@ -292,7 +292,7 @@ class DatasetReader:
         return read_sequence(path, self.template, self.avatar)
 
 
-def read_any_sequence(path: str | Path, reader=None) -> AnimatedGarment:
+def read_any_sequence(path: str | Path, reader=None) -> GarmentSequence:
     """A sequence ``.npz``: an animated garment's file, or a data set's clip (a clip of an
     earlier data set, without the sequence format, is read through its data set, or through
     ``reader``, a :class:`DatasetReader`, where given)."""
@@ -302,4 +302,4 @@ def read_any_sequence(path: str | Path, reader=None) -> AnimatedGarment:
         reader = DatasetReader(root, allow_incomplete=True)
     if reader is not None:
         return reader.read(path.stem)
-    return AnimatedGarment.load(path)
+    return GarmentSequence.load(path)

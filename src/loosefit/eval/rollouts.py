@@ -13,12 +13,12 @@ from loosefit.eval.ensemble import member_clip
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
 from loosefit.garment.fingerprint import same_garment
 from loosefit.inference.stages import Stages
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 
 HORIZONS = (100, 500, 1200)  # the paper's Table 1: iter-100, iter-500, iter-1200
 
 
-def _sequences(model, data, split: str) -> Iterator[tuple[str, AnimatedGarment]]:
+def _sequences(model, data, split: str) -> Iterator[tuple[str, GarmentSequence]]:
     """(name, sequence) of a dataset's split or of given sequences, checked to be of the
     model's garment."""
     if isinstance(data, DatasetReader):
@@ -49,7 +49,7 @@ def _sequences(model, data, split: str) -> Iterator[tuple[str, AnimatedGarment]]
 
 def evaluate_rollouts(
     model,
-    data: DatasetReader | dict[str, AnimatedGarment],
+    data: DatasetReader | dict[str, GarmentSequence],
     split: str = "test",
     horizons: tuple[int, ...] = HORIZONS,
     surface: bool = True,

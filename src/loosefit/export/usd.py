@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.atomic import atomic_path
-from loosefit.body.rotations import matrix_to_quat
 from loosefit.errors import LoosefitInputError
 from loosefit.export.meshes import (
     Z_TO_Y_UP,
@@ -29,6 +28,7 @@ from loosefit.export.meshes import (
     check_meshes,
     skin_to_write,
 )
+from loosefit.geometry.rotations import matrix_to_quat
 
 
 def continuous_quaternions(rotations: np.ndarray) -> np.ndarray:

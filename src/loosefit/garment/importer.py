@@ -5,7 +5,7 @@ CLO in millimetres or centimetres with Y up, Blender in metres with Z up, glTF i
 with Y up. :func:`read_garment_mesh` reads a file and checks it is one clean piece of
 cloth; :func:`detect_units` and :func:`detect_up` guess what the file does not say, from
 the garment's own shape, and :func:`to_z_up` converts. Placement on the body is
-:func:`loosefit.placement.place.import_garment`'s.
+:func:`loosefit.fitting.place.import_garment`'s.
 
 Every problem is a :class:`~loosefit.errors.LoosefitInputError` naming the file and what
 was found.

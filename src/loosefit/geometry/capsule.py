@@ -1,7 +1,7 @@
 """Capsules: the forward kinematics that places them, and the push-out of points from them.
 
 Pure functions over batches, in torch (the engine tier's graph runs them:
-:mod:`loosefit.inference.engine_export`); the capsules themselves are fitted in
+:mod:`loosefit.inference.engine.export`); the capsules themselves are fitted in
 :mod:`loosefit.body.capsules`.
 """
 

@@ -22,7 +22,10 @@ The other modules:
   references error tables set a rollout against.
 * :mod:`~loosefit.inference.checkpoints`: the checkpoint files and their formats; the
   generative stage.
-* :mod:`~loosefit.inference.onnx_export`, :mod:`~loosefit.inference.onnx_stages`,
-  :mod:`~loosefit.inference.onnx_runtime`: the learned stages as ONNX graphs.
+* :mod:`~loosefit.inference.onnx`: the learned stages as ONNX graphs (export, runtime,
+  the graphs the rollout calls).
+* :mod:`~loosefit.inference.engine`: the engine tier (a linear garment basis and its
+  recurrent step, capsules), its rollout, ONNX export and runtime.
+* :mod:`~loosefit.inference.other_body`: the garment carried onto another body.
 * :mod:`~loosefit.inference.package`: a trained model as a shareable folder.
 """

@@ -72,8 +72,8 @@ from loosefit.inference.stages.lengths import (
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.detail import DetailConfig, DetailGenerator
 from loosefit.model.generative import GarmentGenerativeModel
+from loosefit.model.losses import PHYSICS_TERMS, terms_of
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
-from loosefit.model.physics import PHYSICS_TERMS, terms_of
 from loosefit.types import GarmentTemplate, Motion
 
 # -- the paper's model ------------------------------------------------------------------------
@@ -198,9 +198,9 @@ class AnimationModel:
 
     def onnx_stages(self):
         """The learned stages as ONNX graphs in onnxruntime
-        (:class:`~loosefit.inference.onnx_stages.OnnxStages`), exported on first use and
+        (:class:`~loosefit.inference.onnx.stages.OnnxStages`), exported on first use and
         kept (again when the encoder or generative model has been replaced)."""
-        from loosefit.inference.onnx_stages import OnnxStages
+        from loosefit.inference.onnx.stages import OnnxStages
 
         if self._onnx is None or not self._onnx.built_from(self):
             self._onnx = OnnxStages(self)
@@ -230,7 +230,7 @@ class AnimationModel:
 
         ``runtime``: what runs the learned stages (the motion stage and the detail
         generator): ``"torch"`` (PyTorch), or ``"onnx"`` (onnxruntime, the graphs exported
-        in memory on first use, :mod:`loosefit.inference.onnx_stages`: faster on one core;
+        in memory on first use, :mod:`loosefit.inference.onnx.stages`: faster on one core;
         needs ``pip install 'loosefit[onnx]'`` and a model on the CPU). The edge-length
         stage and collision handling are the same Python code either way; the garments
         before collision handling are PyTorch's within float rounding (micrometres).

@@ -124,7 +124,7 @@ def leg_length(avatar) -> float:
 def motion_on(motion: Motion, source, target) -> Motion:
     """``motion`` (on ``source``) for ``target``: the same joint rotations, the root's path
     scaled by the ratio of their legs, its height kept above the floor as the legs scale
-    (as a capture is retargeted to a body: :mod:`loosefit.body.retarget`)."""
+    (as a capture is retargeted to a body: :mod:`loosefit.motion.retarget`)."""
     scale = leg_length(target) / leg_length(source)
     root = np.asarray(motion.root_translation, np.float64).copy()
     root[:, :2] *= scale
@@ -155,9 +155,9 @@ def sized_garment(template: GarmentTemplate, trained, avatar, config: CarryConfi
     its recorded pattern for that body (its own waist, hips or chest), any other garment
     carried at rest from the ``trained`` body (``carried``, :func:`carried_at_rest`, found
     here when not given)."""
+    from loosefit.fitting.place import fit_dress, fit_skirt
     from loosefit.garment.dress import DressConfig
     from loosefit.garment.skirt import SkirtConfig
-    from loosefit.placement.place import fit_dress, fit_skirt
 
     recorded = template.meta.get("config") if isinstance(template.meta, dict) else None
     if isinstance(recorded, dict) and template.meta.get("kind") == "dress":

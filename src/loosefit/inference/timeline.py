@@ -2,11 +2,11 @@
 
 A rollout starts as the simulator does: the body stands in the rest pose for a few
 frames (``warm_frames``, which also warm the GRU up), then blends into the motion's first
-frame (``blend_seconds``; :func:`loosefit.body.chain.preroll`). Training runs the same
+frame (``blend_seconds``; :func:`loosefit.motion.chain.preroll`). Training runs the same
 timeline, so the encoder has seen every kind of frame it meets at inference.
 
 Numpy alone (no torch), so that the ONNX reference loop
-(:mod:`loosefit.inference.onnx_runtime`) runs the same timeline;
+(:mod:`loosefit.inference.onnx.runtime`) runs the same timeline;
 :func:`loosefit.inference.rollout.timeline` gives it as tensors.
 """
 
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from loosefit.body.chain import preroll
+from loosefit.motion.chain import preroll
 from loosefit.types import Motion
 
 

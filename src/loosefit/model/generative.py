@@ -282,14 +282,14 @@ class GenerativeLossConfig:
     # Positions are compared in centimetres (x100): in metres the squared errors are
     # ~1e-4 and the KL term at 1e-3 would drown them; the paper does not give its unit.
     length_scale: float = 100.0
-    # physics terms of the posed garment (loosefit.model.physics), 0: off
+    # physics terms of the posed garment (loosefit.model.losses), 0: off
     membrane: float = 0.0  # edge lengths against rest
     bending: float = 0.0  # dihedral angles against rest
     collision: float = 0.0  # cloth outside the body (needs the body's contacts per frame)
     collision_epsilon: float = 0.002  # m
 
     def __post_init__(self) -> None:
-        from loosefit.model.physics import PhysicsLossConfig
+        from loosefit.model.losses import PhysicsLossConfig
 
         PhysicsLossConfig(self.membrane, self.bending, self.collision, self.collision_epsilon)
 
@@ -316,7 +316,7 @@ def generative_loss(
 ) -> dict[str, torch.Tensor]:
     """Eqs. 6-8: geometry, Laplacian, unposed (inverse skinning), template, KL; and the
     physics terms of the posed garment that ``weights`` turns on (membrane, bending,
-    collision; :mod:`loosefit.model.physics`).
+    collision; :mod:`loosefit.model.losses`).
 
     Args:
         out: the model's output for B garments.
@@ -325,7 +325,7 @@ def generative_loss(
         template: (V, 3) the canonical template T.
         laplacian: a callable (B, V, 3) -> (B, V, 3), the mesh Laplacian.
         weights: the lambdas and the length unit.
-        structure: the garment's :class:`~loosefit.model.physics.ClothStructure` (for the
+        structure: the garment's :class:`~loosefit.model.losses.ClothStructure` (for the
             physics terms).
         contacts: (B, V, 3) body points and normals of every vertex, root frame (for the
             collision term).
@@ -345,7 +345,7 @@ def generative_loss(
             terms["unposed"] = weights.unposed * squared_error(s * out.unposed, s * target_unposed)
         terms["template"] = weights.template * squared_error(s * out.unposed, s * template)
     if weights.membrane > 0 or weights.bending > 0 or weights.collision > 0:
-        from loosefit.model.physics import physics_terms
+        from loosefit.model.losses import physics_terms
 
         if structure is None:
             raise ValueError("the physics terms need the garment's ClothStructure")

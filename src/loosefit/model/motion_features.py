@@ -143,7 +143,7 @@ def frame_features(
     (see the module's docstring); computed in the inputs' float type.
 
     A motion's first frame passes its own root as the previous one (no velocity, no turn).
-    The ONNX export (:mod:`loosefit.inference.onnx_export`) computes the features so, one
+    The ONNX export (:mod:`loosefit.inference.onnx.export`) computes the features so, one
     frame at a time, in its graph.
 
     Args:

@@ -13,10 +13,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from loosefit.atomic import atomic_path
-from loosefit.body.unfold import UnfoldConfig
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.dress import DressConfig
 from loosefit.garment.skirt import SkirtConfig
+from loosefit.motion.pose_correction import UnfoldConfig
 from loosefit.sim.cloth_config import ClothConfig
 
 
@@ -58,7 +58,7 @@ class QualityLimits:
 @dataclass
 class GarmentFile:
     """A user's garment file, imported onto the avatar
-    (:func:`loosefit.placement.place.import_garment`)."""
+    (:func:`loosefit.fitting.place.import_garment`)."""
 
     path: str = ""  # .obj, .gltf, .glb, or a loosefit template .npz (used as it is)
     units: str | None = None  # None: guessed from its size
@@ -83,7 +83,7 @@ def garment_type(garment) -> str:
 
 def make_garment(garment, avatar):
     """The template of a dataset's garment config on ``avatar`` (its rest pose)."""
-    from loosefit.placement.place import check_fitted_shape, fit_dress, fit_skirt, import_garment
+    from loosefit.fitting.place import check_fitted_shape, fit_dress, fit_skirt, import_garment
     from loosefit.types import GarmentTemplate
 
     kind = garment_type(garment)
@@ -120,7 +120,7 @@ class DatasetConfig:
     motions: MotionSource = field(default_factory=MotionSource)
     limits: QualityLimits = field(default_factory=QualityLimits)
     # capture poses that fold into the body turned a few degrees out of it before simulation
-    # (loosefit.body.unfold); data sets made before this field existed were made without
+    # (loosefit.motion.pose_correction); data sets made before this field existed were made without
     unfold: UnfoldConfig = field(default_factory=UnfoldConfig)
     fps: float = 30.0  # frame rate of the recorded clips
     seed: int = 0  # seeds the dances and each clip's cloth jitter

@@ -128,7 +128,7 @@ def simulate(
     Args:
         avatar: the :class:`~loosefit.body.avatar.Avatar` the motion drives.
         template: the garment in the avatar's rest frame (root joint at the origin),
-            e.g. from :func:`~loosefit.placement.place.fit_skirt`.
+            e.g. from :func:`~loosefit.fitting.place.fit_skirt`.
         motion: T frames on the avatar's skeleton.
         config: the physics (default :class:`ClothConfig`).
         progress: called as ``progress(done, total)`` after every simulated frame.

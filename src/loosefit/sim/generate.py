@@ -170,7 +170,7 @@ def _body_and_garment(config: DatasetConfig, out: Path, manifest: dict):
     """The avatar and the garment (built on one torch thread, as the workers build them),
     the garment's template saved in ``out`` and both noted in the manifest."""
     from loosefit.body.avatar import Avatar, AvatarConfig
-    from loosefit.placement.place import collider_arms
+    from loosefit.fitting.place import collider_arms
 
     with one_torch_thread():
         avatar = Avatar(AvatarConfig(shape=dict(config.shape)))

@@ -100,7 +100,7 @@ def _clips(config: DatasetConfig) -> list[Job]:
     jobs: list[Job] = []
     folder_stems: set[str] = set()  # the clips of a bvh folder
     if m.kind == "bvh" or config.preset == "paper":
-        from loosefit.body.motion_files import motion_files
+        from loosefit.motion.files import motion_files
 
         files = motion_files(m.folder)  # .bvh, .gltf, .glb, .npz
         jobs += [
@@ -185,7 +185,7 @@ def job_motion(
 ) -> Motion:
     """The motion a job simulates, on ``avatar``'s skeleton at the dataset's frame rate:
     with ``unfold`` (and ``config.unfold.enabled``) the poses that fold into the body
-    turned out of it (:func:`~loosefit.body.unfold.unfold_motion`, its queries on the
+    turned out of it (:func:`~loosefit.motion.pose_correction.unfold_motion`, its queries on the
     simulation's device, ``config.cloth.device``; the correction's figures in
     ``motion.meta["unfold"]``); without, as loaded (the same frame count).
 
@@ -193,7 +193,7 @@ def job_motion(
         parts: the body parts the pose correction tests (:func:`limb_parts`); built here
             when needed and not given (a few seconds: pass them when looping over jobs).
     """
-    from loosefit.body.motions import load_motion
+    from loosefit.motion.motions import load_motion
 
     m = config.motions
     motion = load_motion(
@@ -206,7 +206,7 @@ def job_motion(
     )
     if not (unfold and config.unfold.enabled):
         return motion
-    from loosefit.body.unfold import unfold_motion
+    from loosefit.motion.pose_correction import unfold_motion
 
     parts = parts if parts is not None else limb_parts(config, avatar)
     done = unfold_motion(avatar, motion, parts, config.unfold, device=config.cloth.device)

@@ -22,11 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.atomic import atomic_path
-from loosefit.body.unfold import UnfoldConfig
 from loosefit.data.format import FORMAT, write_json_atomic
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import cloth_fingerprint
 from loosefit.garment.quality import PENETRATION_TOLERANCE
+from loosefit.motion.pose_correction import UnfoldConfig
 from loosefit.sim.dataset_config import GARMENT_TYPES, DatasetConfig, config_dict, normalized
 from loosefit.sim.jobs import Job, job_motion, limb_parts, short_spec, split_member
 
@@ -53,7 +53,9 @@ LEGACY_CLOTH = {
 # Cloth fields a clip can be rechecked for rather than simulated again when they change: the
 # release of trapped cloth acts only where cloth is that deep, which a clip's frames show.
 RELEASE_FIELDS = ("release_depth",)
-LEGACY_UNFOLD = {"enabled": False}  # the same for the pose correction (loosefit.body.unfold)
+LEGACY_UNFOLD = {
+    "enabled": False
+}  # the same for the pose correction (loosefit.motion.pose_correction)
 
 
 def stored_config(manifest: dict) -> dict:
@@ -334,14 +336,14 @@ def recheck_unfold(
 
     A clip whose entry notes another ``unfold_config`` (:func:`open_manifest`) is the clip
     this configuration makes when both corrections give it the same motion, frame for frame
-    (:func:`~loosefit.body.unfold.same_correction`: a cap raised for deep folds leaves a clip
-    without them as it was). Such a clip is kept (a flagged one stays flagged: the simulation
-    is deterministic); any other is removed, to be simulated again.
+    (:func:`~loosefit.motion.pose_correction.same_correction`: a cap raised for deep folds
+    leaves a clip without them as it was). Such a clip is kept (a flagged one stays flagged:
+    the simulation is deterministic); any other is removed, to be simulated again.
 
     Returns:
         The names of the clips kept and of those removed.
     """
-    from loosefit.body.unfold import same_correction
+    from loosefit.motion.pose_correction import same_correction
 
     known = {f.name for f in dataclasses.fields(UnfoldConfig)}
     built: dict = {}  # the body parts the correction tests, for the first clip to check

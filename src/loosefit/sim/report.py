@@ -53,8 +53,8 @@ def format_report(manifest: dict) -> str:
     Columns: the share of garment vertices inside the body (mean over frames, and the
     worst frame), the worst frame's share deeper than 5 mm, the deepest vertex, the edge
     strain p99, the fastest vertex, the frames whose capture pose was turned out of the body
-    (:mod:`loosefit.body.unfold`, with the largest turn), and the frames in which the pose
-    still folds into itself (a limb inside the rest of the body, with how deep), where
+    (:mod:`loosefit.motion.pose_correction`, with the largest turn), and the frames in which
+    the pose still folds into itself (a limb inside the rest of the body, with how deep), where
     cloth is pinched.
     """
     width = max([14, *(len(n) + 2 for n in manifest["sequences"])])

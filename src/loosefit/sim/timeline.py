@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from loosefit.body.chain import preroll
+from loosefit.motion.chain import preroll
 from loosefit.sim.cloth_config import ClothConfig
 
 if TYPE_CHECKING:

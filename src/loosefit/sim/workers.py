@@ -32,7 +32,7 @@ import numpy as np
 
 from loosefit.data.format import write_sequence
 from loosefit.errors import LoosefitInputError
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.sim.dataset_config import DatasetConfig, make_garment
 from loosefit.sim.driver import SimulationError, simulate_batch
 from loosefit.sim.jobs import Job, job_motion, limb_parts, unit_name
@@ -161,7 +161,7 @@ class Worker:
         for job, motion, result in zip(jobs, motions, results, strict=True):
             write_sequence(
                 Path(out_dir) / "sequences" / f"{job.name}.npz",
-                AnimatedGarment(
+                GarmentSequence(
                     dataclasses.replace(motion, name=job.name),
                     template,
                     result.garment_vertices,

@@ -51,15 +51,15 @@ from loosefit.train.clips import (
 )
 from loosefit.train.common import epoch_means, optimizer_step
 from loosefit.train.frames import avatar_for
-from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
+from loosefit.train.loop import Run, Trainer, TrainerConfig, adam, cost_line, train
 
 CHECKPOINT_FORMAT = BASELINE_FORMAT
 RAW = Stages(detail=False, lengths=False, collision=False)  # the network's own output
 
 
 @dataclass
-class TrainBaselineConfig(StageConfig):
-    """One training run of a baseline (the shared fields: :class:`StageConfig`)."""
+class TrainBaselineConfig(TrainerConfig):
+    """One training run of a baseline (the shared fields: :class:`TrainerConfig`)."""
 
     epochs: int = 300  # the motion encoder's
     batch_size: int = 1  # clips side by side
@@ -190,7 +190,7 @@ def run_window(
 # -- the stage --------------------------------------------------------------------------------
 
 
-class BaselineStage(Stage):
+class BaselineTrainer(Trainer):
     """A baseline's training: its clips and skinning, its windows, its rollout evaluation."""
 
     def __init__(self, reader: DatasetReader, config: TrainBaselineConfig, run: Run):
@@ -330,7 +330,7 @@ def train_baseline(
     reader = DatasetReader(data)
     dataset = str(Path(data).resolve())
     run = Run.open(out, {"dataset": dataset, "train": config.to_dict()}, config.seed, log, progress)
-    return train(BaselineStage(reader, config, run), run, dataset)
+    return train(BaselineTrainer(reader, config, run), run, dataset)
 
 
 def format_report(report: dict) -> str:

@@ -11,7 +11,6 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from loosefit.body.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
@@ -25,6 +24,7 @@ from loosefit.model.motion_features import (
     root_frames,
     to_root_frame,
 )
+from loosefit.motion.mirror import mirror_garment, mirror_motion, vertex_twins
 from loosefit.types import Motion
 
 
@@ -62,8 +62,8 @@ def clip_versions(
 ) -> Iterator[tuple[str, Motion, np.ndarray]]:
     """Every clip of a split as (name, motion, simulated garment (T, V, 3), world frame),
     each followed, with ``mirror``, by itself mirrored left-right (``NAME~mirror``): the
-    motion by :func:`~loosefit.body.mirror.mirror_motion`, the garment reflected about
-    X = 0 onto its twin vertices (:func:`~loosefit.body.mirror.vertex_twins`; the garment
+    motion by :func:`~loosefit.motion.mirror.mirror_motion`, the garment reflected about
+    X = 0 onto its twin vertices (:func:`~loosefit.motion.mirror.vertex_twins`; the garment
     must be mirror-symmetric). Physics has no handedness, so that is the simulation of the
     mirrored motion, up to the body's own asymmetry (mm). ``max_frames``: the first frames
     of each clip only."""

@@ -63,7 +63,7 @@ from loosefit.model.detail import (
 from loosefit.model.motion_features import to_root_frame
 from loosefit.train.clips import clip_versions
 from loosefit.train.common import epoch_means
-from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
+from loosefit.train.loop import Run, Trainer, TrainerConfig, adam, cost_line, train
 from loosefit.train.motion import training_config
 
 CHECKPOINT_FORMAT = DETAIL_FORMAT
@@ -80,8 +80,8 @@ class DetailLossConfig:
 
 
 @dataclass
-class TrainDetailConfig(StageConfig):
-    """One training run of the detail module (the shared fields: :class:`StageConfig`)."""
+class TrainDetailConfig(TrainerConfig):
+    """One training run of the detail module (the shared fields: :class:`TrainerConfig`)."""
 
     epochs: int = 100  # the paper's
     batch_size: int = 8  # pairs per step, the paper's
@@ -167,7 +167,7 @@ def rollout_pairs(
 # -- the stage -------------------------------------------------------------------------------
 
 
-class DetailStage(Stage):
+class DetailTrainer(Trainer):
     """The detail module's training: the frozen motion stage's rollouts as pairs, a
     discriminator step and a generator step per batch, held-out rollouts with and without
     the module."""
@@ -350,7 +350,7 @@ def train_detail(
     fingerprints = stage_fingerprints(model)
     stored = {"dataset": dataset, "motion": fingerprints["motion"], "train": config.to_dict()}
     run = Run.open(out, stored, config.seed, log, progress)
-    stage = DetailStage(reader, model, fingerprints, mpath, generative, config, run, mirror)
+    stage = DetailTrainer(reader, model, fingerprints, mpath, generative, config, run, mirror)
     return train(stage, run, dataset)
 
 

@@ -36,7 +36,7 @@ from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import rmse
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.inference.checkpoints import garment_record, read_checkpoint_file, save_atomic
-from loosefit.inference.engine import (
+from loosefit.inference.engine.model import (
     ENGINE_FORMAT,
     EngineModel,
     engine_fields,
@@ -46,8 +46,8 @@ from loosefit.inference.engine import (
 )
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.engine import EngineConfig, EngineTier, correlate_noise, fit_basis, project
+from loosefit.model.losses import ClothStructure, hem_radius, membrane_energy
 from loosefit.model.motion_features import to_root_frame
-from loosefit.model.physics import ClothStructure, hem_radius, membrane_energy
 from loosefit.train.clips import (
     Clip,
     feature_range,
@@ -56,7 +56,7 @@ from loosefit.train.clips import (
     prepare_clips,
 )
 from loosefit.train.common import epoch_means, optimizer_step
-from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
+from loosefit.train.loop import Run, Trainer, TrainerConfig, adam, cost_line, train
 
 TARGETS = ("simulation", "rollout")
 # the first seed of the procedural dances a tier is trained on: far from the seeds the
@@ -65,8 +65,8 @@ PROCEDURAL_SEED = 1000
 
 
 @dataclass
-class TrainEngineConfig(StageConfig):
-    """One training run of the engine tier (the shared fields: :class:`StageConfig`)."""
+class TrainEngineConfig(TrainerConfig):
+    """One training run of the engine tier (the shared fields: :class:`TrainerConfig`)."""
 
     epochs: int = 300
     batch_size: int = 64  # clips side by side (all of the dance corpus's, mirrored)
@@ -87,7 +87,7 @@ class TrainEngineConfig(StageConfig):
     membrane_stride: int = 5  # ... taken on every this many frames (its cost is the decode's)
     length_scale: float = 100.0  # metres to centimetres in the loss
     eval_every: int = 25  # epochs; the held-out rollout RMSE into TensorBoard
-    # procedural dances (loosefit.body.procedural, seeds PROCEDURAL_SEED, +1, ...) added to
+    # procedural dances (loosefit.motion.procedural, seeds PROCEDURAL_SEED, +1, ...) added to
     # the training clips, distilled from the full model's rollouts of them: the moves
     # `loosefit demo` dances (a spine bent forward, arms near the A-pose, standing tall),
     # which no capture clip holds; 0: none
@@ -144,9 +144,9 @@ def procedural_clips(full_model, config: TrainEngineConfig, floor: float, fps: f
     """``config.procedural`` procedural dances on the rollout timeline, their targets the
     full model's garments (motion stage, decoded; root frames): clips as
     :func:`~loosefit.train.clips.prepare_clips` makes them."""
-    from loosefit.body.motions import load_motion
     from loosefit.inference.rollout import timeline
     from loosefit.model.motion_features import feature_joints, motion_features, root_frames
+    from loosefit.motion.motions import load_motion
 
     if config.procedural == 0:
         return []
@@ -203,7 +203,7 @@ def energy_score_loss(
     return dist(samples, truth).mean(0) - spread / S**2
 
 
-class EngineStage(Stage):
+class EngineTrainer(Trainer):
     """The engine tier's training: the basis, its clips, its windows, its evaluation."""
 
     label = "train engine tier"
@@ -473,13 +473,13 @@ def train_engine(
     dataset = str(Path(data).resolve())
     stored = {"dataset": dataset, "motion": str(Path(motion).resolve()), "train": config.to_dict()}
     run = Run.open(out, stored, config.seed, log, progress)
-    stage = EngineStage(reader, full, config, run)
+    stage = EngineTrainer(reader, full, config, run)
     return train(stage, run, dataset)
 
 
 def record_feature_range(path: str | Path, data: str | Path) -> tuple[torch.Tensor, torch.Tensor]:
     """Write into an engine-tier checkpoint the range of its features over its data set's
-    training frames (what :class:`EngineStage` records in a new run; the weights are left
+    training frames (what :class:`EngineTrainer` records in a new run; the weights are left
     as they are), atomically.
 
     Returns:

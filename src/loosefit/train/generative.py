@@ -48,18 +48,18 @@ from loosefit.model.generative import (
     GenerativeOutput,
     generative_loss,
 )
-from loosefit.model.physics import ClothStructure, active_terms
+from loosefit.model.losses import ClothStructure, active_terms
 from loosefit.train.common import all_mean, autocast, check_device_precision, check_precision, shard
 from loosefit.train.frames import PreparedFrames, avatar_for, prepare_split
-from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
+from loosefit.train.loop import Run, Trainer, TrainerConfig, adam, cost_line, train
 from loosefit.types import GarmentTemplate
 
 CHECKPOINT_FORMAT = GENERATIVE_FORMAT
 
 
 @dataclass
-class TrainGenerativeConfig(StageConfig):
-    """One training run of the generative model (the shared fields: :class:`StageConfig`)."""
+class TrainGenerativeConfig(TrainerConfig):
+    """One training run of the generative model (the shared fields: :class:`TrainerConfig`)."""
 
     epochs: int = 500  # the paper's
     batch_size: int = 56  # frames per step, the paper's
@@ -189,7 +189,7 @@ def format_report(report: dict) -> str:
 # -- the stage --------------------------------------------------------------------------------
 
 
-class GenerativeStage(Stage):
+class GenerativeTrainer(Trainer):
     """The generative model's training: its frames, its step, its evaluation."""
 
     ddp_buffers = True
@@ -329,7 +329,7 @@ def train_generative(
     reader = DatasetReader(data)
     dataset = str(Path(data).resolve())
     run = Run.open(out, {"dataset": dataset, "train": config.to_dict()}, config.seed, log, progress)
-    return train(GenerativeStage(reader, config, run), run, dataset)
+    return train(GenerativeTrainer(reader, config, run), run, dataset)
 
 
 # -- a run's checkpoint, a warm start ---------------------------------------------------------

@@ -9,7 +9,7 @@ A run is a folder::
     report.json/.md     the final errors, written only once the run is complete
 
 Killing a run and starting the same command again resumes from the last checkpoint,
-bit for bit. A stage (:class:`Stage`) brings its data, its networks, one epoch of
+bit for bit. A stage (:class:`Trainer`) brings its data, its networks, one epoch of
 training and its evaluation; :func:`train` does the rest, in this order: resume (or
 warm-start), then per epoch train, log, checkpoint, evaluate; then the report.
 
@@ -39,7 +39,7 @@ from loosefit.train.common import barrier, distributed, machine
 
 
 @dataclass
-class StageConfig:
+class TrainerConfig:
     """The fields every training stage has; a stage's own dataclass adds its fields and
     redeclares a default where its own differs (the field keeps its place)."""
 
@@ -225,7 +225,7 @@ class Run:
 # -- a stage ---------------------------------------------------------------------------------
 
 
-class Stage:
+class Trainer:
     """What a training stage brings to :func:`train`; each stage's module subclasses it.
 
     Attributes:
@@ -239,7 +239,7 @@ class Stage:
         tags: TensorBoard tags of the extra history fields :meth:`train_epoch` returns.
     """
 
-    config: StageConfig
+    config: TrainerConfig
     label: str
     model: torch.nn.Module
     states: dict
@@ -300,7 +300,7 @@ def restore(saved: dict, states: dict, sampling: torch.Generator | None = None) 
 # -- the loop --------------------------------------------------------------------------------
 
 
-def train(stage: Stage, run: Run, dataset: str) -> dict:
+def train(stage: Trainer, run: Run, dataset: str) -> dict:
     """Train ``stage`` in ``run`` to ``stage.config.epochs`` (resuming where its checkpoint
     stopped) and report.
 
@@ -376,7 +376,7 @@ def train(stage: Stage, run: Run, dataset: str) -> dict:
     return report
 
 
-def _ddp_buffers(stage: Stage) -> dict:
+def _ddp_buffers(stage: Trainer) -> dict:
     """DDP's keyword for whether buffers are broadcast at every forward pass: PyTorch
     renamed ``broadcast_buffers`` to ``forward_sync_buffers`` (both keep the forward-pass
     meaning; the new one also syncs buffers once at the start, which equal buffers allow)."""
@@ -387,7 +387,7 @@ def _ddp_buffers(stage: Stage) -> dict:
     return {key: stage.ddp_buffers}
 
 
-def adam(module: torch.nn.Module, config: StageConfig) -> torch.optim.Adam:
+def adam(module: torch.nn.Module, config: TrainerConfig) -> torch.optim.Adam:
     """The optimiser of every stage: Adam with the configuration's rate and weight decay."""
     return torch.optim.Adam(module.parameters(), lr=config.lr, weight_decay=config.weight_decay)
 
@@ -403,7 +403,7 @@ def cost_line(report: dict, parameters: str = "parameters", digits: int = 2) -> 
     )
 
 
-def _checkpoint(stage: Stage, epoch: int, history: list) -> dict:
+def _checkpoint(stage: Trainer, epoch: int, history: list) -> dict:
     """A training checkpoint: the stage's fields, its states, where the loop stands."""
     data = {**stage.checkpoint_fields()}
     data.update({key: obj.state_dict() for key, obj in stage.states.items()})

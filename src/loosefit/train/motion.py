@@ -78,14 +78,14 @@ from loosefit.inference.rollout import change_frame
 from loosefit.inference.stages import MOTION_ONLY
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.generative import GarmentGenerativeModel
-from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
-from loosefit.model.physics import (
+from loosefit.model.losses import (
     ClothStructure,
     PhysicsLossConfig,
     active_terms,
     hem_radius,
     physics_terms,
 )
+from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
 from loosefit.train.clips import (
     Clip,
     feature_statistics,
@@ -102,7 +102,7 @@ from loosefit.train.common import (
     optimizer_step,
     shard,
 )
-from loosefit.train.loop import Run, Stage, StageConfig, adam, cost_line, train
+from loosefit.train.loop import Run, Trainer, TrainerConfig, adam, cost_line, train
 
 CHECKPOINT_FORMAT = MOTION_FORMAT
 
@@ -114,7 +114,7 @@ class MotionLossConfig:
     laplacian: float = 1.5  # lambda_4
     latent: float = 0.5  # lambda_5
     length_scale: float = 100.0  # metres to centimetres, as in the generative loss
-    # physics terms (loosefit.model.physics), 0: off. The collision term needs
+    # physics terms (loosefit.model.losses), 0: off. The collision term needs
     # the body at every frame and is taken by the generative stage only
     membrane: float = 0.0  # edge lengths against rest
     bending: float = 0.0  # dihedral angles against rest
@@ -139,8 +139,9 @@ class MotionLossConfig:
 
 
 @dataclass
-class TrainMotionConfig(StageConfig):
-    """One training run of the dynamic motion encoder (the shared fields: :class:`StageConfig`)."""
+class TrainMotionConfig(TrainerConfig):
+    """One training run of the dynamic motion encoder (the shared fields:
+    :class:`TrainerConfig`)."""
 
     epochs: int = 300  # the paper's
     batch_size: int = 1  # clips run side by side
@@ -409,7 +410,7 @@ def format_report(report: dict) -> str:
 # -- the stage ---------------------------------------------------------------------------------
 
 
-class MotionStage(Stage):
+class MotionTrainer(Trainer):
     """The motion encoder's training on a frozen generative model: its clips, its windows,
     its rollout evaluation."""
 
@@ -642,7 +643,7 @@ def train_motion(
     }
     stored = {"dataset": dataset, "generative": gmeta["fingerprint"], "train": config.to_dict()}
     run = Run.open(out, stored, config.seed, log, progress)
-    stage = MotionStage(reader, gmodel, gmeta, config, run, rest_state, settle)
+    stage = MotionTrainer(reader, gmodel, gmeta, config, run, rest_state, settle)
     return train(stage, run, dataset)
 
 

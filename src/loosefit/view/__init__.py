@@ -35,7 +35,7 @@ def view(
     """Serve animated garments of one garment and motion; returns the running viewer.
 
     Args:
-        sequences: :class:`~loosefit.sequence.AnimatedGarment` s (same garment, frames, fps).
+        sequences: :class:`~loosefit.sequence.GarmentSequence` s (same garment, frames, fps).
         names: their labels in the panel (default: each one's ``source``).
         config: host, port, layout, colouring, ... (:class:`ViewerConfig`).
         sources: where each came from, named by errors.

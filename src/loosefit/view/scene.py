@@ -1,6 +1,6 @@
 """What the viewer shows: garment sequences of one motion, each with its posed body.
 
-:func:`load_sequences` reads sequence files (:class:`~loosefit.sequence.AnimatedGarment`
+:func:`load_sequences` reads sequence files (:class:`~loosefit.sequence.GarmentSequence`
 or a data set's clips), :func:`from_animated` takes them from memory, and
 :func:`check_together` refuses sequences that cannot share one timeline and one
 colouring: another number of frames, another frame rate or another garment (the error
@@ -18,7 +18,7 @@ import numpy as np
 
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import same_garment
-from loosefit.sequence import AnimatedGarment
+from loosefit.sequence import GarmentSequence
 from loosefit.types import GarmentTemplate
 
 POSE_CHUNK = 128  # frames posed at a time: the progress bar's step, and bounded memory
@@ -52,7 +52,7 @@ class ViewSequence:
         return int(self.garment.shape[0])
 
 
-def check_together(sequences: Sequence[AnimatedGarment], sources: Sequence[str]) -> None:
+def check_together(sequences: Sequence[GarmentSequence], sources: Sequence[str]) -> None:
     """Refuse sequences that cannot play on one timeline with one colouring.
 
     Raises:
@@ -88,7 +88,7 @@ def check_together(sequences: Sequence[AnimatedGarment], sources: Sequence[str])
 
 
 def pose_bodies(
-    sequences: Sequence[AnimatedGarment], progress: Callable[[int, int], None] | None = None
+    sequences: Sequence[GarmentSequence], progress: Callable[[int, int], None] | None = None
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """The posed body of each sequence, ``(vertices (T, Vb, 3) float32, faces (Fb, 3))``,
     posed once per distinct avatar and motion.
@@ -126,7 +126,7 @@ def pose_bodies(
     return [posed[k] for k in keys]
 
 
-def _body_key(seq: AnimatedGarment) -> tuple:
+def _body_key(seq: GarmentSequence) -> tuple:
     """What the posed body depends on: the avatar and the motion's arrays."""
     m = seq.motion
     return (
@@ -138,7 +138,7 @@ def _body_key(seq: AnimatedGarment) -> tuple:
 
 
 def from_animated(
-    sequences: Sequence[AnimatedGarment],
+    sequences: Sequence[GarmentSequence],
     names: Sequence[str] | None = None,
     sources: Sequence[str] | None = None,
     progress: Callable[[int, int], None] | None = None,
@@ -167,7 +167,7 @@ def read_sequences(
     paths: Sequence[str | Path] = (),
     data: str | Path | None = None,
     clip: str | None = None,
-) -> tuple[list[AnimatedGarment], list[str], list[str]]:
+) -> tuple[list[GarmentSequence], list[str], list[str]]:
     """Sequence files, and a data set's clip, read and validated.
 
     Args:
@@ -206,13 +206,13 @@ def read_sequences(
     return seqs, _unique(labels), sources
 
 
-def _read_file(path: Path) -> AnimatedGarment:
+def _read_file(path: Path) -> GarmentSequence:
     from loosefit.data.format import DatasetReader
 
     root = path.parent.parent
     if path.parent.name == "sequences" and (root / "manifest.json").is_file():
         return DatasetReader(root, allow_incomplete=True).read(path.stem)
-    return AnimatedGarment.load(path)
+    return GarmentSequence.load(path)
 
 
 def _unique(labels: Sequence[str]) -> list[str]:

@@ -167,9 +167,9 @@ def test_rays_count_the_winding_number_where_body_parts_overlap():
 
 @needs_salsa
 def test_the_fast_path_over_a_real_rollout():
-    from loosefit.body.motions import load_motion
     from loosefit.inference.animator import load_pipeline
     from loosefit.inference.stages import Stages
+    from loosefit.motion.motions import load_motion
 
     model = load_pipeline(REPO / "checkpoints" / "salsa" / "motion.pt")
     motion = load_motion(

@@ -13,7 +13,7 @@ from loosefit.inference.stages.lengths import (
     LengthRestorer,
     hanging_edges,
 )
-from loosefit.model.physics import ClothStructure, signed_edge_change
+from loosefit.model.losses import ClothStructure, signed_edge_change
 
 TRI_FACES = np.array([[0, 1, 2]])
 PAIR_FACES = np.array([[0, 1, 2], [1, 0, 3]])

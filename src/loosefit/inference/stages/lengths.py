@@ -16,7 +16,7 @@ import torch
 
 from loosefit.errors import LoosefitInputError
 from loosefit.inference.stages import StageFrames
-from loosefit.model.physics import ClothStructure
+from loosefit.model.losses import ClothStructure
 from loosefit.types import GarmentTemplate
 
 # LengthRestorer solves its system by blocks of its banded Cholesky factor when the band
