@@ -1,6 +1,7 @@
 """The docs hold together: every relative link in README.md, docs/ and bench/ resolves to a
 file and, where it names one, a heading (scripts/check_links.py, which a writer runs too);
-every dotted ``loosefit.x.y`` name in README.md and docs/ imports."""
+every dotted ``loosefit.x.y`` name in README.md and the pages under docs/ imports; no page
+names a tracker's issue number, and no data file sits among the pages."""
 
 from __future__ import annotations
 
@@ -66,10 +67,14 @@ def resolve(name: str):
     raise ModuleNotFoundError(name)
 
 
+def pages() -> list:
+    """README.md and every page under docs/, however deep."""
+    return [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
+
+
 def test_every_dotted_loosefit_name_in_the_docs_resolves():
-    pages = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
     missing = []
-    for page in pages:
+    for page in pages():
         for name in sorted(dotted_names(page.read_text(encoding="utf-8"))):
             try:
                 resolve(name)
@@ -86,3 +91,43 @@ def test_dotted_names_are_found_across_lines_and_a_missing_one_fails():
     assert callable(resolve("loosefit.motion.bvh.read_bvh"))
     with pytest.raises(AttributeError):
         resolve("loosefit.motion.chain.rollout_timeline")
+
+
+# "issue 34", "issues 5", "#37" (not an anchor "FILE.md#2026-...", "(#a)", nor a colour
+# "#333333"); in prose, also "before-34" and "wave 5" (code may name a file or flag so)
+ISSUE = re.compile(r"\bissues?\s+#?\d+\b|(?<![\w.(/#&])#\d{2,4}(?![\w-])", re.IGNORECASE)
+ISSUE_IN_PROSE = re.compile(r"\b(?:before|after)[-_]\d+\b|\bwave\s+\d+\b", re.IGNORECASE)
+
+
+def issue_numbers(text: str, prose: str) -> list[str]:
+    """The tracker references in a page's ``text`` (and ``prose``: its text outside code)."""
+    return [m.group(0) for m in ISSUE.finditer(text)] + [
+        m.group(0) for m in ISSUE_IN_PROSE.finditer(prose)
+    ]
+
+
+def test_no_page_names_an_issue_number():
+    check = _checker()
+    found = []
+    for page in pages():
+        prose = "\n".join(line for _, line in check.prose_lines(page))
+        for hit in issue_numbers(page.read_text(encoding="utf-8"), prose):
+            found.append(f"{page.relative_to(REPO)}: {hit!r}")
+    assert not found, "say what the thing is, not its issue number:\n" + "\n".join(found)
+
+
+def test_issue_numbers_are_found_and_anchors_and_colours_are_not():
+    text = "see issue 34, Issues #5 and #37; [a](X.md#2026-11-26-run), [b](#12-frames), #333333"
+    assert issue_numbers(text, "before-34 and wave 5") == [
+        "issue 34",
+        "Issues #5",
+        "#37",
+        "before-34",
+        "wave 5",
+    ]
+    assert issue_numbers("the 34 clips, 2 waves", "before 3 frames, after 2026-11-26") == []
+
+
+def test_no_data_file_among_the_pages():
+    data = sorted(p.relative_to(REPO) for p in (REPO / "docs").rglob("*.json"))
+    assert not data, f"JSON belongs in bench/figures/, not among the pages: {data}"
