@@ -3,13 +3,16 @@
 A link resolves when its file (or folder) exists relative to the Markdown file that holds
 it and, where it names an anchor (``FILE.md#a-heading``), a heading of that file has that
 anchor (GitHub's rule: lower case, punctuation dropped, spaces to hyphens). Links to web
-addresses are not fetched. Links inside fenced code blocks and inline code are skipped.
+addresses are not fetched. Links inside fenced code blocks and inline code are skipped; a
+link whose text runs onto the next line is checked too. Every page under docs/ and bench/
+is read, however deep.
 
     python scripts/check_links.py            # prints each broken link; exit status 1 if any
 """
 
 from __future__ import annotations
 
+import bisect
 import re
 import sys
 from pathlib import Path
@@ -60,20 +63,34 @@ def anchors(path: Path) -> set[str]:
     return found
 
 
+def links(path: Path) -> list[tuple[int, str]]:
+    """(line number, target) of every link in ``path``'s prose, a link whose text runs onto
+    the next line included (numbered by the line it starts on)."""
+    lines = prose_lines(path)
+    text = "\n".join(line for _, line in lines)
+    starts = [0]
+    for _, line in lines:
+        starts.append(starts[-1] + len(line) + 1)
+    found = []
+    for match in LINK.finditer(text):
+        row = bisect.bisect_right(starts, match.start()) - 1
+        found.append((lines[row][0], match.group(1)))
+    return found
+
+
 def broken_links(path: Path) -> list[str]:
     problems = []
-    for number, line in prose_lines(path):
-        for target in LINK.findall(line):
-            if re.match(r"^[a-z][a-z0-9+.-]*:", target, re.IGNORECASE):
-                continue  # https:, mailto:, ...
-            file_part, _, fragment = target.partition("#")
-            resolved = (path.parent / file_part).resolve() if file_part else path
-            shown = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
-            where = f"{shown}:{number}: {target}"
-            if not resolved.exists():
-                problems.append(f"{where} (no such file)")
-            elif fragment and resolved.suffix == ".md" and fragment not in anchors(resolved):
-                problems.append(f"{where} (no heading #{fragment})")
+    for number, target in links(path):
+        if re.match(r"^[a-z][a-z0-9+.-]*:", target, re.IGNORECASE):
+            continue  # https:, mailto:, ...
+        file_part, _, fragment = target.partition("#")
+        resolved = (path.parent / file_part).resolve() if file_part else path
+        shown = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+        where = f"{shown}:{number}: {target}"
+        if not resolved.exists():
+            problems.append(f"{where} (no such file)")
+        elif fragment and resolved.suffix == ".md" and fragment not in anchors(resolved):
+            problems.append(f"{where} (no heading #{fragment})")
     return problems
 
 
@@ -82,8 +99,8 @@ def main() -> int:
     problems = [p for f in files for p in broken_links(f)]
     for problem in problems:
         print(problem)
-    links = sum(len(LINK.findall(line)) for f in files for _, line in prose_lines(f))
-    print(f"{len(files)} Markdown files, {links} links, {len(problems)} broken")
+    count = sum(len(links(f)) for f in files)
+    print(f"{len(files)} Markdown files, {count} links, {len(problems)} broken")
     return 1 if problems else 0
 
 

@@ -33,10 +33,12 @@ def test_a_broken_link_and_a_missing_heading_are_found(tmp_path):
     (tmp_path / "other.md").write_text("# A heading\n")
     page.write_text(
         "[ok](other.md#a-heading) [gone](missing.md) [no](other.md#nowhere)\n`[code](skipped.md)`\n"
+        "a link whose [text runs\nonto the next line](also_missing.md)\n"
     )
     broken = check.broken_links(page)
-    assert len(broken) == 2 and any("missing.md" in b for b in broken)
+    assert len(broken) == 3 and any("missing.md" in b for b in broken)
     assert any("nowhere" in b for b in broken)
+    assert any(b.endswith(":3: also_missing.md (no such file)") for b in broken)
 
 
 # a dotted name, also one broken after a dot at the end of a line; not a format tag
