@@ -65,13 +65,14 @@ def reader(toy_dataset):
 def test_errors_per_clip_per_horizon_and_overall(reader):
     data = {"long": _named(reader, "a", "long"), "short": _named(reader, "b", "short", 10)}
     model = _Shifted(reader.template, {n: s.garment_vertices for n, s in data.items()})
-    out = evaluate_rollouts(model, data, horizons=(4, 12), surface=False)
+    out = evaluate_rollouts(model, data, horizons=(4, 12, 16), surface=False)
     long, short = out["clips"]["long"], out["clips"]["short"]
     assert (long["frames"], short["frames"]) == (16, 10)
     np.testing.assert_allclose(long["rmse_per_frame_cm"], np.arange(1, 17), rtol=1e-5)
     assert long["rmse_cm"] == pytest.approx(np.sqrt(np.mean(np.arange(1, 17) ** 2)), rel=1e-5)
     assert long["horizons"]["4"] == pytest.approx(np.sqrt(np.mean([1, 4, 9, 16])), rel=1e-5)
     assert set(short["horizons"]) == {"4"}  # 10 frames: no 12-frame horizon
+    assert long["horizons"]["16"] == pytest.approx(long["rmse_cm"])  # the whole clip
     assert long["frames_per_second"] == 50.0
     # overall: frame-weighted; a horizon's mean over the clips that reach it
     squares = np.r_[np.arange(1, 17) ** 2, np.arange(1, 11) ** 2]
