@@ -35,16 +35,16 @@ def _write(tmp_path, text, name="map.yaml"):
 
 
 def test_a_map_file_aligns_its_mapped_limbs_by_default(tmp_path):
-    path = _write(tmp_path, "Hips: pelvis\nLeftUpLeg: thigh_l\nLeftLeg: calf_l\nSpine: spine\n")
+    path = _write(tmp_path, "Hips: pelvis\nLeftLeg: calf_l\nLeftUpLeg: thigh_l\nSpine: spine\n")
     jmap = load_joint_map_file(path, ["pelvis", "thigh_l", "calf_l", "spine"])
     assert jmap.name == str(path)
     assert jmap.joints == {
         "Hips": "pelvis",
-        "LeftUpLeg": "thigh_l",
         "LeftLeg": "calf_l",
+        "LeftUpLeg": "thigh_l",
         "Spine": "spine",
     }
-    assert jmap.align == ("LeftUpLeg", "LeftLeg")  # the limbs, in LIMBS' order
+    assert jmap.align == ("LeftUpLeg", "LeftLeg")  # the limbs, in LIMBS' order, not the file's
     assert all(a in LIMBS for a in jmap.align)
     assert jmap.source_up is None and jmap.source_forward is None
 

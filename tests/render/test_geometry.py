@@ -56,6 +56,9 @@ def test_a_revolved_profile_with_two_poles_is_closed():
     a, b, c = (v[f[:, i]].astype(np.float64) for i in range(3))
     volume = np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6
     assert volume > 0
+    # every face, the poles' caps included, faces away from the middle (0, 0, 1)
+    outward = np.einsum("ij,ij->i", np.cross(b - a, c - a), (a + b + c) / 3 - [0, 0, 1])
+    assert (outward > 0).all()
 
 
 def test_an_open_profile_leaves_both_ends_open():
