@@ -80,7 +80,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
     p.add_argument(
-        "--bvh", default=str(Path(__file__).resolve().parents[2] / "shared/mocap/cmu-salsa")
+        "--bvh", default=str(Path(__file__).resolve().parents[3] / "shared/mocap/cmu-salsa")
     )
     p.add_argument("--data", default=None, help="the salsa dataset (part B)")
     p.add_argument("--detail", default=None, help="the full detail module's model.pt (part B)")

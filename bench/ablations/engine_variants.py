@@ -12,11 +12,13 @@ import argparse
 
 import numpy as np
 import torch
-from stage_account import TURN_WINDOW, fastest_turn, flare
 
 from loosefit.body.capsules import avatar_capsules
 from loosefit.data.format import DatasetReader
+from loosefit.eval.ensemble import hem_flare
+from loosefit.eval.heading import fastest_turn
 from loosefit.eval.metrics import rmse
+from loosefit.eval.stage_account import TURN_WINDOW
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.inference.engine.export import EngineStep, skeleton_record
 from loosefit.inference.engine.model import load_engine, rollout_engine
@@ -43,12 +45,12 @@ def main() -> None:
             seq = reader.read(name)
             truth = np.asarray(seq.garment_vertices, np.float32)
             pelvis = avatar.pose_motion(seq.motion).joint_poses[:, 0, :3, 3].numpy()
-            turn = fastest_turn(seq.motion.rotations, seq.motion.fps)
+            turn = fastest_turn(seq.motion.rotations[:, 0], seq.motion.fps, 5, "gradient")
             w = slice(max(turn - TURN_WINDOW, 0), turn + TURN_WINDOW + 1)
-            truth_flare = flare(truth, pelvis, hem)[w]
+            truth_flare = hem_flare(truth, pelvis, hem)[w]
             for label, collide in (("no", None), ("yes", step)):
                 x = rollout_engine(model, seq.motion, collide=collide)
-                error = np.mean(np.abs(flare(x, pelvis, hem)[w] / truth_flare - 1))
+                error = np.mean(np.abs(hem_flare(x, pelvis, hem)[w] / truth_flare - 1))
                 change = signed_edge_change(
                     torch.from_numpy(x), structure.edges, structure.rest_lengths
                 ).numpy()

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from stage_account import clip_reference  # bench/, beside this file
 
+from loosefit.eval.stage_account import clip_reference
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
 from loosefit.inference.stages.lengths import LengthConfig

@@ -21,6 +21,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import torch
+import yaml
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.report import write_rollout_report
@@ -30,72 +31,10 @@ from loosefit.inference.stages import MOTION_ONLY
 from loosefit.sim.rest_drape import settled_rest_drape
 from loosefit.train.motion import TrainMotionConfig, train_motion
 
-RUNS = {
-    "nops": ("w/o ps", dict(previous_state=False)),
-    "ps": ("with ps (scheduled sampling, ours)", dict()),
-    "ps-teacher": ("with ps, teacher forcing only", dict(previous="teacher")),
-    "ps-teacher-noise": (
-        "with ps, teacher forcing, 3 cm noise on the previous state",
-        dict(previous="teacher", previous_noise=0.03),
-    ),
-    "ps-unroll": (
-        "with ps, scheduled sampling, unrolled through its own predictions",
-        dict(unroll=True),
-    ),
-    "ps-floor": (
-        "with ps, scheduled sampling to 20 % ground truth",
-        dict(teacher_end=0.2),
-    ),
-    # Twice the data: every training clip also mirrored left-right (no simulation needed)
-    "ps-mirror": ("with ps (scheduled sampling), mirrored clips too", dict(mirror=True)),
-    "nops-mirror": ("w/o ps, mirrored clips too", dict(previous_state=False, mirror=True)),
-    # Twice the epochs (the same 20-epoch ramp): does longer training change the ranking?
-    "nops-80": ("w/o ps, 80 epochs", dict(previous_state=False, epochs=80)),
-    "ps-floor-80": (
-        "with ps, scheduled sampling to 20 % ground truth, 80 epochs",
-        dict(teacher_end=0.2, teacher_fraction=0.25, epochs=80),
-    ),
-    # Fewer inputs: only the spine and leg rotations (the arms, neck and head cannot move
-    # the skirt: they are not in the simulation's collider or out of its reach)
-    "ps-mirror-lower": (
-        "with ps (scheduled sampling), mirrored clips too, spine and leg joints only",
-        dict(mirror=True, joints="lower"),
-    ),
-    "nops-mirror-lower": (
-        "w/o ps, mirrored clips too, spine and leg joints only",
-        dict(previous_state=False, mirror=True, joints="lower"),
-    ),
-    # The same two ps configurations from another seed: how far a run moves by chance alone
-    "ps-mirror-s1": (
-        "with ps (scheduled sampling), mirrored clips too, seed 1",
-        dict(mirror=True, seed=1),
-    ),
-    "ps-mirror-lower-s1": (
-        "with ps (scheduled sampling), mirrored clips too, spine and leg joints only, seed 1",
-        dict(mirror=True, joints="lower", seed=1),
-    ),
-    # With the physics terms of the committed sets (membrane 1000, hem flare 1), mirrored
-    # clips: the pair Table 1 compares on the dance corpus (``ps-physics`` is the `scratch`
-    # candidate's motion stage of scripts/dance_models.sh)
-    "ps-physics": (
-        "with ps (scheduled sampling), mirrored clips, membrane and hem-flare terms",
-        dict(mirror=True, loss=dict(membrane=1000.0, flare=1.0)),
-    ),
-    "nops-physics": (
-        "w/o ps, mirrored clips, membrane and hem-flare terms",
-        dict(previous_state=False, mirror=True, loss=dict(membrane=1000.0, flare=1.0)),
-    ),
-    # More simulated data: the training clips also played 1.25 times as fast and simulated
-    # (the salsa-speed data set, in --datasets; the same held-out chain)
-    "ps-mirror-speed": (
-        "with ps (scheduled sampling), mirrored clips too, and the training clips at 1.25x",
-        dict(mirror=True, dataset="salsa-speed"),
-    ),
-    # ... and also at 1.5x (the salsa-speeds data set): how the error scales with the data
-    "ps-mirror-speeds": (
-        "with ps (scheduled sampling), mirrored clips too, and the training clips at 1.25x, 1.5x",
-        dict(mirror=True, dataset="salsa-speeds"),
-    ),
+RUNS_FILE = Path(__file__).with_name("motion_runs.yaml")  # the runs Table 1 compares
+RUNS = {  # name: (the table's label, the overrides of TrainMotionConfig)
+    key: (run["label"], run["overrides"])
+    for key, run in yaml.safe_load(RUNS_FILE.read_text(encoding="utf-8")).items()
 }
 
 

@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from stage_account import clip_account  # bench/, beside this file
 
+from loosefit.eval.stage_account import clip_account
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.checkpoints import load_generative
 from loosefit.train.common import machine

@@ -33,16 +33,16 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from loosefit.data.format import DatasetReader, write_json_atomic
-from loosefit.garment.quality import PENETRATION_TOLERANCE, quality
-from loosefit.sim.dataset_config import QualityLimits, read_config_file
+from loosefit.eval.dataset_quality import judge_dataset
+from loosefit.garment.quality import PENETRATION_TOLERANCE
+from loosefit.sim.dataset_config import read_config_file
 from loosefit.sim.generate import generate
-from loosefit.sim.manifest import LEGACY_CLOTH
+from loosefit.train.frames import avatar_for
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 VARIANTS = {
     "after": {},  # the defaults: the pose correction and the flattened collider
     # the defaults before the pose correction (loosefit.motion.pose_correction)
@@ -52,65 +52,6 @@ VARIANTS = {
     "gap4": {"cloth": {"body_contact_gap": 0.04}, "unfold": {"enabled": False}},
     "clear4": {"cloth": {"overlap_inset": -0.004}, "unfold": {"enabled": False}},
 }
-
-
-def judge(folder: Path) -> dict:
-    """Per clip figures of a simulated data set, from its sequences and posed bodies.
-
-    Besides the quality figures, the share of the inside mean that falls in frames whose
-    pose folds into itself (a limb inside the rest of the body, the frames the collider
-    is flattened in: :func:`~loosefit.sim.overlap.flatten_overlaps`), and the inside mean
-    measured against that flattened collider, the body the cloth actually met.
-    """
-    from loosefit.body.regions import body_parts
-    from loosefit.geometry.query import closest_points
-    from loosefit.sim.overlap import flatten_overlaps
-    from loosefit.train.frames import avatar_for
-
-    reader = DatasetReader(folder, allow_incomplete=True)
-    avatar = avatar_for(reader)
-    # a data set made before a cloth field existed was made with LEGACY_CLOTH's value
-    cloth = {**LEGACY_CLOTH, **reader.manifest["config"]["cloth"]}
-    arms = cloth.get("arm_collision", False)
-    faces = avatar.collider_faces(arms=arms).cpu().numpy()
-    parts = body_parts(avatar, arms=arms)
-    limits = QualityLimits(**reader.manifest["config"].get("limits", {}))
-    rows = {}
-    for name, entry in reader.manifest["sequences"].items():
-        if "quality" not in entry:
-            rows[name] = {"status": entry.get("status"), "reason": entry.get("reason", "")}
-            continue
-        seq = reader.read(name)
-        with torch.no_grad():
-            body = avatar.pose_motion(seq.motion).vertices.cpu().numpy()
-        q = quality(seq.garment_vertices, reader.template, body, faces, seq.motion.fps)
-        inside = np.asarray(q["inside_fraction"])  # (T,)
-        flat = flatten_overlaps(body, parts, cloth["overlap_inset"])
-        folded = flat.moved > 0  # (T,) frames whose pose folds into itself
-        inside_flat = inside.copy()
-        for t in np.nonzero(folded)[0]:
-            inside_flat[t] = closest_points(
-                flat.vertices[t], faces, seq.garment_vertices[t]
-            ).inside.mean()
-        rows[name] = {
-            "frames": int(seq.motion.num_frames),
-            "inside_mean_pct": 100 * q["inside_mean"],
-            "inside_p99_pct": 100 * float(np.percentile(inside, 99)),
-            # the part of inside_mean_pct in self-intersecting frames; against the collider
-            "inside_folded_pct": 100 * float(inside[folded].sum() / len(inside)),
-            "inside_collider_pct": 100 * float(inside_flat.mean()),
-            "deep_max_pct": 100 * q["penetration_max"],
-            "depth_max_cm": 100 * q["inside_depth_max"],
-            "strain_p99": q["strain_p99"],
-            "seconds_per_frame": entry.get("seconds_per_frame"),
-            "overlap_frames": entry.get("overlap_frames"),
-            "overlap_depth_cm": 100 * entry.get("overlap_depth_max", 0.0),
-            "kept": bool(
-                q["inside_depth_max"] <= limits.max_inside_depth
-                and q["penetration_max"] <= limits.max_penetration_fraction
-            ),
-        }
-    return rows
 
 
 def table(results: dict) -> str:
@@ -170,7 +111,8 @@ def main() -> int:
         t0 = time.perf_counter()
         generate(config, folder, workers=args.workers, progress=True)
         print(f"{variant}: simulated in {time.perf_counter() - t0:.0f} s", flush=True)
-        results[variant] = judge(folder)
+        reader = DatasetReader(folder, allow_incomplete=True)
+        results[variant] = judge_dataset(reader, avatar_for(reader))
     print(
         f"machine: {platform.platform()}, {os.cpu_count()} CPUs; tolerance "
         f"{PENETRATION_TOLERANCE * 1000:.0f} mm"

@@ -9,11 +9,12 @@ motion: the fraction of frames upright (head above hips above the lower foot), t
 fraction with the lower sole within 5 cm of the floor, the lowest sole, the fastest
 bone (deg/s, which joint, which frame). Two CPU cores, a few minutes::
 
-    .venv/bin/python bench/pose_check_margins.py
+    .venv/bin/python bench/data/pose_check_margins.py
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -32,10 +33,18 @@ from loosefit.motion.pose_check import (
 )
 from loosefit.motion.retarget import RetargetConfig, retarget_bvh
 
-MOCAP = Path(__file__).resolve().parents[2] / "shared" / "mocap"
+MOCAP = Path(__file__).resolve().parents[3] / "shared" / "mocap"
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument(
+        "--mocap",
+        type=Path,
+        default=MOCAP,
+        help="the folder holding cmu-salsa/ and cmu-ballet/ (default: ../shared/mocap)",
+    )
+    mocap = p.parse_args(argv).mocap
     avatar = Avatar()
     names = avatar.skeleton.names
     specs = [f"{m}" for m in PROCEDURAL_NAMES if m != "dance"]
@@ -44,7 +53,7 @@ def main() -> int:
     specs += [
         (str(f), 0)
         for folder in ("cmu-salsa", "cmu-ballet")
-        for f in sorted((MOCAP / folder).glob("*.bvh"))
+        for f in sorted((mocap / folder).glob("*.bvh"))
     ]
     config = RetargetConfig(check_pose=False, fps=None)  # files at their own rate
     print(

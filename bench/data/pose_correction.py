@@ -43,7 +43,7 @@ import torch
 
 from loosefit.motion.pose_correction import LimbTest, fastest_axis, world_rotations
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SALSA = ROOT.parent / "shared" / "mocap" / "cmu-salsa"
 # The lunges of configs/regression.yaml: 60_02's, the same mirrored, 60_01's crouch.
 MOTIONS = (
@@ -174,15 +174,16 @@ def measure(
 def simulate_pair(
     avatar, parts, spec: str, clearance: float, cap: float, out: Path, workers: int
 ) -> dict:
-    """Simulate ``spec`` as captured and as :func:`~loosefit.motion.pose_correction.unfold_motion`
-    corrects it; per clip the figures of bench/penetration_regression.py, the turn, and
-    the feet."""
-    import penetration_regression as regression
-
+    """Simulate ``spec`` as captured and as
+    :func:`~loosefit.motion.pose_correction.unfold_motion` corrects it; per clip the figures
+    of :func:`~loosefit.eval.dataset_quality.judge_dataset`, the turn, and the feet."""
+    from loosefit.data.format import DatasetReader
+    from loosefit.eval.dataset_quality import judge_dataset
     from loosefit.motion.motions import load_motion
     from loosefit.motion.pose_correction import UnfoldConfig, unfold_motion
     from loosefit.sim.dataset_config import read_config_file
     from loosefit.sim.generate import generate
+    from loosefit.train.frames import avatar_for
 
     motion = load_motion(spec, avatar, fps=30.0)
     unfolded = unfold_motion(
@@ -197,7 +198,8 @@ def simulate_pair(
     config.unfold = UnfoldConfig(enabled=False)  # the two motions as they are
     config.motions.specs = (spec, str(path))
     generate(config, out / "simulated", workers=workers, progress=True)
-    rows = regression.judge(out / "simulated")
+    reader = DatasetReader(out / "simulated", allow_incomplete=True)
+    rows = judge_dataset(reader, avatar_for(reader))
     names = avatar.joint_names
     with torch.no_grad():
         a, b = avatar.pose_motion(motion), avatar.pose_motion(fixed)

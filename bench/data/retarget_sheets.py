@@ -20,7 +20,7 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from loosefit.body.avatar import Avatar  # noqa: E402
 from loosefit.cli import main as cli  # noqa: E402

@@ -87,12 +87,12 @@ def demands(avatar, template, motion, garment: np.ndarray, cloth) -> dict[str, n
 
 def substep_costs(worker, motion, cloth, frames: int) -> dict:
     """F (s a substep, outside the iterations) and I (s an iteration) from a profiled run."""
-    import sim_profile as sp
+    from loosefit.eval.sim_runs import ONCE, profiled_run
 
-    res, timer, _, wall = sp.profiled_run(
+    res, timer, _, wall = profiled_run(
         worker.avatar, worker.template, motion.slice(0, frames), cloth
     )
-    once = sum(timer.self_[k] for k in sp.ONCE.values())
+    once = sum(timer.self_[k] for k in ONCE.values())
     steps = res.preroll_frames + frames - 1
     substeps = res.stats["substeps_mean"] * steps
     iterations = timer.calls["solver: VBD iterations"]

@@ -31,7 +31,8 @@ from datetime import date
 from pathlib import Path
 
 import numpy as np
-from sim_quality import parse_candidate
+
+from loosefit.eval.sim_runs import parse_candidate
 
 DEFAULT_RUNS = (
     "preset:",

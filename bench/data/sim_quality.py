@@ -31,17 +31,15 @@ a rerun with another candidate simulates only that one.
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import hashlib
-import json
 import os
 import platform
-import time
 from concurrent.futures import ProcessPoolExecutor
 from datetime import date
 from pathlib import Path
 
 import numpy as np
+
+from loosefit.eval.sim_runs import candidate_config, parse_candidate, simulate_run
 
 HEM_FLOOR = 0.001  # m: a hem figure closer than this to base's holds whatever the seeds do
 STRAIN_FLOOR = 0.002
@@ -51,75 +49,6 @@ FLOORS = {
     "strain_p50": STRAIN_FLOOR,
     "strain_p99": STRAIN_FLOOR,
 }
-
-
-def parse_candidate(spec: str) -> tuple[str, dict]:
-    """``NAME:KEY=VALUE,KEY=VALUE`` (values as JSON) to (name, the cloth's changes)."""
-    name, _, items = spec.partition(":")
-    changes = {}
-    for item in filter(None, items.split(",")):
-        key, _, value = item.partition("=")
-        changes[key] = json.loads(value)
-    return name, changes
-
-
-def _config(preset_name: str, changes: dict):
-    from loosefit.sim.presets import preset
-
-    config = preset(preset_name)
-    return dataclasses.replace(config, cloth=dataclasses.replace(config.cloth, **changes))
-
-
-def _key(clip: str, frames: int, seed_shift: int, changes: dict) -> str:
-    text = json.dumps([clip, frames, seed_shift, sorted(changes.items())], default=str)
-    return f"{clip}-{frames}-{hashlib.sha256(text.encode()).hexdigest()[:10]}"
-
-
-def simulate_run(
-    preset_name: str, clip: str, frames: int, seed_shift: int, changes: dict, cache: str
-) -> dict:
-    """One run, in a process of its own (one torch thread), cached in ``cache``."""
-    path = Path(cache) / f"{_key(clip, frames, seed_shift, changes)}.npz"
-    if path.is_file():
-        with np.load(path, allow_pickle=False) as z:
-            return {"garment": z["garment"], **json.loads(str(z["record"]))}
-    from loosefit.sim.driver import SimulationError, simulate_batch
-    from loosefit.sim.jobs import plan_jobs
-    from loosefit.sim.manifest import clip_entry
-    from loosefit.sim.workers import Worker
-
-    config = _config(preset_name, changes)
-    worker = Worker.build(config)
-    job = {j.name: j for j in plan_jobs(config)}[clip]
-    motion = worker.motion(job).slice(0, frames)
-    seed = job.seed + seed_shift
-    t0 = time.perf_counter()
-    try:
-        (result,) = simulate_batch(
-            worker.avatar, worker.template, [motion], config.cloth, seeds=[seed]
-        )
-    except SimulationError as exc:
-        return {"garment": None, "status": "flagged", "reason": str(exc), "seconds": 0.0}
-    wall = time.perf_counter() - t0
-    entry = clip_entry(config, dataclasses.replace(job, seed=seed), motion, result)
-    record = {
-        "status": entry["status"],
-        "reason": entry.get("reason", ""),
-        "seconds_per_frame": result.seconds_per_frame,
-        "wall": wall,
-        "frames_stepped": result.stats["frames_simulated"],
-        "substeps_mean": result.stats["substeps_mean"],
-        "quality": {
-            k: float(v)
-            for k, v in result.quality.items()
-            if np.ndim(v) == 0 and isinstance(v, int | float | np.floating | np.integer)
-        },
-    }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".partial.npz")
-    np.savez(tmp, garment=result.garment_vertices, record=json.dumps(record))
-    tmp.replace(path)
-    return {"garment": result.garment_vertices, **record}
 
 
 def figures(run: dict, template, base: dict | None) -> dict:
@@ -175,7 +104,7 @@ def main(argv: list[str] | None = None) -> None:
 
     from loosefit.sim.workers import Worker
 
-    template = Worker.build(_config(args.preset, {})).template
+    template = Worker.build(candidate_config(args.preset, {})).template
     table = {}
     for clip in clips:
         base = results[(clip, "base")]

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import torch
 from PIL import Image
-from sim_quality import _config, parse_candidate, simulate_run
+
+from loosefit.eval.sim_runs import candidate_config, parse_candidate, simulate_run
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -37,7 +38,7 @@ def main(argv: list[str] | None = None) -> None:
     from loosefit.sim.jobs import plan_jobs
     from loosefit.sim.workers import Worker
 
-    config = _config(args.preset, {})
+    config = candidate_config(args.preset, {})
     worker = Worker.build(config)
     job = {j.name: j for j in plan_jobs(config)}[args.clip]
     motion = worker.motion(job).slice(0, args.motion_frames)

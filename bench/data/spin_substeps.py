@@ -30,7 +30,7 @@ import torch
 from loosefit.body.avatar import Avatar, AvatarConfig
 from loosefit.fitting.place import fit_skirt
 from loosefit.garment.quality import edge_strain
-from loosefit.sequence import DressedSequence
+from loosefit.sequence import GarmentSequence
 from loosefit.sim.driver import simulate
 from loosefit.sim.jobs import job_motion, plan_jobs
 from loosefit.sim.presets import preset
@@ -88,7 +88,7 @@ def main() -> None:
     if args.save:
         source = f"newton-vbd, substeps {cloth.substeps}..{cloth.max_substeps}"
         avatar_spec = {"rig": avatar.config.rig, "shape": avatar.shape}
-        DressedSequence(motion, template, g, avatar_spec, source).save(args.save)
+        GarmentSequence(motion, template, g, avatar_spec, source).save(args.save)
         print(f"wrote {args.save}")
 
 

@@ -74,7 +74,7 @@ def measure(target: str) -> dict:
     from loosefit.sim.cloth_config import ClothConfig
     from loosefit.sim.driver import settle, simulate, simulate_batch
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
     from tests.sim.spread import mean_gap, seed_bound
     from tests.sim.test_driver import TINY_SKIRT, facing_x
 
@@ -204,7 +204,7 @@ def run_tests(target: str, tests: list[str], hook: Path) -> dict:
     flags, env = TARGETS[target]
     hook.mkdir(parents=True, exist_ok=True)
     (hook / "sitecustomize.py").write_text(_SITECUSTOMIZE)
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     env = {
         **os.environ,
         **env,

@@ -28,13 +28,13 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from stage_account import clip_reference
 
 from loosefit.data.format import DatasetReader
+from loosefit.eval.heldout import validation_clips
+from loosefit.eval.stage_account import clip_reference
 from loosefit.inference.animator import load_pipeline
 from loosefit.train.common import machine
 
-EXPLODED_STRAIN_P99 = 1.0  # a flagged clip whose simulation tore: no ground truth
 COLUMNS = [  # key, header, format, scale
     ("rmse_cm", "RMSE cm", "{:.2f}", 1),
     ("hausdorff_cm", "Hausdorff cm", "{:.2f}", 1),
@@ -45,21 +45,6 @@ COLUMNS = [  # key, header, format, scale
     ("inside_whole_mean", "inside whole body %", "{:.3f}", 100),
     ("deep_whole_frames", "frames > 5 mm", "{:.0f}", 1),
 ]
-
-
-def validation_clips(reader: DatasetReader) -> list[str]:
-    """The clips a data set simulated but its split leaves out, but for those that tore."""
-    split = set(reader.split("all"))
-    out = []
-    for name, entry in sorted(reader.manifest.get("sequences", {}).items()):
-        strain = entry.get("quality", {}).get("strain_p99", 0.0)
-        if name in split or not reader.sequence_path(name).is_file():
-            continue
-        if strain > EXPLODED_STRAIN_P99:
-            print(f"[compare_sets] {name}: left out (its simulation tore: strain p99 {strain:.1f})")
-            continue
-        out.append(name)
-    return out
 
 
 def _cached(path: Path, make) -> dict:

@@ -32,6 +32,7 @@ import numpy as np
 import torch
 
 from loosefit.eval.ensemble import (
+    SECTION,
     clip_context,
     ensemble_markdown,
     gather_ensembles,
@@ -52,7 +53,6 @@ METHODS = {
                          Stages(detail=False, lengths=False)),
     "virtual-bones": ("Pan et al. 2022 style (virtual bones + residual)", "virtual-bones", RAW),
 }  # fmt: skip
-SECTION = "## Against an ensemble of simulations"
 FLARE_SHARE = 0.80  # of the turn's frames inside the members' range
 RMSE_RATIO = 1.25  # RMSE against the members over their own
 DECODER_SHARE = 0.5  # the decoder's reconstruction over the chaos floor
@@ -157,10 +157,9 @@ def validation_choice(args, cache: Path) -> dict:
         Per candidate (ours, each engine tier): its mean energy score (cm) over the clips'
         frames and per clip.
     """
-    from compare_sets import validation_clips
-
     from loosefit.data.format import DatasetReader
     from loosefit.eval.ensemble import energy_score
+    from loosefit.eval.heldout import validation_clips
 
     reader = DatasetReader(args.data)
     out: dict[str, dict] = {}
@@ -268,7 +267,7 @@ def clip_renders(args, ens, seqs, ctx, garments: dict, img: Path, missed: list[i
     """The members and ours at the clip's fastest turn and at a raised knee (the middle one of
     the frames where most members cover it and ours does not, ``missed``, else the highest),
     coloured by the distance to the first member."""
-    from results import renders
+    from loosefit.eval.renders import error_sheet
 
     avatar = avatar_of(ens.members[0].reader.body)
     motion = seqs[0].motion.slice(0, ens.frames)
@@ -285,7 +284,7 @@ def clip_renders(args, ens, seqs, ctx, garments: dict, img: Path, missed: list[i
             for m, s in zip(ens.members[1:], seqs[1:], strict=True)
         }
         picks["ours"] = garments["ours-full"][frame]
-        renders(
+        error_sheet(
             path,
             frame,
             truth,

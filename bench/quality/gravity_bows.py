@@ -104,9 +104,9 @@ def main() -> None:
             f"{100 * row['simulation']['hem_z_m']:.1f})",
             flush=True,
         )
-        from results import renders
+        from loosefit.eval.renders import error_sheet
 
-        renders(
+        error_sheet(
             Path(args.img) / f"gravity_{clip}.jpg",
             deep,
             sim,

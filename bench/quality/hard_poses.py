@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from stage_account import inside  # bench/, beside this file
 
+from loosefit.eval.depth import inside_depths
 from loosefit.garment.quality import PENETRATION_TOLERANCE
 from loosefit.geometry.edges import unique_edges
 from loosefit.inference.animator import load_pipeline
@@ -36,7 +36,7 @@ from loosefit.sim.dataset_config import read_config_file, resolve_spec
 from loosefit.sim.jobs import spec_name
 from loosefit.train.common import machine
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 EXTRA = [  # beyond the regression set: (spec, first frame, frames)
     ("../shared/mocap/cmu-salsa/60_01.bvh", 10, 90),
     ("../shared/mocap/cmu-ballet/05_02.bvh", 0, None),
@@ -97,10 +97,10 @@ def main() -> None:
         result = model.animate(motion)
         seconds = time.perf_counter() - t0
         body = avatar.pose_motion(motion).vertices.cpu().numpy()
-        share, deep = inside(result.vertices, body, whole)
+        share, deep = inside_depths(result.vertices, body, whole)
         # where a hand sinks into the hip, the whole body's closest skin to cloth under it
         # can be the hand's, inside the hip: the depth into the trunk alone, too
-        _, trunk_deep = inside(result.vertices, body, trunk)
+        _, trunk_deep = inside_depths(result.vertices, body, trunk)
         x = np.asarray(result.vertices)
         worst = (np.linalg.norm(x[:, edges[:, 0]] - x[:, edges[:, 1]], axis=-1) / rest).max(1)
         reported = np.array([c["depth_after"] for c in result.collisions])

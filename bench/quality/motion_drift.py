@@ -25,7 +25,7 @@ import platform
 from pathlib import Path
 
 import torch
-from motion_ablation import RUNS  # the Table 1 runs (bench/ is on the path of a script)
+import yaml
 
 from loosefit.data.format import DatasetReader
 from loosefit.eval.rollouts import evaluate_rollouts
@@ -33,6 +33,12 @@ from loosefit.inference.animator import load_animation_model
 from loosefit.inference.stages import MOTION_ONLY
 
 EVERY = (1, 100, 500, 1200, None)
+# the Table 1 runs: name -> (label, the overrides each trained with)
+RUNS_FILE = Path(__file__).resolve().parents[1] / "ablations" / "motion_runs.yaml"
+RUNS = {
+    key: (run["label"], run["overrides"])
+    for key, run in yaml.safe_load(RUNS_FILE.read_text(encoding="utf-8")).items()
+}
 
 
 def _drift(path: Path, reader: DatasetReader) -> tuple[dict, int]:

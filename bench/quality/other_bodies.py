@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -229,12 +228,11 @@ def motion_offset(a: np.ndarray, b: np.ndarray, most: int = 30) -> int:
 
 
 def render(args, name, seq, got, faces) -> Path:
-    sys.path.insert(0, str(Path(__file__).parent))
-    from results import renders
+    from loosefit.eval.renders import error_sheet
 
     frame = fastest_turn(seq.motion)
     out = Path(args.img) / f"other_body_{name}.jpg"
-    renders(
+    error_sheet(
         out,
         frame,
         seq.garment_vertices,

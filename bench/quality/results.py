@@ -30,6 +30,7 @@ import torch
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
 from loosefit.eval.motion_signals import fastest_turn, highest_leg, turn_rate
+from loosefit.eval.renders import error_sheet
 from loosefit.garment.quality import edge_strain
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
@@ -149,61 +150,6 @@ SET_TITLES = {
 }
 
 
-def renders(
-    out_path: Path,
-    frame: int,
-    truth,
-    garments: dict,
-    body,
-    body_faces,
-    faces,
-    vmax: float,
-    size: int,
-    where: str = "chain",
-    truth_label: str = "simulation",
-) -> None:
-    """Simulation | methods at one frame, front and side, coloured by error, with a colour bar."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from PIL import Image
-
-    from loosefit.render.renderer import RenderConfig, Renderer, RenderMesh
-    from loosefit.render.video import contact_sheet
-
-    cmap = plt.get_cmap("inferno")
-    config = RenderConfig(
-        width=size, height=size, views=("front", "side"), follow=True, frame_counter=False
-    )
-    images, labels = [], []
-    with Renderer(config) as renderer:
-        for label, g in {truth_label: truth[frame], **garments}.items():
-            colours = None
-            if label != truth_label:
-                err = 100 * np.linalg.norm(g - truth[frame], axis=-1)  # (V,) cm
-                colours = cmap(np.clip(err / vmax, 0, 1))[:, :3]
-                label = f"{label} (RMSE {np.sqrt((err**2).mean()):.1f} cm)"
-            scene = [
-                RenderMesh(body_faces, body[frame], "body", name="body"),
-                RenderMesh(faces, g, "garment", vertex_colors=colours, name=label),
-            ]
-            images.append(next(iter(renderer.render_sequence(scene))))
-            labels.append(label)
-    sheet = contact_sheet(images, cols=2, labels=labels)
-    fig, ax = plt.subplots(figsize=(sheet.shape[1] / 100, 0.8), dpi=100)
-    mappable = matplotlib.cm.ScalarMappable(matplotlib.colors.Normalize(0, vmax), cmap)
-    text = f"per-vertex distance to the {truth_label} (cm), {where} frame {frame}"
-    fig.colorbar(mappable, cax=ax, orientation="horizontal", label=text)
-    fig.subplots_adjust(left=0.05, right=0.95, bottom=0.55, top=0.9)
-    fig.canvas.draw()
-    bar = np.asarray(fig.canvas.buffer_rgba())[..., :3]
-    plt.close(fig)
-    w = max(sheet.shape[1], bar.shape[1])
-    pad = lambda im: np.pad(im, ((0, 0), (0, w - im.shape[1]), (0, 0)), constant_values=255)  # noqa: E731
-    Image.fromarray(np.concatenate([pad(sheet), pad(bar)])).save(out_path, quality=88)
-
-
 def plot_per_frame(
     path: Path, scores: dict, clips: list[str], spins: list[int], title: str
 ) -> None:
@@ -233,7 +179,7 @@ def plot_per_frame(
 
 def ablation_section(ablation: Path) -> list[str]:
     """The generative ablation's table (bench/generative_ablation.py's), from its runs."""
-    from generative_ablation import DECODERS, format_table
+    from loosefit.eval.generative_report import DECODERS, format_table
 
     rows: dict[str, list[dict]] = {}
     for decoder in DECODERS:
@@ -255,8 +201,7 @@ def ablation_figures(
     Returns:
         Per decoder: the RMSE of every frame (cm).
     """
-    from generative_ablation import DECODERS
-
+    from loosefit.eval.generative_report import DECODERS
     from loosefit.inference.checkpoints import load_generative
     from loosefit.inference.references import reconstruction
 
@@ -298,7 +243,7 @@ def ablation_figures(
         "ssdr": "SSDR linear decoder",
     }
     picks = {labels[d]: v[spin] for d, v in recon.items()}
-    renders(
+    error_sheet(
         img / "results_ablation_spin.jpg",
         spin,
         truth,
@@ -365,7 +310,7 @@ def clip_renders(c: dict, img: Path, size: int, template) -> dict:
             if key in c["garments"]
         }
         path = img / f"results_{c['name']}_{what}.jpg"
-        renders(
+        error_sheet(
             path,
             frame,
             c["seq"].garment_vertices,
@@ -402,7 +347,7 @@ def cloth_figures(ours, c: dict, cache: Path) -> dict:
     path = cache / c["name"] / "cloth.json"
     if path.is_file():
         return json.loads(path.read_text())
-    from stage_account import clip_reference
+    from loosefit.eval.stage_account import clip_reference
 
     measure, turn, window = clip_reference(ours, c["seq"])
     drop = ("flare_turn",)
@@ -653,7 +598,7 @@ def main() -> None:
             )
             if k in c["garments"]
         }
-        renders(
+        error_sheet(
             img / f"results_spin_{key}.jpg",
             spin,
             c["seq"].garment_vertices,
@@ -923,7 +868,7 @@ def ensemble_section(path: str | None) -> list[str]:
     """bench/ensemble.py's tables (docs/ENSEMBLE.md) as a section."""
     if path is None:
         return []
-    from ensemble import SECTION
+    from loosefit.eval.ensemble import SECTION
 
     text = Path(path).read_text().splitlines()
     body = [line for line in text if not line.startswith("# ")]

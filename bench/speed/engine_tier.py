@@ -12,10 +12,10 @@ shared), for 1, 16 and 256 characters:
   speed-up.
 
 Quality on held-out clips of the data set (default: the held-out chain and the ballet clip
-05_10) against the simulation, with :func:`stage_account.clip_reference`'s measures: RMSE,
-hem flare error over the 61 frames around the fastest turn, median signed edge change,
-share of vertices inside the body; and the engine tier's graph against its PyTorch model
-(max difference over the clip).
+05_10) against the simulation, with :func:`loosefit.eval.stage_account.clip_reference`'s
+measures: RMSE, hem flare error over the 61 frames around the fastest turn, median signed
+edge change, share of vertices inside the body; and the engine tier's graph against its
+PyTorch model (max difference over the clip).
 
     OMP_NUM_THREADS=1 python bench/engine_tier.py --out docs/ENGINE_TIER.md
 
@@ -34,11 +34,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from rollout_speed import model_cloth, time_simulation
-from stage_account import clip_reference
 
 from loosefit.api import pretrained_checkpoint
 from loosefit.data.format import DatasetReader
+from loosefit.eval.sim_runs import model_cloth, time_simulation
+from loosefit.eval.stage_account import clip_reference
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.engine.export import EngineExportConfig, EngineStep, export_engine
 from loosefit.inference.engine.model import engine_path_of, load_engine, rollout_engine

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from loosefit.eval.sim_runs import model_cloth, time_simulation
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.inference.stages.collision import CollisionConfig, collision_setting
@@ -149,34 +150,6 @@ def _name(spec: str, start_frame: int) -> str:
     parts = [Path(p).stem for p in path.split("+")]
     name = parts[0] if len(parts) == 1 else f"chain {parts[0]}..{parts[-1]}"
     return f"{name} from {start_frame}" + (f", frame {at} on" if at else "")
-
-
-def time_simulation(model, avatar, motion, device: str, cloth: dict) -> dict:
-    from loosefit.sim.cloth_config import ClothConfig
-    from loosefit.sim.driver import simulate
-
-    cloth = dict(cloth)
-    cloth["device"] = device
-    marks = {}
-
-    def progress(done, total):
-        if done == total - motion.num_frames:
-            marks["start"], marks["cpu"] = time.perf_counter(), time.process_time()
-
-    simulate(avatar, model.template, motion, ClothConfig(**cloth), progress=progress)
-    s = (time.perf_counter() - marks["start"]) / motion.num_frames
-    cpu = (time.process_time() - marks["cpu"]) / motion.num_frames
-    return {"device": device, "seconds_per_frame": s, "cpu_seconds_per_frame": cpu}
-
-
-def model_cloth(model, dataset: str | None) -> dict:
-    """The cloth configuration of the model's training data (its checkpoint's, or a dataset's)."""
-    if dataset:
-        return json.loads((Path(dataset) / "manifest.json").read_text())["config"]["cloth"]
-    data = torch.load(model.path, map_location="cpu", weights_only=False)
-    if not data.get("cloth"):
-        raise SystemExit(f"{model.path} records no cloth configuration; pass --cloth-from DATASET")
-    return data["cloth"]
 
 
 def main() -> None:

@@ -91,10 +91,10 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
     import torch
     import warp as wp
-    from sim_profile import Timer
 
     import loosefit.sim.driver as driver
     import loosefit.sim.stepper as stepper
+    from loosefit.eval.sim_runs import Timer
     from loosefit.sim.driver import simulate_batch
     from loosefit.sim.jobs import plan_jobs
     from loosefit.sim.manifest import clip_entry

@@ -35,7 +35,6 @@ import json
 import os
 import platform
 import time
-from collections import defaultdict
 from datetime import date
 from pathlib import Path
 
@@ -43,123 +42,9 @@ import torch
 import warp as wp
 
 import loosefit.sim.driver as driver
-import loosefit.sim.stepper as stepper
+from loosefit.eval.sim_runs import ONCE, profiled_run
 from loosefit.sim.presets import preset
 from loosefit.sim.workers import Worker
-
-
-class Timer:
-    """Inclusive and exclusive seconds of nested labelled calls."""
-
-    def __init__(self) -> None:
-        self.total: dict[str, float] = defaultdict(float)
-        self.self_: dict[str, float] = defaultdict(float)
-        self.calls: dict[str, int] = defaultdict(int)
-        self.stack: list[list] = []  # [label, start, child seconds]
-        self._undo: list[tuple] = []  # (owner, attribute, what it was), in order
-
-    def replace(self, owner, attr: str, new) -> None:
-        """Set ``owner.attr`` to ``new`` until :meth:`restore`."""
-        self._undo.append((owner, attr, getattr(owner, attr)))
-        setattr(owner, attr, new)
-
-    def wrap(self, owner, attr: str, label: str) -> None:
-        inner = getattr(owner, attr)
-        timer = self
-
-        def timed(*args, **kwargs):
-            timer.stack.append([label, time.perf_counter(), 0.0])
-            try:
-                return inner(*args, **kwargs)
-            finally:
-                lab, t0, child = timer.stack.pop()
-                dt = time.perf_counter() - t0
-                timer.total[lab] += dt
-                timer.self_[lab] += dt - child
-                timer.calls[lab] += 1
-                if timer.stack:
-                    timer.stack[-1][2] += dt
-
-        self.replace(owner, attr, timed)
-
-    def restore(self) -> None:
-        for owner, attr, inner in reversed(self._undo):
-            setattr(owner, attr, inner)
-        self._undo.clear()
-
-
-def _kernel_name(kernel) -> str:
-    return getattr(kernel, "key", None) or getattr(kernel, "__name__", str(kernel))
-
-
-# what runs once for a clip (seconds a clip), not in the loop over its frames
-ONCE = {
-    "collider_parts": "body parts (pose correction, release)",
-    "timeline": "body timeline (anny posing the clip)",
-    "collider_meshes": "collider meshes",
-    "_batch_simulator": "building the simulator",
-    "_batch_schedule": "substep schedule",
-    "_clip_result": "the clip's quality figures",
-}
-
-
-def instrument(timer: Timer, kernels: Timer) -> None:
-    """Wrap the simulator's phases (``timer``) and every warp launch of the loop over frames
-    (``kernels``)."""
-    import newton
-    from newton.solvers import SolverVBD
-
-    for attr, label in ONCE.items():
-        timer.wrap(driver, attr, label)
-    timer.wrap(stepper.ClothSimulator, "step_frame", "frame: body upload, the rest")
-    timer.wrap(SolverVBD, "rebuild_bvh", "self-contact BVH rebuild (once a frame)")
-    timer.wrap(stepper.ClothSimulator, "_pose_body", "body posed and refitted (each substep)")
-    timer.wrap(stepper.ClothSimulator, "_pin_waist", "waistband pinned")
-    timer.wrap(newton.CollisionPipeline, "collide", "body contact detection")
-    timer.wrap(SolverVBD, "step", "solver: the rest of a step")
-    timer.wrap(SolverVBD, "_initialize_particles", "solver: forward step")
-    timer.wrap(SolverVBD, "_mid_step_detection", "solver: self-contact detection")
-    timer.wrap(SolverVBD, "_solve_particle_iteration", "solver: VBD iterations")
-    timer.wrap(driver, "_release_trapped", "release of trapped cloth")
-    timer.wrap(driver, "_record_frame", "frame recorded and checked")
-
-    launch = wp.launch
-    once = set(ONCE.values())
-
-    def timed_launch(kernel, *args, **kwargs):
-        if not timer.stack or timer.stack[0][0] in once:  # only the loop over frames
-            return launch(kernel, *args, **kwargs)
-        t0 = time.perf_counter()
-        try:
-            return launch(kernel, *args, **kwargs)
-        finally:
-            name = _kernel_name(kwargs.get("kernel", kernel))
-            kernels.total[name] += time.perf_counter() - t0
-            kernels.calls[name] += 1
-
-    kernels.replace(wp, "launch", timed_launch)
-
-
-def profiled_run(avatar, template, motion, cloth, seeds=None):
-    """``motion`` simulated once with every phase and kernel timed (graph capture off),
-    after a short run outside the timing (warp compiles every kernel once per process).
-
-    Returns:
-        The clip's result, the phases' :class:`Timer`, the kernels' and the wall seconds.
-    """
-    short = dataclasses.replace(cloth, settle_seconds=0.0, blend_seconds=0.0)
-    driver.simulate_batch(avatar, template, [motion.slice(0, 2)], short, seeds=seeds)
-    timer, kernels = Timer(), Timer()
-    instrument(timer, kernels)
-    t0 = time.perf_counter()
-    try:
-        (result,) = driver.simulate_batch(
-            avatar, template, [motion], dataclasses.replace(cloth, capture=False), seeds=seeds
-        )
-    finally:
-        timer.restore()
-        kernels.restore()
-    return result, timer, kernels, time.perf_counter() - t0
 
 
 def profile_clip(worker: Worker, name: str, frames: int, cloth) -> dict:

@@ -27,10 +27,10 @@ import re
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
+from loosefit.eval.process_time import cpu_seconds, descendants, gpu_process
 from loosefit.sequence import GarmentSequence
 from loosefit.view.headless import BODY_BYTES, Chromium
 
@@ -100,13 +100,11 @@ def main() -> None:
                 f"page loaded and drawing {time.perf_counter() - t1:.1f} s after Chromium started"
             )
             time.sleep(3.0)  # past the first frames' set-up
-            gpu = _gpu_process(browser.process.pid)
-            procs = _descendants(browser.process.pid)
-            cpu0 = [_cpu_seconds(p) for p in (gpu, *procs, server.pid)]
+            gpu = gpu_process(browser.process.pid)
+            procs = descendants(browser.process.pid)
+            cpu0 = [cpu_seconds(p) for p in (gpu, *procs, server.pid)]
             got = browser.receive(args.seconds)
-            cpu = [
-                _cpu_seconds(p) - c for p, c in zip((gpu, *procs, server.pid), cpu0, strict=True)
-            ]
+            cpu = [cpu_seconds(p) - c for p, c in zip((gpu, *procs, server.pid), cpu0, strict=True)]
             gpu_cpu, browser_cpu, server_cpu = cpu[0], sum(cpu[1:-1]), cpu[-1]
         big = got.messages >= BODY_BYTES
         gaps = np.diff(got.times[big]) * 1000.0 if big.sum() > 1 else np.zeros(1)
@@ -126,50 +124,6 @@ def main() -> None:
     finally:
         server.terminate()
         server.wait(timeout=30)
-
-
-def _processes() -> dict[int, tuple[int, bytes]]:
-    """Every process's id -> (its parent's id, its command line), read from Linux's /proc."""
-    found = {}
-    for proc in Path("/proc").glob("[0-9]*"):
-        try:
-            cmdline = (proc / "cmdline").read_bytes()  # Chromium rewrites it: one string
-            parent = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
-        except (OSError, ValueError, IndexError):
-            continue
-        found[int(proc.name)] = (parent, cmdline)
-    return found
-
-
-def _descendants(pid: int) -> list[int]:
-    """``pid`` and the ids of its descendants (the launcher may be a script)."""
-    procs = _processes()
-
-    def under(p: int) -> bool:
-        while p in procs and p != pid:
-            p = procs[p][0]
-        return p == pid
-
-    return [p for p in procs if under(p)]
-
-
-def _gpu_process(pid: int) -> int | None:
-    """The id of Chromium's GPU process (``--type=gpu-process``) among the descendants of
-    ``pid``; None when none is."""
-    procs = _processes()
-    gpu = [p for p in _descendants(pid) if b"--type=gpu-process" in procs.get(p, (0, b""))[1]]
-    return gpu[0] if gpu else None
-
-
-def _cpu_seconds(pid: int | None) -> float:
-    """User and system CPU seconds of a process so far (0 when there is none or it ended)."""
-    if pid is None:
-        return 0.0
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 if __name__ == "__main__":

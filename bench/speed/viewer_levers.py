@@ -35,8 +35,7 @@ import os
 import time
 from dataclasses import dataclass, field
 
-from viewer_fps import _cpu_seconds, _descendants, _gpu_process  # bench/, beside this file
-
+from loosefit.eval.process_time import cpu_seconds, descendants, gpu_process
 from loosefit.sequence import GarmentSequence
 from loosefit.view import ViewerConfig
 from loosefit.view.headless import BODY_BYTES, Chromium
@@ -128,11 +127,11 @@ def trial(sequences, condition: Condition, seconds: float) -> dict:
             while not (browser.evaluate("window.__draws") or 0):
                 time.sleep(0.1)
             time.sleep(3.0)  # past the first frames' set-up
-            gpu = _gpu_process(browser.process.pid)
-            procs = _descendants(browser.process.pid)
-            cpu0 = [_cpu_seconds(p) for p in (gpu, *procs)]
+            gpu = gpu_process(browser.process.pid)
+            procs = descendants(browser.process.pid)
+            cpu0 = [cpu_seconds(p) for p in (gpu, *procs)]
             got = browser.receive(seconds)
-            cpu = [_cpu_seconds(p) - c for p, c in zip((gpu, *procs), cpu0, strict=True)]
+            cpu = [cpu_seconds(p) - c for p, c in zip((gpu, *procs), cpu0, strict=True)]
             canvas = browser.evaluate(CANVAS)
     finally:
         viewer.close()
