@@ -11,12 +11,12 @@ clip of ``--data`` (each its own table, and their mean weighted by frames) for n
 module, the module without ``D_ms`` and the full module, each with and without
 collision handling; ``--no-part-a`` leaves part A out::
 
-    python bench/detail_collision.py --out docs/DETAIL_TABLE.md            # part A
-    python bench/detail_collision.py --data datasets/salsa \\
+    python bench/ablations/detail_collision.py --out docs/DETAIL_TABLE.md            # part A
+    python bench/ablations/detail_collision.py --data datasets/salsa \\
         --detail runs/salsa/detail/full/model.pt \\
         --detail-nodisc runs/salsa/detail/nodisc/model.pt \\
         [--detail-edge runs/salsa/detail/full-edge/model.pt] --out docs/DETAIL_TABLE.md
-    python bench/detail_collision.py --checkpoint checkpoints/dance/motion.pt \
+    python bench/ablations/detail_collision.py --checkpoint checkpoints/dance/motion.pt \
         --data datasets/dance --detail runs/dance/ft/detail/model.pt \
         --detail-nodisc runs/dance/tables/detail-nodisc/model.pt --no-part-a \
         --out docs/DETAIL_DANCE_TABLE.md
@@ -215,7 +215,7 @@ def markdown(results: dict) -> str:
     lines = [
         "# Detail enhancement and collision handling on held-out motion",
         "",
-        f"Machine: {results['machine']} (`bench/detail_collision.py`).",
+        f"Machine: {results['machine']} (`bench/ablations/detail_collision.py`).",
         "",
     ]
     if results["part_a"]:

@@ -2,8 +2,8 @@
 median edge change against the simulation, with and without the capsule push-out, on
 held-out clips (no inside-body test: seconds, not the minutes of ``engine_tier.py``).
 
-    python bench/engine_variants.py runs/engine/engine.pt runs/engine-membrane/engine.pt \\
-        --data datasets/dance
+    python bench/ablations/engine_variants.py runs/engine/engine.pt \\
+        runs/engine-membrane/engine.pt --data datasets/dance
 """
 
 from __future__ import annotations

@@ -6,9 +6,9 @@ preset, each with every seed asked for, then writes their reconstruction errors 
 the held-out clips as a Markdown table (per seed, and the mean and spread over the
 seeds, which is the run-to-run noise a difference must beat)::
 
-    python bench/generative_ablation.py --data datasets/demo --preset cpu \
+    python bench/ablations/generative_ablation.py --data datasets/demo --preset cpu \
         --out runs/ablation-demo --table docs/notes/GENERATIVE_TABLE.md
-    python bench/generative_ablation.py --data datasets/salsa --preset cpu --epochs 40 \
+    python bench/ablations/generative_ablation.py --data datasets/salsa --preset cpu --epochs 40 \
         --seeds 0,1 --out runs/salsa/ablation --json runs/salsa/ablation/table.json
 
 Seed 0's run of a decoder lives in ``OUT/DECODER``, seed k's in ``OUT/DECODER-sK``.

@@ -8,7 +8,7 @@ Restoring every edge (``edges="all"``) with the default tie turns that lost widt
 and a stronger tie to the network's shape (``tie``), before and after collision handling:
 strain, edge change, flare at the fastest turn, inside the whole body, RMSE.
 
-    .venv/bin/python bench/length_variants.py [--data datasets/account] \\
+    .venv/bin/python bench/ablations/length_variants.py [--data datasets/account] \\
         [--sequence out/chain_spin.npz] [--out docs/notes/LENGTH_VARIANTS.md]
 
 Writes the table (markdown) and the figures as JSON beside it. About 15 minutes on dev-cpu.

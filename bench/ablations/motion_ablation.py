@@ -5,7 +5,7 @@ Trains (or resumes, or reuses finished runs of) the motion encoder in each confi
 the same frozen generative model, rolls every held-out clip out from its first frame, and
 writes the table::
 
-    python bench/motion_ablation.py --data datasets/salsa \
+    python bench/ablations/motion_ablation.py --data datasets/salsa \
         --generative runs/generative-salsa-cpu/checkpoint.pt --preset cpu \
         --out runs/motion-ablation-salsa --table docs/MOTION_TABLE.md
 

@@ -10,7 +10,7 @@ held-out ballet clips, the held-out salsa chain's fastest spin), and each run's 
 on its data set's test split beside it (for the salsa data, the held-out chain of 1,957
 frames).
 
-    .venv/bin/python bench/physics_ablation.py \\
+    .venv/bin/python bench/ablations/physics_ablation.py \\
         --generative g-plain=runs/physics/g-plain/checkpoint.pt g-m=... \\
         --motion m-plain=runs/physics/m-plain/model.pt ... \\
         --data datasets/account --sequence out/chain_spin.npz --out docs/PHYSICS_ABLATION.md

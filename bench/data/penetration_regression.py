@@ -11,10 +11,10 @@ much of the inside mean falls in frames whose pose folds into itself (a thigh in
 belly) and the inside mean against the flattened collider the cloth met. Each variant's data
 set resumes where a killed run stopped (a finished one is only judged again).
 
-    .venv/bin/python bench/penetration_regression.py                       # the default cloth
-    .venv/bin/python bench/penetration_regression.py --variants before,after --workers 2
+    .venv/bin/python bench/data/penetration_regression.py                       # the default cloth
+    .venv/bin/python bench/data/penetration_regression.py --variants before,after --workers 2
     # the flagged salsa takes whole, and new motion (mirrored and faster, a fast dance)
-    .venv/bin/python bench/penetration_regression.py --config configs/salsa_takes.yaml \
+    .venv/bin/python bench/data/penetration_regression.py --config configs/salsa_takes.yaml \
         --out runs/salsa_takes
 
 Variants: ``after`` is the default configuration; ``flatten`` the same without the pose

@@ -23,10 +23,10 @@ only: the figures are the same on every machine.
 ``--simulate`` then corrects the first motion as a clean-up step would: the hip turned about
 its fastest axis by the smallest angle that leaves the clearance, at most ``--cap`` degrees,
 eased in and out over 0.2 s, and simulates it beside the uncorrected motion with the default
-cloth (about 4 minutes on 2 cores), judged as bench/penetration_regression.py judges, with the
+cloth (about 4 minutes on 2 cores), judged as bench/data/penetration_regression.py judges, with the
 lunging foot's displacement and its lowest point against the floor.
 
-    .venv/bin/python bench/pose_correction.py --json runs/pose_correction.json --simulate
+    .venv/bin/python bench/data/pose_correction.py --json runs/pose_correction.json --simulate
 """
 
 from __future__ import annotations

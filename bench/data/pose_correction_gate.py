@@ -1,7 +1,7 @@
 """Does a clip pass the data set's quality gate without its pose correction?
 
 Usage:
-    OMP_NUM_THREADS=1 .venv/bin/python bench/pose_correction_gate.py [--clip 60_04]
+    OMP_NUM_THREADS=1 .venv/bin/python bench/data/pose_correction_gate.py [--clip 60_04]
         [--frames 40] [--preset dance]
 
 Simulates the clip's first ``--frames`` frames twice, with the preset's cloth: the motion

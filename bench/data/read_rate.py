@@ -10,7 +10,7 @@ above its pelvis in at least 75 % of the frames (a cartwheel turns it over a whi
 Prints, and writes with ``--out``, the share read, why the rest were refused (grouped by
 the error's field and its first words) and each file's line::
 
-    python bench/read_rate.py /path/to/studio/bvh --sample 78 --out read_rate.md
+    python bench/data/read_rate.py /path/to/studio/bvh --sample 78 --out read_rate.md
 
 ``--studio N`` makes a studio-style data set to read first (into ``--work``): the real
 captures of ``../shared/mocap`` (CMU ballet and salsa) retargeted to the avatar and written
@@ -139,7 +139,7 @@ def main() -> None:
     lines = [
         f"# Read without a joint map: {folder.name}",
         "",
-        f"{args.machine}, {datetime.date.today()}: `python bench/read_rate.py "
+        f"{args.machine}, {datetime.date.today()}: `python bench/data/read_rate.py "
         f"{args.folder or args.work} --sample {args.sample}"
         + (f" --studio {args.studio}" if args.studio else "")
         + "`",

@@ -11,7 +11,7 @@ conventions of a whole studio data set: the hips' OFFSET metres from a ``joint_R
 geometry (the capture's start baked in; as BVH and as GLB), and no OFFSETs at all, every
 bone in the frames' position channels (the studio rig, and Mixamo's)::
 
-    python bench/retarget_sheets.py --out docs/img
+    python bench/data/retarget_sheets.py --out docs/img
 """
 
 from __future__ import annotations

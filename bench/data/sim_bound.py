@@ -2,7 +2,7 @@
 substeps its motions demand, and what a substep costs.
 
 Usage:
-    .venv/bin/python bench/sim_bound.py [--data datasets/dance] [--preset dance]
+    .venv/bin/python bench/data/sim_bound.py [--data datasets/dance] [--preset dance]
         [--profile-clip 05_10] [--profile-frames 12] [--out docs/SIM_BOUND.md]
 
 The data set is the simulated `dance` corpus, unpacked (``python3
@@ -12,7 +12,7 @@ preset made of them.
 
 1. **What a substep costs.** One clip's first ``--profile-frames`` frames, simulated with the
    preset (graph capture off, one thread) and timed phase by phase as
-   ``bench/sim_profile.py`` does: ``I``, the seconds of one VBD iteration (the solver's
+   ``bench/speed/sim_profile.py`` does: ``I``, the seconds of one VBD iteration (the solver's
    iterations, exclusive); ``F``, the seconds of everything else a substep does (contact
    detection with the body and with itself, the forward step, truncation, the body's
    posing and refit), and the rest of a frame. A schedule of ``s`` substeps of ``i``
@@ -51,6 +51,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
+
+SECTION = "## The bound on any schedule"  # of docs/SIM_SPEED.md
 
 LIMITS = ("cap", "body 1 cm", "cloth")
 
@@ -131,7 +133,7 @@ def markdown(clips, costs, table, cloth, args, machine) -> str:
     lines = [
         "# How much faster any schedule could be: the substeps the corpus demands",
         "",
-        f"`python bench/sim_bound.py {' '.join(args)}`; {machine}; {date.today()}.",
+        f"`python bench/data/sim_bound.py {' '.join(args)}`; {machine}; {date.today()}.",
         "",
         f"## What a substep costs (clip {costs['clip']}, {costs['frames']} frames stepped, "
         f"{costs['substeps']:.1f} substeps x {costs['iterations']:.0f} iterations)",
@@ -185,7 +187,12 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--profile-clip", default="05_10")
     p.add_argument("--profile-frames", type=int, default=12)
     p.add_argument("--clips", default="", help="comma-separated: only these (default: all)")
-    p.add_argument("--out", default="", help="a Markdown file for the tables")
+    p.add_argument(
+        "--out",
+        default="",
+        help=f"a Markdown page (docs/SIM_SPEED.md) whose section '{SECTION}' the tables "
+        "replace, the rest of the page kept",
+    )
     p.add_argument("--json", default="", help="a JSON file for the figures")
     args = p.parse_args(argv)
 
@@ -243,7 +250,9 @@ def main(argv: list[str] | None = None) -> None:
     text = markdown(clips, costs, table, cloth, command, machine)
     print(text)
     if args.out:
-        Path(args.out).write_text(text + "\n")
+        from loosefit.eval.report import write_section
+
+        write_section(args.out, SECTION, text + "\n")
     if args.json:
         Path(args.json).write_text(
             json.dumps({"costs": costs, "clips": clips, "bound": table}, indent=1) + "\n"

@@ -2,7 +2,7 @@
 several solver schedules, against the same drape solved with many more iterations.
 
 Usage:
-    .venv/bin/python bench/sim_convergence.py [--preset dance] [--workers 2]
+    .venv/bin/python bench/data/sim_convergence.py [--preset dance] [--workers 2]
         [--run NAME:KEY=VALUE,KEY=VALUE ...] [--out docs/SIM_CONVERGENCE.md]
 
 Each ``--run`` settles the preset's garment on the rest pose (the settle phase every clip
@@ -16,7 +16,7 @@ of every vertex from the first reference's drape.
 
 What it shows: a drape that depends on the schedule by more than clip-to-clip chaos is a
 drape whose iterations have not converged; comparing a faster schedule with the preset's
-(bench/sim_quality.py) then holds it to the preset's own error.
+(bench/data/sim_quality.py) then holds it to the preset's own error.
 """
 
 from __future__ import annotations
@@ -28,11 +28,13 @@ import platform
 import time
 from concurrent.futures import ProcessPoolExecutor
 from datetime import date
-from pathlib import Path
 
 import numpy as np
 
+from loosefit.eval.report import write_section
 from loosefit.eval.sim_runs import parse_candidate
+
+SECTION = "## How far from converged"  # of docs/SIM_SPEED.md
 
 DEFAULT_RUNS = (
     "preset:",
@@ -82,7 +84,12 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--preset", default="dance")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--run", action="append", default=[], help="NAME:KEY=VALUE,...")
-    p.add_argument("--out", default="")
+    p.add_argument(
+        "--out",
+        default="",
+        help=f"a Markdown page (docs/SIM_SPEED.md) whose section '{SECTION}' the tables "
+        "replace, the rest of the page kept",
+    )
     args = p.parse_args(argv)
     runs = [parse_candidate(s) for s in (args.run or DEFAULT_RUNS)]
     os.environ["OMP_NUM_THREADS"] = "1"
@@ -96,7 +103,7 @@ def main(argv: list[str] | None = None) -> None:
     lines = [
         "# The drape on the rest pose under several solver schedules",
         "",
-        f"`python bench/sim_convergence.py {command}`;"
+        f"`python bench/data/sim_convergence.py {command}`;"
         f" {machine}, {args.workers} at once; {date.today()}.",
         "",
         "| run | changes | s | strain p50 | strain p99 | hem below the waist (m) "
@@ -115,7 +122,7 @@ def main(argv: list[str] | None = None) -> None:
     text = "\n".join(lines) + "\n"
     print(text)
     if args.out:
-        Path(args.out).write_text(text)
+        write_section(args.out, SECTION, text)
 
 
 if __name__ == "__main__":

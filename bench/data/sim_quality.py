@@ -1,7 +1,7 @@
 """A faster cloth configuration against the unchanged one: speed, and what it does to the cloth.
 
 Usage:
-    .venv/bin/python bench/sim_quality.py [--preset dance] [--clips 60_01,05_10]
+    .venv/bin/python bench/data/sim_quality.py [--preset dance] [--clips 60_01,05_10]
         [--frames 120] [--workers 2] [--candidate NAME:KEY=VALUE,KEY=VALUE ...]
         [--cache out/sim_quality] [--out docs/SIM_SPEED_QUALITY.md]
 
@@ -35,12 +35,16 @@ import os
 import platform
 from concurrent.futures import ProcessPoolExecutor
 from datetime import date
-from pathlib import Path
 
 import numpy as np
 
+from loosefit.eval.report import write_section
 from loosefit.eval.sim_runs import candidate_config, parse_candidate, simulate_run
 
+SECTIONS = {  # the sections of docs/SIM_SPEED.md a run writes
+    "quality": "## Speed against quality",
+    "accelerated": "## Accelerated schedules",
+}
 HEM_FLOOR = 0.001  # m: a hem figure closer than this to base's holds whatever the seeds do
 STRAIN_FLOOR = 0.002
 FLOORS = {
@@ -84,7 +88,18 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seeds", type=int, default=2, help="other seeds of base: the tolerance")
     p.add_argument("--candidate", action="append", default=[], help="NAME:KEY=VALUE,...")
     p.add_argument("--cache", default="out/sim_quality")
-    p.add_argument("--out", default="")
+    p.add_argument(
+        "--out",
+        default="",
+        help="a Markdown page (docs/SIM_SPEED.md) whose section --section the tables replace, "
+        "the rest of the page kept",
+    )
+    p.add_argument(
+        "--section",
+        choices=sorted(SECTIONS),
+        default="quality",
+        help="which section of --out: " + "; ".join(f"{k}: '{v}'" for k, v in SECTIONS.items()),
+    )
     args = p.parse_args(argv)
 
     candidates = dict(parse_candidate(spec) for spec in args.candidate)
@@ -147,7 +162,8 @@ def main(argv: list[str] | None = None) -> None:
     lines = [
         "# A faster cloth configuration against the unchanged one",
         "",
-        f"`python bench/sim_quality.py {' '.join(argv if argv is not None else os.sys.argv[1:])}`;"
+        f"`python bench/data/sim_quality.py "
+        f"{' '.join(argv if argv is not None else os.sys.argv[1:])}`;"
         f" {machine}, {args.workers} runs at once; {date.today()}.",
         "",
         "| clip | run | changes | s a frame | speed-up (clip) | substeps | gate | strain p50 "
@@ -176,7 +192,7 @@ def main(argv: list[str] | None = None) -> None:
     text = "\n".join(lines) + "\n"
     print(text)
     if args.out:
-        Path(args.out).write_text(text)
+        write_section(args.out, SECTIONS[args.section], text)
 
 
 if __name__ == "__main__":

@@ -1,11 +1,11 @@
-"""A picture of bench/sim_quality.py's runs: the preset's cloth beside a candidate's, at a
+"""A picture of bench/data/sim_quality.py's runs: the preset's cloth beside a candidate's, at a
 few frames of a clip, front and side.
 
 Usage:
-    .venv/bin/python bench/sim_quality_sheet.py --clip 05_10 --frames 60,110
+    .venv/bin/python bench/data/sim_quality_sheet.py --clip 05_10 --frames 60,110
         --candidate NAME:KEY=VALUE,... [--cache out/sim_quality] [--out sheet.jpg]
 
-Reads the runs from ``--cache`` (bench/sim_quality.py's, same clip and ``--motion-frames``),
+Reads the runs from ``--cache`` (bench/data/sim_quality.py's, same clip and ``--motion-frames``),
 simulating any that are missing as that script does. One row a frame: the preset's run,
 then each candidate's.
 """

@@ -1,7 +1,7 @@
 """A fast salsa spin at fixed and at adaptive substeps: does the skirt hold?
 
 Usage:
-    .venv/bin/python bench/spin_substeps.py [--job chain_60_03_60_07_61_03_61_07]
+    .venv/bin/python bench/data/spin_substeps.py [--job chain_60_03_60_07_61_03_61_07]
         [--start 1140] [--stop 1260] [--substeps 20] [--max-substeps 20]
         [--bvh ../shared/mocap/cmu-salsa] [--save out/spin.npz]
 

@@ -2,7 +2,7 @@
 test's quantity measured on several CPU targets, seeds and perturbations of the start.
 
 Usage:
-    .venv/bin/python bench/test_tolerances.py [--targets native,epyc,baseline]
+    .venv/bin/python bench/data/test_tolerances.py [--targets native,epyc,baseline]
         [--tests "PYTEST ARGS"] [--out docs/TEST_TOLERANCES.md]
 
 Three libraries round the simulation's numbers in code chosen for the processor: Warp
@@ -307,7 +307,7 @@ def table(runs: list[dict], when: str, command: str) -> str:
 A test that compares two simulations of cloth with a fixed distance holds on the processor
 it was tuned on: folds fall one way or another with the rounding, as with the 0.1 mm jitter
 of the start (the seed). Each target below rounds as another processor would (Warp's CPU
-flags, OpenBLAS's, MKL's and PyTorch's kernels; bench/test_tolerances.py's docstring):
+flags, OpenBLAS's, MKL's and PyTorch's kernels; bench/data/test_tolerances.py's docstring):
 
 {flags}
 
@@ -359,7 +359,7 @@ def main() -> None:
             runs[-1]["tests"] = {"args": tests, **run_tests(target, tests, hook)}
         print(json.dumps(runs[-1]), flush=True)
     when = f"{args.machine}, {os.cpu_count()} cores, {date.today().isoformat()}"
-    text = table(runs, when, "python bench/test_tolerances.py " + shlex.join(sys.argv[1:]))
+    text = table(runs, when, "python bench/data/test_tolerances.py " + shlex.join(sys.argv[1:]))
     if args.out:
         args.out.write_text(text)
         args.out.with_suffix(".json").write_text(json.dumps(runs, indent=1) + "\n")

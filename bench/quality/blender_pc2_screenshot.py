@@ -9,7 +9,7 @@ Measures the largest distance between Blender's world vertices and loosefit's at
 middle and last frames, and renders the middle frame with Workbench, the camera on the
 skirt, to ``--png``. Prints a Markdown line.
 
-    python bench/blender_pc2_screenshot.py out/demo/sequence.npz \\
+    python bench/quality/blender_pc2_screenshot.py out/demo/sequence.npz \\
         --png docs/img/export_demo_pc2.png
 """
 

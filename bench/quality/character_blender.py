@@ -3,7 +3,7 @@
 character_file.py``), dressed by the pretrained set, its own ``.glb`` written back with the
 skirt and opened in real Blender (``bpy``); and the fitted anny beside it::
 
-    python bench/character_blender.py
+    python bench/quality/character_blender.py
 
 Prints the fit, collision handling's figures against the character's mesh and the time.
 """

@@ -9,7 +9,7 @@ it leaves inside the body and the longest edge against its rest length (what a p
 ``--variants`` compares settings of ``CollisionConfig`` (``name:field=value,...``).
 docs/BENCHMARKS.md quotes it::
 
-    OMP_NUM_THREADS=1 python bench/collision_pops.py ../shared/mocap/cmu-salsa/60_01.bvh \\
+    OMP_NUM_THREADS=1 python bench/quality/collision_pops.py ../shared/mocap/cmu-salsa/60_01.bvh \\
         ../shared/mocap/cmu-ballet/05_20.bvh --frames 150
 """
 

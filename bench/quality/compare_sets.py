@@ -3,7 +3,7 @@
 Each candidate (a packaged set's ``motion.pt``, its ``detail.pt`` beside it) animates every
 clip given, the whole pipeline (motion stage, detail, edge lengths, collision handling),
 from the clip's first frame on its own motion, and is measured against the simulation with
-the stage account's figures (``bench/stage_account.py``: RMSE, Hausdorff, STED, edge strain
+the stage account's figures (``bench/quality/stage_account.py``: RMSE, Hausdorff, STED, edge strain
 and signed edge change, hem flare around the fastest turn, cloth inside the whole body).
 
 The choice is made on a **validation** set that is neither trained on nor held out: a data
@@ -11,7 +11,7 @@ set's clips that its split leaves out (``dance``: the clips the simulator flagge
 simulations are kept for study; the ones that exploded, edge strain p99 over 1, are left out
 here too). The held-out clips are scored as well, for the record, and never decide::
 
-    python bench/compare_sets.py --data datasets/dance \\
+    python bench/quality/compare_sets.py --data datasets/dance \\
         --sets salsa=checkpoints/salsa/motion.pt fine-tuned=out/sets/ft/motion.pt \\
         --out docs/DANCE_SETS.md
 
@@ -173,7 +173,7 @@ def main() -> None:
     lines = [
         "# Which set ships: the candidates on clips none trained on",
         "",
-        f"Made by `bench/compare_sets.py --data {args.data}` ({machine('cpu')}, "
+        f"Made by `bench/quality/compare_sets.py --data {args.data}` ({machine('cpu')}, "
         f"{time.strftime('%Y-%m-%d', time.gmtime())}); the whole pipeline, each clip rolled "
         "out from its first frame. **Validation** (decides): "
         + ", ".join(f"`{c}`" for c in groups["validation"])

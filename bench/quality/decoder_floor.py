@@ -31,7 +31,7 @@ cover and whole), RMSE in cm (the RMS over frames of each frame's RMS vertex dis
    decoder whose output lies in that subspace could do. ``--train-error`` adds the same on
    the training clips (unmirrored), to tell capacity from over-fitting.
 
-    OMP_NUM_THREADS=1 python bench/decoder_floor.py --data datasets/dance \\
+    OMP_NUM_THREADS=1 python bench/quality/decoder_floor.py --data datasets/dance \\
         --seeds datasets/dance-seeds --checkpoint checkpoints/dance/motion.pt \\
         --train-error --out docs/DECODER_FLOOR.md
 
@@ -297,7 +297,7 @@ def main() -> None:
     result = {
         "machine": args.machine or machine_line(torch.get_num_threads()),
         "date": args.date,
-        "command": "OMP_NUM_THREADS=1 python bench/decoder_floor.py "
+        "command": "OMP_NUM_THREADS=1 python bench/quality/decoder_floor.py "
         + " ".join(a for a in os.sys.argv[1:]),
         "data": str(args.data),
         "seeds": str(args.seeds),
@@ -458,7 +458,7 @@ def markdown(r: dict) -> str:
         "# The decoder floor: held-out garments through a decoder, against the simulation's chaos",
         "",
         f"Machine: {r['machine']}; {r['date']}. Written by `{r['command']}` in "
-        f"{r['seconds']['total'] / 60:.1f} minutes (`bench/decoder_floor.py`).",
+        f"{r['seconds']['total'] / 60:.1f} minutes (`bench/quality/decoder_floor.py`).",
         "",
         "How closely can a decoder reproduce a held-out simulated garment, set beside how far "
         "the simulation lands from itself when the same motion is simulated again from another "
@@ -699,7 +699,7 @@ def markdown(r: dict) -> str:
         f"- The shipped generative model's reconstruction pooled over the held-out clips, "
         f"whole ({r['oracle_pooled_frames']} frames): {r['oracle_pooled_cm']:.2f} cm. The oracle "
         "row of the results' Table 1 (4.2 cm on the same clips) was measured on the "
-        "generative model given to its ablation script (`bench/motion_ablation.py "
+        "generative model given to its ablation script (`bench/ablations/motion_ablation.py "
         "--generative`, a `cpu`-preset run), not on the shipped set."
     )
     if k0 is not None:

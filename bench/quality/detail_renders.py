@@ -8,7 +8,7 @@ frames of the spin (1,188-1,208 by default, as in docs/DATASET.md) are rendered
 next to the simulation, one row a frame, columns simulation | before | after, each
 from the front and the side, and tiled into one picture::
 
-    python bench/detail_renders.py --data datasets/salsa --out docs/img/detail_spin.jpg
+    python bench/quality/detail_renders.py --data datasets/salsa --out docs/img/detail_spin.jpg
 
 A hip close-up (``--close``) frames only the waist and hips, where the body showed
 through the skirt.

@@ -6,7 +6,7 @@ push-out, as the exported graph runs it; ``--before``: also another engine.pt, p
 before, the waistband too). The chosen frames are rendered one row a frame, from the front
 and the back, the body drawn, and tiled into one compressed JPEG::
 
-    python bench/engine_renders.py --frames 60,240,420 --out docs/img/engine_demo.jpg
+    python bench/quality/engine_renders.py --frames 60,240,420 --out docs/img/engine_demo.jpg
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ the motion the RMSE of the engine tier against the full pipeline. ``--before`` a
 figures for another engine tier (the one shipped before), pushed out as it was (the
 waistband too: ``waist_blend`` 0).
 
-    OMP_NUM_THREADS=1 python bench/engine_waist.py --data datasets/dance \\
+    OMP_NUM_THREADS=1 python bench/quality/engine_waist.py --data datasets/dance \\
         --before out/engine-before.pt --out docs/ENGINE_WAIST.md
 
 Writes the Markdown table and the figures as JSON beside it.
@@ -164,7 +164,7 @@ def markdown(r: dict, labels: list[str]) -> str:
     lines = [
         f"# The engine tier's waist against the full pipeline ({r['machine']}, {r['date']})",
         "",
-        "Written by `OMP_NUM_THREADS=1 python bench/engine_waist.py`. Waist ring: the mean "
+        "Written by `OMP_NUM_THREADS=1 python bench/quality/engine_waist.py`. Waist ring: the mean "
         "horizontal distance of the waistband's vertices from their centroid, per frame "
         "(cm, least-greatest over the motion); gap: the largest difference from the full "
         "pipeline's in a frame; from rest: the largest difference from the settled drape's "

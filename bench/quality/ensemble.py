@@ -10,14 +10,14 @@ the generative model's own reconstruction of each clip against the floor; the ta
 a plot of the hem's flare against the members' band; renders at each clip's fastest turn
 and highest raised knee (the members | ours)::
 
-    python bench/ensemble.py --data datasets/dance \\
+    python bench/quality/ensemble.py --data datasets/dance \\
         --members datasets/dance-seeds/seed1 datasets/dance-seeds/seed2 \\
         datasets/dance-seeds/seed3 --checkpoint checkpoints/dance/motion.pt \\
         --baselines runs/dance/baselines --results docs/RESULTS.md
 
 Rollouts and scores are cached in ``--cache`` (a killed run goes on from what it has).
 ``--results`` puts the tables into docs/RESULTS.md as its ensemble section (replacing the
-one there); ``bench/results.py --ensemble docs/ENSEMBLE.md`` includes it when it writes the
+one there); ``bench/quality/results.py --ensemble docs/ENSEMBLE.md`` includes it when it writes the
 whole file.
 """
 
@@ -207,7 +207,7 @@ def validation_section(choice: dict) -> list[str]:
         "### The validation clips' choice",
         "",
         "Each candidate against the one simulation of each validation clip (simulated, "
-        "never trained on, not held out: the clips `bench/compare_sets.py` chooses "
+        "never trained on, not held out: the clips `bench/quality/compare_sets.py` chooses "
         "with), by the energy score (cm; lower is better; a stochastic candidate with "
         "its realisations): what chooses the shipped set. The held-out clips above "
         "never decide.",
@@ -369,7 +369,7 @@ def markdown(
     lines = [
         SECTION,
         "",
-        f"Made by `python bench/ensemble.py` (its docstring gives the command) on "
+        f"Made by `python bench/quality/ensemble.py` (its docstring gives the command) on "
         f"`{args.data}` with members from {', '.join(f'`{m}`' for m in args.members)}; "
         f"this run started {started} on {machine('cpu')}. The oracle row is the floor under "
         "every motion stage on this decoder: the generative model's own code of the "

@@ -8,8 +8,9 @@ as placed) and starts from its ``vertices`` (the drape): the first should not di
 file at all, the second is the stretch the simulation starts with.
 
 Usage:
-    .venv/bin/python bench/fit_strain.py
-    .venv/bin/python bench/fit_strain.py --fitted runs/fit_dress/fitted.npz  # bench/fit_dress.py's
+    .venv/bin/python bench/quality/fit_strain.py
+    # the garment bench/quality/fit_dress.py fitted:
+    .venv/bin/python bench/quality/fit_strain.py --fitted runs/fit_dress/fitted.npz
 
 docs/YOUR_GARMENT.md quotes its output.
 """
@@ -52,7 +53,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--fitted",
-        help="a template fitted already (bench/fit_dress.py's "
+        help="a template fitted already (bench/quality/fit_dress.py's "
         "fitted.npz, the same dress): measured, not fitted again",
     )
     args = parser.parse_args()

@@ -8,7 +8,8 @@ out by a set and compared at each clip's deepest frame: the hem ring's mean heig
 the simulation's (target: within 5 cm), and whether the hem hangs below the waistband::
 
     loosefit simulate --config configs/bows.yaml --out datasets/bows
-    python bench/gravity_bows.py --data datasets/bows --checkpoint checkpoints/dance/motion.pt
+    python bench/quality/gravity_bows.py --data datasets/bows \\
+        --checkpoint checkpoints/dance/motion.pt
 
 Writes the table (Markdown), its figures as JSON beside it and a render of each clip's
 deepest frame (simulation | the set), coloured by the distance to the simulation.
@@ -128,7 +129,7 @@ def write(args, rows: dict, started: str) -> None:
     lines = [
         "# The skirt under gravity in a deep bow",
         "",
-        f"Made by `python bench/gravity_bows.py --data {args.data} --checkpoint "
+        f"Made by `python bench/quality/gravity_bows.py --data {args.data} --checkpoint "
         f"{args.checkpoint}` on {machine('cpu')}, {started}; the bows simulated by `loosefit "
         "simulate --config configs/bows.yaml` (the dance corpus's configuration, the "
         "procedural `bow` move drawn three times). At each clip's deepest frame (the torso's "

@@ -11,7 +11,7 @@ whole body's closest skin to the cloth under it can be the hand's, inside the hi
 longest edge against its rest length and the frames with an edge over twice it (a push
 that tears the cloth). No simulation is needed: the body is the reference.
 
-    .venv/bin/python bench/hard_poses.py [--checkpoint checkpoints/salsa/motion.pt] \\
+    .venv/bin/python bench/quality/hard_poses.py [--checkpoint checkpoints/salsa/motion.pt] \\
         [--out docs/HARD_POSES.md] [--set stretch=3.0 ...]
 """
 

@@ -9,7 +9,7 @@ floor does not matter); the blends have no ground truth and are left out. Report
 per repetition and per 1,000-frame block, whether every frame is finite, and the farthest
 any garment vertex gets from the root joint.
 
-    .venv/bin/python bench/long_rollout.py            # about 4 min on dev-cpu
+    .venv/bin/python bench/quality/long_rollout.py            # about 4 min on dev-cpu
 """
 
 from __future__ import annotations

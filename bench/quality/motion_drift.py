@@ -8,7 +8,7 @@ rollout last saw a true garment changes: every frame is predicted at most N fram
 the simulated garment was given as its previous state (N = 100, 500, 1,200, or never). The
 GRU's state depends on the motion alone, so it runs on unchanged through a restart::
 
-    python bench/motion_drift.py --data datasets/salsa --runs runs/salsa/motion \
+    python bench/quality/motion_drift.py --data datasets/salsa --runs runs/salsa/motion \
         --table docs/MOTION_DRIFT.md
 
 Each run's errors are kept in its folder (``drift.json``, tied to its ``model.pt`` by a

@@ -7,7 +7,8 @@ edge strain and the share of vertices inside the body of the rollout against the
 simulation's. On the procedural spin (first 40
 frames, as in tests/test_checkpoints.py): the largest share of vertices inside the body::
 
-    python bench/motion_quality.py --checkpoint checkpoints/salsa/motion.pt --data datasets/salsa
+    python bench/quality/motion_quality.py --checkpoint checkpoints/salsa/motion.pt \\
+        --data datasets/salsa
 """
 
 from __future__ import annotations

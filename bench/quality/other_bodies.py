@@ -6,8 +6,8 @@ The bodies are ``configs/other_bodies.yaml``'s; each is simulated with
 skirt pattern sized to the body), and one clip again from a second seed (the body's own
 chaos floor). ``simulate`` makes them (about an hour a body on one core)::
 
-    python bench/other_bodies.py simulate --workers 2
-    python bench/other_bodies.py evaluate
+    python bench/quality/other_bodies.py simulate --workers 2
+    python bench/quality/other_bodies.py evaluate
 
 They are packed in the repository (``data/bodies/*.lfz``, 0.01 mm; ``evaluate`` unpacks
 them into ``--data`` when it is not there), since simulating them again takes hours and
@@ -167,7 +167,9 @@ def evaluate(args) -> None:
         if saved.is_file() and not args.force:  # measured before: its row and render
             rows[name] = json.loads(saved.read_text())
         elif not (folder / "manifest.json").is_file():
-            print(f"{name}: no data set at {folder} (python bench/other_bodies.py simulate)")
+            print(
+                f"{name}: no data set at {folder} (python bench/quality/other_bodies.py simulate)"
+            )
             continue
         else:
             rows[name] = measure_body(args, animator, name, shape, folder, faces, floor_clip)
@@ -267,12 +269,14 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
     lines = [
         "# The pretrained skirt on other bodies",
         "",
-        f"Made by `python bench/other_bodies.py evaluate` on {machine('cpu')}, {started}. "
-        "The bodies of `configs/other_bodies.yaml`, simulated by `python bench/other_bodies.py "
-        "simulate` from `configs/bodies.yaml` (the held-out ballet clips, the corpus's skirt "
-        "pattern sized to each body); `default` is the trained body, the dance corpus's own "
-        "simulations of the same clips. Each clip is animated by the pretrained set on its "
-        "body (`loosefit animate --shape ...`), one thread. The chaos floor is the RMSE "
+        f"Made by `python bench/quality/other_bodies.py evaluate` on {machine('cpu')}, "
+        f"{started}. "
+        "The bodies of `configs/other_bodies.yaml`, simulated by "
+        "`python bench/quality/other_bodies.py simulate` from `configs/bodies.yaml` (the "
+        "held-out ballet clips, the corpus's skirt pattern sized to each body); `default` is "
+        "the trained body, the dance corpus's own simulations of the same clips. Each clip "
+        "is animated by the pretrained set on its body (`loosefit animate --shape ...`), one "
+        "thread. The chaos floor is the RMSE "
         f"between the body's simulation of {floor_clip} and a second seed's.",
         "",
         "| body | clip | RMSE cm | x default body's | carry off: RMSE cm | edge change p50 % | "
@@ -308,7 +312,7 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
             f"| {name} | {shape} | {floor or float('nan'):.2f} | {c['rmse_cm']:.2f} | "
             f"{c['rmse_cm'] / floor if floor else float('nan'):.2f} | {row['prepare_s']:.1f} |"
         )
-    if Path(args.speed_out).is_file():  # python bench/other_bodies.py speed
+    if Path(args.speed_out).is_file():  # python bench/quality/other_bodies.py speed
         lines += ["", Path(args.speed_out).read_text().strip()]
     lines += [
         "",

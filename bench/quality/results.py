@@ -10,7 +10,7 @@ noise); a plot of every method's RMSE per frame over each clip; the fastest turn
 set rendered side by side (simulation | ours | virtual bones | Santesteban), coloured by
 per-vertex error::
 
-    python bench/results.py --data datasets/salsa --baselines runs/salsa/baselines \\
+    python bench/quality/results.py --data datasets/salsa --baselines runs/salsa/baselines \\
         --ablation runs/salsa/ablation --out docs/RESULTS.md
 
 Rollouts and their scores are cached in ``--cache`` (a killed run goes on from the
@@ -178,7 +178,7 @@ def plot_per_frame(
 
 
 def ablation_section(ablation: Path) -> list[str]:
-    """The generative ablation's table (bench/generative_ablation.py's), from its runs."""
+    """The generative ablation's table (bench/ablations/generative_ablation.py's), from its runs."""
     from loosefit.eval.generative_report import DECODERS, format_table
 
     rows: dict[str, list[dict]] = {}
@@ -372,11 +372,11 @@ def cloth_section(cloth: dict) -> list[str]:
     lines = [
         "## The cloth on every held-out clip",
         "",
-        "Ours (the whole pipeline) and the simulation, measured as `bench/stage_account.py` "
-        "measures (the waistband's own edges left out of the strain; flare: the hem's mean "
-        "distance from the pelvis's vertical axis, the mean of |ours / simulation - 1| "
-        "frame by frame over the 61 frames around the clip's fastest turn; inside: the "
-        "whole body, arms and hands included).",
+        "Ours (the whole pipeline) and the simulation, measured as "
+        "`bench/quality/stage_account.py` measures (the waistband's own edges left out of the "
+        "strain; flare: the hem's mean distance from the pelvis's vertical axis, the mean of "
+        "|ours / simulation - 1| frame by frame over the 61 frames around the clip's fastest "
+        "turn; inside: the whole body, arms and hands included).",
         "",
         "| clip | edge change p50 % (sim) | strain p50 (sim) | flare error at the turn % | "
         "inside mean % | inside worst frame % (sim) | frames > 5 mm (sim) | deepest cm |",
@@ -517,18 +517,20 @@ def main() -> None:
     p.add_argument(
         "--ensemble",
         default=None,
-        help="docs/ENSEMBLE.md (bench/ensemble.py): "
+        help="docs/ENSEMBLE.md (bench/quality/ensemble.py): "
         "every method against an ensemble of simulations, as a section",
     )
     p.add_argument(
         "--table1",
         default=None,
-        help="Table 1's Markdown (bench/motion_ablation.py --table), included as a section",
+        help="Table 1's Markdown (bench/ablations/motion_ablation.py --table), included as a "
+        "section",
     )
     p.add_argument(
         "--table2",
         default=None,
-        help="Table 2's Markdown (bench/detail_collision.py --out), included as a section",
+        help="Table 2's Markdown (bench/ablations/detail_collision.py --out), included as a "
+        "section",
     )
     args = p.parse_args()
     torch.set_num_threads(args.threads)
@@ -865,7 +867,7 @@ def targets_section(sets: dict) -> list[str]:
 
 
 def ensemble_section(path: str | None) -> list[str]:
-    """bench/ensemble.py's tables (docs/ENSEMBLE.md) as a section."""
+    """bench/quality/ensemble.py's tables (docs/ENSEMBLE.md) as a section."""
     if path is None:
         return []
     from loosefit.eval.ensemble import SECTION
@@ -883,14 +885,14 @@ def included_tables(table1: str | None, table2: str | None) -> list[str]:
         (
             table1,
             "Table 1: the motion encoder with and without the previous state",
-            "`bench/motion_ablation.py`: the motion stage alone, rolled out from each held-out "
-            "clip's first frame; iter-N is the RMSE over the first N frames",
+            "`bench/ablations/motion_ablation.py`: the motion stage alone, rolled out from each "
+            "held-out clip's first frame; iter-N is the RMSE over the first N frames",
         ),
         (
             table2,
             "Table 2: the detail module with and without its discriminator",
-            "`bench/detail_collision.py`: each variant rolled out whole on each held-out clip, "
-            "the edge-length stage after it, with and without collision handling",
+            "`bench/ablations/detail_collision.py`: each variant rolled out whole on each held-out "
+            "clip, the edge-length stage after it, with and without collision handling",
         ),
     ):
         if path is None:
@@ -944,7 +946,7 @@ def markdown(
         "# Results: every method against the simulation",
         "",
         f"Made by `bash scripts/results.sh` (which trains the baselines and the ablation's "
-        f"models, then runs `bench/results.py`) on `{data}`; this run started {started} on "
+        f"models, then runs `bench/quality/results.py`) on `{data}`; this run started {started} on "
         f"{machine('cpu')}.",
         "",
         "How the baselines are built, and a reading of these figures (why the ratios are "

@@ -2,7 +2,7 @@
 the settled drape carried rigidly by the root (no dynamics), and the generative model's own
 reconstruction of the simulation (the floor under the motion encoder).
 
-    .venv/bin/python bench/rollout_references.py --checkpoint runs/dress/package/motion.pt \
+    .venv/bin/python bench/quality/rollout_references.py --checkpoint runs/dress/package/motion.pt \
         --data datasets/dress
 """
 

@@ -25,7 +25,7 @@ frame by frame; cloth inside the body, whole body (arms and hands included) and 
 simulation's collider (arms cut away): the mean share of vertices per frame, the frames with
 a vertex deeper than 5 mm and the deepest; RMSE, Hausdorff and STED against the simulation.
 
-    .venv/bin/python bench/stage_account.py --data datasets/account \\
+    .venv/bin/python bench/quality/stage_account.py --data datasets/account \\
         [--sequence out/chain_spin.npz] [--checkpoint checkpoints/salsa/motion.pt] \\
         [--out docs/STAGE_ACCOUNT.md]
 
@@ -116,7 +116,7 @@ def main() -> None:
         "--before",
         default=None,
         help="the pipeline of the 'today' row (default: --checkpoint's), e.g. the "
-        "set before the physics terms in out/salsa-before-34/motion.pt",
+        "set before the physics terms in out/salsa-without-physics-terms/motion.pt",
     )
     p.add_argument(
         "--data",

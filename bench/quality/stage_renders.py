@@ -8,7 +8,7 @@ with detail, edge lengths, collision handling against the whole body). The chose
 rendered next to the simulation, one row a frame, each from the front and the
 side, the whole body (arms and hands) drawn, and tiled into one picture::
 
-    .venv/bin/python bench/stage_renders.py --data datasets/account --clip spin \\
+    .venv/bin/python bench/quality/stage_renders.py --data datasets/account --clip spin \\
         --frames 15,45,75 --out docs/img/stage_spin.jpg
 """
 
@@ -36,7 +36,7 @@ def main() -> None:
         "--before",
         default=None,
         help="the set of the 'today' column (default: --checkpoint's), e.g. "
-        "out/salsa-before-34/motion.pt",
+        "out/salsa-without-physics-terms/motion.pt",
     )
     p.add_argument("--data", default="datasets/account", help="a data set folder")
     p.add_argument("--clip", default=None, help="the clip (default: the first)")

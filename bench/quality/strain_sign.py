@@ -6,7 +6,7 @@ magnitude of the uniform Laplacian (how much the surface bends between
 neighbours), and the strain after 1, 3 and 10 steps of Laplacian smoothing of the
 motion stage's garment (every 50th of the first 600 frames)::
 
-    python bench/strain_sign.py --data datasets/salsa
+    python bench/quality/strain_sign.py --data datasets/salsa
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Serves sequences in ``loosefit.view`` and screenshots the page in headless Chromium (SwiftShader
 WebGL) at one frame, the camera following the bodies::
 
-    .venv/bin/python bench/viewer_screenshot.py out/dance1957_rigid.npz out/dance1957.npz \\
+    .venv/bin/python bench/quality/viewer_screenshot.py out/dance1957_rigid.npz out/dance1957.npz \\
         --names rigid,"loosefit model" --frames 400 --frame 250 --colour error --scale 20 \\
         --antialias --out docs/img/viewer.png
 """

@@ -20,7 +20,7 @@ has been running for a while.
 Writes the table to ``--out`` (markdown) and prints it; "ratio" is a row's seconds over
 the fastest row's of its load condition. On dev-cpu (2 cores) it takes about 5 minutes::
 
-    python bench/animate_threads.py --machine dev-cpu --out docs/THREADS.md
+    python bench/speed/animate_threads.py --machine dev-cpu --out docs/THREADS.md
 """
 
 from __future__ import annotations
@@ -132,7 +132,7 @@ def table(rows: dict[str, list[dict]], args) -> str:
     lines = [
         "# Inference threads: the default against one thread and all cores",
         "",
-        f"Written by `python bench/animate_threads.py {' '.join(sys.argv[1:])}` on "
+        f"Written by `python bench/speed/animate_threads.py {' '.join(sys.argv[1:])}` on "
         f"{args.machine} ({platform.machine()}, {cores} cores), {time.strftime('%Y-%m-%d')}, "
         f"torch {torch.__version__}. `loosefit.load().animate('{args.motion}', "
         f"frames={args.frames}, threads=...)`, each configuration in a fresh process, the "

@@ -20,9 +20,9 @@ wall time of ``--repeats`` runs (the whole pipeline: one run). Prints the tables
 crossover (the N past which more characters per call no longer raise frames per second);
 docs/BATCH_INFERENCE.md quotes them::
 
-    python bench/batch_inference.py                          # CPU, 2 threads, ~10 min
-    python bench/batch_inference.py --device cuda --paper    # on a GPU
-    python bench/batch_inference.py --runtime onnx --collision realtime --threads 1
+    python bench/speed/batch_inference.py                          # CPU, 2 threads, ~10 min
+    python bench/speed/batch_inference.py --device cuda --paper    # on a GPU
+    python bench/speed/batch_inference.py --runtime onnx --collision realtime --threads 1
 """
 
 from __future__ import annotations
@@ -214,7 +214,7 @@ def main() -> int:
     )
     load = ", ".join(f"{a:.1f}" for a in (*load_before, *os.getloadavg()))
     lines = [
-        f"`bench/batch_inference.py` on {dev}, torch {torch.__version__}; "
+        f"`bench/speed/batch_inference.py` on {dev}, torch {torch.__version__}; "
         f"{args.frames} motion frames per character (+ the preroll); runtime "
         f"{args.runtime}, {args.collision} collision handling; load average "
         f"(1, 5, 15 min) before and after: {load}",

@@ -7,7 +7,7 @@ each, the largest distance between their garments (per vertex, over the clip), t
 where it passes 0.5 mm, and the vertices left inside the body (``inside_after``) by each.
 docs/notes/BENCHMARKS_HISTORY.md quotes it::
 
-    OMP_NUM_THREADS=1 .venv/bin/python bench/notes/collision_fast.py \\
+    OMP_NUM_THREADS=1 .venv/bin/python bench/speed/collision_fast.py \\
         ../shared/mocap/cmu-salsa/60_01.bvh ../shared/mocap/cmu-ballet/05_20.bvh spin
 """
 

@@ -5,8 +5,8 @@ times, per frame, every ``Surface.refit`` and every ``Surface.query`` grouped by
 method that asked (the solve, the face samples, the last projection, the mending) and its
 inside test (``normal`` or ``winding``). docs/BENCHMARKS.md quotes it::
 
-    .venv/bin/python bench/collision_profile.py --motion ../shared/mocap/cmu-salsa/60_01.bvh \\
-        --start-frame 10 --frames 150
+    .venv/bin/python bench/speed/collision_profile.py \\
+        --motion ../shared/mocap/cmu-salsa/60_01.bvh --start-frame 10 --frames 150
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ def main() -> None:
     p.add_argument("--start-frame", type=int, default=10)
     p.add_argument("--frames", type=int, default=150)
     p.add_argument(
-        "--before-37", action="store_true", help="collision handling without its fast path"
+        "--no-fast-path", action="store_true", help="collision handling without its fast path"
     )
     p.add_argument(
         "--collision",
@@ -44,7 +44,7 @@ def main() -> None:
     args = p.parse_args()
     torch.set_num_threads(1)
     model = load_pipeline(args.checkpoint)
-    if args.before_37:
+    if args.no_fast_path:
         model.collision = dataclasses.replace(model.collision, fast=False)
     model.collision = collision_setting(model.collision, args.collision)
     motion = load_motion(

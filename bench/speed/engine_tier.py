@@ -17,7 +17,7 @@ measures: RMSE, hem flare error over the 61 frames around the fastest turn, medi
 edge change, share of vertices inside the body; and the engine tier's graph against its
 PyTorch model (max difference over the clip).
 
-    OMP_NUM_THREADS=1 python bench/engine_tier.py --out docs/ENGINE_TIER.md
+    OMP_NUM_THREADS=1 python bench/speed/engine_tier.py --out docs/ENGINE_TIER.md
 
 Writes the Markdown table and the figures as JSON beside it.
 """
@@ -191,7 +191,7 @@ def markdown(r: dict) -> str:
     lines = [
         f"# The engine tier against the full pipeline ({r['machine']}, {r['date']})",
         "",
-        "Written by `OMP_NUM_THREADS=1 python bench/engine_tier.py`. CPU ms per character "
+        "Written by `OMP_NUM_THREADS=1 python bench/speed/engine_tier.py`. CPU ms per character "
         "per frame on one thread; the simulation of the same skirt: "
         f"{sim:.0f} ms a frame on the same machine in the same run.",
         "",

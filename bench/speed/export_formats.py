@@ -8,7 +8,7 @@ one frame of each to ``--png-dir``, and with ``--long N`` measures the peak memo
 writing an N-frame garment in each format (a child process each) against the sequence's
 own size. Prints a Markdown table; ``--out`` writes it.
 
-    python bench/export_formats.py out/demo/sequence.npz --png-dir docs/img --long 10000
+    python bench/speed/export_formats.py out/demo/sequence.npz --png-dir docs/img --long 10000
 """
 
 from __future__ import annotations

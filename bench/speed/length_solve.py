@@ -15,7 +15,7 @@ pipeline this times, with one thread and by the CPU time of that thread
 * the whole pipeline's ``lengths`` stage (``stage_cpu_seconds``, overlap off) with the
   dense rounds swapped in and as committed.
 
-    OMP_NUM_THREADS=1 python bench/notes/length_solve.py [--repeats 5] [--out out/length_solve.json]
+    OMP_NUM_THREADS=1 python bench/speed/length_solve.py [--repeats 5] [--out out/length_solve.json]
 
 Figures (dev-cpu, 2 cores shared, 2026-11-26) in docs/notes/BENCHMARKS_HISTORY.md.
 """

@@ -10,7 +10,7 @@ calling thread's CPU time (``time.thread_time``) and the process's (``time.proce
 of that run, since the machine may be shared. Also the largest difference of the garments
 (m). docs/BENCHMARKS.md and docs/ENGINE_EXPORT.md quote the table::
 
-    OMP_NUM_THREADS=1 python bench/onnx_speed.py --motion dance:12 --frames 300
+    OMP_NUM_THREADS=1 python bench/speed/onnx_speed.py --motion dance:12 --frames 300
 
 ``--batch 1,8,32`` also steps B characters per call of the graph (with the detail stage).
 """

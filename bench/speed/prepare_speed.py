@@ -3,7 +3,7 @@ before the first batch: in one process, as a worker used to for each of its batc
 turn, and in several at once, as ``loosefit simulate --batch`` now does.
 
 Usage:
-    .venv/bin/python bench/prepare_speed.py [--preset dance] [--clips 05_02,05_10,05_12,05_20]
+    .venv/bin/python bench/speed/prepare_speed.py [--preset dance] [--clips 05_02,05_10,05_12,05_20]
         [--processes 1,2] [--out docs/PREPARE_SPEED.md]
 
 Each run prepares the same clips (``workers.prepare_motions``, longest first) and is timed
@@ -18,9 +18,10 @@ import os
 import platform
 import time
 from datetime import date
-from pathlib import Path
 
 import numpy as np
+
+SECTION = "## Preparing motions on every core"  # of docs/SIM_SPEED.md
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -29,7 +30,12 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--bvh", default=None, help="the salsa folder (dance: cmu-ballet beside it)")
     p.add_argument("--clips", default="05_02,05_10,05_12,05_20", help="clip names; '' for all")
     p.add_argument("--processes", default="1,2", help="comma-separated process counts")
-    p.add_argument("--out", default="", help="a Markdown file for the table")
+    p.add_argument(
+        "--out",
+        default="",
+        help=f"a Markdown page (docs/SIM_SPEED.md) whose section '{SECTION}' the tables "
+        "replace, the rest of the page kept",
+    )
     args = p.parse_args(argv)
 
     from loosefit.sim.jobs import job_motion, plan_jobs
@@ -68,7 +74,7 @@ def main(argv: list[str] | None = None) -> None:
         [
             "# Preparing a batched run's motions",
             "",
-            f"`python bench/prepare_speed.py {command}`; "
+            f"`python bench/speed/prepare_speed.py {command}`; "
             f"{platform.node()}, {platform.processor() or platform.machine()}, "
             f"{os.cpu_count()} cores; {date.today()}.",
             "",
@@ -85,7 +91,9 @@ def main(argv: list[str] | None = None) -> None:
     )
     print(text)
     if args.out:
-        Path(args.out).write_text(text + "\n")
+        from loosefit.eval.report import write_section
+
+        write_section(args.out, SECTION, text + "\n")
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@
    a Ray instance of two CPUs on this machine; wall time of each, and whether the two data
    sets are the same, bit for bit. docs/CLUSTER.md quotes its output::
 
-    .venv/bin/python bench/ray_cluster.py --compare
+    .venv/bin/python bench/speed/ray_cluster.py --compare
 """
 
 from __future__ import annotations

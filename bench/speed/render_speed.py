@@ -4,7 +4,7 @@ A ~14k-vertex capsule "body" swaying and travelling, and a ~10k-vertex cone
 "skirt" rippling around it, rendered at 640x640 per view with the default
 RenderConfig (4x MSAA, 2048 px shadow map, floor, labels), 1 and 3 views.
 
-Run:  PYTHONPATH=src python bench/render_speed.py [--frames 20] [--size 640]
+Run:  PYTHONPATH=src python bench/speed/render_speed.py [--frames 20] [--size 640]
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ after them the same; an onnx row also gives its largest difference (m) from the 
 Only motion frames are timed (the rollout's and the simulation's preroll are
 not), after a warm-up. The figures go in docs/BENCHMARKS.md::
 
-    OMP_NUM_THREADS=1 python bench/rollout_speed.py --sim-frames 5 --repeats 1 \
+    OMP_NUM_THREADS=1 python bench/speed/rollout_speed.py --sim-frames 5 --repeats 1 \
         --out out/rollout_speed_37.json
 """
 

@@ -3,13 +3,13 @@ and what a start costs.
 
 Usage (on a lent GPU, after ``scripts/gpu_pipeline.py receive``; one call)::
 
-    python3 bench/sim_gpu.py --device cuda:0 --batches 1,8,32,64 --frames 40 \\
+    python3 bench/speed/sim_gpu.py --device cuda:0 --batches 1,8,32,64 --frames 40 \\
         --budget 420 --out $OUT
 
 At toy size on any machine (what ``tests/test_gpu_pipeline.py`` runs, through
 ``scripts/gpu_pipeline.py sim-speed``)::
 
-    python bench/sim_gpu.py --tiny --device cpu --batches 1,2 --frames 3 --out /tmp/sim-gpu
+    python bench/speed/sim_gpu.py --tiny --device cpu --batches 1,2 --frames 3 --out /tmp/sim-gpu
 
 The start is timed phase by phase from the process's first line: the imports, the body and
 garment (anny's model cache), the clips' bodies (``--clips`` distinct clips of the preset,
@@ -280,7 +280,8 @@ def _write(out: Path, args, start, first_frames, rows, machine, argv) -> None:
     lines = [
         "# Cloth simulation on a GPU: frames per second by batch",
         "",
-        f"`python bench/sim_gpu.py {' '.join(argv if argv is not None else os.sys.argv[1:])}`;"
+        f"`python bench/speed/sim_gpu.py "
+        f"{' '.join(argv if argv is not None else os.sys.argv[1:])}`;"
         f" {machine}; {date.today()}.",
         "",
         "The start, from the process's first line:",

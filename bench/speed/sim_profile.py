@@ -1,7 +1,7 @@
 """Where a simulated frame's time goes: the cloth simulator profiled phase by phase.
 
 Usage:
-    OMP_NUM_THREADS=1 .venv/bin/python bench/sim_profile.py [--preset dance]
+    OMP_NUM_THREADS=1 .venv/bin/python bench/speed/sim_profile.py [--preset dance]
         [--clips 60_01,05_10] [--frames 20] [--out docs/SIM_PROFILE.md] [--set KEY=VALUE]
         [--warp KEY=VALUE]
 
@@ -24,7 +24,7 @@ otherwise.
 
 ``--set KEY=VALUE`` changes the cloth configuration (e.g. ``--set self_contact_passes=1``)
 for a quick look at a lever; the quality of such a change is judged by
-``bench/sim_quality.py``.
+``bench/data/sim_quality.py``.
 """
 
 from __future__ import annotations
@@ -42,9 +42,12 @@ import torch
 import warp as wp
 
 import loosefit.sim.driver as driver
+from loosefit.eval.report import write_section
 from loosefit.eval.sim_runs import ONCE, profiled_run
 from loosefit.sim.presets import preset
 from loosefit.sim.workers import Worker
+
+SECTION = "## Where a frame's time goes"  # of docs/SIM_SPEED.md
 
 
 def profile_clip(worker: Worker, name: str, frames: int, cloth) -> dict:
@@ -94,7 +97,7 @@ def markdown(results: list[dict], args, machine: str) -> str:
     lines = [
         "# Where a simulated frame's time goes",
         "",
-        f"`{' '.join(['python bench/sim_profile.py', *args])}`; {machine}; {date.today()}.",
+        f"`{' '.join(['python bench/speed/sim_profile.py', *args])}`; {machine}; {date.today()}.",
         "",
     ]
     for r in results:
@@ -160,7 +163,12 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--frames", type=int, default=20, help="motion frames of each clip")
     p.add_argument("--set", action="append", default=[], help="cloth KEY=VALUE")
     p.add_argument("--warp", action="append", default=[], help="warp.config KEY=VALUE")
-    p.add_argument("--out", default="", help="a Markdown file for the tables")
+    p.add_argument(
+        "--out",
+        default="",
+        help=f"a Markdown page (docs/SIM_SPEED.md) whose section '{SECTION}' the tables "
+        "replace, the rest of the page kept",
+    )
     p.add_argument("--json", default="", help="a JSON file for the figures")
     args = p.parse_args(argv)
     for item in args.warp:  # before the first kernel is built: part of its cache key
@@ -186,7 +194,7 @@ def main(argv: list[str] | None = None) -> None:
     text = markdown(results, argv if argv is not None else os.sys.argv[1:], machine)
     print(text)
     if args.out:
-        Path(args.out).write_text(text + "\n")
+        write_section(args.out, SECTION, text + "\n")
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1) + "\n")
 

@@ -1,7 +1,7 @@
 """Seconds per frame of the Newton VBD cloth simulation, and its quality figures.
 
 Usage:
-    .venv/bin/python bench/sim_speed.py [--motion spin] [--frames 60] [--style flared]
+    .venv/bin/python bench/speed/sim_speed.py [--motion spin] [--frames 60] [--style flared]
         [--resolution cpu] [--device cpu] [--no-self-contact] [--batch 1,16,64]
 
 Prints the machine, the configuration, seconds per 30-fps frame (settle and

@@ -13,10 +13,11 @@ followed a new frame's arrival (the rest redrew the frame shown). Chromium draws
 multisampling unless ``--antialias`` (``loosefit.view.headless.NO_ANTIALIAS``).
 docs/VIEWER.md quotes its output::
 
-    .venv/bin/python bench/viewer_fps.py out/dance1957.npz
-    .venv/bin/python bench/viewer_fps.py out/dance1957.npz out/dance1957_rigid.npz --seconds 20
-    .venv/bin/python bench/viewer_fps.py out/dance1957.npz --pixel-ratio 0.5 --antialias
-    .venv/bin/python bench/viewer_fps.py out/dance1957.npz --flag=--num-raster-threads=1
+    .venv/bin/python bench/speed/viewer_fps.py out/dance1957.npz
+    .venv/bin/python bench/speed/viewer_fps.py out/dance1957.npz out/dance1957_rigid.npz \\
+        --seconds 20
+    .venv/bin/python bench/speed/viewer_fps.py out/dance1957.npz --pixel-ratio 0.5 --antialias
+    .venv/bin/python bench/speed/viewer_fps.py out/dance1957.npz --flag=--num-raster-threads=1
 """
 
 from __future__ import annotations

@@ -2,13 +2,13 @@
 
 Serves one sequence in this process (its bodies posed once), then for each condition opens
 it in a fresh headless Chromium (SwiftShader), lets it play and counts for ``--seconds``
-what ``bench/viewer_fps.py`` counts: frames drawn and new frames drawn per second, the CPU
+what ``bench/speed/viewer_fps.py`` counts: frames drawn and new frames drawn per second, the CPU
 time of Chromium's GPU process (where SwiftShader draws) and of all its processes per frame
 drawn. The conditions run in turn, ``--repeat`` times over, so that each is measured in
 the same minutes as the others on a machine shared with other jobs. docs/VIEWER.md quotes
 its output::
 
-    .venv/bin/python bench/viewer_levers.py out/dance1957.npz \\
+    .venv/bin/python bench/speed/viewer_levers.py out/dance1957.npz \\
         msaa+dpr=0.75,dpr=0.75,nofloor+dpr=0.75,dpr=0.5 --repeat 3
 
 A condition is tokens joined by ``+`` (none: ``plain``, the viewer as it is with the
