@@ -61,7 +61,7 @@ if step data; then
 fi
 
 chosen() {  # the set bench/quality/compare_sets.py chose (step set), by its candidate's name
-  "$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])"
+  "$BIN/python" -c "import json; print(json.load(open('bench/figures/DANCE_SETS.json'))['winner'])"
 }
 done_run() {  # a run whose report is written is finished
   [ -f "$1/report.json" ] && echo "[dance_models] $1: done ($1/report.json)"

@@ -85,7 +85,7 @@ pair "motion m-plain $GEN_ABLATION" "motion m-m $GEN_ABLATION --membrane $MEMBRA
 motion m-mf "$GEN_ABLATION" --membrane "$MEMBRANE" --flare "$FLARE"
 
 # 4. the table (once: the chosen pair's run below does not make it again)
-[ -n "${GEN:-}" ] && [ -f docs/PHYSICS_ABLATION.json ] ||
+[ -n "${GEN:-}" ] && [ -f bench/figures/PHYSICS_ABLATION.json ] ||
 "$BIN/python" bench/ablations/physics_ablation.py --base "$BEFORE/motion.pt" \
     --generative g-before="$BEFORE/generative.pt" g-plain="$RUNS/g-plain/checkpoint.pt" \
     g-m="$RUNS/g-m/checkpoint.pt" g-mb="$RUNS/g-mb/checkpoint.pt" \

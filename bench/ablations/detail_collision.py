@@ -37,6 +37,10 @@ from loosefit.inference.animator import attach_detail, load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.train.common import machine
 
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
+
 ROWS = {  # label: stages
     "motion stage alone": MOTION_ONLY,
     "+ collision": Stages(detail=False, lengths=False),
@@ -132,10 +136,10 @@ def main() -> None:
 
 
 def write(out: Path, results: dict) -> None:
-    """The table (Markdown) and its figures (JSON beside it)."""
-    out.with_suffix(".json").write_text(json.dumps(results, indent=1))
+    """The table (Markdown) and its figures (JSON, in bench/figures/)."""
+    (FIGURES / f"{out.stem}.json").write_text(json.dumps(results, indent=1))
     out.write_text(markdown(results))
-    print(f"wrote {out} and {out.with_suffix('.json')}")
+    print(f"wrote {out} and {FIGURES / (out.stem + '.json')}")
 
 
 def table2(args, model, collider) -> dict:

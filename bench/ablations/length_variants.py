@@ -11,7 +11,7 @@ strain, edge change, flare at the fastest turn, inside the whole body, RMSE.
     .venv/bin/python bench/ablations/length_variants.py [--data datasets/account] \\
         [--sequence out/chain_spin.npz] [--out docs/notes/LENGTH_VARIANTS.md]
 
-Writes the table (markdown) and the figures as JSON beside it. About 15 minutes on dev-cpu.
+Writes the table (markdown) and the figures as JSON in bench/figures/. About 15 minutes on dev-cpu.
 """
 
 from __future__ import annotations
@@ -30,6 +30,10 @@ from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
 from loosefit.inference.stages.lengths import LengthConfig
 from loosefit.train.common import machine
+
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
 
 VARIANTS = {  # label: the edge-length stage (None: as committed)
     "hanging edges (committed)": None,
@@ -127,7 +131,7 @@ def main() -> None:
         "clips": clips,
     }
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(record, indent=1))
+    (FIGURES / f"{out.stem}.json").write_text(json.dumps(record, indent=1))
     body = table(clips)
     print(body)
     marker = "<!-- length variants table -->"
@@ -135,7 +139,7 @@ def main() -> None:
         out.write_text(out.read_text().split(marker)[0] + marker + "\n" + body + "\n")
     else:
         out.write_text(f"# The edge-length stage on every edge\n\n{marker}\n{body}\n")
-    print(f"wrote {out} and {out.with_suffix('.json')}")
+    print(f"wrote {out} and {FIGURES / (out.stem + '.json')}")
 
 
 if __name__ == "__main__":

@@ -35,6 +35,10 @@ from loosefit.inference.animator import load_pipeline
 from loosefit.inference.checkpoints import load_generative
 from loosefit.train.common import machine
 
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
+
 COLUMNS = [  # key, header, format (means over the clips)
     ("strain_p50", "strain p50", "{:.3f}"),
     ("strain_p99", "strain p99", "{:.3f}"),
@@ -164,7 +168,7 @@ def main() -> None:
             )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(record, indent=1))
+    (FIGURES / f"{out.stem}.json").write_text(json.dumps(record, indent=1))
     body = "\n".join(lines)
     marker = "<!-- ablation table -->"
     if out.is_file() and marker in out.read_text():
@@ -172,7 +176,7 @@ def main() -> None:
     else:
         out.write_text(f"# The physics terms, ablated\n\n{marker}\n{body}\n")
     print(body)
-    print(f"wrote {out} and {out.with_suffix('.json')}")
+    print(f"wrote {out} and {FIGURES / (out.stem + '.json')}")
 
 
 if __name__ == "__main__":

@@ -47,6 +47,10 @@ import time
 from datetime import date
 from pathlib import Path
 
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
+
 # Each target: Warp's CPU compiler flags (None: Warp's default), and the environment of
 # its process (read by OpenBLAS, MKL and PyTorch as they load).
 TARGETS = {
@@ -362,7 +366,7 @@ def main() -> None:
     text = table(runs, when, "python bench/data/test_tolerances.py " + shlex.join(sys.argv[1:]))
     if args.out:
         args.out.write_text(text)
-        args.out.with_suffix(".json").write_text(json.dumps(runs, indent=1) + "\n")
+        (FIGURES / f"{Path(args.out).stem}.json").write_text(json.dumps(runs, indent=1) + "\n")
     print(text)
 
 

@@ -35,6 +35,10 @@ from loosefit.eval.stage_account import clip_reference
 from loosefit.inference.animator import load_pipeline
 from loosefit.train.common import machine
 
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
+
 COLUMNS = [  # key, header, format, scale
     ("rmse_cm", "RMSE cm", "{:.2f}", 1),
     ("hausdorff_cm", "Hausdorff cm", "{:.2f}", 1),
@@ -201,7 +205,7 @@ def main() -> None:
         lines.append(f"| {clip} | {frames} | {cells} |")
     out = Path(args.out)
     out.write_text("\n".join(lines) + "\n")
-    out.with_suffix(".json").write_text(
+    (FIGURES / f"{out.stem}.json").write_text(
         json.dumps(
             {
                 "sets": sets,

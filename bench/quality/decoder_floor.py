@@ -35,7 +35,7 @@ cover and whole), RMSE in cm (the RMS over frames of each frame's RMS vertex dis
         --seeds datasets/dance-seeds --checkpoint checkpoints/dance/motion.pt \\
         --train-error --out docs/DECODER_FLOOR.md
 
-Writes the Markdown and the figures as JSON beside it.
+Writes the Markdown and the figures as JSON in bench/figures/.
 """
 
 from __future__ import annotations
@@ -61,6 +61,10 @@ from loosefit.model.engine import fit_basis, project, reconstruct
 from loosefit.model.motion_features import from_root_frame, to_root_frame
 from loosefit.train.clips import clip_versions
 from loosefit.train.frames import avatar_for
+
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
 
 KS = (32, 64, 128, 256, 512)
 REPRESENTATIONS = ("root frame", "unposed")
@@ -440,7 +444,7 @@ def main() -> None:
 
     result["seconds"]["total"] = time.perf_counter() - start
     out = Path(args.out)
-    out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    (FIGURES / f"{out.stem}.json").write_text(json.dumps(result, indent=1) + "\n")
     out.write_text(markdown(result))
     print(out.read_text())
 

@@ -12,7 +12,7 @@ waistband too: ``waist_blend`` 0).
     OMP_NUM_THREADS=1 python bench/quality/engine_waist.py --data datasets/dance \\
         --before out/engine-before.pt --out docs/ENGINE_WAIST.md
 
-Writes the Markdown table and the figures as JSON beside it.
+Writes the Markdown table and the figures as JSON in bench/figures/.
 """
 
 from __future__ import annotations
@@ -34,6 +34,10 @@ from loosefit.inference.animator import load_pipeline
 from loosefit.inference.engine.export import EngineStep, skeleton_record
 from loosefit.inference.engine.model import engine_path_of, load_engine, rollout_engine
 from loosefit.motion.motions import load_motion
+
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
 
 # the demo's moves: `loosefit demo` (dance:20, seed 0), the README's `animate("dance:4")`,
 # the export's check (dance:12), and other seeds of the demo's `--seed`
@@ -137,7 +141,7 @@ def main() -> None:
         print(name, json.dumps(row), flush=True)
     summarise(result, list(tiers))
     out = Path(args.out)
-    out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    (FIGURES / f"{out.stem}.json").write_text(json.dumps(result, indent=1) + "\n")
     out.write_text(markdown(result, list(tiers)))
     print(out.read_text())
 

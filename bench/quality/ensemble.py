@@ -44,6 +44,10 @@ from loosefit.inference.model_common import avatar_of
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.train.common import machine
 
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
+
 RAW = Stages(detail=False, lengths=False, collision=False)
 # key: (label, checkpoint kind, stages)
 METHODS = {
@@ -471,7 +475,7 @@ def main() -> None:
         k: {"members": brief(v["members"]), "models": {n: brief(r) for n, r in v["models"].items()}}
         for k, v in scores.items()
     }
-    Path(args.out).with_suffix(".json").write_text(
+    (FIGURES / f"{Path(args.out).stem}.json").write_text(
         json.dumps(
             {"started": started, "machine": machine("cpu"), "clips": light, "validation": choice},
             indent=1,

@@ -11,7 +11,7 @@ the simulation's (target: within 5 cm), and whether the hem hangs below the wais
     python bench/quality/gravity_bows.py --data datasets/bows \\
         --checkpoint checkpoints/dance/motion.pt
 
-Writes the table (Markdown), its figures as JSON beside it and a render of each clip's
+Writes the table (Markdown), its figures as JSON in bench/figures/ and a render of each clip's
 deepest frame (simulation | the set), coloured by the distance to the simulation.
 """
 
@@ -31,6 +31,10 @@ from loosefit.garment.mesh_checks import boundary_loops
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.model_common import avatar_of
 from loosefit.train.common import machine
+
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
 
 HEIGHT_TOLERANCE = 0.05  # m: the hem's mean height against the simulation's
 DEEP = 60.0  # degrees: a bow this deep or deeper counts
@@ -179,7 +183,7 @@ def write(args, rows: dict, started: str) -> None:
     for clip in rows:
         lines += [f"![{clip} at its deepest frame](img/gravity_{clip}.jpg)", ""]
     Path(args.out).write_text("\n".join(lines))
-    Path(args.out).with_suffix(".json").write_text(json.dumps(rows, indent=1))
+    (FIGURES / f"{Path(args.out).stem}.json").write_text(json.dumps(rows, indent=1))
     print(f"wrote {args.out}")
 
 

@@ -36,6 +36,10 @@ from loosefit.sim.dataset_config import read_config_file, resolve_spec
 from loosefit.sim.jobs import spec_name
 from loosefit.train.common import machine
 
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
+
 ROOT = Path(__file__).resolve().parents[2]
 EXTRA = [  # beyond the regression set: (spec, first frame, frames)
     ("../shared/mocap/cmu-salsa/60_01.bvh", 10, 90),
@@ -134,7 +138,7 @@ def main() -> None:
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     )
     out = Path(args.out)
-    out.with_suffix(".json").write_text(
+    (FIGURES / f"{out.stem}.json").write_text(
         json.dumps(
             {
                 "checkpoint": args.checkpoint,

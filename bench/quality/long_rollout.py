@@ -29,6 +29,9 @@ from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import garment_in_root_frame
 from loosefit.motion.chain import chain_motions
 
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -84,7 +87,7 @@ def main() -> int:
     }
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(report, indent=2))
+    (FIGURES / f"{out.stem}.json").write_text(json.dumps(report, indent=2))
 
     import matplotlib
 

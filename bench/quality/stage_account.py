@@ -29,7 +29,7 @@ a vertex deeper than 5 mm and the deepest; RMSE, Hausdorff and STED against the 
         [--sequence out/chain_spin.npz] [--checkpoint checkpoints/salsa/motion.pt] \\
         [--out docs/STAGE_ACCOUNT.md]
 
-Writes the table (markdown), the figures as JSON beside it, and a plot of the hem flare
+Writes the table (markdown), the figures as JSON in bench/figures/, and a plot of the hem flare
 per frame around each clip's fastest turn (``docs/img/stage_account_flare.png``).
 """
 
@@ -48,6 +48,10 @@ import torch
 from loosefit.eval.stage_account import clip_account
 from loosefit.inference.animator import load_pipeline
 from loosefit.train.common import machine
+
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
 
 COLUMNS = [  # key, header, format
     ("strain_p50", "strain p50", "{:.3f}"),
@@ -168,7 +172,7 @@ def main() -> None:
         "clips": clips,
     }
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(record, indent=1))
+    (FIGURES / f"{out.stem}.json").write_text(json.dumps(record, indent=1))
     plot(clips, Path(args.plot))
     body = table(clips)
     print(body)
@@ -178,7 +182,7 @@ def main() -> None:
         out.write_text(head + marker + "\n" + body + "\n")
     else:
         out.write_text(f"# The stage account\n\n{marker}\n{body}\n")
-    print(f"wrote {out}, {out.with_suffix('.json')} and {args.plot}")
+    print(f"wrote {out}, {FIGURES / (out.stem + '.json')} and {args.plot}")
 
 
 if __name__ == "__main__":

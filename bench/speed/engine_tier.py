@@ -19,7 +19,7 @@ PyTorch model (max difference over the clip).
 
     OMP_NUM_THREADS=1 python bench/speed/engine_tier.py --out docs/ENGINE_TIER.md
 
-Writes the Markdown table and the figures as JSON beside it.
+Writes the Markdown table and the figures as JSON in bench/figures/.
 """
 
 from __future__ import annotations
@@ -45,6 +45,10 @@ from loosefit.inference.engine.model import engine_path_of, load_engine, rollout
 from loosefit.inference.engine.runtime import EngineRuntime, rollout_engine_onnx
 from loosefit.inference.timeline import rollout_timeline
 from loosefit.motion.motions import load_motion
+
+# the figures of a page docs/X.md as JSON: bench/figures/X.json
+FIGURES = Path(__file__).resolve().parents[1] / "figures"
+
 
 MEASURES = (
     "rmse_cm",
@@ -173,7 +177,7 @@ def main() -> None:
             print(name, label, {k: round(v, 4) for k, v in clip["rows"][label].items()}, flush=True)
         result["quality"][name] = clip
     out = Path(args.out)
-    out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    (FIGURES / f"{out.stem}.json").write_text(json.dumps(result, indent=1) + "\n")
     out.write_text(markdown(result))
     print(out.read_text())
 
