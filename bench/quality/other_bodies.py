@@ -388,7 +388,11 @@ def main() -> None:
     p.add_argument("--results", default="docs/RESULTS.md", help="its section there too")
     p.add_argument("--size", type=int, default=260)
     p.add_argument("--repeats", type=int, default=3, help="speed: runs of each body")
-    p.add_argument("--speed-out", default="bench/other_bodies_speed.md")
+    p.add_argument(
+        "--speed-out",
+        default="bench/figures/other_bodies_speed.md",
+        help="speed: the table of seconds by body, which evaluate includes",
+    )
     p.add_argument("--bodies", nargs="*", default=None, help="evaluate: these bodies only")
     p.add_argument("--cache", default="runs/other_bodies", help="each body's figures, kept")
     p.add_argument("--force", action="store_true", help="measure cached bodies again")
