@@ -31,7 +31,7 @@ mkdir -p "$RUNS/motion"
 # 3. The motion encoder with and without the previous state, and the runs that test how the
 #    previous state is trained (teacher forcing only, with noise, unrolled, a floor under
 #    scheduled sampling, mirrored clips, twice the epochs, the spine and leg joints only,
-#    a second seed, the faster clips): bench/ablations/motion_ablation.py's RUNS, one thread each, three side by side;
+#    a second seed, the faster clips): the runs of bench/ablations/motion_runs.yaml, one thread each, three side by side;
 #    then Table 1 (paper 3.3, 4.3) from all of them, with the rest drape carried by the
 #    root (no dynamics) and the generative model's own code of the simulation (the floor)
 #    as reference rows.

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from loosefit.eval.depth import body_hits, inside_depths
+from loosefit.eval.depth import body_hits, body_surfaces, inside_depths
 from tests.meshes import cube
 
 HALF = 0.2  # m, half the box's side
@@ -78,3 +78,16 @@ def test_vertices_beyond_the_reach_are_outside():
     np.testing.assert_array_equal(hit.faces >= 0, [True, False])
     share, deepest = inside_depths(garment, body, faces, max_distance=0.5)
     assert share[0] == 0.5 and deepest[0] == pytest.approx(0.1, abs=1e-6)
+
+
+def test_the_surface_follows_the_body(case):
+    garment, body, faces, centres = case
+    seen = 0
+    for t, surface in enumerate(body_surfaces(body, faces)):
+        inside, distance = box_reference(garment[t], centres[t])
+        hit = surface.query(garment[t])
+        np.testing.assert_array_equal(hit.inside, inside)
+        np.testing.assert_allclose(hit.distance, distance, atol=1e-5)
+        seen += 1
+    assert seen == len(body)
+    assert list(body_surfaces(body[:0], faces)) == []

@@ -4,6 +4,7 @@ One BVH of the body is built once and refitted to each frame's pose; each frame'
 vertices are queried against it (:class:`~loosefit.geometry.query.Surface`): the closest
 skin, the distance to it, and whether the vertex is inside.
 
+* :func:`body_surfaces`: the body's BVH refitted to each frame in turn;
 * :func:`body_hits`: the query of every frame, one after the other;
 * :func:`inside_depths`: per frame, the share of vertices inside and the deepest of them.
 """
@@ -15,6 +16,29 @@ from collections.abc import Iterator
 import numpy as np
 
 from loosefit.geometry.query import ClosestPoints, Surface
+
+
+def body_surfaces(
+    body: np.ndarray, faces: np.ndarray, winding_number: bool = False
+) -> Iterator[Surface]:
+    """The body's surface at each frame: one BVH, built once and refitted frame by frame.
+
+    Args:
+        body: (T, Vb, 3) the posed body.
+        faces: (Fb, 3) its triangles (closed, facing out).
+        winding_number: keep the BVH's solid-angle data (inside by the generalised winding
+            number).
+
+    Yields:
+        T times the same :class:`~loosefit.geometry.query.Surface`, refitted to frame t
+        (valid until the next frame is asked for).
+    """
+    if len(body) == 0:
+        return
+    surface = Surface(body[0], faces, winding_number=winding_number)
+    for t in range(len(body)):
+        surface.refit(body[t])
+        yield surface
 
 
 def body_hits(
@@ -38,9 +62,8 @@ def body_hits(
     Yields:
         T :class:`~loosefit.geometry.query.ClosestPoints`, one per frame, each of V queries.
     """
-    surface = Surface(body[0], faces, winding_number=winding_number)
-    for t in range(len(garment)):
-        surface.refit(body[t])
+    surfaces = body_surfaces(body[: len(garment)], faces, winding_number)
+    for t, surface in enumerate(surfaces):
         yield surface.query(garment[t], max_distance)
 
 
