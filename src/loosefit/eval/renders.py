@@ -30,8 +30,8 @@ def error_sheet(
         out_path: the picture to write (JPEG, quality 88, or any format PIL names by suffix).
         frame: the frame shown.
         truth: (T, V, 3) the reference garment (the simulation).
-        garments: label -> (T, V, 3) each method's garment, coloured by its per-vertex
-            distance to ``truth`` (cm, ``vmax`` at the top of the colour map).
+        garments: label -> (V, 3) each method's garment at ``frame``, coloured by its
+            per-vertex distance to ``truth[frame]`` (cm, ``vmax`` at the top of the colour map).
         body: (T, Vb, 3) the posed body; body_faces: (Fb, 3) its triangles.
         faces: (F, 3) the garment's triangles.
         vmax: cm, the colour bar's top.
