@@ -16,7 +16,7 @@
 #    `ft`, the committed salsa set (checkpoints/salsa) fine-tuned (10 + 10 + 4 epochs), and
 #    `scratch`, trained from nothing (30 + 30 + 4 epochs), both with the physics terms of
 #    docs/PHYSICS_ABLATION.md (generative: membrane, bending, collision; motion: membrane,
-#    hem flare, mirrored clips). bench/compare_sets.py picks the one with the lowest RMSE on
+#    hem flare, mirrored clips). bench/quality/compare_sets.py picks the one with the lowest RMSE on
 #    the validation clips (simulated, left out of the split, never trained on; the held-out
 #    clips never decide) among them and `ft` packaged without its detail stage, and it is
 #    packaged into checkpoints/dance.
@@ -60,8 +60,8 @@ if step data; then
       > "$RUNS/reference.log" 2>&1
 fi
 
-chosen() {  # the set bench/compare_sets.py chose (step set), by its candidate's name
-  "$BIN/python" -c "import json; print(json.load(open('docs/DANCE_SETS.json'))['winner'])"
+chosen() {  # the set bench/quality/compare_sets.py chose (step set), by its candidate's name
+  "$BIN/python" -c "import json; print(json.load(open('bench/figures/DANCE_SETS.json'))['winner'])"
 }
 done_run() {  # a run whose report is written is finished
   [ -f "$1/report.json" ] && echo "[dance_models] $1: done ($1/report.json)"
@@ -96,7 +96,7 @@ if step set; then
   candidate "$RUNS/scratch" 30 30 none & scratch=$!
   wait "$ft" "$scratch"
   "$BIN/loosefit" package "$RUNS/ft/motion/model.pt" --out "$RUNS/ft-nodetail/set"
-  "$BIN/python" bench/compare_sets.py --data "$DATA" --cache "$RUNS/compare_sets" \
+  "$BIN/python" bench/quality/compare_sets.py --data "$DATA" --cache "$RUNS/compare_sets" \
       --sets salsa="$BASE/motion.pt" ft="$RUNS/ft/set/motion.pt" \
       scratch="$RUNS/scratch/set/motion.pt" ft-nodetail="$RUNS/ft-nodetail/set/motion.pt" \
       --out docs/DANCE_SETS.md
@@ -114,14 +114,14 @@ if step tables; then
   winner=${winner%-nodetail}  # the candidate whose detail stage Table 2 measures
   mkdir -p "$RUNS/tables/motion-ablation"
   ln -sfn "$(realpath "$RUNS/scratch/motion")" "$RUNS/tables/motion-ablation/ps-physics"
-  "$BIN/python" bench/motion_ablation.py --data "$DATA" --preset cpu --epochs 30 \
+  "$BIN/python" bench/ablations/motion_ablation.py --data "$DATA" --preset cpu --epochs 30 \
       --generative "$RUNS/scratch/generative/checkpoint.pt" --runs ps-physics,nops-physics \
       --threads 1 --out "$RUNS/tables/motion-ablation" --table docs/MOTION_DANCE_TABLE.md
   done_run "$RUNS/tables/detail-nodisc" ||
   "$BIN/loosefit" train detail --data "$DATA" --preset cpu --epochs 4 --no-discriminator \
       --motion "$RUNS/$winner/motion/model.pt" --init "$BASE/detail.pt" --threads 1 \
       --out "$RUNS/tables/detail-nodisc" > "$RUNS/tables/detail-nodisc.log" 2>&1
-  "$BIN/python" bench/detail_collision.py --checkpoint "$RUNS/$winner/set/motion.pt" \
+  "$BIN/python" bench/ablations/detail_collision.py --checkpoint "$RUNS/$winner/set/motion.pt" \
       --data "$DATA" --detail "$RUNS/$winner/detail/model.pt" \
       --detail-nodisc "$RUNS/tables/detail-nodisc/model.pt" --no-part-a \
       --out docs/DETAIL_DANCE_TABLE.md

@@ -33,5 +33,5 @@ step "$BIN/loosefit" animate "$RUNS/package/motion.pt" dance:10 --seed 7 --out "
 step "$BIN/loosefit" evaluate --checkpoint "$RUNS/package/motion.pt" --data "$DATA" \
     --out "$RUNS/evaluate" --horizons 30,60,120
 #    ... beside the drape carried rigidly and the generative model's floor
-step "$BIN/python" bench/rollout_references.py --checkpoint "$RUNS/package/motion.pt" \
+step "$BIN/python" bench/quality/rollout_references.py --checkpoint "$RUNS/package/motion.pt" \
     --data "$DATA" --out "$RUNS/references.json"

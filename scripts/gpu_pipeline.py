@@ -160,8 +160,8 @@ def steps(work: Path, out: Path, device: str, tiny: bool, mocap: Path, sizes: di
          work / "table3" / "evaluation.json"),
         ("package", [*cli, "package", str(model), "--out", str(out / "model")],
          out / "model" / "motion.pt"),
-        ("inference", [sys.executable, str(ROOT / "bench" / "batch_inference.py"), *bench, *dev,
-                       "--out", str(work / "BATCH_INFERENCE.md")],
+        ("inference", [sys.executable, str(ROOT / "bench" / "speed" / "batch_inference.py"),
+                       *bench, *dev, "--out", str(work / "BATCH_INFERENCE.md")],
          work / "BATCH_INFERENCE.md"),
     ]
     # fmt: on
@@ -251,7 +251,7 @@ def run(args: argparse.Namespace) -> int:
 def sim_speed(args: argparse.Namespace) -> int:
     """The simulator on the GPU in one call: the ``dance`` corpus end to end from a cold
     start (``loosefit simulate``, timed from the command's start; ``--corpus-budget``
-    seconds at most), then ``bench/sim_gpu.py``'s table of frames per second by batch,
+    seconds at most), then ``bench/speed/sim_gpu.py``'s table of frames per second by batch,
     with and without graph capture, in what is left of ``--budget``. Results in ``--out``."""
     t_end = time.monotonic() + args.budget
     out, work = Path(args.out), Path(args.work)
@@ -298,7 +298,7 @@ def sim_speed(args: argparse.Namespace) -> int:
         print(f"corpus: exit {rc} after {seconds:.0f} s, {len(done)} clips done, "
               f"{len(flagged)} flagged, {frames} frames", flush=True)  # fmt: skip
     left = t_end - time.monotonic()
-    bench = [sys.executable, "bench/sim_gpu.py", "--device", args.device, "--batches",
+    bench = [sys.executable, "bench/speed/sim_gpu.py", "--device", args.device, "--batches",
              args.batches, "--frames", str(args.frames), "--clips", str(args.clips),
              "--capture", args.capture, "--budget", str(max(left - 60, 0)),
              "--out", str(out), *sets]  # fmt: skip

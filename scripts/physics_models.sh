@@ -18,10 +18,10 @@
 # 3. The motion stage fine-tuned from the committed motion.pt (mirrored clips, as the
 #    committed ps-mirror run) on the generative run GEN_ABLATION (default g-mbc), three runs:
 #      m-plain  the paper's terms only;  m-m  + membrane;  m-mf  + membrane + hem flare
-# 4. bench/physics_ablation.py: every run on the account's clips (docs/PHYSICS_ABLATION.md).
+# 4. bench/ablations/physics_ablation.py: every run on the account's clips (docs/PHYSICS_ABLATION.md).
 # 5. With GEN and MOTION set (the runs the table chose): the detail stage fine-tuned from
 #    the committed detail.pt on that motion stage, and the three packaged into
-#    checkpoints/salsa (the set before is kept in out/salsa-before-34 for the account's
+#    checkpoints/salsa (the set before is kept in out/salsa-without-physics-terms for the account's
 #    "today" rows).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -45,10 +45,10 @@ mkdir -p "$RUNS" out
 # 1. the data
 "$BIN/loosefit" simulate --preset salsa --bvh "$BVH" --out "$DATA" --workers 2
 
-# the set before this issue (the one every run starts from, and the account's "today"
+# the set before the physics terms (the one every run starts from, and the account's "today"
 # rows), from the repository's history: the shipped set is the retrained one since
-BEFORE=out/salsa-before-34
-bash scripts/set_before_34.sh "$BEFORE"
+BEFORE=out/salsa-without-physics-terms
+bash scripts/set_without_physics_terms.sh "$BEFORE"
 
 done_run() {  # a run whose report is written is finished: not evaluated again
   [ -f "$RUNS/$1/report.json" ] && echo "[physics_models] $1: done ($RUNS/$1/report.json)"
@@ -85,8 +85,8 @@ pair "motion m-plain $GEN_ABLATION" "motion m-m $GEN_ABLATION --membrane $MEMBRA
 motion m-mf "$GEN_ABLATION" --membrane "$MEMBRANE" --flare "$FLARE"
 
 # 4. the table (once: the chosen pair's run below does not make it again)
-[ -n "${GEN:-}" ] && [ -f docs/PHYSICS_ABLATION.json ] ||
-"$BIN/python" bench/physics_ablation.py --base "$BEFORE/motion.pt" \
+[ -n "${GEN:-}" ] && [ -f bench/figures/PHYSICS_ABLATION.json ] ||
+"$BIN/python" bench/ablations/physics_ablation.py --base "$BEFORE/motion.pt" \
     --generative g-before="$BEFORE/generative.pt" g-plain="$RUNS/g-plain/checkpoint.pt" \
     g-m="$RUNS/g-m/checkpoint.pt" g-mb="$RUNS/g-mb/checkpoint.pt" \
     g-mbc="$RUNS/g-mbc/checkpoint.pt" g-m3x-bc="$RUNS/g-m3x-bc/checkpoint.pt" \

@@ -3,7 +3,7 @@
 # the first that datasets/salsa finishes), before the full ablation of
 # scripts/physics_models.sh. The committed generative model fine-tuned on it for
 # PROBE_EPOCHS epochs with each set of terms, one at a time on one thread, then measured by
-# its own reconstruction of the account's held-out clips (bench/physics_ablation.py).
+# its own reconstruction of the account's held-out clips (bench/ablations/physics_ablation.py).
 # Resumable; about 15 CPU minutes.
 #
 #   bash scripts/physics_probe.sh                    # both parts
@@ -17,7 +17,7 @@ RUNS=${RUNS:-runs/physics-probe}
 EPOCHS=${PROBE_EPOCHS:-8}
 LR=${PROBE_LR:-3e-4}
 BASE=${BASE:-checkpoints/salsa}
-[ -f out/salsa-before-34/generative.pt ] && BASE=out/salsa-before-34
+[ -f out/salsa-without-physics-terms/generative.pt ] && BASE=out/salsa-without-physics-terms
 
 # a data set of the one clip (links into datasets/salsa), trained and "tested" on it: the
 # measure is the account's held-out clips
@@ -52,7 +52,7 @@ args=()
 for r in g-plain g-m100 g-m300 g-m1000 g-m300-b10 g-m300-b10-c30; do
   args+=("$r=$RUNS/$r/checkpoint.pt")
 done
-"$BIN/python" bench/physics_ablation.py --base "$BASE/motion.pt" \
+"$BIN/python" bench/ablations/physics_ablation.py --base "$BASE/motion.pt" \
     --generative "g-before=$BASE/generative.pt" "${args[@]}" --out docs/notes/PHYSICS_PROBE.md
 fi
 [ "$PART" != gen ] || exit 0
@@ -70,7 +70,7 @@ motion() {  # name, flags
 motion m-plain
 motion m-m1000 --membrane 1000
 motion m-m1000-f1 --membrane 1000 --flare 1
-"$BIN/python" bench/physics_ablation.py --base "$BASE/motion.pt" \
+"$BIN/python" bench/ablations/physics_ablation.py --base "$BASE/motion.pt" \
     --motion "m-before=$BASE/motion.pt" "m-plain=$RUNS/m-plain/model.pt" \
     "m-m1000=$RUNS/m-m1000/model.pt" "m-m1000-f1=$RUNS/m-m1000-f1/model.pt" \
     --out docs/notes/PHYSICS_PROBE_MOTION.md

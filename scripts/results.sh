@@ -4,9 +4,9 @@
 # compared with the committed model on its held-out clips, on the CPU; REFERENCE=DATASET adds
 # the physical reference row (held-out motion simulated again from another seed);
 # WITH_DETAIL=SET/motion.pt adds ours with a detail stage where the compared set has none;
-# TABLE1, TABLE2: Markdown tables (bench/motion_ablation.py's, bench/detail_collision.py's)
+# TABLE1, TABLE2: Markdown tables (bench/ablations/motion_ablation.py's, bench/ablations/detail_collision.py's)
 # included as sections; MEMBERS="SEED1 SEED2 ...": data sets of the held-out clips simulated
-# from other seeds, every method scored against them (bench/ensemble.py, docs/ENSEMBLE.md) and
+# from other seeds, every method scored against them (bench/quality/ensemble.py, docs/ENSEMBLE.md) and
 # that included as a section. Needs the
 # data (scripts/salsa_models.sh step 1, scripts/dance_models.sh step 1) and the set it
 # compares. Every step resumes where a killed run stopped (finished runs are reused); rerun
@@ -28,7 +28,7 @@ mkdir -p "$RUNS/baselines" "$RUNS/ablation"
 #    single vertex decoder and the linear decoder on a skinning decomposition, cpu preset, two
 #    seeds each (the run-to-run noise); one thread per process, the two seeds side by side.
 #    About 75 min per seed on one core of dev-cpu (decomposed 15 min, vertex 20, ssdr 40).
-ABL=("$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$ABLATION_EPOCHS"
+ABL=("$BIN/python" bench/ablations/generative_ablation.py --data "$DATA" --preset cpu --epochs "$ABLATION_EPOCHS"
      --out "$RUNS/ablation" --threads 1 --train-only)
 "${ABL[@]}" --seeds 0 > "$RUNS/ablation/seed0.log" 2>&1 &
 seed0=$!
@@ -56,14 +56,14 @@ wait "$b0" "$b1"
 # 3. Every method rolled out on the held-out chain and scored, the ablation's table, the plot
 #    and the renders: docs/RESULTS.md (about 15 min); with MEMBERS, every method against the
 #    held-out clips' ensembles first (docs/ENSEMBLE.md, about 15 min).
-"$BIN/python" bench/generative_ablation.py --data "$DATA" --preset cpu --epochs "$ABLATION_EPOCHS" \
+"$BIN/python" bench/ablations/generative_ablation.py --data "$DATA" --preset cpu --epochs "$ABLATION_EPOCHS" \
     --seeds 0,1 --out "$RUNS/ablation" --table "$TABLE"
 if [ -n "${MEMBERS:-}" ]; then
   # shellcheck disable=SC2086  # MEMBERS: data set folders, one word each
-  "$BIN/python" bench/ensemble.py --data "$DATA" --members $MEMBERS --checkpoint "$CHECKPOINT" \
+  "$BIN/python" bench/quality/ensemble.py --data "$DATA" --members $MEMBERS --checkpoint "$CHECKPOINT" \
       --baselines "$RUNS/baselines" --cache "$RUNS/ensemble" --out docs/ENSEMBLE.md
 fi
-"$BIN/python" bench/results.py --data "$DATA" --checkpoint "$CHECKPOINT" \
+"$BIN/python" bench/quality/results.py --data "$DATA" --checkpoint "$CHECKPOINT" \
     --baselines "$RUNS/baselines" --ablation "$RUNS/ablation" --cache "$RUNS/results" \
     ${REFERENCE:+--reference "$REFERENCE"} ${WITH_DETAIL:+--with-detail "$WITH_DETAIL"} \
     ${MEMBERS:+--ensemble docs/ENSEMBLE.md} ${TABLE1:+--table1 "$TABLE1"} ${TABLE2:+--table2 "$TABLE2"} --out docs/RESULTS.md

@@ -31,11 +31,11 @@ mkdir -p "$RUNS/motion"
 # 3. The motion encoder with and without the previous state, and the runs that test how the
 #    previous state is trained (teacher forcing only, with noise, unrolled, a floor under
 #    scheduled sampling, mirrored clips, twice the epochs, the spine and leg joints only,
-#    a second seed, the faster clips): bench/motion_ablation.py's RUNS, one thread each, three side by side;
+#    a second seed, the faster clips): the runs of bench/ablations/motion_runs.yaml, one thread each, three side by side;
 #    then Table 1 (paper 3.3, 4.3) from all of them, with the rest drape carried by the
 #    root (no dynamics) and the generative model's own code of the simulation (the floor)
 #    as reference rows.
-ABL=("$BIN/python" bench/motion_ablation.py --data "$DATA" --datasets "$DATASETS" --preset cpu
+ABL=("$BIN/python" bench/ablations/motion_ablation.py --data "$DATA" --datasets "$DATASETS" --preset cpu
      --generative "$RUNS/generative/checkpoint.pt" --epochs "$MOTION_EPOCHS" --out "$RUNS/motion")
 ALL=ps,nops,ps-teacher,ps-teacher-noise,ps-unroll,ps-floor,ps-mirror,nops-mirror,nops-80,ps-floor-80
 ALL=$ALL,ps-mirror-lower,nops-mirror-lower,ps-mirror-s1,ps-mirror-lower-s1,ps-mirror-speed
@@ -51,7 +51,7 @@ done
 "${ABL[@]}" --runs "$ALL" --table docs/MOTION_TABLE.md
 #    Drift on the same frames: rollouts restarted from the simulation every N frames against
 #    one unbroken rollout (Table 1's iter-N also changes which frames are scored).
-"$BIN/python" bench/motion_drift.py --data "$DATA" --runs "$RUNS/motion" --only "$ALL" \
+"$BIN/python" bench/quality/motion_drift.py --data "$DATA" --runs "$RUNS/motion" --only "$ALL" \
     --table docs/MOTION_DRIFT.md
 # 4. The shared pair (the ps run on mirrored clips): half precision, the motion stage
 #    pointing at the generative one beside it.
@@ -63,7 +63,7 @@ done
     --start-frame 10 --out out/salsa-heldout --render --png-every 100
 # 6. The figures docs/MOTION.md cites for the committed pair: error by stretch of motion, edge
 #    strain, vertices inside the body.
-"$BIN/python" bench/motion_quality.py --checkpoint checkpoints/salsa/motion.pt --data "$DATA"
+"$BIN/python" bench/quality/motion_quality.py --checkpoint checkpoints/salsa/motion.pt --data "$DATA"
 # 7. The detail module (paper 3.4) on the committed motion stage's own rollouts of the
 #    training clips: with and without the multi-scale discriminator (Table 2's rows) and
 #    with an edge-length term added to Eq. 13 (for the edge-strain target), one core
@@ -82,9 +82,9 @@ done
 for pid in "${pids[@]}"; do wait "$pid"; done
 "$BIN/loosefit" package checkpoints/salsa/motion.pt --detail "$RUNS/detail/full/model.pt" \
     --out checkpoints/salsa
-"$BIN/python" bench/detail_collision.py --data "$DATA" --detail "$RUNS/detail/full/model.pt" \
+"$BIN/python" bench/ablations/detail_collision.py --data "$DATA" --detail "$RUNS/detail/full/model.pt" \
     --detail-nodisc "$RUNS/detail/nodisc/model.pt" --detail-edge "$RUNS/detail/full-edge/model.pt" \
     --out docs/DETAIL_TABLE.md
-"$BIN/python" bench/detail_renders.py --data "$DATA" --out docs/img/detail_spin.jpg
-"$BIN/python" bench/detail_renders.py --data "$DATA" --close --out docs/img/detail_spin_hips.jpg
-"$BIN/python" bench/rollout_speed.py --cloth-from "$DATA" --out out/bench-pipeline-salsa.json
+"$BIN/python" bench/quality/detail_renders.py --data "$DATA" --out docs/img/detail_spin.jpg
+"$BIN/python" bench/quality/detail_renders.py --data "$DATA" --close --out docs/img/detail_spin_hips.jpg
+"$BIN/python" bench/speed/rollout_speed.py --cloth-from "$DATA" --out out/bench-pipeline-salsa.json

@@ -40,3 +40,26 @@ def test_a_section_is_put_in_place_of_its_own_or_after_the_first():
     added = splice_section("# T\n\n## A\na\n\n## C\nc\n", "## B", "## B\nb")
     assert added == "# T\n\n## A\na\n\n## B\nb\n\n## C\nc\n"
     assert splice_section(added, "## B", "## B\nb") == added  # again: the same page
+
+
+def test_a_page_becomes_a_section_one_level_down():
+    from loosefit.eval.report import as_section
+
+    page = (
+        "# Where it goes\n\nintro\n\n## Clip a\n\n```\n# a comment\n## not a heading\n```\n#tag\n"
+    )
+    assert as_section(page, "## Profile") == (
+        "## Profile\n\nintro\n\n### Clip a\n\n```\n# a comment\n## not a heading\n```\n#tag\n"
+    )
+    assert as_section("no title\n", "## S") == "## S\nno title\n"
+
+
+def test_a_section_written_into_a_page_keeps_the_rest(tmp_path):
+    from loosefit.eval.report import write_section
+
+    path = tmp_path / "SPEED.md"
+    write_section(path, "## B", "# Bee\n\nfirst\n")
+    assert path.read_text() == "## B\n\nfirst\n"
+    path.write_text("# Speed\n\n## A\na\n\n## B\nold\n\n## C\nc\n")
+    write_section(path, "## B", "# Bee\n\nnew\n\n## Part\nx\n")
+    assert path.read_text() == "# Speed\n\n## A\na\n\n## B\n\nnew\n\n### Part\nx\n\n## C\nc\n"

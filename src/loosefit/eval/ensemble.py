@@ -34,6 +34,7 @@ from loosefit.eval.metrics import rmse, rmse_per_frame
 ROTATION_TOLERANCE = 0.05
 TRANSLATION_TOLERANCE = 1.0e-3  # m, the root's position
 TURN_WINDOW = 30  # frames either side of the fastest turn (61 in all)
+SECTION = "## Against an ensemble of simulations"  # the ensemble's section of a results page
 # configuration fields members must share (the seed and the device aside)
 SHARED_CONFIG = ("garment", "cloth", "unfold", "fps", "shape")
 MEMBER_FREE = ("seed", "device")  # cloth fields that may differ between members

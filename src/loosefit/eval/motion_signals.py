@@ -16,6 +16,9 @@ import numpy as np
 
 from loosefit.body.regions import BodyParts
 from loosefit.errors import LoosefitInputError
+from loosefit.eval.heading import fastest_turn as heading_fastest_turn
+from loosefit.eval.heading import turn_rate as heading_turn_rate
+from loosefit.eval.heading import yaw_rate
 from loosefit.geometry.query import Surface
 
 # m: a limb vertex deeper than this inside the rest of the body makes the pose
@@ -31,17 +34,12 @@ def spin_rate(root_rotations: np.ndarray, fps: float) -> np.ndarray:
         root_rotations: (T, 3, 3) the root joint's world rotation (rest to posed).
         fps: frames per second.
     """
-    import torch
-
-    from loosefit.model.motion_features import heading_yaw
-
     R = np.asarray(root_rotations, np.float64)
     if R.ndim != 3 or R.shape[1:] != (3, 3):
         raise LoosefitInputError("spin_rate", "root_rotations", "shape (T, 3, 3)", f"{R.shape}")
     if len(R) < 2:
         return np.zeros(len(R))
-    yaw = np.unwrap(heading_yaw(torch.from_numpy(R)).numpy())  # (T,)
-    return np.gradient(yaw) * fps
+    return yaw_rate(R, fps, "gradient")
 
 
 @dataclass
@@ -180,18 +178,14 @@ def buried_vertices(parts: BodyParts, limb: str, body: np.ndarray, tolerance: fl
 def turn_rate(motion, window: int = 5) -> np.ndarray:
     """(T,) how fast the heading turns at each frame (rad/s, a centred mean over ``window``
     frames; the first frame 0)."""
-    import torch
-
-    from loosefit.model.motion_features import heading_yaw
-
-    yaw = heading_yaw(torch.from_numpy(np.asarray(motion.rotations[:, 0], np.float64))).numpy()
-    rate = np.abs(np.angle(np.exp(1j * np.diff(yaw)))) * motion.fps  # rad/s
-    return np.concatenate([[0.0], np.convolve(rate, np.ones(window) / window, mode="same")])
+    R = np.asarray(motion.rotations[:, 0], np.float64)
+    return heading_turn_rate(R, motion.fps, window, "step")
 
 
 def fastest_turn(motion, window: int = 5) -> int:
     """The motion frame where the heading turns fastest (:func:`turn_rate`)."""
-    return int(np.argmax(turn_rate(motion, window)[1:])) + 1
+    R = np.asarray(motion.rotations[:, 0], np.float64)
+    return heading_fastest_turn(R, motion.fps, window, "step")
 
 
 def highest_leg(joints_z: np.ndarray) -> tuple[int, float]:

@@ -26,9 +26,9 @@ import numpy as np
 
 from loosefit.body.regions import HANDS, BodyParts
 from loosefit.errors import LoosefitInputError
+from loosefit.eval.depth import body_hits
 from loosefit.eval.motion_signals import MotionSignals, buried_vertices, motion_signals
 from loosefit.garment.quality import PENETRATION_TOLERANCE
-from loosefit.geometry.query import Surface
 
 # Thresholds behind the causes :func:`diagnose` names.
 FAST_SPIN = 2.0 * np.pi  # rad/s about the vertical: a turn a second or faster
@@ -120,14 +120,12 @@ def find_penetrations(
             f"{b.shape[1]}",
         )
     T, V = g.shape[:2]
-    surface = Surface(b[0], parts.collider_faces)
+    finite = np.isfinite(g).all(-1)  # (T, V)
+    hits = body_hits(np.where(finite[..., None], g, 0.0), b, parts.collider_faces)
     inside, deep, max_depth = np.zeros(T), np.zeros(T), np.zeros(T)
     rows: dict[str, list] = {k: [] for k in ("frame", "vertex", "depth", "region", "surface")}
-    for t in range(T):
-        surface.refit(b[t])
-        finite = np.isfinite(g[t]).all(-1)  # (V,)
-        hit = surface.query(np.where(finite[:, None], g[t], 0.0))
-        within = hit.inside & finite & (hit.faces >= 0)
+    for t, hit in enumerate(hits):
+        within = hit.inside & finite[t] & (hit.faces >= 0)
         inside[t] = within.sum() / V
         if within.any():
             max_depth[t] = hit.distance[within].max()

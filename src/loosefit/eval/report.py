@@ -106,3 +106,29 @@ def splice_section(text: str, heading: str, section: str) -> str:
         end = next((i for i in heads if i > start), len(lines))
     out = lines[:start] + section.rstrip().splitlines() + [""] + lines[end:]
     return "\n".join(out).rstrip() + "\n"
+
+
+def as_section(text: str, heading: str) -> str:
+    """A Markdown page (its first line the ``# `` title) as the section ``heading`` (a
+    ``## `` heading) of another page: the title gives way to ``heading`` and every heading
+    of the page goes one level down (``## `` to ``### ``; fenced code left as it is)."""
+    lines = text.rstrip().splitlines()
+    if lines and lines[0].startswith("# "):
+        lines = lines[1:]
+    out, fenced = [heading], False
+    for line in lines:
+        if line.startswith("```"):
+            fenced = not fenced
+        elif not fenced and line.startswith("#") and line.lstrip("#").startswith(" "):
+            line = "#" + line
+        out.append(line)
+    return "\n".join(out) + "\n"
+
+
+def write_section(path: str | Path, heading: str, page: str) -> None:
+    """Put ``page`` (a Markdown page with a ``# `` title) in the page at ``path`` as its
+    section ``heading`` (:func:`as_section`, :func:`splice_section`), the rest of that page
+    kept; a page not there yet is made of the section alone."""
+    path = Path(path)
+    text = path.read_text(encoding="utf-8") if path.is_file() else ""
+    path.write_text(splice_section(text, heading, as_section(page, heading)), encoding="utf-8")

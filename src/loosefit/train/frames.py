@@ -143,14 +143,12 @@ def body_contacts(
     Returns:
         points (T, V, 3) and normals (T, V, 3), float32.
     """
-    from loosefit.geometry.query import Surface
+    from loosefit.eval.depth import body_surfaces
     from loosefit.geometry.signed_distance import signed_distances
 
     points = np.zeros(garment.shape, np.float32)
     normals = np.zeros(garment.shape, np.float32)
-    surface = Surface(body[0], faces)
-    for t in range(len(garment)):
-        surface.refit(body[t])
+    for t, surface in enumerate(body_surfaces(body[: len(garment)], faces)):
         n, ds = signed_distances(garment[t].astype(np.float64), surface, reach)
         near = np.isfinite(ds)
         normals[t] = n
