@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The committed dance set (checkpoints/dance) and the paper's claims measured on dance never
-# seen (docs/RESULTS.md), from the simulated `dance` corpus, on the CPU. Every step resumes:
+# seen (docs/results/RESULTS.md), from the simulated `dance` corpus, on the CPU. Every step resumes:
 # a finished run is reused, a killed one goes on from its last checkpoint; rerun the script
 # to go on after a kill or in the next session.
 #
@@ -15,7 +15,7 @@
 # 2. set: two candidate sets on the corpus's training clips, one core each, side by side:
 #    `ft`, the committed salsa set (checkpoints/salsa) fine-tuned (10 + 10 + 4 epochs), and
 #    `scratch`, trained from nothing (30 + 30 + 4 epochs), both with the physics terms of
-#    docs/PHYSICS_ABLATION.md (generative: membrane, bending, collision; motion: membrane,
+#    docs/results/PHYSICS_ABLATION.md (generative: membrane, bending, collision; motion: membrane,
 #    hem flare, mirrored clips). bench/quality/compare_sets.py picks the one with the lowest RMSE on
 #    the validation clips (simulated, left out of the split, never trained on; the held-out
 #    clips never decide) among them and `ft` packaged without its detail stage, and it is
@@ -23,15 +23,15 @@
 # 3. tables: Table 1 (the motion encoder with and without the previous state, the `scratch`
 #    candidate's configuration on its generative stage: the with-state run is that
 #    candidate's motion stage, 30 epochs, about 45 CPU minutes for the other) in
-#    docs/MOTION_DANCE_TABLE.md, and Table 2 (the shipped candidate's detail stage and the
+#    docs/results/MOTION_DANCE_TABLE.md, and Table 2 (the shipped candidate's detail stage and the
 #    same training without its discriminator, 4 epochs, about 3 CPU minutes; each with and
 #    without collision handling, per held-out clip, about 20 minutes) in
-#    docs/DETAIL_DANCE_TABLE.md.
+#    docs/results/DETAIL_DANCE_TABLE.md.
 # 4. results: the generative ablation (Fig. 4, 20 epochs, two seeds), both baselines (two
 #    seeds each) and every method on the held-out chain and the three held-out ballet
 #    clips, with the physical reference row, and against the held-out clips' ensembles
 #    (datasets/dance-seeds, unpacked from ../shared/datasets/dance-seeds.lfz, where it is
-#    there): docs/RESULTS.md.
+#    there): docs/results/RESULTS.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${BIN:-.venv/bin}
@@ -99,7 +99,7 @@ if step set; then
   "$BIN/python" bench/quality/compare_sets.py --data "$DATA" --cache "$RUNS/compare_sets" \
       --sets salsa="$BASE/motion.pt" ft="$RUNS/ft/set/motion.pt" \
       scratch="$RUNS/scratch/set/motion.pt" ft-nodetail="$RUNS/ft-nodetail/set/motion.pt" \
-      --out docs/DANCE_SETS.md
+      --out docs/results/DANCE_SETS.md
   winner=$(chosen)
   [ "$winner" != salsa ] || { echo "[dance_models] the salsa set won: nothing to commit"; exit 1; }
   run=${winner%-nodetail} detail=(--detail "$RUNS/${winner%-nodetail}/detail/model.pt")
@@ -116,7 +116,7 @@ if step tables; then
   ln -sfn "$(realpath "$RUNS/scratch/motion")" "$RUNS/tables/motion-ablation/ps-physics"
   "$BIN/python" bench/ablations/motion_ablation.py --data "$DATA" --preset cpu --epochs 30 \
       --generative "$RUNS/scratch/generative/checkpoint.pt" --runs ps-physics,nops-physics \
-      --threads 1 --out "$RUNS/tables/motion-ablation" --table docs/MOTION_DANCE_TABLE.md
+      --threads 1 --out "$RUNS/tables/motion-ablation" --table docs/results/MOTION_DANCE_TABLE.md
   done_run "$RUNS/tables/detail-nodisc" ||
   "$BIN/loosefit" train detail --data "$DATA" --preset cpu --epochs 4 --no-discriminator \
       --motion "$RUNS/$winner/motion/model.pt" --init "$BASE/detail.pt" --threads 1 \
@@ -124,7 +124,7 @@ if step tables; then
   "$BIN/python" bench/ablations/detail_collision.py --checkpoint "$RUNS/$winner/set/motion.pt" \
       --data "$DATA" --detail "$RUNS/$winner/detail/model.pt" \
       --detail-nodisc "$RUNS/tables/detail-nodisc/model.pt" --no-part-a \
-      --out docs/DETAIL_DANCE_TABLE.md
+      --out docs/results/DETAIL_DANCE_TABLE.md
 fi
 # 4. the paper's claims on dance
 if step results; then
@@ -133,7 +133,7 @@ if step results; then
   [ "$winner" = "${winner%-nodetail}" ] || with_detail=$RUNS/${winner%-nodetail}/set/motion.pt
   members=""
   [ -d "$SEEDS" ] && members="$SEEDS/seed1 $SEEDS/seed2 $SEEDS/seed3"
-  DATA=$DATA RUNS=$RUNS CHECKPOINT=$SET/motion.pt TABLE=docs/GENERATIVE_DANCE_TABLE.md \
+  DATA=$DATA RUNS=$RUNS CHECKPOINT=$SET/motion.pt TABLE=docs/results/GENERATIVE_DANCE_TABLE.md \
       MEMBERS=$members ABLATION_EPOCHS=20 REFERENCE=$REFERENCE WITH_DETAIL=$with_detail \
-      TABLE1=docs/MOTION_DANCE_TABLE.md TABLE2=docs/DETAIL_DANCE_TABLE.md bash scripts/results.sh
+      TABLE1=docs/results/MOTION_DANCE_TABLE.md TABLE2=docs/results/DETAIL_DANCE_TABLE.md bash scripts/results.sh
 fi

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# A dress, end to end on the CPU (docs/YOUR_GARMENT.md): simulate the `dress` preset, train
+# A dress, end to end on the CPU (docs/use/YOUR_GARMENT.md): simulate the `dress` preset, train
 # both stages, animate a dance the model never saw, render it and export it to USD. Every
 # step resumes where a killed run stopped; rerun the script to go on. Each step prints its
-# time; docs/YOUR_GARMENT.md has the figures of dev-cpu (2 cores).
+# time; docs/use/YOUR_GARMENT.md has the figures of dev-cpu (2 cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${BIN:-.venv/bin}

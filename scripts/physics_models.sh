@@ -5,7 +5,7 @@
 #   bash scripts/physics_models.sh                 # the ablation, then stop
 #   GEN=g-mbc MOTION=m-mf bash scripts/physics_models.sh   # ... and the chosen pair, packaged
 #
-# 1. The salsa data (about 2 h 15 min of both cores; docs/DATASET.md), as
+# 1. The salsa data (about 2 h 15 min of both cores; docs/use/DATASET.md), as
 #    scripts/salsa_models.sh simulates it.
 # 2. The generative model fine-tuned from the committed generative.pt on it (GEN_EPOCHS
 #    epochs at GEN_LR), four runs, two side by side on one thread each:
@@ -14,11 +14,11 @@
 #      g-mb     + membrane + bending
 #      g-mbc    + membrane + bending + collision (the whole body as an obstacle)
 #      g-m3x-bc the same with three times the membrane and bending weights
-#    (weights: docs/notes/PHYSICS_PROBE.md, the probe on one clip, scripts/physics_probe.sh)
+#    (weights: docs/design/notes/PHYSICS_PROBE.md, the probe on one clip, scripts/physics_probe.sh)
 # 3. The motion stage fine-tuned from the committed motion.pt (mirrored clips, as the
 #    committed ps-mirror run) on the generative run GEN_ABLATION (default g-mbc), three runs:
 #      m-plain  the paper's terms only;  m-m  + membrane;  m-mf  + membrane + hem flare
-# 4. bench/ablations/physics_ablation.py: every run on the account's clips (docs/PHYSICS_ABLATION.md).
+# 4. bench/ablations/physics_ablation.py: every run on the account's clips (docs/results/PHYSICS_ABLATION.md).
 # 5. With GEN and MOTION set (the runs the table chose): the detail stage fine-tuned from
 #    the committed detail.pt on that motion stage, and the three packaged into
 #    checkpoints/salsa (the set before is kept in out/salsa-without-physics-terms for the account's
@@ -92,7 +92,7 @@ motion m-mf "$GEN_ABLATION" --membrane "$MEMBRANE" --flare "$FLARE"
     g-mbc="$RUNS/g-mbc/checkpoint.pt" g-m3x-bc="$RUNS/g-m3x-bc/checkpoint.pt" \
     --motion m-before="$BEFORE/motion.pt" m-plain="$RUNS/m-plain/model.pt" \
     m-m="$RUNS/m-m/model.pt" m-mf="$RUNS/m-mf/model.pt" \
-    --out docs/PHYSICS_ABLATION.md
+    --out docs/results/PHYSICS_ABLATION.md
 
 # 5. the chosen pair, its detail stage, packaged
 if [ -n "${GEN:-}" ] && [ -n "${MOTION:-}" ]; then

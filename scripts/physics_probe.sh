@@ -53,7 +53,7 @@ for r in g-plain g-m100 g-m300 g-m1000 g-m300-b10 g-m300-b10-c30; do
   args+=("$r=$RUNS/$r/checkpoint.pt")
 done
 "$BIN/python" bench/ablations/physics_ablation.py --base "$BASE/motion.pt" \
-    --generative "g-before=$BASE/generative.pt" "${args[@]}" --out docs/notes/PHYSICS_PROBE.md
+    --generative "g-before=$BASE/generative.pt" "${args[@]}" --out docs/design/notes/PHYSICS_PROBE.md
 fi
 [ "$PART" != gen ] || exit 0
 
@@ -73,4 +73,4 @@ motion m-m1000-f1 --membrane 1000 --flare 1
 "$BIN/python" bench/ablations/physics_ablation.py --base "$BASE/motion.pt" \
     --motion "m-before=$BASE/motion.pt" "m-plain=$RUNS/m-plain/model.pt" \
     "m-m1000=$RUNS/m-m1000/model.pt" "m-m1000-f1=$RUNS/m-m1000-f1/model.pt" \
-    --out docs/notes/PHYSICS_PROBE_MOTION.md
+    --out docs/design/notes/PHYSICS_PROBE_MOTION.md

@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# docs/RESULTS.md: the paper's baselines and the generative ablation on a data
+# docs/results/RESULTS.md: the paper's baselines and the generative ablation on a data
 # set (salsa; DATA=datasets/dance RUNS=runs/dance CHECKPOINT=... for dance), trained and
 # compared with the committed model on its held-out clips, on the CPU; REFERENCE=DATASET adds
 # the physical reference row (held-out motion simulated again from another seed);
 # WITH_DETAIL=SET/motion.pt adds ours with a detail stage where the compared set has none;
 # TABLE1, TABLE2: Markdown tables (bench/ablations/motion_ablation.py's, bench/ablations/detail_collision.py's)
 # included as sections; MEMBERS="SEED1 SEED2 ...": data sets of the held-out clips simulated
-# from other seeds, every method scored against them (bench/quality/ensemble.py, docs/ENSEMBLE.md) and
+# from other seeds, every method scored against them (bench/quality/ensemble.py, docs/results/ENSEMBLE.md) and
 # that included as a section. Needs the
 # data (scripts/salsa_models.sh step 1, scripts/dance_models.sh step 1) and the set it
 # compares. Every step resumes where a killed run stopped (finished runs are reused); rerun
@@ -19,7 +19,7 @@ BIN=${BIN:-.venv/bin}
 DATA=${DATA:-datasets/salsa}
 RUNS=${RUNS:-runs/salsa}
 CHECKPOINT=${CHECKPOINT:-checkpoints/salsa/motion.pt}   # ours
-TABLE=${TABLE:-docs/GENERATIVE_SALSA_TABLE.md}   # the ablation's own table
+TABLE=${TABLE:-docs/results/GENERATIVE_SALSA_TABLE.md}   # the ablation's own table
 EPOCHS=${EPOCHS:-40}   # the committed generative and motion stages' epochs
 ABLATION_EPOCHS=${ABLATION_EPOCHS:-$EPOCHS}   # the generative ablation's (each decoder's)
 mkdir -p "$RUNS/baselines" "$RUNS/ablation"
@@ -54,16 +54,16 @@ baselines 0 & b0=$!
 baselines 1 & b1=$!
 wait "$b0" "$b1"
 # 3. Every method rolled out on the held-out chain and scored, the ablation's table, the plot
-#    and the renders: docs/RESULTS.md (about 15 min); with MEMBERS, every method against the
-#    held-out clips' ensembles first (docs/ENSEMBLE.md, about 15 min).
+#    and the renders: docs/results/RESULTS.md (about 15 min); with MEMBERS, every method against the
+#    held-out clips' ensembles first (docs/results/ENSEMBLE.md, about 15 min).
 "$BIN/python" bench/ablations/generative_ablation.py --data "$DATA" --preset cpu --epochs "$ABLATION_EPOCHS" \
     --seeds 0,1 --out "$RUNS/ablation" --table "$TABLE"
 if [ -n "${MEMBERS:-}" ]; then
   # shellcheck disable=SC2086  # MEMBERS: data set folders, one word each
   "$BIN/python" bench/quality/ensemble.py --data "$DATA" --members $MEMBERS --checkpoint "$CHECKPOINT" \
-      --baselines "$RUNS/baselines" --cache "$RUNS/ensemble" --out docs/ENSEMBLE.md
+      --baselines "$RUNS/baselines" --cache "$RUNS/ensemble" --out docs/results/ENSEMBLE.md
 fi
 "$BIN/python" bench/quality/results.py --data "$DATA" --checkpoint "$CHECKPOINT" \
     --baselines "$RUNS/baselines" --ablation "$RUNS/ablation" --cache "$RUNS/results" \
     ${REFERENCE:+--reference "$REFERENCE"} ${WITH_DETAIL:+--with-detail "$WITH_DETAIL"} \
-    ${MEMBERS:+--ensemble docs/ENSEMBLE.md} ${TABLE1:+--table1 "$TABLE1"} ${TABLE2:+--table2 "$TABLE2"} --out docs/RESULTS.md
+    ${MEMBERS:+--ensemble docs/results/ENSEMBLE.md} ${TABLE1:+--table1 "$TABLE1"} ${TABLE2:+--table2 "$TABLE2"} --out docs/results/RESULTS.md

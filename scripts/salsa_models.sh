@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The committed salsa checkpoints (checkpoints/salsa) and docs/MOTION_TABLE.md, from scratch,
+# The committed salsa checkpoints (checkpoints/salsa) and docs/results/MOTION_TABLE.md, from scratch,
 # on the CPU. Every step resumes where a killed run stopped; rerun the script to go on.
 #
 #   bash scripts/salsa_models.sh            # BVH clips from ../shared/mocap/cmu-salsa
@@ -48,11 +48,11 @@ for ((i = 0; i < ${#runs[@]}; i += 3)); do
   done
   for pid in "${pids[@]}"; do wait "$pid"; done
 done
-"${ABL[@]}" --runs "$ALL" --table docs/MOTION_TABLE.md
+"${ABL[@]}" --runs "$ALL" --table docs/results/MOTION_TABLE.md
 #    Drift on the same frames: rollouts restarted from the simulation every N frames against
 #    one unbroken rollout (Table 1's iter-N also changes which frames are scored).
 "$BIN/python" bench/quality/motion_drift.py --data "$DATA" --runs "$RUNS/motion" --only "$ALL" \
-    --table docs/MOTION_DRIFT.md
+    --table docs/results/MOTION_DRIFT.md
 # 4. The shared pair (the ps run on mirrored clips): half precision, the motion stage
 #    pointing at the generative one beside it.
 "$BIN/loosefit" package "$RUNS/motion/ps-mirror/model.pt" --out checkpoints/salsa
@@ -61,7 +61,7 @@ done
 "$BIN/loosefit" animate checkpoints/salsa/motion.pt \
     "$BVH/60_03.bvh+$BVH/60_07.bvh+$BVH/61_03.bvh+$BVH/61_07.bvh" \
     --start-frame 10 --out out/salsa-heldout --render --png-every 100
-# 6. The figures docs/MOTION.md cites for the committed pair: error by stretch of motion, edge
+# 6. The figures docs/design/MOTION.md cites for the committed pair: error by stretch of motion, edge
 #    strain, vertices inside the body.
 "$BIN/python" bench/quality/motion_quality.py --checkpoint checkpoints/salsa/motion.pt --data "$DATA"
 # 7. The detail module (paper 3.4) on the committed motion stage's own rollouts of the
@@ -84,7 +84,7 @@ for pid in "${pids[@]}"; do wait "$pid"; done
     --out checkpoints/salsa
 "$BIN/python" bench/ablations/detail_collision.py --data "$DATA" --detail "$RUNS/detail/full/model.pt" \
     --detail-nodisc "$RUNS/detail/nodisc/model.pt" --detail-edge "$RUNS/detail/full-edge/model.pt" \
-    --out docs/DETAIL_TABLE.md
+    --out docs/results/DETAIL_TABLE.md
 "$BIN/python" bench/quality/detail_renders.py --data "$DATA" --out docs/img/detail_spin.jpg
 "$BIN/python" bench/quality/detail_renders.py --data "$DATA" --close --out docs/img/detail_spin_hips.jpg
 "$BIN/python" bench/speed/rollout_speed.py --cloth-from "$DATA" --out out/bench-pipeline-salsa.json

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# The per-stage account (docs/STAGE_ACCOUNT.md), from scratch and resumable:
+# The per-stage account (docs/results/STAGE_ACCOUNT.md), from scratch and resumable:
 #   bash scripts/stage_account.sh        # about 70 CPU minutes on dev-cpu (2 cores)
 # 1. ground truth of the spin and the three held-out ballet clips (bench/quality/account.yaml);
 # 2. the held-out salsa chain's fastest spin (frames 1,140-1,260, settled and blended in at
-#    1,140, as docs/DATASET.md simulates it);
+#    1,140, as docs/use/DATASET.md simulates it);
 # 3. every stage of the committed model measured against them, with renders.
 set -euo pipefail
 cd "$(dirname "$0")/.."

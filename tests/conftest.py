@@ -9,7 +9,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 # A committed set with all three stages (generative, motion, detail): the salsa set, kept in
-# the checkout. The shipped dance set has no detail stage (docs/DANCE_SETS.md), so the tests
+# the checkout. The shipped dance set has no detail stage (docs/results/DANCE_SETS.md), so the tests
 # of a detail stage's files and graphs read this one.
 WITH_DETAIL = REPO / "checkpoints" / "salsa"
 SALSA = SHARED / "mocap" / "cmu-salsa"

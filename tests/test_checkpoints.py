@@ -51,7 +51,7 @@ def test_it_animates_an_unseen_motion_on_the_body(model, avatar):
     strain, _ = edge_strain(vertices, model.template)
     # a skirt, not a torn or exploded mesh (an exploded one stretches edges many times over).
     # The learned surface is compressed at the scale of an edge: p99 0.57 on the held-out
-    # chain, against 0.07 in the simulation (docs/DETAIL.md).
+    # chain, against 0.07 in the simulation (docs/design/DETAIL.md).
     assert np.percentile(strain, 99) < 1.0
     body = avatar.pose_motion(motion)
     inside = inside_fraction(vertices, body.vertices, avatar.collider_faces(arms=True))

@@ -5,7 +5,7 @@ Each test starts from a valid file and breaks it the ways real files break: trun
 lines dropped or repeated, a token replaced by a number, NaN, inf, a huge value, text or
 unicode, an array of another shape or dtype, a field missing. The CI profile tries a few
 dozen cases per reader; ``LOOSEFIT_FUZZ=slow pytest tests/test_fuzz.py`` tries thousands
-(docs/RELIABILITY.md).
+(docs/design/RELIABILITY.md).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The inputs the fuzzing found breaking a reader (docs/RELIABILITY.md), kept as they were:
+"""The inputs the fuzzing found breaking a reader (docs/design/RELIABILITY.md), kept as they were:
 each now ends in a LoosefitInputError naming the file and the field."""
 
 from __future__ import annotations

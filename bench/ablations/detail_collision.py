@@ -11,15 +11,15 @@ clip of ``--data`` (each its own table, and their mean weighted by frames) for n
 module, the module without ``D_ms`` and the full module, each with and without
 collision handling; ``--no-part-a`` leaves part A out::
 
-    python bench/ablations/detail_collision.py --out docs/DETAIL_TABLE.md            # part A
+    python bench/ablations/detail_collision.py --out docs/results/DETAIL_TABLE.md            # part A
     python bench/ablations/detail_collision.py --data datasets/salsa \\
         --detail runs/salsa/detail/full/model.pt \\
         --detail-nodisc runs/salsa/detail/nodisc/model.pt \\
-        [--detail-edge runs/salsa/detail/full-edge/model.pt] --out docs/DETAIL_TABLE.md
+        [--detail-edge runs/salsa/detail/full-edge/model.pt] --out docs/results/DETAIL_TABLE.md
     python bench/ablations/detail_collision.py --checkpoint checkpoints/dance/motion.pt \
         --data datasets/dance --detail runs/dance/ft/detail/model.pt \
         --detail-nodisc runs/dance/tables/detail-nodisc/model.pt --no-part-a \
-        --out docs/DETAIL_DANCE_TABLE.md
+        --out docs/results/DETAIL_DANCE_TABLE.md
 """
 
 from __future__ import annotations
@@ -96,7 +96,7 @@ def main() -> None:
     )
     p.add_argument("--no-part-a", action="store_true", help="Table 2 only (part B)")
     p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--out", default="docs/DETAIL_TABLE.md")
+    p.add_argument("--out", default="docs/results/DETAIL_TABLE.md")
     args = p.parse_args()
     torch.set_num_threads(args.threads)
 

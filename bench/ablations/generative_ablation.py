@@ -7,7 +7,7 @@ the held-out clips as a Markdown table (per seed, and the mean and spread over t
 seeds, which is the run-to-run noise a difference must beat)::
 
     python bench/ablations/generative_ablation.py --data datasets/demo --preset cpu \
-        --out runs/ablation-demo --table docs/notes/GENERATIVE_TABLE.md
+        --out runs/ablation-demo --table docs/design/notes/GENERATIVE_TABLE.md
     python bench/ablations/generative_ablation.py --data datasets/salsa --preset cpu --epochs 40 \
         --seeds 0,1 --out runs/salsa/ablation --json runs/salsa/ablation/table.json
 

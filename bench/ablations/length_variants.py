@@ -4,12 +4,12 @@ The committed pipeline restores the hanging edges of the garment after detail
 (``LengthConfig(edges="hanging")``): the skirt gets its length back, but its circumferential
 edges stay 7-9 % short and the edge strain p99 stays about 0.4 (the simulation's 0.05-0.09).
 Restoring every edge (``edges="all"``) with the default tie turns that lost width into a bell
-(docs/STAGE_ACCOUNT.md). This measures, on the account's clips, the stage with every edge
+(docs/results/STAGE_ACCOUNT.md). This measures, on the account's clips, the stage with every edge
 and a stronger tie to the network's shape (``tie``), before and after collision handling:
 strain, edge change, flare at the fastest turn, inside the whole body, RMSE.
 
     .venv/bin/python bench/ablations/length_variants.py [--data datasets/account] \\
-        [--sequence out/chain_spin.npz] [--out docs/notes/LENGTH_VARIANTS.md]
+        [--sequence out/chain_spin.npz] [--out docs/design/notes/LENGTH_VARIANTS.md]
 
 Writes the table (markdown) and the figures as JSON in bench/figures/. About 15 minutes on dev-cpu.
 """
@@ -104,7 +104,7 @@ def main() -> None:
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
     p.add_argument("--data", default="datasets/account")
     p.add_argument("--sequence", nargs="*", default=["out/chain_spin.npz"])
-    p.add_argument("--out", default="docs/notes/LENGTH_VARIANTS.md")
+    p.add_argument("--out", default="docs/design/notes/LENGTH_VARIANTS.md")
     args = p.parse_args()
 
     from loosefit.data.format import DatasetReader, read_any_sequence

@@ -7,7 +7,7 @@ writes the table::
 
     python bench/ablations/motion_ablation.py --data datasets/salsa \
         --generative runs/generative-salsa-cpu/checkpoint.pt --preset cpu \
-        --out runs/motion-ablation-salsa --table docs/MOTION_TABLE.md
+        --out runs/motion-ablation-salsa --table docs/results/MOTION_TABLE.md
 
 Runs can train side by side (``--runs ps --threads 1 --no-table`` in one process,
 ``--runs nops ...`` in another); a last call with every run then only writes the table.

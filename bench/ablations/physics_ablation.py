@@ -13,7 +13,7 @@ frames).
     .venv/bin/python bench/ablations/physics_ablation.py \\
         --generative g-plain=runs/physics/g-plain/checkpoint.pt g-m=... \\
         --motion m-plain=runs/physics/m-plain/model.pt ... \\
-        --data datasets/account --sequence out/chain_spin.npz --out docs/PHYSICS_ABLATION.md
+        --data datasets/account --sequence out/chain_spin.npz --out docs/results/PHYSICS_ABLATION.md
 
 Writes a table of the means over the clips (markdown) and every clip's figures as JSON.
 """
@@ -92,7 +92,7 @@ def main() -> None:
     p.add_argument("--data", nargs="*", default=["datasets/account"])
     p.add_argument("--sequence", nargs="*", default=["out/chain_spin.npz"])
     p.add_argument("--max-frames", type=int, default=None)
-    p.add_argument("--out", default="docs/PHYSICS_ABLATION.md")
+    p.add_argument("--out", default="docs/results/PHYSICS_ABLATION.md")
     args = p.parse_args()
 
     from loosefit.data.format import DatasetReader, read_any_sequence

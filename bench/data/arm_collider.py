@@ -3,7 +3,7 @@
 Simulates windows of ``salsa`` preset jobs with ``arm_collision: true`` (everything else the
 preset's: flattened overlaps, the pose correction, adaptive substeps) and prints the quality
 figures of each (strain percentiles, the deepest vertex inside the body, the worst frame's
-share deeper than 5 mm). docs/DATASET.md quotes its output; each window takes one core::
+share deeper than 5 mm). docs/use/DATASET.md quotes its output; each window takes one core::
 
     .venv/bin/python bench/data/arm_collider.py 60_01:0:90 chain_60_03_60_07_61_03_61_07:0:60
     .venv/bin/python bench/data/arm_collider.py --preset dance --arms preset 05_16:0:122

@@ -48,7 +48,7 @@ VARIANTS = {
     # the defaults before the pose correction (loosefit.motion.pose_correction)
     "flatten": {"unfold": {"enabled": False}},
     "before": {"cloth": {"flatten_overlaps": False}, "unfold": {"enabled": False}},
-    # the experiments on the way to the flattened collider (docs/PENETRATION.md)
+    # the experiments on the way to the flattened collider (docs/design/PENETRATION.md)
     "gap4": {"cloth": {"body_contact_gap": 0.04}, "unfold": {"enabled": False}},
     "clear4": {"cloth": {"overlap_inset": -0.004}, "unfold": {"enabled": False}},
 }

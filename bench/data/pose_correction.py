@@ -2,7 +2,7 @@
 
 In salsa 60_02's lunge anny's left thigh lies up to 3.5 cm inside the belly, and the skirt
 caught between the two skins is inside the body whatever the cloth does: that pinch is what
-keeps 60_02's mean inside share at 0.103 % (docs/PENETRATION.md). Correcting the motion
+keeps 60_02's mean inside share at 0.103 % (docs/design/PENETRATION.md). Correcting the motion
 before simulating it, turning the limb out of the body as a motion-capture clean-up would,
 is the fix this script measures. For every frame in which a colliding limb (the legs, for
 a skirt) is inside the rest of the body, it searches the smallest turn of the limb that

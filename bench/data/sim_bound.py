@@ -3,7 +3,7 @@ substeps its motions demand, and what a substep costs.
 
 Usage:
     .venv/bin/python bench/data/sim_bound.py [--data datasets/dance] [--preset dance]
-        [--profile-clip 05_10] [--profile-frames 12] [--out docs/SIM_BOUND.md]
+        [--profile-clip 05_10] [--profile-frames 12] [--out docs/results/SIM_SPEED.md]
 
 The data set is the simulated `dance` corpus, unpacked (``python3
 ../shared/datasets/lfz.py unpack ../shared/datasets/dance.lfz. datasets/dance``). Its
@@ -28,7 +28,7 @@ preset made of them.
 
    * ``cap``: the waistband and the body each at most the cap a substep;
    * ``body 1 cm``: the body at most 1 cm (the one limit measured to keep the ballet clip
-     05_10 in the quality gate, docs/SIM_SPEED.md), the waistband at the cap;
+     05_10 in the quality gate, docs/results/SIM_SPEED.md), the waistband at the cap;
    * ``cloth``: the recorded cloth's own fastest vertex at most the cap a substep (the
      preset's cloth; a bound for a solver that makes the same cloth).
 
@@ -36,7 +36,7 @@ preset made of them.
    only raises the bound), the speed-up of the cheapest schedule that meets each limit
    with ``i`` iterations a substep, against the preset's own schedule, for ``i`` = 1 to 5.
    Any schedule of this solver with fewer iterations than the preset makes different
-   cloth (docs/SIM_SPEED_QUALITY.md); the bound says how much faster it could be at best.
+   cloth (docs/results/SIM_SPEED.md); the bound says how much faster it could be at best.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-SECTION = "## The bound on any schedule"  # of docs/SIM_SPEED.md
+SECTION = "## The bound on any schedule"  # of docs/results/SIM_SPEED.md
 
 LIMITS = ("cap", "body 1 cm", "cloth")
 
@@ -190,7 +190,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument(
         "--out",
         default="",
-        help=f"a Markdown page (docs/SIM_SPEED.md) whose section '{SECTION}' the tables "
+        help=f"a Markdown page (docs/results/SIM_SPEED.md) whose section '{SECTION}' the tables "
         "replace, the rest of the page kept",
     )
     p.add_argument("--json", default="", help="a JSON file for the figures")

@@ -3,7 +3,7 @@ several solver schedules, against the same drape solved with many more iteration
 
 Usage:
     .venv/bin/python bench/data/sim_convergence.py [--preset dance] [--workers 2]
-        [--run NAME:KEY=VALUE,KEY=VALUE ...] [--out docs/SIM_CONVERGENCE.md]
+        [--run NAME:KEY=VALUE,KEY=VALUE ...] [--out docs/results/SIM_SPEED.md]
 
 Each ``--run`` settles the preset's garment on the rest pose (the settle phase every clip
 starts with: ``settle_seconds`` of gravity with ``settle_damping``) with the preset's cloth
@@ -34,7 +34,7 @@ import numpy as np
 from loosefit.eval.report import write_section
 from loosefit.eval.sim_runs import parse_candidate
 
-SECTION = "## How far from converged"  # of docs/SIM_SPEED.md
+SECTION = "## How far from converged"  # of docs/results/SIM_SPEED.md
 
 DEFAULT_RUNS = (
     "preset:",
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument(
         "--out",
         default="",
-        help=f"a Markdown page (docs/SIM_SPEED.md) whose section '{SECTION}' the tables "
+        help=f"a Markdown page (docs/results/SIM_SPEED.md) whose section '{SECTION}' the tables "
         "replace, the rest of the page kept",
     )
     args = p.parse_args(argv)

@@ -3,7 +3,7 @@
 Usage:
     .venv/bin/python bench/data/sim_quality.py [--preset dance] [--clips 60_01,05_10]
         [--frames 120] [--workers 2] [--candidate NAME:KEY=VALUE,KEY=VALUE ...]
-        [--cache out/sim_quality] [--out docs/SIM_SPEED_QUALITY.md]
+        [--cache out/sim_quality] [--out docs/results/SIM_SPEED.md]
 
 Each clip of the preset (its first ``--frames`` motion frames, prepared as the data set's
 worker prepares it) is simulated three ways and more, one thread each:
@@ -41,7 +41,7 @@ import numpy as np
 from loosefit.eval.report import write_section
 from loosefit.eval.sim_runs import candidate_config, parse_candidate, simulate_run
 
-SECTIONS = {  # the sections of docs/SIM_SPEED.md a run writes
+SECTIONS = {  # the sections of docs/results/SIM_SPEED.md a run writes
     "quality": "## Speed against quality",
     "accelerated": "## Accelerated schedules",
 }
@@ -91,7 +91,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument(
         "--out",
         default="",
-        help="a Markdown page (docs/SIM_SPEED.md) whose section --section the tables replace, "
+        help="a Markdown page (docs/results/SIM_SPEED.md) whose section --section the tables replace, "
         "the rest of the page kept",
     )
     p.add_argument(

@@ -12,7 +12,7 @@ its cloth configuration (settled and blended in at ``start``), with
 schedule, the per-10-frame maximum edge strain and the dataset's quality
 figures. The default window holds the 26.6 rad/s spin of 61_03 in the held-out
 chain. ``--save`` writes the simulated frames as a sequence for
-``loosefit render --sequence``. docs/DATASET.md quotes its output; each run
+``loosefit render --sequence``. docs/use/DATASET.md quotes its output; each run
 takes one core.
 """
 

@@ -3,7 +3,7 @@ test's quantity measured on several CPU targets, seeds and perturbations of the 
 
 Usage:
     .venv/bin/python bench/data/test_tolerances.py [--targets native,epyc,baseline]
-        [--tests "PYTEST ARGS"] [--out docs/TEST_TOLERANCES.md]
+        [--tests "PYTEST ARGS"] [--out docs/design/TEST_TOLERANCES.md]
 
 Three libraries round the simulation's numbers in code chosen for the processor: Warp
 compiles its CPU kernels with LLVM for the host (``warp.config.cpu_compiler_flags``,
@@ -228,7 +228,7 @@ def mm(x: float) -> str:
 
 
 def table(runs: list[dict], when: str, command: str) -> str:
-    """docs/TEST_TOLERANCES.md: one column a target."""
+    """docs/design/TEST_TOLERANCES.md: one column a target."""
     names = [r["target"] for r in runs]
     head = "| quantity (test) | " + " | ".join(names) + " |\n|---|" + "---:|" * len(runs)
 

@@ -7,7 +7,7 @@ one way in a frame and the other way in the next, or walked through a body part 
 frame and not the next. Also the collision handling's CPU time per frame, the vertices
 it leaves inside the body and the longest edge against its rest length (what a push tears).
 ``--variants`` compares settings of ``CollisionConfig`` (``name:field=value,...``).
-docs/BENCHMARKS.md quotes it::
+docs/results/BENCHMARKS.md quotes it::
 
     OMP_NUM_THREADS=1 python bench/quality/collision_pops.py ../shared/mocap/cmu-salsa/60_01.bvh \\
         ../shared/mocap/cmu-ballet/05_20.bvh --frames 150

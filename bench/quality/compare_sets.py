@@ -13,7 +13,7 @@ here too). The held-out clips are scored as well, for the record, and never deci
 
     python bench/quality/compare_sets.py --data datasets/dance \\
         --sets salsa=checkpoints/salsa/motion.pt fine-tuned=out/sets/ft/motion.pt \\
-        --out docs/DANCE_SETS.md
+        --out docs/results/DANCE_SETS.md
 
 Rollouts and figures are cached per set and clip in ``--cache`` (a killed run goes on).
 """
@@ -139,7 +139,7 @@ def main() -> None:
     p.add_argument("--data", default="datasets/dance")
     p.add_argument("--sets", nargs="+", required=True, help="NAME=path/to/motion.pt ...")
     p.add_argument("--cache", default="runs/dance/compare_sets")
-    p.add_argument("--out", default="docs/DANCE_SETS.md")
+    p.add_argument("--out", default="docs/results/DANCE_SETS.md")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument(
         "--max-frames",

@@ -33,7 +33,7 @@ cover and whole), RMSE in cm (the RMS over frames of each frame's RMS vertex dis
 
     OMP_NUM_THREADS=1 python bench/quality/decoder_floor.py --data datasets/dance \\
         --seeds datasets/dance-seeds --checkpoint checkpoints/dance/motion.pt \\
-        --train-error --out docs/DECODER_FLOOR.md
+        --train-error --out docs/results/DECODER_FLOOR.md
 
 Writes the Markdown and the figures as JSON in bench/figures/.
 """
@@ -283,7 +283,7 @@ def main() -> None:
         help="also the root-frame basis by an exact eigendecomposition, to bound "
         "the randomized SVD's shortfall on the held-out clips",
     )
-    p.add_argument("--out", default="docs/DECODER_FLOOR.md")
+    p.add_argument("--out", default="docs/results/DECODER_FLOOR.md")
     p.add_argument("--machine", default=None, help="the machine line in the doc")
     p.add_argument("--date", default=time.strftime("%Y-%m-%d"))
     args = p.parse_args()

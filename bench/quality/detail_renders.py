@@ -4,7 +4,7 @@ The salsa data's held-out chain (60_03 + 60_07 + 61_03 + 61_07, never seen in tr
 is rolled out from its first frame by the committed model twice: the motion stage
 alone (the decoders' garment, what the model gave before detail enhancement and
 collision handling) and the whole pipeline (detail, then collision handling). The
-frames of the spin (1,188-1,208 by default, as in docs/DATASET.md) are rendered
+frames of the spin (1,188-1,208 by default, as in docs/use/DATASET.md) are rendered
 next to the simulation, one row a frame, columns simulation | before | after, each
 from the front and the side, and tiled into one picture::
 

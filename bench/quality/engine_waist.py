@@ -10,7 +10,7 @@ figures for another engine tier (the one shipped before), pushed out as it was (
 waistband too: ``waist_blend`` 0).
 
     OMP_NUM_THREADS=1 python bench/quality/engine_waist.py --data datasets/dance \\
-        --before out/engine-before.pt --out docs/ENGINE_WAIST.md
+        --before out/engine-before.pt --out docs/results/ENGINE_WAIST.md
 
 Writes the Markdown table and the figures as JSON in bench/figures/.
 """
@@ -103,7 +103,7 @@ def main() -> None:
         help="a folder for the full pipeline's garments (.npy per motion), reused "
         "when there: to measure another tier against the same",
     )
-    p.add_argument("--out", default="docs/ENGINE_WAIST.md")
+    p.add_argument("--out", default="docs/results/ENGINE_WAIST.md")
     p.add_argument("--machine", default=platform.node(), help="the machine's name in the doc")
     p.add_argument("--date", default=time.strftime("%Y-%m-%d"))
     args = p.parse_args()

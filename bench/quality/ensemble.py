@@ -1,4 +1,4 @@
-"""docs/ENSEMBLE.md: every method against an ensemble of simulations of each held-out clip.
+"""docs/results/ENSEMBLE.md: every method against an ensemble of simulations of each held-out clip.
 
 Cloth is chaotic, so one simulation of a clip is one sample of what the cloth may do. The
 held-out clips simulated again from other seeds (``../shared/datasets/dance-seeds``, or
@@ -13,11 +13,11 @@ and highest raised knee (the members | ours)::
     python bench/quality/ensemble.py --data datasets/dance \\
         --members datasets/dance-seeds/seed1 datasets/dance-seeds/seed2 \\
         datasets/dance-seeds/seed3 --checkpoint checkpoints/dance/motion.pt \\
-        --baselines runs/dance/baselines --results docs/RESULTS.md
+        --baselines runs/dance/baselines --results docs/results/RESULTS.md
 
 Rollouts and scores are cached in ``--cache`` (a killed run goes on from what it has).
-``--results`` puts the tables into docs/RESULTS.md as its ensemble section (replacing the
-one there); ``bench/quality/results.py --ensemble docs/ENSEMBLE.md`` includes it when it writes the
+``--results`` puts the tables into docs/results/RESULTS.md as its ensemble section (replacing the
+one there); ``bench/quality/results.py --ensemble docs/results/ENSEMBLE.md`` includes it when it writes the
 whole file.
 """
 
@@ -407,7 +407,7 @@ def markdown(
 
 
 def splice(results: Path, section: str) -> None:
-    """Put ``section`` into docs/RESULTS.md in place of its ensemble section (before the
+    """Put ``section`` into docs/results/RESULTS.md in place of its ensemble section (before the
     first section after the targets where it has none)."""
     from loosefit.eval.report import splice_section
 
@@ -436,9 +436,9 @@ def main() -> None:
         help="realisations (seeds 0, 1, ...) of a stochastic method",
     )
     p.add_argument("--cache", default="runs/dance/ensemble")
-    p.add_argument("--out", default="docs/ENSEMBLE.md")
+    p.add_argument("--out", default="docs/results/ENSEMBLE.md")
     p.add_argument("--img", default="docs/img")
-    p.add_argument("--results", default=None, help="docs/RESULTS.md: its ensemble section")
+    p.add_argument("--results", default=None, help="docs/results/RESULTS.md: its ensemble section")
     p.add_argument("--size", type=int, default=300, help="pixels per view of the renders")
     p.add_argument("--threads", type=int, default=1)
     args = p.parse_args()

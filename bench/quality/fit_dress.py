@@ -13,7 +13,7 @@ saved state are kept in ``--out``): run the same command again.
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/quality/fit_dress.py --out runs/fit_dress
 
-docs/YOUR_GARMENT.md quotes its output: 28 min in all on dev-cpu (one thread, the cores shared).
+docs/use/YOUR_GARMENT.md quotes its output: 28 min in all on dev-cpu (one thread, the cores shared).
 Exit status 1 when a vertex is deeper than 5 mm inside the body in some frame.
 """
 

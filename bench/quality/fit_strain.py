@@ -12,7 +12,7 @@ Usage:
     # the garment bench/quality/fit_dress.py fitted:
     .venv/bin/python bench/quality/fit_strain.py --fitted runs/fit_dress/fitted.npz
 
-docs/YOUR_GARMENT.md quotes its output.
+docs/use/YOUR_GARMENT.md quotes its output.
 """
 
 from __future__ import annotations

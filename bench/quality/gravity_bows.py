@@ -1,4 +1,4 @@
-"""docs/GRAVITY_BOWS.md: does the skirt fall with gravity when the torso bows deep?
+"""docs/results/GRAVITY_BOWS.md: does the skirt fall with gravity when the torso bows deep?
 
 A model that has learned where the skirt sits relative to the body, not where gravity pulls
 it, keeps the skirt in the pelvis's frame as the torso folds forward: its hem points up and
@@ -58,7 +58,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--data", default="datasets/bows")
     p.add_argument("--checkpoint", default="checkpoints/dance/motion.pt")
-    p.add_argument("--out", default="docs/GRAVITY_BOWS.md")
+    p.add_argument("--out", default="docs/results/GRAVITY_BOWS.md")
     p.add_argument("--img", default="docs/img")
     p.add_argument("--size", type=int, default=300)
     p.add_argument("--threads", type=int, default=1)

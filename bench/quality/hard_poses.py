@@ -12,7 +12,7 @@ longest edge against its rest length and the frames with an edge over twice it (
 that tears the cloth). No simulation is needed: the body is the reference.
 
     .venv/bin/python bench/quality/hard_poses.py [--checkpoint checkpoints/salsa/motion.pt] \\
-        [--out docs/HARD_POSES.md] [--set stretch=3.0 ...]
+        [--out docs/results/HARD_POSES.md] [--set stretch=3.0 ...]
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--checkpoint", default="checkpoints/salsa/motion.pt")
     p.add_argument("--config", default="configs/regression.yaml")
-    p.add_argument("--out", default="docs/HARD_POSES.md")
+    p.add_argument("--out", default="docs/results/HARD_POSES.md")
     p.add_argument(
         "--set",
         action="append",

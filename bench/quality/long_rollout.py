@@ -1,5 +1,5 @@
 """A rollout of 10,000 frames: does the learned garment stay on the body, and does its error
-grow? (docs/RELIABILITY.md)
+grow? (docs/design/RELIABILITY.md)
 
 The held-out salsa chain (never trained on) is played ``--repeats`` times in a row
 (:func:`~loosefit.motion.chain.chain_motions`, half-second blends between), and the packaged

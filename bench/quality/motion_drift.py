@@ -9,7 +9,7 @@ the simulated garment was given as its previous state (N = 100, 500, 1,200, or n
 GRU's state depends on the motion alone, so it runs on unchanged through a restart::
 
     python bench/quality/motion_drift.py --data datasets/salsa --runs runs/salsa/motion \
-        --table docs/MOTION_DRIFT.md
+        --table docs/results/MOTION_DRIFT.md
 
 Each run's errors are kept in its folder (``drift.json``, tied to its ``model.pt`` by a
 hash and to the data set's folder and held-out clips), so a table of many runs recomputes

@@ -1,4 +1,4 @@
-"""docs/OTHER_BODIES.md: the pretrained skirt on anny bodies it was not trained on, against
+"""docs/results/OTHER_BODIES.md: the pretrained skirt on anny bodies it was not trained on, against
 simulations on those bodies.
 
 The bodies are ``configs/other_bodies.yaml``'s; each is simulated with
@@ -322,7 +322,7 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
     ]
     Path(args.out).write_text("\n".join(lines))
     print(f"wrote {args.out}")
-    if args.results:  # the same tables, as docs/RESULTS.md's section
+    if args.results:  # the same tables, as docs/results/RESULTS.md's section
         from loosefit.eval.report import splice_section
 
         section = [
@@ -383,9 +383,9 @@ def main() -> None:
     p.add_argument("--corpus", default="datasets/dance")
     p.add_argument("--default-floor", default="datasets/dance-seeds/seed1")
     p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--out", default="docs/OTHER_BODIES.md")
+    p.add_argument("--out", default="docs/results/OTHER_BODIES.md")
     p.add_argument("--img", default="docs/img")
-    p.add_argument("--results", default="docs/RESULTS.md", help="its section there too")
+    p.add_argument("--results", default="docs/results/RESULTS.md", help="its section there too")
     p.add_argument("--size", type=int, default=260)
     p.add_argument("--repeats", type=int, default=3, help="speed: runs of each body")
     p.add_argument(

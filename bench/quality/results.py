@@ -1,4 +1,4 @@
-"""docs/RESULTS.md: every method against the simulation on the held-out clips (paper 4.2-4.3).
+"""docs/results/RESULTS.md: every method against the simulation on the held-out clips (paper 4.2-4.3).
 
 Table 3's form on each held-out set of the data set: the salsa chain (60_03 + 60_07 +
 61_03 + 61_07, 1,957 frames) and, on ``dance``, the three held-out ballet clips (05_02,
@@ -11,7 +11,7 @@ set rendered side by side (simulation | ours | virtual bones | Santesteban), col
 per-vertex error::
 
     python bench/quality/results.py --data datasets/salsa --baselines runs/salsa/baselines \\
-        --ablation runs/salsa/ablation --out docs/RESULTS.md
+        --ablation runs/salsa/ablation --out docs/results/RESULTS.md
 
 Rollouts and their scores are cached in ``--cache`` (a killed run goes on from the
 methods it has); ``scripts/results.sh`` trains what this reads, then runs it.
@@ -504,7 +504,7 @@ def main() -> None:
     p.add_argument("--baselines", default="runs/salsa/baselines")
     p.add_argument("--ablation", default="runs/salsa/ablation")
     p.add_argument("--cache", default="runs/salsa/results")
-    p.add_argument("--out", default="docs/RESULTS.md")
+    p.add_argument("--out", default="docs/results/RESULTS.md")
     p.add_argument("--img", default="docs/img")
     p.add_argument("--size", type=int, default=320, help="pixels per view of the renders")
     p.add_argument("--threads", type=int, default=2)
@@ -517,7 +517,7 @@ def main() -> None:
     p.add_argument(
         "--ensemble",
         default=None,
-        help="docs/ENSEMBLE.md (bench/quality/ensemble.py): "
+        help="docs/results/ENSEMBLE.md (bench/quality/ensemble.py): "
         "every method against an ensemble of simulations, as a section",
     )
     p.add_argument(
@@ -867,7 +867,7 @@ def targets_section(sets: dict) -> list[str]:
 
 
 def ensemble_section(path: str | None) -> list[str]:
-    """bench/quality/ensemble.py's tables (docs/ENSEMBLE.md) as a section."""
+    """bench/quality/ensemble.py's tables (docs/results/ENSEMBLE.md) as a section."""
     if path is None:
         return []
     from loosefit.eval.ensemble import SECTION

@@ -1,4 +1,4 @@
-"""A trained model's held-out rollout error beside its two references (docs/YOUR_GARMENT.md):
+"""A trained model's held-out rollout error beside its two references (docs/use/YOUR_GARMENT.md):
 the settled drape carried rigidly by the root (no dynamics), and the generative model's own
 reconstruction of the simulation (the floor under the motion encoder).
 

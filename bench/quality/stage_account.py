@@ -27,7 +27,7 @@ a vertex deeper than 5 mm and the deepest; RMSE, Hausdorff and STED against the 
 
     .venv/bin/python bench/quality/stage_account.py --data datasets/account \\
         [--sequence out/chain_spin.npz] [--checkpoint checkpoints/salsa/motion.pt] \\
-        [--out docs/STAGE_ACCOUNT.md]
+        [--out docs/results/STAGE_ACCOUNT.md]
 
 Writes the table (markdown), the figures as JSON in bench/figures/, and a plot of the hem flare
 per frame around each clip's fastest turn (``docs/img/stage_account_flare.png``).
@@ -131,7 +131,7 @@ def main() -> None:
     p.add_argument("--clips", nargs="*", default=None, help="only these clips")
     p.add_argument("--sequence", nargs="*", default=[], help="simulated sequence .npz files")
     p.add_argument("--max-frames", type=int, default=None)
-    p.add_argument("--out", default="docs/STAGE_ACCOUNT.md")
+    p.add_argument("--out", default="docs/results/STAGE_ACCOUNT.md")
     p.add_argument("--plot", default="docs/img/stage_account_flare.png")
     args = p.parse_args()
 

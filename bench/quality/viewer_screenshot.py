@@ -1,4 +1,4 @@
-"""The viewer as a browser shows it, saved as a PNG: the README's and docs/VIEWER.md's picture.
+"""The viewer as a browser shows it, saved as a PNG: the README's and docs/use/VIEWER.md's picture.
 
 Serves sequences in ``loosefit.view`` and screenshots the page in headless Chromium (SwiftShader
 WebGL) at one frame, the camera following the bodies::

@@ -20,7 +20,7 @@ has been running for a while.
 Writes the table to ``--out`` (markdown) and prints it; "ratio" is a row's seconds over
 the fastest row's of its load condition. On dev-cpu (2 cores) it takes about 5 minutes::
 
-    python bench/speed/animate_threads.py --machine dev-cpu --out docs/THREADS.md
+    python bench/speed/animate_threads.py --machine dev-cpu --out docs/use/THREADS.md
 """
 
 from __future__ import annotations
@@ -183,7 +183,7 @@ def main() -> None:
         help="OMP_WAIT_POLICY for the runs (default: not set)",
     )
     p.add_argument("--machine", default=platform.node(), help="the machine's name in the doc")
-    p.add_argument("--out", default="docs/THREADS.md")
+    p.add_argument("--out", default="docs/use/THREADS.md")
     p.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = p.parse_args()
     if args.child is not None:

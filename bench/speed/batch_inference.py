@@ -18,7 +18,7 @@ the wall time: the process's CPU time (``time.process_time``, all threads) and t
 thread's (``time.thread_time``), per frame, since the machine may be shared; the best
 wall time of ``--repeats`` runs (the whole pipeline: one run). Prints the tables and the
 crossover (the N past which more characters per call no longer raise frames per second);
-docs/BATCH_INFERENCE.md quotes them::
+docs/use/BATCH_INFERENCE.md quotes them::
 
     python bench/speed/batch_inference.py                          # CPU, 2 threads, ~10 min
     python bench/speed/batch_inference.py --device cuda --paper    # on a GPU

@@ -5,7 +5,7 @@ detail, edge lengths), then collision handling both ways on the same frames, one
 each in turn (so that a busy machine slows both alike): the thread CPU time per frame of
 each, the largest distance between their garments (per vertex, over the clip), the frames
 where it passes 0.5 mm, and the vertices left inside the body (``inside_after``) by each.
-docs/notes/BENCHMARKS_HISTORY.md quotes it::
+docs/design/notes/BENCHMARKS_HISTORY.md quotes it::
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/speed/collision_fast.py \\
         ../shared/mocap/cmu-salsa/60_01.bvh ../shared/mocap/cmu-ballet/05_20.bvh spin

@@ -3,7 +3,7 @@
 Animates a motion with the whole pipeline on one thread (the stages one after another) and
 times, per frame, every ``Surface.refit`` and every ``Surface.query`` grouped by the
 method that asked (the solve, the face samples, the last projection, the mending) and its
-inside test (``normal`` or ``winding``). docs/BENCHMARKS.md quotes it::
+inside test (``normal`` or ``winding``). docs/results/BENCHMARKS.md quotes it::
 
     .venv/bin/python bench/speed/collision_profile.py \\
         --motion ../shared/mocap/cmu-salsa/60_01.bvh --start-frame 10 --frames 150

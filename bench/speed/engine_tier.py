@@ -17,7 +17,7 @@ measures: RMSE, hem flare error over the 61 frames around the fastest turn, medi
 edge change, share of vertices inside the body; and the engine tier's graph against its
 PyTorch model (max difference over the clip).
 
-    OMP_NUM_THREADS=1 python bench/speed/engine_tier.py --out docs/ENGINE_TIER.md
+    OMP_NUM_THREADS=1 python bench/speed/engine_tier.py --out docs/results/ENGINE_TIER.md
 
 Writes the Markdown table and the figures as JSON in bench/figures/.
 """
@@ -99,7 +99,7 @@ def main() -> None:
         help="motion frames the full pipeline is timed on, per --batch",
     )
     p.add_argument("--sim-frames", type=int, default=3)
-    p.add_argument("--out", default="docs/ENGINE_TIER.md")
+    p.add_argument("--out", default="docs/results/ENGINE_TIER.md")
     p.add_argument("--machine", default=platform.node(), help="the machine's name in the doc")
     args = p.parse_args()
     torch.set_num_threads(1)

@@ -17,7 +17,7 @@ pipeline this times, with one thread and by the CPU time of that thread
 
     OMP_NUM_THREADS=1 python bench/speed/length_solve.py [--repeats 5] [--out out/length_solve.json]
 
-Figures (dev-cpu, 2 cores shared, 2026-11-26) in docs/notes/BENCHMARKS_HISTORY.md.
+Figures (dev-cpu, 2 cores shared, 2026-11-26) in docs/design/notes/BENCHMARKS_HISTORY.md.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ and without the detail stage, rolled out by the reference loop
 (the preroll's too, in both). Wall time is the best of ``--repeats``; beside it the
 calling thread's CPU time (``time.thread_time``) and the process's (``time.process_time``)
 of that run, since the machine may be shared. Also the largest difference of the garments
-(m). docs/BENCHMARKS.md and docs/ENGINE_EXPORT.md quote the table::
+(m). docs/results/BENCHMARKS.md and docs/use/ENGINE_EXPORT.md quote the table::
 
     OMP_NUM_THREADS=1 python bench/speed/onnx_speed.py --motion dance:12 --frames 300
 

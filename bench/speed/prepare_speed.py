@@ -4,7 +4,7 @@ turn, and in several at once, as ``loosefit simulate --batch`` now does.
 
 Usage:
     .venv/bin/python bench/speed/prepare_speed.py [--preset dance] [--clips 05_02,05_10,05_12,05_20]
-        [--processes 1,2] [--out docs/PREPARE_SPEED.md]
+        [--processes 1,2] [--out docs/results/SIM_SPEED.md]
 
 Each run prepares the same clips (``workers.prepare_motions``, longest first) and is timed
 from the call to the last motion, the processes' start (imports, the avatar) included. The
@@ -21,7 +21,7 @@ from datetime import date
 
 import numpy as np
 
-SECTION = "## Preparing motions on every core"  # of docs/SIM_SPEED.md
+SECTION = "## Preparing motions on every core"  # of docs/results/SIM_SPEED.md
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -33,7 +33,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument(
         "--out",
         default="",
-        help=f"a Markdown page (docs/SIM_SPEED.md) whose section '{SECTION}' the tables "
+        help=f"a Markdown page (docs/results/SIM_SPEED.md) whose section '{SECTION}' the tables "
         "replace, the rest of the page kept",
     )
     args = p.parse_args(argv)

@@ -6,7 +6,7 @@
    included), to its error.
 2. With ``--compare``: the ``tiny`` preset made by the local runner (``--workers 2``) and on
    a Ray instance of two CPUs on this machine; wall time of each, and whether the two data
-   sets are the same, bit for bit. docs/CLUSTER.md quotes its output::
+   sets are the same, bit for bit. docs/use/CLUSTER.md quotes its output::
 
     .venv/bin/python bench/speed/ray_cluster.py --compare
 """

@@ -23,7 +23,7 @@ after them the same; an onnx row also gives its largest difference (m) from the 
 ``motion`` in the stage figures is per frame computed (the preroll's too).
 
 Only motion frames are timed (the rollout's and the simulation's preroll are
-not), after a warm-up. The figures go in docs/BENCHMARKS.md::
+not), after a warm-up. The figures go in docs/results/BENCHMARKS.md::
 
     OMP_NUM_THREADS=1 python bench/speed/rollout_speed.py --sim-frames 5 --repeats 1 \
         --out out/rollout_speed_37.json
@@ -262,7 +262,7 @@ def main() -> None:
         if torch.cuda.is_available():
             result["simulation"].append(time_simulation(model, avatar, sim_motion, "cuda:0", cloth))
         sim = result["simulation"][0]["seconds_per_frame"]
-    else:  # not simulated this run: the figure of docs/BENCHMARKS.md's last run
+    else:  # not simulated this run: the figure of docs/results/BENCHMARKS.md's last run
         sim = args.sim_seconds
         result["simulation"] = [{"seconds_per_frame": sim, "device": "cpu", "not_run": True}]
     for r in result["rollout"]:

@@ -2,7 +2,7 @@
 
 Usage:
     OMP_NUM_THREADS=1 .venv/bin/python bench/speed/sim_profile.py [--preset dance]
-        [--clips 60_01,05_10] [--frames 20] [--out docs/SIM_PROFILE.md] [--set KEY=VALUE]
+        [--clips 60_01,05_10] [--frames 20] [--out docs/results/SIM_SPEED.md] [--set KEY=VALUE]
         [--warp KEY=VALUE]
 
 Times the pose correction of each whole clip as the data set's worker runs it, then
@@ -47,7 +47,7 @@ from loosefit.eval.sim_runs import ONCE, profiled_run
 from loosefit.sim.presets import preset
 from loosefit.sim.workers import Worker
 
-SECTION = "## Where a frame's time goes"  # of docs/SIM_SPEED.md
+SECTION = "## Where a frame's time goes"  # of docs/results/SIM_SPEED.md
 
 
 def profile_clip(worker: Worker, name: str, frames: int, cloth) -> dict:
@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument(
         "--out",
         default="",
-        help=f"a Markdown page (docs/SIM_SPEED.md) whose section '{SECTION}' the tables "
+        help=f"a Markdown page (docs/results/SIM_SPEED.md) whose section '{SECTION}' the tables "
         "replace, the rest of the page kept",
     )
     p.add_argument("--json", default="", help="a JSON file for the figures")

@@ -6,7 +6,7 @@ Usage:
 
 Prints the machine, the configuration, seconds per 30-fps frame (settle and
 blend-in included, warp kernels already compiled) and the quality numbers that
-a dataset records per clip. docs/BENCHMARKS.md quotes its output.
+a dataset records per clip. docs/results/BENCHMARKS.md quotes its output.
 
 ``--batch K1,K2,...`` also times K copies of the clip (each its own jitter seed)
 simulated at once as worlds of one model (``loosefit simulate --batch K``): the

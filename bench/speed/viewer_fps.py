@@ -11,7 +11,7 @@ costs, less sensitive than the rate to other jobs sharing the machine; and that 
 browser's processes and of the server. Of the frames drawn it also counts those that
 followed a new frame's arrival (the rest redrew the frame shown). Chromium draws without
 multisampling unless ``--antialias`` (``loosefit.view.headless.NO_ANTIALIAS``).
-docs/VIEWER.md quotes its output::
+docs/use/VIEWER.md quotes its output::
 
     .venv/bin/python bench/speed/viewer_fps.py out/dance1957.npz
     .venv/bin/python bench/speed/viewer_fps.py out/dance1957.npz out/dance1957_rigid.npz \\

@@ -5,7 +5,7 @@ it in a fresh headless Chromium (SwiftShader), lets it play and counts for ``--s
 what ``bench/speed/viewer_fps.py`` counts: frames drawn and new frames drawn per second, the CPU
 time of Chromium's GPU process (where SwiftShader draws) and of all its processes per frame
 drawn. The conditions run in turn, ``--repeat`` times over, so that each is measured in
-the same minutes as the others on a machine shared with other jobs. docs/VIEWER.md quotes
+the same minutes as the others on a machine shared with other jobs. docs/use/VIEWER.md quotes
 its output::
 
     .venv/bin/python bench/speed/viewer_levers.py out/dance1957.npz \\

@@ -195,17 +195,17 @@ class Animator:
             progress: called as ``progress(done, total)``.
             runtime: what runs the learned stages: ``"torch"`` (PyTorch), or ``"onnx"``
                 (onnxruntime: the same garments, faster on one core; ``pip install
-                'loosefit[onnx]'``; docs/ENGINE_EXPORT.md). Edge lengths and collision
+                'loosefit[onnx]'``; docs/use/ENGINE_EXPORT.md). Edge lengths and collision
                 handling are the same Python code either way.
             collision: ``"full"`` (default), or ``"realtime"``: one solve and one round of
                 the last projection and of the mending a frame, 1.3-2.2x faster collision
                 handling, a little more cloth left within a millimetre of the skin
-                (docs/BENCHMARKS.md, "Collision handling: full and realtime").
+                (docs/results/BENCHMARKS.md, "Collision handling: full and realtime").
             threads: torch's intra-op threads for this call (an int >= 1); None: the free
                 cores, at most 4 (:func:`~loosefit.inference.threads.default_threads`:
                 fewer on a busy machine, torch's own count kept where ``OMP_NUM_THREADS``
                 is set). Torch's count before the call comes back after it
-                (docs/THREADS.md).
+                (docs/use/THREADS.md).
             shape: another body, as anny phenotypes (``{"height": 0.8, "weight": 0.3}``,
                 names among gender, age, muscle, weight, height, proportions, each in
                 [0, 1]; those not named as the trained body's). The garment is sized to
@@ -338,7 +338,7 @@ class Animator:
         detail generator) as one ONNX graph at ``path``, its GRU state and previous garment
         explicit inputs and outputs, a JSON beside it saying what they mean and the
         garment's mesh as OBJ (:func:`~loosefit.inference.onnx.export.export_onnx`;
-        docs/ENGINE_EXPORT.md).
+        docs/use/ENGINE_EXPORT.md).
 
         Args:
             path: the ``.onnx`` file.

@@ -1,5 +1,5 @@
 """10,000 frames in one rollout of the packaged model: finite, on the body, and not drifting
-(``pytest -m slow``; the figure against the simulation: bench/long_rollout.py)."""
+(``pytest -m slow``; the figure against the simulation: bench/quality/long_rollout.py)."""
 
 from __future__ import annotations
 

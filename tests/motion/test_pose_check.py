@@ -42,7 +42,7 @@ def test_every_procedural_motion_passes(avatar, spec):
 def test_the_hardest_cmu_clips_pass(avatar, clip):
     # 60_01: feet flipped for 100 frames; 60_04: a hip jump; 05_06: a cartwheel (the fewest
     # frames upright); 05_16: a thigh flipping over four frames (the fastest bone); 05_05:
-    # leaps (the fewest frames on the floor). bench/pose_check_margins.py runs all 31.
+    # leaps (the fewest frames on the floor). bench/data/pose_check_margins.py runs all 31.
     path = SALSA.parent / f"{clip}.bvh"
     if not path.is_file():
         pytest.skip(f"{path} is not present beside the repository")

@@ -34,7 +34,7 @@ def facing_x(motion: Motion) -> Motion:
     at the origin (:func:`settle`) but for the jitter, drawn in the world frame. At the
     spin's own 4 degrees the processor's rounding decides the folds: a clip started from
     settle()'s drape was 13.9 mm from it with one processor's kernels, 7.2 with another's
-    (docs/TEST_TOLERANCES.md)."""
+    (docs/design/TEST_TOLERANCES.md)."""
     forward = motion.rotations[0, 0] @ np.array([0.0, -1.0, 0.0])
     heading = math.atan2(forward[0], -forward[1])
     return place_motion(motion, math.pi / 2 - heading, motion.root_translation[0, :2])
@@ -331,7 +331,7 @@ def test_one_self_contact_pass_a_substep(avatar, tiny, seed_spread):
     one = simulate(avatar, skirt, motion, ClothConfig.tiny(self_contact_passes=1))
     gap = np.linalg.norm(one.garment_vertices - result.garment_vertices, axis=-1)
     # another schedule, the same cloth: it moves the cloth less than another jitter seed
-    # does (measured here; hundreds of times less on every target in bench/test_tolerances.py)
+    # does (measured here; hundreds of times less on every target in bench/data/test_tolerances.py)
     assert 0 < gap.max() and gap.mean() < seed_spread
     assert one.quality["inside_max"] < 0.005
     with pytest.raises(LoosefitInputError, match="self_contact_passes"):
@@ -401,7 +401,7 @@ def test_batched_clips_match_their_own_simulations(avatar, tiny, batch):
         f"{gap * 1000:.1f} mm, {bound * 1000:.1f} allowed (seed: {spread * 1000:.1f})"
     )
     # the quality gate's figures: no vertex 5 mm inside; strain p99 within 0.01, ten times
-    # its spread over seeds and CPU targets (docs/TEST_TOLERANCES.md)
+    # its spread over seeds and CPU targets (docs/design/TEST_TOLERANCES.md)
     assert b.quality["inside_max"] < 0.005
     assert abs(b.quality["strain_p99"] - sway_alone.quality["strain_p99"]) < 0.01
     # the batch steps the longer clip's timeline; the shorter one holds its last pose

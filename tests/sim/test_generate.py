@@ -60,7 +60,7 @@ def test_the_data_set_records_its_rest_drape(tiny_dataset):
         body = Avatar(AvatarConfig(shape=dict(cfg.shape)))
         want = settle(body, reader.template, cfg.cloth, cfg.fps)
     # the settle phase, once: the same machine and inputs, so the same numbers (1e-6 m: far
-    # below any drape's seed spread, docs/TEST_TOLERANCES.md)
+    # below any drape's seed spread, docs/design/TEST_TOLERANCES.md)
     np.testing.assert_allclose(reader.rest_drape, want, atol=1e-6)
     assert np.abs(want - reader.template.vertices).max() > 1e-3  # settled, not the template
 

@@ -113,7 +113,7 @@ def add_bvh_args(p: argparse.ArgumentParser) -> None:
         metavar="MAP",
         help="a BVH file's joints: auto (a shipped map that fits, else matched "
         "by name and structure), daz, cmu_mb, or a .yaml/.toml file of 'avatar "
-        "joint: your joint' lines (docs/INPUTS.md; inspect-motion shows the "
+        "joint: your joint' lines (docs/use/INPUTS.md; inspect-motion shows the "
         "match)",
     )
     p.add_argument(
@@ -141,7 +141,7 @@ def add_bvh_args(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="let through a motion capture whose retargeted poses fail the pose "
         "check (the body standing, its feet meeting the floor, no joint turning "
-        "faster than a body can; docs/INPUTS.md)",
+        "faster than a body can; docs/use/INPUTS.md)",
     )
 
 
@@ -320,7 +320,7 @@ def add_runtime_args(p: argparse.ArgumentParser) -> None:
         help="what runs the learned stages (motion stage, detail): torch (PyTorch), or onnx "
         "(onnxruntime: the same garments, faster on one core; pip install 'loosefit[onnx]'; "
         "the graphs are exported in memory at the start, about a second). Edge lengths and "
-        "collision handling are the same either way (docs/ENGINE_EXPORT.md)",
+        "collision handling are the same either way (docs/use/ENGINE_EXPORT.md)",
     )
     p.add_argument(
         "--collision",
@@ -328,7 +328,7 @@ def add_runtime_args(p: argparse.ArgumentParser) -> None:
         choices=("full", "realtime"),
         help="collision handling: full, or realtime (one solve and one round of its last "
         "projection and mending a frame: 1.3-2.2x faster, a little more cloth left within a "
-        "millimetre of the skin; docs/BENCHMARKS.md, 'real time on one core')",
+        "millimetre of the skin; docs/results/BENCHMARKS.md, 'real time on one core')",
     )
 
 
@@ -341,7 +341,7 @@ def add_threads_arg(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help="torch threads while the model animates (default: the free cores by the "
         f"machine's load average, at most {MOST_THREADS}; OMP_NUM_THREADS, if set, is kept; "
-        "docs/THREADS.md)",
+        "docs/use/THREADS.md)",
     )
 
 

@@ -39,7 +39,7 @@ def add_export_model_parser(sub) -> None:
     p = sub.add_parser(
         "export-model",
         help="the learned runtime as ONNX for an engine, with "
-        "a JSON of what its inputs mean (docs/ENGINE_EXPORT.md)",
+        "a JSON of what its inputs mean (docs/use/ENGINE_EXPORT.md)",
     )
     p.add_argument(
         "out",

@@ -84,7 +84,7 @@ def add_parser(sub) -> None:
         help="simulate every clip as a task on a Ray cluster: the head's HOST:PORT "
         "(`ray start --head` prints it), or none: RAY_ADDRESS, the cluster of this "
         "machine, else a new one here; --out on storage every node shares "
-        "(docs/CLUSTER.md; pip install 'loosefit[cluster]')",
+        "(docs/use/CLUSTER.md; pip install 'loosefit[cluster]')",
     )
     p.add_argument(
         "--save-every",

@@ -221,7 +221,7 @@ def _add_engine_parser(stages) -> argparse.ArgumentParser:
     p = stages.add_parser(
         "engine",
         help="the engine tier: the motion stage's dynamics on a linear garment basis, for a "
-        "game engine (docs/ENGINE_EXPORT.md)",
+        "game engine (docs/use/ENGINE_EXPORT.md)",
         description="Train the engine tier of a full model: its dynamics (motion features, "
         "a recurrent state, the previous garment) mapped to the coefficients of a PCA basis "
         "of the data set's garments, decoded by one matrix product.",

@@ -8,8 +8,8 @@ waits for its team's slowest thread, and a thread that another program's work ha
 off its core holds up the rest (with OpenMP's idle threads sleeping rather than spinning,
 too). On dev-cpu (2 cores) under load, torch's default of a thread a core made
 ``animate`` 1.5-1.9x slower than one thread, at 2x the CPU time (a user saw 6x); on the
-quiet machine two threads were 1.22x faster than one (docs/BENCHMARKS.md, "Threads";
-``bench/animate_threads.py``).
+quiet machine two threads were 1.22x faster than one (docs/results/BENCHMARKS.md, "Threads";
+``bench/speed/animate_threads.py``).
 
 The default (:func:`default_threads`) is therefore the free cores, counted from the
 machine's load: ``round(cores - load)`` where ``cores`` are the ones this process may run

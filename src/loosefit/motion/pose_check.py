@@ -3,7 +3,7 @@
 Three tests on the motion as the avatar dances it (its joints' forward kinematics, no
 mesh), at the capture's own frame rate, each measured on every procedural move, the 14
 CMU salsa and 17 CMU ballet clips (cartwheel, leaps, turns, legs above the hip) before
-its threshold was set (``bench/pose_check_margins.py`` prints the figures):
+its threshold was set (``bench/data/pose_check_margins.py`` prints the figures):
 
 1. **It stands**: the head above the hips and the hips above the lower foot, in most
    frames (:data:`MIN_UPRIGHT`).
@@ -28,7 +28,7 @@ from loosefit.body.avatar import Skeleton
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
 
-# The figures below are bench/pose_check_margins.py's (rerun it to see them; the dev
+# The figures below are bench/data/pose_check_margins.py's (rerun it to see them; the dev
 # machine, 2 CPU cores, about 5 minutes): each procedural move (3 seeds), three dances,
 # and the CMU clips at their own 120 fps (the check runs at the clip's rate, before
 # resampling), retargeted as `loosefit animate` loads them.

@@ -11,7 +11,7 @@ that moves its buried skin out fastest, by the smallest angle that leaves ``clea
 between the two, at most ``max_degrees``, eased in and out over ``ramp_seconds``.
 
 A few degrees do not clear a deep fold: the buried skin lies next to the joint, so 60_02
-needs 24-30 degrees at the hip to clear (``bench/pose_correction.py``). The cap keeps the
+needs 24-30 degrees at the hip to clear (``bench/data/pose_correction.py``). The cap keeps the
 edit small, at the price of the fold that is left (60_02: 1.8 cm, which the collider's
 flattening handles), and still halves the cloth pinched there. The edit moves the limb's
 end: the turned leg's foot moves up to 12 cm in 60_02. It is the recorded motion of the
@@ -58,7 +58,7 @@ class UnfoldConfig:
     # A motion whose legs fold deeper than ``deep_depth`` (m) into the rest of the body (a
     # leap's thigh 8.6 cm into the hips) may turn every limb up to ``deep_degrees``: 10
     # degrees leave the cloth caught between the thighs there, from the shallower frames
-    # around the deepest on (docs/DATASET.md, "Turning leaps"). None: ``max_degrees`` always.
+    # around the deepest on (docs/use/DATASET.md, "Turning leaps"). None: ``max_degrees`` always.
     deep_degrees: float | None = None
     deep_depth: float = 0.05
     deep_limbs: tuple[str, ...] = ("left leg", "right leg")  # the limbs whose folds count

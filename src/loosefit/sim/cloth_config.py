@@ -60,7 +60,7 @@ class ClothConfig:
     # m, extra reach of body-contact detection; a vertex deeper than gap + distance inside the
     # body gets no contact at all. 2 cm lost cloth that a fast crouch folded 2.4-3 cm deep
     # (salsa 60_02 played 1.5x as fast: a vertex 3.1 cm inside, 2.7 cm with 4 cm of reach;
-    # docs/PENETRATION.md)
+    # docs/design/PENETRATION.md)
     body_contact_gap: float = 0.04
     contact_ke: float = 1.0e4  # N/m, contact stiffness (cloth-body and cloth-cloth)
     contact_kd: float = 1.0e-2  # N s/m, contact damping (cloth-body and cloth-cloth)
@@ -78,7 +78,7 @@ class ClothConfig:
     # A mesh of their own has its own inside/outside test, so cloth between a forearm and
     # the hip is not caught in one mesh's overlap, and without friction a hand pushes the
     # cloth without dragging it down (salsa 60_01, frames 0-90: no frame with cloth deeper
-    # than 5 mm inside the body against 54, edge strain as without arms; docs/DATASET.md).
+    # than 5 mm inside the body against 54, edge strain as without arms; docs/use/DATASET.md).
     # Nothing is cut with arm_collision true, and this does not apply.
     arm_friction: float | None = 0.0
     # m: after each frame of the motion, a cloth vertex deeper than this inside the body
@@ -87,7 +87,7 @@ class ClothConfig:
     # parts (the thighs crossing in a turning leap, ballet 05_16) can sink past the
     # contact's reach and stay inside for the rest of the clip (81 of 122 frames, 6.4 cm
     # deep; four times the reach did not free it). None: never.
-    # Measured there (docs/DATASET.md), it tears the cloth wherever it puts the vertices
+    # Measured there (docs/use/DATASET.md), it tears the cloth wherever it puts the vertices
     # (strain p99 0.26 -> 13-30: to the closest skin, or back where they went in,
     # TrappedRelease): off by default.
     release_depth: float | None = None

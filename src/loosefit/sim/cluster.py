@@ -1,4 +1,4 @@
-"""Making a data set on a Ray cluster: every clip a Ray task (docs/CLUSTER.md).
+"""Making a data set on a Ray cluster: every clip a Ray task (docs/use/CLUSTER.md).
 
 :func:`run_on_ray` is the executor :func:`loosefit.sim.generate.generate` uses when it is
 given a :class:`ClusterConfig` instead of running its own processes. Each unit of work (a
@@ -105,7 +105,7 @@ def check_reachable(address: str, timeout: float) -> None:
     host, port = split_address(address)
     expected = (
         "the address of a running Ray cluster's head (`ray start --head` prints it; "
-        "docs/CLUSTER.md)"
+        "docs/use/CLUSTER.md)"
     )
     try:
         with socket.create_connection((host, port), timeout=timeout) as conn:

@@ -21,7 +21,7 @@ the preset is built: ``{salsa}``, the folder of the CMU salsa clips (``--bvh``, 
   and modern dance clips of ``cmu-ballet`` beside the salsa folder (three held out,
   :data:`BALLET_TEST`), with the arms colliding (the cloth defaults of the day);
   mirrored at training time (``--mirror``). About 12,500 frames: some 10 hours of
-  one CPU core, about 8 minutes of an H100 (docs/BENCHMARKS.md).
+  one CPU core, about 8 minutes of an H100 (docs/results/BENCHMARKS.md).
 * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
   salsa plus procedural dances; meant for a GPU.
 * ``dress-tiny``: ``tiny`` with a coarse strapless dress, for tests.

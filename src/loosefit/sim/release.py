@@ -24,7 +24,7 @@ class TrappedRelease:
     part's skin then, carried along as the skin moves; ``offset`` out along that face's
     normal, with the skin's velocity there. Every vertex outside all meshes is anchored
     anew on each part. Cloth pinched into a part comes back on the side it went in from,
-    next to its neighbours. Measured on ballet 05_16 (docs/DATASET.md), the closest
+    next to its neighbours. Measured on ballet 05_16 (docs/use/DATASET.md), the closest
     surface point instead can lie on the far side of a thigh, and one anchor for the whole
     body can lie on the other thigh (the cloth was pressed between the two): a vertex put
     there pulls its neighbours through the legs (edge strain p99 13 and 30). A vertex never

@@ -102,6 +102,6 @@ def format_report(manifest: dict) -> str:
         lines.append(
             f"the body folds into itself (a limb inside the rest of it) in {len(folding)} "
             f"clip(s): cloth caught there is pinched; where and how deep: loosefit diagnose "
-            f"DATASET {folding[0]} (docs/PENETRATION.md)"
+            f"DATASET {folding[0]} (docs/design/PENETRATION.md)"
         )
     return "\n".join(lines)

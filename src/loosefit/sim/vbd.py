@@ -16,7 +16,7 @@ overrides two of its methods (``_initialize_particles``, ``_solve_particle_itera
   falls freely for a substep. The adaptive guess starts at ``x + v dt + a~ dt^2``, ``a~`` the
   last substep's acceleration along gravity clamped to ``[0, |g|]``, so a hanging vertex
   starts where it is. What the iterations minimise (the inertial target) is Newton's own.
-  On a flared skirt it leaves the cloth floating (docs/SIM_SPEED.md): measured, not
+  On a flared skirt it leaves the cloth floating (docs/results/SIM_SPEED.md): measured, not
   recommended.
 
 :func:`solver_class` gives Newton's own solver when neither is asked for.

@@ -40,7 +40,7 @@ class ViewerConfig:
             put in the URL); None: the browser's own, lowered by viser while it draws
             slowly. A browser drawing WebGL in software draws a frame in about 40% less
             time at 0.5 than at viser's ratio, more with multisampling off in the browser
-            (docs/VIEWER.md); with a GPU leave it None.
+            (docs/use/VIEWER.md); with a GPU leave it None.
     """
 
     host: str = "127.0.0.1"

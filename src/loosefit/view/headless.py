@@ -1,7 +1,7 @@
 """Headless Chromium, driven over the DevTools protocol: screenshots of the viewer and the
 rate at which a browser receives and draws its frames.
 
-For the viewer's tests, its benchmark (``bench/viewer_fps.py``) and the docs' screenshots;
+For the viewer's tests, its benchmark (``bench/speed/viewer_fps.py``) and the docs' screenshots;
 nothing here is needed to use the viewer. Chromium draws WebGL without a GPU or a display
 with SwiftShader (``--use-angle=swiftshader``), by default without multisampled edges
 (:data:`NO_ANTIALIAS`: half a frame's cost there). The protocol is spoken over the
@@ -43,7 +43,7 @@ FLAGS = (
     "--remote-debugging-port=0",  # a free port, written to DevToolsActivePort
 )
 # WebGL without multisampling: in software (SwiftShader) a 4-sample canvas costs about twice
-# as much per frame drawn as a plain one (docs/VIEWER.md); what is lost is smooth edges.
+# as much per frame drawn as a plain one (docs/use/VIEWER.md); what is lost is smooth edges.
 NO_ANTIALIAS = ("--webgl-antialiasing-mode=none",)
 # Counts in the page (1) the frames it draws: three.js clears the canvas once per frame,
 # (2) those of them that followed the arrival of a frame's message (vertices at least a

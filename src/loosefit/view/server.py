@@ -34,7 +34,7 @@ BODY_COLOUR = (205, 200, 195)
 # The floor: a square of grid this much wider than the shown bodies' spread, under them and
 # moved with them in whole metres (its lines stay put on the ground). A browser drawing in
 # software pays for every pixel of floor (viser's grid shader): a 20 m floor to the horizon
-# cost it about 40% of a frame more (docs/VIEWER.md).
+# cost it about 40% of a frame more (docs/use/VIEWER.md).
 FLOOR_SIZE = 6.0  # m
 MAX_UPDATES_PER_S = 60.0  # faster playback skips frames rather than flood the browser
 PANEL_EVERY_S = 0.25  # while playing, the slider and figures follow this often

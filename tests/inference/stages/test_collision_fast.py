@@ -182,7 +182,7 @@ def test_the_fast_path_over_a_real_rollout():
         today = model.animate(motion, stages=stages)
     gap = np.linalg.norm(fast.vertices - today.vertices, axis=-1)  # (T, V)
     # over the frames both inside tests agree on (within 0.05 mm of the skin they may not:
-    # salsa 60_01 frame 31, one vertex 0.502 mm apart; docs/BENCHMARKS.md)
+    # salsa 60_01 frame 31, one vertex 0.502 mm apart; docs/results/BENCHMARKS.md)
     assert np.quantile(gap, 0.9999) <= TOLERANCE and gap.max() <= 2 * TOLERANCE
     assert sum(c["inside_after"] for c in fast.collisions) <= sum(
         c["inside_after"] for c in today.collisions

@@ -24,7 +24,7 @@ by the full pipeline; capsules are rounder than a waist, so the trunk's capsules
 band where the tier puts it and push gradually more below it (:func:`waist_hold`); the
 legs' push it as the rest. Measured:
 in the graph the push-out costs a fraction of what the same steps cost as numpy calls
-(docs/ENGINE_EXPORT.md).
+(docs/use/ENGINE_EXPORT.md).
 """
 
 from __future__ import annotations

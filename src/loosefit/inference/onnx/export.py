@@ -23,7 +23,7 @@ the next frame::
 drape (``rest_state``, kept in the graph), its GRU state zero and its previous root its
 own (no velocity); the state inputs are not read. Garments are world positions. The
 edge-length stage and collision handling (paper 3.5) are not in the graph: they need the
-body's surface, which an engine has in its own collider (docs/ENGINE_EXPORT.md).
+body's surface, which an engine has in its own collider (docs/use/ENGINE_EXPORT.md).
 
 A JSON file beside the graph (:func:`export_metadata`) says what the inputs mean. The
 graph is written by PyTorch's TorchScript-based exporter (``dynamo=False``): it traces

@@ -1,5 +1,5 @@
 """The exported graph driven by onnxruntime and numpy alone: the reference step loop an
-engine follows (no torch is imported here; docs/ENGINE_EXPORT.md).
+engine follows (no torch is imported here; docs/use/ENGINE_EXPORT.md).
 
 ::
 

@@ -20,7 +20,7 @@ stage, collision handling, feedback, and the later stages' overlap on a second t
 onnxruntime lets go of the GIL while it runs). Each session has as many intra-op threads
 as torch has (``torch.get_num_threads()`` when the rollout starts, which ``animate``'s
 ``threads`` sets: :mod:`loosefit.inference.threads`; one on one thread, so that the
-one-thread figures of ``bench/rollout_speed.py`` are one core's).
+one-thread figures of ``bench/speed/rollout_speed.py`` are one core's).
 
 The garments before collision handling are PyTorch's within float rounding: over 300
 frames of the pretrained set, 5e-7 m after the decoders and the detail stage, 3e-6 m after
@@ -28,9 +28,9 @@ the edge lengths (the tests ask for 1e-4 m). Collision handling is the same code
 is not continuous in its input: a vertex at the edge of its contact set by a micrometre
 can be pushed out otherwise, so after it a few vertices of a few frames differ by
 millimetres (0.8 mm over those 300 frames, 16 vertex-frames of 705,600; up to 23 mm on
-150 frames of bench/rollout_speed.py's clips, 99.9 % within 4e-5 m). PyTorch's own
+150 frames of bench/speed/rollout_speed.py's clips, 99.9 % within 4e-5 m). PyTorch's own
 garments with 1e-6 m of noise added after the detail stage move up to 8 mm after it
-(docs/BENCHMARKS.md, "The onnx runtime").
+(docs/results/BENCHMARKS.md, "The onnx runtime").
 
 Unlike the engine graph of :mod:`loosefit.inference.onnx.export` (motion features and root
 frames inside, world garments), these graphs take what the rollout already computes; they

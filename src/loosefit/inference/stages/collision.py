@@ -29,7 +29,7 @@ Beyond the paper: a last projection by the winding number (where body parts over
 closest face's side misleads the solve), bounded so that it never throws a vertex far
 (``finish``, ``finish_limit``), and the tears mended: pushes out of two body parts pressed
 together send neighbours to either side, and edges stretched past ``stretch`` times their
-rest length are shortened and projected out again (``relax``). docs/HARD_POSES.md.
+rest length are shortened and projected out again (``relax``). docs/results/HARD_POSES.md.
 """
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ class CollisionConfig:
     #   4 cm left a waistband vertex under a forearm on the small of the back 6.4 and 7.8 mm
     #   deep (ballet 05_02 frame 253, the chain spin frame 57, walked then in steps of 1, 2
     #   and 4 cm; now a ray to the next skin on its way); 10 cm clears both, and no vertex
-    #   of the five account clips moves farther than it did (docs/STAGE_ACCOUNT.md)
+    #   of the five account clips moves farther than it did (docs/results/STAGE_ACCOUNT.md)
     stretch: float = 1.5  # the most collision handling may stretch an edge, as a factor of
     #   its rest length (or of its length before, if that is more): pushes out along two
     #   body parts' normals (cloth pinched between a hand and the hip, a thigh and the belly)
@@ -107,7 +107,7 @@ class CollisionConfig:
     sticky: bool = True  # along a motion, cloth inside the body leaves it on the side it left
     #   by in the frame before, when its closest skin is now on the other side (the hem deep
     #   in a thigh, near its middle: pushed out to the front, then to the back, frame after
-    #   frame, a flicker of 10-20 cm; ballet 05_20, bench/collision_pops.py)
+    #   frame, a flicker of 10-20 cm; ballet 05_20, bench/quality/collision_pops.py)
     sticky_factor: float = 1.5  # ... where that side is at most this many times as far as
     #   the closest skin (plus sticky_slack): near a limb's middle, not the shallow cloth
     #   whose closest skin is plainly the way out (0.5 cm inside, its side of before 5 cm on)
@@ -146,8 +146,8 @@ class CollisionConfig:
 
 
 # ``loosefit animate --collision realtime``: one solve, one round of the last projection and
-# of the mending a frame. Against the default on 150 frames (bench/collision_pops.py,
-# docs/BENCHMARKS.md): collision handling 1.3-2.2x faster, no frame deeper than the default's,
+# of the mending a frame. Against the default on 150 frames (bench/quality/collision_pops.py,
+# docs/results/BENCHMARKS.md): collision handling 1.3-2.2x faster, no frame deeper than the default's,
 # fewer jumps from frame to frame; more vertices left within eps of the skin or 1 mm inside
 # where body parts press together (60_01: 854 vertex-frames against 546)
 REALTIME = {"iterations": 1, "finish": 1, "relax": 1}
@@ -373,7 +373,7 @@ class CollisionHandler:
         in another body part pressed onto that skin (a forearm on the hip): the cloth is
         pinched there, and stays; projected through the skin it lay on and walked on, it
         came out a body part's width away in one frame and not the next (salsa 60_01's
-        waist: 5-7 cm flicker, bench/collision_pops.py). The edges its moves stretch are
+        waist: 5-7 cm flicker, bench/quality/collision_pops.py). The edges its moves stretch are
         mended in :meth:`_relax`.
 
         Args:
@@ -455,7 +455,7 @@ class CollisionHandler:
         closest skin, where the winding number, or the closest face's side without the last
         projection, puts them inside); ``relax`` rounds. The projection is last, so no vertex
         it asks about is left inside; where two body parts press together the tear is
-        mended only in part (hard poses, docs/HARD_POSES.md: from 85-103x rest to 4-10x).
+        mended only in part (hard poses, docs/results/HARD_POSES.md: from 85-103x rest to 4-10x).
         Shortening last instead mends more (ballet 05_02: 4.8x against 6.7x) but leaves
         cloth up to 3 cm inside where body parts overlap.
 

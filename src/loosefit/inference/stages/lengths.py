@@ -35,7 +35,7 @@ class LengthConfig:
     #   |dz| / L > min_vertical) or "all". Restoring every edge of the decoders' averaged
     #   garment gives back its area as a bell (the folds it lost become flare: hem flare
     #   1.18-1.33x the simulation's on the spin and ballet 05_02); the hanging edges alone
-    #   give back its length (flare 0.98-1.08x; bench/stage_account.py, docs/STAGE_ACCOUNT.md)
+    #   give back its length (flare 0.98-1.08x; bench/quality/stage_account.py, docs/results/STAGE_ACCOUNT.md)
     min_vertical: float = 0.6
     iterations: int = 10  # local-global rounds (0: the stage does nothing)
     tie: float = 1.0e-3  # alpha: how strongly every vertex stays where the network put it
@@ -126,7 +126,7 @@ class LengthRestorer:
         # on one core, where the dense float32 inverse this replaces took 16 ms; float64
         # blocks take 5 ms). Their relative error (~2e-7; condition number ~1.5e3 for the
         # skirt at tie 1e-3) falls on each round's change, not on the positions
-        # (restore_numpy; bench/notes/length_solve.py)
+        # (restore_numpy; bench/speed/length_solve.py)
         narrow = width <= min(BAND_FRACTION * len(free), BANDED_UP_TO)
         self.banded = BlockBandedCholesky(system, np.float32) if narrow else None
         self._bf_t = bf.T.tocsr()  # (Vf, E)
