@@ -109,7 +109,8 @@ def test_the_dance_pipeline_trains_every_stage_and_brings_back_the_set(tmp_path,
 
 def test_the_simulator_s_speed_call_runs_the_corpus_and_the_table(tmp_path):
     """``sim-speed`` at toy size: the corpus end to end from the command line (timed, its
-    manifest brought back), then bench/speed/sim_gpu.py's table; what a lent GPU runs in one call."""
+    manifest brought back), then bench/speed/sim_gpu.py's table; what a lent GPU runs in one
+    call."""
     import json
 
     work, out = tmp_path / "work", tmp_path / "out"

@@ -11,7 +11,7 @@ clip of ``--data`` (each its own table, and their mean weighted by frames) for n
 module, the module without ``D_ms`` and the full module, each with and without
 collision handling; ``--no-part-a`` leaves part A out::
 
-    python bench/ablations/detail_collision.py --out docs/results/DETAIL_TABLE.md            # part A
+    python bench/ablations/detail_collision.py --out docs/results/DETAIL_TABLE.md  # part A
     python bench/ablations/detail_collision.py --data datasets/salsa \\
         --detail runs/salsa/detail/full/model.pt \\
         --detail-nodisc runs/salsa/detail/nodisc/model.pt \\

@@ -91,8 +91,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument(
         "--out",
         default="",
-        help="a Markdown page (docs/results/SIM_SPEED.md) whose section --section the tables replace, "
-        "the rest of the page kept",
+        help="a Markdown page (docs/results/SIM_SPEED.md) whose section --section the tables "
+        "replace, the rest of the page kept",
     )
     p.add_argument(
         "--section",

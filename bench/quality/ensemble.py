@@ -16,9 +16,9 @@ and highest raised knee (the members | ours)::
         --baselines runs/dance/baselines --results docs/results/RESULTS.md
 
 Rollouts and scores are cached in ``--cache`` (a killed run goes on from what it has).
-``--results`` puts the tables into docs/results/RESULTS.md as its ensemble section (replacing the
-one there); ``bench/quality/results.py --ensemble docs/results/ENSEMBLE.md`` includes it when it writes the
-whole file.
+``--results`` puts the tables into docs/results/RESULTS.md as its ensemble section
+(replacing the one there); ``bench/quality/results.py --ensemble docs/results/ENSEMBLE.md``
+includes it when it writes the whole file.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Figures behind docs/design/MOTION.md's reading of Table 1 and its limits, for a motion checkpoint.
+"""Figures behind docs/design/MOTION.md's reading of Table 1 and its limits, for a motion
+checkpoint.
 
 On the held-out clips: the RMSE over successive 100-frame blocks of the rollout, of the
 reference (the rest drape carried by the root: how hard each stretch of motion is) and of

@@ -1,4 +1,5 @@
-"""docs/results/RESULTS.md: every method against the simulation on the held-out clips (paper 4.2-4.3).
+"""docs/results/RESULTS.md: every method against the simulation on the held-out clips
+(paper 4.2-4.3).
 
 Table 3's form on each held-out set of the data set: the salsa chain (60_03 + 60_07 +
 61_03 + 61_07, 1,957 frames) and, on ``dance``, the three held-out ballet clips (05_02,

@@ -87,8 +87,8 @@ def test_every_rig_animates_a_standing_dancer_with_the_cloth_out_of_the_body(ava
         for t in range(FRAMES):
             hit = closest_points(g.body_vertices[t], g.body_faces, g.vertices[t], 0.5)
             depth = np.where(hit.inside, hit.distance, 0.0)
-            # the shipped set's cloth targets (docs/results/RESULTS.md): under 0.05 % of the vertices
-            # inside the body, none deeper than 5 mm
+            # the shipped set's cloth targets (docs/results/RESULTS.md): under 0.05 % of the
+            # vertices inside the body, none deeper than 5 mm
             assert hit.inside.mean() < 5e-4 and depth.max() < 5e-3, (label, t, depth.max())
 
 

@@ -7,8 +7,8 @@ rounding (OpenBLAS's and MKL's kernels are picked for the processor) as with the
 fixed distance holds on every machine. The floor covers a run whose reseeded folds happen
 to fall as before (the tiny spin's seeds move it 0.4, 0.8 or 5.4 mm): the factor times the
 largest spread measured on any target, rounded up. Both numbers come from
-bench/data/test_tolerances.py (docs/design/TEST_TOLERANCES.md: seeds, processors' rounding, and what a
-broken feature gives, 22 mm and more).
+bench/data/test_tolerances.py (docs/design/TEST_TOLERANCES.md: seeds, processors' rounding,
+and what a broken feature gives, 22 mm and more).
 """
 
 from __future__ import annotations

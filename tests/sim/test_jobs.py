@@ -94,8 +94,9 @@ def test_a_folder_of_mixed_motion_files_is_a_data_set_s_motions(tmp_path, avatar
     ("salsa_turned.yaml", {"61_01": 551, "61_02": 515}),
 ])  # fmt: skip
 def test_the_committed_penetration_sets_load_every_motion(name, clips, avatar):
-    # bench/data/penetration_regression.py runs these (docs/design/PENETRATION.md): each spec must still
-    # name a clip of ../shared and a window inside it, with the frame counts of the tables.
+    # bench/data/penetration_regression.py runs these (docs/design/PENETRATION.md): each spec
+    # must still name a clip of ../shared and a window inside it, with the frame counts of the
+    # tables.
     # The pose correction keeps the frame count (job_motion's docstring) and is tested on its
     # own (tests/motion/test_pose_correction.py): left out here, where it took most of CI's time.
     from pathlib import Path
