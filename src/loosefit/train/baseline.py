@@ -106,6 +106,7 @@ def skinning_setup(
     clips: list[Clip],
     config: TrainBaselineConfig,
     cache: Path,
+    *,
     log=print,
 ):
     """The rest shape, weights (and mean bone transforms) a baseline skins with.
@@ -208,12 +209,12 @@ class BaselineTrainer(Trainer):
             None,
             floor,
             config.rollout,
-            config.max_frames,
-            config.mirror,
-            config.model.joints,
+            max_frames=config.max_frames,
+            mirror=config.mirror,
+            joints=config.model.joints,
         )
         rest, weights, bone_mean, self.extra = skinning_setup(
-            config.model.method, reader, avatar, clips, config, run.out / "ssdr.npz", run.log
+            config.model.method, reader, avatar, clips, config, run.out / "ssdr.npz", log=run.log
         )
         run.log(
             f"prepared {len(clips)} train clips ({sum(c.length for c in clips)} frames) "
