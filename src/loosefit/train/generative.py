@@ -66,19 +66,16 @@ class TrainGenerativeConfig(TrainerConfig):
     checkpoint_every: int = 10  # epochs
     model: GenerativeConfig = field(default_factory=GenerativeConfig)  # the networks
     loss: GenerativeLossConfig = field(default_factory=GenerativeLossConfig)  # Eqs. 6-8
-    # the inverse skinning that makes the unposed targets (seeds, temperature)
-    skinning: InverseSkinningConfig = field(default_factory=InverseSkinningConfig)
+    skinning: InverseSkinningConfig = field(default_factory=InverseSkinningConfig)  # unposing
     laplacian: str = "uniform"  # mesh Laplacian of Eq. 6: "uniform" or "cotangent"
     ssdr_iterations: int = 30  # decoder "ssdr": Dem Bones iterations
     eval_every: int = 50  # epochs; test-split error into TensorBoard
     precision: str = "fp32"  # the forward pass's: "fp32", or "bf16" (autocast; see the module)
-    # warm start: a generative checkpoint (a run's or a packaged generative.pt) of the same
-    # garment and model configuration whose weights the run starts from (a fresh optimiser)
-    init: str | None = None
+    init: str | None = None  # warm start: a generative checkpoint of this garment and model
 
-    # ``full``: the paper's (a GPU, 500 epochs); ``cpu``: a useful model in ~20 CPU minutes:
-    # 64x64 UV maps, narrower convolutions and a 10x larger learning rate (1e-3) so that a
-    # few hundred epochs of the small ``demo`` data converge; everything else the paper's
+    # ``full``: the paper's (a GPU, 500 epochs); ``cpu``: 64x64 UV maps, narrower convolutions
+    # and a 10x larger learning rate (1e-3), everything else the paper's (why:
+    # docs/design/notes/train_generative.md)
     PRESETS: ClassVar[dict[str, dict]] = {
         "full": {"model": GenerativeConfig(uv_size=128)},
         "cpu": {
