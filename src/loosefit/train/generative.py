@@ -25,7 +25,7 @@ import json
 import time
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 import torch
@@ -332,7 +332,17 @@ def train_generative(
 # -- a run's checkpoint, a warm start ---------------------------------------------------------
 
 
-def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
+class GenerativeCheckpoint(NamedTuple):
+    """A generative run's checkpoint as :func:`load_checkpoint` reads it."""
+
+    model: GarmentGenerativeModel  # in eval mode
+    config: TrainGenerativeConfig  # the run's training configuration
+    data: dict  # the raw checkpoint
+
+
+def load_checkpoint(
+    path: str | Path, template: GarmentTemplate | None = None, device="cpu"
+) -> GenerativeCheckpoint:
     """A generative run's checkpoint: the model and its training configuration.
 
     Args:
@@ -341,7 +351,8 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
         device: where to put the model.
 
     Returns:
-        (model in eval mode, its :class:`TrainGenerativeConfig`, the raw checkpoint dict).
+        :class:`GenerativeCheckpoint`: the model in eval mode, its
+        :class:`TrainGenerativeConfig`, the raw checkpoint dict.
 
     Raises:
         LoosefitInputError: not a generative-model checkpoint, another garment, weights
@@ -357,7 +368,7 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
             "none (a packaged model)",
             hint="load it with loosefit.inference.checkpoints.load_generative",
         )
-    return model, TrainGenerativeConfig.from_dict(data["config"]), data
+    return GenerativeCheckpoint(model, TrainGenerativeConfig.from_dict(data["config"]), data)
 
 
 def warm_start(
