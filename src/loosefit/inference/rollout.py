@@ -70,6 +70,15 @@ class RootFrames(NamedTuple):
     preroll: int  # P: the frames before the motion's first on the timeline
 
 
+class RolloutInputs(NamedTuple):
+    """What a rollout reads of a motion, every frame of its timeline (P + T frames)."""
+
+    features: torch.Tensor  # (P + T, F) the motion encoder's features
+    headings: torch.Tensor  # (P + T, 3, 3) H: each frame's root heading
+    origins: torch.Tensor  # (P + T, 3) p: each frame's origin, the root's position, m
+    preroll: int  # P: the frames before the motion's first
+
+
 def motion_root_frames(
     motion: Motion, floor_height: float, config: RolloutConfig | None = None
 ) -> RootFrames:
@@ -181,18 +190,18 @@ class MotionStage:
         z, hidden = self.encoder(features, previous, hidden)
         return z, hidden, self.generative.decode(z)["vertices"]
 
-    def inputs(self, motion: Motion) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, int]:
+    def inputs(self, motion: Motion) -> RolloutInputs:
         """The motion on the rollout timeline, on :attr:`device`.
 
         Returns:
-            features (P + T, F), root frames H (P + T, 3, 3) and p (P + T, 3), float32,
-            and P, the frames before the motion's first.
+            :class:`RolloutInputs`: features (P + T, F), root frames H (P + T, 3, 3) and
+            p (P + T, 3), float32, and P, the frames before the motion's first.
         """
         rot, root, P = timeline(motion, self.floor_height, self.config)
         joints = feature_joints(motion.joint_names, self.encoder.config.joints)
         feats = motion_features(rot, root, motion.fps, self.floor_height, joints)
         H, p = (a.float().to(self.device) for a in root_frames(rot.double(), root.double()))
-        return feats.to(self.device), H, p, P
+        return RolloutInputs(feats.to(self.device), H, p, P)
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ Why each exists and the figures behind its defaults: docs/design/notes/collision
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -26,9 +26,17 @@ if TYPE_CHECKING:
     from loosefit.inference.stages.collision import CollisionHandler
 
 
+class Finished(NamedTuple):
+    """The garment after one of these steps."""
+
+    vertices: np.ndarray  # (V, 3) the garment
+    distances: np.ndarray  # (V,) signed distances to the body, negative inside, m
+    queries: int  # the body queries made
+
+
 def last_projection(
     handler: CollisionHandler, x: np.ndarray, ds: np.ndarray, body: Surface
-) -> tuple[np.ndarray, np.ndarray, int]:
+) -> Finished:
     """``finish``: every vertex near the body that the winding number puts
     inside it (a crease, two body parts pressed together, an arm in the torso, where
     the closest face's side misleads the solve) moved straight to ``eps`` beyond its
@@ -50,8 +58,8 @@ def last_projection(
         body: the posed body's surface.
 
     Returns:
-        The garment, its signed distances (negative inside, by the winding number where
-        asked again) and the queries made.
+        :class:`Finished`: the garment, its signed distances (negative inside, by the
+        winding number where asked again) and the queries made.
     """
     cfg = handler.config
     start, x, ds = x, x.copy(), ds.copy()  # start: where the solve left them
@@ -111,12 +119,12 @@ def last_projection(
         if cfg.finish and len(near):
             ask(near)
             passes += 1
-    return x, ds, passes
+    return Finished(x, ds, passes)
 
 
 def mend_tears(
     handler: CollisionHandler, x0: np.ndarray, x: np.ndarray, ds: np.ndarray, body: Surface
-) -> tuple[np.ndarray, np.ndarray, int]:
+) -> Finished:
     """``relax``: pushes out along the normals of two body parts pressed together (a
     hand on the hip, a thigh on the belly in a crouch) send neighbouring vertices to
     either side and stretch the edge between to many times its length. Every edge
@@ -136,7 +144,8 @@ def mend_tears(
         body: the posed body's surface.
 
     Returns:
-        The garment, its signed distances (asked again where moved) and the queries made.
+        :class:`Finished`: the garment, its signed distances (asked again where moved) and
+        the queries made.
     """
     cfg = handler.config
     x, ds = x.copy(), ds.copy()
@@ -180,7 +189,7 @@ def mend_tears(
         hit = handler._ask(x[idx], body, idx, sign)
         passes += 1
         ds[idx] = hit_distances(hit)
-    return x, ds, passes
+    return Finished(x, ds, passes)
 
 
 def sticky_side(
