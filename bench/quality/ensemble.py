@@ -35,10 +35,10 @@ from loosefit.eval.ensemble import (
     SECTION,
     clip_context,
     ensemble_markdown,
-    gather_ensembles,
     score_members,
     score_model,
 )
+from loosefit.eval.ensemble_members import gather_ensembles
 from loosefit.inference.animator import load_pipeline
 from loosefit.inference.model_common import avatar_of
 from loosefit.inference.stages import MOTION_ONLY, Stages

@@ -13,17 +13,17 @@ import torch
 import loosefit.inference.animator as inf
 import loosefit.train.loop as loop
 import loosefit.train.motion as tm
+import loosefit.train.motion_window as mw
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.rollouts import evaluate_rollouts
-from loosefit.geometry.laplacian import Laplacian
 from loosefit.inference.package import package_model
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.motion_encoder import MotionEncoderConfig
 from loosefit.model.motion_features import feature_joints, num_features
 from loosefit.motion.motions import load_motion
 from loosefit.sequence import GarmentSequence
-from loosefit.train.clips import prepare_clips, stack_clips
+from loosefit.train.clips import prepare_clips
 from loosefit.types import Motion
 
 
@@ -84,34 +84,6 @@ def test_rollout_is_deterministic_and_on_the_motion(trained, toy_dataset):
     gap = np.linalg.norm(a.vertices.mean(1) - motion.root_translation, axis=-1)
     assert gap.max() < 0.6
     assert a.frames == 16 + 2 + 3 and a.frames_per_second > 0
-
-
-def _windows(trained, toy_dataset, skirt):
-    """The trained toy model, its training clips stacked (features differentiable), a Laplacian."""
-    model = inf.load_animation_model(trained[0] / "model.pt")
-    reader = DatasetReader(toy_dataset)
-    clips = prepare_clips(
-        reader, "train", model.generative, model.floor_height, model.rollout_config
-    )
-    batch = stack_clips(clips)
-    batch["features"] = batch["features"].clone().requires_grad_(True)
-    model.encoder.train()
-    return model, batch, Laplacian(skirt.faces, skirt.num_vertices)
-
-
-def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, skirt):
-    model, batch, lap = _windows(trained, toy_dataset, skirt)
-    enc = model.encoder
-    hidden = enc.initial_hidden(2)
-    prev = model.rest_state[None].expand(2, -1, -1)
-    loss = tm.MotionLossConfig()
-    first, hidden, prev = tm.run_window(
-        enc, model.generative, lap, batch, 0, 10, hidden, prev, 0.0, loss
-    )
-    second, _, _ = tm.run_window(enc, model.generative, lap, batch, 10, 20, hidden, prev, 0.0, loss)
-    (g,) = torch.autograd.grad(second["total"], batch["features"])
-    assert g[:, :10].abs().max() == 0  # nothing flows back into the previous window
-    assert g[:, 10:20].abs().max() > 0
 
 
 def test_resume_after_a_kill_gives_the_same_model(
@@ -444,40 +416,6 @@ def test_teacher_schedule_falls_to_its_floor():
             _config(**bad)
 
 
-def test_unrolled_training_differentiates_through_its_own_predictions(trained, toy_dataset, skirt):
-    model, batch, lap = _windows(trained, toy_dataset, skirt)
-    enc = model.encoder
-    prev = model.rest_state[None].expand(2, -1, -1)
-
-    def grads(teacher: float, unroll: bool, start: int = 0, stop: int = 20):
-        hidden = enc.initial_hidden(2)
-        terms, _, carried = tm.run_window(
-            enc,
-            model.generative,
-            lap,
-            batch,
-            start,
-            stop,
-            hidden,
-            prev,
-            teacher,
-            tm.MotionLossConfig(),
-            unroll=unroll,
-        )
-        assert not carried.requires_grad  # the next window starts detached either way
-        return terms["total"], torch.autograd.grad(terms["total"], batch["features"])[0]
-
-    (l0, g0), (l1, g1) = grads(0.0, False), grads(0.0, True)
-    assert torch.allclose(l0, l1)  # the same forward pass ...
-    assert not torch.allclose(g0, g1)  # ... with gradients through the fed-back predictions
-    first = int(batch["preroll"].max())  # ground truth exists from each clip's motion on
-    assert first + 10 <= int(batch["length"].min())
-    (_, g0), (_, g1) = grads(1.0, False, first, first + 10), grads(1.0, True, first, first + 10)
-    assert torch.equal(g0, g1)  # ground truth fed back: nothing to unroll
-    _, g = grads(0.0, True, 10, 20)
-    assert g[:, :10].abs().max() == 0 and g[:, 10:20].abs().max() > 0  # still within the window
-
-
 def test_mirrored_clips_are_the_clips_mirrored(trained, toy_dataset):
     from loosefit.motion.mirror import REFLECT, mirror_garment, vertex_twins
 
@@ -502,7 +440,7 @@ def test_mirrored_clips_are_the_clips_mirrored(trained, toy_dataset):
 def test_membrane_and_bending_terms_train_and_are_recorded(
     toy_dataset, generative, skirt, tmp_path
 ):
-    loss = tm.MotionLossConfig(membrane=20.0, bending=0.5)
+    loss = mw.MotionLossConfig(membrane=20.0, bending=0.5)
     _train(toy_dataset, generative, skirt, tmp_path / "phys", epochs=3, loss=loss)
     history = torch.load(tmp_path / "phys" / "checkpoint.pt", weights_only=False)["history"]
     assert {"membrane", "bending"} <= set(history[0]) and np.isfinite(history[-1]["total"])
@@ -510,16 +448,16 @@ def test_membrane_and_bending_terms_train_and_are_recorded(
     assert "membrane" in model.physics_terms and "bending" in model.physics_terms
     assert "collision" in model.missing_physics_terms
     with pytest.raises(LoosefitInputError, match="collision"):
-        tm.MotionLossConfig(collision=1.0)
+        mw.MotionLossConfig(collision=1.0)
 
 
 def test_flare_term_trains_and_pulls_the_hem_out(toy_dataset, generative, skirt, tmp_path):
-    loss = tm.MotionLossConfig(flare=5.0)
+    loss = mw.MotionLossConfig(flare=5.0)
     _train(toy_dataset, generative, skirt, tmp_path / "flare", epochs=3, loss=loss)
     history = torch.load(tmp_path / "flare" / "checkpoint.pt", weights_only=False)["history"]
     assert "flare" in history[0] and np.isfinite(history[-1]["total"])
     with pytest.raises(LoosefitInputError, match="flare"):
-        tm.MotionLossConfig(flare=-1.0)
+        mw.MotionLossConfig(flare=-1.0)
 
 
 def test_warm_start_from_a_packaged_encoder(trained, toy_dataset, generative, skirt, tmp_path):

@@ -11,6 +11,7 @@ import pytest
 import torch
 
 import loosefit.train.motion as tm
+import loosefit.train.motion_window as mw
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.laplacian import Laplacian
@@ -165,19 +166,20 @@ def test_bf16_motion_training_follows_fp32(toy_dataset, generative, skirt, tmp_p
     for precision in ("fp32", "bf16"):
         hidden = model.encoder.initial_hidden(2)
         prev = model.rest_state[None].expand(2, -1, -1)
-        terms[precision], hidden, prev = tm.run_window(
+        window = mw.run_window(
             model.encoder,
             model.generative,
             lap,
             batch,
             0,
             12,
-            hidden,
-            prev,
-            0.0,
-            tm.MotionLossConfig(),
+            hidden=hidden,
+            previous=prev,
+            teacher=0.0,
+            loss=mw.MotionLossConfig(),
             precision=precision,
         )
+        terms[precision], hidden, prev = window.terms, window.hidden, window.previous
         assert hidden.dtype == prev.dtype == terms[precision]["total"].dtype == torch.float32
     for k, v in terms["fp32"].items():  # (measured: total 0.5%, the Laplacian term 2% apart)
         np.testing.assert_allclose(

@@ -145,7 +145,7 @@ def fit_character(
         hips0,
         first.rotations[0],
         trained,
-        limits or FitLimits(),
+        limits=limits or FitLimits(),
         source=str(path),
     )
     fitted = Avatar(AvatarConfig(rig=trained.config.rig, shape=fit.shape))

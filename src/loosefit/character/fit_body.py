@@ -78,6 +78,7 @@ def fit_body(
     character_hips: np.ndarray,
     rotations: np.ndarray,
     avatar,
+    *,
     limits: FitLimits = FitLimits(),
     source: str = "character",
 ) -> BodyFit:

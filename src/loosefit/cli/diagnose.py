@@ -73,8 +73,8 @@ def run(args: argparse.Namespace) -> int:
         seq.motion.rotations[:, 0],
         seq.fps,
         parts,
-        tolerance,
-        args.merge_gap,
+        tolerance=tolerance,
+        merge_gap=args.merge_gap,
         progress=bar.progress,
     )
     bar.close()

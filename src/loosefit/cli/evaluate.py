@@ -50,7 +50,8 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from loosefit.data.format import DatasetReader, read_any_sequence
-    from loosefit.eval.ensemble import evaluate_ensemble, gather_ensembles
+    from loosefit.eval.ensemble import evaluate_ensemble
+    from loosefit.eval.ensemble_members import gather_ensembles
     from loosefit.eval.report import write_rollout_report
     from loosefit.eval.rollouts import evaluate_rollouts
     from loosefit.inference.animator import load_pipeline
@@ -81,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
             model,
             reader,
             args.split,
-            horizons,
+            horizons=horizons,
             surface=not args.rmse_only,
             max_frames=args.max_frames,
             stages=stages(args),
@@ -107,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
 
 def has_members(reader, split: str) -> bool:
     """Whether a data set holds a clip of ``split`` simulated from more than one seed."""
-    from loosefit.eval.ensemble import member_clip
+    from loosefit.eval.ensemble_members import member_clip
 
     names = reader.split(split)
     return any(member_clip(n)[1] is not None for n in names)

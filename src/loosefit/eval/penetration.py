@@ -271,6 +271,7 @@ def diagnose(
     garment: np.ndarray,
     parts: BodyParts,
     fps: float,
+    *,
     merge_gap: int = 0,
     context: int = CONTEXT_FRAMES,
 ) -> list[PenetrationEvent]:
@@ -556,6 +557,7 @@ def diagnose_clip(
     root_rotations: np.ndarray,
     fps: float,
     parts: BodyParts,
+    *,
     tolerance: float = PENETRATION_TOLERANCE,
     merge_gap: int = 0,
     progress: Callable[[int, int], None] | None = None,
@@ -580,5 +582,5 @@ def diagnose_clip(
 
     pen = find_penetrations(g, b, parts, tolerance, step(0))
     signals = motion_signals(b, root_rotations, fps, parts, progress=step(T))
-    events = diagnose(pen, signals, b, g, parts, fps, merge_gap)
+    events = diagnose(pen, signals, b, g, parts, fps, merge_gap=merge_gap)
     return Diagnosis(pen, signals, events, float(fps))

@@ -9,7 +9,7 @@ import numpy as np
 
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.ensemble import member_clip
+from loosefit.eval.ensemble_members import member_clip
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
 from loosefit.garment.fingerprint import same_garment
 from loosefit.inference.stages import Stages
@@ -51,6 +51,7 @@ def evaluate_rollouts(
     model,
     data: DatasetReader | dict[str, GarmentSequence],
     split: str = "test",
+    *,
     horizons: tuple[int, ...] = HORIZONS,
     surface: bool = True,
     max_frames: int | None = None,

@@ -25,6 +25,7 @@ import struct
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -88,19 +89,28 @@ def _trs(m: np.ndarray) -> dict:
     return {"translation": m[:3, 3].tolist(), "rotation": [x, y, z, w]}
 
 
-def split_uvs(m: AnimatedMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+class GltfVertices(NamedTuple):
+    """A mesh's vertices as glTF writes them (:func:`split_uvs`)."""
+
+    source: np.ndarray  # (N,) the original vertex of each written one
+    faces: np.ndarray  # (F, 3) into the written vertices
+    uvs: np.ndarray | None  # (N, 2) V flipped (glTF's origin is the top left); None: none
+
+
+def split_uvs(m: AnimatedMesh) -> GltfVertices:
     """glTF's vertices: one per distinct (vertex, UV) pair.
 
     Returns:
-        source (N,) the original vertex of each written one, faces (F, 3) into them, and
-        their (N, 2) UVs (V flipped: glTF's origin is the top left), or None.
+        :class:`GltfVertices`: source (N,) the original vertex of each written one, faces
+        (F, 3) into them, and their (N, 2) UVs (V flipped: glTF's origin is the top left),
+        or None.
     """
     if m.uvs is None:
-        return np.arange(m.vertices.shape[1]), m.faces, None
+        return GltfVertices(np.arange(m.vertices.shape[1]), m.faces, None)
     pairs = np.stack([m.faces.ravel(), m.face_uvs.ravel()], 1)  # (3F, 2)
     unique, inverse = np.unique(pairs, axis=0, return_inverse=True)
     uv = m.uvs[unique[:, 1]] * np.float32([1, -1]) + np.float32([0, 1])
-    return unique[:, 0], inverse.reshape(-1, 3), uv
+    return GltfVertices(unique[:, 0], inverse.reshape(-1, 3), uv)
 
 
 def _skin_attributes(skin: Skin) -> dict:

@@ -15,10 +15,10 @@ Z_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 @dataclass
 class ExportConfig:
-    """How animated meshes are written (every field has a default for every format)."""
+    """How animated meshes are written (every field has a default for every format). The
+    format's own up axis: Z for USD; Y for Alembic, PC2 and OBJ; glTF is always Y."""
 
-    # "Z" or "Y"; None: the format's own (USD Z; Alembic, PC2 and OBJ Y; glTF is always Y)
-    up_axis: str | None = None
+    up_axis: str | None = None  # "Z" or "Y"; None: the format's own (USD Z; the others Y)
     skinned_body: bool = True  # a body with a rig as a skinned mesh (USD, glTF), else points
     skin_tolerance: float = 1e-5  # metres: a rig farther than this from the body -> points
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import struct
 import warnings
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -45,7 +46,15 @@ def write_pc2(path: str | Path, vertices: np.ndarray, start_frame: float = 0.0) 
     return Path(path)
 
 
-def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
+class PointCache(NamedTuple):
+    """A point cache as :func:`read_pc2` reads it."""
+
+    vertices: np.ndarray  # (T, V, 3) float32 positions
+    start_frame: float  # the frame of the first sample
+    sample_rate: float  # frames between samples
+
+
+def read_pc2(path: str | Path) -> PointCache:
     """A point cache: (T, V, 3) float32 positions, the start frame and the sample rate.
 
     Raises:
@@ -79,7 +88,7 @@ def read_pc2(path: str | Path) -> tuple[np.ndarray, float, float]:
             f"{int(bad.sum())} NaN/inf values, first at "
             f"{tuple(int(i) for i in np.argwhere(bad)[0])}",
         )
-    return v.astype(np.float32), float(start), float(rate)
+    return PointCache(v.astype(np.float32), float(start), float(rate))
 
 
 def _obj_of(path: Path, mesh: AnimatedMesh, frame: int, up_axis: str) -> None:

@@ -100,7 +100,7 @@ def _saver(stage):
     return after
 
 
-def _write_points(mesh, vertices: np.ndarray, rotation, Gf, Usd, Vt, after=None) -> None:
+def _write_points(mesh, vertices: np.ndarray, rotation, Gf, Usd, Vt, *, after=None) -> None:
     points, extent = mesh.CreatePointsAttr(), mesh.CreateExtentAttr()
     for t in range(len(vertices)):
         v = vertices[t] if rotation is None else (vertices[t] @ rotation.T).astype(np.float32)
@@ -189,7 +189,7 @@ def export_usd(
                 _write_skinned(stage, f"/loosefit/{m.name}_rig", m, skin, rotation, mods)
             else:
                 mesh = _define_mesh(stage, f"/loosefit/{m.name}", m, Sdf, UsdGeom, Vt)
-                _write_points(mesh, m.vertices, rotation, Gf, Usd, Vt, _saver(stage))
+                _write_points(mesh, m.vertices, rotation, Gf, Usd, Vt, after=_saver(stage))
         stage.GetRootLayer().Save()
         del stage
     return [path]

@@ -20,12 +20,13 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import torch
 
 from loosefit.inference.stages import Stage, StageClock, StageFrames, run_stages
-from loosefit.inference.timeline import RolloutConfig, rollout_timeline
+from loosefit.inference.timeline import RolloutConfig, Timeline, rollout_timeline
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.motion_encoder import DynamicMotionEncoder
 from loosefit.model.motion_features import (
@@ -49,30 +50,47 @@ class RolloutError(RuntimeError):
     """A rollout produced NaN or a garment far from the body; the message names the frame."""
 
 
-def timeline(
-    motion: Motion, floor_height: float, config: RolloutConfig
-) -> tuple[torch.Tensor, torch.Tensor, int]:
+def timeline(motion: Motion, floor_height: float, config: RolloutConfig) -> Timeline:
     """The rest frames, the blend and the motion, as one sequence.
 
     Returns:
-        rotations (P + T, J, 3, 3) float32, root translations (P + T, 3) float32,
-        and P, the number of frames before the motion's first.
+        :class:`~loosefit.inference.timeline.Timeline` of tensors: rotations
+        (P + T, J, 3, 3) float32, root translations (P + T, 3) float32, and P, the number
+        of frames before the motion's first.
     """
     rot, root, P = rollout_timeline(motion, floor_height, config.warm_frames, config.blend_seconds)
-    return torch.from_numpy(rot), torch.from_numpy(root), P
+    return Timeline(torch.from_numpy(rot), torch.from_numpy(root), P)
+
+
+class RootFrames(NamedTuple):
+    """The root frames of a motion's own frames on the rollout timeline, float32."""
+
+    headings: torch.Tensor  # (T, 3, 3) H: each frame's heading (a rotation about the vertical)
+    origins: torch.Tensor  # (T, 3) p: each frame's origin, the root's position, m
+    preroll: int  # P: the frames before the motion's first on the timeline
+
+
+class RolloutInputs(NamedTuple):
+    """What a rollout reads of a motion, every frame of its timeline (P + T frames)."""
+
+    features: torch.Tensor  # (P + T, F) the motion encoder's features
+    headings: torch.Tensor  # (P + T, 3, 3) H: each frame's root heading
+    origins: torch.Tensor  # (P + T, 3) p: each frame's origin, the root's position, m
+    preroll: int  # P: the frames before the motion's first
 
 
 def motion_root_frames(
     motion: Motion, floor_height: float, config: RolloutConfig | None = None
-) -> tuple[torch.Tensor, torch.Tensor, int]:
+) -> RootFrames:
     """The root frames of the motion's own frames on the rollout timeline.
 
     Returns:
-        H (T, 3, 3) headings and p (T, 3) origins, float32, and P, the frames before.
+        :class:`RootFrames`: H (T, 3, 3) headings and p (T, 3) origins, float32, and P,
+        the frames before.
     """
     rot, root, P = timeline(motion, floor_height, config or RolloutConfig())
     H, p = root_frames(rot[P:].double(), root[P:].double())
-    return H.float(), p.float(), P
+    return RootFrames(H.float(), p.float(), P)
 
 
 @torch.no_grad()
@@ -172,18 +190,18 @@ class MotionStage:
         z, hidden = self.encoder(features, previous, hidden)
         return z, hidden, self.generative.decode(z)["vertices"]
 
-    def inputs(self, motion: Motion) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, int]:
+    def inputs(self, motion: Motion) -> RolloutInputs:
         """The motion on the rollout timeline, on :attr:`device`.
 
         Returns:
-            features (P + T, F), root frames H (P + T, 3, 3) and p (P + T, 3), float32,
-            and P, the frames before the motion's first.
+            :class:`RolloutInputs`: features (P + T, F), root frames H (P + T, 3, 3) and
+            p (P + T, 3), float32, and P, the frames before the motion's first.
         """
         rot, root, P = timeline(motion, self.floor_height, self.config)
         joints = feature_joints(motion.joint_names, self.encoder.config.joints)
         feats = motion_features(rot, root, motion.fps, self.floor_height, joints)
         H, p = (a.float().to(self.device) for a in root_frames(rot.double(), root.double()))
-        return feats.to(self.device), H, p, P
+        return RolloutInputs(feats.to(self.device), H, p, P)
 
 
 @dataclass(frozen=True)

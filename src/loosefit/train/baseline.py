@@ -17,7 +17,7 @@ from __future__ import annotations
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 import torch
@@ -99,6 +99,15 @@ def clip_joints(avatar, clip: Clip) -> torch.Tensor:
     return root_frame_transforms(world, clip.heading[P:], clip.origin[P:])
 
 
+class SkinningSetup(NamedTuple):
+    """What a baseline skins with (:func:`skinning_setup`)."""
+
+    rest: torch.Tensor  # (V, 3) the rest shape
+    weights: torch.Tensor  # (V, K) skinning weights over K joints or bones
+    bone_mean: torch.Tensor | None  # (K, 3, 4) the mean bone transform; None: joints
+    extra: list[torch.Tensor]  # per clip, per frame: joint or fitted bone transforms
+
+
 def skinning_setup(
     method: str,
     reader: DatasetReader,
@@ -106,8 +115,9 @@ def skinning_setup(
     clips: list[Clip],
     config: TrainBaselineConfig,
     cache: Path,
+    *,
     log=print,
-):
+) -> SkinningSetup:
     """The rest shape, weights (and mean bone transforms) a baseline skins with.
 
     Santesteban: the template on the avatar's joints
@@ -116,8 +126,9 @@ def skinning_setup(
     ``cache``; its rigid per-frame bone transforms are the bone network's targets.
 
     Returns:
-        rest (V, 3), weights (V, K), bone_mean (K, 3, 4) or None, and per clip the extra
-        per-frame tensor (joint transforms, or the fitted bone transforms).
+        :class:`SkinningSetup`: rest (V, 3), weights (V, K), bone_mean (K, 3, 4) or None,
+        and per clip the extra per-frame tensor (joint transforms, or the fitted bone
+        transforms).
     """
     template = reader.template
     if method == "santesteban":
@@ -133,7 +144,9 @@ def skinning_setup(
             config.near,
         )
         extra = [clip_joints(avatar, c) for c in clips]
-        return torch.from_numpy(template.vertices), torch.from_numpy(weights), None, extra
+        return SkinningSetup(
+            torch.from_numpy(template.vertices), torch.from_numpy(weights), None, extra
+        )
     from loosefit.model.ssdr import SkinningDecomposition, SSDRConfig, decompose
 
     frames = torch.cat([c.target for c in clips]).numpy()
@@ -160,7 +173,9 @@ def skinning_setup(
     bones = torch.from_numpy(decomp.transforms)  # (N, B, 3, 4) rigid, every frame in order
     extra = [bones[a:b] for a, b in zip(ends[:-1], ends[1:], strict=True)]
     mean = bones.mean(0)
-    return torch.from_numpy(decomp.rest), torch.from_numpy(decomp.weights), mean, extra
+    return SkinningSetup(
+        torch.from_numpy(decomp.rest), torch.from_numpy(decomp.weights), mean, extra
+    )
 
 
 # -- the step ---------------------------------------------------------------------------------
@@ -208,12 +223,12 @@ class BaselineTrainer(Trainer):
             None,
             floor,
             config.rollout,
-            config.max_frames,
-            config.mirror,
-            config.model.joints,
+            max_frames=config.max_frames,
+            mirror=config.mirror,
+            joints=config.model.joints,
         )
         rest, weights, bone_mean, self.extra = skinning_setup(
-            config.model.method, reader, avatar, clips, config, run.out / "ssdr.npz", run.log
+            config.model.method, reader, avatar, clips, config, run.out / "ssdr.npz", log=run.log
         )
         run.log(
             f"prepared {len(clips)} train clips ({sum(c.length for c in clips)} frames) "

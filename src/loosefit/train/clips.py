@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -84,6 +85,7 @@ def prepare_clips(
     generative: GarmentGenerativeModel | None,
     floor_height: float,
     config: RolloutConfig,
+    *,
     max_frames: int | None = None,
     mirror: bool = False,
     joints: str = "all",
@@ -112,9 +114,15 @@ def pad_frames(x: torch.Tensor, n: int) -> torch.Tensor:
     return torch.cat([x, x[-1:].expand(n - len(x), *x.shape[1:])]) if len(x) < n else x
 
 
-def feature_statistics(
-    reader: DatasetReader, clips: list[Clip], joints: str
-) -> tuple[int, torch.Tensor, torch.Tensor]:
+class FeatureStatistics(NamedTuple):
+    """The motion features of a stage's training clips, as its encoder normalises them."""
+
+    count: int  # F: motion features per frame
+    mean: torch.Tensor  # (F,) over every timeline frame of the clips
+    std: torch.Tensor  # (F,) likewise
+
+
+def feature_statistics(reader: DatasetReader, clips: list[Clip], joints: str) -> FeatureStatistics:
     """The number F of motion features of the clips, and their mean and std (F,) each.
 
     Raises:
@@ -125,7 +133,7 @@ def feature_statistics(
     expected = num_features(len(feature_joints(clips[0].motion.joint_names, joints)) + 1)
     if F != expected:
         raise LoosefitInputError(reader.root, "features", expected, F)
-    return F, feats.mean(0), feats.std(0)
+    return FeatureStatistics(F, feats.mean(0), feats.std(0))
 
 
 def feature_range(clips: list[Clip]) -> tuple[torch.Tensor, torch.Tensor]:

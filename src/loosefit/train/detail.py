@@ -91,14 +91,11 @@ class TrainDetailConfig(TrainerConfig):
     loss: DetailLossConfig = field(default_factory=DetailLossConfig)  # Eqs. 13-15's weights
     discriminator: bool = True  # False: the ablation without D_ms (Table 2's middle row)
     mirror: bool | None = None  # also the mirrored training clips; None: as the motion stage
-    # warm start: a detail checkpoint (a run's, or a packaged detail.pt) of the same
-    # configuration whose generator (and discriminator, where it has one) the run starts
-    # from, whatever motion stage it was trained on (fine-tuning to a new one)
-    init: str | None = None
+    init: str | None = None  # warm start: a detail checkpoint of this configuration
 
     # ``full``: the paper's (100 epochs, batch 8, lr 2e-4); ``cpu``: 12 epochs of batch 16 at
-    # lr 5e-4 with a discriminator of half the width (16, 32, 64 channels: its convolutions
-    # are most of a step's time on a CPU), under an hour on salsa's rollouts on one core
+    # lr 5e-4 with a discriminator of half the width (16, 32, 64 channels; the figures:
+    # docs/design/notes/train_detail.md)
     PRESETS: ClassVar[dict[str, dict]] = {
         "full": {},
         "cpu": {
@@ -182,6 +179,7 @@ class DetailTrainer(Trainer):
         mpath: Path,
         generative: str | Path | None,
         config: TrainDetailConfig,
+        *,
         run: Run,
         mirror: bool,
     ):
@@ -318,6 +316,7 @@ def train_detail(
     out: str | Path,
     config: TrainDetailConfig,
     generative: str | Path | None = None,
+    *,
     log=print,
     progress: bool = True,
 ) -> dict:
@@ -350,7 +349,9 @@ def train_detail(
     fingerprints = stage_fingerprints(model)
     stored = {"dataset": dataset, "motion": fingerprints["motion"], "train": config.to_dict()}
     run = Run.open(out, stored, config.seed, log, progress)
-    stage = DetailTrainer(reader, model, fingerprints, mpath, generative, config, run, mirror)
+    stage = DetailTrainer(
+        reader, model, fingerprints, mpath, generative, config, run=run, mirror=mirror
+    )
     return train(stage, run, dataset)
 
 

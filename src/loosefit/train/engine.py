@@ -66,11 +66,13 @@ PROCEDURAL_SEED = 1000
 
 @dataclass
 class TrainEngineConfig(TrainerConfig):
-    """One training run of the engine tier (the shared fields: :class:`TrainerConfig`)."""
+    """One training run of the engine tier (the shared fields: :class:`TrainerConfig`; what
+    the membrane term, the procedural dances and the samples are for:
+    docs/design/notes/train_engine.md)."""
 
-    epochs: int = 300
+    epochs: int = 300  # passes over the training clips
     batch_size: int = 64  # clips side by side (all of the dance corpus's, mirrored)
-    lr: float = 1.0e-3
+    lr: float = 1.0e-3  # Adam's learning rate
     weight_decay: float = 0.0  # none: the tier is small and the basis bounds its output
     checkpoint_every: int = 20  # epochs
     model: EngineConfig = field(default_factory=EngineConfig)  # the tier's sizes
@@ -81,22 +83,13 @@ class TrainEngineConfig(TrainerConfig):
     mirror: bool = True  # every training clip also mirrored left-right
     targets: str = "simulation"  # "simulation", or "rollout" (the full model's, distilled)
     flare: float = 1.0  # weight of the hem-flare term (cm^2, as the geometry term); 0: off
-    # weight of the membrane term: the mean squared strain (l / L - 1)^2 of the decoded
-    # garment's edges (a linear basis shortens edges where it averages folds); 0: off
-    membrane: float = 0.0
+    membrane: float = 0.0  # weight of the decoded edges' mean squared strain; 0: off
     membrane_stride: int = 5  # ... taken on every this many frames (its cost is the decode's)
     length_scale: float = 100.0  # metres to centimetres in the loss
     eval_every: int = 25  # epochs; the held-out rollout RMSE into TensorBoard
-    # procedural dances (loosefit.motion.procedural, seeds PROCEDURAL_SEED, +1, ...) added to
-    # the training clips, distilled from the full model's rollouts of them: the moves
-    # `loosefit demo` dances (a spine bent forward, arms near the A-pose, standing tall),
-    # which no capture clip holds; 0: none
-    procedural: int = 0
+    procedural: int = 0  # procedural dances added to the training clips (distilled); 0: none
     procedural_seconds: int = 12  # the length of each
-    # a stochastic tier (model.noise > 0): realisations of each clip side by side, scored
-    # together against the simulation by the energy score (which replaces the squared
-    # error and the flare term: it rewards the simulation's spread, not its mean)
-    samples: int = 2
+    samples: int = 2  # a stochastic tier's realisations of each clip, for the energy score
 
     PRESETS: ClassVar[dict[str, dict]] = {"cpu": {}, "full": {}, "quick": {"epochs": 40}}
 
@@ -229,9 +222,9 @@ class EngineTrainer(Trainer):
             None,
             self.floor,
             config.rollout,
-            config.max_frames,
-            config.mirror,
-            config.model.joints,
+            max_frames=config.max_frames,
+            mirror=config.mirror,
+            joints=config.model.joints,
         )
         if config.targets == "rollout":
             for c, x in zip(clips, rollout_targets(full_model, clips), strict=True):
@@ -497,9 +490,9 @@ def record_feature_range(path: str | Path, data: str | Path) -> tuple[torch.Tens
         None,
         float(data_dict["floor_height"]),
         cfg.rollout,
-        cfg.max_frames,
-        cfg.mirror,
-        cfg.model.joints,
+        max_frames=cfg.max_frames,
+        mirror=cfg.mirror,
+        joints=cfg.model.joints,
     )
     low, high = feature_range(clips)
     F = int(data_dict["num_features"])

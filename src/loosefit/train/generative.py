@@ -25,7 +25,7 @@ import json
 import time
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 import torch
@@ -66,19 +66,16 @@ class TrainGenerativeConfig(TrainerConfig):
     checkpoint_every: int = 10  # epochs
     model: GenerativeConfig = field(default_factory=GenerativeConfig)  # the networks
     loss: GenerativeLossConfig = field(default_factory=GenerativeLossConfig)  # Eqs. 6-8
-    # the inverse skinning that makes the unposed targets (seeds, temperature)
-    skinning: InverseSkinningConfig = field(default_factory=InverseSkinningConfig)
+    skinning: InverseSkinningConfig = field(default_factory=InverseSkinningConfig)  # unposing
     laplacian: str = "uniform"  # mesh Laplacian of Eq. 6: "uniform" or "cotangent"
     ssdr_iterations: int = 30  # decoder "ssdr": Dem Bones iterations
     eval_every: int = 50  # epochs; test-split error into TensorBoard
     precision: str = "fp32"  # the forward pass's: "fp32", or "bf16" (autocast; see the module)
-    # warm start: a generative checkpoint (a run's or a packaged generative.pt) of the same
-    # garment and model configuration whose weights the run starts from (a fresh optimiser)
-    init: str | None = None
+    init: str | None = None  # warm start: a generative checkpoint of this garment and model
 
-    # ``full``: the paper's (a GPU, 500 epochs); ``cpu``: a useful model in ~20 CPU minutes:
-    # 64x64 UV maps, narrower convolutions and a 10x larger learning rate (1e-3) so that a
-    # few hundred epochs of the small ``demo`` data converge; everything else the paper's
+    # ``full``: the paper's (a GPU, 500 epochs); ``cpu``: 64x64 UV maps, narrower convolutions
+    # and a 10x larger learning rate (1e-3), everything else the paper's (why:
+    # docs/design/notes/train_generative.md)
     PRESETS: ClassVar[dict[str, dict]] = {
         "full": {"model": GenerativeConfig(uv_size=128)},
         "cpu": {
@@ -335,7 +332,17 @@ def train_generative(
 # -- a run's checkpoint, a warm start ---------------------------------------------------------
 
 
-def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, device="cpu"):
+class GenerativeCheckpoint(NamedTuple):
+    """A generative run's checkpoint as :func:`load_checkpoint` reads it."""
+
+    model: GarmentGenerativeModel  # in eval mode
+    config: TrainGenerativeConfig  # the run's training configuration
+    data: dict  # the raw checkpoint
+
+
+def load_checkpoint(
+    path: str | Path, template: GarmentTemplate | None = None, device="cpu"
+) -> GenerativeCheckpoint:
     """A generative run's checkpoint: the model and its training configuration.
 
     Args:
@@ -344,7 +351,8 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
         device: where to put the model.
 
     Returns:
-        (model in eval mode, its :class:`TrainGenerativeConfig`, the raw checkpoint dict).
+        :class:`GenerativeCheckpoint`: the model in eval mode, its
+        :class:`TrainGenerativeConfig`, the raw checkpoint dict.
 
     Raises:
         LoosefitInputError: not a generative-model checkpoint, another garment, weights
@@ -360,7 +368,7 @@ def load_checkpoint(path: str | Path, template: GarmentTemplate | None = None, d
             "none (a packaged model)",
             hint="load it with loosefit.inference.checkpoints.load_generative",
         )
-    return model, TrainGenerativeConfig.from_dict(data["config"]), data
+    return GenerativeCheckpoint(model, TrainGenerativeConfig.from_dict(data["config"]), data)
 
 
 def warm_start(

@@ -74,74 +74,37 @@ from loosefit.inference.checkpoints import (
     read_checkpoint_file,
     save_atomic,
 )
-from loosefit.inference.rollout import change_frame
 from loosefit.inference.stages import MOTION_ONLY
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.losses import (
     ClothStructure,
-    PhysicsLossConfig,
     active_terms,
-    hem_radius,
-    physics_terms,
 )
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
 from loosefit.train.clips import (
-    Clip,
     feature_statistics,
     prepare_clips,
     rollout_evaluation,
-    stack_clips,
 )
 from loosefit.train.common import (
-    autocast,
     barrier,
     check_device_precision,
     check_precision,
     epoch_means,
     optimizer_step,
-    shard,
 )
 from loosefit.train.loop import Run, Trainer, TrainerConfig, adam, cost_line, train
+from loosefit.train.motion_window import MotionLossConfig, run_window, share_batch
 
 CHECKPOINT_FORMAT = MOTION_FORMAT
 
 
 @dataclass
-class MotionLossConfig:
-    """Eqs. 10-12 and the length unit of the geometry terms."""
-
-    laplacian: float = 1.5  # lambda_4
-    latent: float = 0.5  # lambda_5
-    length_scale: float = 100.0  # metres to centimetres, as in the generative loss
-    # physics terms (loosefit.model.losses), 0: off. The collision term needs
-    # the body at every frame and is taken by the generative stage only
-    membrane: float = 0.0  # edge lengths against rest
-    bending: float = 0.0  # dihedral angles against rest
-    collision: float = 0.0  # must stay 0 here (it needs the body: the generative stage's)
-    collision_epsilon: float = 0.002  # m; the collision term's margin (unused while it is 0)
-    # the hem's flare (its mean distance from the root's vertical axis) against the
-    # simulation's, squared, in the length unit (a network that averages fold
-    # configurations pulls the hem in); 0: off
-    flare: float = 0.0
-
-    def __post_init__(self) -> None:
-        if not (isinstance(self.flare, (int, float)) and self.flare >= 0):
-            raise LoosefitInputError("MotionLossConfig", "flare", "a weight >= 0", self.flare)
-        if self.collision:
-            raise LoosefitInputError(
-                "MotionLossConfig",
-                "collision",
-                "0 (the motion stage takes membrane and bending)",
-                self.collision,
-            )
-        PhysicsLossConfig(self.membrane, self.bending, self.collision, self.collision_epsilon)
-
-
-@dataclass
 class TrainMotionConfig(TrainerConfig):
     """One training run of the dynamic motion encoder (the shared fields:
-    :class:`TrainerConfig`)."""
+    :class:`TrainerConfig`; what the options beyond the paper do and why:
+    docs/design/notes/train_motion.md)."""
 
     epochs: int = 300  # the paper's
     batch_size: int = 1  # clips run side by side
@@ -155,27 +118,16 @@ class TrainMotionConfig(TrainerConfig):
     teacher_start: float = 1.0  # probability of a ground-truth previous state at epoch 0
     teacher_fraction: float = 0.5  # ... falling to teacher_end over this fraction of the epochs
     teacher_end: float = 0.0  # ... and staying there for the rest of training
-    # differentiate the loss through the encoder's own previous predictions within a window
-    # (unrolled training), so it learns to correct what it fed itself, not only to use it
-    unroll: bool = False
-    # also train on every training clip mirrored left-right (the motion danced the other way
-    # round, the simulated garment reflected onto its twin vertices): twice the data for a
-    # mirror-symmetric garment, no simulation needed
-    mirror: bool = False
-    # m, std of Gaussian noise on every vertex of a ground-truth previous state (0: none):
-    # teaches the encoder to use a previous state that is close to, but not, the truth
-    previous_noise: float = 0.0
+    unroll: bool = False  # differentiate through the encoder's own predictions in a window
+    mirror: bool = False  # also train on every training clip mirrored left-right
+    previous_noise: float = 0.0  # m, std of noise on a ground-truth previous state; 0: none
     eval_every: int = 10  # epochs; held-out rollout errors into TensorBoard
     precision: str = "fp32"  # the forward passes': "fp32", or "bf16" (autocast; see the module)
-    # warm start: a motion checkpoint (a run's model.pt or checkpoint.pt, or a packaged
-    # motion.pt) of the same encoder configuration and features whose weights the run
-    # starts from (a fresh optimiser); its generative model may be another (fine-tuning)
-    init: str | None = None
+    init: str | None = None  # warm start: a motion checkpoint of this encoder's configuration
 
     # ``full``: the paper's (300 epochs, batch 1, lr 1e-4); ``cpu``: up to 16 clips side by
-    # side (all of salsa's 10 training clips: on a CPU a step of 10 costs about what a step
-    # of 3 does) with a 10x learning rate (1e-3) for 60 epochs; the encoder, the loss and the
-    # windows are the paper's. ``previous_state`` and ``joints`` overrides go to the encoder.
+    # side with a 10x learning rate (1e-3) for 60 epochs (why: docs/design/notes/
+    # train_motion.md); ``previous_state`` and ``joints`` overrides go to the encoder.
     PRESETS: ClassVar[dict[str, dict]] = {
         "full": {},
         "cpu": {
@@ -221,156 +173,6 @@ class TrainMotionConfig(TrainerConfig):
             return float(self.teacher_end)
         a, b = self.teacher_start, self.teacher_end
         return float(a + (b - a) * epoch / span)
-
-
-# -- the data and the step -------------------------------------------------------------
-
-
-@dataclass
-class BatchPart:
-    """Where one process's clips sit in a batch shared among processes (torchrun).
-
-    Attributes:
-        rows: (b,) long, CPU: this process's clips among the batch's B.
-        preroll: (B,) and ``length`` (B,), CPU: every clip's of the whole batch.
-        weight: 1, or 0 for a process left without a clip (it runs clip 0 for nothing,
-            as :func:`~loosefit.train.common.shard` gives it).
-    """
-
-    rows: torch.Tensor
-    preroll: torch.Tensor
-    length: torch.Tensor
-    weight: float = 1.0
-
-    @classmethod
-    def whole(cls, batch: dict[str, torch.Tensor]) -> BatchPart:
-        """A batch run by one process alone."""
-        B = len(batch["length"])
-        return cls(torch.arange(B), batch["preroll"].cpu(), batch["length"].cpu())
-
-    def count(self, start: int, stop: int) -> int:
-        """The valid (clip, frame) pairs of the whole batch among timeline frames
-        ``start:stop``: the frames ``P <= t < length`` of each clip."""
-        first = self.preroll.clamp(min=start)
-        last = self.length.clamp(max=stop)
-        return int((last - first).clamp(min=0).sum())
-
-
-def share_batch(
-    clips: list[Clip], rank: int, world: int, device: torch.device
-) -> tuple[dict[str, torch.Tensor], BatchPart]:
-    """This process's clips of a batch, stacked (padded to the whole batch's frames) on
-    ``device``, and where they sit in the batch."""
-    mine, share = shard(len(clips), rank, world)
-    batch = stack_clips([clips[i] for i in mine.tolist()], clips)
-    preroll, length = (torch.tensor([getattr(c, a) for c in clips]) for a in ("preroll", "length"))
-    part = BatchPart(mine, preroll, length, 1.0 if share > 0 else 0.0)
-    return {k: v.to(device) for k, v in batch.items()}, part
-
-
-def run_window(
-    encoder: DynamicMotionEncoder,
-    generative: GarmentGenerativeModel,
-    laplacian,
-    batch: dict[str, torch.Tensor],
-    start: int,
-    stop: int,
-    hidden: torch.Tensor,
-    previous: torch.Tensor,
-    teacher: float,
-    loss: MotionLossConfig,
-    generator: torch.Generator | None = None,
-    noise: float = 0.0,
-    unroll: bool = False,
-    part: BatchPart | None = None,
-    precision: str = "fp32",
-    structure: ClothStructure | None = None,
-    hem: torch.Tensor | None = None,
-) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
-    """Frames ``start:stop`` of stacked clips: the loss and the state to carry on.
-
-    Args:
-        encoder, generative, laplacian: the networks (the generative one frozen; the
-            encoder may be wrapped in DDP).
-        batch: :func:`~loosefit.train.clips.stack_clips` of b clips, on the networks' device.
-        start, stop: the window, on the rollout timeline.
-        hidden: (b, gru) the GRU state after frame ``start - 1`` (detached here).
-        previous: (b, V, 3) the garment of frame ``start - 1`` in its root frame.
-        teacher: the chance that a frame's previous state is the ground truth.
-        loss: the weights.
-        generator: draws the teacher choices (and the noise), on the CPU.
-        noise: std (m) of Gaussian noise added to a ground-truth previous state.
-        unroll: keep the encoder's own prediction, fed back as the next frame's
-            previous state, in the graph (within this window; it is detached at the
-            window's start like the GRU state).
-        part: where ``batch`` sits in a batch of B clips shared among processes
-            (default: it is the whole batch). The draws are made for all B clips.
-        precision: the forward passes' ("fp32" or "bf16"; the loss is float32).
-        structure: the garment's edges and hinges, for the physics terms of ``loss``
-            (needed when one has a weight).
-        hem: (H,) the hem's vertices, for the flare term of ``loss`` (needed when it has
-            a weight).
-
-    Returns:
-        The loss terms (this process's share of the means over the whole batch's
-        valid (clip, frame) pairs of the window: they sum to them over the processes;
-        ``total`` differentiable w.r.t. the encoder through this window only, and
-        without a gradient when the window holds no valid pair), the detached GRU
-        state and the previous garment for the next window.
-    """
-    s = loss.length_scale
-    part = BatchPart.whole(batch) if part is None else part
-    device = previous.device
-    hidden = hidden.detach()
-    previous = previous.detach()
-    P, H, p = batch["preroll"], batch["heading"], batch["origin"]
-    rows = torch.arange(len(P), device=device)
-    weight = torch.full((len(P),), float(part.weight), device=device)  # (b,)
-    sums = {"geometry": 0.0, "laplacian": 0.0, "latent": 0.0}
-    for t in range(start, stop):
-        if t > 0:
-            previous = change_frame(previous, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
-        with autocast(precision, device):
-            z, hidden = encoder(batch["features"][:, t], previous, hidden)
-            v = generative.decode(z)["vertices"]
-        z, hidden, v = z.float(), hidden.float(), v.float()  # (b, latent), (b, gru), (b, V, 3)
-        every = (t >= part.preroll) & (t < part.length)  # (B,) the whole batch's motion frames
-        k = (t - P).clamp(0, batch["target"].shape[1] - 1)  # (b,) motion frame
-        vt, zt = batch["target"][rows, k], batch["latent"][rows, k]  # (b, V, 3), (b, latent)
-        if every.any():
-            # sums over this process's valid clips (the others weigh 0, so that every
-            # process's loss reaches every weight, as DDP needs)
-            w = every[part.rows].to(device) * weight  # (b,)
-            geometry = (s * v - s * vt).pow(2).sum(-1).mean(-1)  # (b,)
-            lap = (s * laplacian(v) - s * laplacian(vt)).pow(2).sum(-1).mean(-1)
-            sums["geometry"] = sums["geometry"] + (w * geometry).sum()
-            sums["laplacian"] = sums["laplacian"] + loss.laplacian * (w * lap).sum()
-            sums["latent"] = sums["latent"] + loss.latent * (w * (z - zt).pow(2).sum(-1)).sum()
-            if loss.membrane > 0 or loss.bending > 0:
-                for key, e in physics_terms(v, structure, loss).items():  # (b,) each
-                    sums[key] = sums.get(key, 0.0) + (w * e).sum()
-            if loss.flare > 0:
-                if hem is None:
-                    raise ValueError("the flare term needs the garment's hem vertices")
-                d = s * (hem_radius(v, hem) - hem_radius(vt, hem))  # (b,)
-                sums["flare"] = sums.get("flare", 0.0) + loss.flare * (w * d.pow(2)).sum()
-        previous = v if unroll else v.detach()
-        if teacher > 0:
-            draw = torch.rand(len(every), generator=generator)  # (B,) the whole batch's
-            use = (draw < teacher) & every
-            if use.any():
-                gt = vt
-                if noise > 0:
-                    jitter = torch.randn((len(every), *vt.shape[1:]), generator=generator)
-                    gt = gt + noise * jitter[part.rows].to(device)
-                previous = torch.where(use[part.rows].to(device)[:, None, None], gt, previous)
-    count = max(part.count(start, stop), 1)
-    terms = {
-        k: v / count if torch.is_tensor(v) else torch.tensor(v, device=device)
-        for k, v in sums.items()
-    }
-    terms["total"] = sum(terms.values())
-    return terms, hidden.detach(), previous.detach()
 
 
 # -- the evaluation: held-out rollouts (loosefit.eval.rollouts) ------------------------------
@@ -427,6 +229,7 @@ class MotionTrainer(Trainer):
         gmeta: dict,
         config: TrainMotionConfig,
         run: Run,
+        *,
         rest_state: torch.Tensor | None,
         settle: Callable[[DatasetReader, float], torch.Tensor] | None = None,
     ):
@@ -444,9 +247,9 @@ class MotionTrainer(Trainer):
             generative,
             floor,
             config.rollout,
-            config.max_frames,
-            config.mirror,
-            config.model.joints,
+            max_frames=config.max_frames,
+            mirror=config.mirror,
+            joints=config.model.joints,
         )
         self.fps = clips[0].motion.fps
         rest = self.rest_drape(rest_state, settle)
@@ -536,25 +339,26 @@ class MotionTrainer(Trainer):
             previous = self.rest[None].expand(n, -1, -1).clone()  # (n, V, 3)
             L = max(c.length for c in clips)
             for start in range(0, L, cfg.window):
-                terms, hidden, previous = run_window(
+                window = run_window(
                     net,
                     self.generative,
                     self.lap,
                     batch,
                     start,
                     min(start + cfg.window, L),
-                    hidden,
-                    previous,
-                    teacher,
-                    cfg.loss,
-                    self.sampling,
-                    cfg.previous_noise,
-                    cfg.unroll,
-                    part,
-                    cfg.precision,
-                    self.structure,
-                    self.hem,
+                    hidden=hidden,
+                    previous=previous,
+                    teacher=teacher,
+                    loss=cfg.loss,
+                    generator=self.sampling,
+                    noise=cfg.previous_noise,
+                    unroll=cfg.unroll,
+                    part=part,
+                    precision=cfg.precision,
+                    structure=self.structure,
+                    hem=self.hem,
                 )
+                terms, hidden, previous = window.terms, window.hidden, window.previous
                 if not terms["total"].requires_grad:
                     continue  # a window with no motion frame in the batch (all preroll)
                 optimizer_step(
@@ -604,6 +408,7 @@ def train_motion(
     generative: str | Path,
     out: str | Path,
     config: TrainMotionConfig,
+    *,
     log=print,
     progress: bool = True,
     rest_state: torch.Tensor | None = None,
@@ -643,7 +448,7 @@ def train_motion(
     }
     stored = {"dataset": dataset, "generative": gmeta["fingerprint"], "train": config.to_dict()}
     run = Run.open(out, stored, config.seed, log, progress)
-    stage = MotionTrainer(reader, gmodel, gmeta, config, run, rest_state, settle)
+    stage = MotionTrainer(reader, gmodel, gmeta, config, run, rest_state=rest_state, settle=settle)
     return train(stage, run, dataset)
 
 

@@ -21,40 +21,21 @@ LAYOUTS = ("side by side", "overlaid")
 
 @dataclass
 class ViewerConfig:
-    """How the viewer serves and starts (all but host and port changeable in its panel).
+    """How the viewer serves and starts (all but host and port changeable in its panel;
+    why ``pixel_ratio`` is worth setting without a GPU: docs/design/notes/viewer.md)."""
 
-    Attributes:
-        host: the address to listen on ("127.0.0.1": this machine, and others through an
-            SSH tunnel; "0.0.0.0": every network interface).
-        port: the first port tried; when it is taken, the next free one (printed).
-        layout: "side by side" (along x, ``spacing`` apart) or "overlaid".
-        spacing: m between sequences side by side.
-        colouring: a key of :data:`COLOURINGS` (``error``: the distance to the reference).
-        reference: index of the sequence the distance and RMSE are measured to.
-        bins: colour steps of a colouring.
-        speed: playback speed, times the sequences' frame rate.
-        follow: the camera follows the shown bodies (horizontally).
-        play: start playing.
-        loop: play again from the start at the end.
-        pixel_ratio: the canvas's pixels per screen pixel, fixed (viser's ``fixedDpr``,
-            put in the URL); None: the browser's own, lowered by viser while it draws
-            slowly. A browser drawing WebGL in software draws a frame in about 40% less
-            time at 0.5 than at viser's ratio, more with multisampling off in the browser
-            (docs/use/VIEWER.md); with a GPU leave it None.
-    """
-
-    host: str = "127.0.0.1"
-    port: int = 8080
-    layout: str = "side by side"
-    spacing: float = 1.0
-    colouring: str = "plain"
-    reference: int = 0
-    bins: int = 10
-    speed: float = 1.0
-    follow: bool = True
-    play: bool = True
-    loop: bool = True
-    pixel_ratio: float | None = None
+    host: str = "127.0.0.1"  # address to listen on ("0.0.0.0": every network interface)
+    port: int = 8080  # the first port tried; when it is taken, the next free one (printed)
+    layout: str = "side by side"  # "side by side" (along x, ``spacing`` apart) or "overlaid"
+    spacing: float = 1.0  # m between sequences side by side
+    colouring: str = "plain"  # a key of COLOURINGS ("error": the distance to the reference)
+    reference: int = 0  # index of the sequence the distance and RMSE are measured to
+    bins: int = 10  # colour steps of a colouring
+    speed: float = 1.0  # playback speed, times the sequences' frame rate
+    follow: bool = True  # the camera follows the shown bodies (horizontally)
+    play: bool = True  # start playing
+    loop: bool = True  # play again from the start at the end
+    pixel_ratio: float | None = None  # canvas pixels per screen pixel, fixed; None: the browser's
 
     def validate(self, num_sequences: int) -> None:
         """Raises LoosefitInputError naming the field that is out of range."""

@@ -164,6 +164,7 @@ class Chromium:
     def __init__(
         self,
         binary: str | None = None,
+        *,
         width: int = 1280,
         height: int = 800,
         timeout: float = 60.0,

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -163,11 +164,19 @@ def from_animated(
     ]
 
 
+class ReadSequences(NamedTuple):
+    """The sequences :func:`read_sequences` read, in the order shown."""
+
+    sequences: list[GarmentSequence]  # each as read and validated
+    labels: list[str]  # each one's label: its file stem (made unique), or the clip's
+    sources: list[str]  # where each came from: a file, or DATA:CLIP
+
+
 def read_sequences(
     paths: Sequence[str | Path] = (),
     data: str | Path | None = None,
     clip: str | None = None,
-) -> tuple[list[GarmentSequence], list[str], list[str]]:
+) -> ReadSequences:
     """Sequence files, and a data set's clip, read and validated.
 
     Args:
@@ -177,7 +186,8 @@ def read_sequences(
         clip: the clip's name in ``data``.
 
     Returns:
-        The sequences, their labels (file stems, made unique) and sources.
+        :class:`ReadSequences`: the sequences, their labels (file stems, made unique) and
+        sources.
     """
     from loosefit.data.format import DatasetReader
 
@@ -203,7 +213,7 @@ def read_sequences(
         raise LoosefitInputError(
             "view", "SEQUENCE", "a sequence .npz or --data and --clip", "nothing to view"
         )
-    return seqs, _unique(labels), sources
+    return ReadSequences(seqs, _unique(labels), sources)
 
 
 def _read_file(path: Path) -> GarmentSequence:

@@ -11,7 +11,8 @@ import trimesh
 from loosefit.geometry.query import Surface
 from loosefit.inference.stages.collision import CollisionConfig, CollisionHandler
 from tests.conftest import REPO, SALSA, needs_salsa
-from tests.inference.stages.test_collision import _sheet, _two_spheres
+from tests.inference.stages.test_collision import _sheet
+from tests.inference.stages.test_collision_finish import _two_spheres
 
 TOLERANCE = 5e-4  # m: the fast path's garments against the path before it
 

@@ -82,13 +82,11 @@ STATE = {  # output -> the input it becomes on the next frame
 class EngineExportConfig:
     """How the engine tier's graph is written."""
 
-    opset: int = 17
+    opset: int = 17  # the ONNX operator set the graph is written in
     capsules: bool = True  # the capsule push-out in the graph (False: the engine's own collider)
     check_frames: int = 300  # frames of a procedural dance run against PyTorch (0: none)
     tolerance: float = 1e-5  # m: the check's largest allowed difference
-    # m below the waistband over which the push-out comes in (0 at the band, whole below;
-    # 0: the band pushed out too)
-    waist_blend: float = 0.08
+    waist_blend: float = 0.08  # m the push-out fades in over below the band; 0: band pushed too
 
 
 def waist_hold(vertices: np.ndarray, waist: np.ndarray, blend: float) -> np.ndarray:
@@ -221,6 +219,7 @@ def export_metadata(
     capsules: list,
     skeleton: dict,
     in_graph: bool,
+    *,
     waist_blend: float = EngineExportConfig.waist_blend,
 ) -> dict:
     """What the graph's inputs and outputs mean, the skeleton and the capsules: the JSON."""
@@ -359,7 +358,13 @@ def export_engine(model, path: str | Path, config: EngineExportConfig | None = N
         .eval()
     )
     meta = export_metadata(
-        model, path.name, config.opset, capsules, skeleton, config.capsules, config.waist_blend
+        model,
+        path.name,
+        config.opset,
+        capsules,
+        skeleton,
+        config.capsules,
+        waist_blend=config.waist_blend,
     )
 
     def check(graph: Path, meta_path: Path) -> dict:  # the reference loop reads the JSON
@@ -368,7 +373,15 @@ def export_engine(model, path: str | Path, config: EngineExportConfig | None = N
     checked = check if config.check_frames else None
     example = example_inputs(model, 2)
     return write_graph_files(
-        path, step, example, INPUTS, OUTPUTS, meta, model.template, config.opset, checked
+        path,
+        step,
+        example,
+        INPUTS,
+        OUTPUTS,
+        meta,
+        template=model.template,
+        opset=config.opset,
+        check=checked,
     )
 
 

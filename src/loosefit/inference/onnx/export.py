@@ -453,7 +453,15 @@ def export_onnx(model, path: str | Path, config: OnnxExportConfig | None = None)
     checked = check if config.check else None
     example = example_inputs(model, 2)
     return write_graph_files(
-        path, step, example, INPUTS, OUTPUTS, meta, model.template, config.opset, checked
+        path,
+        step,
+        example,
+        INPUTS,
+        OUTPUTS,
+        meta,
+        template=model.template,
+        opset=config.opset,
+        check=checked,
     )
 
 
@@ -478,6 +486,7 @@ def write_graph_files(
     inputs,
     outputs,
     meta: dict,
+    *,
     template,
     opset: int,
     check: Callable[[Path, Path], dict] | None = None,

@@ -25,11 +25,13 @@ moved vertices are queried again after each solve (warp's BVH,
 :class:`~loosefit.geometry.query.Surface`), since pushed vertices meet other parts
 of the body, and the active set grows until no vertex is inside ``eps``.
 
-Beyond the paper: a last projection by the winding number (where body parts overlap the
-closest face's side misleads the solve), bounded so that it never throws a vertex far
-(``finish``, ``finish_limit``), and the tears mended: pushes out of two body parts pressed
-together send neighbours to either side, and edges stretched past ``stretch`` times their
-rest length are shortened and projected out again (``relax``). docs/results/HARD_POSES.md.
+Beyond the paper (:mod:`~loosefit.inference.stages.collision_finish`): a last projection by
+the winding number (where body parts overlap the closest face's side misleads the solve),
+bounded so that it never throws a vertex far (``finish``, ``finish_limit``), the tears
+mended: pushes out of two body parts pressed together send neighbours to either side, and
+edges stretched past ``stretch`` times their rest length are shortened and projected out
+again (``relax``), and cloth deep in a limb kept to the side it left by (``sticky``).
+docs/results/HARD_POSES.md; the figures behind the defaults: docs/design/notes/collision.md.
 """
 
 from __future__ import annotations
@@ -47,14 +49,16 @@ from loosefit.errors import LoosefitInputError
 from loosefit.geometry.banded import band_order
 from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.laplacian import laplacian_matrix
-from loosefit.geometry.query import ClosestPoints, Surface
+from loosefit.geometry.query import Surface
 from loosefit.geometry.signed_distance import (
-    beyond_skin,
-    hit_distances,
     normals_of_hit,
-    on_skin,
 )
 from loosefit.inference.stages import StageFrames
+from loosefit.inference.stages.collision_finish import (
+    last_projection,
+    mend_tears,
+    sticky_side,
+)
 
 if TYPE_CHECKING:
     from loosefit.inference.stages.push_out import PushOutHandler
@@ -62,56 +66,25 @@ if TYPE_CHECKING:
 
 @dataclass
 class CollisionConfig:
-    """Eq. 16 and its solver."""
+    """Eq. 16 and its solver (why each default is what it is: docs/design/notes/collision.md)."""
 
     epsilon: float = 1.0e-3  # m: every vertex ends at least this far outside the body (eps)
     anchor: float = 1.0e-3  # mu: weight of ||D||^2 (the Laplacian's null space; locality)
     rings: int = 4  # a solve moves only vertices within this many edges of an active one
-    iterations: int = 4  # closest-point queries and solves per frame, at most (6 before the
-    #   last projection: with it, 3-4 leave ballet 05_20 as clear at 20 % less time)
-    face_reach: float = 0.005  # m: the faces with a vertex this near the body are checked too
-    #   (more than the depth the body can bulge into a face between its vertices, about
-    #   edge^2 / (8 radius): 1 mm for the skirt's 2 cm edges over a 5 cm thigh)
-    reach: float = 0.1  # m: vertices farther than this from the body are never touched (and
-    #   deeper inside it never seen): the spin sinks vertices 6.5 cm into the hips
-    finish: int = 6  # last projections: rounds that move every vertex still inside the body
-    #   (by the winding number) straight out to eps beyond its closest skin, each alone
-    finish_reach: float = 0.1  # m: the vertices the last projection asks about: those the
-    #   solve saw closer than this (where body parts overlap, as an arm in the torso, the
-    #   closest face's side says outside for cloth that is inside: ballet 05_20 kept 8
-    #   frames deeper than 5 mm asking only within face_reach, none within 2 cm; 05_12
-    #   kept a vertex 4.9 cm inside whose closest skin's side said 4.9 cm outside)
-    finish_limit: float = 0.1  # m: a vertex the last projection moved on (still inside after
-    #   its projection) goes no farther than this from where the solve left it; one not out
-    #   by then stays where it is, inside (two body parts pressed together, a hand on the
-    #   hip: the cloth between is pinched, and walking it on threw vertices a metre out).
-    #   4 cm left a waistband vertex under a forearm on the small of the back 6.4 and 7.8 mm
-    #   deep (ballet 05_02 frame 253, the chain spin frame 57, walked then in steps of 1, 2
-    #   and 4 cm; now a ray to the next skin on its way); 10 cm clears both, and no vertex
-    #   of the five account clips moves farther than it did (docs/results/STAGE_ACCOUNT.md)
-    stretch: float = 1.5  # the most collision handling may stretch an edge, as a factor of
-    #   its rest length (or of its length before, if that is more): pushes out along two
-    #   body parts' normals (cloth pinched between a hand and the hip, a thigh and the belly)
-    #   tore edges to 10x (ballet 05_02, the crouches); see ``relax``
-    relax: int = 8  # rounds that mend the edges the pushes tore (longer than ``stretch``
-    #   times rest): shortened, then projected out again; 0: none
-    winding_accuracy: float = 1.0  # the last projection's fast winding number (warp's beta;
-    #   its default 2 costs a third more, same answers on salsa 60_01 and ballet 05_12; 0.5
-    #   calls cloth centimetres outside inside)
-    whole_body: bool = True  # collide with the whole body, arms and hands included, whatever
-    #   the simulation's collider was (without arms and hands, they passed through the skirt)
-    fast: bool = True  # the same answers in less time: each solve a banded
-    #   Cholesky in a bandwidth-reducing order fixed once (not SuperLU), and "inside" the winding
-    #   number counted along rays (``Surface.query(sign="rays")``: no solid-angle data to refit
-    #   each frame) instead of warp's fast winding number; False: the slower path before it
-    sticky: bool = True  # along a motion, cloth inside the body leaves it on the side it left
-    #   by in the frame before, when its closest skin is now on the other side (the hem deep
-    #   in a thigh, near its middle: pushed out to the front, then to the back, frame after
-    #   frame, a flicker of 10-20 cm; ballet 05_20, bench/quality/collision_pops.py)
-    sticky_factor: float = 1.5  # ... where that side is at most this many times as far as
-    #   the closest skin (plus sticky_slack): near a limb's middle, not the shallow cloth
-    #   whose closest skin is plainly the way out (0.5 cm inside, its side of before 5 cm on)
-    sticky_slack: float = 0.005  # m
+    iterations: int = 4  # closest-point queries and solves per frame, at most
+    face_reach: float = 0.005  # m: faces with a vertex this near the body get points checked too
+    reach: float = 0.1  # m: vertices farther than this from the body are never touched
+    finish: int = 6  # rounds of the last projection (winding number inside: straight out to eps)
+    finish_reach: float = 0.1  # m: the last projection asks about vertices the solve saw this near
+    finish_limit: float = 0.1  # m: the farthest the last projection moves a vertex from the solve's
+    stretch: float = 1.5  # longest an edge may end, times its rest length (or its length before)
+    relax: int = 8  # rounds that mend edges torn past ``stretch`` (shorten, project out); 0: none
+    winding_accuracy: float = 1.0  # the fast winding number's beta (warp's; larger: slower)
+    whole_body: bool = True  # collide with the whole body, arms and hands included
+    fast: bool = True  # banded Cholesky solves and ray-cast inside tests; False: SuperLU, warp's
+    sticky: bool = True  # cloth inside the body leaves by the side it left by the frame before
+    sticky_factor: float = 1.5  # ... if that side is at most this many times the closest skin's
+    sticky_slack: float = 0.005  # m: ... plus this
 
     def __post_init__(self) -> None:
         for name in (
@@ -146,10 +119,7 @@ class CollisionConfig:
 
 
 # ``loosefit animate --collision realtime``: one solve, one round of the last projection and
-# of the mending a frame. Against the default on 150 frames (bench/quality/collision_pops.py,
-# docs/results/BENCHMARKS.md): collision handling 1.3-2.2x faster, no frame deeper than the default's,
-# fewer jumps from frame to frame; more vertices left within eps of the skin or 1 mm inside
-# where body parts press together (60_01: 854 vertex-frames against 546)
+# of the mending a frame (its measured cost and quality: docs/design/notes/collision.md)
 REALTIME = {"iterations": 1, "finish": 1, "relax": 1}
 COLLISION_SETTINGS = ("full", "realtime")
 
@@ -302,7 +272,7 @@ class CollisionHandler:
                 "CollisionHandler.resolve", "previous", f"({V}, 3)", f"{np.shape(way)}"
             )
         n, ds = self._signed(x0, body, cfg.reach, slice(None))
-        n, ds = self._stick(x0, n, ds, way, body)
+        n, ds = sticky_side(self, x0, n, ds, way, body)
         iterations = 1
         depth_before = float(np.clip(cfg.epsilon - ds, 0, None).max())
         inside_before = int((ds < 0).sum())
@@ -326,7 +296,8 @@ class CollisionHandler:
             # the moved vertices' closest points again: pushed ones meet other body parts
             moved = np.flatnonzero(region)
             at = x0[moved] + d[moved]
-            n[moved], ds[moved] = self._stick(
+            n[moved], ds[moved] = sticky_side(
+                self,
                 at,
                 *self._signed(at, body, cfg.reach, moved),
                 None if way is None else way[moved],
@@ -338,11 +309,11 @@ class CollisionHandler:
             x, d = x0, np.zeros_like(x0)
             n, ds = self._signed(x, body, cfg.reach, slice(None))
         if cfg.finish:
-            x, ds, passes = self._finish(x, ds, body)
+            x, ds, passes = last_projection(self, x, ds, body)
             d = x - x0
             iterations += passes
         if cfg.relax:
-            x, ds, passes = self._relax(x0, x, ds, body)
+            x, ds, passes = mend_tears(self, x0, x, ds, body)
             d = x - x0
             iterations += passes
         lap = self.lap @ d
@@ -356,184 +327,6 @@ class CollisionHandler:
             iterations=iterations,
             laplacian_change=float(np.sqrt((lap**2).sum(-1).mean())),
         )
-
-    def _finish(
-        self, x: np.ndarray, ds: np.ndarray, body: Surface
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        """The last projection: every vertex near the body that the winding number puts
-        inside it (a crease, two body parts pressed together, an arm in the torso, where
-        the closest face's side misleads the solve) moved straight to ``eps`` beyond its
-        closest skin, then asked again, ``finish`` times at most. A vertex still inside
-        after its projection (it sat on an inner skin, the arm's surface inside the torso,
-        or was caught where two body parts overlap, each projection sending it into the
-        other) goes on the way it went to the next skin that way meets (a ray), ``eps``
-        beyond it, but never farther than ``finish_limit`` from where the solve left it: one
-        not out by then stays inside (pinched between body parts). A vertex lying on the
-        outside of its closest skin (within ``face_reach``) that is inside all the same is
-        in another body part pressed onto that skin (a forearm on the hip): the cloth is
-        pinched there, and stays; projected through the skin it lay on and walked on, it
-        came out a body part's width away in one frame and not the next (salsa 60_01's
-        waist: 5-7 cm flicker, bench/quality/collision_pops.py). The edges its moves stretch are
-        mended in :meth:`_relax`.
-
-        Args:
-            x: (V, 3) the garment after the solves; ds: (V,) their signed distances.
-
-        Returns:
-            The garment, its signed distances (negative inside, by the winding number where
-            asked again) and the queries made.
-        """
-        cfg = self.config
-        start, x, ds = x, x.copy(), ds.copy()  # start: where the solve left them
-        near = np.flatnonzero(ds < cfg.finish_reach)  # inside or near, as the solve saw it
-        passes = 0
-        went = np.zeros_like(x)  # (V, 3) the direction each vertex was last moved in
-
-        def ask(near: np.ndarray, known: bool = False):
-            """The winding number's answer for the vertices ``near``, into ``ds``; ``known``:
-            their closest points are the solve's last answers, at the same positions (the
-            fast path's first round: only the rays are cast)."""
-            if known:
-                points, faces = self._closest[near], self._face[near]
-                inside = body.inside_by_rays(x[near], points, faces)
-                hit = ClosestPoints(
-                    points,
-                    faces,
-                    np.zeros_like(points),
-                    inside,
-                    np.linalg.norm(points - x[near].astype(np.float32), axis=1),
-                )
-            else:
-                hit = self._ask(x[near], body, near, self.inside_test)
-            ds[near] = hit_distances(hit)
-            return hit, (hit.faces >= 0) & hit.inside
-
-        for k in range(cfg.finish):
-            if not len(near):
-                break
-            hit, inside = ask(near, known=cfg.fast and k == 0)
-            passes += 1
-            if not inside.any():
-                break
-            idx = near[inside]
-            beyond, out = beyond_skin(x[idx], hit, inside, cfg.epsilon)
-            # moved before and still inside: on an inner skin, or caught between two body
-            # parts that a projection only swaps: it goes on the way it went, as far as the
-            # limit lets it (those at the limit stay, and are not asked again)
-            on_inner = went[idx].any(1)
-            step = beyond  # (K, 3) where each goes this round
-            # (K,) not moved yet, on the outside of its closest skin: pinched, stays
-            stuck = ~on_inner & on_skin(x[idx], body, hit, inside, cfg.face_reach)
-            step[stuck] = x[idx[stuck]]
-            if on_inner.any():  # on to the next skin its way meets, eps beyond
-                w = idx[on_inner]
-                left = cfg.finish_limit - np.linalg.norm(x[w] - start[w], axis=1)  # (Kw,)
-                t, face = body.first_hits(x[w], went[w], float(max(left.max(), 0.0)))
-                go = (face >= 0) & (t + cfg.epsilon <= left)
-                step[on_inner] = np.where(
-                    go[:, None], x[w] + (t + cfg.epsilon)[:, None] * went[w], x[w]
-                )
-                stuck[on_inner] = ~go
-            x[idx] = step
-            went[idx] = np.where(on_inner[:, None], went[idx], out)
-            near = idx[~stuck]  # only these can still be inside (the others did not move)
-        else:  # the passes ran out with vertices just moved: where they are now, reported
-            if cfg.finish and len(near):
-                ask(near)
-                passes += 1
-        return x, ds, passes
-
-    def _relax(
-        self, x0: np.ndarray, x: np.ndarray, ds: np.ndarray, body: Surface
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        """Tears mended: pushes out along the normals of two body parts pressed together (a
-        hand on the hip, a thigh on the belly in a crouch) send neighbouring vertices to
-        either side and stretch the edge between to many times its length. Every edge
-        longer than ``stretch`` times its rest length (and than it was in ``x0``) is
-        shortened to that, its two vertices moving alike (averaged over their edges), and
-        the vertices moved are then projected out of the body again (to ``eps`` beyond the
-        closest skin, where the winding number, or the closest face's side without the last
-        projection, puts them inside); ``relax`` rounds. The projection is last, so no vertex
-        it asks about is left inside; where two body parts press together the tear is
-        mended only in part (hard poses, docs/results/HARD_POSES.md: from 85-103x rest to 4-10x).
-        Shortening last instead mends more (ballet 05_02: 4.8x against 6.7x) but leaves
-        cloth up to 3 cm inside where body parts overlap.
-
-        Args:
-            x0: (V, 3) the garment before collision handling; x: (V, 3) after the solve and
-                the last projection; ds: (V,) its signed distances.
-
-        Returns:
-            The garment, its signed distances (asked again where moved) and the queries made.
-        """
-        cfg = self.config
-        x, ds = x.copy(), ds.copy()
-        a, b = self.edges[:, 0], self.edges[:, 1]
-        passes = 0
-        stale = np.zeros(len(x), dtype=bool)  # (V,) moved since ``ds`` was asked for it
-        sign = self.inside_test if cfg.finish else "normal"
-        for _ in range(cfg.relax):
-            # only an edge with an end moved can be over its limit (the others are as long
-            # as before, which the limit is at least): the same edges, a fraction of the work
-            changed = (x != x0).any(1)  # (V,)
-            maybe = np.flatnonzero(changed[a] | changed[b])
-            before = np.linalg.norm(x0[a[maybe]] - x0[b[maybe]], axis=1)
-            rest = before if self.rest_lengths is None else self.rest_lengths[maybe]
-            limit = np.maximum(before, cfg.stretch * rest)  # (M,)
-            vec = x[a[maybe]] - x[b[maybe]]
-            length = np.linalg.norm(vec, axis=1)
-            keep = length > limit
-            over = maybe[keep]
-            if not len(over):
-                break
-            vec, length = vec[keep], length[keep]
-            corr = (0.5 * (length - limit[keep]) / length)[:, None] * vec
-            ends = np.r_[a[over], b[over]]  # (2 O,) each over-long edge's two vertices
-            pull = np.concatenate([-corr, corr])  # (2 O, 3) what each end takes
-            delta = np.stack([np.bincount(ends, pull[:, k], len(x)) for k in range(3)], 1)
-            count = np.bincount(ends, minlength=len(x))
-            touched = np.flatnonzero(count)
-            x[touched] += delta[touched] / count[touched, None]
-            hit = self._ask(x[touched], body, touched, sign)
-            passes += 1
-            ds[touched] = hit_distances(hit)
-            stale[touched] = False
-            inside = hit.inside & (hit.faces >= 0)
-            if inside.any():
-                idx = touched[inside]
-                x[idx] = beyond_skin(x[idx], hit, inside, cfg.epsilon)[0]
-                stale[idx] = True
-        if stale.any():  # where the last projections left them (the others as asked)
-            idx = np.flatnonzero(stale)
-            hit = self._ask(x[idx], body, idx, sign)
-            passes += 1
-            ds[idx] = hit_distances(hit)
-        return x, ds, passes
-
-    def _stick(
-        self, x: np.ndarray, n: np.ndarray, ds: np.ndarray, way: np.ndarray | None, body: Surface
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """``sticky``: the vertices at ``x`` (N, 3) inside the body (``ds < 0``) whose closest
-        skin is now against the way they were moved out in the frame before (``way``, (N, 3)
-        unit or 0) leave along that way instead, to where its ray first meets the skin, if
-        that is at most ``sticky_factor`` times as far as the closest skin (plus
-        ``sticky_slack``).
-
-        Returns:
-            The normals ``n`` (N, 3) and signed distances ``ds`` (N,), theirs changed (in
-            place; as given where ``way`` is None).
-        """
-        if way is None:
-            return n, ds
-        turn = np.flatnonzero((ds < 0) & ((n * way).sum(1) < 0))
-        if not len(turn):
-            return n, ds
-        reach = -ds[turn] * self.config.sticky_factor + self.config.sticky_slack  # (K,)
-        t, face = body.first_hits(x[turn], way[turn], float(reach.max()))
-        ok = (face >= 0) & (t <= reach)
-        n[turn[ok]] = way[turn[ok]]
-        ds[turn[ok]] = -t[ok]
-        return n, ds
 
     def _ask(self, x: np.ndarray, body: Surface, idx, sign: str, reach: float | None = None):
         """The closest points and inside test ``sign`` of the vertices ``idx`` (an index
@@ -688,6 +481,7 @@ class BodyCollider:
         body_faces: np.ndarray,
         pose,
         num_frames: int,
+        *,
         chunk: int = 64,
         device: str = "cpu",
         winding_number: bool | None = None,

@@ -29,14 +29,11 @@ BANDED_UP_TO = 512
 
 @dataclass
 class LengthConfig:
-    """:class:`LengthRestorer`: how many rounds, how strongly the network's shape holds."""
+    """:class:`LengthRestorer`: how many rounds, how strongly the network's shape holds (why
+    only the hanging edges by default: docs/design/notes/lengths.md)."""
 
-    edges: str = "hanging"  # which edges: "hanging" (at rest within ~53 degrees of vertical,
-    #   |dz| / L > min_vertical) or "all". Restoring every edge of the decoders' averaged
-    #   garment gives back its area as a bell (the folds it lost become flare: hem flare
-    #   1.18-1.33x the simulation's on the spin and ballet 05_02); the hanging edges alone
-    #   give back its length (flare 0.98-1.08x; bench/quality/stage_account.py, docs/results/STAGE_ACCOUNT.md)
-    min_vertical: float = 0.6
+    edges: str = "hanging"  # which edges are restored: "hanging" (see min_vertical) or "all"
+    min_vertical: float = 0.6  # a hanging edge's |dz| / L at rest exceeds this (~53 degrees)
     iterations: int = 10  # local-global rounds (0: the stage does nothing)
     tie: float = 1.0e-3  # alpha: how strongly every vertex stays where the network put it
     compression_only: bool = False  # restore only edges shorter than rest (leave stretch)
@@ -122,11 +119,9 @@ class LengthRestorer:
         # the differentiable rounds' solve (float64, its backward the same solve) and the
         # host rounds' where the band is too wide
         self._lu = spla.splu(system, permc_spec="MMD_AT_PLUS_A")
-        # the host rounds' solve: float32 blocks (2 ms a round for the skirt's 64 frames
-        # on one core, where the dense float32 inverse this replaces took 16 ms; float64
-        # blocks take 5 ms). Their relative error (~2e-7; condition number ~1.5e3 for the
-        # skirt at tie 1e-3) falls on each round's change, not on the positions
-        # (restore_numpy; bench/speed/length_solve.py)
+        # the host rounds' solve: float32 blocks, whose relative error falls on each
+        # round's change, not on the positions (restore_numpy; the timings and the error:
+        # docs/design/notes/lengths.md)
         narrow = width <= min(BAND_FRACTION * len(free), BANDED_UP_TO)
         self.banded = BlockBandedCholesky(system, np.float32) if narrow else None
         self._bf_t = bf.T.tocsr()  # (Vf, E)
