@@ -208,6 +208,7 @@ def run_with_kill(head, out: Path, clip: str, cluster: ClusterConfig):
 
 
 @needs_ray
+@pytest.mark.heavy
 def test_a_killed_worker_s_clip_goes_on_from_its_save_and_the_data_set_is_the_local_one(
     head, local_tiny, tmp_path, monkeypatch
 ):
@@ -224,6 +225,7 @@ def test_a_killed_worker_s_clip_goes_on_from_its_save_and_the_data_set_is_the_lo
 
 
 @needs_ray
+@pytest.mark.heavy
 def test_a_clip_whose_task_dies_for_good_is_missing_until_the_rerun_goes_on_from_its_save(
     head, local_tiny, tmp_path
 ):

@@ -19,6 +19,8 @@ from pathlib import Path
 import pytest
 import torch
 
+pytestmark = pytest.mark.heavy  # long runs in subprocesses, killed and run again
+
 TRAIN_GENERATIVE = """
 import sys
 from loosefit.model.generative import GenerativeConfig
