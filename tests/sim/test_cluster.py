@@ -99,11 +99,9 @@ def head():
 
 
 @pytest.fixture(scope="module")
-def local_tiny(tmp_path_factory, avatar):
+def local_tiny(tiny_simulated):
     """The tiny data set as the local runner makes it (one process, uninterrupted)."""
-    out = tmp_path_factory.mktemp("local") / "tiny"
-    generate(preset("tiny"), out, workers=1, progress=False)
-    return out
+    return tiny_simulated
 
 
 def assert_same_data_set(got: Path, want: Path) -> None:

@@ -20,10 +20,14 @@ from loosefit.sim.report import format_report
 
 
 @pytest.fixture(scope="module")
-def tiny_dataset(tmp_path_factory, avatar):
+def tiny_dataset(tmp_path_factory, tiny_simulated):
+    """This module's copy of the session's tiny data set (its tests change it), and its
+    manifest."""
+    import shutil
+
     out = tmp_path_factory.mktemp("ds") / "tiny"
-    manifest = generate(preset("tiny"), out, workers=1, progress=False)
-    return out, manifest
+    shutil.copytree(tiny_simulated, out)
+    return out, json.loads((out / "manifest.json").read_text())
 
 
 def test_tiny_dataset_is_complete_and_readable(tiny_dataset):

@@ -139,15 +139,14 @@ generate(preset("tiny"), sys.argv[1], workers=1, progress=False)
 """
 
 
-def test_a_killed_simulation_resumes_without_redoing_a_clip(tmp_path):
+def test_a_killed_simulation_resumes_without_redoing_a_clip(tiny_simulated, tmp_path):
     import json
 
     import numpy as np
 
     from loosefit.data.format import DatasetReader
 
-    whole, killed = tmp_path / "whole", tmp_path / "killed"
-    _run(SIMULATE, whole)
+    whole, killed = tiny_simulated, tmp_path / "killed"  # whole: the uninterrupted run
     first = killed / "sequences" / "kick_000.npz"
     _kill_when(SIMULATE, [killed], first, seed=3)
     manifest = json.loads((killed / "manifest.json").read_text())
