@@ -1,8 +1,11 @@
 # Two commands on a fresh machine: `make demo` (the main job) and `make test`.
+# `make test` runs every test, the heavy ones included (installing a wheel, torchrun, a Ray
+# head, a browser, killed and resumed runs, simulated data sets): the command CI runs.
+# `make test-quick` leaves the heavy ones out: the loop while editing (minutes, not twenty).
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test lint format clean
+.PHONY: install demo test test-quick lint format clean
 
 $(STAMP): pyproject.toml scripts/install.sh
 	bash scripts/install.sh
@@ -17,6 +20,11 @@ test: $(STAMP)
 	$(VENV)/bin/ruff check src tests bench
 	$(VENV)/bin/ruff format --check src tests bench
 	$(VENV)/bin/python -m pytest -q --durations=25
+
+test-quick: $(STAMP)
+	$(VENV)/bin/ruff check src tests bench
+	$(VENV)/bin/ruff format --check src tests bench
+	$(VENV)/bin/python -m pytest -q --durations=10 -m "not slow and not gpu and not heavy"
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests bench

@@ -36,7 +36,7 @@ fi
 # The optional extras too, so that `make test` runs their tests (viewer, cluster, onnx).
 $VPY -m pip install -q -e ".[dev,viewer,cluster,onnx,alembic]"
 # Blender as a Python module, for the tests that open each export in Blender
-# (tests/export/test_blender.py; they skip where it is absent). Its wheel pins
+# (tests/export/test_blender_read.py; they skip where it is absent). Its wheel pins
 # numpy<2, which Blender's importers do not need: installed without its
 # dependencies so that it leaves loosefit's numpy as it is. LOOSEFIT_NO_BPY=1 skips it.
 if [ -z "${LOOSEFIT_NO_BPY:-}" ] && ! $VPY -c "import importlib.util as u, sys; sys.exit(u.find_spec('bpy') is None)" 2>/dev/null; then

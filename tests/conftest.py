@@ -74,3 +74,15 @@ def toy_dataset(avatar, skirt, tmp_path_factory):
     }
     write_json_atomic(root / "manifest.json", manifest)
     return root
+
+
+@pytest.fixture(scope="session")
+def tiny_simulated(avatar, tmp_path_factory):
+    """The ``tiny`` preset's data set as the local runner makes it (one process, uninterrupted):
+    simulated once a session; read it, or copy it to change it."""
+    from loosefit.sim.generate import generate
+    from loosefit.sim.presets import preset
+
+    out = tmp_path_factory.mktemp("tiny_simulated") / "tiny"
+    generate(preset("tiny"), out, workers=1, progress=False)
+    return out

@@ -6,6 +6,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+# the GPU pipeline's scripts at toy size: simulations and training in subprocesses
+pytestmark = pytest.mark.heavy
+
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "gpu_pipeline.py"
 
 

@@ -6,6 +6,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.heavy  # builds a wheel and installs it into a fresh environment
+
 REPO = Path(__file__).resolve().parents[1]
 
 API_EXAMPLE = """

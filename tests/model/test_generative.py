@@ -131,6 +131,7 @@ def test_checkpoint_of_another_garment_is_refused(toy_dataset, tmp_path, avatar)
         load_checkpoint(tmp_path / "junk.pt")
 
 
+@pytest.mark.heavy
 def test_a_killed_run_resumes(toy_dataset, tmp_path):
     """The run SIGKILLs itself right after its epoch-3 checkpoint is on disk (a poll from
     here raced the toy run, which can finish 12 epochs between two looks)."""

@@ -99,11 +99,9 @@ def head():
 
 
 @pytest.fixture(scope="module")
-def local_tiny(tmp_path_factory, avatar):
+def local_tiny(tiny_simulated):
     """The tiny data set as the local runner makes it (one process, uninterrupted)."""
-    out = tmp_path_factory.mktemp("local") / "tiny"
-    generate(preset("tiny"), out, workers=1, progress=False)
-    return out
+    return tiny_simulated
 
 
 def assert_same_data_set(got: Path, want: Path) -> None:
@@ -208,6 +206,7 @@ def run_with_kill(head, out: Path, clip: str, cluster: ClusterConfig):
 
 
 @needs_ray
+@pytest.mark.heavy
 def test_a_killed_worker_s_clip_goes_on_from_its_save_and_the_data_set_is_the_local_one(
     head, local_tiny, tmp_path, monkeypatch
 ):
@@ -224,6 +223,7 @@ def test_a_killed_worker_s_clip_goes_on_from_its_save_and_the_data_set_is_the_lo
 
 
 @needs_ray
+@pytest.mark.heavy
 def test_a_clip_whose_task_dies_for_good_is_missing_until_the_rerun_goes_on_from_its_save(
     head, local_tiny, tmp_path
 ):

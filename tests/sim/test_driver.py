@@ -452,6 +452,7 @@ def test_batched_run_resumes_and_checks_its_motions(avatar, tiny, batch, tmp_pat
         simulate_batch(avatar, skirt, [], ClothConfig.tiny())
 
 
+@pytest.mark.heavy
 def test_the_collider_with_arms_stops_a_hand_sweeping_through_a_tiny_skirt(avatar):
     # the left arm lowered from the A-pose past hanging: the hand sweeps 18 cm inward at
     # hip height, through the skirt's side, and stops 4 cm from the hip

@@ -20,10 +20,14 @@ from loosefit.sim.report import format_report
 
 
 @pytest.fixture(scope="module")
-def tiny_dataset(tmp_path_factory, avatar):
+def tiny_dataset(tmp_path_factory, tiny_simulated):
+    """This module's copy of the session's tiny data set (its tests change it), and its
+    manifest."""
+    import shutil
+
     out = tmp_path_factory.mktemp("ds") / "tiny"
-    manifest = generate(preset("tiny"), out, workers=1, progress=False)
-    return out, manifest
+    shutil.copytree(tiny_simulated, out)
+    return out, json.loads((out / "manifest.json").read_text())
 
 
 def test_tiny_dataset_is_complete_and_readable(tiny_dataset):
@@ -109,6 +113,7 @@ def test_rerun_with_same_config_does_nothing(tiny_dataset, monkeypatch):
     assert (out / "sequences" / "kick_000.npz").stat().st_mtime_ns == before
 
 
+@pytest.mark.heavy
 def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
     """A run killed after its first clip keeps it; the rerun only simulates the rest."""
     out = tmp_path / "ds"
@@ -145,6 +150,7 @@ def test_resume_after_interruption(tmp_path, monkeypatch, avatar):
     DatasetReader(out).read("spin_001")
 
 
+@pytest.mark.heavy
 def test_clips_simulated_in_a_batch_are_the_same_data_set(
     tiny_dataset, tmp_path, monkeypatch, avatar
 ):
@@ -204,6 +210,7 @@ def test_clips_simulated_in_a_batch_are_the_same_data_set(
         generate(preset("tiny"), tmp_path / "c", progress=False, batch=2, prepare_workers=0)
 
 
+@pytest.mark.heavy
 def test_a_batch_with_a_diverging_clip_is_run_again_clip_by_clip(tmp_path, monkeypatch, avatar):
     real = workers.simulate_batch
     sizes = []
@@ -268,6 +275,7 @@ def spied_copy(tiny_dataset, tmp_path, monkeypatch):
     return out, simulated
 
 
+@pytest.mark.heavy
 def test_a_new_release_depth_keeps_the_clips_it_never_acts_on(spied_copy):
     out, simulated = spied_copy
     cfg = preset("tiny")
@@ -289,6 +297,7 @@ def test_a_new_release_depth_keeps_the_clips_it_never_acts_on(spied_copy):
         generate(other, out, workers=1, progress=False)
 
 
+@pytest.mark.heavy
 def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_path, monkeypatch):
     source, _ = tiny_dataset
     cfg = preset("tiny")
@@ -329,6 +338,7 @@ def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_
         generate(cfg, tmp_path / "x", workers=1, progress=False, reuse=tmp_path / "none")
 
 
+@pytest.mark.heavy
 def test_an_ensemble_simulates_each_clip_once_per_seed_and_resumes(
     tiny_dataset, tmp_path, monkeypatch
 ):
@@ -395,6 +405,7 @@ def test_an_ensemble_simulates_each_clip_once_per_seed_and_resumes(
     assert not {"member_seed", "member_of", "motion_seed"} & set(mine["sequences"]["kick_000"])
 
 
+@pytest.mark.heavy
 def test_a_tiny_dress_dataset_simulates_held_by_its_top_band(tmp_path, avatar):
     out = tmp_path / "dress"
     manifest = generate(preset("dress-tiny"), out, workers=1, progress=False)
@@ -420,6 +431,7 @@ def test_a_dress_needs_the_upper_arms_in_its_collider(tmp_path):
         generate(config, tmp_path / "x", workers=1, progress=False)
 
 
+@pytest.mark.heavy
 def test_simulate_a_garment_file_on_named_motions_from_the_command_line(tmp_path, avatar):
     from loosefit.cli import main
     from loosefit.fitting.place import fit_dress
@@ -493,6 +505,7 @@ def test_keep_poses_simulates_the_capture_as_it_is(tmp_path):
     assert read_config_file(cfg).unfold.enabled is False
 
 
+@pytest.mark.heavy
 def test_a_new_pose_correction_keeps_the_clips_whose_motion_it_leaves(spied_copy, monkeypatch):
     out, simulated = spied_copy
     cfg = preset("tiny")
@@ -522,6 +535,7 @@ def test_a_new_pose_correction_keeps_the_clips_whose_motion_it_leaves(spied_copy
         generate(cfg, out, workers=1, progress=False)
 
 
+@pytest.mark.heavy
 def test_settled_once_the_clips_start_from_the_data_set_s_drape(tmp_path, monkeypatch):
     import dataclasses
 

@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 import torch
 
 RUN = """
@@ -30,6 +31,7 @@ if world > 1:
 """
 
 
+@pytest.mark.heavy
 def test_two_processes_follow_one_process_s_loss_curve(toy_dataset, tmp_path):
     one, two = tmp_path / "one", tmp_path / "two"
     init = f"file://{tmp_path / 'rendezvous'}"
@@ -100,6 +102,7 @@ if world > 1:
 """
 
 
+@pytest.mark.heavy
 def test_two_processes_train_the_motion_stage_as_one(toy_dataset, generative, skirt, tmp_path):
     one, two = tmp_path / "one", tmp_path / "two"
     init = f"file://{tmp_path / 'rendezvous'}"
@@ -142,6 +145,7 @@ def test_two_processes_train_the_motion_stage_as_one(toy_dataset, generative, sk
     assert (two / "report.json").is_file() and (two / "model.pt").is_file()  # the first's
 
 
+@pytest.mark.heavy
 def test_torchrun_trains_the_motion_stage_once_reported(toy_dataset, generative, skirt, tmp_path):
     run = tmp_path / "run"
     run.mkdir()

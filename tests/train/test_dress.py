@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 import loosefit
 from loosefit.inference.timeline import RolloutConfig
@@ -16,6 +17,8 @@ from loosefit.sim.presets import preset
 from loosefit.train.generative import TrainGenerativeConfig, train_generative
 from loosefit.train.motion import TrainMotionConfig, train_motion
 from tests.train.conftest import SMALL
+
+pytestmark = pytest.mark.heavy  # a dress data set simulated, then both stages trained
 
 
 def test_a_dress_trains_and_animates_a_motion_it_never_saw(tmp_path, avatar):

@@ -19,6 +19,8 @@ from pathlib import Path
 import pytest
 import torch
 
+pytestmark = pytest.mark.heavy  # long runs in subprocesses, killed and run again
+
 TRAIN_GENERATIVE = """
 import sys
 from loosefit.model.generative import GenerativeConfig
@@ -96,7 +98,8 @@ def _weights(path: Path) -> dict:
 
 @pytest.fixture(scope="module")
 def motion_stage(toy_dataset, generative, tmp_path_factory):
-    """A motion stage for the detail stage to train on: its model.pt."""
+    """A motion stage trained uninterrupted (its model.pt): the run a killed motion stage must
+    match, and the motion stage the detail stage trains on."""
     out = tmp_path_factory.mktemp("motion")
     _run(TRAIN_MOTION, toy_dataset, out, generative)
     return out / "model.pt"
@@ -112,8 +115,12 @@ def test_a_killed_training_resumes_to_the_same_weights(
         "motion": [generative],
         "detail": [request.getfixturevalue("motion_stage")] if stage == "detail" else [],
     }[stage]
-    whole, killed = tmp_path / "whole", tmp_path / "killed"
-    _run(code, toy_dataset, whole, *extra)
+    killed = tmp_path / "killed"
+    if stage == "motion":  # the uninterrupted run: the detail stage's motion stage is that run
+        whole = request.getfixturevalue("motion_stage").parent
+    else:
+        whole = tmp_path / "whole"
+        _run(code, toy_dataset, whole, *extra)
     _kill_when(code, [toy_dataset, killed, *extra], killed / "checkpoint.pt", seed=len(stage))
     mid = torch.load(killed / "checkpoint.pt", weights_only=False)
     assert 1 <= mid["epoch"] < 8, "killed after the first checkpoint, before the end"
@@ -137,15 +144,14 @@ generate(preset("tiny"), sys.argv[1], workers=1, progress=False)
 """
 
 
-def test_a_killed_simulation_resumes_without_redoing_a_clip(tmp_path):
+def test_a_killed_simulation_resumes_without_redoing_a_clip(tiny_simulated, tmp_path):
     import json
 
     import numpy as np
 
     from loosefit.data.format import DatasetReader
 
-    whole, killed = tmp_path / "whole", tmp_path / "killed"
-    _run(SIMULATE, whole)
+    whole, killed = tiny_simulated, tmp_path / "killed"  # whole: the uninterrupted run
     first = killed / "sequences" / "kick_000.npz"
     _kill_when(SIMULATE, [killed], first, seed=3)
     manifest = json.loads((killed / "manifest.json").read_text())

@@ -69,6 +69,7 @@ def _garment_mask(browser: Chromium, viewer, t: int, before: np.ndarray) -> tupl
     return diff > 40, shown
 
 
+@pytest.mark.heavy
 def test_garment_is_drawn_and_moves(clips, chromium_binary, tmp_path):
     a, _ = clips
     viewer = view([a], names=["clip a"], config=ViewerConfig(port=0, play=False, follow=False))
@@ -121,6 +122,7 @@ def test_the_panel_lists_the_controls_it_shows(clips):
         viewer.close()
 
 
+@pytest.mark.heavy
 def test_a_screenshot_waits_for_the_whole_panel(clips, chromium_binary, tmp_path):
     """The page loads at once and its panel arrives after, over the websocket: a screenshot
     taken once the page held still showed it empty or half built, one time in four."""
@@ -155,6 +157,7 @@ def test_a_screenshot_waits_for_the_whole_panel(clips, chromium_binary, tmp_path
         viewer.close()
 
 
+@pytest.mark.heavy
 def test_a_fixed_pixel_ratio_sizes_the_canvas(clips, chromium_binary):
     a, _ = clips
     viewer = view([a], config=ViewerConfig(port=0, play=False, pixel_ratio=0.5))
@@ -177,6 +180,7 @@ def test_a_fixed_pixel_ratio_sizes_the_canvas(clips, chromium_binary):
         ViewerConfig(pixel_ratio=0.0).validate(1)
 
 
+@pytest.mark.heavy
 def test_frames_drawn_and_new_frames_are_counted(clips, chromium_binary):
     a, _ = clips
     viewer = view([a], config=ViewerConfig(port=0, play=True, speed=0.5))
