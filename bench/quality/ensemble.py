@@ -125,6 +125,8 @@ def label_of(key: str) -> str:
         what = {
             "engine-k128": "128 directions, squared error",
             "engine-k128-es": "128 directions, stochastic, energy score",
+            "engine-k128-es-ar": "128 directions, stochastic with noise correlated in time "
+            "(rho 0.95), energy score",
         }.get(name, name)
         return f"a linear basis and its recurrent step ({what})"
     return "oracle: the generative model's reconstruction of the first member"
@@ -380,7 +382,7 @@ def markdown(
         "first member's garment, decoded, scored like the methods.",
         "",
         "![hem flare and speed around each clip's fastest turn against the members' "
-        "range](img/ensemble_flare.png)",
+        "range](../img/ensemble_flare.png)",
         "",
         *targets(scores),
         *validation_section(choice or {}),
@@ -400,7 +402,7 @@ def markdown(
                 f"`{clip}` at {title} (frame {s['frame']}): the first member | the "
                 "others | ours, coloured by the distance to the first member.",
                 "",
-                f"![{clip} at {title}](img/{Path(s['path']).name})",
+                f"![{clip} at {title}](../img/{Path(s['path']).name})",
                 "",
             ]
     return "\n".join(lines).rstrip() + "\n"

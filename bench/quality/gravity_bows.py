@@ -181,7 +181,7 @@ def write(args, rows: dict, started: str) -> None:
             "",
         ]
     for clip in rows:
-        lines += [f"![{clip} at its deepest frame](img/gravity_{clip}.jpg)", ""]
+        lines += [f"![{clip} at its deepest frame](../img/gravity_{clip}.jpg)", ""]
     Path(args.out).write_text("\n".join(lines))
     (FIGURES / f"{Path(args.out).stem}.json").write_text(json.dumps(rows, indent=1))
     print(f"wrote {args.out}")

@@ -317,7 +317,7 @@ def write(args, rows: dict, started: str, floor_clip: str) -> None:
     lines += [
         "",
         "![each body at 05_02's fastest turn, top to bottom as in the tables: "
-        "simulation | ours](img/other_bodies.jpg)",
+        "simulation | ours](../img/other_bodies.jpg)",
         "",
     ]
     Path(args.out).write_text("\n".join(lines))

@@ -708,9 +708,9 @@ def ablation_plots(per_frame: dict, spin: int) -> list[str]:
         "Each decoder's (seed 0) reconstruction error per frame over the chain, and at "
         f"its fastest turn (frame {spin}; colour scale 0-8 cm):",
         "",
-        "![Reconstruction RMSE per frame by decoder](img/results_ablation_per_frame.png)",
+        "![Reconstruction RMSE per frame by decoder](../img/results_ablation_per_frame.png)",
         "",
-        "![The fastest turn reconstructed by each decoder](img/results_ablation_spin.jpg)",
+        "![The fastest turn reconstructed by each decoder](../img/results_ablation_spin.jpg)",
     ]
 
 
@@ -829,13 +829,13 @@ def set_section(key: str, st: dict) -> list[str]:
         "",
         *verdicts(scores, turn, st["clips"]),
         "",
-        f"![RMSE per frame on {SET_TITLES[key]}](img/results_rmse_per_frame_{key}.png)",
+        f"![RMSE per frame on {SET_TITLES[key]}](../img/results_rmse_per_frame_{key}.png)",
         "",
         f"The set's fastest turn ({turn['clip']}, frame {turn['frame']}, "
         f"{turn['rad_per_s']:.1f} rad/s), per-vertex error to the simulation:",
         "",
         "![The fastest turn: simulation, ours, virtual bones, Santesteban]"
-        f"(img/results_spin_{key}.jpg)",
+        f"(../img/results_spin_{key}.jpg)",
         "",
     ]
     return lines
@@ -932,9 +932,9 @@ def clip_section(shown: dict) -> list[str]:
             f"({f['turn_rad_per_s']:.1f} rad/s); the highest leg at frame {f['leg']} "
             f"(one foot {100 * f['leg_height_m']:.0f} cm above the other).",
             "",
-            f"![{name} at its fastest turn](img/results_{name}_turn.jpg)",
+            f"![{name} at its fastest turn](../img/results_{name}_turn.jpg)",
             "",
-            f"![{name} at its highest leg](img/results_{name}_leg.jpg)",
+            f"![{name} at its highest leg](../img/results_{name}_leg.jpg)",
             "",
         ]
     return lines
