@@ -133,6 +133,22 @@ class FitReport:
         )
 
 
+@dataclass
+class FitResult:
+    """A garment file fitted to a body (:func:`fit_garment`).
+
+    Attributes:
+        template: the fitted garment on the avatar's rest pose (V vertices; its
+            ``meta["fit"]`` holds the report).
+        report: what fitting did (:class:`FitReport`).
+        avatar: the body it was fitted to: simulate it on this one.
+    """
+
+    template: GarmentTemplate
+    report: FitReport
+    avatar: Avatar
+
+
 def inside_of(template_vertices: np.ndarray, avatar: Avatar, arms) -> tuple[int, float, np.ndarray]:
     """Vertices (V, 3) inside the avatar's rest collider: their count, the deepest (m),
     and the (V,) distances to the body."""
@@ -360,11 +376,12 @@ def fit_garment(
     units: str | None = None,
     up: str | None = None,
     kind: str | None = None,
+    *,
     offset=(0.0, 0.0, 0.0),
     attach="auto",
     avatar: Avatar | None = None,
     progress: Progress | None = None,
-) -> tuple[GarmentTemplate, FitReport, Avatar]:
+) -> FitResult:
     """A garment file made for another body, fitted to the avatar's rest pose.
 
     Args:
@@ -379,7 +396,8 @@ def fit_garment(
             (:data:`STAGE_UNITS`) starts and as it goes.
 
     Returns:
-        The fitted template, the :class:`FitReport`, and the avatar (simulate on it).
+        A :class:`FitResult`: the fitted template, the :class:`FitReport`, and the avatar
+        (simulate on it).
 
     Raises:
         LoosefitInputError: an unreadable file or bad option (as the import), a closed
@@ -405,7 +423,7 @@ def fit_garment(
         )
 
     def place(body: Avatar) -> GarmentTemplate:
-        return import_garment(path, body, units, up, kind, offset, attach, check=False)[0]
+        return import_garment(path, body, units, up, kind, offset, attach=attach, check=False)[0]
 
     tried = 0
     if shape == "auto":
@@ -419,4 +437,4 @@ def fit_garment(
     template, report = fit_template(placed, avatar, config, path, progress)
     report.shape_tried, report.seconds = tried, time.perf_counter() - start
     template.meta["fit"] = asdict(report)
-    return template, report, avatar
+    return FitResult(template=template, report=report, avatar=avatar)

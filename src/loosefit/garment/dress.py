@@ -31,7 +31,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.skirt import SkirtConfig, WaistFit, rest_rings, skirt_grid
+from loosefit.garment.skirt import SkirtConfig, rest_rings, skirt_grid
+from loosefit.garment.waist_fit import WaistFit
 from loosefit.types import GarmentTemplate
 
 DRESS_STYLES = ("strapless", "straps")

@@ -38,7 +38,7 @@ import numpy as np
 from loosefit.body.avatar import Skeleton
 from loosefit.errors import LoosefitInputError
 from loosefit.motion.bone_directions import REFERENCES, SourcePose, solve_bone_rotations
-from loosefit.motion.bvh import _UNIT_SCALES, BvhClip, forward_kinematics, rest_positions
+from loosefit.motion.bvh import _UNIT_SCALES
 from loosefit.motion.capture_measure import (
     FORWARD_FOR_UP,
     HeightMeasure,
@@ -56,15 +56,11 @@ from loosefit.motion.joint_maps import (  # noqa: F401 - JointMap, DAZ_MAP, CMU_
     is_map_file,
     load_joint_map_file,
 )
-from loosefit.motion.joint_match import (
-    MATCH_EXPECTED,
-    JointMatch,
-    SkeletonMatchError,
-    map_file_hint,
-    match_skeleton,
-)
+from loosefit.motion.joint_match import JointMatch, match_skeleton
+from loosefit.motion.match_errors import MATCH_EXPECTED, SkeletonMatchError, map_file_hint
 from loosefit.motion.pose_check import check_pose
 from loosefit.motion.resample import filter_rotation_glitches, resample_motion
+from loosefit.motion.skeleton_clip import BvhClip, forward_kinematics, rest_positions
 from loosefit.types import Motion
 
 _AXES = {

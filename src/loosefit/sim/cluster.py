@@ -266,6 +266,7 @@ def simulate_on_node(
     resume_every: int,
     created: str,
     versions: dict[str, str],
+    *,
     cwd: str,
     progress,
 ) -> list[dict]:
@@ -292,6 +293,7 @@ def run_on_ray(
     out_dir: str,
     resume_every: int,
     created: str,
+    *,
     on_progress: Callable[[str, int, int], None],
     record: Callable[[list[Job], list[dict]], None],
     local_cpus: int | None = None,
@@ -338,7 +340,7 @@ def run_on_ray(
         units = {}
         for group in groups:
             ref = task.options(name=f"simulate {unit_name(group)}").remote(
-                config, group, out_dir, resume_every, created, versions, cwd, progress
+                config, group, out_dir, resume_every, created, versions, cwd=cwd, progress=progress
             )
             units[ref] = group
         pending = list(units)

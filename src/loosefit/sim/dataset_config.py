@@ -97,7 +97,13 @@ def make_garment(garment, avatar):
         check_fitted_shape(template, avatar, path)  # a --fit garment: on the body it was fitted to
         return template
     return import_garment(
-        path, avatar, garment.units, garment.up, garment.kind, garment.offset, garment.attach
+        path,
+        avatar,
+        garment.units,
+        garment.up,
+        garment.kind,
+        garment.offset,
+        attach=garment.attach,
     )[0]
 
 

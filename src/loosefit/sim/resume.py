@@ -55,6 +55,7 @@ def resumed_release(
     releases: list[TrappedRelease] | None,
     n_pre: int,
     frame_dt: float,
+    *,
     released: list[np.ndarray],
 ) -> tuple[dict | None, list[np.ndarray]]:
     """A saved run's state for the release of trapped cloth, or None to start over.
@@ -136,6 +137,7 @@ def save_run(
     positions: np.ndarray,
     velocities: np.ndarray,
     rec: Recording,
+    *,
     n_pre: int,
     release_depth: float | None,
     seconds: float,
