@@ -66,20 +66,18 @@ def _counter(progress: Progress | None, stage: str) -> Callable[[int, int], None
 
 @dataclass
 class FitConfig:
-    """How a garment made for another body is fitted."""
+    """How a garment made for another body is fitted.
 
-    clearance: float = 0.004  # m, pushed vertices end this far outside the body (the
-    #   simulator's body_contact_distance, so the drape starts without a contact force)
-    rings: int = 8  # Eq. 16: a push moves the cloth within this many edges of it (4 in
-    #   rollouts; a garment's whole panel may be too small, not one vertex)
-    reach: float = FIT_REACH  # m, the deepest a vertex may be inside the body and be pushed
-    #   out
-    attach_reach: float = 0.1  # m, the farthest the garment's attached vertices (its top)
-    #   may be from the body: farther, it was not made for a body like this one
+    Why the defaults hold the values they do: docs/design/notes/fit_config.md.
+    """
+
+    clearance: float = 0.004  # m, pushed vertices end this far outside the body
+    rings: int = 8  # Eq. 16: a push moves the cloth within this many edges of a vertex
+    reach: float = FIT_REACH  # m, the deepest a vertex may be inside the body and be pushed out
+    attach_reach: float = 0.1  # m, the farthest the garment's top may be from the body
     tolerance: float = 0.005  # m, after the push no vertex may be deeper inside than this
     settle_seconds: float = 0.5  # s of drape on the avatar standing still; 0: none
-    cloth: object | None = None  # the drape's ClothConfig (None: the defaults, the upper
-    #   arms colliding for a dress, settle_seconds above)
+    cloth: object | None = None  # the drape's ClothConfig (None: the defaults, see the note)
     fps: float = 30.0  # the drape steps whole frames at this rate
 
     def __post_init__(self) -> None:
