@@ -127,7 +127,7 @@ def test_a_garment_that_stays_inside_after_the_push_is_refused(other_dress, avat
 
 
 def test_a_fitted_template_refuses_another_avatar(fitted):
-    template, _, avatar = fitted
+    template, avatar = fitted.template, fitted.avatar
     check_fitted_shape(template, avatar)  # its own: fine
     other = {**template.meta["fit"]["shape"], "weight": 0.1}
     template = type(template)(
