@@ -36,8 +36,7 @@ class MotionSource:
     specs: tuple[str, ...] = ()  # specs: the motions, one clip each
     chain_test: bool = False  # bvh: the test clips play one after another as one long sequence
     test_every: int = 4  # procedural: every n-th dance is held out for testing
-    # bvh: each training clip is also simulated played at these speeds (``NAME_xSPEED``,
-    # ``speed:SPEED:FILE``): new dynamics from the same captures; held-out clips never are
+    # bvh: the speeds each training clip is also played at (NAME_xSPEED; held-out clips never)
     speeds: tuple[float, ...] = ()
 
 
