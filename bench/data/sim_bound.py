@@ -70,7 +70,9 @@ def demands(avatar, template, motion, garment: np.ndarray, cloth) -> dict[str, n
 
     line = timeline(avatar, motion, cloth)
     body_faces, limb_faces, _ = collider_meshes(avatar, cloth)
-    sim = driver._batch_simulator(template, [line], body_faces, limb_faces, cloth, motion.fps, [0])
+    sim = driver._batch_simulator(
+        template, [line], body_faces, limb_faces, cloth, motion.fps, seeds=[0]
+    )
     collider = line.collider[line.n_pre :]  # the motion's frames: settle and blend left out
     waist = np.stack([glued_points(sim.glue, b, body_faces) for b in collider])
     cap = truncation_cap(cloth)

@@ -73,7 +73,8 @@ def fitted_dress(out: Path, avatar: Avatar) -> tuple[GarmentTemplate, dict]:
         refused = "imported without --fit (not a conflict)"
     except LoosefitInputError as exc:  # what the plain import says, quoted
         refused = str(exc).splitlines()[0]
-    template, report, _ = fit_garment(path, config=FitConfig(), kind="dress", avatar=avatar)
+    fitted = fit_garment(path, config=FitConfig(), kind="dress", avatar=avatar)
+    template, report = fitted.template, fitted.report
     print(f"without --fit: {refused}")
     print(f"fit: {report.format()}")
     template.meta["bench"] = {"without_fit": refused}

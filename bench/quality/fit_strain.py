@@ -72,7 +72,8 @@ def main() -> None:
             fitted = GarmentTemplate.load(args.fitted)
             how = f"read from {args.fitted}, fitted in {fitted.meta['fit']['seconds']:.0f} s"
         else:
-            fitted, report, _ = fit_garment(path, config=FitConfig(), kind="dress", avatar=avatar)
+            fit = fit_garment(path, config=FitConfig(), kind="dress", avatar=avatar)
+            fitted, report = fit.template, fit.report
             how = f"fitted in {time.perf_counter() - t0:.0f} s; {report.format()}"
     file = edge_lengths(placed.vertices, placed.faces)
     print(f"fit: {fitted.num_vertices} vertices, {how}")

@@ -9,8 +9,8 @@
     result.export("dance.usdc")                # also .usda, .pc2 (+ OBJ), a folder of OBJs
     loosefit.show(result)                      # the browser viewer (any AnimatedGarment)
 
-    template, report, avatar = loosefit.fit_garment("made_for_another.obj")  # onto the avatar
-    loosefit.simulate("dance:4", template, shape=avatar.shape)               # ground truth
+    fitted = loosefit.fit_garment("made_for_another.obj")  # onto the avatar
+    loosefit.simulate("dance:4", fitted.template, shape=fitted.avatar.shape)  # ground truth
 """
 
 __version__ = "0.1.0"

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.motion.bvh import forward_kinematics, read_bvh, rest_positions
+from loosefit.motion.bvh import read_bvh
 from loosefit.motion.retarget import axis_change
+from loosefit.motion.skeleton_clip import forward_kinematics, rest_positions
 from tests.motion.bvh_conventions import MIXAMO, write_convention_bvh
 from tests.motion.gltf_writer import write_gltf
 

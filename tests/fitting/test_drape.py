@@ -55,7 +55,7 @@ def test_a_dress_made_for_another_body_is_refused_without_fit(other_dress, avata
 
 
 def test_fit_pushes_it_out_keeps_its_top_and_reports_the_displacements(other_dress, fitted):
-    template, report, _ = fitted
+    template, report = fitted.template, fitted.report
     placed = import_garment(other_dress, Avatar(), kind="dress", check=False)[0]
     assert report.inside_before > 0 and report.depth_before > 0.005  # a real conflict
     assert report.inside_after == 0 and report.depth_after == 0.0
@@ -77,7 +77,7 @@ def test_fit_pushes_it_out_keeps_its_top_and_reports_the_displacements(other_dre
 def test_the_fitted_dress_simulates_with_no_vertex_5_mm_inside(fitted, avatar):
     from loosefit.motion.motions import load_motion
 
-    template, _, _ = fitted
+    template = fitted.template
     motion = load_motion("sway", avatar).slice(0, 8)
     # the default 20 substeps: at the tests' usual 8 the cloth, pulled back to the file's rest
     # lengths, sinks 5.4 mm into the upper arm (0.0 mm at 20)
@@ -92,7 +92,8 @@ def test_the_fitted_dress_simulates_a_4_s_clip_with_no_vertex_5_mm_inside(other_
     """The issue's target: the file fitted with the default drape, a 4 s dance."""
     from loosefit.api import motion_for
 
-    template, report, _ = fit_garment(other_dress, kind="dress", avatar=avatar)
+    fit = fit_garment(other_dress, kind="dress", avatar=avatar)
+    template, report = fit.template, fit.report
     assert report.inside_after == 0
     motion = motion_for("dance:4", avatar, 30.0, frames=120)  # 4 s at 30 fps
     result = simulate(avatar, template, motion, ClothConfig(arm_collision="upper"))
@@ -126,7 +127,7 @@ def test_a_garment_that_stays_inside_after_the_push_is_refused(other_dress, avat
 
 
 def test_a_fitted_template_refuses_another_avatar(fitted):
-    template, _, avatar = fitted
+    template, avatar = fitted.template, fitted.avatar
     check_fitted_shape(template, avatar)  # its own: fine
     other = {**template.meta["fit"]["shape"], "weight": 0.1}
     template = type(template)(

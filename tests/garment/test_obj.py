@@ -17,7 +17,8 @@ from loosefit.garment.mesh_checks import (
     uv_triangle_areas,
 )
 from loosefit.garment.obj import load_garment_obj, normalize_uvs, read_obj, write_obj
-from loosefit.garment.skirt import SkirtConfig, WaistFit, make_skirt
+from loosefit.garment.skirt import SkirtConfig, make_skirt
+from loosefit.garment.waist_fit import WaistFit
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.skirt import SkirtConfig, WaistFit, make_skirt
+from loosefit.garment.skirt import SkirtConfig, make_skirt
+from loosefit.garment.waist_fit import WaistFit
 from loosefit.model.uvmap import UVMap, rasterize_uv
 from loosefit.types import GarmentTemplate
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from loosefit.motion.bvh import BvhClip, forward_kinematics, rest_positions
+from loosefit.motion.skeleton_clip import BvhClip, forward_kinematics, rest_positions
 
 
 class _Buffer:

@@ -8,12 +8,8 @@ import numpy as np
 import pytest
 
 from loosefit.errors import LoosefitInputError
-from loosefit.motion.bvh import (
-    end_site_positions,
-    forward_kinematics,
-    read_bvh,
-    rest_positions,
-)
+from loosefit.motion.bvh import read_bvh
+from loosefit.motion.skeleton_clip import end_site_positions, forward_kinematics, rest_positions
 
 SHARED = Path(__file__).resolve().parents[3] / "shared"
 SALSA = SHARED / "mocap" / "cmu-salsa"

@@ -9,7 +9,8 @@ import pytest
 
 from loosefit.errors import LoosefitInputError
 from loosefit.motion.bvh import read_bvh
-from loosefit.motion.gltf import DEFAULT_FPS, read_gltf, sample_channel
+from loosefit.motion.gltf import read_gltf
+from loosefit.motion.gltf_animation import DEFAULT_FPS
 from loosefit.motion.retarget import RetargetConfig, resolve_joint_map
 from loosefit.types import Motion
 from tests.motion.bvh_conventions import ALL_CONVENTIONS, motion_error, write_convention_bvh
@@ -103,30 +104,6 @@ def test_keyframes_set_the_rate_and_are_resampled(avatar, dance, tmp_path):
     slow = dataclasses.replace(clip, frame_time=0.5)  # sparse keys: sampled at 30 fps
     got = read_gltf(write_gltf(tmp_path / "slow.glb", slow))
     assert got.fps == DEFAULT_FPS and got.num_frames == int((dance.num_frames - 1) * 0.5 * 30) + 1
-
-
-def test_samplers_interpolate_as_gltf_says():
-    t = np.array([0.0, 1.0, 2.0])
-    v = np.array([[0.0], [10.0], [0.0]])
-    at = np.array([-1.0, 0.25, 1.0, 1.5, 3.0])
-    assert sample_channel(t, v, "LINEAR", at, False)[:, 0].tolist() == [0, 2.5, 10, 5, 0]
-    assert sample_channel(t, v, "STEP", at, False)[:, 0].tolist() == [0, 0, 10, 10, 0]
-    # Cubic: tangents of t^3 (3 t^2) reproduce it exactly between keys.
-    f, df = t**3, 3 * t**2
-    cubic = np.stack([df, f, df], 1).reshape(-1, 1)  # in-tangent, value, out-tangent per key
-    x = np.linspace(0, 2, 9)
-    assert np.allclose(sample_channel(t, cubic, "CUBICSPLINE", x, False)[:, 0], x**3)
-    # Rotations: slerp halfway from identity to a quarter turn about z is an eighth turn.
-    s = np.sin(np.pi / 4)
-    q = np.array([[0, 0, 0, 1.0], [0, 0, s, s]])
-    half = sample_channel(t[:2], q, "LINEAR", np.array([0.5]), True)[0]
-    assert np.allclose(half, [0, 0, np.sin(np.pi / 8), np.cos(np.pi / 8)])
-    # The short way round: a key written with the opposite sign changes nothing.
-    assert np.allclose(
-        sample_channel(t[:2], q * [[1], [-1]], "LINEAR", np.array([0.5]), True), half[None]
-    ) or np.allclose(
-        -sample_channel(t[:2], q * [[1], [-1]], "LINEAR", np.array([0.5]), True), half[None]
-    )
 
 
 def _document(path):

@@ -8,7 +8,6 @@ import pytest
 from loosefit.errors import LoosefitInputError
 from loosefit.motion.bvh import read_bvh
 from loosefit.motion.joint_maps import DAZ_MAP, load_joint_map_file
-from loosefit.motion.joint_match import classify_joint_name
 from loosefit.motion.retarget import (
     RetargetConfig,
     choose_joint_map,
@@ -27,50 +26,6 @@ from tests.motion.bvh_conventions import (
 )
 
 CM = 0.01
-
-
-@pytest.mark.parametrize(
-    "name, side, part",
-    [
-        ("mixamorig:LeftUpLeg", "L", "thigh"),
-        ("mixamorig:RightToeBase", "R", "toe"),
-        ("mixamorig:Spine2", None, "spine"),
-        ("mixamorig:LeftHandIndex1", "L", None),  # a finger
-        ("mixamorig:HeadTop_End", None, None),
-        ("thigh_l", "L", "thigh"),
-        ("calf_r", "R", "shin"),
-        ("ball_l", "L", "toe"),
-        ("clavicle_l", "L", "collar"),
-        ("lowerarm_r", "R", "forearm"),
-        ("spine_03", None, "spine"),
-        ("neck_01", None, "neck"),
-        ("left_hip", "L", "hip"),
-        ("left_ankle", "L", "foot"),
-        ("right_wrist", "R", "hand"),
-        ("left_shoulder", "L", "shoulder"),
-        ("UpperLeg_L", "L", "thigh"),
-        ("LowerLeg_R", "R", "shin"),
-        ("Toes_L", "L", "toe"),
-        ("joint_Root", None, "root"),
-        ("lThigh", "L", "thigh"),
-        ("rShldr", "R", "upperarm"),
-        ("lButtock", "L", "hipjoint"),
-        ("LHipJoint", "L", "hipjoint"),
-        ("hip", None, "root"),
-        ("abdomen", None, "spine"),
-        ("LowerBack", None, "spine"),
-        ("Bip01 L Calf", "L", "shin"),
-        ("Arm.L", "L", "upperarm"),
-        ("hand.R", "R", "hand"),
-        ("Left_Elbow", "L", "forearm"),
-        ("LeftLeg", "L", "shin"),
-        ("Leg_R", "R", "shin"),
-        ("Root", None, "root"),
-    ],
-)
-def test_joint_names_give_side_and_part(name, side, part):
-    got = classify_joint_name(name)
-    assert (got.side, got.part) == (side, part), got
 
 
 @pytest.fixture(scope="module")
@@ -240,9 +195,9 @@ def test_shipped_maps_come_first(tmp_path):
 
 @needs_salsa
 def test_the_matcher_finds_the_daz_map_on_the_salsa_files():
-    from loosefit.motion.bvh import rest_positions
     from loosefit.motion.joint_match import match_skeleton
     from loosefit.motion.retarget import axis_change
+    from loosefit.motion.skeleton_clip import rest_positions
 
     clip = read_bvh(SALSA / "61_01.bvh")
     rest = rest_positions(clip) @ axis_change("+y", "+z").T
@@ -404,7 +359,6 @@ def test_the_template_never_takes_an_empty_root_and_tells_a_collar_from_an_upper
     avatar, dance, tmp_path
 ):
     from loosefit.motion.joint_map_files import joint_map_template
-    from loosefit.motion.joint_match import guess_by_name
     from tests.motion.bvh_conventions import STUDIO_FAR
 
     # A studio rig with its right side gone: the matcher refuses it, the names guess.
@@ -418,16 +372,6 @@ def test_the_template_never_takes_an_empty_root_and_tells_a_collar_from_an_upper
     assert jmap.joints["Hips"] == "Hips"  # not joint_Root, a root with no geometry
     assert jmap.joints["LeftShoulder"] == "Shoulder_L" and jmap.joints["LeftArm"] == "UpperArm_L"
     assert "# RightArm: ?" in text
-    # No joint named as a pelvis branches: the first that does, said so; an empty root
-    # named so is never taken, and the line says why.
-    names = ["joint_Root", "Body", "UpperLeg_L", "UpperLeg_R", "Spine"]
-    parents = np.array([-1, 0, 1, 1, 1])
-    assert guess_by_name(names, parents)["Hips"] == (
-        "Body",
-        "by structure: the first joint that branches",
-    )
-    out = guess_by_name(["Root", "Hips"], np.array([-1, 0]))
-    assert out["Hips"][0] is None and "'Root' is named so but does not branch" in out["Hips"][1]
 
 
 def _text(path, text):

@@ -26,16 +26,19 @@ def test_a_saved_run_the_release_would_have_changed_starts_over():
     saved = {"frame": np.int64(3), "garment": garment, "release_depth": np.float64(np.nan)}
     zero = [np.zeros(4, np.int64)]
     config = ClothConfig.tiny(release_depth=0.05)
-    args = ([collider], [_release(v, f)], 2, 1 / 30, zero)
-    assert resumed_release(saved, config, *args)[0] is None
+    args = ([collider], [_release(v, f)], 2, 1 / 30)
+    assert resumed_release(saved, config, *args, released=zero)[0] is None
     # the same frames at 0.5 m of release depth: taken, with the anchor over the top face
     deep = ClothConfig.tiny(release_depth=0.5)
     release = _release(v, f, depth=0.5)
-    kept, _ = resumed_release(saved, deep, [collider], [release], 2, 1 / 30, zero)
+    kept, _ = resumed_release(saved, deep, [collider], [release], 2, 1 / 30, released=zero)
     assert kept is saved and (release.face >= 0).all()
     # a run saved with a release that moved cloth: not taken without it
     moved = {**saved, "release_depth": np.float64(0.05), "released_0": np.array([0, 0, 1, 0])}
-    assert resumed_release(moved, ClothConfig.tiny(), [collider], None, 2, 1 / 30, zero)[0] is None
+    assert (
+        resumed_release(moved, ClothConfig.tiny(), [collider], None, 2, 1 / 30, released=zero)[0]
+        is None
+    )
 
 
 def test_a_field_at_its_value_from_before_it_existed_leaves_the_run_key(template, monkeypatch):

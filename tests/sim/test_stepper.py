@@ -31,8 +31,8 @@ def test_every_body_shape_is_culled_by_the_whole_motions_box(avatar):
             b,
             faces,
             config,
-            1 / 30,
-            bounds,
+            frame_dt=1 / 30,
+            bounds=bounds,
             limb_faces=limb_collider_faces(avatar, config),
         )
         lower = sim.model.shape_collision_aabb_lower.numpy()

@@ -16,13 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from loosefit.motion.gltf import (
-    _frame_times,
-    _node_parents,
-    _skin_joints,
-    _world_transforms,
-    animation_channels,
-)
+from loosefit.motion.gltf import _node_parents, _skin_joints, _world_transforms
+from loosefit.motion.gltf_animation import animation_channels, frame_times
 from loosefit.motion.gltf_file import (
     GltfDocument,
     doc_item,
@@ -151,7 +146,7 @@ def read_character(path: str | Path, fps: float, animation: str | int | None = N
     joint_nodes = _skin_joints(doc, k, nodes)
     meshes = tuple(sorted({int(n["mesh"]) for _, n in skinned if int(n["skin"]) == k}))
     faces, bind, joints, weights = _join_primitives(doc, meshes)
-    frames = _frame_times(doc, a, channels, fps)
+    frames = frame_times(doc, a, channels, fps)
     parent = _node_parents(doc, nodes)
     world, _ = _world_transforms(doc, nodes, parent, joint_nodes, channels, frames.at)
     skin_def = doc.gltf["skins"][k]

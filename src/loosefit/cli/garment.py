@@ -66,7 +66,13 @@ def run(args: argparse.Namespace) -> int:
 
         avatar = build_avatar(args)
         template, report = import_garment(
-            args.source, avatar, args.units, args.up, args.kind, offset(args.offset), args.attach
+            args.source,
+            avatar,
+            args.units,
+            args.up,
+            args.kind,
+            offset(args.offset),
+            attach=args.attach,
         )
     else:
         template = garment_template(args.source, build_avatar(args), args.resolution, args.length)
@@ -138,21 +144,22 @@ def _fit_file(args: argparse.Namespace):
         )
     bars = StageBars("fit", STAGE_UNITS)
     try:
-        template, fit, avatar = fit_garment(
+        fitted = fit_garment(
             args.source,
             "auto" if auto else None,
             FitConfig(settle_seconds=args.settle),
             args.units,
             args.up,
             args.kind,
-            offset(args.offset),
-            args.attach,
+            offset=offset(args.offset),
+            attach=args.attach,
             avatar=None if auto else build_avatar(args),
             progress=bars.progress,
         )
     finally:
         bars.close()
-    return template, template.meta["import"], fit, avatar
+    template = fitted.template
+    return template, template.meta["import"], fitted.report, fitted.avatar
 
 
 def _fit_preview(path: Path, template, fit, avatar, size: int = 480) -> bool:

@@ -66,20 +66,18 @@ def _counter(progress: Progress | None, stage: str) -> Callable[[int, int], None
 
 @dataclass
 class FitConfig:
-    """How a garment made for another body is fitted."""
+    """How a garment made for another body is fitted.
 
-    clearance: float = 0.004  # m, pushed vertices end this far outside the body (the
-    #   simulator's body_contact_distance, so the drape starts without a contact force)
-    rings: int = 8  # Eq. 16: a push moves the cloth within this many edges of it (4 in
-    #   rollouts; a garment's whole panel may be too small, not one vertex)
-    reach: float = FIT_REACH  # m, the deepest a vertex may be inside the body and be pushed
-    #   out
-    attach_reach: float = 0.1  # m, the farthest the garment's attached vertices (its top)
-    #   may be from the body: farther, it was not made for a body like this one
+    Why the defaults hold the values they do: docs/design/notes/fit_config.md.
+    """
+
+    clearance: float = 0.004  # m, pushed vertices end this far outside the body
+    rings: int = 8  # Eq. 16: a push moves the cloth within this many edges of a vertex
+    reach: float = FIT_REACH  # m, the deepest a vertex may be inside the body and be pushed out
+    attach_reach: float = 0.1  # m, the farthest the garment's top may be from the body
     tolerance: float = 0.005  # m, after the push no vertex may be deeper inside than this
     settle_seconds: float = 0.5  # s of drape on the avatar standing still; 0: none
-    cloth: object | None = None  # the drape's ClothConfig (None: the defaults, the upper
-    #   arms colliding for a dress, settle_seconds above)
+    cloth: object | None = None  # the drape's ClothConfig (None: the defaults, see the note)
     fps: float = 30.0  # the drape steps whole frames at this rate
 
     def __post_init__(self) -> None:
@@ -131,6 +129,22 @@ class FitReport:
             f" mm\n{self.inside_after} vertices inside once fitted (deepest "
             f"{1000 * self.depth_after:.1f} mm), in {self.seconds:.1f} s"
         )
+
+
+@dataclass
+class FitResult:
+    """A garment file fitted to a body (:func:`fit_garment`).
+
+    Attributes:
+        template: the fitted garment on the avatar's rest pose (V vertices; its
+            ``meta["fit"]`` holds the report).
+        report: what fitting did (:class:`FitReport`).
+        avatar: the body it was fitted to: simulate it on this one.
+    """
+
+    template: GarmentTemplate
+    report: FitReport
+    avatar: Avatar
 
 
 def inside_of(template_vertices: np.ndarray, avatar: Avatar, arms) -> tuple[int, float, np.ndarray]:
@@ -360,11 +374,12 @@ def fit_garment(
     units: str | None = None,
     up: str | None = None,
     kind: str | None = None,
+    *,
     offset=(0.0, 0.0, 0.0),
     attach="auto",
     avatar: Avatar | None = None,
     progress: Progress | None = None,
-) -> tuple[GarmentTemplate, FitReport, Avatar]:
+) -> FitResult:
     """A garment file made for another body, fitted to the avatar's rest pose.
 
     Args:
@@ -379,7 +394,8 @@ def fit_garment(
             (:data:`STAGE_UNITS`) starts and as it goes.
 
     Returns:
-        The fitted template, the :class:`FitReport`, and the avatar (simulate on it).
+        A :class:`FitResult`: the fitted template, the :class:`FitReport`, and the avatar
+        (simulate on it).
 
     Raises:
         LoosefitInputError: an unreadable file or bad option (as the import), a closed
@@ -405,7 +421,7 @@ def fit_garment(
         )
 
     def place(body: Avatar) -> GarmentTemplate:
-        return import_garment(path, body, units, up, kind, offset, attach, check=False)[0]
+        return import_garment(path, body, units, up, kind, offset, attach=attach, check=False)[0]
 
     tried = 0
     if shape == "auto":
@@ -419,4 +435,4 @@ def fit_garment(
     template, report = fit_template(placed, avatar, config, path, progress)
     report.shape_tried, report.seconds = tried, time.perf_counter() - start
     template.meta["fit"] = asdict(report)
-    return template, report, avatar
+    return FitResult(template=template, report=report, avatar=avatar)

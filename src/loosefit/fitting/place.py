@@ -30,7 +30,8 @@ import torch
 from loosefit.body.avatar import DEFAULT_SHAPE, Avatar, BodySequence
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.dress import DRESS_SPECS, DressConfig, DressFit, make_dress
-from loosefit.garment.skirt import SkirtConfig, make_skirt, waist_fit_from_points
+from loosefit.garment.skirt import SkirtConfig, make_skirt
+from loosefit.garment.waist_fit import waist_fit_from_points
 from loosefit.types import GarmentTemplate
 
 TORSO_BONES = ("Hips", "LowerBack", "Spine", "LHipJoint", "RHipJoint")
@@ -441,6 +442,7 @@ def import_garment(
     up: str | None = None,
     kind: str | None = None,
     offset=(0.0, 0.0, 0.0),
+    *,
     attach: str | np.ndarray = "auto",
     name: str | None = None,
     check: bool = True,

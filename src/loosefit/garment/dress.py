@@ -31,7 +31,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.skirt import SkirtConfig, WaistFit, rest_rings, skirt_grid
+from loosefit.garment.skirt import SkirtConfig, rest_rings, skirt_grid
+from loosefit.garment.waist_fit import WaistFit
 from loosefit.types import GarmentTemplate
 
 DRESS_STYLES = ("strapless", "straps")
@@ -60,7 +61,7 @@ class DressConfig:
     body_ease: float = 0.015  # metres the rest shape keeps outside the bust, belly and hips
     strap_rows: int = 12  # vertices along a strap, its two ends on the top band included
     strap_columns: int = 3  # vertices across a strap (top band vertices it spans)
-    uv_margin: float = 0.02
+    uv_margin: float = 0.02  # the UV layout's gap to the edges of the UV square
 
     def __post_init__(self) -> None:
         src = "DressConfig"

@@ -96,6 +96,7 @@ class BaselineNetwork(nn.Module):
         weights: torch.Tensor,
         feature_mean: torch.Tensor | None = None,
         feature_std: torch.Tensor | None = None,
+        *,
         bone_mean: torch.Tensor | None = None,
     ) -> None:
         super().__init__()

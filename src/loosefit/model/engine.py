@@ -177,6 +177,7 @@ class EngineTier(nn.Module):
         feature_mean: torch.Tensor | None = None,
         feature_std: torch.Tensor | None = None,
         rest: torch.Tensor | None = None,
+        *,
         feature_low: torch.Tensor | None = None,
         feature_high: torch.Tensor | None = None,
     ) -> None:

@@ -311,6 +311,7 @@ def generative_loss(
     template: torch.Tensor,
     laplacian,
     weights: GenerativeLossConfig,
+    *,
     structure=None,
     contacts: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> dict[str, torch.Tensor]:

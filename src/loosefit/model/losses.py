@@ -60,9 +60,9 @@ class PhysicsLossConfig:
     loss's length unit (``length_scale``, centimetres), as the squared errors are.
     """
 
-    membrane: float = 0.0
-    bending: float = 0.0
-    collision: float = 0.0
+    membrane: float = 0.0  # weight of the edge lengths against rest (dimensionless term)
+    bending: float = 0.0  # weight of the dihedral angles against rest (dimensionless term)
+    collision: float = 0.0  # weight of the cloth's depth inside the body (in length_scale)
     collision_epsilon: float = 0.002  # m: cloth closer to the body than this is penalised
 
     def __post_init__(self) -> None:

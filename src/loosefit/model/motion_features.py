@@ -137,6 +137,7 @@ def frame_features(
     previous_root_translation: torch.Tensor,
     fps: float,
     floor_height: float,
+    *,
     joints: list[int] | None = None,
 ) -> torch.Tensor:
     """The features of B frames from each frame's joints and the root of the frame before
@@ -198,7 +199,9 @@ def motion_features(
     root = root_translation.double()
     before = torch.cat([rotations[:1, 0], rotations[:-1, 0]])  # (T, 3, 3): frame 0 its own
     root_before = torch.cat([root[:1], root[:-1]])  # (T, 3)
-    return frame_features(rotations, root, before, root_before, fps, floor_height, joints).float()
+    return frame_features(
+        rotations, root, before, root_before, fps, floor_height, joints=joints
+    ).float()
 
 
 def heading_frames(root_transforms: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from loosefit.motion.joint_match import classify_joint_name
+from loosefit.motion.joint_names import classify_joint_name
 
 # Height from a standing frame: the head joint (the base of the skull) above the lower
 # ankle is this fraction of the stature. Measured: the avatar 1.363 m of 1.580 m (0.863);
@@ -37,7 +37,7 @@ def guess_up(names: list[str] | tuple[str, ...], positions: np.ndarray) -> str |
 
     Args:
         names: J joint names (a head and feet found by name, see
-            :func:`~loosefit.motion.joint_match.classify_joint_name`).
+            :func:`~loosefit.motion.joint_names.classify_joint_name`).
         positions: (T, J, 3) world joint positions in the file's axes.
 
     Returns:

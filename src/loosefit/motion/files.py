@@ -2,9 +2,10 @@
 
 BVH (:mod:`loosefit.motion.bvh`), glTF/GLB (:mod:`loosefit.motion.gltf`) and SMPL-family
 ``.npz`` pose files (:mod:`loosefit.motion.smpl`) all become a
-:class:`~loosefit.motion.bvh.BvhClip`, which :func:`~loosefit.motion.retarget.retarget_bvh`
-maps onto the avatar. A ``.npz`` saved by loosefit (:meth:`Motion.save`) is a motion
-already, not a clip: :func:`is_capture_file` tells the two apart by their fields.
+:class:`~loosefit.motion.skeleton_clip.BvhClip`, which
+:func:`~loosefit.motion.retarget.retarget_bvh` maps onto the avatar. A ``.npz`` saved by
+loosefit (:meth:`Motion.save`) is a motion already, not a clip: :func:`is_capture_file`
+tells the two apart by their fields.
 :func:`motion_files` lists a folder's motions of every kind (a data set's motion folder).
 """
 
@@ -13,9 +14,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from loosefit.errors import LoosefitInputError
-from loosefit.motion.bvh import BvhClip, read_bvh
+from loosefit.motion.bvh import read_bvh
 from loosefit.motion.gltf import read_gltf
 from loosefit.motion.retarget import RetargetConfig
+from loosefit.motion.skeleton_clip import BvhClip
 from loosefit.motion.smpl import is_smpl_npz, npz_fields, read_smpl_npz
 
 

@@ -2,7 +2,7 @@
 
 What Blender, Mixamo (through Blender), Unity and Unreal export: a skin (its joints
 are nodes of the scene), an animation whose channels drive those nodes' rotation,
-translation and scale. The result is a :class:`~loosefit.motion.bvh.BvhClip`, so the
+translation and scale. The result is a :class:`~loosefit.motion.skeleton_clip.BvhClip`, so the
 retargeting and the joint matcher apply unchanged.
 
 Quick start::
@@ -26,7 +26,8 @@ How a glTF becomes a clip:
   and local translations that put every joint where the glTF does.
 * Frames: the animation is sampled at ``fps``, by default its keyframes' rate (the
   densest sampler's median spacing, rounded to a whole rate within 0.5 %) when that is
-  at least :data:`MIN_KEY_FPS`, else :data:`DEFAULT_FPS`; from the first keyframe time
+  at least :data:`~loosefit.motion.gltf_animation.MIN_KEY_FPS`, else
+  :data:`~loosefit.motion.gltf_animation.DEFAULT_FPS`; from the first keyframe time
   to the last. ``LINEAR`` (rotations by slerp), ``STEP`` and ``CUBICSPLINE``
   interpolation; before the first key and after the last, the end values hold.
 * A joint with a single child joint that is a leaf (Mixamo's ``HeadTop_End``, a
@@ -41,76 +42,23 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.geometry.rotations import _matrix_to_quat_f64, _slerp_f64, quat_to_matrix
-from loosefit.motion.bvh import _UNIT_SCALES, BvhClip
+from loosefit.geometry.rotations import _matrix_to_quat_f64, quat_to_matrix
+from loosefit.motion.bvh import _UNIT_SCALES
+from loosefit.motion.gltf_animation import Channel, animation_channels, frame_times, sample_channel
 from loosefit.motion.gltf_file import (
     GltfDocument,
+    doc_index,
     doc_item,
     doc_list,
     gltf_error,
     read_accessor,
     read_document,
 )
+from loosefit.motion.skeleton_clip import BvhClip
 
 GLTF_SUFFIXES = (".gltf", ".glb")
-DEFAULT_FPS = 30.0  # sampling rate when the keyframes are too sparse to give one
-MIN_KEY_FPS = 10.0  # keyframes at least this dense set the sampling rate
-MAX_SECONDS = 3600.0  # the longest animation read (an hour, as dance:SECONDS takes)
-INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
-_PATHS = {"translation": 3, "rotation": 4, "scale": 3}  # the channels read; weights are not
 
-# --------------------------------------------------------------------------- sampling
-
-
-def sample_channel(
-    times: np.ndarray, values: np.ndarray, interpolation: str, at: np.ndarray, rotation: bool
-) -> np.ndarray:
-    """A glTF animation sampler evaluated at given times.
-
-    Args:
-        times: (K,) non-decreasing keyframe times, seconds.
-        values: (K, W) keyframe values, or (3K, W) for ``CUBICSPLINE`` (in-tangent,
-            value, out-tangent per key); rotations are quaternions ``(x, y, z, w)``.
-        interpolation: ``LINEAR``, ``STEP`` or ``CUBICSPLINE``.
-        at: (T,) times to sample.
-        rotation: the values are quaternions (slerp for ``LINEAR``, normalised).
-
-    Returns:
-        (T, W) float64 values; the first and last keys hold outside the keyframes.
-    """
-    times = np.asarray(times, np.float64)
-    values = np.asarray(values, np.float64)
-    K = len(times)
-    if interpolation == "CUBICSPLINE":
-        tangents_in, values, tangents_out = values[0::3], values[1::3], values[2::3]
-    if K == 1:
-        out = np.repeat(values[:1], len(at), axis=0)
-    elif interpolation == "STEP":
-        out = values[np.clip(np.searchsorted(times, at, side="right") - 1, 0, K - 1)]
-    else:
-        k = np.clip(np.searchsorted(times, at, side="right") - 1, 0, K - 2)  # (T,) segment
-        dt = times[k + 1] - times[k]
-        s = np.clip((at - times[k]) / np.where(dt > 0, dt, 1.0), 0.0, 1.0)
-        s = np.where(dt > 0, s, (at >= times[k + 1]).astype(np.float64))[:, None]  # (T, 1)
-        v0, v1 = values[k], values[k + 1]
-        if interpolation == "CUBICSPLINE":  # Hermite, glTF 2.0 appendix C
-            s2, s3 = s * s, s * s * s
-            d = dt[:, None]
-            out = (
-                (2 * s3 - 3 * s2 + 1) * v0
-                + (s3 - 2 * s2 + s) * d * tangents_out[k]
-                + (-2 * s3 + 3 * s2) * v1
-                + (s3 - s2) * d * tangents_in[k + 1]
-            )
-        elif rotation:
-            wxyz = _slerp_f64(np.roll(v0, 1, -1), np.roll(v1, 1, -1), s[:, 0])
-            out = np.roll(wxyz, -1, -1)
-        else:
-            out = (1 - s) * v0 + s * v1
-    if rotation:
-        norm = np.linalg.norm(out, axis=-1, keepdims=True)
-        out = np.where(norm > 1e-12, out / np.where(norm > 1e-12, norm, 1.0), [0, 0, 0, 1.0])
-    return out
+# --------------------------------------------------------------------------- transforms
 
 
 def _trs_matrix(t: np.ndarray, q: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -129,27 +77,6 @@ def _orthonormal(m: np.ndarray) -> np.ndarray:
     flip = np.linalg.det(r) < 0  # a mirroring scale: keep a proper rotation
     u[flip, :, 2] *= -1
     return np.where(flip[..., None, None], u @ vt, r)
-
-
-# --------------------------------------------------------------------------- choosing
-
-
-def _pick(doc: GltfDocument, key: str, want: str | int | None, default: int, what: str) -> int:
-    """The index of the item of ``key`` named ``want`` (or at that index); ``default``."""
-    items = doc_list(doc, key)
-    names = [
-        str(it.get("name", f"#{i}")) if isinstance(it, dict) else f"#{i}"
-        for i, it in enumerate(items)
-    ]
-    if want is None:
-        return default
-    if str(want) in names:
-        return names.index(str(want))
-    if str(want).lstrip("-").isdigit() and 0 <= int(want) < len(items):
-        return int(want)
-    raise gltf_error(
-        doc, key, f"the {what} named or numbered {want!r}", f"{len(items)}: {names[:10]}"
-    )
 
 
 # --------------------------------------------------------------------------- reading
@@ -217,7 +144,7 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
     best = max(
         range(len(skins)), key=lambda i: (len(driven & set(_skin_joints(doc, i, nodes))), -i)
     )
-    k = _pick(doc, "skins", skin, best, "skin")
+    k = doc_index(doc, "skins", skin, best, "skin")
     skin_def, skin_joints = skins[k], _skin_joints(doc, k, nodes)
     skin_name = str(skin_def.get("name", f"#{k}"))
     if not driven & set(skin_joints):
@@ -233,7 +160,7 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
     clip_nodes, parents, names = _joint_tree(doc, nodes, parent_node, skin_joints)
 
     # 3. Frame times.
-    frames = _frame_times(doc, a, channels, fps)
+    frames = frame_times(doc, a, channels, fps)
 
     # 4. World transforms of the joints and every node above them, at each frame and at rest.
     world, rest = _world_transforms(doc, nodes, parent_node, clip_nodes, channels, frames.at)
@@ -274,80 +201,6 @@ def _read_gltf(doc: GltfDocument, animation, skin, fps, units, scale) -> BvhClip
     )
 
 
-# A channel: (K,) keyframe times, (K, W) or (3K, W) values, the interpolation.
-_Channel = tuple[np.ndarray, np.ndarray, str]
-
-
-def animation_channels(
-    doc: GltfDocument, animation: str | int | None, num_nodes: int
-) -> tuple[int, dict, dict[tuple[int, str], _Channel]]:
-    """The animation named or numbered ``animation`` (default: the first): its index, its
-    JSON and its channels on nodes.
-
-    Raises:
-        LoosefitInputError: a file with no animation, or none of that name or number.
-    """
-    if not doc_list(doc, "animations"):
-        raise gltf_error(
-            doc,
-            "animations",
-            "an animation",
-            "none in the file",
-            hint="export with animation on (Blender: glTF export > Animation)",
-        )
-    a = _pick(doc, "animations", animation, 0, "animation")
-    anim = doc_item(doc, "animations", a, f"animations[{a}]")
-    return a, anim, _read_channels(doc, anim, a, num_nodes)
-
-
-def _read_channels(
-    doc: GltfDocument, anim: dict, a: int, num_nodes: int
-) -> dict[tuple[int, str], _Channel]:
-    """(node, path) -> its sampler's keyframes, for the animation's channels on nodes."""
-    channels: dict[tuple[int, str], _Channel] = {}
-    samplers = anim.get("samplers", [])
-    for c, ch in enumerate(anim.get("channels", [])):
-        where = f"animations[{a}].channels[{c}]"
-        target = ch.get("target", {}) if isinstance(ch, dict) else {}
-        node, prop = target.get("node"), target.get("path")
-        if prop not in _PATHS or node is None:
-            continue  # morph weights, or an extension's pointer
-        if not (isinstance(node, int) and 0 <= node < num_nodes):
-            raise gltf_error(doc, f"{where}.target.node", f"a node index below {num_nodes}", node)
-        s = ch.get("sampler")
-        if not (isinstance(s, int) and 0 <= s < len(samplers)):
-            raise gltf_error(doc, f"{where}.sampler", f"a sampler index below {len(samplers)}", s)
-        channels[(node, prop)] = _read_sampler(
-            doc, samplers[s], f"animations[{a}].samplers[{s}]", prop
-        )
-    return channels
-
-
-def _read_sampler(doc: GltfDocument, sampler: dict, swhere: str, prop: str) -> _Channel:
-    """A sampler's keyframe times, values and interpolation, checked for channel ``prop``."""
-    interp = sampler.get("interpolation", "LINEAR")
-    if interp not in INTERPOLATIONS:
-        raise gltf_error(doc, f"{swhere}.interpolation", f"one of {INTERPOLATIONS}", repr(interp))
-    times = read_accessor(doc, sampler.get("input"), f"{swhere}.input")[:, 0]
-    values = read_accessor(doc, sampler.get("output"), f"{swhere}.output")
-    if np.any(np.diff(times) < 0):
-        raise gltf_error(
-            doc,
-            f"{swhere}.input",
-            "increasing keyframe times",
-            f"a time going back at key {int(np.argmax(np.diff(times) < 0)) + 1}",
-        )
-    keys = len(times) * (3 if interp == "CUBICSPLINE" else 1)
-    if values.shape != (keys, _PATHS[prop]):
-        raise gltf_error(
-            doc,
-            f"{swhere}.output",
-            f"{keys} values of {_PATHS[prop]} components ({prop}, {interp})",
-            f"{values.shape[0]} of {values.shape[1]}",
-        )
-    return times, values, interp
-
-
 def _skin_joints(doc: GltfDocument, i: int, nodes: list) -> list[int]:
     """Skin ``i``'s joints, node indices, checked."""
     js = doc_item(doc, "skins", i, f"skins[{i}]").get("joints", [])
@@ -363,47 +216,12 @@ def _skin_joints(doc: GltfDocument, i: int, nodes: list) -> list[int]:
     return js
 
 
-@dataclass(frozen=True)
-class _FrameTimes:
-    """When the clip's frames are sampled.
-
-    Attributes:
-        t0, t1: the first and last keyframe times, seconds.
-        fps: the sampling rate; ``how``: how it was chosen.
-        at: (T,) the frames' times, seconds.
-    """
-
-    t0: float
-    t1: float
-    fps: float
-    how: str
-    at: np.ndarray
-
-
-def _frame_times(doc: GltfDocument, a: int, channels: dict, fps: float | None) -> _FrameTimes:
-    """The frames' times, from the first keyframe to the last at the sampling rate."""
-    t0 = min(t[0] for t, _, _ in channels.values())
-    t1 = max(t[-1] for t, _, _ in channels.values())
-    fps, fps_how = _frame_rate(doc, channels, fps)
-    if t1 - t0 > MAX_SECONDS:
-        raise gltf_error(
-            doc,
-            f"animations[{a}].samplers",
-            f"keyframes over at most {MAX_SECONDS:g} s",
-            f"{t0:g} s to {t1:g} s",
-        )
-    # keyframe times are float32 in a file: a last key at 101/30 s reads 100.99999 frames
-    T = int(np.floor((t1 - t0) * fps + 1e-3)) + 1
-    at = t0 + np.arange(T) / fps  # (T,)
-    return _FrameTimes(t0, t1, fps, fps_how, at)
-
-
 def _world_transforms(
     doc: GltfDocument,
     nodes: list,
     parent_node: dict[int, int],
     clip_nodes: list[int],
-    channels: dict[tuple[int, str], _Channel],
+    channels: dict[tuple[int, str], Channel],
     at: np.ndarray,
 ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
     """node -> (T, 4, 4) world transforms at times ``at``, and node -> (4, 4) at rest.
@@ -623,24 +441,3 @@ def _node_trs(doc: GltfDocument, nodes: list, n: int) -> tuple[np.ndarray, np.nd
             )
         out.append(v)
     return out[0], out[1], out[2]
-
-
-def _frame_rate(doc: GltfDocument, channels: dict, fps: float | None) -> tuple[float, str]:
-    """The sampling rate and how it was chosen."""
-    if fps is not None:
-        if not (np.isfinite(fps) and fps > 0):
-            raise gltf_error(doc, "fps", "a positive frame rate", repr(fps))
-        return float(fps), "as asked"
-    spacings = [
-        np.median(np.diff(t)[np.diff(t) > 0])
-        for t, _, _ in channels.values()
-        if np.any(np.diff(t) > 0)
-    ]
-    if not spacings:
-        return DEFAULT_FPS, "a single key: the default"
-    rate = 1.0 / min(spacings)
-    if rate < MIN_KEY_FPS:
-        return DEFAULT_FPS, f"keyframes {rate:.3g} per second are sparse: the default"
-    if abs(rate - round(rate)) < 0.005 * rate:
-        rate = float(round(rate))
-    return float(rate), "the keyframes' rate"

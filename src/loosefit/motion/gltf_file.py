@@ -206,7 +206,9 @@ def read_accessor(doc: GltfDocument, index, where: str) -> np.ndarray:
     dtype = np.dtype(dtype).newbyteorder("<")
     width = _WIDTHS[kind]
     if "bufferView" in acc:
-        data = _view(doc, acc["bufferView"], acc.get("byteOffset", 0), count, width, dtype, name)
+        data = _view(
+            doc, acc["bufferView"], acc.get("byteOffset", 0), count, width, dtype, where=name
+        )
     elif count <= MAX_ELEMENTS:
         data = np.zeros((count, width), dtype)
     else:
@@ -229,7 +231,7 @@ def read_accessor(doc: GltfDocument, index, where: str) -> np.ndarray:
             n,
             1,
             np.dtype(itype).newbyteorder("<"),
-            f"{name}.sparse.indices",
+            where=f"{name}.sparse.indices",
         )[:, 0]
         if idx.max() >= count:
             raise gltf_error(
@@ -242,7 +244,7 @@ def read_accessor(doc: GltfDocument, index, where: str) -> np.ndarray:
             n,
             width,
             dtype,
-            f"{name}.sparse.values",
+            where=f"{name}.sparse.values",
         )
     out = data.astype(np.float64)
     if acc.get("normalized") and divisor is not None:
@@ -252,7 +254,7 @@ def read_accessor(doc: GltfDocument, index, where: str) -> np.ndarray:
     return out
 
 
-def _view(doc, index, offset, count: int, width: int, dtype: np.dtype, where: str) -> np.ndarray:
+def _view(doc, index, offset, count: int, width: int, dtype: np.dtype, *, where: str) -> np.ndarray:
     """``count`` elements of ``width`` components from buffer view ``index``."""
     view = doc_item(doc, "bufferViews", index, f"{where}.bufferView")
     buffers = doc.buffers
@@ -275,4 +277,23 @@ def _view(doc, index, offset, count: int, width: int, dtype: np.dtype, where: st
         )
     return np.ndarray(
         (count, width), dtype, buffer=buffers[b], offset=start, strides=(stride, dtype.itemsize)
+    )
+
+
+def doc_index(doc: GltfDocument, key: str, want: str | int | None, default: int, what: str) -> int:
+    """The index of the item of ``key`` named ``want`` (or at that index); ``default`` when
+    ``want`` is None."""
+    items = doc_list(doc, key)
+    names = [
+        str(it.get("name", f"#{i}")) if isinstance(it, dict) else f"#{i}"
+        for i, it in enumerate(items)
+    ]
+    if want is None:
+        return default
+    if str(want) in names:
+        return names.index(str(want))
+    if str(want).lstrip("-").isdigit() and 0 <= int(want) < len(items):
+        return int(want)
+    raise gltf_error(
+        doc, key, f"the {what} named or numbered {want!r}", f"{len(items)}: {names[:10]}"
     )

@@ -16,7 +16,7 @@ import numpy as np
 
 from loosefit.errors import LoosefitInputError
 from loosefit.motion.bone_directions import zero_pose_stands
-from loosefit.motion.bvh import _UNIT_SCALES, BvhClip, body_extent
+from loosefit.motion.bvh import _UNIT_SCALES
 from loosefit.motion.files import read_clip
 from loosefit.motion.joint_maps import AVATAR_JOINTS
 from loosefit.motion.joint_match import JointMatch
@@ -29,6 +29,7 @@ from loosefit.motion.retarget import (
     source_height,
     source_pose,
 )
+from loosefit.motion.skeleton_clip import BvhClip, body_extent
 from loosefit.types import Motion
 
 

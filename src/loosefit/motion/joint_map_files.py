@@ -2,7 +2,7 @@
 map must pass against the skeleton it is for.
 
 :func:`joint_map_template` writes what the matcher (:mod:`loosefit.motion.joint_match`)
-found, or the names' guesses (:func:`~loosefit.motion.joint_match.guess_by_name`), as a YAML
+found, or the names' guesses (:func:`~loosefit.motion.joint_names.guess_by_name`), as a YAML
 map with a line per avatar joint; :func:`check_joint_map` refuses a map that cannot be the
 skeleton's (joints out of their chain's order, a pelvis that is an empty root, a bending
 joint skipped inside a limb) before anything is animated with it.
@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.motion.joint_match import TEMPLATE_PARTS, JointMatch, guess_by_name
+from loosefit.motion.joint_match import JointMatch
+from loosefit.motion.joint_names import TEMPLATE_PARTS, guess_by_name
 
 _TEMPLATE_WORDS = {
     "UpLeg": "thigh",

@@ -5,10 +5,11 @@ A BVH file from another tool names its joints its own way (``mixamorig:LeftUpLeg
 finds the avatar joints that retargeting needs in three steps:
 
 1. **Names.** Each name is cut into a side and a body part
-   (:func:`classify_joint_name`): a namespace (``xxx:``) and prefixes such as
-   ``mixamorig``, ``joint_`` or ``Bip01`` are dropped; the side is ``Left``/``Right``,
-   ``L``/``R``/``l``/``r`` before a capital or a separator, or ``_L``/``.L``/``_l``/
-   ``Left`` at the end, in any case; the part comes from synonyms (``UpLeg``/
+   (:func:`~loosefit.motion.joint_names.classify_joint_name`): a namespace (``xxx:``) and
+   prefixes such as ``mixamorig``, ``joint_`` or ``Bip01`` are dropped; the side is
+   ``Left``/``Right``, ``L``/``R``/``l``/``r`` before a capital or a separator, or
+   ``_L``/``.L``/``_l``/``Left`` at the end, in any case; the part comes from synonyms
+   (``UpLeg``/
    ``Thigh``/``UpperLeg``, ``Leg``/``Shin``/``Calf``/``LowerLeg``/``Knee``,
    ``Foot``/``Ankle``, ``Toe``/``ToeBase``/``Ball``, ``Collar``/``Clavicle``,
    ``Arm``/``UpperArm``/``Shldr``, ``ForeArm``/``LowerArm``/``Elbow``,
@@ -33,91 +34,13 @@ drives it and how that was decided, for ``loosefit inspect-motion`` to print.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
-from loosefit.errors import LoosefitInputError
-from loosefit.motion.joint_maps import LIMBS, MAP_FILE_EXAMPLE, JointMap
-
-# Dropped from the front of a name (after any namespace "xxx:").
-_PREFIX = re.compile(
-    r"^(mixamorig\d*[_:]?|joint[_\s.-]|jnt[_\s.-]|bip0?1[_\s.-]|def[_-]|b_|j_)", re.IGNORECASE
-)
-_SIDE_PATTERNS = (  # (regex, group holding the side); tried in order
-    (re.compile(r"^(left|right)[_\s.-]?", re.IGNORECASE), 1),
-    (re.compile(r"[_\s.-]?(left|right)$", re.IGNORECASE), 1),
-    (re.compile(r"^([LRlr])(?:[_\s.-]|(?=[A-Z]))"), 1),
-    (re.compile(r"[_\s.-]([LRlr])$"), 1),
-    (re.compile(r"(?<=[a-z])([LR])$"), 1),
-)
-# Body part of a name's base (lower case, letters only), sided and unsided.
-_UNSIDED_PARTS = {
-    **dict.fromkeys(("hips", "hip", "pelvis", "root"), "root"),
-    **dict.fromkeys(("spine", "chest", "upperchest", "abdomen", "abdomenlower",
-                     "abdomenupper", "lowerback", "upperback", "torso", "back"), "spine"),
-    **dict.fromkeys(("neck", "necklower", "neckupper"), "neck"),
-    "head": "head",
-}  # fmt: skip
-_SIDED_PARTS = {
-    **dict.fromkeys(("collar", "clavicle"), "collar"),
-    "shoulder": "shoulder",  # a collar or an upper arm, by what follows
-    **dict.fromkeys(("arm", "upperarm", "uparm", "shldr", "shldrbend"), "upperarm"),
-    **dict.fromkeys(("forearm", "lowerarm", "elbow", "forearmbend"), "forearm"),
-    **dict.fromkeys(("hand", "wrist"), "hand"),
-    **dict.fromkeys(("hipjoint", "buttock"), "hipjoint"),
-    "hip": "hip",  # a thigh, or the hip joint before one
-    **dict.fromkeys(("upleg", "upperleg", "thigh", "thighbend"), "thigh"),
-    **dict.fromkeys(("leg", "lowerleg", "shin", "calf", "knee"), "shin"),
-    **dict.fromkeys(("foot", "ankle"), "foot"),
-    **dict.fromkeys(("toe", "toes", "toebase", "ball"), "toe"),
-}  # fmt: skip
-_END_MARKER = re.compile(r"end|top|nub|tip|site", re.IGNORECASE)
-
-# The avatar joints a skeleton must drive, and what each is called in messages.
-_LEG = {"UpLeg": "thigh", "Leg": "shin", "Foot": "foot"}
-_ARM = {"Arm": "upper arm", "ForeArm": "forearm", "Hand": "hand"}
-REQUIRED = ("Hips",) + tuple(f"{S}{b}" for S in ("Left", "Right") for b in (*_LEG, *_ARM))
-_PART_WORDS = {  # the part a missing avatar joint needs -> names that would have matched
-    "root": "Hips, Pelvis, Root", "thigh": "UpLeg, Thigh, UpperLeg, Hip",
-    "shin": "Leg, Shin, Calf, LowerLeg, Knee", "foot": "Foot, Ankle",
-    "upperarm": "Arm, UpperArm, Shoulder, Shldr", "forearm": "ForeArm, LowerArm, Elbow",
-    "hand": "Hand, Wrist",
-}  # fmt: skip
-
-
-@dataclass(frozen=True)
-class NameParts:
-    """What a joint's name says: its side ("L", "R" or None) and body part (or None)."""
-
-    side: str | None
-    part: str | None
-    base: str  # the name without namespace, prefix, side and digits, lower case
-
-
-def classify_joint_name(name: str) -> NameParts:
-    """Side and body part of a joint name (see the module's docstring for the rules).
-
-    ``classify_joint_name("mixamorig:LeftUpLeg")`` is ``NameParts("L", "thigh", "upleg")``;
-    ``"spine_02"`` is ``(None, "spine", "spine")``; a finger such as ``LeftHandIndex1``
-    has no part (``base="handindex"``).
-    """
-    text = name.rsplit(":", 1)[-1].strip()
-    text = _PREFIX.sub("", text) or text
-    side = None
-    for pattern, group in _SIDE_PATTERNS:
-        m = pattern.search(text)
-        if m and len(text) > len(m.group(0)):
-            side = m.group(group)[0].upper()
-            text = text[: m.start()] + text[m.end() :]
-            break
-    base = re.sub(r"[^a-z]", "", re.sub(r"\d+$", "", re.sub(r"[^a-z0-9]", "", text.lower())))
-    part = (_SIDED_PARTS if side else _UNSIDED_PARTS).get(base)
-    if part is None and side is None and base in _SIDED_PARTS and base != "hip":
-        part = _SIDED_PARTS[base]  # a limb without a side: structure decides which
-    return NameParts(side, part, base)
+from loosefit.motion.joint_maps import LIMBS, JointMap
+from loosefit.motion.joint_names import END_MARKER, REQUIRED, NameParts, classify_joint_name
+from loosefit.motion.match_errors import raise_no_match
 
 
 @dataclass(frozen=True)
@@ -416,7 +339,7 @@ def _head(tree: _SourceTree, pelvis: int, torso: int, top: int | None) -> tuple[
         return top, "name"
     rest, depth, parents = tree.rest, tree.depth, tree.parents
     highest = max(tree.subtree[torso], key=lambda j: (rest[j, 2], -depth[j]))
-    if _END_MARKER.search(tree.names[highest]) and parents[highest] not in (pelvis, -1):
+    if END_MARKER.search(tree.names[highest]) and parents[highest] not in (pelvis, -1):
         return int(parents[highest]), "structure"
     return highest, "structure"
 
@@ -499,8 +422,9 @@ def match_skeleton(
         forearm and hand, as far as the skeleton has them; ``align`` is the limbs found.
 
     Raises:
-        LoosefitInputError: naming the file, the avatar joints of :data:`REQUIRED` that
-            nothing drives, the candidates found for each, and a map file line to write.
+        SkeletonMatchError: naming the file, the avatar joints of
+            :data:`~loosefit.motion.joint_names.REQUIRED` that nothing drives, the
+            candidates found for each, and a map file line to write.
     """
     names = list(names)
     tree = _source_tree(
@@ -517,7 +441,7 @@ def match_skeleton(
     # 1. The pelvis.
     pelvis, how_pelvis = _find_pelvis(tree)
     if pelvis is None:
-        _fail(
+        raise_no_match(
             source,
             names,
             tree.parts,
@@ -575,204 +499,7 @@ def match_skeleton(
 
     missing = [a for a in REQUIRED if a not in found]
     if missing:
-        _fail(source, names, tree.parts, found, notes, missing, tree.parents)
+        raise_no_match(source, names, tree.parts, found, notes, missing, parents=tree.parents)
     joints = {a: names[found[a]] for a in _AVATAR_ORDER if a in found}
     jmap = JointMap("auto-matched", joints, tuple(a for a in LIMBS if a in joints))
     return JointMatch(jmap, {a: how[a] for a in joints}, tuple(notes))
-
-
-class SkeletonMatchError(LoosefitInputError):
-    """The matcher found no humanoid in a skeleton (a :class:`LoosefitInputError`).
-
-    Attributes:
-        missing: the avatar joints of :data:`REQUIRED` that nothing drives.
-        notes: what the matcher decided on the way (pelvis, torso, legs, arms).
-        details: for each missing joint, the joints named like it (or that none are).
-        guesses: avatar joint -> a source joint named like it (for a map file's lines).
-    """
-
-    def __init__(self, *args, missing=(), notes=(), guesses=None, details=(), **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self.missing = tuple(missing)
-        self.notes = tuple(notes)
-        self.guesses = dict(guesses or {})
-        self.details = tuple(details)
-
-    def __reduce__(self):
-        return _rebuild_match_error, (
-            (self.source, self.field, self.expected, self.found, self.hint),
-            self.missing,
-            self.notes,
-            self.guesses,
-            self.details,
-        )
-
-
-def _rebuild_match_error(args, missing, notes, guesses, details) -> SkeletonMatchError:
-    return SkeletonMatchError(*args, missing=missing, notes=notes, guesses=guesses, details=details)
-
-
-MATCH_EXPECTED = (
-    "a humanoid skeleton the joint matcher can map: a pelvis with two legs (thigh, shin, "
-    "foot) and a spine with two arms (upper arm, forearm, hand)"
-)
-
-
-def map_file_hint(source: str, guesses: dict[str, str] | None = None) -> str:
-    """What to write in a joint map for a skeleton the matcher cannot map: the lines the
-    names suggest (``guesses``, avatar joint -> source joint) and where to pass the file."""
-    lines = ", ".join(f"'{a}: {s}'" for a, s in (guesses or {}).items())
-    example = f"({lines} by the names; check them)" if lines else f"e.g. '{MAP_FILE_EXAMPLE}'"
-    return (
-        "write a joint map file (YAML or TOML), one line 'avatar joint: your joint' per "
-        f"joint {example}, and pass --joint-map FILE (the motion spec "
-        "joint-map:FILE:CLIP.bvh elsewhere); "
-        f"{joint_map_template_hint(source)}; a skeleton not Y up and facing +Z: "
-        "source_up and source_forward in a map file"
-    )
-
-
-def _fail(
-    source: str,
-    names: list[str],
-    parts: list[NameParts],
-    found: dict[str, int],
-    notes: list[str],
-    missing: list[str] | None = None,
-    parents: np.ndarray | None = None,
-) -> None:
-    """Raise the error for a skeleton the matcher cannot map."""
-    missing = missing or list(REQUIRED)
-    details = []
-    for a in missing:
-        side = "L" if a.startswith("Left") else "R" if a.startswith("Right") else None
-        bone = a.removeprefix("Left").removeprefix("Right")
-        part = {"Hips": "root", **{k: v.replace(" ", "") for k, v in {**_LEG, **_ARM}.items()}}
-        want = {
-            "root": ("root",),
-            "thigh": ("thigh", "hip"),
-            "shin": ("shin",),
-            "foot": ("foot",),
-            "upperarm": ("upperarm", "shoulder"),
-            "forearm": ("forearm",),
-            "hand": ("hand",),
-        }[part[bone]]
-        cands = [
-            n
-            for n, p in zip(names, parts, strict=True)
-            if p.part in want and (side is None or p.side in (side, None))
-        ]
-        what = (
-            f"candidates {cands[:4]}" if cands else f"no joint named like {_PART_WORDS[part[bone]]}"
-        )
-        details.append(f"{a}: {what}")
-    guesses = {}
-    if parents is not None:
-        named = guess_by_name(names, parents, {names[j]: a for a, j in found.items()})
-        guesses = {a: named[a][0] for a in missing if a in named}
-    raise SkeletonMatchError(
-        source,
-        "HIERARCHY",
-        MATCH_EXPECTED,
-        f"nothing for {missing} ({'; '.join(details)}; {'; '.join(notes)}; "
-        f"its joints: {', '.join(names[:40])}{'...' if len(names) > 40 else ''})",
-        hint=map_file_hint(source, guesses),
-        missing=missing,
-        notes=notes,
-        guesses=guesses,
-        details=details,
-    )
-
-
-# What a template line guesses for each avatar joint from the names alone: (side, parts).
-TEMPLATE_PARTS = {
-    "Hips": (None, ("root",)), "LowerBack": (None, ("spine",)), "Spine1": (None, ("spine",)),
-    "Neck": (None, ("neck",)), "Head": (None, ("head",)),
-    **{f"{S}{bone}": (S[0], parts) for S in ("Left", "Right") for bone, parts in (
-        ("UpLeg", ("thigh", "hip")), ("Leg", ("shin",)), ("Foot", ("foot",)),
-        ("ToeBase", ("toe",)), ("Shoulder", ("collar",)), ("Arm", ("upperarm", "shoulder")),
-        ("ForeArm", ("forearm",)), ("Hand", ("hand",)))},
-}  # fmt: skip
-
-
-def guess_by_name(
-    names: list[str], parents: np.ndarray | None, taken: dict[str, str] | None = None
-) -> dict[str, tuple[str | None, str]]:
-    """Avatar joint -> (source joint or None, why), from the names and the hierarchy alone.
-
-    For the joints a map file must have (:data:`TEMPLATE_PARTS`): the first source joint
-    named as that part on that side (the chest: the last spine joint), not yet ``taken``
-    (source joint -> avatar joint). A sided ``Shoulder`` is the collar when an upper arm
-    of that side lies below it, else the upper arm; a sided ``Hip`` is the hip joint when
-    a thigh lies below it. The pelvis must branch (into legs and a spine): a joint named
-    so with a single child (a root of no geometry of its own above the hips) is passed
-    over, and when no named joint branches, the first joint that does is taken.
-
-    Args:
-        names: J source joint names, parents before children.
-        parents: (J,) parent indices, -1 for a root; None: the hierarchy is unknown (names
-            alone: a Shoulder is an upper arm, a Hip a thigh, any pelvis is taken).
-        taken: source joints already mapped, left out.
-
-    Returns:
-        For each avatar joint guessed or refused: (the source joint, "guessed by name" or
-        "by structure"), or (None, why none was taken).
-    """
-    parts = [classify_joint_name(n) for n in names]
-    kids: list[list[int]] = [[] for _ in names]
-    for j, p in enumerate(parents if parents is not None else []):
-        if p >= 0:
-            kids[p].append(j)
-    below: list[set[int]] = [set() for _ in names]
-    for j in range(len(names) - 1, -1, -1):
-        for c in kids[j]:
-            below[j] |= {c} | below[c]
-    role = []  # what each joint is taken for
-    for j, p in enumerate(parts):
-        part = p.part
-        if part == "shoulder":
-            has_arm = any(parts[k].part == "upperarm" and parts[k].side == p.side for k in below[j])
-            part = "collar" if has_arm else "upperarm"
-        elif part == "hip" and p.side:
-            has_thigh = any(parts[k].part == "thigh" and parts[k].side == p.side for k in below[j])
-            part = "hipjoint" if has_thigh else "thigh"
-        role.append(part)
-    used = set(taken or {})
-    out: dict[str, tuple[str | None, str]] = {}
-    for a, (side, want) in TEMPLATE_PARTS.items():
-        cands = [
-            j
-            for j, p in enumerate(parts)
-            if role[j] in want and p.side == side and names[j] not in used
-        ]
-        if a == "Spine1" and cands:  # the chest is the last spine joint, the lower back the first
-            cands = cands[-1:]
-        if a == "Hips" and parents is not None:
-            empty = [j for j in cands if len(kids[j]) < 2]
-            cands = [j for j in cands if len(kids[j]) >= 2]
-            if not cands:
-                first = next((j for j in range(len(names)) if len(kids[j]) >= 2), None)
-                if first is not None and names[first] not in used:
-                    out[a] = (names[first], "by structure: the first joint that branches")
-                    used.add(names[first])
-                    continue
-                if empty:
-                    out[a] = (
-                        None,
-                        f"'{names[empty[0]]}' is named so but does not branch "
-                        "into legs and a spine (no geometry of its own)",
-                    )
-                continue
-        if cands:
-            out[a] = (names[cands[0]], "guessed by name")
-            used.add(names[cands[0]])
-    return out
-
-
-def joint_map_template_hint(source: str) -> str:
-    """The command that writes a filled-in joint map for a motion file, for error hints."""
-    return (
-        f"`loosefit inspect-motion {Path(source).name} --write-joint-map my_map.yaml` "
-        "writes one filled in with what was found and guessed by name, to correct and "
-        "pass as --joint-map my_map.yaml"
-    )

@@ -52,6 +52,7 @@ def load_motion(
     seed: int = 0,
     retarget: RetargetConfig | None = None,
     max_frames: int | None = None,
+    *,
     start_frame: int = 0,
 ) -> Motion:
     """A motion on the avatar's skeleton from a file or a procedural name.
@@ -95,7 +96,7 @@ def load_motion(
         parts = [p for p in text.split("+") if p]
         motion = chain_motions(
             [
-                load_motion(p, avatar, fps, seed + i, retarget, None, start_frame)
+                load_motion(p, avatar, fps, seed + i, retarget, None, start_frame=start_frame)
                 for i, p in enumerate(parts)
             ]
         )

@@ -28,40 +28,20 @@ from loosefit.body.avatar import Skeleton
 from loosefit.errors import LoosefitInputError
 from loosefit.types import Motion
 
-# The figures below are bench/data/pose_check_margins.py's (rerun it to see them; the dev
-# machine, 2 CPU cores, about 5 minutes): each procedural move (3 seeds), three dances,
-# and the CMU clips at their own 120 fps (the check runs at the clip's rate, before
-# resampling), retargeted as `loosefit animate` loads them.
-#
-# 1. Upright in at least MIN_UPRIGHT of the frames: the head above the hips by at least
-# HEAD_MARGIN of its height above them at rest, and the hips above the lower ankle by
-# STAND_MARGIN of theirs (a body lying down, its head a few centimetres above its hips,
-# does not stand; a deep bow, the torso up to 80 degrees forward over upright legs, does:
-# a clip of bows is a dance). Measured with both margins 0.5: procedural 1.000 (but the
-# bow, 0.62: its torso 57-76 degrees forward); CMU salsa 0.925 (60_01, dips), 0.969
-# (60_02), the others 1.000; CMU ballet 0.849 at the least (05_06, its cartwheel), 0.962
-# (05_16), the others 0.97 and up. (With no margin 0.88 for 05_06; with 0.7, 0.82.) A
-# lower head margin only lets more through: the figures above stay.
+# The check's thresholds; the figures they were chosen from (bench/data/pose_check_margins.py):
+# docs/design/notes/pose_check.md.
+# 1. upright: the fraction of frames with the head above the hips by HEAD_MARGIN of its
+# height above them at rest and the hips above the lower ankle by STAND_MARGIN of theirs
 MIN_UPRIGHT = 0.75
 STAND_MARGIN = 0.5
 HEAD_MARGIN = 0.15  # cos(81 degrees): the head above the hips by this much of the torso
-# 2. The lower sole within CONTACT_M of the floor in at least MIN_CONTACT of the frames,
-# and never below it by more than MAX_BELOW_M. Measured, the fraction within 10 cm:
-# procedural 0.90 at the least (jump); salsa 1.00; ballet 0.45 at the least (05_05, leaps,
-# a leg raised above the hip; 0.39 within 5 cm, 0.73 within 15 cm), 0.74 (05_16), 0.77
-# (05_06), the others 0.88 and up. Lowest sole: -0.078 m procedural (dance), -0.089 m
-# salsa (60_04), -0.096 m ballet (05_18); the floor is set at the feet's 5th percentile.
+# 2. on the floor: the lower sole within CONTACT_M (m) of the floor in at least MIN_CONTACT of
+# the frames, and never more than MAX_BELOW_M (m) below it
 CONTACT_M = 0.10
 MIN_CONTACT = 0.3
 MAX_BELOW_M = 0.25
-# 3. A bone's direction may turn at most this fast (deg/s) in its parent's frame (the
-# root's in the world), frame to frame at the clip's rate. Measured, the fastest bone of
-# each: procedural 5-620 (30 fps); CMU salsa 3,090-6,300 (the arms' swing in from the
-# reference pose at frame 0; 60_04's hip jump); CMU ballet 2,470-7,460 (05_16: a thigh
-# that turns 180 degrees over four frames, a capture error that real files have). The
-# fastest joint turns measured in sport (a pitcher's shoulder) reach 7,000-9,000 deg/s.
-# At 120 fps the limit is 75 degrees a frame; below 50 fps it exceeds the 180 degrees a
-# direction can turn in one frame, so only faster captures are checked this way.
+# 3. deg/s: the fastest a bone's direction may turn in its parent's frame (the root's in the
+# world), frame to frame at the clip's rate
 MAX_TURN_DEG_S = 9000.0
 
 

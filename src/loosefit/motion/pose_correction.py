@@ -50,17 +50,15 @@ JOIN_BAND = 0.02
 class UnfoldConfig:
     """How a capture pose that folds into the body is corrected before simulation."""
 
-    enabled: bool = True
+    enabled: bool = True  # correct folding poses at all
     clearance: float = 0.01  # m aimed for between the buried skin and the rest of the body
     max_degrees: float = 10.0  # the largest turn of a limb's root joint
     ramp_seconds: float = 0.2  # a turn eases in and out over this
     steps: int = 10  # bisection steps of the angle search (resolution max_degrees / 2^steps)
-    # A motion whose legs fold deeper than ``deep_depth`` (m) into the rest of the body (a
-    # leap's thigh 8.6 cm into the hips) may turn every limb up to ``deep_degrees``: 10
-    # degrees leave the cloth caught between the thighs there, from the shallower frames
-    # around the deepest on (docs/use/DATASET.md, "Turning leaps"). None: ``max_degrees`` always.
+    # the largest turn of a limb's root joint in a motion whose legs fold deeper than
+    # deep_depth (why: docs/design/notes/unfold_config.md); None: max_degrees always
     deep_degrees: float | None = None
-    deep_depth: float = 0.05
+    deep_depth: float = 0.05  # m, how deep a fold must go for deep_degrees to apply
     deep_limbs: tuple[str, ...] = ("left leg", "right leg")  # the limbs whose folds count
 
     def __post_init__(self) -> None:

@@ -333,6 +333,7 @@ def compose(
     fps: float = 30.0,
     seed: int = 0,
     fade: float = 0.3,
+    *,
     name: str = "dance",
 ) -> Motion:
     """A motion from a sequence of moves, cross-faded, with the root trajectory integrated.
@@ -421,6 +422,7 @@ def random_dance(
     seed: int,
     fps: float = 30.0,
     moves: tuple[str, ...] = ("walk", "turn", "spin", "twirl", "sway", "kick", "jump"),
+    *,
     name: str | None = None,
 ) -> Motion:
     """A dance of random moves drawn from ``moves``, about ``duration`` seconds long.

@@ -38,7 +38,7 @@ import numpy as np
 from loosefit.body.avatar import Skeleton
 from loosefit.errors import LoosefitInputError
 from loosefit.motion.bone_directions import REFERENCES, SourcePose, solve_bone_rotations
-from loosefit.motion.bvh import _UNIT_SCALES, BvhClip, forward_kinematics, rest_positions
+from loosefit.motion.bvh import _UNIT_SCALES
 from loosefit.motion.capture_measure import (
     FORWARD_FOR_UP,
     HeightMeasure,
@@ -56,15 +56,11 @@ from loosefit.motion.joint_maps import (  # noqa: F401 - JointMap, DAZ_MAP, CMU_
     is_map_file,
     load_joint_map_file,
 )
-from loosefit.motion.joint_match import (
-    MATCH_EXPECTED,
-    JointMatch,
-    SkeletonMatchError,
-    map_file_hint,
-    match_skeleton,
-)
+from loosefit.motion.joint_match import JointMatch, match_skeleton
+from loosefit.motion.match_errors import MATCH_EXPECTED, SkeletonMatchError, map_file_hint
 from loosefit.motion.pose_check import check_pose
 from loosefit.motion.resample import filter_rotation_glitches, resample_motion
+from loosefit.motion.skeleton_clip import BvhClip, forward_kinematics, rest_positions
 from loosefit.types import Motion
 
 _AXES = {
@@ -75,20 +71,21 @@ _AXES = {
 
 @dataclass
 class RetargetConfig:
-    """How a motion capture file (BVH, glTF, SMPL .npz) is read and mapped onto the avatar."""
+    """How a motion capture file (BVH, glTF, SMPL .npz) is read and mapped onto the avatar.
 
-    # a name in JOINT_MAPS; "auto": a shipped map that fits the clip, else the joint matcher
-    # (loosefit.motion.joint_match); or a .yaml/.yml/.toml map file (load_joint_map_file)
-    joint_map: str = "auto"
-    # the source's up axis, +x..-z; "auto": a BVH file's from its frames (feet to head),
-    # else +y (glTF, SMPL); a map file's source_up overrides it
-    source_up: str = "auto"
-    # the way the source faces; "auto": +z for a Y-up source, -y for a Z-up one (FORWARD_FOR_UP)
-    source_forward: str = "auto"
-    # how each bone's turn is calibrated (loosefit.motion.bone_directions): "zero-pose" (the
-    # source's zero pose stands like the avatar's rest), "clip" (landmarks and bends over
-    # the clip; any zero pose), "auto" (zero-pose when it stands so, else clip)
-    reference: str = "auto"
+    ``joint_map`` "auto" takes a shipped map that fits the clip, else the joint matcher
+    (:mod:`loosefit.motion.joint_match`). ``source_up`` "auto" is a BVH file's up axis from
+    its frames (feet to head), else +y (glTF, SMPL); a map file's ``source_up`` overrides
+    it. ``source_forward`` "auto" is +z for a Y-up source, -y for a Z-up one
+    (``FORWARD_FOR_UP``). ``reference`` (:mod:`loosefit.motion.bone_directions`):
+    "zero-pose" when the source's zero pose stands like the avatar's rest, "clip" from
+    landmarks and bends over the clip (any zero pose), "auto" the first when it stands so.
+    """
+
+    joint_map: str = "auto"  # a name in JOINT_MAPS, "auto", or a .yaml/.yml/.toml map file
+    source_up: str = "auto"  # the source's up axis, +x..-z, or "auto"
+    source_forward: str = "auto"  # the way the source faces, +x..-z, or "auto"
+    reference: str = "auto"  # how each bone's turn is calibrated: "zero-pose", "clip", "auto"
     fps: float | None = 30.0  # resample to this rate (None keeps the source's)
     filter_glitches: bool = True  # remove single-frame rotation pops before retargeting
     recenter: bool = True  # start the root at x = y = 0

@@ -45,8 +45,8 @@ import numpy as np
 
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.rotations import axis_angle_to_matrix, rotation_between
-from loosefit.motion.bvh import BvhClip
 from loosefit.motion.joint_maps import AXES
+from loosefit.motion.skeleton_clip import BvhClip
 
 SMPL_JOINTS = (
     "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2",

@@ -37,6 +37,7 @@ def render_clip(
     config: RenderConfig | None = None,
     title: str | None = None,
     png_every: int = 0,
+    *,
     sheet_frames: int = 8,
     name: str = "video",
 ) -> ClipOutputs:

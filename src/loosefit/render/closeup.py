@@ -88,6 +88,7 @@ def render_penetration(
     garment_faces: np.ndarray,
     deep: np.ndarray,
     target: np.ndarray,
+    *,
     direction: np.ndarray,
     hidden: np.ndarray | None = None,
     muted: np.ndarray | None = None,

@@ -26,6 +26,7 @@ from loosefit.errors import LoosefitInputError
 from loosefit.render import shaders
 from loosefit.render.camera import CameraTrack, CameraView, camera_track, light_track, named_view
 from loosefit.render.geometry import NormalPlan
+from loosefit.render.gpu import GpuMesh, set_uniform, write_uniform_matrix
 
 RGB = tuple[float, float, float]
 
@@ -184,72 +185,6 @@ def _follow_centres(scene: Sequence[RenderMesh], T: int) -> np.ndarray:
     return total / sum(m.num_vertices for m in meshes)
 
 
-class _GpuMesh:
-    """Persistent GPU buffers of one scene slot; per-frame updates are buffer writes only."""
-
-    def __init__(
-        self, ctx, mesh_prog, shadow_prog, num_vertices: int, num_faces: int, two_sided: bool
-    ) -> None:
-        self.size = (num_vertices, num_faces, two_sided)
-        self.two_sided = two_sided
-        self.pos = ctx.buffer(reserve=num_vertices * 12)
-        self.nrm = ctx.buffer(reserve=num_vertices * 12)
-        self.col = ctx.buffer(reserve=num_vertices * 12)
-        self.ibo = ctx.buffer(reserve=num_faces * 12)
-        self.vao = ctx.vertex_array(
-            mesh_prog,
-            [
-                (self.pos, "3f", "in_pos"),
-                (self.nrm, "3f", "in_normal"),
-                (self.col, "3f", "in_color"),
-            ],
-            index_buffer=self.ibo,
-            index_element_size=4,
-        )
-        self.shadow_vao = ctx.vertex_array(
-            shadow_prog, [(self.pos, "3f", "in_pos")], index_buffer=self.ibo, index_element_size=4
-        )
-        # What the buffers hold now; the arrays are kept alive so identity checks are safe.
-        self.faces_src: np.ndarray | None = None
-        self.vert_src: tuple[np.ndarray, int] | None = None
-        self.color_src: tuple[object, int] | None = None
-
-    def sync(self, mesh: RenderMesh, t: int, color: RGB) -> None:
-        """Write frame ``t`` of ``mesh`` into the buffers (skipping what is already there)."""
-        if self.faces_src is not mesh.faces:
-            self.ibo.write(mesh.faces.astype(np.int32).tobytes())
-            self.faces_src = mesh.faces
-        tv = t if mesh.num_frames > 1 else 0
-        if self.vert_src is None or self.vert_src[0] is not mesh.vertices or self.vert_src[1] != tv:
-            pos = mesh.vertices[tv]  # (V, 3)
-            self.pos.write(pos.tobytes())
-            self.nrm.write(mesh._plan(pos).astype(np.float32).tobytes())
-            self.vert_src = (mesh.vertices, tv)
-        vc = mesh.vertex_colors
-        key: tuple[object, int] = (color, 0) if vc is None else (vc, t if len(vc) > 1 else 0)
-        if self.color_src is None or self.color_src[0] is not key[0] or self.color_src[1] != key[1]:
-            if vc is None:
-                data = np.tile(np.asarray(color, np.float32), (mesh.num_vertices, 1))  # (V, 3)
-            else:
-                data = vc[key[1]]
-            self.col.write(np.ascontiguousarray(data, dtype=np.float32).tobytes())
-            self.color_src = key
-
-    def release(self) -> None:
-        for obj in (self.vao, self.shadow_vao, self.pos, self.nrm, self.col, self.ibo):
-            obj.release()
-
-
-def _write_mat(prog, name: str, m: np.ndarray) -> None:
-    if name in prog:
-        prog[name].write(np.ascontiguousarray(m.T, dtype=np.float32).tobytes())
-
-
-def _set(prog, name: str, value) -> None:
-    if name in prog:  # the GLSL compiler drops unused uniforms
-        prog[name].value = value
-
-
 @dataclass
 class _Frame:
     """Everything that places the cameras and the light for one frame."""
@@ -333,7 +268,7 @@ class Renderer:
             )
         else:
             self._draw_fbo = self._resolve_fbo
-        self._slots: list[_GpuMesh] = []
+        self._slots: list[GpuMesh] = []
         self._font = ImageFont.load_default(size=cfg.font_size)
         self._static_uniforms()
 
@@ -491,24 +426,24 @@ class Renderer:
         L /= np.linalg.norm(L)
         mp, fp = self._mesh_prog, self._floor_prog
         for prog in (mp, fp):
-            _set(prog, "u_shadow_map", 0)
-            _set(prog, "u_shadows", int(cfg.shadows))
-            _set(prog, "u_shadow_texel", 1.0 / cfg.shadow_map_size)
-        _set(mp, "u_shadow_bias", 0.006)
-        _set(fp, "u_shadow_bias", 0.0)
-        _set(mp, "u_light_dir", tuple(L))
-        _set(mp, "u_key", (cfg.key_intensity,) * 3)
-        _set(mp, "u_sky", (cfg.ambient,) * 3)
-        _set(mp, "u_ground", (cfg.ambient / 2,) * 3)
-        _set(mp, "u_fill", cfg.fill)
-        _set(mp, "u_specular", cfg.specular)
-        _set(mp, "u_shininess", cfg.shininess)
-        _set(mp, "u_backface_tint", tuple(cfg.backface_tint))
-        _set(fp, "u_tile", cfg.floor_tile)
-        _set(fp, "u_tile_a", tuple(cfg.floor_colors[0]))
-        _set(fp, "u_tile_b", tuple(cfg.floor_colors[1]))
-        _set(fp, "u_background", tuple(cfg.background))
-        _set(fp, "u_shadow_strength", cfg.shadow_strength)
+            set_uniform(prog, "u_shadow_map", 0)
+            set_uniform(prog, "u_shadows", int(cfg.shadows))
+            set_uniform(prog, "u_shadow_texel", 1.0 / cfg.shadow_map_size)
+        set_uniform(mp, "u_shadow_bias", 0.006)
+        set_uniform(fp, "u_shadow_bias", 0.0)
+        set_uniform(mp, "u_light_dir", tuple(L))
+        set_uniform(mp, "u_key", (cfg.key_intensity,) * 3)
+        set_uniform(mp, "u_sky", (cfg.ambient,) * 3)
+        set_uniform(mp, "u_ground", (cfg.ambient / 2,) * 3)
+        set_uniform(mp, "u_fill", cfg.fill)
+        set_uniform(mp, "u_specular", cfg.specular)
+        set_uniform(mp, "u_shininess", cfg.shininess)
+        set_uniform(mp, "u_backface_tint", tuple(cfg.backface_tint))
+        set_uniform(fp, "u_tile", cfg.floor_tile)
+        set_uniform(fp, "u_tile_a", tuple(cfg.floor_colors[0]))
+        set_uniform(fp, "u_tile_b", tuple(cfg.floor_colors[1]))
+        set_uniform(fp, "u_background", tuple(cfg.background))
+        set_uniform(fp, "u_shadow_strength", cfg.shadow_strength)
 
     def _sync(self, scene: Sequence[RenderMesh], t: int) -> None:
         """Make the GPU buffers hold frame ``t`` of ``scene`` (re-using slots of the same size)."""
@@ -518,9 +453,9 @@ class Renderer:
             size = (mesh.num_vertices, len(mesh.faces), mesh.two_sided)
             if i < len(self._slots) and self._slots[i].size != size:
                 self._slots[i].release()
-                self._slots[i] = _GpuMesh(self.ctx, self._mesh_prog, self._shadow_prog, *size)
+                self._slots[i] = GpuMesh(self.ctx, self._mesh_prog, self._shadow_prog, *size)
             elif i >= len(self._slots):
-                self._slots.append(_GpuMesh(self.ctx, self._mesh_prog, self._shadow_prog, *size))
+                self._slots.append(GpuMesh(self.ctx, self._mesh_prog, self._shadow_prog, *size))
             color = tuple(mesh.color) if mesh.color is not None else colors[mesh.role]
             self._slots[i].sync(mesh, t, color)
         for slot in self._slots[len(scene) :]:
@@ -544,7 +479,7 @@ class Renderer:
             self._shadow_fbo.use()
             self._shadow_fbo.clear(depth=1.0)
             ctx.polygon_offset = (1.5, 4.0)
-            _write_mat(self._shadow_prog, "u_light_vp", fr.light_vp)
+            write_uniform_matrix(self._shadow_prog, "u_light_vp", fr.light_vp)
             ctx.cull_face = "front"  # closed meshes cast from their back faces: no acne
             for slot in self._slots:
                 self._cull(not slot.two_sided)
@@ -553,23 +488,23 @@ class Renderer:
             ctx.polygon_offset = (0.0, 0.0)
         self._shadow_tex.use(location=0)
         for prog in (self._mesh_prog, self._floor_prog):
-            _write_mat(prog, "u_light_vp", fr.light_vp)
-        _set(self._floor_prog, "u_floor_center", fr.floor_center)
-        _set(self._floor_prog, "u_floor_radius", fr.floor_radius)
-        _set(self._floor_prog, "u_floor_half", fr.floor_radius * 1.05)
+            write_uniform_matrix(prog, "u_light_vp", fr.light_vp)
+        set_uniform(self._floor_prog, "u_floor_center", fr.floor_center)
+        set_uniform(self._floor_prog, "u_floor_radius", fr.floor_radius)
+        set_uniform(self._floor_prog, "u_floor_half", fr.floor_radius * 1.05)
         images = []
         for vp, eye in zip(fr.view_proj, fr.eyes, strict=True):
             self._draw_fbo.use()
             self._draw_fbo.clear(*cfg.background, 1.0, depth=1.0)
-            _write_mat(self._mesh_prog, "u_vp", vp)
-            _set(self._mesh_prog, "u_eye", tuple(float(x) for x in eye))
+            write_uniform_matrix(self._mesh_prog, "u_vp", vp)
+            set_uniform(self._mesh_prog, "u_eye", tuple(float(x) for x in eye))
             for slot in self._slots:
                 self._cull(not slot.two_sided)  # cloth is single-layer: draw both sides
                 slot.vao.render(moderngl.TRIANGLES)
             self._cull(False)
             if cfg.floor and eye[2] > 0.0:  # from below, the floor would hide everything
                 # Drawn last, so the early depth test skips the floor hidden behind the meshes.
-                _write_mat(self._floor_prog, "u_vp", vp)
+                write_uniform_matrix(self._floor_prog, "u_vp", vp)
                 self._floor_vao.render(moderngl.TRIANGLE_STRIP)
             if self._draw_fbo is not self._resolve_fbo:
                 ctx.copy_framebuffer(self._resolve_fbo, self._draw_fbo)

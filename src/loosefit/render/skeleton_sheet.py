@@ -63,6 +63,7 @@ def skeleton_sheet(
     body_faces: np.ndarray,
     frames: Sequence[int],
     size: int = 360,
+    *,
     cols: int = 3,
     gap: float = 0.9,
 ) -> np.ndarray:

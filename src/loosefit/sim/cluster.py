@@ -41,12 +41,14 @@ CLIENT_PORT = 10001  # the same for a Ray Client address (ray://HOST)
 
 @dataclass
 class ClusterConfig:
-    """Which Ray cluster simulates the clips, and how."""
+    """Which Ray cluster simulates the clips, and how.
 
-    # "HOST:PORT" of the head (what `ray start --head` prints), "ray://HOST:PORT" (Ray
-    # Client), "auto" (the cluster `ray start` runs on this machine), or None: RAY_ADDRESS,
-    # else that cluster, else a new Ray instance on this machine
-    address: str | None = None
+    ``address`` is the head's "HOST:PORT" (what ``ray start --head`` prints),
+    "ray://HOST:PORT" (Ray Client), "auto" (the cluster ``ray start`` runs on this machine),
+    or None: RAY_ADDRESS, else that cluster, else a new Ray instance on this machine.
+    """
+
+    address: str | None = None  # the cluster's head: "HOST:PORT", "ray://HOST:PORT", "auto"
     connect_timeout: float = 5.0  # s to reach the head before giving up
     max_retries: int = 3  # times Ray runs a clip again whose worker or node died
 
@@ -266,6 +268,7 @@ def simulate_on_node(
     resume_every: int,
     created: str,
     versions: dict[str, str],
+    *,
     cwd: str,
     progress,
 ) -> list[dict]:
@@ -292,6 +295,7 @@ def run_on_ray(
     out_dir: str,
     resume_every: int,
     created: str,
+    *,
     on_progress: Callable[[str, int, int], None],
     record: Callable[[list[Job], list[dict]], None],
     local_cpus: int | None = None,
@@ -338,7 +342,7 @@ def run_on_ray(
         units = {}
         for group in groups:
             ref = task.options(name=f"simulate {unit_name(group)}").remote(
-                config, group, out_dir, resume_every, created, versions, cwd, progress
+                config, group, out_dir, resume_every, created, versions, cwd=cwd, progress=progress
             )
             units[ref] = group
         pending = list(units)

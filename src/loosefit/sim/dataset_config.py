@@ -24,9 +24,7 @@ from loosefit.sim.cloth_config import ClothConfig
 class MotionSource:
     """Where a dataset's motions come from."""
 
-    # "procedural" (random dances), "bvh" (a folder of motion files: BVH, glTF/GLB and
-    # SMPL or loosefit .npz, mixed; the name is from when it read only BVH) or "specs" (any
-    # motions load_motion reads: files, moves, dance:SECONDS, mirror:..., speed:..., A+B)
+    # "procedural" (random dances), "bvh" (a folder of motion files of any format) or "specs"
     kind: str = "procedural"
     count: int = 8  # procedural: number of dances
     moves: tuple[str, ...] = ()  # procedural: one clip per named move instead of random dances
@@ -38,8 +36,7 @@ class MotionSource:
     specs: tuple[str, ...] = ()  # specs: the motions, one clip each
     chain_test: bool = False  # bvh: the test clips play one after another as one long sequence
     test_every: int = 4  # procedural: every n-th dance is held out for testing
-    # bvh: each training clip is also simulated played at these speeds (``NAME_xSPEED``,
-    # ``speed:SPEED:FILE``): new dynamics from the same captures; held-out clips never are
+    # bvh: the speeds each training clip is also played at (NAME_xSPEED; held-out clips never)
     speeds: tuple[float, ...] = ()
 
 
@@ -47,8 +44,7 @@ class MotionSource:
 class QualityLimits:
     """Thresholds beyond which a simulated clip is flagged and excluded from the split."""
 
-    # garment vertices more than garment.quality.PENETRATION_TOLERANCE (5 mm) inside the body,
-    # worst frame
+    # fraction of garment vertices over 5 mm inside the body (PENETRATION_TOLERANCE), worst frame
     max_penetration_fraction: float = 0.01
     max_inside_depth: float = 0.03  # m, no vertex deeper inside the body than this
     max_strain_p99: float = 0.25  # 99th percentile of |edge length / rest - 1|, worst frame
@@ -97,7 +93,13 @@ def make_garment(garment, avatar):
         check_fitted_shape(template, avatar, path)  # a --fit garment: on the body it was fitted to
         return template
     return import_garment(
-        path, avatar, garment.units, garment.up, garment.kind, garment.offset, garment.attach
+        path,
+        avatar,
+        garment.units,
+        garment.up,
+        garment.kind,
+        garment.offset,
+        attach=garment.attach,
     )[0]
 
 
@@ -116,17 +118,15 @@ class DatasetConfig:
     garment: SkirtConfig | DressConfig | GarmentFile = field(
         default_factory=lambda: SkirtConfig.preset("cpu", "flared")
     )
-    cloth: ClothConfig = field(default_factory=ClothConfig)
-    motions: MotionSource = field(default_factory=MotionSource)
-    limits: QualityLimits = field(default_factory=QualityLimits)
-    # capture poses that fold into the body turned a few degrees out of it before simulation
-    # (loosefit.motion.pose_correction); data sets made before this field existed were made without
+    cloth: ClothConfig = field(default_factory=ClothConfig)  # how the garment is simulated
+    motions: MotionSource = field(default_factory=MotionSource)  # which clips are simulated
+    limits: QualityLimits = field(default_factory=QualityLimits)  # when a clip is flagged
+    # how capture poses that fold into the body are turned out of it (pose_correction)
     unfold: UnfoldConfig = field(default_factory=UnfoldConfig)
     fps: float = 30.0  # frame rate of the recorded clips
     seed: int = 0  # seeds the dances and each clip's cloth jitter
     shape: dict = field(default_factory=dict)  # avatar phenotype overrides
-    # an ensemble's member seeds, distinct integers >= 0: each clip simulated once per seed
-    # with the same motion and the cloth's start jittered from that seed; None: one member
+    # an ensemble's member seeds (distinct integers >= 0, one run of each clip each); None: one
     seeds: list[int] | None = None
 
     def __post_init__(self) -> None:

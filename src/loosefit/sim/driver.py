@@ -121,6 +121,7 @@ def simulate(
     config: ClothConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
     resume: str | Path | None = None,
+    *,
     resume_every: int = 50,
 ) -> SimResult:
     """Simulate a garment on the avatar through a motion.
@@ -146,7 +147,9 @@ def simulate(
         LoosefitInputError: a template without waistband, a motion on other joints.
         SimulationError: NaN or a vertex more than ``config.max_distance`` from the body.
     """
-    return simulate_batch(avatar, template, [motion], config, progress, resume, resume_every)[0]
+    return simulate_batch(
+        avatar, template, [motion], config, progress, resume, resume_every=resume_every
+    )[0]
 
 
 def simulate_batch(
@@ -156,6 +159,7 @@ def simulate_batch(
     config: ClothConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
     resume: str | Path | None = None,
+    *,
     resume_every: int = 50,
     seeds: list[int] | None = None,
     drape: np.ndarray | None = None,
@@ -192,11 +196,7 @@ def simulate_batch(
     config = config or ClothConfig()
     fps = _check_batch(avatar, template, motions)
     K = len(motions)
-    start = None  # the clips start from the template, and settle on their own
-    if config.settle_once:
-        start = _check_drape(template, drape) if drape is not None else None
-        if start is None:
-            start = settle(avatar, template, config, fps)
+    start = _batch_start(avatar, template, config, fps, drape)
 
     # 1. Each body over its whole timeline: settle (unless settled once), blend, motion.
     needs_parts = config.flatten_overlaps or config.release_depth is not None
@@ -211,7 +211,9 @@ def simulate_batch(
 
     # 2. The simulator, with contact culling widened to the whole motions.
     t0 = time.perf_counter()
-    sim = _batch_simulator(template, lines, body_faces, limb_faces, config, fps, seeds, start)
+    sim = _batch_simulator(
+        template, lines, body_faces, limb_faces, config, fps, seeds=seeds, start=start
+    )
     t_build = time.perf_counter() - t0
     schedule = _batch_schedule(sim, colliders, totals, body_faces, config)
 
@@ -233,7 +235,7 @@ def simulate_batch(
     saved = read_resume(resume, key, total) if resume is not None else None
     if saved is not None:
         saved, rec.released = resumed_release(
-            saved, config, colliders, rec.releases, n_pre, 1.0 / fps, rec.released
+            saved, config, colliders, rec.releases, n_pre, 1.0 / fps, released=rec.released
         )
         if saved is None:
             rec.releases = _fresh_releases(config, parts, meshes, colliders, template.num_vertices)
@@ -246,12 +248,13 @@ def simulate_batch(
         if resume is not None and k > first and k % resume_every == 0:
             q, qd = sim.get_state()
             seconds = t_before + time.perf_counter() - t0
-            save_run(resume, key, k, q, qd, rec, n_pre, config.release_depth, seconds)
+            depth = config.release_depth
+            save_run(resume, key, k, q, qd, rec, n_pre=n_pre, release_depth=depth, seconds=seconds)
         settling = k + 1 < n_settle
         damping = config.settle_damping if settling else None
         sim.step_frame(body_at(k), body_at(k + 1), damping, substeps=int(schedule[k]))
         if rec.releases is not None and k + 1 >= n_pre:  # in the motion's frames
-            _release_trapped(sim, rec.releases, colliders, totals, rec.released, k, fps)
+            _release_trapped(sim, rec.releases, colliders, totals, rec.released, k, fps=fps)
         _record_frame(sim.positions.reshape(K, -1, 3), k, rec, lines, motions, config)
         if progress is not None:
             progress(k + 1, total)
@@ -262,7 +265,7 @@ def simulate_batch(
     timing = _BatchTiming(t_build, t_sim, total, first, schedule)
     faces = meshes[0] if len(meshes) == 1 else meshes  # what the quality is measured against
     return [
-        _clip_result(config, template, motion, line, rec, c, faces, timing)
+        _clip_result(config, template, motion, line, rec, c, measured_faces=faces, timing=timing)
         for c, (motion, line) in enumerate(zip(motions, lines, strict=True))
     ]
 
@@ -278,6 +281,19 @@ def _check_batch(avatar: Avatar, template: GarmentTemplate, motions: list[Motion
             raise LoosefitInputError(f"motion '{m.name}'", "fps", f"{fps} (the batch's)", m.fps)
     _check_template(template)
     return fps
+
+
+def _batch_start(
+    avatar: Avatar, template: GarmentTemplate, config: ClothConfig, fps: float, drape
+) -> np.ndarray | None:
+    """(V, 3) the drape every clip of a batch starts from with ``config.settle_once``: the
+    one given, else settled here; None without it (the clips settle on their own)."""
+    if not config.settle_once:
+        return None
+    start = _check_drape(template, drape) if drape is not None else None
+    if start is None:
+        start = settle(avatar, template, config, fps)
+    return start
 
 
 def _check_drape(template: GarmentTemplate, drape: np.ndarray) -> np.ndarray:
@@ -298,6 +314,7 @@ def _batch_simulator(
     limb_faces: np.ndarray | None,
     config: ClothConfig,
     fps: float,
+    *,
     seeds: list[int] | None,
     start: np.ndarray | None = None,
 ) -> ClothSimulator:
@@ -427,6 +444,7 @@ def _release_trapped(
     totals: list[int],
     released: list[np.ndarray],
     k: int,
+    *,
     fps: float,
 ) -> None:
     """After timeline frame ``k``: each running clip's trapped cloth put back on the skin
@@ -462,6 +480,7 @@ def _clip_result(
     line: Timeline,
     rec: Recording,
     c: int,
+    *,
     measured_faces: np.ndarray | tuple[np.ndarray, ...],
     timing: _BatchTiming,
 ) -> SimResult:

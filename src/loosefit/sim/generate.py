@@ -48,6 +48,7 @@ def generate(
     progress: bool = True,
     reuse: str | Path | None = None,
     batch: int = 1,
+    *,
     resume_every: int = 50,
     cluster: ClusterConfig | None = None,
     prepare_workers: int | None = None,
@@ -91,7 +92,9 @@ def generate(
 
     # 1. The body and garment, and the clips this folder holds already.
     avatar, template = _body_and_garment(config, out, manifest)
-    _take_what_is_done(config, jobs, manifest, out, avatar, template, reuse, progress)
+    _take_what_is_done(
+        config, jobs, manifest, out, avatar, template, reuse=reuse, progress=progress
+    )
 
     # 2. The units of work left: clips alone, or batches of clips of similar length.
     done = {
@@ -109,17 +112,7 @@ def generate(
     if batch > 1 and cluster is None and any(len(g) > 1 for g in groups):
         processes = prepare_workers or os.cpu_count() or 1
         prepared = _prepare(config, by_length, processes, progress)
-    bar = _Progress(
-        frames_of,
-        tqdm(
-            total=sum(frames_of.values()),
-            unit="frame",
-            desc=f"simulate {config.preset} ({len(todo)} clips"
-            + (f", {batch} at once)" if batch > 1 else ")"),
-            disable=not progress,
-            smoothing=0.05,
-        ),
-    )
+    bar = _Progress(frames_of, _frame_bar(config, frames_of, len(todo), batch, progress))
 
     def record(group: list[Job], entries: list[dict]) -> None:
         for job, entry in zip(group, entries, strict=True):
@@ -138,8 +131,8 @@ def generate(
             str(out),
             resume_every,
             created,
-            bar.update,
-            record,
+            on_progress=bar.update,
+            record=record,
             local_cpus=workers,
         )
     elif workers <= 1:
@@ -150,10 +143,29 @@ def generate(
                 record(group, worker.run(group, str(out), resume_every, motions))
     else:
         _run_in_pool(
-            config, by_length, str(out), resume_every, workers, bar.update, record, prepared
+            config,
+            by_length,
+            str(out),
+            resume_every,
+            workers,
+            bar.update,
+            record=record,
+            prepared=prepared,
         )
     bar.close()
     return _finish(jobs, manifest, out)
+
+
+def _frame_bar(config: DatasetConfig, frames_of: dict[str, int], clips: int, batch: int, show):
+    """The tqdm bar over the frames of every unit of work (``frames_of``, by unit name)."""
+    return tqdm(
+        total=sum(frames_of.values()),
+        unit="frame",
+        desc=f"simulate {config.preset} ({clips} clips"
+        + (f", {batch} at once)" if batch > 1 else ")"),
+        disable=not show,
+        smoothing=0.05,
+    )
 
 
 def _check_counts(**counts: int | None) -> None:
@@ -229,6 +241,7 @@ def _take_what_is_done(
     out: Path,
     avatar,
     template,
+    *,
     reuse,
     progress: bool,
 ) -> None:
@@ -330,6 +343,7 @@ def _run_in_pool(
     resume_every: int,
     workers: int,
     on_progress: Callable[[str, int, int], None],
+    *,
     record: Callable[[list[Job], list[dict]], None],
     prepared: dict[str, list] | None = None,
 ) -> None:

@@ -18,8 +18,8 @@ from loosefit.types import GarmentTemplate
 
 # ClothConfig fields added after 2026-11-26, with the value that does what the solver did
 # before they existed: at that value a field stays out of the run key, so that a run saved
-# before it existed still resumes. Every new field goes here. (Adding release_depth to the
-# key cost the dance data set two clips' saved frames, 3.5 core-hours.)
+# before it existed still resumes. Every new field goes here (why:
+# docs/design/notes/cloth_config.md, "Resuming").
 RUN_KEY_SINCE: dict[str, object] = {
     "self_contact_passes": 2,
     "settle_once": False,
@@ -55,6 +55,7 @@ def resumed_release(
     releases: list[TrappedRelease] | None,
     n_pre: int,
     frame_dt: float,
+    *,
     released: list[np.ndarray],
 ) -> tuple[dict | None, list[np.ndarray]]:
     """A saved run's state for the release of trapped cloth, or None to start over.
@@ -136,6 +137,7 @@ def save_run(
     positions: np.ndarray,
     velocities: np.ndarray,
     rec: Recording,
+    *,
     n_pre: int,
     release_depth: float | None,
     seconds: float,

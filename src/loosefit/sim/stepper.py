@@ -87,6 +87,7 @@ class ClothSimulator:
         body_vertices: np.ndarray,
         body_faces: np.ndarray,
         config: ClothConfig,
+        *,
         frame_dt: float,
         bounds: tuple[np.ndarray, np.ndarray] | None = None,
         loop: bool = True,
@@ -154,9 +155,9 @@ class ClothSimulator:
             body_faces,
             seeds,
             limb_faces,
-            rest_vertices,
-            lower,
-            upper,
+            rest_vertices=rest_vertices,
+            lower=lower,
+            upper=upper,
         )
         self.model = model
 
@@ -234,6 +235,7 @@ class ClothSimulator:
         body_faces: np.ndarray,
         seeds: list[int],
         limb_faces: np.ndarray | None,
+        *,
         rest_vertices: np.ndarray | None,
         lower: np.ndarray,
         upper: np.ndarray,

@@ -25,6 +25,7 @@ def substep_schedule(
     max_move: float,
     widen: int = 2,
     body_moves: np.ndarray | None = None,
+    *,
     max_body_move: float | None = None,
 ) -> np.ndarray:
     """Substeps per frame, so that the waistband moves at most ``max_move`` per substep

@@ -236,7 +236,7 @@ class BaselineTrainer(Trainer):
         )
         F, mean, std = feature_statistics(reader, clips, config.model.joints)
         # 2. the network
-        self.model = BaselineNetwork(config.model, F, rest, weights, mean, std, bone_mean)
+        self.model = BaselineNetwork(config.model, F, rest, weights, mean, std, bone_mean=bone_mean)
         self.model.to(config.device)
         self.optim = adam(self.model, config)
         self.states = {"model": self.model, "optimizer": self.optim}

@@ -271,8 +271,8 @@ class GenerativeTrainer(Trainer):
                 self.model.template,
                 self.lap,
                 cfg.loss,
-                self.structure,
-                touch,
+                structure=self.structure,
+                contacts=touch,
             )
             self.optim.zero_grad(set_to_none=True)
             (terms["total"] * share * world).backward()  # DDP averages: the batch's mean

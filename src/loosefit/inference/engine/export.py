@@ -165,7 +165,7 @@ class EngineStep(nn.Module):
         before_root = torch.where(first, root_translation, previous_root_translation)
         feats = frame_features(
             joint_rotations, root_translation, before_rot, before_root,
-            self.fps, self.floor_height, self.joints,
+            self.fps, self.floor_height, joints=self.joints,
         )  # fmt: skip  # (B, F)
         previous = torch.where(first, self.tier.rest, previous_coefficients)  # (B, K)
         hidden = torch.where(first, torch.zeros_like(hidden), hidden)

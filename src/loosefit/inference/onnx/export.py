@@ -241,7 +241,7 @@ class RuntimeStep(nn.Module):
             before_root,
             self.fps,
             self.floor_height,
-            self.joints,
+            joints=self.joints,
         )  # (B, F)
         H = yaw_matrix(heading_yaw(root_rotation))  # (B, 3, 3)
         p = root_translation
