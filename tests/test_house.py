@@ -6,7 +6,8 @@ included); a module's is its number of lines. Its positional parameters are its
 positional-only and ordinary ones, a method's leading ``self`` or ``cls`` not counted;
 the rest must be keyword-only (after ``*``). Warp kernels and functions
 (``@wp.kernel``, ``@wp.func``, also spelt ``warp.``), whose arguments warp passes by
-position, are exempt.
+position, are exempt, and so is a module's ``forward`` method: ``torch.onnx.export`` passes
+the graph's inputs to it by position, in the order of the graph's inputs.
 """
 
 from __future__ import annotations
@@ -53,6 +54,8 @@ def too_many_positional(text: str, where: str) -> list[str]:
     out = []
     for node in ast.walk(ast.parse(text, filename=where)):
         if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and not _is_warp(node):
+            if node.name == "forward" and node.args.args and node.args.args[0].arg == "self":
+                continue  # an nn.Module's forward: traced with its inputs by position
             params = node.args.posonlyargs + node.args.args
             count = len(params) - (bool(params) and params[0].arg in ("self", "cls"))
             if count > MAX_POSITIONAL:
@@ -140,8 +143,23 @@ def called(a, b, c, d, e, f, g):
 @other.kernel
 def not_warp(a, b, c, d, e, f, g, *args, **kwargs):
     pass
+
+
+class Graph:
+    def forward(self, a, b, c, d, e, f, g):
+        pass
+
+
+def forward(a, b, c, d, e, f, g):
+    pass
 """
     assert too_many_positional(source, "m.py") == [
         f"m.py:{line} {name}, 7 positional parameters (at most 6; make the rest keyword-only)"
-        for line, name in ((6, "seven"), (10, "slashed"), (19, "build"), (39, "not_warp"))
+        for line, name in (
+            (6, "seven"),
+            (10, "slashed"),
+            (19, "build"),
+            (39, "not_warp"),
+            (48, "forward"),
+        )
     ]

@@ -297,9 +297,9 @@ def clip_renders(args, ens, seqs, ctx, garments: dict, img: Path, missed: list[i
             picks,
             body,
             body_faces,
-            seqs[0].template.faces,
-            15.0,
-            args.size,
+            faces=seqs[0].template.faces,
+            vmax=15.0,
+            size=args.size,
             where=ens.clip,
             truth_label=f"member, {ens.members[0].label}",
         )

@@ -118,9 +118,9 @@ def main() -> None:
             {"ours": ours[deep]},
             posed.vertices.cpu().numpy(),
             avatar.faces.cpu().numpy(),
-            reader.template.faces,
-            15.0,
-            args.size,
+            faces=reader.template.faces,
+            vmax=15.0,
+            size=args.size,
             where=clip,
         )
     write(args, rows, started)

@@ -241,9 +241,9 @@ def render(args, name, seq, got, faces) -> Path:
         {"ours": got["ours"][frame]},
         got["skin"],
         faces,
-        seq.garment.faces,
-        15.0,
-        args.size,
+        faces=seq.garment.faces,
+        vmax=15.0,
+        size=args.size,
         where=name,
     )
     return out

@@ -251,9 +251,9 @@ def ablation_figures(
         picks,
         body,
         body_faces,
-        reader.template.faces,
-        8.0,
-        size,
+        faces=reader.template.faces,
+        vmax=8.0,
+        size=size,
     )
     return {d: e.tolist() for d, e in per.items()}
 
@@ -318,9 +318,9 @@ def clip_renders(c: dict, img: Path, size: int, template) -> dict:
             picks,
             c["body"],
             c["body_faces"],
-            template.faces,
-            15.0,
-            size,
+            faces=template.faces,
+            vmax=15.0,
+            size=size,
             where=c["name"],
         )
     return {
@@ -608,9 +608,9 @@ def main() -> None:
             picks,
             c["body"],
             c["body_faces"],
-            template.faces,
-            15.0,
-            args.size,
+            faces=template.faces,
+            vmax=15.0,
+            size=args.size,
             where=c["name"],
         )
         sets[key] = {

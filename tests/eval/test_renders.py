@@ -52,7 +52,18 @@ def test_each_method_coloured_by_its_distance_to_the_truth(recorded, tmp_path):
     body_v, body_f = cube(0.3)
     body = np.repeat(body_v[None], T, axis=0)
     out = tmp_path / "sheet.jpg"
-    error_sheet(out, frame, truth, {"ours": ours[frame]}, body, body_f, f, vmax, SIZE, where="c")
+    error_sheet(
+        out,
+        frame,
+        truth,
+        {"ours": ours[frame]},
+        body,
+        body_f,
+        faces=f,
+        vmax=vmax,
+        size=SIZE,
+        where="c",
+    )
 
     assert len(recorded) == 2  # the truth, then each method
     (body_mesh, truth_mesh), (_, ours_mesh) = recorded

@@ -18,6 +18,7 @@ def error_sheet(
     garments: dict,
     body,
     body_faces,
+    *,
     faces,
     vmax: float,
     size: int,

@@ -55,7 +55,7 @@ TURN_WINDOW = 30  # frames either side of the fastest turn
 
 
 def measure(
-    x, truth, structure, hem, pelvis, window, body, faces, truth_angles, fps, template
+    x, truth, structure, hem, pelvis, window, *, body, faces, truth_angles, fps, template
 ) -> dict:
     """The figures of one stage's garment (T, V, 3) against the simulation."""
     xt = torch.from_numpy(np.ascontiguousarray(x))
@@ -118,11 +118,11 @@ def clip_reference(model, seq):
             hem,
             pelvis,
             window,
-            body,
-            faces,
-            truth_angles,
-            motion.fps,
-            template,
+            body=body,
+            faces=faces,
+            truth_angles=truth_angles,
+            fps=motion.fps,
+            template=template,
         )
 
     return measure_garment, turn, window
