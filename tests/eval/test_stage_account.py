@@ -58,7 +58,19 @@ def clip():
 
 def figures(clip, x, window=(1, 5)):
     template, structure, hem, truth, pelvis, body, faces, angles = clip
-    return measure(x, truth, structure, hem, pelvis, window, body, faces, angles, 30.0, template)
+    return measure(
+        x,
+        truth,
+        structure,
+        hem,
+        pelvis,
+        window,
+        body=body,
+        faces=faces,
+        truth_angles=angles,
+        fps=30.0,
+        template=template,
+    )
 
 
 def test_the_simulation_against_itself(clip):
