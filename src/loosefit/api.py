@@ -358,18 +358,22 @@ class Animator:
 
 
 def load(path: str | Path | None = None, device: str = "cpu") -> Animator:
-    """A trained model: the pretrained set by default, or any checkpoint ``loosefit animate``
-    takes (a run's ``model.pt``, a packaged ``motion.pt``, a detail or baseline checkpoint).
+    """A trained model: the pretrained set by default, or any checkpoint the project writes
+    (:data:`~loosefit.inference.checkpoints.CHECKPOINTS`): a set's folder or its
+    ``motion.pt``, ``generative.pt`` or ``engine.pt``; a run's ``model.pt`` or
+    ``checkpoint.pt`` of the motion, detail, baseline or engine stage; a packaged set. Each
+    file is read once.
 
     Raises:
-        LoosefitInputError: a missing or unreadable checkpoint, or one of another kind.
+        LoosefitInputError: a missing or unreadable checkpoint, or one of a format that does
+            not animate (naming the file, the format found and the formats accepted).
     """
-    from loosefit.inference.animator import load_pipeline
+    from loosefit.inference.checkpoints import load_model
 
     path = Path(path) if path is not None else pretrained_checkpoint()
-    if not path.is_file():
+    if not path.exists():
         raise LoosefitInputError(path, "checkpoint", "a trained model's checkpoint", "no such file")
-    return Animator(load_pipeline(path, device=device), path)
+    return Animator(load_model(path, device), path)
 
 
 def simulate(
