@@ -250,3 +250,26 @@ def test_a_configured_block_gives_the_model_its_own_stages_back(model):
     with m.configured(CollisionConfig(finish=0), LengthConfig(edges="all")):
         assert m.collision.finish == 0 and m.restorer(Stages()) is not own
     assert m.collision is collision and m.lengths is lengths and m.restorer(Stages()) is own
+
+
+@pytest.mark.parametrize("folder", ["dance", "salsa"])
+def test_one_animate_reads_each_checkpoint_file_once(folder, monkeypatch):
+    """``loosefit.load(...).animate(...)`` reads every file of the set once: the motion
+    stage, the generative stage it records and (the salsa set) the detail stage beside."""
+    from collections import Counter
+
+    import torch
+
+    from tests.conftest import REPO
+
+    reads: Counter = Counter()
+    real = torch.load
+
+    def counted(f, *args, **kwargs):
+        reads[Path(f).name] += 1
+        return real(f, *args, **kwargs)
+
+    monkeypatch.setattr(torch, "load", counted)
+    loosefit.load(REPO / "checkpoints" / folder / "motion.pt").animate("sway", frames=3)
+    want = {"motion.pt": 1, "generative.pt": 1} | ({"detail.pt": 1} if folder == "salsa" else {})
+    assert dict(reads) == want
