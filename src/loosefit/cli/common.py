@@ -389,6 +389,20 @@ def inference_threads(args: argparse.Namespace):
         yield n
 
 
+def open_model(path, generative=None, detail=None):
+    """A trained model to animate with, through the API (:func:`loosefit.load`: any
+    checkpoint the project writes, or a set's folder): an :class:`~loosefit.api.Animator`.
+
+    Raises:
+        LoosefitInputError: a missing file, or one that does not animate.
+    """
+    import loosefit
+
+    if not Path(path).exists():
+        raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
+    return loosefit.load(path, generative=generative, detail=detail)
+
+
 def add_export_format_args(p) -> None:
     """The options of an animation export (``--up-axis``, ``--body-points``)."""
     p.add_argument(

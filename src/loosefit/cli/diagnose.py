@@ -9,7 +9,6 @@ from pathlib import Path
 
 from loosefit.cli.common import build_avatar, log
 from loosefit.errors import LoosefitInputError
-from loosefit.progress import tqdm_bar
 
 
 def add_parser(sub) -> None:
@@ -45,6 +44,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     import torch
 
+    from loosefit.api import tqdm_bar
     from loosefit.body.regions import body_parts
     from loosefit.data.format import write_json_atomic
     from loosefit.eval.penetration import diagnose_clip, format_events
