@@ -179,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
     if args.render:
         out = path.with_name(path.stem + "_render")
         title = f"{motion.name} (loosefit rollout)"
-        render(args, avatar, motion, seq.template, seq.vertices, out, title)
+        render(args, avatar, motion, seq.template, seq.vertices, out, title=title)
     return 0
 
 

@@ -238,7 +238,7 @@ def add_render_args(p: argparse.ArgumentParser, views: str = "front,three_quarte
     )
 
 
-def render(args, avatar, motion, template, garment_vertices, out: Path, title: str, body=None):
+def render(args, avatar, motion, template, garment_vertices, out: Path, *, title: str, body=None):
     """The body (posed here unless ``body`` is given) and the garment to a video in
     ``out``, as the render flags ask."""
     from loosefit.render.clip import render_clip

@@ -168,7 +168,7 @@ def run(args: argparse.Namespace) -> int:
         for suffix in (".usdc", ".pc2"):
             log_exported(export_animation(out / f"demo{suffix}", meshes, motion.fps))
     title = f"loosefit demo: {motion.name}" + (" (learned)" if learned else f" ({source})")
-    render(args, avatar, motion, template, garment, out, title, body=body)
+    render(args, avatar, motion, template, garment, out, title=title, body=body)
     if args.view:
         serve([seq], [f"demo ({source})"], [str(out / "sequence.npz")], args)
     return 0

@@ -85,7 +85,9 @@ def run(args: argparse.Namespace) -> int:
     frames = diag.worst_frames(args.top)
     faces = avatar.faces.cpu().numpy()
     renders = (
-        _render_worst(args, diag, parts, seq, body, faces, name, out, frames) if frames else []
+        _render_worst(args, diag, parts, seq, body, faces, name=name, out=out, frames=frames)
+        if frames
+        else []
     )
     report = {
         "clip": name,
@@ -132,7 +134,7 @@ def _clip_and_arms(args: argparse.Namespace, source: Path):
 
 
 def _render_worst(
-    args, diag, parts, seq, body, body_faces, name: str, out: Path, frames: list[int]
+    args, diag, parts, seq, body, body_faces, *, name: str, out: Path, frames: list[int]
 ) -> list[Path]:
     """``diagnose``'s PNGs: each of ``frames`` whole and close up (loosefit.render.closeup)."""
     from PIL import Image

@@ -217,6 +217,7 @@ class AnimationModel:
         restart_every=None,
         stages: Stages | None = None,
         runtime: str = "torch",
+        *,
         collision: str = "full",
         body: OtherBody | None = None,
     ) -> RolloutResult:

@@ -109,6 +109,7 @@ class BaselineModel:
         restart_every=None,
         stages: Stages | None = None,
         runtime: str = "torch",
+        *,
         collision: str = "full",
     ):
         """The garment through ``motion`` (T, V, 3) world positions, a
@@ -212,6 +213,7 @@ def baseline_rollout(
     config=None,
     pose_joints=None,
     progress=None,
+    *,
     chunk: int = 128,
 ):
     """Animate the garment through a motion with a baseline (no previous garment: the GRU

@@ -93,8 +93,8 @@ class EngineModel:
         restart_every=None,
         stages: Stages | None = None,
         runtime: str = "torch",
-        collision: str = "full",
         *,
+        collision: str = "full",
         seed: int = 0,
     ) -> RolloutResult:
         """The tier's garment through ``motion`` (:func:`rollout_engine`), as every model
