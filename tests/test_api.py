@@ -273,3 +273,29 @@ def test_one_animate_reads_each_checkpoint_file_once(folder, monkeypatch):
     loosefit.load(REPO / "checkpoints" / folder / "motion.pt").animate("sway", frames=3)
     want = {"motion.pt": 1, "generative.pt": 1} | ({"detail.pt": 1} if folder == "salsa" else {})
     assert dict(reads) == want
+
+
+def test_animate_keeps_the_rollout_s_figures_and_takes_its_options_by_name(model):
+    result = model.animate("sway", frames=5)
+    assert result.rollout is not None
+    np.testing.assert_array_equal(result.rollout.vertices, result.vertices)
+    assert result.rollout.frames > 5 and len(result.rollout.collisions) == 5  # preroll first
+    assert loosefit.AnimatedGarment.rollout is None  # one read from a file has none
+    with pytest.raises(TypeError):
+        model.animate("sway", 5, 0, 0, None, None, "torch")  # runtime only by name
+    assert model.avatar() is model.model.avatar()  # the trained body's
+
+
+def test_motion_for_caps_a_motion_before_playing_it_again(model):
+    from loosefit.api import motion_for
+
+    avatar = model.model.avatar()
+    whole = motion_for("sway", avatar, model.fps)
+    capped = motion_for("sway", avatar, model.fps, max_frames=7)
+    assert capped.num_frames == 7
+    np.testing.assert_array_equal(capped.rotations, whole.rotations[:7])
+    again = motion_for("sway", avatar, model.fps, 10, max_frames=7)  # 7 frames, played again
+    assert again.num_frames == 10
+    np.testing.assert_array_equal(again.rotations[:7], capped.rotations)
+    given = motion_for(whole, avatar, model.fps, max_frames=4)
+    np.testing.assert_array_equal(given.rotations, whole.rotations[:4])
