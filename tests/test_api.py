@@ -201,9 +201,9 @@ def test_the_runtime_loads_and_animates_without_the_training_code():
 
 
 def test_nothing_outside_training_imports_train():
-    """No module outside ``loosefit/train`` imports it, but for the CLI's ``train`` commands
-    (inside the functions of ``cli/train.py``; a static reading of every import statement,
-    however deep in a function)."""
+    """No module outside ``loosefit/train`` imports it, but for the API's training
+    functions (inside the functions of ``api/train.py``, which the CLI's ``train`` commands
+    call; a static reading of every import statement, however deep in a function)."""
     import ast
 
     import loosefit
@@ -231,12 +231,12 @@ def test_nothing_outside_training_imports_train():
             if not any(n == "loosefit.train" or n.startswith("loosefit.train.") for n in names):
                 continue
             fn = owner.get(node)
-            if not (rel == Path("cli", "train.py") and fn):
+            if not (rel == Path("api", "train.py") and fn):
                 offenders.append(f"{rel}:{node.lineno} (in {fn or 'the module'})")
     assert not offenders
-    # the CLI's train commands do import it (the check sees them)
-    cli = (root / "cli" / "train.py").read_text()
-    assert "from loosefit.train.motion import" in cli
+    # the API's training functions do import it (the check sees them)
+    api = (root / "api" / "train.py").read_text()
+    assert "from loosefit.train.motion import" in api
 
 
 def test_a_configured_block_gives_the_model_its_own_stages_back(model):
@@ -250,3 +250,52 @@ def test_a_configured_block_gives_the_model_its_own_stages_back(model):
     with m.configured(CollisionConfig(finish=0), LengthConfig(edges="all")):
         assert m.collision.finish == 0 and m.restorer(Stages()) is not own
     assert m.collision is collision and m.lengths is lengths and m.restorer(Stages()) is own
+
+
+@pytest.mark.parametrize("folder", ["dance", "salsa"])
+def test_one_animate_reads_each_checkpoint_file_once(folder, monkeypatch):
+    """``loosefit.load(...).animate(...)`` reads every file of the set once: the motion
+    stage, the generative stage it records and (the salsa set) the detail stage beside."""
+    from collections import Counter
+
+    import torch
+
+    from tests.conftest import REPO
+
+    reads: Counter = Counter()
+    real = torch.load
+
+    def counted(f, *args, **kwargs):
+        reads[Path(f).name] += 1
+        return real(f, *args, **kwargs)
+
+    monkeypatch.setattr(torch, "load", counted)
+    loosefit.load(REPO / "checkpoints" / folder / "motion.pt").animate("sway", frames=3)
+    want = {"motion.pt": 1, "generative.pt": 1} | ({"detail.pt": 1} if folder == "salsa" else {})
+    assert dict(reads) == want
+
+
+def test_animate_keeps_the_rollout_s_figures_and_takes_its_options_by_name(model):
+    result = model.animate("sway", frames=5)
+    assert result.rollout is not None
+    np.testing.assert_array_equal(result.rollout.vertices, result.vertices)
+    assert result.rollout.frames > 5 and len(result.rollout.collisions) == 5  # preroll first
+    assert loosefit.AnimatedGarment.rollout is None  # one read from a file has none
+    with pytest.raises(TypeError):
+        model.animate("sway", 5, 0, 0, None, None, "torch")  # runtime only by name
+    assert model.avatar() is model.model.avatar()  # the trained body's
+
+
+def test_motion_for_caps_a_motion_before_playing_it_again(model):
+    from loosefit.api import motion_for
+
+    avatar = model.model.avatar()
+    whole = motion_for("sway", avatar, model.fps)
+    capped = motion_for("sway", avatar, model.fps, max_frames=7)
+    assert capped.num_frames == 7
+    np.testing.assert_array_equal(capped.rotations, whole.rotations[:7])
+    again = motion_for("sway", avatar, model.fps, 10, max_frames=7)  # 7 frames, played again
+    assert again.num_frames == 10
+    np.testing.assert_array_equal(again.rotations[:7], capped.rotations)
+    given = motion_for(whole, avatar, model.fps, max_frames=4)
+    np.testing.assert_array_equal(given.rotations, whole.rotations[:4])

@@ -26,7 +26,6 @@ from loosefit.cli.common import (
     threads_of,
 )
 from loosefit.errors import LoosefitInputError
-from loosefit.progress import tqdm_bar
 
 
 def add_parser(sub) -> None:
@@ -88,8 +87,6 @@ def add_parser(sub) -> None:
 def _checkpoint_and_motion(args: argparse.Namespace) -> bool:
     """``animate [CHECKPOINT] MOTION``: without a checkpoint, the pretrained default (then
     True)."""
-    from loosefit.api import pretrained_checkpoint
-
     if len(args.inputs) not in (1, 2):
         raise LoosefitInputError(
             "animate",
@@ -100,6 +97,8 @@ def _checkpoint_and_motion(args: argparse.Namespace) -> bool:
     if len(args.inputs) == 2:
         args.checkpoint, args.motion = args.inputs
         return False
+    from loosefit.api import pretrained_checkpoint
+
     args.checkpoint, args.motion = pretrained_checkpoint(), args.inputs[0]
     if not args.checkpoint.is_file():
         raise LoosefitInputError(
@@ -114,21 +113,18 @@ def _checkpoint_and_motion(args: argparse.Namespace) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    from loosefit.cli.common import parse_shape
+    from loosefit.api import check_export_path, is_character, motion_for, tqdm_bar
+    from loosefit.cli.common import open_model, parse_shape
 
     threads_of(args)  # a bad count before the work
     shape = parse_shape(args.shape)  # and a malformed body
     pretrained = _checkpoint_and_motion(args)
-    from loosefit.api import motion_for
-    from loosefit.inference.animator import load_pipeline
-    from loosefit.sequence import GarmentSequence
-
-    model = load_pipeline(args.checkpoint, args.generative, args.detail)
+    animator = open_model(args.checkpoint, args.generative, args.detail)
     if pretrained:  # what it was trained on, from the record it loaded with
-        trained_on_note(args.checkpoint, model)
+        log(f"model {Path(args.checkpoint).parent.name}: trained on {animator.trained_on}")
     on = stages(args)
-    physics_note(model, on)
-    if _is_character(args):
+    physics_note(animator.model, on)
+    if not args.on_anny and is_character(args.motion):
         from loosefit.cli.character import animate_character
 
         if shape:
@@ -137,16 +133,15 @@ def run(args: argparse.Namespace) -> int:
             )
         out = Path(args.out)
         name = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(args.motion).stem) or "character"
-        return animate_character(args, model, out if out.suffix == ".npz" else out / f"{name}.npz")
-    body = other_body(model, shape)
-    avatar = body.avatar if body is not None else model.avatar()
-    template = body.template if body is not None else model.template
+        path = out if out.suffix == ".npz" else out / f"{name}.npz"
+        return animate_character(args, animator, path)
+    avatar = other_body(animator, shape)
     if args.frames is not None and args.frames < 1:
         raise LoosefitInputError("--frames", "frames", "at least 1", args.frames)
     motion = motion_for(
         args.motion,
         avatar,
-        model.fps,
+        animator.fps,
         args.frames,
         args.start_frame,
         args.seed,
@@ -159,26 +154,23 @@ def run(args: argparse.Namespace) -> int:
         raise LoosefitInputError("--out", "out", "a .npz file or a folder", str(out))
     path = out if out.suffix == ".npz" else out / f"{name}.npz"
     if args.export:
-        from loosefit.export import check_export_path
-
         check_export_path(args.export)  # before the work, not after
     log(f"animating {motion.num_frames} frames of '{motion.name}'")
-    with inference_threads(args):
+    with inference_threads(args) as n:
         bar = tqdm_bar("rollout", unit="frame")
-        kwargs = {"body": body} if body is not None else {}
-        result = model.animate(
+        seq = animator.animate(
             motion,
-            bar.progress,
             stages=on,
+            progress=bar.progress,
             runtime=args.runtime,
             collision=args.collision,
-            **kwargs,
+            threads=n,
+            shape=shape,
         )
         bar.close()
-    log(stage_line(model, on, result))
-    shape = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
-    source = f"loosefit model {Path(args.checkpoint).resolve()}"
-    seq = GarmentSequence(motion, template, result.vertices, shape, source)
+    result = seq.rollout
+    log(stage_line(animator.model, on, result))
+    seq.source = f"loosefit model {Path(args.checkpoint).resolve()}"
     path.parent.mkdir(parents=True, exist_ok=True)
     seq.save(path)
     log(f"{throughput(motion, result)}; wrote {path}")
@@ -187,42 +179,27 @@ def run(args: argparse.Namespace) -> int:
     if args.render:
         out = path.with_name(path.stem + "_render")
         title = f"{motion.name} (loosefit rollout)"
-        render(args, avatar, motion, template, result.vertices, out, title)
+        render(args, avatar, motion, seq.template, seq.vertices, out, title=title)
     return 0
 
 
-def _is_character(args: argparse.Namespace) -> bool:
-    """A glTF motion file that holds a skinned mesh (unless ``--on-anny``)."""
-    from loosefit.character import has_skinned_mesh
-
-    return not args.on_anny and has_skinned_mesh(args.motion)
-
-
-def other_body(model, shape: dict):
-    """``--shape``'s body, prepared (None: the trained body)."""
+def other_body(animator, shape: dict):
+    """The avatar a motion is animated on: ``--shape``'s body, prepared (and logged), or
+    the trained body's."""
     if not shape:
-        return None
-    if not hasattr(model, "other_body"):
+        return animator.avatar()
+    if not hasattr(animator.model, "other_body"):
         raise LoosefitInputError(
             "--shape",
             "shape",
             "our model (a baseline animates on the body it was trained on)",
-            type(model).__name__,
+            type(animator.model).__name__,
         )
     t = time.perf_counter()
-    body = model.other_body(shape)
+    body = animator.model.other_body(shape)
     changed = ", ".join(f"{k}={v:g}" for k, v in body.shape.items() if k in shape)
     log(f"body {changed}: prepared in {time.perf_counter() - t:.1f} s (the garment sized to it)")
-    return body
-
-
-def trained_on_note(path: Path, model) -> None:
-    """Say what a packaged set was trained on (the motion it knows), from the record its
-    model loaded with."""
-    from loosefit.inference.package import describe_training
-
-    said = describe_training(getattr(model, "trained_on", None))
-    log(f"model {Path(path).parent.name}: trained on {said}")
+    return body.avatar
 
 
 def physics_note(model, stages) -> None:
@@ -255,15 +232,15 @@ def throughput(motion, result) -> str:
 
 def stage_line(model, stages, result) -> str:
     """What ran after the decoders, and what collision handling did."""
-    from loosefit.garment.quality import PENETRATION_TOLERANCE
-    from loosefit.inference.animator import AnimationModel
+    from loosefit.api import penetration_tolerance
 
+    tolerance = penetration_tolerance()
     ran = ["motion"]
     if stages.detail and model.detail is not None:
         ran.append("detail")
     elif stages.detail:
         ran.append("(no detail stage in this checkpoint)")
-    if isinstance(model, AnimationModel) and model.restorer(stages) is not None:
+    if hasattr(model, "restorer") and model.restorer(stages) is not None:  # ours
         ran.append("edge lengths")
     if stages.collision:
         ran.append("collision")
@@ -271,13 +248,13 @@ def stage_line(model, stages, result) -> str:
     if result.collisions:
         before = sum(c["inside_before"] > 0 for c in result.collisions)
         after = [c for c in result.collisions if c["inside_after"] > 0]
-        deep = sum(c["depth_after"] > PENETRATION_TOLERANCE for c in result.collisions)
+        deep = sum(c["depth_after"] > tolerance for c in result.collisions)
         whole = model.collision.whole_body or model.arm_collision is True
         body = "the body (arms and hands included)" if whole else "the body (without its arms)"
         line += (
             f"; collision handling: {before} of {len(result.collisions)} frames had cloth "
             f"inside {body}, {len(after)} still do, {deep} deeper than "
-            f"{PENETRATION_TOLERANCE * 1000:.0f} mm"
+            f"{tolerance * 1000:.0f} mm"
         )
         if after:
             worst = max(

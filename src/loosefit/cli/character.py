@@ -53,20 +53,20 @@ def run_inspect(args: argparse.Namespace) -> int:
     return 0
 
 
-def animate_character(args: argparse.Namespace, model, out: Path) -> int:
-    """``animate CHARACTER.glb``: the garment on the character itself; writes the sequence
-    on the fitted anny (``out``), the character's file with the garment beside it, and
-    ``--export`` (their file with the garment, or the garment alone in their world)."""
-    from loosefit.character import dress_character
+def animate_character(args: argparse.Namespace, animator, out: Path) -> int:
+    """``animate CHARACTER.glb``: the garment on the character itself (``animator``: a
+    :class:`loosefit.api.Animator`); writes the sequence on the fitted anny (``out``), the
+    character's file with the garment beside it, and ``--export`` (their file with the
+    garment, or the garment alone in their world)."""
+    from loosefit.api import tqdm_bar
     from loosefit.cli.common import inference_threads, retarget_config
-    from loosefit.progress import tqdm_bar
 
     log(f"{args.motion}: a character (a skinned mesh): fitting anny's body to it")
     frames = args.frames
-    with inference_threads(args):
+    with inference_threads(args) as n:
         bar = tqdm_bar("rollout", unit="frame")
-        dressed = dress_character(
-            model, args.motion, frames, bar.progress, retarget=retarget_config(args)
+        dressed = animator.dress(
+            args.motion, frames, bar.progress, threads=n, retarget=retarget_config(args)
         )
         bar.close()
     log(f"fitted: {dressed.fit.describe()}")

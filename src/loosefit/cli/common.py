@@ -238,7 +238,7 @@ def add_render_args(p: argparse.ArgumentParser, views: str = "front,three_quarte
     )
 
 
-def render(args, avatar, motion, template, garment_vertices, out: Path, title: str, body=None):
+def render(args, avatar, motion, template, garment_vertices, out: Path, *, title: str, body=None):
     """The body (posed here unless ``body`` is given) and the garment to a video in
     ``out``, as the render flags ask."""
     from loosefit.render.clip import render_clip
@@ -387,6 +387,20 @@ def inference_threads(args: argparse.Namespace):
             why = f"the free cores by the load average, at most {MOST_THREADS}; --threads N"
         log(f"{n} torch thread{'s' if n > 1 else ''} ({why})")
         yield n
+
+
+def open_model(path, generative=None, detail=None):
+    """A trained model to animate with, through the API (:func:`loosefit.load`: any
+    checkpoint the project writes, or a set's folder): an :class:`~loosefit.api.Animator`.
+
+    Raises:
+        LoosefitInputError: a missing file, or one that does not animate.
+    """
+    import loosefit
+
+    if not Path(path).exists():
+        raise LoosefitInputError(path, "<file>", "a checkpoint file", "no such file")
+    return loosefit.load(path, generative=generative, detail=detail)
 
 
 def add_export_format_args(p) -> None:

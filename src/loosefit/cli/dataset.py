@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 
 from loosefit.cli.common import log
-from loosefit.progress import tqdm_bar
 
 MIB = 2**20
 
@@ -43,6 +42,7 @@ def add_parser(sub) -> None:
 
 
 def run_pack(args: argparse.Namespace) -> int:
+    from loosefit.api import tqdm_bar
     from loosefit.data.pack import pack
 
     bar = tqdm_bar(f"pack {args.folder}", "file")
@@ -61,6 +61,7 @@ def run_pack(args: argparse.Namespace) -> int:
 
 
 def run_unpack(args: argparse.Namespace) -> int:
+    from loosefit.api import tqdm_bar
     from loosefit.data.pack import unpack
 
     bar = tqdm_bar(f"unpack {args.pack}", "file")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from loosefit.cli.animate import physics_note, stage_line, throughput, trained_on_note
+from loosefit.cli.animate import physics_note, stage_line, throughput
 from loosefit.cli.common import (
     add_avatar_args,
     add_bvh_args,
@@ -23,7 +23,6 @@ from loosefit.cli.common import (
 )
 from loosefit.cli.view import add_view_args, serve
 from loosefit.errors import LoosefitInputError
-from loosefit.progress import tqdm_bar
 
 
 def add_parser(sub) -> None:
@@ -84,8 +83,9 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     """The main job: the pretrained model animating its skirt on a dance (``--physics``: the
     simulator instead; ``--no-physics``: the skirt carried rigidly)."""
+    from loosefit.api import motion_for, tqdm_bar
+    from loosefit.cli.common import open_model
     from loosefit.fitting.place import carry_rigidly
-    from loosefit.motion.motions import load_motion
     from loosefit.sequence import GarmentSequence
 
     out = Path(args.out)
@@ -108,23 +108,22 @@ def run(args: argparse.Namespace) -> int:
         )
     spec = args.motion or ("dance:20" if learned else "spin")
     max_frames = args.max_frames if args.max_frames or learned else 90
-    model = None
+    animator = None
     if learned:
         from loosefit.api import pretrained_checkpoint
-        from loosefit.inference.animator import load_pipeline
 
         path = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
-        model = load_pipeline(path)
-        trained_on_note(path, model)
-        physics_note(model, model.stages)
-        avatar, template = model.avatar(), model.template
+        animator = open_model(path)
+        log(f"model {path.parent.name}: trained on {animator.trained_on}")
+        physics_note(animator.model, animator.model.stages)
+        avatar, template = animator.avatar(), animator.template
     else:
         avatar = build_avatar(args)
         template = garment_template(args.garment or "flared", avatar, args.resolution)
-    motion = load_motion(
+    motion = motion_for(
         spec,
         avatar,
-        fps=model.fps if model else args.fps,
+        animator.fps if animator else args.fps,
         seed=args.seed,
         retarget=retarget_config(args),
         max_frames=max_frames,
@@ -132,15 +131,20 @@ def run(args: argparse.Namespace) -> int:
     )
     log(f"motion '{motion.name}': {motion.num_frames} frames at {motion.fps:g} fps")
     body = avatar.pose_motion(motion)
-    if model is not None:
-        with inference_threads(args):
+    if animator is not None:
+        with inference_threads(args) as n:
             bar = tqdm_bar("animate", unit="frame")
-            result = model.animate(
-                motion, progress=bar.progress, runtime=args.runtime, collision=args.collision
+            seq = animator.animate(
+                motion,
+                progress=bar.progress,
+                runtime=args.runtime,
+                collision=args.collision,
+                threads=n,
             )
             bar.close()
-        garment, source = result.vertices, f"loosefit model {path.parent.name}"
-        log(throughput(motion, result) + "; " + stage_line(model, model.stages, result))
+        garment, source = seq.vertices, f"loosefit model {path.parent.name}"
+        line = stage_line(animator.model, animator.model.stages, seq.rollout)
+        log(throughput(motion, seq.rollout) + "; " + line)
     elif args.no_physics:
         garment = carry_rigidly(template, body, avatar).cpu().numpy()
         source = "rigid"
@@ -164,7 +168,7 @@ def run(args: argparse.Namespace) -> int:
         for suffix in (".usdc", ".pc2"):
             log_exported(export_animation(out / f"demo{suffix}", meshes, motion.fps))
     title = f"loosefit demo: {motion.name}" + (" (learned)" if learned else f" ({source})")
-    render(args, avatar, motion, template, garment, out, title, body=body)
+    render(args, avatar, motion, template, garment, out, title=title, body=body)
     if args.view:
         serve([seq], [f"demo ({source})"], [str(out / "sequence.npz")], args)
     return 0
@@ -172,6 +176,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _simulate(args: argparse.Namespace, avatar, template, motion):
     """``demo --physics``: the skirt simulated with Newton's VBD solver, (T, V, 3)."""
+    from loosefit.api import tqdm_bar
     from loosefit.fitting.place import collider_arms
     from loosefit.sim.cloth_config import ClothConfig
     from loosefit.sim.driver import simulate

@@ -9,7 +9,6 @@ from pathlib import Path
 
 from loosefit.cli.common import build_avatar, log
 from loosefit.errors import LoosefitInputError
-from loosefit.progress import tqdm_bar
 
 
 def add_parser(sub) -> None:
@@ -45,6 +44,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     import torch
 
+    from loosefit.api import tqdm_bar
     from loosefit.body.regions import body_parts
     from loosefit.data.format import write_json_atomic
     from loosefit.eval.penetration import diagnose_clip, format_events
@@ -85,7 +85,9 @@ def run(args: argparse.Namespace) -> int:
     frames = diag.worst_frames(args.top)
     faces = avatar.faces.cpu().numpy()
     renders = (
-        _render_worst(args, diag, parts, seq, body, faces, name, out, frames) if frames else []
+        _render_worst(args, diag, parts, seq, body, faces, name=name, out=out, frames=frames)
+        if frames
+        else []
     )
     report = {
         "clip": name,
@@ -132,7 +134,7 @@ def _clip_and_arms(args: argparse.Namespace, source: Path):
 
 
 def _render_worst(
-    args, diag, parts, seq, body, body_faces, name: str, out: Path, frames: list[int]
+    args, diag, parts, seq, body, body_faces, *, name: str, out: Path, frames: list[int]
 ) -> list[Path]:
     """``diagnose``'s PNGs: each of ``frames`` whole and close up (loosefit.render.closeup)."""
     from PIL import Image

@@ -49,15 +49,15 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from loosefit.cli.common import open_model
     from loosefit.data.format import DatasetReader, read_any_sequence
     from loosefit.eval.ensemble import evaluate_ensemble
     from loosefit.eval.ensemble_members import gather_ensembles
     from loosefit.eval.report import write_rollout_report
     from loosefit.eval.rollouts import evaluate_rollouts
-    from loosefit.inference.animator import load_pipeline
 
     threads_of(args)  # a bad count before the work
-    model = load_pipeline(args.checkpoint, args.generative, args.detail)
+    model = open_model(args.checkpoint, args.generative, args.detail).model
     if len(args.data) == 1 and Path(args.data[0]).is_dir():
         reader = DatasetReader(args.data[0])
         where = str(Path(args.data[0]).resolve())

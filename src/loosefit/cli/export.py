@@ -91,13 +91,13 @@ def run_export_model(args: argparse.Namespace) -> int:
     import json
 
     from loosefit.api import pretrained_checkpoint
-    from loosefit.inference.animator import load_pipeline
+    from loosefit.cli.common import open_model
     from loosefit.inference.onnx.export import OnnxExportConfig, export_onnx
 
     checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
     if args.tier == "engine":
         return _export_engine(checkpoint, args)
-    model = load_pipeline(checkpoint, args.generative, args.detail)
+    model = open_model(checkpoint, args.generative, args.detail).model
     config = OnnxExportConfig(opset=args.opset, detail=not args.no_detail, check=not args.no_check)
     log(f"exporting {checkpoint} to ONNX (opset {config.opset})")
     onnx_path, json_path, obj_path = export_onnx(model, args.out, config)

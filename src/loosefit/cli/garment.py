@@ -133,8 +133,8 @@ def _log_import(report: dict) -> None:
 def _fit_file(args: argparse.Namespace):
     """``garment FILE --fit``: the file fitted to the avatar (or, ``--shape auto``, to the
     anny body it fits best); the template, the import's report, the fit's, the avatar."""
+    from loosefit.api import StageBars
     from loosefit.fitting.drape import STAGE_UNITS, FitConfig, fit_garment
-    from loosefit.progress import StageBars
 
     auto = args.shape.strip() == "auto"
     if auto:

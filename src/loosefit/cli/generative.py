@@ -69,7 +69,7 @@ def run_reconstruct(args: argparse.Namespace) -> int:
         f"{out / 'reconstruction.npz'} (a sequence, as render --sequence reads)"
     )
     title = f"{name}: generative reconstruction"
-    render(args, avatar, motion, reader.template, world, out, title)
+    render(args, avatar, motion, reader.template, world, out, title=title)
     return 0
 
 

@@ -21,11 +21,9 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from loosefit.inference.package import package_detail, package_model
+    from loosefit.api import package
 
-    files = list(package_model(args.checkpoint, args.out, args.generative))
-    if args.detail:
-        files.append(package_detail(args.detail, args.out))
+    files = package(args.checkpoint, args.out, generative=args.generative, detail=args.detail)
     for f in files:
         log(f"wrote {f} ({f.stat().st_size / 1e6:.1f} MB)")
     return 0

@@ -87,5 +87,5 @@ def run(args: argparse.Namespace) -> int:
     if args.start_frame:
         title += f", from frame {args.start_frame}"
     log(f"rendering {motion.num_frames} frames")
-    render(args, avatar, motion, template, garment, out, title, body=body)
+    render(args, avatar, motion, template, garment, out, title=title, body=body)
     return 0

@@ -378,9 +378,9 @@ def _finish(out, report: dict, kept: str = "model") -> int:
     (under torchrun, the first process's to say: the others return 0 quietly)."""
     import torch.distributed as dist
 
-    from loosefit.train.common import distributed
+    from loosefit.api import process_rank
 
-    rank = distributed()[0]
+    rank = process_rank()
     if dist.is_available() and dist.is_initialized():  # torchrun: every process, once done
         dist.destroy_process_group()
     if rank > 0:
@@ -391,10 +391,11 @@ def _finish(out, report: dict, kept: str = "model") -> int:
 
 
 def run_generative(args: argparse.Namespace) -> int:
-    from loosefit.train.generative import TrainGenerativeConfig, train_generative
+    from loosefit.api import train_generative, training_config
 
     _start(args, "generative")
-    cfg = TrainGenerativeConfig.preset(
+    cfg = training_config(
+        "generative",
         args.preset,
         decoder=args.decoder,
         **_common_overrides(args),
@@ -403,13 +404,12 @@ def run_generative(args: argparse.Namespace) -> int:
     cfg.loss = _physics_weights(cfg.loss, args)
     cfg.init = args.init
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
-    report = train_generative(args.data, out, cfg, log=log)
+    report = train_generative(cfg, args.data, out, log=log)
     return _finish(out, report, "checkpoint")
 
 
 def run_motion(args: argparse.Namespace) -> int:
-    from loosefit.sim.rest_drape import settled_rest_drape
-    from loosefit.train.motion import TrainMotionConfig, train_motion
+    from loosefit.api import train_motion, training_config
 
     _start(args, "motion")
     if not args.generative:
@@ -419,7 +419,8 @@ def run_motion(args: argparse.Namespace) -> int:
             "the trained generative model's checkpoint",
             "none",
         )
-    cfg = TrainMotionConfig.preset(
+    cfg = training_config(
+        "motion",
         args.preset,
         **_common_overrides(args),
         previous=args.previous,
@@ -433,19 +434,20 @@ def run_motion(args: argparse.Namespace) -> int:
     kind = "ps" if cfg.model.previous_state else "nops"
     out = args.out or f"runs/motion-{args.preset}-{kind}"
     # a data set simulated before the simulator recorded its drape: settled here, once
-    report = train_motion(args.data, args.generative, out, cfg, log=log, settle=settled_rest_drape)
+    report = train_motion(cfg, args.data, args.generative, out, log=log, settle=True)
     return _finish(out, report)
 
 
 def run_detail(args: argparse.Namespace) -> int:
-    from loosefit.train.detail import TrainDetailConfig, train_detail
+    from loosefit.api import train_detail, training_config
 
     _start(args, "detail")
     if not args.motion:
         raise LoosefitInputError(
             "loosefit train detail", "--motion", "the trained motion stage's model.pt", "none"
         )
-    cfg = TrainDetailConfig.preset(
+    cfg = training_config(
+        "detail",
         args.preset,
         **_common_overrides(args),
         discriminator=False if args.no_discriminator else None,
@@ -455,19 +457,20 @@ def run_detail(args: argparse.Namespace) -> int:
     cfg.init = args.init
     kind = ("full" if cfg.discriminator else "nodisc") + ("-edge" if cfg.loss.edge else "")
     out = args.out or f"runs/detail-{args.preset}-{kind}"
-    report = train_detail(args.data, args.motion, out, cfg, args.generative, log=log)
+    report = train_detail(cfg, args.data, args.motion, out, generative=args.generative, log=log)
     return _finish(out, report)
 
 
 def run_baseline(args: argparse.Namespace) -> int:
-    from loosefit.train.baseline import TrainBaselineConfig, train_baseline
+    from loosefit.api import train_baseline, training_config
 
     _start(args, "baseline")
     if not args.method:
         raise LoosefitInputError(
             "loosefit train baseline", "--method", "santesteban or virtual-bones", "none"
         )
-    cfg = TrainBaselineConfig.preset(
+    cfg = training_config(
+        "baseline",
         args.preset,
         method=args.method,
         **_common_overrides(args),
@@ -476,15 +479,15 @@ def run_baseline(args: argparse.Namespace) -> int:
         bones=args.bones,
     )
     out = args.out or f"runs/baseline-{args.preset}-{args.method}"
-    return _finish(out, train_baseline(args.data, out, cfg, log=log))
+    return _finish(out, train_baseline(cfg, args.data, out, log=log))
 
 
 def run_engine(args: argparse.Namespace) -> int:
-    from loosefit.api import pretrained_checkpoint
-    from loosefit.train.engine import TrainEngineConfig, train_engine
+    from loosefit.api import pretrained_checkpoint, train_engine, training_config
 
     _start(args, "engine")
-    cfg = TrainEngineConfig.preset(
+    cfg = training_config(
+        "engine",
         args.preset,
         **_common_overrides(args),
         basis=args.basis,
@@ -498,5 +501,5 @@ def run_engine(args: argparse.Namespace) -> int:
     )
     out = args.out or f"runs/engine-{args.preset}"
     motion = args.motion or pretrained_checkpoint()
-    report = train_engine(args.data, motion, out, cfg, log=log)
+    report = train_engine(cfg, args.data, motion, out, log=log)
     return _finish(out, report, "engine")

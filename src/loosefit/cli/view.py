@@ -6,7 +6,6 @@ import argparse
 import time
 
 from loosefit.cli.common import log
-from loosefit.progress import tqdm_bar
 
 
 def add_parser(sub) -> None:
@@ -94,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
 
 def serve(seqs, labels, sources, args: argparse.Namespace) -> None:
     """Pose the bodies, start the viewer, print its URL and serve until interrupted."""
+    from loosefit.api import tqdm_bar
     from loosefit.view import ViewerConfig, view
 
     config = ViewerConfig(

@@ -1,9 +1,9 @@
-"""Trained models that animate a garment: the paper's stages, and any checkpoint loaded.
+"""The paper's trained model that animates a garment, loaded from its checkpoints.
 
-:func:`load_pipeline` takes any checkpoint ``loosefit animate`` takes and gives an
-:class:`~loosefit.inference.protocols.AnimatingModel`: :class:`AnimationModel` (paper
-3.2-3.5, :meth:`AnimationModel.from_checkpoint`) or a
-:class:`~loosefit.inference.baseline.BaselineModel`.
+:class:`AnimationModel` (paper 3.2-3.5, :meth:`AnimationModel.from_checkpoint`) is one
+:class:`~loosefit.inference.protocols.AnimatingModel`; :func:`load_pipeline` opens any
+checkpoint through the table of formats
+(:func:`~loosefit.inference.checkpoints.load_model`).
 Models are rebuilt from the checkpoints' ``model_config``
 (:mod:`loosefit.inference.checkpoints`); nothing here reads a training configuration.
 """
@@ -19,18 +19,18 @@ import torch
 
 from loosefit.errors import LoosefitInputError
 from loosefit.garment.fingerprint import garment_fingerprint
-from loosefit.inference.baseline import BaselineModel
 from loosefit.inference.checkpoints import (
-    BASELINE_FORMAT,
     DETAIL_FORMAT,
     MOTION_FORMAT,
+    check_format,
     checkpoint_fields,
-    checkpoint_format,
     load_generative,
+    load_model,
     load_weights,
     model_config,
     model_fingerprint,
     read_checkpoint_file,
+    read_file,
     recorded_checkpoint,
     template_from_dict,
 )
@@ -119,6 +119,7 @@ class AnimationModel:
         generative: str | Path | None = None,
         detail: str | Path | None = None,
         device="cpu",
+        data: dict | None = None,
     ) -> AnimationModel:
         """Every learned stage of the paper's model from one checkpoint.
 
@@ -129,14 +130,16 @@ class AnimationModel:
             generative: the generative-stage checkpoint; by default the one recorded.
             detail: a detail checkpoint to attach explicitly.
             device: where to put the networks.
+            data: ``path``'s contents, when already read (each file is read once).
 
         Raises:
             LoosefitInputError: not such a checkpoint, or stages that do not belong together.
         """
         path = Path(path)
-        if checkpoint_format(path) == DETAIL_FORMAT:
-            return load_detail_model(path, None, generative, device)
-        model = load_animation_model(path, generative, device)
+        data = read_file(path, device) if data is None else data
+        if isinstance(data, dict) and data.get("format") == DETAIL_FORMAT:
+            return load_detail_model(path, None, generative, device, data=data)
+        model = load_animation_model(path, generative, device, data=data)
         beside = path.parent / "detail.pt"
         if detail is None and path.name == "motion.pt" and beside.is_file():
             detail = beside
@@ -214,6 +217,7 @@ class AnimationModel:
         restart_every=None,
         stages: Stages | None = None,
         runtime: str = "torch",
+        *,
         collision: str = "full",
         body: OtherBody | None = None,
     ) -> RolloutResult:
@@ -400,7 +404,7 @@ class AnimationModel:
 
 
 def load_animation_model(
-    path: str | Path, generative: str | Path | None = None, device="cpu"
+    path: str | Path, generative: str | Path | None = None, device="cpu", data: dict | None = None
 ) -> AnimationModel:
     """The generative and motion stages of a trained model.
 
@@ -410,13 +414,17 @@ def load_animation_model(
         generative: the generative-stage checkpoint it was trained on; by default
             the one it records (relative to ``path``'s folder, then absolute).
         device: where to put the networks.
+        data: ``path``'s contents, when already read.
 
     Raises:
         LoosefitInputError: not a motion-stage checkpoint, a missing generative
             checkpoint, or one other than the encoder was trained on.
     """
     path = Path(path)
-    data = read_checkpoint_file(path, MOTION_FORMAT, device)
+    if data is None:
+        data = read_checkpoint_file(path, MOTION_FORMAT, device)
+    else:
+        check_format(path, data, MOTION_FORMAT)
     with checkpoint_fields(path, "motion-stage checkpoint"):
         return _animation_model(path, data, generative, device)
 
@@ -482,15 +490,21 @@ def stage_fingerprints(model: AnimationModel) -> dict:
     }
 
 
-def attach_detail(model: AnimationModel, path: str | Path) -> AnimationModel:
-    """Load a detail checkpoint into ``model`` (``model.detail``), checked to belong to it.
+def attach_detail(
+    model: AnimationModel, path: str | Path, data: dict | None = None
+) -> AnimationModel:
+    """Load a detail checkpoint into ``model`` (``model.detail``), checked to belong to it
+    (``data``: the file's contents, when already read).
 
     Raises:
         LoosefitInputError: not a detail checkpoint, or one trained on another garment or
             another motion stage (the message names both fingerprints).
     """
     path = Path(path)
-    data = read_checkpoint_file(path, DETAIL_FORMAT, model.device)
+    if data is None:
+        data = read_checkpoint_file(path, DETAIL_FORMAT, model.device)
+    else:
+        check_format(path, data, DETAIL_FORMAT)
     with checkpoint_fields(path, "detail checkpoint"):
         return _attach(model, path, data)
 
@@ -525,10 +539,15 @@ def load_detail_model(
     motion: str | Path | None = None,
     generative: str | Path | None = None,
     device="cpu",
+    data: dict | None = None,
 ) -> AnimationModel:
-    """All three learned stages from a detail checkpoint (and the motion stage it records)."""
+    """All three learned stages from a detail checkpoint (and the motion stage it records;
+    ``data``: the detail file's contents, when already read)."""
     path = Path(path)
-    data = read_checkpoint_file(path, DETAIL_FORMAT, "cpu")
+    if data is None:
+        data = read_checkpoint_file(path, DETAIL_FORMAT, "cpu")
+    else:
+        check_format(path, data, DETAIL_FORMAT)
     with checkpoint_fields(path, "detail checkpoint"):
         mpath = recorded_checkpoint(
             path,
@@ -538,7 +557,7 @@ def load_detail_model(
             "the motion checkpoint it was trained on",
         )
     model = load_animation_model(mpath, generative, device)
-    return attach_detail(model, path)
+    return attach_detail(model, path, data)
 
 
 # -- any checkpoint ---------------------------------------------------------------------------
@@ -549,18 +568,15 @@ def load_pipeline(
     generative: str | Path | None = None,
     detail: str | Path | None = None,
     device="cpu",
-) -> AnimationModel | BaselineModel:
-    """Every learned stage for ``loosefit animate`` / ``evaluate`` from one checkpoint:
-    a baseline's checkpoint gives that baseline (:meth:`BaselineModel.from_checkpoint`),
-    any other :meth:`AnimationModel.from_checkpoint`.
+):
+    """Every learned stage from one checkpoint of any kind
+    (:func:`~loosefit.inference.checkpoints.load_model`, the table
+    :data:`~loosefit.inference.checkpoints.CHECKPOINTS`), for the runtime's own callers.
 
     Returns:
         An :class:`~loosefit.inference.protocols.AnimatingModel`.
     """
-    path = Path(path)
-    if checkpoint_format(path) == BASELINE_FORMAT:
-        return BaselineModel.from_checkpoint(path, device)
-    return AnimationModel.from_checkpoint(path, generative, detail, device)
+    return load_model(path, device, generative=generative, detail=detail)
 
 
 def collision_records(stages: list[Stage]) -> list[dict] | None:

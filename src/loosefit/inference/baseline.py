@@ -12,6 +12,7 @@ from loosefit.errors import LoosefitInputError
 from loosefit.inference.checkpoints import (
     BASELINE_FORMAT,
     MOTION_FORMAT,
+    check_format,
     checkpoint_fields,
     load_weights,
     model_config,
@@ -60,22 +61,22 @@ class BaselineModel:
     _avatar: object = None  # the avatar, built on first use
 
     @classmethod
-    def from_checkpoint(cls, path: str | Path, device="cpu") -> BaselineModel:
-        """A trained baseline from a run's ``model.pt`` or ``checkpoint.pt``.
+    def from_checkpoint(
+        cls, path: str | Path, device="cpu", data: dict | None = None
+    ) -> BaselineModel:
+        """A trained baseline from a run's ``model.pt`` or ``checkpoint.pt`` (``data``: its
+        contents, when already read).
 
         Raises:
             LoosefitInputError: not a baseline checkpoint, or weights that do not fit the
                 configuration it records.
         """
         path = Path(path)
-        data = read_checkpoint_file(
-            path,
-            BASELINE_FORMAT,
-            device,
-            {
-                MOTION_FORMAT: "this is our motion stage; load it with load_pipeline",
-            },
-        )
+        hints = {MOTION_FORMAT: "this is our motion stage; open it with loosefit.load"}
+        if data is None:
+            data = read_checkpoint_file(path, BASELINE_FORMAT, device, hints)
+        else:
+            check_format(path, data, BASELINE_FORMAT, hints)
         with checkpoint_fields(path, "baseline checkpoint"):
             return _baseline(path, data, device)
 
@@ -108,6 +109,7 @@ class BaselineModel:
         restart_every=None,
         stages: Stages | None = None,
         runtime: str = "torch",
+        *,
         collision: str = "full",
     ):
         """The garment through ``motion`` (T, V, 3) world positions, a
@@ -211,6 +213,7 @@ def baseline_rollout(
     config=None,
     pose_joints=None,
     progress=None,
+    *,
     chunk: int = 128,
 ):
     """Animate the garment through a motion with a baseline (no previous garment: the GRU

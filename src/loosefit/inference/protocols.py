@@ -54,6 +54,7 @@ class AnimatingModel(Protocol):
         restart_every: int | None = None,
         stages: Stages | None = None,
         runtime: str = "torch",
+        *,
         collision: str = "full",
     ) -> RolloutResult:
         """The garment through ``motion``: (T, V, 3) world positions in the result."""

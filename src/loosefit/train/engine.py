@@ -450,11 +450,11 @@ def train_engine(
         The report (also ``out/report.json`` and ``out/report.md``).
     """
     from loosefit.garment.fingerprint import same_garment
-    from loosefit.inference.animator import load_pipeline
+    from loosefit.inference.checkpoints import load_model
 
     reader = DatasetReader(data)
     torch.set_default_device("cpu")
-    full = load_pipeline(motion)
+    full = load_model(motion)
     if not same_garment(full.template, reader.template):
         raise LoosefitInputError(
             motion,

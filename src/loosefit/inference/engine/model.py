@@ -9,7 +9,8 @@ checkpoint it is the tier of (the settled drape it starts from is that model's).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+import time
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,8 @@ import torch
 
 from loosefit.errors import LoosefitInputError
 from loosefit.inference.checkpoints import (
+    ENGINE_FORMAT,
+    check_format,
     checkpoint_fields,
     float_weights,
     load_weights,
@@ -24,7 +27,8 @@ from loosefit.inference.checkpoints import (
     template_from_dict,
 )
 from loosefit.inference.model_common import check_motion_joints
-from loosefit.inference.rollout import timeline
+from loosefit.inference.rollout import RolloutResult, timeline
+from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.engine import EngineConfig, EngineTier, GarmentBasis, correlate_noise
 from loosefit.model.motion_features import (
@@ -35,7 +39,6 @@ from loosefit.model.motion_features import (
 )
 from loosefit.types import GarmentTemplate, Motion
 
-ENGINE_FORMAT = "loosefit.engine/1"
 ENGINE_FILE = "engine.pt"  # the engine tier's file beside a set's motion.pt
 
 
@@ -53,6 +56,7 @@ class EngineModel:
         rollout_config: the timeline of a motion's start.
         path: the checkpoint.
         record: what the checkpoint says of its training (data, targets, epochs).
+        stages: what runs after the tier: nothing (it has no later stages).
     """
 
     tier: EngineTier
@@ -64,6 +68,8 @@ class EngineModel:
     rollout_config: RolloutConfig
     path: Path
     record: dict
+    stages: Stages = field(default_factory=lambda: MOTION_ONLY)
+    detail = None  # no detail stage (what the CLI asks of every model)
 
     @property
     def joints(self) -> list[int]:
@@ -74,6 +80,50 @@ class EngineModel:
         from loosefit.inference.model_common import avatar_of
 
         return avatar_of(self.body)
+
+    def check_motion(self, motion: Motion) -> None:
+        """A clear error for a motion on other joints or not finite."""
+        check_motion_joints(motion, self.joint_names, self.path)
+
+    def animate(
+        self,
+        motion: Motion,
+        progress=None,
+        truth=None,
+        restart_every=None,
+        stages: Stages | None = None,
+        runtime: str = "torch",
+        *,
+        collision: str = "full",
+        seed: int = 0,
+    ) -> RolloutResult:
+        """The tier's garment through ``motion`` (:func:`rollout_engine`), as every model
+        that animates (:class:`~loosefit.inference.protocols.AnimatingModel`). The tier has
+        no later stages: ``stages`` and ``collision`` change nothing; ``seed``: a stochastic
+        tier's realisation.
+
+        Raises:
+            LoosefitInputError: a runtime other than PyTorch's (the tier's graph is
+                ``loosefit export engine``'s), a drift measurement (``restart_every``), or
+                a motion on other joints or at another frame rate.
+        """
+        if runtime != "torch":
+            raise LoosefitInputError(
+                self.path,
+                "runtime",
+                "'torch' (the engine tier runs in PyTorch here; its ONNX graph is "
+                "loosefit export engine's)",
+                repr(runtime),
+            )
+        if restart_every is not None:
+            raise LoosefitInputError(
+                self.path, "restart_every", "None (the engine tier restarts from no truth)", 1
+            )
+        start = time.perf_counter()
+        garments, frames = _rollout(self, motion, None, seed)
+        if progress is not None:
+            progress(frames, frames)
+        return RolloutResult(garments[0], time.perf_counter() - start, frames)
 
 
 def engine_fields(tier: EngineTier) -> dict:
@@ -90,14 +140,17 @@ def engine_path_of(motion_checkpoint: str | Path) -> Path:
     return Path(motion_checkpoint).parent / ENGINE_FILE
 
 
-def load_engine(path: str | Path, device="cpu") -> EngineModel:
-    """A trained engine tier.
+def load_engine(path: str | Path, device="cpu", data: dict | None = None) -> EngineModel:
+    """A trained engine tier (``data``: the file's contents, when already read).
 
     Raises:
         LoosefitInputError: not an engine-tier checkpoint, or fields that do not fit.
     """
     path = Path(path)
-    data = read_checkpoint_file(path, ENGINE_FORMAT, device)
+    if data is None:
+        data = read_checkpoint_file(path, ENGINE_FORMAT, device)
+    else:
+        check_format(path, data, ENGINE_FORMAT)
     with checkpoint_fields(path, "engine-tier checkpoint"):
         config = EngineConfig(**data["model_config"]["engine"])
         weights = float_weights(data["model"])
@@ -157,6 +210,14 @@ def rollout_engine(
     Raises:
         LoosefitInputError: a motion on other joints or at another frame rate.
     """
+    (garments, out), _ = _rollout(model, motion, collide, seed)
+    return (garments, out) if coefficients else garments
+
+
+@torch.no_grad()
+def _rollout(model: EngineModel, motion: Motion, collide, seed: int):
+    """:func:`rollout_engine`'s ((T, V, 3) garments, (T, K) coefficients), and the frames
+    computed (P + T)."""
     check_motion_joints(motion, model.joint_names, model.path)
     if abs(motion.fps - model.fps) > 1e-6:
         raise LoosefitInputError(
@@ -184,8 +245,7 @@ def rollout_engine(
         a = (R @ collide.capsule_start[..., None])[..., 0] + o
         b = (R @ collide.capsule_end[..., None])[..., 0] + o
         garments = push_out(garments, a, b, collide.radius, q, collide.push_weight)
-    garments = garments.cpu().numpy()
-    return (garments, out.cpu().numpy()) if coefficients else garments
+    return (garments.cpu().numpy(), out.cpu().numpy()), len(rot)
 
 
 def rest_coefficients(tier: EngineTier, rest: np.ndarray | torch.Tensor) -> torch.Tensor:

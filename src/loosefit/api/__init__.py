@@ -19,11 +19,47 @@ from collections.abc import Callable
 from pathlib import Path
 
 from loosefit import sequence
+from loosefit.api.train import TRAINING_STAGES as TRAINING_STAGES
+from loosefit.api.train import process_rank as process_rank
+from loosefit.api.train import train_baseline as train_baseline
+from loosefit.api.train import train_detail as train_detail
+from loosefit.api.train import train_engine as train_engine
+from loosefit.api.train import train_generative as train_generative
+from loosefit.api.train import train_motion as train_motion
+from loosefit.api.train import training_config as training_config
 from loosefit.errors import LoosefitInputError
 from loosefit.inference.protocols import AnimatingModel, BatchAnimatingModel
+from loosefit.progress import StageBars as StageBars  # a bar per stage of a long job
+from loosefit.progress import tqdm_bar as tqdm_bar  # a bar fed by progress(done, total)
 from loosefit.types import GarmentTemplate, Motion
 
 PRETRAINED = "dance"  # the default set's folder under loosefit/pretrained
+
+
+def check_export_path(path: str | Path) -> None:
+    """A clear error, before any work, for an export path no exporter writes
+    (:func:`~loosefit.export.check_export_path`; :meth:`AnimatedGarment.export` checks the
+    same)."""
+    from loosefit.export import check_export_path as check
+
+    check(path)
+
+
+def is_character(path: str | Path) -> bool:
+    """Whether a ``.gltf``/``.glb`` file is a character (a mesh on a skin, which
+    :meth:`Animator.dress` dresses), not only a skeleton's animation. False for other
+    files."""
+    from loosefit.character import has_skinned_mesh
+
+    return has_skinned_mesh(path)
+
+
+def penetration_tolerance() -> float:
+    """How deep (m) cloth inside the body counts as a penetration in the figures of
+    collision handling (:data:`~loosefit.garment.quality.PENETRATION_TOLERANCE`)."""
+    from loosefit.garment.quality import PENETRATION_TOLERANCE
+
+    return PENETRATION_TOLERANCE
 
 
 def show(
@@ -56,7 +92,13 @@ class AnimatedGarment(sequence.GarmentSequence):
     """An animated garment as the API returns it (``loosefit.AnimatedGarment``): the
     sequence of :mod:`loosefit.sequence` (its fields, file, export) and :meth:`view`, the
     browser viewer, which sits in a layer above the sequence's and is reached from here
-    (:func:`show` opens any sequence). :meth:`load` reads a file as one of these."""
+    (:func:`show` opens any sequence). :meth:`load` reads a file as one of these.
+
+    ``rollout``: made by :meth:`Animator.animate`, the rollout's figures
+    (:class:`~loosefit.inference.rollout.RolloutResult`: seconds, frames computed, collision
+    handling per frame); None otherwise."""
+
+    rollout = None  # the RolloutResult of Animator.animate (None: read, simulated)
 
     def view(
         self,
@@ -95,7 +137,9 @@ def motion_for(
     frames: int | None = None,
     start_frame: int = 0,
     seed: int = 0,
+    *,
     retarget=None,
+    max_frames: int | None = None,
 ) -> Motion:
     """A motion on the avatar's skeleton at ``fps``, ``frames`` long (played again if longer).
 
@@ -110,6 +154,7 @@ def motion_for(
         seed: seeds procedural motions.
         retarget: how a BVH file is read and mapped
             (:class:`~loosefit.motion.retarget.RetargetConfig`; default: its defaults).
+        max_frames: keep at most this many of the motion's frames (before ``frames``).
     """
     from loosefit.motion.chain import chain_motions
     from loosefit.motion.motions import load_motion
@@ -125,9 +170,17 @@ def motion_for(
                 hint="resample it",
             )
         motion = spec.slice(start_frame, spec.num_frames)
+        if max_frames is not None:
+            motion = motion.slice(0, min(max_frames, motion.num_frames))
     else:
         motion = load_motion(
-            spec, avatar, fps=fps, seed=seed, retarget=retarget, start_frame=start_frame
+            spec,
+            avatar,
+            fps=fps,
+            seed=seed,
+            retarget=retarget,
+            max_frames=max_frames,
+            start_frame=start_frame,
         )
     if frames is not None:
         if frames < 1:
@@ -177,10 +230,12 @@ class Animator:
         seed: int = 0,
         stages=None,
         progress: Callable[[int, int], None] | None = None,
+        *,
         runtime: str = "torch",
         collision: str = "full",
         threads: int | None = None,
         shape: dict | None = None,
+        retarget=None,
     ) -> AnimatedGarment:
         """The garment through a motion.
 
@@ -211,9 +266,11 @@ class Animator:
                 [0, 1]; those not named as the trained body's). The garment is sized to
                 that body and animated on it (:mod:`loosefit.inference.other_body`;
                 prepared once per body, a few seconds). None: the trained body.
+            retarget: how a BVH file is read and mapped (see :func:`motion_for`).
 
         Returns:
-            :class:`~loosefit.sequence.GarmentSequence`, world positions.
+            :class:`AnimatedGarment`, world positions; its ``rollout`` the rollout's
+            figures.
 
         Raises:
             LoosefitInputError: an unreadable motion, ``runtime="onnx"`` without
@@ -225,14 +282,22 @@ class Animator:
         with inference_threads(threads):
             body = self.other_body(shape)
             avatar = body.avatar if body is not None else self.model.avatar()
-            m = motion_for(motion, avatar, self.fps, frames, start_frame, seed)
+            m = motion_for(motion, avatar, self.fps, frames, start_frame, seed, retarget=retarget)
             kwargs = {"body": body} if body is not None else {}
             result = self.model.animate(
                 m, progress, stages=stages, runtime=runtime, collision=collision, **kwargs
             )
         template = body.template if body is not None else self.template
         record = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
-        return AnimatedGarment(m, template, result.vertices, record, f"loosefit model {self.path}")
+        out = AnimatedGarment(m, template, result.vertices, record, f"loosefit model {self.path}")
+        out.rollout = result
+        return out
+
+    def avatar(self, shape: dict | None = None):
+        """The body a motion is animated on: the trained body's avatar, or ``shape``'s
+        (:meth:`other_body`)."""
+        body = self.other_body(shape)
+        return body.avatar if body is not None else self.model.avatar()
 
     def dress(
         self,
@@ -240,11 +305,14 @@ class Animator:
         frames: int | None = None,
         progress: Callable[[int, int], None] | None = None,
         threads: int | None = None,
+        *,
+        retarget=None,
     ):
         """The garment on a user's own character: a skinned, animated ``.glb``/``.gltf``
         (Mixamo, Blender, Unity or Unreal export). anny's body is fitted to the
         character's skin, the garment animated on it, carried onto the character's own mesh
-        and kept out of it (:mod:`loosefit.character`).
+        and kept out of it (:mod:`loosefit.character`). ``retarget``: how its animation is
+        read and mapped (:class:`~loosefit.motion.retarget.RetargetConfig`).
 
         Returns:
             :class:`~loosefit.character.dress.DressedCharacter`: ``vertices`` in the
@@ -259,7 +327,7 @@ class Animator:
         from loosefit.inference.threads import inference_threads
 
         with inference_threads(threads):
-            return dress_character(self.model, character, frames, progress)
+            return dress_character(self.model, character, frames, progress, retarget=retarget)
 
     def other_body(self, shape: dict | None):
         """The body of ``shape`` (:meth:`animate`), prepared once and kept; None for None,
@@ -290,6 +358,7 @@ class Animator:
         seed: int = 0,
         stages=None,
         progress=None,
+        *,
         runtime: str = "torch",
         collision: str = "full",
         threads: int | None = None,
@@ -357,19 +426,56 @@ class Animator:
         return export_onnx(self.model, path, OnnxExportConfig(detail=detail, check=check))
 
 
-def load(path: str | Path | None = None, device: str = "cpu") -> Animator:
-    """A trained model: the pretrained set by default, or any checkpoint ``loosefit animate``
-    takes (a run's ``model.pt``, a packaged ``motion.pt``, a detail or baseline checkpoint).
+def load(
+    path: str | Path | None = None,
+    device: str = "cpu",
+    *,
+    generative: str | Path | None = None,
+    detail: str | Path | None = None,
+) -> Animator:
+    """A trained model: the pretrained set by default, or any checkpoint the project writes
+    (:data:`~loosefit.inference.checkpoints.CHECKPOINTS`): a set's folder or its
+    ``motion.pt``, ``generative.pt`` or ``engine.pt``; a run's ``model.pt`` or
+    ``checkpoint.pt`` of the motion, detail, baseline or engine stage; a packaged set. Each
+    file is read once. ``generative``: the generative checkpoint a motion or detail stage
+    was trained on, if not the one it records; ``detail``: a detail checkpoint to attach.
 
     Raises:
-        LoosefitInputError: a missing or unreadable checkpoint, or one of another kind.
+        LoosefitInputError: a missing or unreadable checkpoint, or one of a format that does
+            not animate (naming the file, the format found and the formats accepted).
     """
-    from loosefit.inference.animator import load_pipeline
+    from loosefit.inference.checkpoints import load_model
 
     path = Path(path) if path is not None else pretrained_checkpoint()
-    if not path.is_file():
+    if not path.exists():
         raise LoosefitInputError(path, "checkpoint", "a trained model's checkpoint", "no such file")
-    return Animator(load_pipeline(path, device=device), path)
+    return Animator(load_model(path, device, generative=generative, detail=detail), path)
+
+
+def package(
+    checkpoint: str | Path,
+    out: str | Path,
+    *,
+    generative: str | Path | None = None,
+    detail: str | Path | None = None,
+) -> list[Path]:
+    """A trained model as one folder to share (:mod:`loosefit.inference.package`):
+    ``generative.pt`` and ``motion.pt`` of a motion run's ``checkpoint`` (``generative``: its
+    generative checkpoint, if not the one it records), and ``detail.pt`` of a detail run's
+    ``detail`` checkpoint; half-precision weights, each stage pointing at the one before.
+
+    Returns:
+        The files written.
+
+    Raises:
+        LoosefitInputError: stages that do not belong together, or not such checkpoints.
+    """
+    from loosefit.inference.package import package_detail, package_model
+
+    files = list(package_model(checkpoint, out, generative))
+    if detail:
+        files.append(package_detail(detail, out))
+    return files
 
 
 def simulate(
@@ -379,6 +485,7 @@ def simulate(
     start_frame: int = 0,
     seed: int = 0,
     config=None,
+    *,
     shape: dict | None = None,
     progress=None,
     unfold: bool = True,
