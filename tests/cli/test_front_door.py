@@ -53,6 +53,7 @@ REMAINING: dict[str, set[str]] = {
     "evaluate.py": {
         "loosefit.data.format",
         "loosefit.eval.ensemble",
+        "loosefit.eval.ensemble_members",
         "loosefit.eval.report",
         "loosefit.eval.rollouts",
     },
