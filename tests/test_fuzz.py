@@ -19,6 +19,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import loosefit
 from loosefit.errors import LoosefitInputError
 
 settings.register_profile(
@@ -335,7 +336,6 @@ def test_manifest(tmp_path, toy_dataset, data):
 def test_checkpoints(tmp_path, data):
     import torch
 
-    from loosefit.inference.animator import load_pipeline
     from loosefit.inference.checkpoints import load_torch
 
     root = WITH_DETAIL  # a committed set with all three stages
@@ -364,7 +364,7 @@ def test_checkpoints(tmp_path, data):
                 )
             )
         torch.save(saved, path)
-    model = accepts(lambda: load_pipeline(tmp_path / "motion.pt"))
+    model = accepts(lambda: loosefit.load(tmp_path / "motion.pt").model)
     if model is not None:
         for p in model.encoder.parameters():
             finite(p.detach().numpy())

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+import loosefit
 from loosefit.errors import LoosefitInputError
 from tests.conftest import WITH_DETAIL
 
@@ -119,7 +120,6 @@ def test_manifests_of_the_wrong_shape(tmp_path, toy_dataset, key, value):
     ],
 )
 def test_checkpoint_fields_of_another_type(tmp_path, stage, key, value):
-    from loosefit.inference.animator import load_pipeline
     from loosefit.inference.checkpoints import load_torch
 
     root = WITH_DETAIL  # a committed set with all three stages
@@ -129,7 +129,7 @@ def test_checkpoint_fields_of_another_type(tmp_path, stage, key, value):
     data[key] = value
     torch.save(data, tmp_path / f"{stage}.pt")
     with pytest.raises(LoosefitInputError, match=rf"{stage}\.pt"):
-        load_pipeline(tmp_path / "motion.pt")
+        loosefit.load(tmp_path / "motion.pt")
 
 
 def test_a_glb_whose_triangles_name_missing_vertices(tmp_path):

@@ -43,14 +43,14 @@ def _checkpoint(path, fmt: str, marker) -> pathlib.Path:
     ["loosefit.generative/1", "loosefit.motion/1", "loosefit.detail/1", "loosefit.baseline/1"],
 )
 def test_a_checkpoint_with_a_pickled_object_is_refused(tmp_path, marker, fmt):
-    from loosefit.inference.animator import load_pipeline
+    from loosefit import load
     from loosefit.inference.baseline import load_baseline
     from loosefit.inference.checkpoints import load_generative
 
     path = _checkpoint(tmp_path / "evil.pt", fmt, marker)
-    for load in (load_pipeline, load_baseline, load_generative):
+    for loader in (load, load_baseline, load_generative):
         with pytest.raises(LoosefitInputError, match=r"evil\.pt.*run code"):
-            load(path)
+            loader(path)
 
 
 def test_the_cli_refuses_it_too(tmp_path, marker, capsys):

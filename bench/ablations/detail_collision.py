@@ -31,9 +31,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
 from loosefit.garment.quality import edge_strain
-from loosefit.inference.animator import attach_detail, load_pipeline
+from loosefit.inference.animator import attach_detail
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.train.common import machine
 
@@ -104,7 +105,7 @@ def main() -> None:
     from loosefit.sim.jobs import job_motion, plan_jobs
     from loosefit.sim.presets import preset
 
-    model = load_pipeline(args.checkpoint)  # with the detail stage packaged beside it, if any
+    model = loosefit.load(args.checkpoint).model  # with the detail stage packaged beside it, if any
     rows = dict(ROWS, **(DETAIL_ROWS if model.detail is not None else {}))
     avatar = model.avatar()
     collider = avatar.collider_faces(arms=model.arm_collision).cpu().numpy()

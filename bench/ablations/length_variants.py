@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.eval.stage_account import clip_reference
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
 from loosefit.inference.stages.lengths import LengthConfig
 from loosefit.train.common import machine
@@ -110,7 +110,7 @@ def main() -> None:
     from loosefit.data.format import DatasetReader, read_any_sequence
 
     torch.set_num_threads(1)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     reader = DatasetReader(args.data, allow_incomplete=True)
     sources = {
         f.stem: reader.read(f.stem) for f in sorted((Path(args.data) / "sequences").glob("*.npz"))

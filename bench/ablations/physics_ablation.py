@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.eval.stage_account import clip_account
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.checkpoints import load_generative
 from loosefit.train.common import machine
 
@@ -116,13 +116,13 @@ def main() -> None:
         }
 
     runs = {}  # name: (stage, rows, model)
-    base = load_pipeline(args.base)
+    base = loosefit.load(args.base).model
     for name, path in named(args.generative, "--generative").items():
         gen, data = load_generative(path, base.template)
         model = replace(base, generative=gen, physics_terms=tuple(data.get("physics_terms", ())))
         runs[name] = ("generative", ("oracle",), model, path)
     for name, path in named(args.motion, "--motion").items():
-        runs[name] = ("motion", ("motion stage", "after"), load_pipeline(path), path)
+        runs[name] = ("motion", ("motion stage", "after"), loosefit.load(path).model, path)
 
     record = {
         "machine": machine("cpu"),

@@ -23,8 +23,8 @@ import time
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.geometry.edges import unique_edges
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
 from loosefit.motion.motions import load_motion
 
@@ -60,7 +60,7 @@ def main() -> None:
     )
     args = p.parse_args()
     torch.set_num_threads(1)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     print(
         f"{time.strftime('%Y-%m-%d')}, {platform.machine()}, torch {torch.__version__}, one "
         f"thread; {args.frames} frames of each motion from frame {args.start_frame}"

@@ -29,10 +29,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.data.format import DatasetReader
 from loosefit.eval.heldout import validation_clips
 from loosefit.eval.stage_account import clip_reference
-from loosefit.inference.animator import load_pipeline
 from loosefit.train.common import machine
 
 # the figures of a page docs/X.md as JSON: bench/figures/X.json
@@ -154,7 +154,7 @@ def main() -> None:
     groups = {"validation": validation_clips(reader), "held-out": reader.split("test")}
     figures: dict[str, dict[str, list[dict]]] = {g: {n: [] for n in sets} for g in groups}
     per_clip: dict[str, dict[str, dict]] = {}
-    models = {name: load_pipeline(ckpt) for name, ckpt in sets.items()}
+    models = {name: loosefit.load(ckpt).model for name, ckpt in sets.items()}
     for group, clips in groups.items():
         for clip in clips:
             seq = reader.read(clip)

@@ -51,10 +51,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import rmse_per_frame
 from loosefit.geometry.inverse_skinning import InverseSkinningConfig, seed_weights, skin, unskin
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.rollout import motion_root_frames
 from loosefit.inference.timeline import RolloutConfig
 from loosefit.model.engine import fit_basis, project, reconstruct
@@ -330,7 +330,7 @@ def main() -> None:
 
     # the oracle: per frame, so one pass over each whole clip serves its cut rows too
     t0 = time.perf_counter()
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     oracle = {}
     for clip in held_out:
         seq = reader.read(clip)

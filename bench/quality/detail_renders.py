@@ -21,8 +21,9 @@ from pathlib import Path
 
 from PIL import Image
 
+import loosefit
 from loosefit.data.format import DatasetReader
-from loosefit.inference.animator import attach_detail, load_pipeline
+from loosefit.inference.animator import attach_detail
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.render.camera import CameraView
 from loosefit.render.renderer import RenderConfig
@@ -47,7 +48,7 @@ def main() -> None:
     reader = DatasetReader(args.data)
     name = next(n for n in reader.split("test") if n.startswith("chain_"))
     seq = reader.read(name)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     if args.detail:
         attach_detail(model, args.detail)
     if model.detail is None:

@@ -16,9 +16,9 @@ from pathlib import Path
 
 from PIL import Image
 
+import loosefit
 from loosefit.api import pretrained_checkpoint
 from loosefit.body.capsules import avatar_capsules
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.engine.export import EngineStep, skeleton_record
 from loosefit.inference.engine.model import engine_path_of, load_engine, rollout_engine
 from loosefit.motion.motions import load_motion
@@ -40,7 +40,7 @@ def main() -> None:
     p.add_argument("--out", default="docs/img/engine_demo.jpg")
     args = p.parse_args()
     checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
-    model = load_pipeline(checkpoint)
+    model = loosefit.load(checkpoint).model
     avatar = model.avatar()
     engine = load_engine(args.engine or engine_path_of(checkpoint))
     motion = load_motion(args.motion, avatar, fps=engine.fps, seed=args.seed)

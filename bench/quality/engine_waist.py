@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.api import pretrained_checkpoint
 from loosefit.body.capsules import avatar_capsules
 from loosefit.data.format import DatasetReader
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.engine.export import EngineStep, skeleton_record
 from loosefit.inference.engine.model import engine_path_of, load_engine, rollout_engine
 from loosefit.motion.motions import load_motion
@@ -109,7 +109,7 @@ def main() -> None:
     args = p.parse_args()
     torch.set_num_threads(1)
     checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
-    model = load_pipeline(checkpoint)
+    model = loosefit.load(checkpoint).model
     avatar = model.avatar()
     capsules, skeleton = avatar_capsules(avatar), skeleton_record(avatar)
     tiers = {"engine tier": load_engine(args.engine or engine_path_of(checkpoint))}

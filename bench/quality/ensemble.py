@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.eval.ensemble import (
     SECTION,
     clip_context,
@@ -39,7 +40,6 @@ from loosefit.eval.ensemble import (
     score_model,
 )
 from loosefit.eval.ensemble_members import gather_ensembles
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.model_common import avatar_of
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.train.common import machine
@@ -81,7 +81,7 @@ def rollouts(args, ens, motion, cache: Path) -> dict:
 
                 models[key] = load_engine(ckpt)
             elif kind not in models:
-                models[kind] = load_pipeline(ckpt)
+                models[kind] = loosefit.load(ckpt).model
             t0 = time.perf_counter()
             if kind == "engine":  # a stochastic tier: args.samples realisations (seeds)
                 seeds = range(args.samples if models[key].tier.config.noise else 1)
@@ -178,7 +178,7 @@ def validation_choice(args, cache: Path) -> dict:
             path.parent.mkdir(parents=True, exist_ok=True)
             if not path.is_file():
                 if key == "ours-full":
-                    models.setdefault(key, load_pipeline(args.checkpoint))
+                    models.setdefault(key, loosefit.load(args.checkpoint).model)
                     x = models[key].animate(seq.motion).vertices[None]
                 else:
                     from loosefit.inference.engine.model import load_engine, rollout_engine

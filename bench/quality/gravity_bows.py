@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import rmse_per_frame
 from loosefit.garment.mesh_checks import boundary_loops
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.model_common import avatar_of
 from loosefit.train.common import machine
 
@@ -66,7 +66,7 @@ def main() -> None:
     torch.set_num_threads(args.threads)
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     reader = DatasetReader(args.data)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     avatar = avatar_of(reader.body)
     names = list(avatar.joint_names)
     hem, waist = rings(reader.template)

@@ -28,10 +28,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.eval.depth import inside_depths
 from loosefit.garment.quality import PENETRATION_TOLERANCE
 from loosefit.geometry.edges import unique_edges
-from loosefit.inference.animator import load_pipeline
 from loosefit.sim.dataset_config import read_config_file, resolve_spec
 from loosefit.sim.jobs import spec_name
 from loosefit.train.common import machine
@@ -78,7 +78,7 @@ def main() -> None:
     from loosefit.api import motion_for
 
     torch.set_num_threads(1)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     settings = {}
     for item in args.set:
         field, _, value = item.partition("=")

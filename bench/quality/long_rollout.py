@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.data.format import DatasetReader
-from loosefit.inference.animator import load_pipeline
 from loosefit.model.motion_features import garment_in_root_frame
 from loosefit.motion.chain import chain_motions
 
@@ -45,7 +45,7 @@ def main() -> int:
     reader = DatasetReader(args.data)
     name = args.clip or reader.split("test")[0]
     seq = reader.read(name)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     chain = chain_motions([seq.motion] * args.repeats, name=f"{name} x{args.repeats}")
     t0 = time.perf_counter()
     result = model.animate(chain)

@@ -28,12 +28,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import hausdorff, inside_fraction, rmse_per_frame, sted
 from loosefit.eval.motion_signals import fastest_turn, highest_leg, turn_rate
 from loosefit.eval.renders import error_sheet
 from loosefit.garment.quality import edge_strain
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.sim.presets import BALLET_CLIPS
 from loosefit.train.common import machine
@@ -73,7 +73,7 @@ def rollouts(args, reader: DatasetReader, name: str, cache: Path) -> dict:
             continue  # a baseline (or its second seed) not trained, or no --with-detail
         if not path.is_file():
             if kind not in models:
-                models[kind] = load_pipeline(ckpt)
+                models[kind] = loosefit.load(ckpt).model
             t0 = time.perf_counter()
             result = models[kind].animate(seq.motion, stages=stages)
             seconds = time.perf_counter() - t0
@@ -539,7 +539,7 @@ def main() -> None:
     reader = DatasetReader(args.data)
     template = reader.template
     cache = Path(args.cache)
-    ours = load_pipeline(args.checkpoint)
+    ours = loosefit.load(args.checkpoint).model
     img = Path(args.img)
     img.mkdir(parents=True, exist_ok=True)
     sets, all_clips = {}, {}

@@ -15,9 +15,9 @@ import sys
 
 import torch
 
+import loosefit
 from loosefit.data.format import DatasetReader
 from loosefit.eval.rollouts import evaluate_rollouts
-from loosefit.inference.animator import load_pipeline
 
 
 def main() -> int:
@@ -27,7 +27,7 @@ def main() -> int:
     ap.add_argument("--split", default="test")
     ap.add_argument("--out", default=None, help="also write the figures here (JSON)")
     args = ap.parse_args()
-    model, reader = load_pipeline(args.checkpoint), DatasetReader(args.data)
+    model, reader = loosefit.load(args.checkpoint).model, DatasetReader(args.data)
     rows = {}
     for name, kw in (
         ("model", {}),

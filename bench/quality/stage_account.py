@@ -45,8 +45,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.eval.stage_account import clip_account
-from loosefit.inference.animator import load_pipeline
 from loosefit.train.common import machine
 
 # the figures of a page docs/X.md as JSON: bench/figures/X.json
@@ -138,8 +138,8 @@ def main() -> None:
     from loosefit.data.format import DatasetReader, read_any_sequence
 
     torch.set_num_threads(1)
-    model = load_pipeline(args.checkpoint)
-    before = load_pipeline(args.before) if args.before else None
+    model = loosefit.load(args.checkpoint).model
+    before = loosefit.load(args.before).model if args.before else None
     sources = {}
     for folder in args.data:
         reader = DatasetReader(folder, allow_incomplete=True)

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from loosefit.inference.animator import load_pipeline
+import loosefit
 from loosefit.inference.stages import Stages
 from loosefit.inference.stages.collision import CollisionConfig
 from loosefit.render.renderer import RenderConfig
@@ -56,9 +56,9 @@ def main() -> None:
         names = sorted(f.stem for f in (Path(args.data) / "sequences").glob("*.npz"))
         seq = reader.read(args.clip or names[0])
     picks = [int(f) for f in args.frames.split(",")]
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     after = model.animate(seq.motion, stages=Stages()).vertices
-    before = load_pipeline(args.before) if args.before else model
+    before = loosefit.load(args.before).model if args.before else model
     with before.configured(collision=TODAY):
         today = before.animate(seq.motion, stages=Stages(lengths=False)).vertices
     avatar = model.avatar()

@@ -17,10 +17,10 @@ import json
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.data.format import DatasetReader
 from loosefit.geometry.edges import unique_edges
 from loosefit.geometry.laplacian import laplacian_matrix
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY
 from loosefit.train.common import machine
 
@@ -34,7 +34,7 @@ def main() -> None:
     torch.set_num_threads(1)
     reader = DatasetReader(args.data)
     seq = reader.read(next(n for n in reader.split("test") if n.startswith("chain_")))
-    model = load_pipeline(args.checkpoint, detail=None)
+    model = loosefit.load(args.checkpoint, detail=None).model
     t = model.template
     edges, _ = unique_edges(t.faces)
     rest = np.linalg.norm(t.vertices[edges[:, 0]] - t.vertices[edges[:, 1]], axis=-1)

@@ -19,7 +19,7 @@ import time
 import numpy as np
 import torch
 
-from loosefit.inference.animator import load_pipeline
+import loosefit
 from loosefit.inference.stages import Stages
 from loosefit.inference.stages.collision import CollisionConfig
 from loosefit.motion.motions import load_motion
@@ -61,7 +61,7 @@ def main() -> None:
     p.add_argument("--frames", type=int, default=300)
     args = p.parse_args()
     torch.set_num_threads(1)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     print(
         "| motion | frames | ms/frame before (CPU) | fast | largest gap (mm) | frames > 0.5 mm "
         "| inside after, before | fast |"

@@ -19,8 +19,8 @@ from collections import defaultdict
 
 import torch
 
+import loosefit
 from loosefit.geometry import query
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import Stages
 from loosefit.inference.stages.collision import COLLISION_SETTINGS, collision_setting
 from loosefit.motion.motions import load_motion
@@ -43,7 +43,7 @@ def main() -> None:
     )
     args = p.parse_args()
     torch.set_num_threads(1)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     if args.no_fast_path:
         model.collision = dataclasses.replace(model.collision, fast=False)
     model.collision = collision_setting(model.collision, args.collision)

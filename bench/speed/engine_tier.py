@@ -35,11 +35,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.api import pretrained_checkpoint
 from loosefit.data.format import DatasetReader
 from loosefit.eval.sim_runs import model_cloth, time_simulation
 from loosefit.eval.stage_account import clip_reference
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.engine.export import EngineExportConfig, EngineStep, export_engine
 from loosefit.inference.engine.model import engine_path_of, load_engine, rollout_engine
 from loosefit.inference.engine.runtime import EngineRuntime, rollout_engine_onnx
@@ -104,7 +104,7 @@ def main() -> None:
     args = p.parse_args()
     torch.set_num_threads(1)
     checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
-    model = load_pipeline(checkpoint)
+    model = loosefit.load(checkpoint).model
     engine = load_engine(args.engine or engine_path_of(checkpoint))
     reader = DatasetReader(args.data)
     tmp = Path(tempfile.mkdtemp())

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from loosefit.inference.animator import load_pipeline
+import loosefit
 from loosefit.inference.stages import Stages
 from loosefit.motion.motions import load_motion
 from loosefit.train.common import machine
@@ -97,7 +97,7 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     torch.set_num_threads(1)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     motion = load_motion(
         args.motion, model.avatar(), fps=model.fps, start_frame=10, max_frames=args.frames
     )

@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.api import motion_for
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.onnx.export import OnnxExportConfig, export_onnx
 from loosefit.inference.onnx.runtime import OnnxRuntime, rollout_onnx
 from loosefit.inference.stages import MOTION_ONLY, Stages
@@ -105,7 +105,7 @@ def main() -> None:
     args = ap.parse_args()
 
     torch.set_num_threads(1)
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     motion = motion_for(args.motion, model.avatar(), model.fps, args.frames, seed=args.seed)
     total = None
     rows = []

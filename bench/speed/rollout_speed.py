@@ -44,8 +44,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+import loosefit
 from loosefit.eval.sim_runs import model_cloth, time_simulation
-from loosefit.inference.animator import load_pipeline
 from loosefit.inference.stages import MOTION_ONLY, Stages
 from loosefit.inference.stages.collision import CollisionConfig, collision_setting
 from loosefit.motion.motions import load_motion
@@ -199,7 +199,7 @@ def main() -> None:
     p.add_argument("--out", default=None, help="also write the figures here (JSON)")
     args = p.parse_args()
 
-    model = load_pipeline(args.checkpoint)
+    model = loosefit.load(args.checkpoint).model
     avatar = model.avatar()
     cores = os.cpu_count() or 1
     threads = sorted({cores if t == "all" else int(t) for t in args.threads.split(",")})
@@ -249,7 +249,7 @@ def main() -> None:
                         row["difference_p999_m"] = float(np.quantile(gap, 0.999))
                     result["rollout"].append(row)
     if torch.cuda.is_available():
-        gpu = load_pipeline(args.checkpoint, device="cuda")
+        gpu = loosefit.load(args.checkpoint, device="cuda").model
         result["rollout_gpu"] = []
         for label, stages in pipelines(gpu).items():
             r, _ = time_rollout(gpu, motion, cores, args.repeats, stages)  # torch on the GPU

@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 import torch
 
+import loosefit
 from loosefit.api import motion_for
-from loosefit.inference.animator import AnimationModel, collision_records, load_pipeline
+from loosefit.inference.animator import AnimationModel, collision_records
 from loosefit.inference.baseline import BaselineModel
 from loosefit.inference.protocols import AnimatingModel, BatchAnimatingModel, LearnedStages
 from loosefit.inference.rollout import (
@@ -128,10 +129,10 @@ def test_models_are_told_apart_by_their_protocols(tiny):
         AnimationModel(*(getattr(tiny, f.name) for f in dataclasses.fields(tiny)[:10]))
 
 
-def test_from_checkpoint_is_what_load_pipeline_gives():
+def test_from_checkpoint_is_what_loosefit_load_gives():
     model = AnimationModel.from_checkpoint(WITH_DETAIL / "motion.pt")
     assert model.detail is not None  # the packaged detail.pt beside it
-    other = load_pipeline(WITH_DETAIL / "motion.pt")
+    other = loosefit.load(WITH_DETAIL / "motion.pt").model
     assert type(other) is AnimationModel
     mine, theirs = model.encoder.state_dict(), other.encoder.state_dict()
     assert all(torch.equal(mine[k], theirs[k]) for k in mine)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-import loosefit.inference.animator as inf
+import loosefit
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.metrics import hausdorff, rmse_per_frame, sted
@@ -78,13 +78,12 @@ def test_evaluation_scores_the_rollout_as_the_same_vertices_given_directly(train
 def test_rollouts_are_deterministic_on_the_motion_and_load_through_the_pipeline(
     trained, toy_dataset
 ):
-    from loosefit.inference.animator import load_pipeline
 
     out, _, model = trained
     reader = DatasetReader(toy_dataset)
     motion = reader.read("c").motion
     a = model.animate(motion, stages=RAW)
-    b = load_pipeline(out / "checkpoint.pt").animate(motion, stages=RAW)
+    b = loosefit.load(out / "checkpoint.pt").model.animate(motion, stages=RAW)
     assert a.vertices.shape == (16, reader.template.num_vertices, 3)
     np.testing.assert_array_equal(a.vertices, b.vertices)
     # the garment is carried by the motion: its centre follows the root
@@ -275,7 +274,7 @@ def test_a_broken_baseline_checkpoint_is_a_clear_error(trained, tmp_path):
             else:
                 data[key] = value
             torch.save(data, path)
-        model = accepts(lambda: inf.load_pipeline(path))
+        model = accepts(lambda: loosefit.load(path).model)
         if model is not None:
             for p in model.network.parameters():
                 finite(p.detach().numpy())

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+import loosefit
 import loosefit.inference.animator as inf
 import loosefit.train.detail as td
 import loosefit.train.motion as tm
@@ -130,7 +131,7 @@ def test_resume_continues_where_it_stopped(toy_dataset, motion, tmp_path):
 
 def test_detail_runs_in_animate_and_can_be_switched_off(trained, motion, toy_dataset):
     out, _ = trained
-    model = inf.load_pipeline(out / "model.pt")
+    model = loosefit.load(out / "model.pt").model
     assert model.detail is not None
     m = DatasetReader(toy_dataset).read("c").motion
     plain = model.animate(m, stages=MOTION_ONLY)
@@ -144,7 +145,7 @@ def test_detail_runs_in_animate_and_can_be_switched_off(trained, motion, toy_dat
 
 def test_the_later_stages_beside_the_motion_stage_change_nothing(trained, toy_dataset):
     out, _ = trained
-    model = inf.load_pipeline(out / "model.pt")
+    model = loosefit.load(out / "model.pt").model
     m = DatasetReader(toy_dataset).read("c").motion
     assert m.num_frames > 6 and m.num_frames % 3
 
@@ -178,11 +179,11 @@ def test_package_carries_the_detail_stage(trained, motion, tmp_path, toy_dataset
         main(["package", str(motion), "--detail", str(out / "model.pt"), "--out", str(pack)]) == 0
     )
     assert sorted(p.name for p in pack.iterdir()) == ["detail.pt", "generative.pt", "motion.pt"]
-    model = inf.load_pipeline(pack / "motion.pt")
+    model = loosefit.load(pack / "motion.pt").model
     assert model.detail is not None
     m = DatasetReader(toy_dataset).read("c").motion
     a = model.animate(m, stages=Stages(collision=False)).vertices
-    b = inf.load_pipeline(out / "model.pt").animate(m, stages=Stages(collision=False)).vertices
+    b = loosefit.load(out / "model.pt").model.animate(m, stages=Stages(collision=False)).vertices
     np.testing.assert_allclose(a, b, atol=5e-4)  # the packaged generative stage is half precision
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import loosefit
 from loosefit.errors import LoosefitInputError
 from loosefit.train.engine import PROCEDURAL_SEED, TrainEngineConfig, procedural_clips
 
@@ -12,12 +13,11 @@ from loosefit.train.engine import PROCEDURAL_SEED, TrainEngineConfig, procedural
 @pytest.mark.slow  # the pretrained set and its avatar: 1-2 minutes on a shared 2-core machine
 def test_procedural_clips_are_the_full_models_rollouts_in_the_root_frame():
     from loosefit.api import pretrained_checkpoint
-    from loosefit.inference.animator import load_pipeline
     from loosefit.inference.stages import MOTION_ONLY
     from loosefit.model.motion_features import from_root_frame
     from loosefit.motion.motions import load_motion
 
-    full = load_pipeline(pretrained_checkpoint())
+    full = loosefit.load(pretrained_checkpoint()).model
     config = TrainEngineConfig(procedural=1, procedural_seconds=1)
     floor = float(full.floor_height)
     (clip,) = procedural_clips(full, config, floor, 30.0)

@@ -446,7 +446,7 @@ def evaluate_ensemble(
     """Roll models out on every clip that has members and score them against the ensemble.
 
     Args:
-        models: name -> a trained pipeline (:func:`~loosefit.inference.animator.load_pipeline`;
+        models: name -> a trained pipeline (:func:`loosefit.load`'s ``.model``;
             ours, a baseline), each rolled out once on each clip's first member's motion.
         sources: data set folders of the same clips (the corpus first).
         split: the first data set's clips to score.

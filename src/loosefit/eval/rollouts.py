@@ -63,7 +63,7 @@ def evaluate_rollouts(
     """Roll every clip of a split out from its first frame and compare with the simulation.
 
     Args:
-        model: the trained stages (:func:`~loosefit.inference.animator.load_pipeline`).
+        model: the trained stages (:func:`loosefit.load`'s ``.model``).
         data: a dataset, or named sequences (the ground truth of each motion, e.g.
             from :func:`loosefit.simulate`).
         split: "train", "test" or "all" (of a dataset).

@@ -1,9 +1,9 @@
 """The paper's trained model that animates a garment, loaded from its checkpoints.
 
 :class:`AnimationModel` (paper 3.2-3.5, :meth:`AnimationModel.from_checkpoint`) is one
-:class:`~loosefit.inference.protocols.AnimatingModel`; :func:`load_pipeline` opens any
-checkpoint through the table of formats
-(:func:`~loosefit.inference.checkpoints.load_model`).
+:class:`~loosefit.inference.protocols.AnimatingModel`; any checkpoint is opened through the
+table of formats (:func:`~loosefit.inference.checkpoints.load_model`, what
+:func:`loosefit.load` wraps).
 Models are rebuilt from the checkpoints' ``model_config``
 (:mod:`loosefit.inference.checkpoints`); nothing here reads a training configuration.
 """
@@ -25,7 +25,6 @@ from loosefit.inference.checkpoints import (
     check_format,
     checkpoint_fields,
     load_generative,
-    load_model,
     load_weights,
     model_config,
     model_fingerprint,
@@ -561,22 +560,6 @@ def load_detail_model(
 
 
 # -- any checkpoint ---------------------------------------------------------------------------
-
-
-def load_pipeline(
-    path: str | Path,
-    generative: str | Path | None = None,
-    detail: str | Path | None = None,
-    device="cpu",
-):
-    """Every learned stage from one checkpoint of any kind
-    (:func:`~loosefit.inference.checkpoints.load_model`, the table
-    :data:`~loosefit.inference.checkpoints.CHECKPOINTS`), for the runtime's own callers.
-
-    Returns:
-        An :class:`~loosefit.inference.protocols.AnimatingModel`.
-    """
-    return load_model(path, device, generative=generative, detail=detail)
 
 
 def collision_records(stages: list[Stage]) -> list[dict] | None:

@@ -8,6 +8,7 @@ import pytest
 import torch
 import trimesh
 
+import loosefit
 from loosefit.geometry.query import Surface
 from loosefit.inference.stages.collision import CollisionConfig, CollisionHandler
 from tests.conftest import REPO, SALSA, needs_salsa
@@ -168,11 +169,10 @@ def test_rays_count_the_winding_number_where_body_parts_overlap():
 
 @needs_salsa
 def test_the_fast_path_over_a_real_rollout():
-    from loosefit.inference.animator import load_pipeline
     from loosefit.inference.stages import Stages
     from loosefit.motion.motions import load_motion
 
-    model = load_pipeline(REPO / "checkpoints" / "salsa" / "motion.pt")
+    model = loosefit.load(REPO / "checkpoints" / "salsa" / "motion.pt").model
     motion = load_motion(
         SALSA / "60_01.bvh", model.avatar(), fps=model.fps, start_frame=10, max_frames=40
     )
