@@ -43,11 +43,17 @@ def add_parser(sub) -> None:
 
 def run_pack(args: argparse.Namespace) -> int:
     from loosefit.api import tqdm_bar
-    from loosefit.data.pack import pack
+    from loosefit.api.data import pack_dataset
 
     bar = tqdm_bar(f"pack {args.folder}", "file")
     try:
-        r = pack(args.folder, args.out, args.piece_mib, args.workers, progress=bar.progress)
+        r = pack_dataset(
+            args.folder,
+            args.out,
+            piece_mib=args.piece_mib,
+            workers=args.workers,
+            progress=bar.progress,
+        )
     finally:
         bar.close()
     where = str(r.paths[0]) + (f" ... {r.paths[-1].name}" if len(r.paths) > 1 else "")
@@ -62,11 +68,11 @@ def run_pack(args: argparse.Namespace) -> int:
 
 def run_unpack(args: argparse.Namespace) -> int:
     from loosefit.api import tqdm_bar
-    from loosefit.data.pack import unpack
+    from loosefit.api.data import unpack_dataset
 
     bar = tqdm_bar(f"unpack {args.pack}", "file")
     try:
-        r = unpack(args.pack, args.dest, progress=bar.progress)
+        r = unpack_dataset(args.pack, args.dest, progress=bar.progress)
     finally:
         bar.close()
     checked = "the pack's index" if r.indexed else "its manifest"

@@ -84,7 +84,7 @@ def add_view_args(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Sequences (and a data set's clip) in the browser viewer, served until Ctrl-C."""
-    from loosefit.view.scene import read_sequences
+    from loosefit.api.data import read_sequences
 
     seqs, labels, sources = read_sequences(args.sequences, args.data, args.clip)
     serve(seqs, labels, sources, args)
@@ -94,9 +94,10 @@ def run(args: argparse.Namespace) -> int:
 def serve(seqs, labels, sources, args: argparse.Namespace) -> None:
     """Pose the bodies, start the viewer, print its URL and serve until interrupted."""
     from loosefit.api import tqdm_bar
-    from loosefit.view import ViewerConfig, view
+    from loosefit.api.data import open_viewer, viewer_config
 
-    config = ViewerConfig(
+    config = viewer_config(  # checked before minutes of posing
+        len(seqs),
         host=args.host,
         port=args.port,
         colouring=args.colour,
@@ -105,12 +106,11 @@ def serve(seqs, labels, sources, args: argparse.Namespace) -> None:
         play=not args.paused,
         pixel_ratio=args.pixel_ratio,
     )
-    config.validate(len(seqs))  # before minutes of posing
     frames = sum(s.num_frames for s in seqs)
     log(f"{len(seqs)} sequence(s), {seqs[0].num_frames} frames each: posing the bodies")
     bar = tqdm_bar("pose", unit="frame")
     t = time.perf_counter()
-    viewer = view(seqs, labels, config, sources, progress=bar.progress)
+    viewer = open_viewer(seqs, labels, config, sources, progress=bar.progress)
     bar.close()
     moved = f" (port {args.port} is in use)" if viewer.port != args.port else ""
     log(f"ready in {time.perf_counter() - t:.1f} s ({frames} frames)")
