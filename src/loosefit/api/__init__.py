@@ -434,7 +434,7 @@ def load(
     detail: str | Path | None = None,
 ) -> Animator:
     """A trained model: the pretrained set by default, or any checkpoint the project writes
-    (:data:`~loosefit.inference.checkpoints.CHECKPOINTS`): a set's folder or its
+    (:data:`~loosefit.inference.loader.CHECKPOINTS`): a set's folder or its
     ``motion.pt``, ``generative.pt`` or ``engine.pt``; a run's ``model.pt`` or
     ``checkpoint.pt`` of the motion, detail, baseline or engine stage; a packaged set. Each
     file is read once. ``generative``: the generative checkpoint a motion or detail stage
@@ -444,7 +444,7 @@ def load(
         LoosefitInputError: a missing or unreadable checkpoint, or one of a format that does
             not animate (naming the file, the format found and the formats accepted).
     """
-    from loosefit.inference.checkpoints import load_model
+    from loosefit.inference.loader import load_model
 
     path = Path(path) if path is not None else pretrained_checkpoint()
     if not path.exists():

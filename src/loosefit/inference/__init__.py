@@ -17,7 +17,7 @@ The other modules:
 * :mod:`~loosefit.inference.protocols`: what a model that animates offers
   (:class:`~loosefit.inference.protocols.AnimatingModel`), ours and the baselines'
   (:mod:`~loosefit.inference.baseline`); :mod:`~loosefit.inference.model_common` what
-  both share; :func:`~loosefit.inference.checkpoints.load_model` loads any of them.
+  both share; :func:`~loosefit.inference.loader.load_model` loads any of them.
 * :mod:`~loosefit.inference.references`: the carried drape and the reconstruction, the
   references error tables set a rollout against.
 * :mod:`~loosefit.inference.checkpoints`: the checkpoint files and their formats; the

@@ -2,7 +2,7 @@
 
 :class:`AnimationModel` (paper 3.2-3.5, :meth:`AnimationModel.from_checkpoint`) is one
 :class:`~loosefit.inference.protocols.AnimatingModel`; any checkpoint is opened through the
-table of formats (:func:`~loosefit.inference.checkpoints.load_model`, what
+table of formats (:func:`~loosefit.inference.loader.load_model`, what
 :func:`loosefit.load` wraps).
 Models are rebuilt from the checkpoints' ``model_config``
 (:mod:`loosefit.inference.checkpoints`); nothing here reads a training configuration.

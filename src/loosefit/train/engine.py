@@ -450,7 +450,7 @@ def train_engine(
         The report (also ``out/report.json`` and ``out/report.md``).
     """
     from loosefit.garment.fingerprint import same_garment
-    from loosefit.inference.checkpoints import load_model
+    from loosefit.inference.loader import load_model
 
     reader = DatasetReader(data)
     torch.set_default_device("cpu")
