@@ -3,6 +3,8 @@
 # head, a browser, killed and resumed runs, simulated data sets): the command CI runs.
 # `make test-quick` leaves the heavy ones out: the loop while editing (minutes, not twenty).
 VENV := .venv
+# the test processes (pytest-xdist); 0: one process, in order
+TEST_WORKERS ?= 2
 STAMP := $(VENV)/.installed
 
 .PHONY: install demo test test-quick lint format clean
@@ -19,12 +21,12 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check src tests bench
 	$(VENV)/bin/ruff format --check src tests bench
-	$(VENV)/bin/python -m pytest -q --durations=25
+	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal --durations=25
 
 test-quick: $(STAMP)
 	$(VENV)/bin/ruff check src tests bench
 	$(VENV)/bin/ruff format --check src tests bench
-	$(VENV)/bin/python -m pytest -q --durations=10 -m "not slow and not gpu and not heavy"
+	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) --dist worksteal --durations=10 -m "not slow and not gpu and not heavy"
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests bench

@@ -20,6 +20,29 @@ needs_salsa = pytest.mark.skipif(
 )
 
 
+def _workers(config) -> bool:
+    """Whether this run spreads its tests over pytest-xdist workers and this process is the
+    controller that starts them."""
+    if getattr(config, "workerinput", None) is not None:
+        return False
+    return bool(config.pluginmanager.hasplugin("xdist") and config.getoption("numprocesses"))
+
+
+def pytest_configure(config):
+    """With several workers, anny's cache is built once here, before they start: anny writes
+    its cache files without a lock, so two workers building it at once on a fresh machine could
+    read each other's half-written file. A few seconds when the cache is there."""
+    if not _workers(config):
+        return
+    import importlib.util
+
+    if importlib.util.find_spec("anny") is None:
+        return
+    from loosefit.body.avatar import Avatar
+
+    Avatar()
+
+
 @pytest.fixture(scope="session")
 def avatar():
     """The default avatar (anny, cmu_mb rig). The first run ever builds anny's cache (~2 min)."""
