@@ -130,6 +130,9 @@ def test_pickles_and_other_files_are_refused(tmp_path):
         LoosefitInputError, match=r"junk\.npz: field '<file>': expected a \.npz file"
     ):
         load_npz(tmp_path / "junk.npz", "a .npz file", ())
+    np.save(tmp_path / "one.npy", np.zeros(3))  # one array, not a file of named fields
+    with pytest.raises(LoosefitInputError, match=r"one\.npy: field '<file>'.*a single array"):
+        load_npz(tmp_path / "one.npy", "a .npz file", ())
 
 
 def test_a_template_s_rest_shape_and_its_file(tmp_path):

@@ -131,9 +131,10 @@ def load_npz(path: str | Path, what: str, required: tuple[str, ...]) -> NpzData:
     data = NpzData()
     field = "<file>"
     try:
-        with np.load(path, allow_pickle=False) as z:
-            if not hasattr(z, "files"):
-                raise LoosefitInputError(path, "<file>", what, "a single array, not an .npz")
+        z = np.load(path, allow_pickle=False)
+        if not hasattr(z, "files"):  # a .npy: one array, read whole
+            raise LoosefitInputError(path, "<file>", what, "a single array, not an .npz")
+        with z:
             for field in z.files:
                 data[field] = z[field]
     except LoosefitInputError:

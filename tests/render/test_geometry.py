@@ -32,6 +32,9 @@ def test_normals_keep_the_precision_of_their_vertices():
     n64 = smooth_vertex_normals(v.astype(np.float64), f)
     assert n32.dtype == np.float32 and n64.dtype == np.float64
     np.testing.assert_array_equal(n32, [[0, 0, 1]] * 3)
+    # integer corners are computed in float64; half precision is lifted to float32
+    assert smooth_vertex_normals(v.astype(np.int32), f).dtype == np.float64
+    assert smooth_vertex_normals(v.astype(np.float16), f).dtype == np.float32
 
 
 def test_normals_refuse_vertices_of_the_wrong_shape():

@@ -91,7 +91,8 @@ def smooth_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray
         faces: (F, 3) int triangle vertex indices.
 
     Returns:
-        (..., V, 3) float normals (float32 for float32 or integer input, else the input dtype).
+        (..., V, 3) float normals (float64 for integer input, float32 for float16, else the
+        input dtype).
 
     Raises:
         LoosefitInputError: if the shapes do not match or a face index is out of range.
