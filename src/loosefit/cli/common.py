@@ -90,7 +90,7 @@ def stored_clip(args: argparse.Namespace, shape: dict, motion, garment):
 def add_bvh_args(p: argparse.ArgumentParser) -> None:
     """How a motion capture file is read and mapped: --units, --scale, --joint-map (BVH,
     glTF), --animation, --skin (glTF), --smpl-up (SMPL .npz), --no-pose-check."""
-    from loosefit.api.motion import bvh_units  # numpy only: the parser stays quick to build
+    from loosefit.api.motion import bvh_units  # no torch: the parser stays quick to build
 
     p.add_argument(
         "--units",
