@@ -16,20 +16,6 @@ ALLOWED = ("loosefit.api", "loosefit.errors", "loosefit.cli")  # and their modul
 # The commands not yet on the API, and the modules they still import (to be moved onto
 # public functions of loosefit.api: rendering, data sets, simulation, inspection, viewing).
 REMAINING: dict[str, set[str]] = {
-    # dressing a character: its sheet of renders
-    "character.py": {"loosefit.character", "loosefit.character.sheet"},
-    # the shared options: the avatar, BVH units and retargeting, garments, render, threads
-    "common.py": {
-        "loosefit.body.avatar",
-        "loosefit.export",
-        "loosefit.fitting.place",
-        "loosefit.inference.stages",
-        "loosefit.inference.threads",
-        "loosefit.motion.bvh",
-        "loosefit.motion.retarget",
-        "loosefit.render.clip",
-        "loosefit.render.renderer",
-    },
     # demo --physics / --no-physics (the learned demo goes through loosefit.load)
     "demo.py": {
         "loosefit.export",
@@ -71,24 +57,6 @@ REMAINING: dict[str, set[str]] = {
         "loosefit.render.clip",
         "loosefit.render.renderer",
     },
-    "generative.py": {
-        "loosefit.data.format",
-        "loosefit.eval.metrics",
-        "loosefit.inference.checkpoints",
-        "loosefit.model.motion_features",
-        "loosefit.render.clip",
-        "loosefit.render.renderer",
-        "loosefit.sequence",
-    },
-    "motion.py": {
-        "loosefit.motion.inspect",
-        "loosefit.motion.joint_map_files",
-        "loosefit.motion.motions",
-        "loosefit.motion.pose_check",
-        "loosefit.motion.retarget",
-        "loosefit.render.skeleton_sheet",
-    },
-    "render.py": {"loosefit.data.format", "loosefit.fitting.place", "loosefit.motion.motions"},
     "simulate.py": {
         "loosefit.garment.dress",
         "loosefit.garment.importer",

@@ -34,21 +34,19 @@ def add_inspect_parser(sub) -> None:
 
 def run_inspect(args: argparse.Namespace) -> int:
     from loosefit.api import load
-    from loosefit.character import fit_character
+    from loosefit.api.character import character_sheet, fit_character
 
-    model = load(args.checkpoint).model
-    fitted = fit_character(model, args.file)
+    animator = load(args.checkpoint)
+    fitted = fit_character(args.file, animator=animator)
     c = fitted.character
     print(
         f"{args.file}: {c.num_vertices:,} vertices, {len(c.faces):,} triangles, skin of "
-        f"{len(c.joint_names)} joints, {c.num_frames} frames at {model.fps:g} fps"
+        f"{len(c.joint_names)} joints, {c.num_frames} frames at {animator.model.fps:g} fps"
     )
     print(f"fitted: {fitted.fit.describe()}")
     print(f"anny's hips follow '{fitted.hips}'")
     if args.sheet:
-        from loosefit.character.sheet import character_sheet
-
-        out = character_sheet(fitted, model.avatar().faces.cpu().numpy(), args.sheet)
+        out = character_sheet(fitted, args.sheet, animator=animator)
         log(f"wrote {out}")
     return 0
 

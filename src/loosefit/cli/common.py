@@ -2,7 +2,7 @@
 render flags, and the inference stages flags.
 
 Each ``add_*_args`` adds one group of flags to a command's parser; the function beside it
-turns those flags into what the library takes (``retarget_config``, ``build_avatar``,
+turns those flags into what the API takes (``retarget_config``, ``build_avatar``,
 ``stages``, ...). Heavy libraries are imported inside the functions, so that building the
 parser stays quick.
 """
@@ -10,14 +10,12 @@ parser stays quick.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
 
 from loosefit.errors import LoosefitInputError
-from loosefit.inference.threads import MOST_THREADS
 
 
 def log(msg: str) -> None:
@@ -58,11 +56,11 @@ def parse_shape(text: str) -> dict[str, float]:
 
 def build_avatar(args: argparse.Namespace):
     """The avatar of ``--shape`` on ``--device``."""
-    from loosefit.body.avatar import Avatar, AvatarConfig
+    from loosefit.api.motion import build_avatar as avatar_of
 
     t = time.perf_counter()
     log("building the avatar (anny; the first run builds its cache, about 2 minutes)")
-    built = Avatar(AvatarConfig(shape=parse_shape(args.shape)), device=args.device)
+    built = avatar_of(parse_shape(args.shape), device=args.device)
     log(f"avatar ready in {time.perf_counter() - t:.1f} s")
     return built
 
@@ -92,12 +90,12 @@ def stored_clip(args: argparse.Namespace, shape: dict, motion, garment):
 def add_bvh_args(p: argparse.ArgumentParser) -> None:
     """How a motion capture file is read and mapped: --units, --scale, --joint-map (BVH,
     glTF), --animation, --skin (glTF), --smpl-up (SMPL .npz), --no-pose-check."""
-    from loosefit.motion.bvh import BVH_UNITS  # numpy only: the parser stays quick to build
+    from loosefit.api.motion import bvh_units  # no torch: the parser stays quick to build
 
     p.add_argument(
         "--units",
         default="auto",
-        choices=BVH_UNITS,
+        choices=bvh_units(),
         help="a BVH file's length unit (default: guessed from its skeleton's size; "
         "a dancer outside 1.2-2.2 m tall is refused)",
     )
@@ -148,9 +146,9 @@ def add_bvh_args(p: argparse.ArgumentParser) -> None:
 def retarget_config(args: argparse.Namespace):
     """The RetargetConfig that --units, --scale, --joint-map, --animation, --skin,
     --smpl-up and --no-pose-check ask for."""
-    from loosefit.motion.retarget import RetargetConfig
+    from loosefit.api.motion import retarget_config as config
 
-    return RetargetConfig(
+    return config(
         units=args.units,
         scale=args.scale,
         joint_map=args.joint_map,
@@ -215,10 +213,10 @@ def offset(text: str | None) -> tuple[float, float, float]:
 
 def garment_template(spec: str, avatar, resolution: str = "cpu", length: float | None = None):
     """A garment template in the avatar's rest frame from a style name or an OBJ file."""
-    from loosefit.fitting.place import garment_for
+    from loosefit.api.render import garment_template as template
 
     try:
-        return garment_for(spec, avatar, resolution, length)
+        return template(spec, avatar=avatar, resolution=resolution, length=length)
     except LoosefitInputError as exc:
         raise LoosefitInputError("--garment", exc.field, exc.expected, exc.found) from exc
 
@@ -241,23 +239,20 @@ def add_render_args(p: argparse.ArgumentParser, views: str = "front,three_quarte
 def render(args, avatar, motion, template, garment_vertices, out: Path, *, title: str, body=None):
     """The body (posed here unless ``body`` is given) and the garment to a video in
     ``out``, as the render flags ask."""
-    from loosefit.render.clip import render_clip
-    from loosefit.render.renderer import RenderConfig, RenderMesh
+    from loosefit.api.render import render_clip
 
-    body = body if body is not None else avatar.pose_motion(motion)
-    scene = [
-        RenderMesh(avatar.faces.cpu().numpy(), body.vertices.cpu().numpy(), "body", name="body")
-    ]
-    if template is not None:
-        scene.append(RenderMesh(template.faces, garment_vertices, "garment", name=template.name))
-    config = RenderConfig(
-        width=args.size,
-        height=args.size,
-        views=tuple(v.strip() for v in args.views.split(",") if v.strip()),
-        follow=not args.fixed_camera,
-    )
     result = render_clip(
-        scene, out, fps=motion.fps, config=config, title=title, png_every=args.png_every
+        out,
+        avatar=avatar,
+        motion=motion,
+        title=title,
+        template=template,
+        garment=garment_vertices,
+        body=body,
+        size=args.size,
+        views=[v.strip() for v in args.views.split(",") if v.strip()],
+        follow=not args.fixed_camera,
+        png_every=args.png_every,
     )
     log(f"wrote {result.video}")
     if result.sheet is not None:
@@ -301,9 +296,9 @@ def add_stage_args(p: argparse.ArgumentParser) -> None:
 
 def stages(args: argparse.Namespace):
     """The inference stages the ``add_stage_args`` flags leave on."""
-    from loosefit.inference.stages import Stages
+    from loosefit.api.options import stages as switched
 
-    return Stages(
+    return switched(
         detail=not args.no_detail,
         lengths=not args.no_lengths,
         collision=not args.no_collision,
@@ -335,12 +330,14 @@ def add_runtime_args(p: argparse.ArgumentParser) -> None:
 def add_threads_arg(p: argparse.ArgumentParser) -> None:
     """``--threads``: torch's intra-op threads while the model animates (read by
     ``inference_threads``)."""
+    from loosefit.api.options import most_threads
+
     p.add_argument(
         "--threads",
         default=None,
         metavar="N",
         help="torch threads while the model animates (default: the free cores by the "
-        f"machine's load average, at most {MOST_THREADS}; OMP_NUM_THREADS, if set, is kept; "
+        f"machine's load average, at most {most_threads()}; OMP_NUM_THREADS, if set, is kept; "
         "docs/use/THREADS.md)",
     )
 
@@ -367,24 +364,22 @@ def threads_of(args: argparse.Namespace) -> int | None:
 @contextmanager
 def inference_threads(args: argparse.Namespace):
     """Within the block, torch's threads as ``--threads`` asks (default: the policy of
-    :func:`~loosefit.inference.threads.default_threads`), logged; torch's count before
-    comes back after it.
+    :func:`loosefit.api.options.torch_threads`), logged; torch's count before comes back
+    after it.
 
     Raises:
         LoosefitInputError: ``--threads`` not a whole number >= 1.
     """
-    from loosefit.inference.threads import inference_threads as scoped
-    from loosefit.inference.threads import user_thread_variable
+    from loosefit.api.options import most_threads, torch_threads
 
-    asked = threads_of(args)
-    with scoped(asked, "--threads") as n:
-        variable = user_thread_variable(os.environ)
-        if asked is not None:
+    with torch_threads(threads_of(args), source="--threads") as chosen:
+        n = chosen.count
+        if chosen.asked is not None:
             why = "as --threads asks"
-        elif variable is not None:
-            why = f"as {variable} sets"
+        elif chosen.variable is not None:
+            why = f"as {chosen.variable} sets"
         else:
-            why = f"the free cores by the load average, at most {MOST_THREADS}; --threads N"
+            why = f"the free cores by the load average, at most {most_threads()}; --threads N"
         log(f"{n} torch thread{'s' if n > 1 else ''} ({why})")
         yield n
 
@@ -420,7 +415,8 @@ def add_export_format_args(p) -> None:
 
 
 def export_config(args):
-    """The :class:`~loosefit.export.ExportConfig` that ``add_export_format_args`` asked for."""
-    from loosefit.export import ExportConfig
+    """The export configuration (:func:`loosefit.api.options.export_config`) that
+    ``add_export_format_args`` asked for."""
+    from loosefit.api.options import export_config as config
 
-    return ExportConfig(up_axis=args.up_axis, skinned_body=not args.body_points)
+    return config(up_axis=args.up_axis, skinned_body=not args.body_points)

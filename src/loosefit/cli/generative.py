@@ -35,41 +35,25 @@ def add_interpolate_parser(sub) -> None:
 
 
 def run_reconstruct(args: argparse.Namespace) -> int:
-    import torch
+    from loosefit.api.generative import open_generative
 
-    from loosefit.data.format import DatasetReader
-    from loosefit.eval.metrics import rmse
-    from loosefit.inference.checkpoints import load_generative
-    from loosefit.model.motion_features import (
-        from_root_frame,
-        garment_in_root_frame,
-        motion_root_frames_of,
-    )
-    from loosefit.sequence import GarmentSequence
-
-    reader = DatasetReader(args.data)
-    model, _ = load_generative(args.checkpoint, reader.template)
-    name = args.clip or reader.split("test")[0]
-    seq = reader.read(name)
+    gen = open_generative(args.checkpoint, args.data)
+    name = args.clip or gen.split("test")[0]
+    seq = gen.read(name)
     avatar, motion, garment = stored_clip(
-        args, reader.body.get("shape", {}), seq.motion, seq.garment_vertices
+        args, gen.body.get("shape", {}), seq.motion, seq.garment_vertices
     )
-    H, p = motion_root_frames_of(motion)
-    with torch.no_grad():
-        rec = model.reconstruct_all(garment_in_root_frame(motion, garment), 64)
-        world = from_root_frame(rec, H, p).numpy()
+    rec = gen.reconstruct(motion, garment)
+    world = rec.sequence.garment_vertices
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    source = f"generative reconstruction {Path(args.checkpoint).resolve()}"
-    GarmentSequence(motion, reader.template, world, reader.avatar, source).save(
-        out / "reconstruction.npz"
-    )
+    rec.sequence.save(out / "reconstruction.npz")
     log(
-        f"{name}: {len(world)} frames, RMSE {100 * rmse(world, garment):.2f} cm; wrote "
+        f"{name}: {len(world)} frames, RMSE {100 * rec.rmse:.2f} cm; wrote "
         f"{out / 'reconstruction.npz'} (a sequence, as render --sequence reads)"
     )
     title = f"{name}: generative reconstruction"
-    render(args, avatar, motion, reader.template, world, out, title=title)
+    render(args, avatar, motion, gen.template, world, out, title=title)
     return 0
 
 
@@ -84,52 +68,24 @@ def _frame_ref(text: str, names: list[str], source: str) -> tuple[str, int]:
 
 
 def run_interpolate(args: argparse.Namespace) -> int:
-    import numpy as np
-    import torch
+    from loosefit.api.generative import open_generative, render_interpolation
 
-    from loosefit.data.format import DatasetReader
-    from loosefit.inference.checkpoints import load_generative
-    from loosefit.model.motion_features import garment_in_root_frame
-    from loosefit.render.clip import render_clip
-    from loosefit.render.renderer import RenderConfig, RenderMesh
-
-    reader = DatasetReader(args.data)
-    model, _ = load_generative(args.checkpoint, reader.template)
-    posed = []
+    gen = open_generative(args.checkpoint, args.data)
+    ends = []
     for which, text in (("--a", args.a), ("--b", args.b)):
-        name, f = _frame_ref(text, reader.split("all"), which)
-        seq = reader.read(name)
+        name, f = _frame_ref(text, gen.split("all"), which)
+        seq = gen.read(name)
         if not 0 <= f < seq.num_frames:
             raise LoosefitInputError(
                 which, "frame", f"a frame of '{name}' (0..{seq.num_frames - 1})", f
             )
-        posed.append(
-            garment_in_root_frame(seq.motion.slice(f, f + 1), seq.garment_vertices[f : f + 1])
-        )
-    with torch.no_grad():
-        mu, _ = model.encode(torch.cat(posed))
-        alpha = torch.linspace(0, 1, args.steps)[:, None]
-        garments = model.decode((1 - alpha) * mu[0] + alpha * mu[1])["vertices"].numpy()
+        ends.append((seq, f))
+    line = gen.interpolate(*ends, steps=args.steps)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    np.savez(
-        out / "interpolation.npz",
-        vertices=garments,
-        faces=reader.template.faces,
-        alpha=alpha[:, 0].numpy(),
-    )
+    line.save(out / "interpolation.npz")
     log(f"wrote {out / 'interpolation.npz'} ({args.steps} garments, root frame)")
-    # root frame -> standing on the floor, root joint at its rest height
-    lifted = garments + np.array([0.0, 0.0, float(reader.body.get("floor_height", 0.9))])
-    scene = [RenderMesh(reader.template.faces, lifted, "garment", name="garment")]
-    config = RenderConfig(width=args.size, height=args.size, views=("front", "side"), follow=False)
-    result = render_clip(
-        scene,
-        out,
-        fps=4.0,
-        config=config,
-        png_every=1,
-        title=f"latent interpolation {args.a} -> {args.b}",
-    )
+    title = f"latent interpolation {args.a} -> {args.b}"
+    result = render_interpolation(line, out, title=title, size=args.size)
     log(f"wrote {result.video}" + (f" and {result.sheet}" if result.sheet else ""))
     return 0

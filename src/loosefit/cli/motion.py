@@ -13,7 +13,6 @@ from loosefit.cli.common import (
     log,
     retarget_config,
 )
-from loosefit.errors import LoosefitInputError
 
 
 def add_motion_parser(sub) -> None:
@@ -63,13 +62,13 @@ def add_inspect_parser(sub) -> None:
 
 
 def run_motion(args: argparse.Namespace) -> int:
-    from loosefit.motion.motions import load_motion
+    from loosefit.api import motion_for
 
     avatar = build_avatar(args)
-    motion = load_motion(
+    motion = motion_for(
         args.spec,
         avatar,
-        fps=args.fps,
+        args.fps,
         seed=args.seed,
         retarget=retarget_config(args),
         max_frames=args.max_frames,
@@ -82,57 +81,41 @@ def run_motion(args: argparse.Namespace) -> int:
 
 
 def run_inspect(args: argparse.Namespace) -> int:
-    from loosefit.motion.inspect import inspect_motion
-    from loosefit.motion.joint_map_files import joint_map_template
+    from loosefit.api.motion import inspect_motion, joint_map_text
 
     config = retarget_config(args)
-    report = inspect_motion(args.file, config)
+    report = inspect_motion(args.file, retarget=config)
     print(report.format())
     if args.write_joint_map:
         out = Path(args.write_joint_map)
-        axes = (report.up, report.forward)
-        out.write_text(
-            joint_map_template(
-                report.clip.joint_names, report.match, str(args.file), axes, report.clip.parents
-            )
-        )
+        out.write_text(joint_map_text(report, str(args.file)))
         log(f"wrote {out}: correct it and pass --joint-map {out}")
     if report.error is not None:
         raise report.error
     if args.sheet:
-        _motion_sheet(args, report.clip, config)
+        _motion_sheet(args, report, config)
     return 0
 
 
-def _motion_sheet(args: argparse.Namespace, clip, config) -> None:
-    """inspect-motion --sheet: retarget at the file's rate, check the poses, draw the sheet."""
-    import dataclasses
-
-    from PIL import Image
-
-    from loosefit.motion.inspect import sheet_inputs
-    from loosefit.motion.pose_check import check_pose
-    from loosefit.motion.retarget import retarget_bvh
-    from loosefit.render.skeleton_sheet import skeleton_sheet
+def _motion_sheet(args: argparse.Namespace, report, config) -> None:
+    """inspect-motion --sheet: the capture's skeleton beside the avatar, and the pose
+    check's verdict (a refusal unless --no-pose-check)."""
+    from loosefit.api.motion import pose_sheet
 
     avatar = build_avatar(args)
-    # drawn whatever the checks say: the sheet is how to see why they fail
-    loose = dataclasses.replace(config, fps=None, check_pose=False, check_height=False)
-    motion = retarget_bvh(clip, avatar.skeleton, avatar.floor_height, loose)
-    refusal = None
-    try:
-        check_pose(motion, avatar.skeleton, avatar.floor_height, str(args.file))
+    sheet = pose_sheet(
+        report,
+        args.sheet,
+        avatar=avatar,
+        retarget=config,
+        frames=args.sheet_frames,
+        source=str(args.file),
+    )
+    if sheet.pose_error is None:
         print("pose check: passes (standing, feet on the floor, no joint too fast)")
-    except LoosefitInputError as exc:
-        print(f"pose check: fails: {exc.found}")
-        refusal = exc if config.check_pose else None
-    sheet = sheet_inputs(clip, motion, loose, args.sheet_frames)
-    body = avatar.pose_motion(sheet.motion).vertices.cpu().numpy()
-    faces = avatar.faces.cpu().numpy()
-    image = skeleton_sheet(sheet.points, sheet.bones, body, faces, sheet.frames)
-    out = Path(args.sheet)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(image).save(out)
-    log(f"wrote {out}: the capture's skeleton (left) beside the avatar, frames {sheet.frames}")
-    if refusal is not None:
-        raise refusal
+    else:
+        print(f"pose check: fails: {sheet.pose_error.found}")
+    where = "the capture's skeleton (left) beside the avatar"
+    log(f"wrote {sheet.path}: {where}, frames {sheet.frames}")
+    if sheet.pose_error is not None and not args.no_pose_check:
+        raise sheet.pose_error

@@ -45,40 +45,31 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from loosefit.data.format import read_any_sequence
-    from loosefit.fitting.place import carry_rigidly
-    from loosefit.motion.motions import load_motion
+    from loosefit.api import motion_for
+    from loosefit.api.render import carry_garment, read_stored_clip
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     body = None
     if args.sequence or args.dataset:
-        if args.sequence:
-            seq = read_any_sequence(args.sequence)
-            title = f"{Path(args.sequence).stem} ({seq.source})"
-        else:
-            from loosefit.data.format import DatasetReader
-
-            reader = DatasetReader(args.dataset, allow_incomplete=True)
-            name = args.clip or reader.split("all")[0]
-            seq = reader.read(name)
-            title = f"{Path(args.dataset).name}/{name} ({seq.source})"
+        stored = read_stored_clip(sequence=args.sequence, dataset=args.dataset, clip=args.clip)
+        seq = stored.sequence
+        title = f"{stored.label} ({seq.source})"
         avatar, motion, garment = stored_clip(
             args, seq.avatar.get("shape", {}), seq.motion, seq.garment_vertices
         )
         template = seq.garment
     elif args.motion:
         avatar = build_avatar(args)
-        motion = load_motion(
-            args.motion, avatar, fps=args.fps, seed=args.seed, retarget=retarget_config(args)
+        motion = motion_for(
+            args.motion, avatar, args.fps, seed=args.seed, retarget=retarget_config(args)
         )
         start, stop = frame_range(args, motion.num_frames)
         motion = motion.slice(start, stop)
         template = garment_template(args.garment, avatar)
         garment = None
         if template is not None:
-            body = avatar.pose_motion(motion)
-            garment = carry_rigidly(template, body, avatar).cpu().numpy()
+            body, garment = carry_garment(template, motion, avatar=avatar)
         title = motion.name
     else:
         raise LoosefitInputError(
