@@ -30,14 +30,6 @@ REMAINING: dict[str, set[str]] = {
         "loosefit.render.clip",
         "loosefit.render.renderer",
     },
-    # demo --physics / --no-physics (the learned demo goes through loosefit.load)
-    "demo.py": {
-        "loosefit.export",
-        "loosefit.fitting.place",
-        "loosefit.sequence",
-        "loosefit.sim.cloth_config",
-        "loosefit.sim.driver",
-    },
     "diagnose.py": {
         "loosefit.body.regions",
         "loosefit.data.format",
@@ -64,13 +56,6 @@ REMAINING: dict[str, set[str]] = {
         "loosefit.inference.engine.model",
         "loosefit.inference.onnx.export",
     },
-    "garment.py": {
-        "loosefit.fitting.drape",
-        "loosefit.fitting.place",
-        "loosefit.garment.obj",
-        "loosefit.render.clip",
-        "loosefit.render.renderer",
-    },
     "generative.py": {
         "loosefit.data.format",
         "loosefit.eval.metrics",
@@ -89,16 +74,6 @@ REMAINING: dict[str, set[str]] = {
         "loosefit.render.skeleton_sheet",
     },
     "render.py": {"loosefit.data.format", "loosefit.fitting.place", "loosefit.motion.motions"},
-    "simulate.py": {
-        "loosefit.garment.dress",
-        "loosefit.garment.importer",
-        "loosefit.garment.skirt",
-        "loosefit.sim.cluster",
-        "loosefit.sim.dataset_config",
-        "loosefit.sim.generate",
-        "loosefit.sim.presets",
-        "loosefit.sim.report",
-    },
     # the colourings' names as the parser's choices, read without importing the API
     "view.py": {"loosefit.view.config"},
 }
