@@ -192,7 +192,7 @@ def carry_rigidly(template, body, avatar, *, joint: str = "Hips"):
         joint: the joint the garment follows.
 
     Returns:
-        (T, V, 3) float32 numpy garment vertices, world frame.
+        (T, V, 3) numpy garment vertices (of the body's float type), world frame.
     """
     from loosefit.fitting.place import carry_rigidly as carry
 
