@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.fit:
         preview = out / f"{name}.preview.png"
-        if _fit_preview(preview, template, placed.fit, avatar):
+        if _fit_preview(preview, template, fit, avatar):
             log(f"wrote {preview}: the fitted garment on the avatar, front and side (check it)")
     return 0
 
