@@ -16,14 +16,6 @@ ALLOWED = ("loosefit.api", "loosefit.errors", "loosefit.cli")  # and their modul
 # The commands not yet on the API, and the modules they still import (to be moved onto
 # public functions of loosefit.api: rendering, data sets, simulation, inspection, viewing).
 REMAINING: dict[str, set[str]] = {
-    # demo --physics / --no-physics (the learned demo goes through loosefit.load)
-    "demo.py": {
-        "loosefit.export",
-        "loosefit.fitting.place",
-        "loosefit.sequence",
-        "loosefit.sim.cloth_config",
-        "loosefit.sim.driver",
-    },
     "diagnose.py": {
         "loosefit.body.regions",
         "loosefit.data.format",
@@ -49,23 +41,6 @@ REMAINING: dict[str, set[str]] = {
         "loosefit.inference.engine.export",
         "loosefit.inference.engine.model",
         "loosefit.inference.onnx.export",
-    },
-    "garment.py": {
-        "loosefit.fitting.drape",
-        "loosefit.fitting.place",
-        "loosefit.garment.obj",
-        "loosefit.render.clip",
-        "loosefit.render.renderer",
-    },
-    "simulate.py": {
-        "loosefit.garment.dress",
-        "loosefit.garment.importer",
-        "loosefit.garment.skirt",
-        "loosefit.sim.cluster",
-        "loosefit.sim.dataset_config",
-        "loosefit.sim.generate",
-        "loosefit.sim.presets",
-        "loosefit.sim.report",
     },
     # the colourings' names as the parser's choices, read without importing the API
     "view.py": {"loosefit.view.config"},

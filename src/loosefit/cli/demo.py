@@ -84,9 +84,8 @@ def run(args: argparse.Namespace) -> int:
     """The main job: the pretrained model animating its skirt on a dance (``--physics``: the
     simulator instead; ``--no-physics``: the skirt carried rigidly)."""
     from loosefit.api import motion_for, tqdm_bar
+    from loosefit.api.garment import carry_rigidly, dressed_sequence
     from loosefit.cli.common import open_model
-    from loosefit.fitting.place import carry_rigidly
-    from loosefit.sequence import GarmentSequence
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -146,27 +145,21 @@ def run(args: argparse.Namespace) -> int:
         line = stage_line(animator.model, animator.model.stages, seq.rollout)
         log(throughput(motion, seq.rollout) + "; " + line)
     elif args.no_physics:
-        garment = carry_rigidly(template, body, avatar).cpu().numpy()
+        garment = carry_rigidly(template, body, avatar)
         source = "rigid"
     else:
         garment, source = _simulate(args, avatar, template, motion), "newton-vbd"
-    seq = GarmentSequence(
-        motion, template, garment, {"rig": avatar.config.rig, "shape": avatar.shape}, source
-    )
+    seq = dressed_sequence(motion, template, garment, avatar, source)
     seq.save(out / "sequence.npz")
     log(f"wrote {out / 'sequence.npz'} ({source})")
     if learned:  # the body posed above, once for both files
-        from loosefit.export import body_skin, export_animation, garment_and_body
+        from loosefit.api.garment import export_dressed
 
-        meshes = garment_and_body(
-            template,
-            garment,
-            body.vertices.cpu().numpy(),
-            avatar.faces.cpu().numpy(),
-            body_skin(avatar, body),
-        )
-        for suffix in (".usdc", ".pc2"):
-            log_exported(export_animation(out / f"demo{suffix}", meshes, motion.fps))
+        paths = [out / f"demo{suffix}" for suffix in (".usdc", ".pc2")]
+        for files in export_dressed(
+            paths, template, garment, avatar=avatar, body=body, fps=motion.fps
+        ):
+            log_exported(files)
     title = f"loosefit demo: {motion.name}" + (" (learned)" if learned else f" ({source})")
     render(args, avatar, motion, template, garment, out, title=title, body=body)
     if args.view:
@@ -177,15 +170,12 @@ def run(args: argparse.Namespace) -> int:
 def _simulate(args: argparse.Namespace, avatar, template, motion):
     """``demo --physics``: the skirt simulated with Newton's VBD solver, (T, V, 3)."""
     from loosefit.api import tqdm_bar
-    from loosefit.fitting.place import collider_arms
-    from loosefit.sim.cloth_config import ClothConfig
-    from loosefit.sim.driver import simulate
+    from loosefit.api.simulation import simulate_garment
 
-    config = ClothConfig(
-        device=args.sim_device, seed=args.seed, arm_collision=collider_arms(template)
-    )
     bar = tqdm_bar("simulate", unit="frame")
-    result = simulate(avatar, template, motion, config, progress=bar.progress)
+    result = simulate_garment(
+        avatar, template, motion, device=args.sim_device, seed=args.seed, progress=bar.progress
+    )
     bar.close()
     q = result.quality
     log(

@@ -49,7 +49,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from loosefit.garment.obj import write_obj
+    from loosefit.api.garment import save_garment
 
     is_file = Path(args.source).suffix.lower() in (".obj", ".gltf", ".glb")
     if args.fit and not is_file:
@@ -59,28 +59,16 @@ def run(args: argparse.Namespace) -> int:
             "a garment file (.obj, .gltf, .glb) made for another body",
             repr(args.source),
         )
-    if args.fit:
-        template, report, fit, avatar = _fit_file(args)
-    elif is_file:
-        from loosefit.fitting.place import import_garment
-
-        avatar = build_avatar(args)
-        template, report = import_garment(
-            args.source,
-            avatar,
-            args.units,
-            args.up,
-            args.kind,
-            offset(args.offset),
-            attach=args.attach,
-        )
+    if is_file:
+        placed = _from_file(args)
+        template, avatar = placed.template, placed.avatar
+        _log_import(placed.report)
     else:
         template = garment_template(args.source, build_avatar(args), args.resolution, args.length)
         if template is None:
             raise LoosefitInputError("loosefit garment", "source", "a style or a file", "'none'")
-    if is_file:
-        _log_import(report)
     if args.fit:
+        fit = placed.fit
         for line in fit.format().splitlines():
             log(f"fitted: {line}")
         shape = ",".join(f"{k}={v:g}" for k, v in avatar.shape.items())
@@ -91,12 +79,8 @@ def run(args: argparse.Namespace) -> int:
         )
         log(f"fitted to the avatar {shape}" + tried)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     name = Path(args.source).stem
-    write_obj(
-        out / f"{name}.obj", template.vertices, template.faces, template.uvs, template.face_uvs
-    )
-    template.save(out / f"{name}.npz")
+    save_garment(template, out, name)
     log(
         f"wrote {out / (name + '.obj')} and {out / (name + '.npz')}: {template.num_vertices} "
         f"vertices, {len(template.faces)} faces, {len(template.waist)} attached vertices "
@@ -130,59 +114,52 @@ def _log_import(report: dict) -> None:
     )
 
 
-def _fit_file(args: argparse.Namespace):
-    """``garment FILE --fit``: the file fitted to the avatar (or, ``--shape auto``, to the
-    anny body it fits best); the template, the import's report, the fit's, the avatar."""
-    from loosefit.api import StageBars
-    from loosefit.fitting.drape import STAGE_UNITS, FitConfig, fit_garment
+def _from_file(args: argparse.Namespace):
+    """``garment FILE``: the file placed on the avatar of ``--shape``, or (``--fit``) fitted
+    to it (``--shape auto``: to the anny body it fits best), as
+    :func:`loosefit.api.garment.garment_from_file` returns it."""
+    from loosefit.api.garment import fit_config, garment_from_file
 
+    if not args.fit:
+        avatar = build_avatar(args)
+        return garment_from_file(
+            args.source,
+            avatar,
+            units=args.units,
+            up=args.up,
+            kind=args.kind,
+            offset=offset(args.offset),
+            attach=args.attach,
+        )
     auto = args.shape.strip() == "auto"
     if auto:
         log(
             "--shape auto: searching anny's weight, height and proportions for the body the "
             "garment fits best"
         )
-    bars = StageBars("fit", STAGE_UNITS)
-    try:
-        fitted = fit_garment(
-            args.source,
-            "auto" if auto else None,
-            FitConfig(settle_seconds=args.settle),
-            args.units,
-            args.up,
-            args.kind,
-            offset=offset(args.offset),
-            attach=args.attach,
-            avatar=None if auto else build_avatar(args),
-            progress=bars.progress,
-        )
-    finally:
-        bars.close()
-    template = fitted.template
-    return template, template.meta["import"], fitted.report, fitted.avatar
+    config, shift = fit_config(settle_seconds=args.settle), offset(args.offset)
+    return garment_from_file(
+        args.source,
+        None if auto else build_avatar(args),
+        fit=config,
+        shape="auto" if auto else None,
+        units=args.units,
+        up=args.up,
+        kind=args.kind,
+        offset=shift,
+        attach=args.attach,
+        bars=True,
+    )
 
 
 def _fit_preview(path: Path, template, fit, avatar, size: int = 480) -> bool:
-    """A front and side picture of a fitted garment on the avatar's rest pose, standing on
-    the floor, written to ``path``; False (and why, logged) where nothing can render."""
-    import numpy as np
+    """A front and side picture of a fitted garment on the avatar's rest pose
+    (:func:`loosefit.api.garment.fit_preview`) written to ``path``; False (and why, logged)
+    where nothing can render."""
+    from loosefit.api.garment import fit_preview
 
-    from loosefit.render.clip import render_still
-    from loosefit.render.renderer import RenderConfig, RenderMesh
-
-    up = np.array([0.0, 0.0, avatar.floor_height], np.float32)  # the rest pose's feet on z = 0
-    body = avatar.rest_vertices.float().cpu().numpy() + up
-    scene = [
-        RenderMesh(avatar.faces.cpu().numpy(), body, "body", name="body"),
-        RenderMesh(template.faces, template.vertices + up, "garment", name=template.name),
-    ]
-    title = (
-        f"{template.name} fitted: {fit.inside_after} of {template.num_vertices} vertices "
-        f"inside the body, moved by at most {100 * fit.moved_max:.1f} cm"
-    )
-    config = RenderConfig(width=size, height=size, views=("front", "side"), frame_counter=False)
     try:
-        render_still(scene, path, config, title)
+        fit_preview(path, template, fit, avatar, size=size)
     except RuntimeError as exc:  # no OpenGL here: the garment is written all the same
         log(f"no preview picture: {exc}")
         return False

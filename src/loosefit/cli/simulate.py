@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from loosefit.cli.common import add_import_args, log, offset, parse_shape
 
@@ -140,93 +139,50 @@ def _add_clip_args(p) -> None:
 
 
 def dataset_config(args: argparse.Namespace):
-    """The data set ``simulate`` makes: ``--config FILE`` or ``--preset``, then
-    ``--garment``, ``--motions``, ``--test``, ``--seeds``, ``--device``, ``--shape``,
-    ``--max-frames``, ``--keep-poses`` over it."""
-    from loosefit.sim.dataset_config import MotionSource, read_config_file
-    from loosefit.sim.presets import preset
+    """The data set ``simulate`` makes (:func:`loosefit.api.simulation.dataset_config`):
+    ``--config FILE`` or ``--preset``, then ``--garment``, ``--motions``, ``--test``,
+    ``--seeds``, ``--device``, ``--shape``, ``--max-frames``, ``--keep-poses`` over it."""
+    from loosefit.api.simulation import dataset_config as config_of
+    from loosefit.api.simulation import parametric_garments
 
-    config = read_config_file(args.config) if args.config else preset(args.preset, args.bvh)
-    if args.garment:
-        _set_garment(config, args)
-    if args.motions:
-        folder = Path(args.motions)
-        test = tuple(args.test or ())
-        if folder.is_dir():
-            config.motions = MotionSource(kind="bvh", folder=str(folder.resolve()), test=test)
-        else:
-            specs = tuple(t for t in args.motions.split(",") if t)
-            config.motions = MotionSource(kind="specs", specs=specs, test=test)
-        config.preset = "custom"
-    elif args.test:
-        config.motions.test = tuple(args.test)
-    if getattr(args, "seeds", None) is not None:
-        config.seeds = parse_seeds(args.seeds)
-    if args.device:
-        config.cloth.device = args.device
-    if getattr(args, "shape", ""):  # the avatar's body: the manifest carries it on to training
-        config.shape = parse_shape(args.shape)
-        config.preset = "custom"
-    if args.max_frames is not None:
-        config.motions.max_frames = args.max_frames
-    if getattr(args, "keep_poses", False):
-        config.unfold.enabled = False
-    return config
+    seeds = getattr(args, "seeds", None)
+    shape = getattr(args, "shape", "")
+    is_file = args.garment and args.garment not in parametric_garments()
+    return config_of(
+        preset=args.preset,
+        config_file=args.config,
+        bvh=args.bvh,
+        garment=args.garment,
+        resolution=args.resolution,
+        units=args.units,
+        up=args.up,
+        kind=args.kind,
+        offset=offset(args.offset) if is_file else (0.0, 0.0, 0.0),
+        attach=args.attach,
+        motions=args.motions,
+        test=args.test,
+        seeds=parse_seeds(seeds) if seeds is not None else None,
+        device=args.device,
+        shape=parse_shape(shape) if shape else None,  # the manifest carries it on to training
+        max_frames=args.max_frames,
+        keep_poses=getattr(args, "keep_poses", False),
+    )
 
 
 def parse_seeds(text: str) -> list[int]:
-    """``--seeds 0,1,2`` as ``[0, 1, 2]``, checked as ``DatasetConfig.seeds`` is
-    (``check_seeds``): distinct integers >= 0, at least one."""
-    from loosefit.errors import LoosefitInputError
-    from loosefit.sim.dataset_config import check_seeds
+    """``--seeds 0,1,2`` as ``[0, 1, 2]``: distinct integers >= 0, at least one
+    (:func:`loosefit.api.simulation.parse_seeds`)."""
+    from loosefit.api.simulation import parse_seeds as parse
 
-    seeds = []
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        try:
-            seeds.append(int(item))
-        except ValueError:
-            raise LoosefitInputError(
-                "--seeds",
-                "seeds",
-                "comma-separated integers >= 0, e.g. 0,1,2",
-                f"{item!r} in {text!r}",
-            ) from None
-    return check_seeds(seeds, "--seeds")
-
-
-def _set_garment(config, args: argparse.Namespace) -> None:
-    """``--garment``: a skirt style, a dress, or a garment file, in place of the preset's."""
-    from loosefit.garment.dress import DRESS_SPECS, DressConfig
-    from loosefit.garment.skirt import STYLES, SkirtConfig
-    from loosefit.sim.dataset_config import GarmentFile
-
-    g = args.garment
-    if g in STYLES:
-        config.garment = SkirtConfig.preset(args.resolution, g)
-    elif g in DRESS_SPECS:
-        config.garment = DressConfig.preset(args.resolution, DRESS_SPECS[g])
-    else:
-        config.garment = GarmentFile(
-            str(Path(g).resolve()), args.units, args.up, args.kind, offset(args.offset), args.attach
-        )
-    config.preset = "custom"
-    kind = "dress" if g in DRESS_SPECS else "skirt" if g in STYLES else args.kind
-    if kind is None:  # a file: a dress if it has straps (as the import will guess)
-        from loosefit.garment.importer import detect_kind, read_garment_mesh
-
-        kind = detect_kind(read_garment_mesh(g).faces)
-    if kind == "dress" and config.cloth.arm_collision is False:
-        config.cloth.arm_collision = "upper"  # a dress's bodice reaches the upper arms
+    return parse(text, source="--seeds")
 
 
 def run(args: argparse.Namespace) -> int:
-    from loosefit.sim.dataset_config import write_config_file
-    from loosefit.sim.generate import generate
-    from loosefit.sim.report import format_report
+    from loosefit.api.simulation import simulate_dataset, simulation_report, write_dataset_config
 
     config = dataset_config(args)
     if args.write_config:
-        write_config_file(config, args.write_config)
+        write_dataset_config(config, args.write_config)
         log(
             f"wrote {args.write_config}: `loosefit simulate --config {args.write_config}` "
             "makes this data set"
@@ -234,22 +190,17 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.out is None:
         args.out = f"datasets/{config.preset}"
-    cluster = None
-    if args.ray is not None:  # --ray [ADDRESS]: every clip a task on a Ray cluster
-        from loosefit.sim.cluster import ClusterConfig
-
-        cluster = ClusterConfig(address=args.ray or None)
-    manifest = generate(
+    manifest = simulate_dataset(
         config,
         args.out,
         workers=args.workers,
         progress=True,
         reuse=args.reuse,
         batch=args.batch,
-        resume_every=args.save_every,
-        cluster=cluster,
+        save_every=args.save_every,
+        cluster=False if args.ray is None else (args.ray or True),  # --ray [ADDRESS]
         prepare_workers=args.prepare_workers,
     )
-    print(format_report(manifest))
+    print(simulation_report(manifest))
     log(f"dataset in {args.out}")
     return 0
