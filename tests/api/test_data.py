@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from loosefit.api.data import pack_dataset, unpack_dataset, viewer_config
+from loosefit.api.data import pack_dataset, unpack_dataset, viewer_colourings, viewer_config
 from loosefit.errors import LoosefitInputError
 
 
@@ -30,3 +30,12 @@ def test_the_viewer_s_settings_are_checked_before_anything_is_posed():
         viewer_config(1, colouring="error")  # nothing to measure the distance to
     with pytest.raises(LoosefitInputError, match="layout"):
         viewer_config(2, layout="stacked")
+
+
+def test_the_viewer_s_colourings_are_its_config_s_and_a_copy():
+    from loosefit.view.config import COLOURINGS
+
+    names = viewer_colourings()
+    assert names == COLOURINGS and "error" in names
+    names["mine"] = "mine"  # the caller's own copy
+    assert "mine" not in viewer_colourings()

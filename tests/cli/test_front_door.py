@@ -42,8 +42,6 @@ REMAINING: dict[str, set[str]] = {
         "loosefit.inference.engine.model",
         "loosefit.inference.onnx.export",
     },
-    # the colourings' names as the parser's choices, read without importing the API
-    "view.py": {"loosefit.view.config"},
 }
 
 

@@ -11,6 +11,15 @@ from pathlib import Path
 Progress = Callable[[int, int], None]  # progress(done, total)
 
 
+def viewer_colourings() -> dict[str, str]:
+    """The viewer's colourings: each one's name on the command line and in
+    :func:`loosefit.show`'s ``colouring``, and its name in the viewer's panel (light: viser is
+    imported only when a viewer starts)."""
+    from loosefit.view.config import COLOURINGS
+
+    return dict(COLOURINGS)
+
+
 def pack_dataset(
     source: str | Path,
     out: str | Path,

@@ -41,7 +41,7 @@ def add_parser(sub) -> None:
 
 def add_view_args(p: argparse.ArgumentParser) -> None:
     """How the viewer serves and starts (read by ``serve``)."""
-    from loosefit.view.config import COLOURINGS  # light: viser is imported on start
+    from loosefit.api.data import viewer_colourings
 
     p.add_argument(
         "--port",
@@ -55,7 +55,7 @@ def add_view_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--colour",
         default="plain",
-        choices=tuple(COLOURINGS),
+        choices=tuple(viewer_colourings()),
         help="colour the garment by: its distance to the reference (error), edge "
         "strain, or depth inside the body (changeable in the panel)",
     )
