@@ -38,32 +38,6 @@ REMAINING: dict[str, set[str]] = {
         "loosefit.sim.cloth_config",
         "loosefit.sim.driver",
     },
-    "diagnose.py": {
-        "loosefit.body.regions",
-        "loosefit.data.format",
-        "loosefit.eval.penetration",
-        "loosefit.fitting.place",
-        "loosefit.garment.quality",
-        "loosefit.inference.model_common",
-        "loosefit.render.closeup",
-        "loosefit.render.renderer",
-    },
-    # the model comes from loosefit.load; the scoring and its report not yet
-    "evaluate.py": {
-        "loosefit.data.format",
-        "loosefit.eval.ensemble",
-        "loosefit.eval.ensemble_members",
-        "loosefit.eval.report",
-        "loosefit.eval.rollouts",
-    },
-    # the model comes from loosefit.load; the ONNX and engine exports not yet
-    "export.py": {
-        "loosefit.data.format",
-        "loosefit.inference.checkpoints",
-        "loosefit.inference.engine.export",
-        "loosefit.inference.engine.model",
-        "loosefit.inference.onnx.export",
-    },
     "garment.py": {
         "loosefit.fitting.drape",
         "loosefit.fitting.place",
