@@ -1,6 +1,6 @@
 """``loosefit diagnose``: where and why a clip's cloth goes deeper into the body than the
 tolerance: a table of events, diagnosis.json and renders of the worst frames
-(loosefit.eval.penetration)."""
+(loosefit.api.evaluate)."""
 
 from __future__ import annotations
 
