@@ -7,7 +7,8 @@ when called.
 
 ::
 
-    from loosefit.api.evaluate import evaluate, open_clip, diagnose_clip
+    import loosefit
+    from loosefit.api.evaluate import diagnose_clip, evaluate, open_clip
 
     figures = evaluate(loosefit.load("run/model.pt"), "datasets/dance", out="out/evaluate")
     found = diagnose_clip(open_clip("datasets/dance", "05_02"))
@@ -20,8 +21,16 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from loosefit.errors import LoosefitInputError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from loosefit.body.regions import BodyParts
+    from loosefit.eval.penetration import Diagnosis
+    from loosefit.sequence import GarmentSequence
 
 Progress = Callable[[int, int], None]  # progress(done, total)
 Log = Callable[[str], None]  # a line of progress for a person
@@ -259,7 +268,7 @@ class Clip:
         arms: the collider's arms: False, "upper" or True.
     """
 
-    sequence: object
+    sequence: GarmentSequence
     name: str
     source: Path
     arms: bool | str
@@ -333,10 +342,10 @@ class ClipDiagnosis:
     """
 
     clip: Clip
-    diagnosis: object
-    body: object
-    body_faces: object
-    parts: object
+    diagnosis: Diagnosis
+    body: np.ndarray
+    body_faces: np.ndarray
+    parts: BodyParts
     tolerance: float
 
     def summary(self) -> str:
