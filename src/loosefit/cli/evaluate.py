@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from loosefit.cli.common import (
     add_generative_arg,
@@ -49,66 +48,31 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from loosefit.api.evaluate import open_evaluation
     from loosefit.cli.common import open_model
-    from loosefit.data.format import DatasetReader, read_any_sequence
-    from loosefit.eval.ensemble import evaluate_ensemble
-    from loosefit.eval.ensemble_members import gather_ensembles
-    from loosefit.eval.report import write_rollout_report
-    from loosefit.eval.rollouts import evaluate_rollouts
 
     threads_of(args)  # a bad count before the work
-    model = open_model(args.checkpoint, args.generative, args.detail).model
-    if len(args.data) == 1 and Path(args.data[0]).is_dir():
-        reader = DatasetReader(args.data[0])
-        where = str(Path(args.data[0]).resolve())
-    else:  # sequences: the ground truth of each motion
-        reader = {Path(f).stem: read_any_sequence(f) for f in args.data}
-        where = [str(Path(f).resolve()) for f in args.data]
-    gathered = None  # each clip's members, checked before any rollout
-    if args.members and not isinstance(reader, DatasetReader):
-        raise LoosefitInputError(
-            "--members", "--data", "a data set folder to gather members with", "sequence files"
-        )
-    if isinstance(reader, DatasetReader) and (args.members or has_members(reader, args.split)):
-        gathered = gather_ensembles([args.data[0], *args.members], args.split)
+    model = open_model(args.checkpoint, args.generative, args.detail)
+    evaluation = open_evaluation(model, args.data, split=args.split, members=args.members)
     try:
         horizons = tuple(int(h) for h in args.horizons.split(","))
     except ValueError:
         raise LoosefitInputError(
             "--horizons", "horizons", "comma-separated frame counts", repr(args.horizons)
         ) from None
-    with inference_threads(args):
-        result = evaluate_rollouts(
-            model,
-            reader,
-            args.split,
+    with inference_threads(args) as n:
+        result = evaluation.rollouts(
             horizons=horizons,
             surface=not args.rmse_only,
             max_frames=args.max_frames,
             stages=stages(args),
+            threads=n,
         )
-    result["checkpoint"] = str(Path(args.checkpoint).resolve())
-    result["dataset"] = where
-    if gathered is not None:
-        with inference_threads(args):
-            result["ensemble"] = evaluate_ensemble(
-                {Path(args.checkpoint).parent.name: model},
-                [args.data[0], *args.members],
-                args.split,
-                surface=not args.rmse_only,
-                stages=stages(args),
-                progress=log,
-                ensembles=gathered,
+    if evaluation.members is not None:
+        with inference_threads(args) as n:
+            result["ensemble"] = evaluation.ensemble(
+                surface=not args.rmse_only, stages=stages(args), threads=n, progress=log
             )
-    write_rollout_report(result, args.out, f"Rollouts of {Path(args.checkpoint).parent.name}")
-    print(Path(args.out, "evaluation.md").read_text())
+    print(evaluation.write_report(result, args.out).read_text())
     log(f"wrote {args.out}/evaluation.{{md,csv,json}} and rmse_per_frame.png")
     return 0
-
-
-def has_members(reader, split: str) -> bool:
-    """Whether a data set holds a clip of ``split`` simulated from more than one seed."""
-    from loosefit.eval.ensemble_members import member_clip
-
-    names = reader.split(split)
-    return any(member_clip(n)[1] is not None for n in names)

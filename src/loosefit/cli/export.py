@@ -13,7 +13,6 @@ from loosefit.cli.common import (
     log,
     log_exported,
 )
-from loosefit.errors import LoosefitInputError
 
 
 def add_export_parser(sub) -> None:
@@ -72,97 +71,61 @@ def add_export_model_parser(sub) -> None:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from loosefit.data.format import read_any_sequence
+    from loosefit.api.export import export_sequence
 
-    path = Path(args.sequence)
-    if path.suffix != ".npz":
-        raise LoosefitInputError(
-            path,
-            "<file>",
-            "a sequence .npz (from animate, the API, demo or a data set's sequences/)",
-            "another file",
-        )
-    seq = read_any_sequence(path)
-    log_exported(seq.export(args.out, body=not args.no_body, config=export_config(args)))
+    files = export_sequence(
+        args.sequence, args.out, body=not args.no_body, config=export_config(args)
+    )
+    log_exported(files)
     return 0
 
 
 def run_export_model(args: argparse.Namespace) -> int:
-    import json
-
     from loosefit.api import pretrained_checkpoint
+    from loosefit.api.export import OnnxExportConfig, export_onnx
     from loosefit.cli.common import open_model
-    from loosefit.inference.onnx.export import OnnxExportConfig, export_onnx
 
     checkpoint = Path(args.checkpoint) if args.checkpoint else pretrained_checkpoint()
     if args.tier == "engine":
         return _export_engine(checkpoint, args)
-    model = open_model(checkpoint, args.generative, args.detail).model
+    model = open_model(checkpoint, args.generative, args.detail)
     config = OnnxExportConfig(opset=args.opset, detail=not args.no_detail, check=not args.no_check)
     log(f"exporting {checkpoint} to ONNX (opset {config.opset})")
-    onnx_path, json_path, obj_path = export_onnx(model, args.out, config)
+    done = export_onnx(model, args.out, config=config)
     log(
-        f"wrote {onnx_path} ({onnx_path.stat().st_size / 1e6:.1f} MB), {json_path} and "
-        f"{obj_path} (the garment's mesh)"
+        f"wrote {done.onnx} ({done.onnx.stat().st_size / 1e6:.1f} MB), {done.json} and "
+        f"{done.obj} (the garment's mesh)"
     )
-    check = json.loads(json_path.read_text()).get("check")  # what the export recorded
+    check = done.check  # what the export recorded
     if check is None:
         log("not checked against PyTorch (--no-check)")
     else:
         log(
             f"checked: onnxruntime {check['onnxruntime']} equals PyTorch within "
             f"{check['max_difference_m']:.2g} m over {check['frames']} frames (the rest pose, "
-            f"then a bent one; {config.tolerance:g} m allowed)"
+            f"then a bent one; {done.tolerance:g} m allowed)"
         )
     return 0
 
 
-def engine_checkpoint(checkpoint: Path) -> Path:
-    """The engine tier of a checkpoint: itself if it is one, else ``engine.pt`` beside it.
-
-    Raises:
-        LoosefitInputError: neither, saying how to train one.
-    """
-    from loosefit.inference.checkpoints import checkpoint_format
-    from loosefit.inference.engine.model import ENGINE_FORMAT, engine_path_of
-
-    if checkpoint.is_file() and checkpoint_format(checkpoint) == ENGINE_FORMAT:
-        return checkpoint
-    beside = engine_path_of(checkpoint)
-    if beside.is_file():
-        return beside
-    raise LoosefitInputError(
-        checkpoint,
-        "tier",
-        f"an engine tier: an engine-tier checkpoint, or {beside.name} beside it",
-        f"no {beside}",
-        hint=f"train one: loosefit train engine --data DATASET --motion {checkpoint} "
-        f"--out RUN, then pass --checkpoint RUN/engine.pt (or copy it to {beside})",
-    )
-
-
 def _export_engine(checkpoint: Path, args: argparse.Namespace) -> int:
-    import json
-
-    from loosefit.inference.engine.export import EngineExportConfig, export_engine
-    from loosefit.inference.engine.model import load_engine
+    from loosefit.api.export import EngineExportConfig, engine_checkpoint, export_engine
 
     path = engine_checkpoint(checkpoint)
     config = EngineExportConfig(opset=args.opset, check_frames=0 if args.no_check else 300)
     log(f"exporting the engine tier {path} to ONNX (opset {config.opset})")
-    onnx_path, json_path, obj_path = export_engine(load_engine(path), args.out, config)
-    meta = json.loads(json_path.read_text())
+    done = export_engine(path, args.out, config=config)
     log(
-        f"wrote {onnx_path} ({onnx_path.stat().st_size / 1e6:.1f} MB), {json_path} (with "
-        f"{len(meta['capsules'])} capsules) and {obj_path} (the garment's mesh)"
+        f"wrote {done.onnx} ({done.onnx.stat().st_size / 1e6:.1f} MB), {done.json} (with "
+        f"{len(done.metadata['capsules'])} capsules) and {done.obj} (the garment's mesh)"
     )
-    check = meta.get("check")
+    check = done.check
     if check is None:
         log("not checked against PyTorch (--no-check)")
     else:
         log(
             f"checked: onnxruntime {check['onnxruntime']}'s reference loop equals PyTorch "
             f"within {check['max_difference_m']:.2g} m over {check['frames']} frames of "
-            f"{check['motion']} ({config.tolerance:g} m allowed)"
+            f"{check['motion']} ({done.tolerance:g} m allowed)"
         )
     return 0

@@ -109,7 +109,7 @@ def test_the_reference_loop_imports_no_torch():
 
 
 def test_export_of_a_model_without_an_engine_tier_says_how(tmp_path):
-    from loosefit.cli.export import engine_checkpoint
+    from loosefit.api.export import engine_checkpoint
 
     motion = tmp_path / "motion.pt"
     motion.write_bytes(b"")
