@@ -38,6 +38,9 @@ def pytest_configure(config):
 
     if importlib.util.find_spec("anny") is None:
         return
+    import warp
+
+    warp.config.quiet = True  # the workers' own start-up says what warp found
     from loosefit.body.avatar import Avatar
 
     Avatar()
