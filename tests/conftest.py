@@ -40,7 +40,7 @@ def pytest_configure(config):
         return
     import warp
 
-    warp.config.quiet = True  # the workers' own start-up says what warp found
+    warp.config.log_level = warp.LOG_WARNING  # the workers' own start-up says what warp found
     from loosefit.body.avatar import Avatar
 
     Avatar()
