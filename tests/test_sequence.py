@@ -44,3 +44,25 @@ def test_foreign_file_is_rejected(tmp_path):
         GarmentSequence.load(tmp_path / "other.npz")
     with pytest.raises(LoosefitInputError, match="no such file"):
         GarmentSequence.load(tmp_path / "missing.npz")
+
+
+def test_a_kept_body_is_the_one_the_sequence_would_pose(dressed, avatar, monkeypatch):
+    import loosefit.body.avatar
+
+    posed = GarmentSequence(
+        dressed.motion, dressed.garment, dressed.garment_vertices, dressed.avatar
+    )
+    expected = posed.body_vertices  # posed by the sequence itself, on a new avatar
+    kept = GarmentSequence(
+        dressed.motion, dressed.garment, dressed.garment_vertices, dressed.avatar
+    )
+    kept.keep_body(avatar, avatar.pose_motion(dressed.motion))
+
+    def no_new_avatar(*_args, **_kwargs):
+        raise AssertionError("the avatar was built again")
+
+    monkeypatch.setattr(loosefit.body.avatar, "Avatar", no_new_avatar)
+    np.testing.assert_array_equal(kept.body_vertices, expected)
+    np.testing.assert_array_equal(kept.body_faces, posed.body_faces)
+    assert kept.body_skin.joint_names == posed.body_skin.joint_names
+    np.testing.assert_array_equal(kept.body_skin.joint_poses, posed.body_skin.joint_poses)

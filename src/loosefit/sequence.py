@@ -103,10 +103,17 @@ class GarmentSequence:
 
     def _pose_body(self) -> None:
         from loosefit.body.avatar import Avatar
-        from loosefit.export import body_skin
 
         avatar = Avatar(self.avatar_config())
-        body = avatar.pose_motion(self.motion)
+        self.keep_body(avatar, avatar.pose_motion(self.motion))
+
+    def keep_body(self, avatar, body) -> None:
+        """Keep a body its caller has already posed (``avatar.pose_motion(self.motion)``, on
+        the avatar this sequence records) as this sequence's body, so that
+        :attr:`body_vertices`, :attr:`body_skin` and :meth:`export` do not build and pose
+        the avatar again."""
+        from loosefit.export import body_skin
+
         self._body = body.vertices.cpu().numpy()
         self._body_faces = avatar.faces.cpu().numpy()
         self._body_skin = body_skin(avatar, body)

@@ -10,7 +10,6 @@ import pytest
 from loosefit.api.garment import (
     carry_rigidly,
     dressed_sequence,
-    export_dressed,
     fit_config,
     fit_preview,
     garment_from_file,
@@ -132,20 +131,28 @@ def test_a_dressed_sequence_records_the_avatar_and_saves(skirt, avatar, motion, 
     assert back.avatar == seq.avatar and back.name == motion.name
 
 
-def test_the_export_is_the_exporter_s_with_the_body_posed_once(skirt, avatar, motion, tmp_path):
+def test_a_dressed_sequence_exports_with_the_body_its_caller_posed(
+    skirt, avatar, motion, tmp_path, monkeypatch
+):
+    import loosefit.body.avatar
     from loosefit.export import body_skin, export_animation, garment_and_body
 
     body = avatar.pose_motion(motion)
     garment = carry_rigidly(skirt, body, avatar)
-    paths = [tmp_path / "ours.pc2", tmp_path / "ours.usda"]
-    written = export_dressed(paths, skirt, garment, avatar=avatar, body=body, fps=30.0)
-    assert [files[0] for files in written] == paths
+    seq = dressed_sequence(motion, skirt, garment, avatar, "rigid", body=body)
+
+    def no_new_avatar(*_args, **_kwargs):
+        raise AssertionError("the avatar was built again")
+
+    monkeypatch.setattr(loosefit.body.avatar, "Avatar", no_new_avatar)
+    written = seq.export(tmp_path / "ours.pc2")
     meshes = garment_and_body(
         skirt, garment, body.vertices.numpy(), avatar.faces.numpy(), body_skin(avatar, body)
     )
     direct = export_animation(tmp_path / "direct.pc2", meshes, 30.0)
-    assert len(direct) == len(written[0])
-    for ours, theirs in zip(written[0], direct, strict=True):
+    assert written[0] == tmp_path / "ours.pc2" and len(direct) == len(written)
+    for ours, theirs in zip(written, direct, strict=True):
         assert ours.read_bytes() == theirs.read_bytes(), ours
+    assert seq.export(tmp_path / "ours.usda")[0].is_file()
     with pytest.raises(LoosefitInputError, match="suffix"):
-        export_dressed([tmp_path / "x.fbx"], skirt, garment, avatar=avatar, body=body, fps=30.0)
+        seq.export(tmp_path / "x.fbx")

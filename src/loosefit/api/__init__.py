@@ -529,10 +529,6 @@ def simulate(
 
         m = unfold_motion(avatar, m, body_parts(avatar, arms=config.colliding_arms)).motion
     result = run(avatar, template, m, config, progress=progress)
-    return AnimatedGarment(
-        m,
-        template,
-        result.garment_vertices,
-        {"rig": avatar.config.rig, "shape": dict(avatar.shape)},
-        "newton-vbd",
-    )
+    from loosefit.api.garment import dressed_sequence
+
+    return dressed_sequence(m, template, result.garment_vertices, avatar, "newton-vbd")

@@ -1,8 +1,8 @@
 """Garments through the API: a garment file placed on the avatar, or fitted to it when it was
 made for another body (pushed out and draped, :mod:`loosefit.fitting.drape`); a garment
 written as OBJ and template, and a picture of a fitted one; a garment carried rigidly by a
-moving body, kept as a sequence and exported with the body. Each imports what it needs when
-called.
+moving body, kept as a sequence (its exports then use the body already posed). Each imports
+what it needs when called.
 
 ::
 
@@ -14,7 +14,6 @@ called.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -199,7 +198,7 @@ def carry_rigidly(template, body, avatar, *, joint: str = "Hips"):
     return carry(template, body, avatar, joint).cpu().numpy()
 
 
-def dressed_sequence(motion, template, garment_vertices, avatar, source: str):
+def dressed_sequence(motion, template, garment_vertices, avatar, source: str, *, body=None):
     """The garment's motion on the avatar as one sequence to save, export, render and view:
     a :class:`~loosefit.api.AnimatedGarment` recording the avatar's rig and shape.
 
@@ -209,48 +208,13 @@ def dressed_sequence(motion, template, garment_vertices, avatar, source: str):
         garment_vertices: (T, V, 3) its world positions.
         avatar: the avatar the motion was posed on.
         source: what made the garment's motion (``"rigid"``, ``"newton-vbd"``, a model).
+        body: the avatar already posed through ``motion`` (``avatar.pose_motion(motion)``),
+            kept for the sequence's exports and body (None: posed again when first asked for).
     """
     from loosefit.api import AnimatedGarment
 
-    record = {"rig": avatar.config.rig, "shape": avatar.shape}
-    return AnimatedGarment(motion, template, garment_vertices, record, source)
-
-
-def export_dressed(
-    paths: Sequence[str | Path],
-    template,
-    garment_vertices,
-    *,
-    avatar,
-    body,
-    fps: float,
-) -> list[list[Path]]:
-    """The garment and the posed body written to each of ``paths`` in the format its suffix
-    names (``.usd``/``.usdc``/``.usda`` and ``.glb`` with the body skinned, ``.abc``,
-    ``.pc2`` + OBJ, a folder of OBJs: :func:`loosefit.export.export_animation`), the body
-    posed once for them all.
-
-    Args:
-        paths: the files.
-        template: the garment (V vertices, its UVs).
-        garment_vertices: (T, V, 3) its world positions.
-        avatar: the avatar.
-        body: its posed body (``avatar.pose_motion(motion)``, T frames).
-        fps: frames per second.
-
-    Returns:
-        The files written, a list per path.
-
-    Raises:
-        LoosefitInputError: a suffix no exporter writes, an unwritable folder.
-    """
-    from loosefit.export import body_skin, export_animation, garment_and_body
-
-    meshes = garment_and_body(
-        template,
-        garment_vertices,
-        body.vertices.cpu().numpy(),
-        avatar.faces.cpu().numpy(),
-        body_skin(avatar, body),
-    )
-    return [export_animation(path, meshes, fps) for path in paths]
+    record = {"rig": avatar.config.rig, "shape": dict(avatar.shape)}
+    sequence = AnimatedGarment(motion, template, garment_vertices, record, source)
+    if body is not None:
+        sequence.keep_body(avatar, body)
+    return sequence

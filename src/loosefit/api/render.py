@@ -1,18 +1,20 @@
 """Rendering through the API: a body and its garment through a motion to an MP4, PNG frames
 and a contact sheet (offscreen, moderngl on EGL); what to draw: a garment placed on the
-avatar and carried rigidly by its hips, or a stored clip (a sequence file, a data set's
-clip).
+avatar (carried rigidly by its hips with :func:`loosefit.api.garment.carry_rigidly`), or a
+stored clip (a sequence file, a data set's clip).
 
 ::
 
     from loosefit.api import motion_for
+    from loosefit.api.garment import carry_rigidly
     from loosefit.api.motion import build_avatar
-    from loosefit.api.render import carry_garment, garment_template, render_clip
+    from loosefit.api.render import garment_template, render_clip
 
     avatar = build_avatar()
     motion = motion_for("spin", avatar, 30.0, frames=60)
     skirt = garment_template("flared", avatar=avatar)
-    body, garment = carry_garment(skirt, motion, avatar=avatar)
+    body = avatar.pose_motion(motion)
+    garment = carry_rigidly(skirt, body, avatar)
     render_clip("out", avatar=avatar, motion=motion, template=skirt, garment=garment,
                 body=body, title="spin")
 
@@ -129,26 +131,6 @@ def garment_template(spec: str, *, avatar, resolution: str = "cpu", length: floa
     from loosefit.fitting.place import garment_for
 
     return garment_for(spec, avatar, resolution, length)
-
-
-def carry_garment(template, motion, *, avatar) -> tuple[object, np.ndarray]:
-    """A garment moved rigidly with the hips through a motion, no cloth dynamics at all
-    (:func:`loosefit.fitting.place.carry_rigidly`): what is drawn of a garment before any
-    simulation or model.
-
-    Args:
-        template: the :class:`~loosefit.types.GarmentTemplate`, on the avatar's rest pose.
-        motion: the :class:`~loosefit.types.Motion` of T frames.
-        avatar: the avatar it plays on.
-
-    Returns:
-        ``(body, garment)``: the posed body (for :func:`render_clip`'s ``body``) and the
-        (T, V, 3) garment's world positions.
-    """
-    from loosefit.fitting.place import carry_rigidly
-
-    body = avatar.pose_motion(motion)
-    return body, carry_rigidly(template, body, avatar).cpu().numpy()
 
 
 @dataclass

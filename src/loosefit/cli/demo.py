@@ -149,17 +149,12 @@ def run(args: argparse.Namespace) -> int:
         source = "rigid"
     else:
         garment, source = _simulate(args, avatar, template, motion), "newton-vbd"
-    seq = dressed_sequence(motion, template, garment, avatar, source)
+    seq = dressed_sequence(motion, template, garment, avatar, source, body=body)
     seq.save(out / "sequence.npz")
     log(f"wrote {out / 'sequence.npz'} ({source})")
-    if learned:  # the body posed above, once for both files
-        from loosefit.api.garment import export_dressed
-
-        paths = [out / f"demo{suffix}" for suffix in (".usdc", ".pc2")]
-        for files in export_dressed(
-            paths, template, garment, avatar=avatar, body=body, fps=motion.fps
-        ):
-            log_exported(files)
+    if learned:  # the body posed above, once for both files and the viewer
+        for suffix in (".usdc", ".pc2"):
+            log_exported(seq.export(out / f"demo{suffix}"))
     title = f"loosefit demo: {motion.name}" + (" (learned)" if learned else f" ({source})")
     render(args, avatar, motion, template, garment, out, title=title, body=body)
     if args.view:

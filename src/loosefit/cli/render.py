@@ -46,7 +46,8 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from loosefit.api import motion_for
-    from loosefit.api.render import carry_garment, read_stored_clip
+    from loosefit.api.garment import carry_rigidly
+    from loosefit.api.render import read_stored_clip
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -69,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
         template = garment_template(args.garment, avatar)
         garment = None
         if template is not None:
-            body, garment = carry_garment(template, motion, avatar=avatar)
+            body = avatar.pose_motion(motion)
+            garment = carry_rigidly(template, body, avatar)
         title = motion.name
     else:
         raise LoosefitInputError(
