@@ -52,6 +52,8 @@ RAW = Stages(detail=False, lengths=False, collision=False)
 # key: (label, checkpoint kind, stages)
 METHODS = {
     "ours-full": ("ours, the shipped set (every stage; deterministic)", "ours", Stages()),
+    "ours-realisations": ("ours, the shipped set's realisations (every stage; its residual "
+                          "process)", "ours", Stages()),
     "ours-motion": ("ours w/o detail and collision (motion stage)", "ours", MOTION_ONLY),
     "santesteban-push": ("Santesteban et al. 2019 style + their push-out", "santesteban",
                          Stages(detail=False, lengths=False)),
@@ -91,6 +93,17 @@ def rollouts(args, ens, motion, cache: Path) -> dict:
             elif key == "oracle":
                 truth = ens.members[0].read().garment_vertices[: ens.frames]
                 result = models[kind].reconstruct(motion, truth)
+            elif key == "ours-realisations":  # seeds 0, 1, ... of its residual process
+                if models[kind].residual is None:
+                    continue  # a set without one
+                result = Rollout(
+                    np.stack(
+                        [
+                            models[kind].animate(motion, stages=stages, realisation=k).vertices
+                            for k in range(args.samples)
+                        ]
+                    )  # fmt: skip
+                )
             else:
                 result = models[kind].animate(motion, stages=stages)
             seconds = time.perf_counter() - t0
@@ -173,18 +186,29 @@ def validation_choice(args, cache: Path) -> dict:
     for clip in validation_clips(reader):
         seq = reader.read(clip)
         truth = seq.garment_vertices[None]
-        for key in ["ours-full", *(engine_key(e) for e in args.engines)]:
+        for key in ["ours-full", "ours-realisations", *(engine_key(e) for e in args.engines)]:
             path = cache / "validation" / clip / f"{key}.npz"
             path.parent.mkdir(parents=True, exist_ok=True)
             if not path.is_file():
-                if key == "ours-full":
-                    models.setdefault(key, loosefit.load(args.checkpoint).model)
-                    x = models[key].animate(seq.motion).vertices[None]
+                if key.startswith("ours-"):
+                    if "ours" not in models:
+                        models["ours"] = loosefit.load(args.checkpoint).model
+                    ours = models["ours"]
+                    if key == "ours-full":
+                        x = ours.animate(seq.motion).vertices[None]
+                    elif ours.residual is None:
+                        continue  # a set without a residual process
+                    else:
+                        x = np.stack([
+                            ours.animate(seq.motion, realisation=k).vertices
+                            for k in range(args.samples)
+                        ])  # fmt: skip
                 else:
                     from loosefit.inference.engine.model import load_engine, rollout_engine
 
                     where = next(e for e in args.engines if engine_key(e) == key)
-                    models.setdefault(key, load_engine(where))
+                    if key not in models:
+                        models[key] = load_engine(where)
                     S = args.samples if models[key].tier.config.noise else 1
                     x = np.stack(
                         [rollout_engine(models[key], seq.motion, seed=k) for k in range(S)]

@@ -32,14 +32,20 @@ from loosefit.inference.stages.collision import CollisionConfig
 from loosefit.train.common import machine
 
 
-def variants(factors: list[float]) -> list[tuple[str, object, CollisionConfig | None]]:
-    """(label, stages, collision config) of each garment scored."""
+def variants(
+    factors: list[float], feedback: bool = False
+) -> list[tuple[str, object, CollisionConfig | None]]:
+    """(label, stages, collision config) of each garment scored; ``feedback`` adds every
+    stage at the default sticky factor with its garment fed back as the next frame's
+    previous state."""
     motion_only = stages(detail=False, lengths=False, collision=False)
     out = [("motion stage alone", motion_only, None)]
     default = CollisionConfig().sticky_factor
     for f in factors:
         label = f"every stage, sticky factor {f:g}" + (" (default)" if f == default else "")
         out.append((label, stages(), replace(CollisionConfig(), sticky_factor=f)))
+    if feedback:
+        out.append(("every stage, fed back", stages(feedback=True), None))
     return out
 
 
@@ -49,6 +55,9 @@ def main() -> None:
     p.add_argument("--data", default="datasets/dance")
     p.add_argument("--clips", default="validation", help="validation, or a split's name")
     p.add_argument("--factors", default="1.5,3,100", help="sticky factors tried")
+    p.add_argument(
+        "--feedback", action="store_true", help="also every stage with its garment fed back"
+    )
     p.add_argument("--page", default=None, help="a Markdown page to write the section into")
     args = p.parse_args()
     torch.set_num_threads(1)
@@ -58,7 +67,7 @@ def main() -> None:
     animator = loosefit.load(args.checkpoint)
     model = animator.model
     avatar = model.avatar()
-    tried = variants([float(x) for x in args.factors.split(",")])
+    tried = variants([float(x) for x in args.factors.split(",") if x], args.feedback)
     rows, totals = [], {label: [0, 0] for label, _, _ in tried}
     for name in clips:
         seq = reader.read(name)

@@ -70,6 +70,36 @@ def test_the_onnx_export_writes_what_the_exporter_does(skirt, avatar, tmp_path):
 
 
 @needs_ort
+def test_a_set_s_residual_process_is_exported_beside_the_graph(skirt, avatar, tmp_path):
+    import numpy as np
+    import torch
+
+    from loosefit.inference.onnx.export import OnnxExportConfig
+    from loosefit.model.residual import ResidualConfig, ResidualProcess, residual_offsets
+
+    tiny = tiny_model(skirt, avatar, "decomposed", False)
+    V = skirt.num_vertices
+    basis = torch.linalg.qr(torch.randn(3 * V, 3, dtype=torch.float64)).Q.T
+    tiny.residual = ResidualProcess(
+        basis.reshape(3, V, 3).float(),
+        torch.tensor([0.03, 0.02, 0.01]),
+        ResidualConfig(3, 0.9, 0.5),
+    )
+    done = export_onnx(tiny, tmp_path / "tiny.onnx", config=OnnxExportConfig(check=False))
+    assert done.residual == tmp_path / "tiny.residual.npz" and done.residual in done.paths
+    with np.load(done.residual) as z:
+        assert float(z["correlation"]) == 0.9 and float(z["scale"]) == 0.5
+        # the formula the file documents gives the rollout's offsets
+        from loosefit.model.residual import residual_draws
+
+        c = residual_draws(tiny.residual, 6, 2).numpy()
+        mine = z["scale"] * (c * z["std"]) @ z["basis"].reshape(3, -1)
+    want = residual_offsets(tiny.residual, 6, 2).numpy().reshape(6, -1)
+    np.testing.assert_allclose(mine, want, atol=1e-6)
+    assert not list(tmp_path.glob(".*partial*"))
+
+
+@needs_ort
 def test_the_onnx_export_checks_against_pytorch_when_asked(skirt, avatar, tmp_path):
     done = export_onnx(tiny_model(skirt, avatar, "vertex", True), tmp_path / "tiny.onnx")
     assert done.check["frames"] == 2 and done.check["max_difference_m"] < done.tolerance

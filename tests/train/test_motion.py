@@ -652,3 +652,34 @@ def test_a_stochastic_engine_tier_gives_one_realisation_a_seed(trained, toy_data
         == 2
     )
     assert not onnx.exists()
+
+
+def test_a_packaged_set_takes_the_residual_process_fitted_beside_it(trained, toy_dataset, tmp_path):
+    from loosefit.cli import main
+
+    out, _ = trained
+    _, mout = package_model(out / "model.pt", tmp_path / "set")
+    args = ["train", "residual", "--motion", str(mout), "--data", str(toy_dataset)]
+    assert main([*args, "--directions", "4", "--scale", "2"]) == 0
+    assert (tmp_path / "set" / "residual.pt").is_file()
+    model = inf.AnimationModel.from_checkpoint(mout)
+    assert model.residual is not None and model.residual.config.scale == 2.0
+
+    def animate(*extra: str) -> np.ndarray:
+        path = tmp_path / f"anim{'_'.join(extra)}.npz"
+        cmd = ["animate", str(mout), "sway", "--frames", "12", "--out", str(path), *extra]
+        assert main([*cmd, "--no-collision"]) == 0
+        return GarmentSequence.load(path).garment_vertices
+
+    plain, one, again, other = (
+        animate(), animate("--realisation", "1"), animate("--realisation", "1"),
+        animate("--realisation", "2"),
+    )  # fmt: skip
+    np.testing.assert_array_equal(one, again)
+    assert np.abs(one - plain).max() > 1e-4 and np.abs(one - other).max() > 1e-4
+    # a residual process fitted to another motion stage is refused, naming both
+    (tmp_path / "set" / "residual.pt").rename(tmp_path / "residual.pt")
+    with pytest.raises(LoosefitInputError, match="residual"):
+        inf.AnimationModel.from_checkpoint(mout).animate(
+            DatasetReader(toy_dataset).read("c").motion, realisation=0
+        )

@@ -236,6 +236,7 @@ class Animator:
         threads: int | None = None,
         shape: dict | None = None,
         retarget=None,
+        realisation: int | None = None,
     ) -> AnimatedGarment:
         """The garment through a motion.
 
@@ -267,6 +268,10 @@ class Animator:
                 that body and animated on it (:mod:`loosefit.inference.other_body`;
                 prepared once per body, a few seconds). None: the trained body.
             retarget: how a BVH file is read and mapped (see :func:`motion_for`).
+            realisation: None, the motion stage's garment (the centre of what the cloth may
+                do); an int >= 0, that realisation of the set's residual process
+                (:mod:`loosefit.model.residual`): the cloth as one more simulation from
+                another start might land, the same garments on every run and machine.
 
         Returns:
             :class:`AnimatedGarment`, world positions; its ``rollout`` the rollout's
@@ -274,8 +279,9 @@ class Animator:
 
         Raises:
             LoosefitInputError: an unreadable motion, ``runtime="onnx"`` without
-                onnxruntime or for a baseline, ``threads`` not an int >= 1, or a
-                ``shape`` with a name anny does not have or a value outside [0, 1].
+                onnxruntime or for a baseline, ``threads`` not an int >= 1, a
+                ``shape`` with a name anny does not have or a value outside [0, 1], or a
+                ``realisation`` of a model with no residual process.
         """
         from loosefit.inference.threads import inference_threads
 
@@ -284,6 +290,15 @@ class Animator:
             avatar = body.avatar if body is not None else self.model.avatar()
             m = motion_for(motion, avatar, self.fps, frames, start_frame, seed, retarget=retarget)
             kwargs = {"body": body} if body is not None else {}
+            if realisation is not None:
+                if not hasattr(self.model, "residual_offsets"):
+                    raise LoosefitInputError(
+                        self.path,
+                        "realisation",
+                        "a model of the paper's stages with a residual process",
+                        f"{type(self.model).__name__} (it has no realisations)",
+                    )
+                kwargs["realisation"] = realisation
             result = self.model.animate(
                 m, progress, stages=stages, runtime=runtime, collision=collision, **kwargs
             )

@@ -51,11 +51,12 @@ class ExportedModel:
     metadata: dict
     tolerance: float
     checkpoint: Path | None = None
+    residual: Path | None = None  # the set's residual process (``OUT.residual.npz``), if any
 
     @property
     def paths(self) -> list[Path]:
-        """The ``.onnx``, ``.json`` and ``.obj`` paths."""
-        return [self.onnx, self.json, self.obj]
+        """The ``.onnx``, ``.json`` and ``.obj`` paths (and ``.residual.npz``, if written)."""
+        return [self.onnx, self.json, self.obj, *([self.residual] if self.residual else [])]
 
     @property
     def check(self) -> dict | None:
@@ -137,9 +138,39 @@ def export_onnx(model, out: str | Path, *, config=None) -> ExportedModel:
 
     config = config or OnnxExportConfig()
     checkpoint = _checkpoint_of(model)
-    onnx_path, json_path, obj_path = export(_model_of(model), out, config)
+    stages = _model_of(model)
+    onnx_path, json_path, obj_path = export(stages, out, config)
     meta = json.loads(json_path.read_text())
-    return ExportedModel(onnx_path, json_path, obj_path, meta, config.tolerance, checkpoint)
+    residual = None
+    if getattr(stages, "residual", None) is not None:
+        residual = write_residual(stages.residual, onnx_path.with_suffix(".residual.npz"))
+    return ExportedModel(
+        onnx_path, json_path, obj_path, meta, config.tolerance, checkpoint, residual
+    )
+
+
+def write_residual(process, path: str | Path) -> Path:
+    """A residual process (:mod:`loosefit.model.residual`) as ``.npz`` for an engine that
+    draws realisations itself: ``basis`` (K, V, 3) float32, ``std`` (K,) m, ``correlation``
+    rho and ``scale`` s. A realisation's offset at frame t is ``s * sum_k std_k c_tk
+    basis_k`` (c_t = rho c_t-1 + sqrt(1 - rho^2) e_t, e_t standard normal), in the root
+    frame: turned by the frame's heading and added to the graph's world garment, never to
+    the garment the graph is fed back (docs/use/ENGINE_EXPORT.md)."""
+    import numpy as np
+
+    from loosefit.atomic import atomic_path
+
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(
+                f,
+                basis=process.basis.numpy().astype(np.float32),
+                std=process.std.numpy().astype(np.float32),
+                correlation=np.float64(process.config.correlation),
+                scale=np.float64(process.config.scale),
+            )
+    return path
 
 
 def _checkpoint_of(model) -> Path | None:

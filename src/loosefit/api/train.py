@@ -120,6 +120,48 @@ def train_engine(
     return run(data, motion, out, config, log=log, progress=progress)
 
 
+def fit_residual(
+    motion: str | Path,
+    data: str | Path,
+    out: str | Path | None = None,
+    *,
+    directions: int = 8,
+    correlation: float = 0.97,
+    scale: float = 1.0,
+    log=print,
+) -> Path:
+    """Fit a motion stage's residual process (:mod:`loosefit.model.residual`) on a data
+    set's training clips and write it (``out``, default ``residual.pt`` beside ``motion``,
+    which a packaged set's ``motion.pt`` then takes when loaded).
+
+    Args:
+        motion: the motion stage's checkpoint (a set's ``motion.pt``, a run's ``model.pt``).
+        data: the data set it was trained on.
+        out: the file to write.
+        directions, correlation, scale: :class:`~loosefit.model.residual.ResidualConfig`.
+        log: where each clip's line goes.
+
+    Returns:
+        The file written.
+
+    Raises:
+        LoosefitInputError: a bad configuration, a data set of another garment, too few
+            training frames for ``directions``.
+    """
+    from loosefit.inference.animator import AnimationModel, residual_record
+    from loosefit.inference.checkpoints import save_atomic
+    from loosefit.model.residual import ResidualConfig
+    from loosefit.train.residual import fit_residual as fit
+
+    config = ResidualConfig(directions, correlation, scale)  # refused before the work
+    model = AnimationModel.from_checkpoint(motion)
+    model.residual = None
+    process, record = fit(model, data, config, log=log)
+    path = Path(out) if out is not None else Path(motion).parent / "residual.pt"
+    save_atomic(residual_record(model, process, record), path)
+    return path
+
+
 def process_rank() -> int:
     """This process's rank in a ``torchrun`` training run (0 alone)."""
     from loosefit.train.common import distributed

@@ -67,7 +67,16 @@ def add_parser(sub) -> None:
         action="store_true",
         help="a character's file: read only its animation, and animate on anny",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seeds a procedural move")
+    p.add_argument(
+        "--realisation",
+        type=int,
+        default=None,
+        metavar="N",
+        help="draw realisation N of the cloth: the set's residual process seeded by N, the "
+        "same garments on every run and machine (without it: the motion stage's garment, "
+        "the centre of what the cloth may do)",
+    )
     p.add_argument(
         "--export",
         default=None,
@@ -131,6 +140,10 @@ def run(args: argparse.Namespace) -> int:
             raise LoosefitInputError(
                 "--shape", "shape", "none with a character (its body is fitted)", args.shape
             )
+        if args.realisation is not None:
+            raise LoosefitInputError(
+                "--realisation", "realisation", "none with a character", args.realisation
+            )
         out = Path(args.out)
         name = re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(args.motion).stem) or "character"
         path = out if out.suffix == ".npz" else out / f"{name}.npz"
@@ -166,6 +179,7 @@ def run(args: argparse.Namespace) -> int:
             collision=args.collision,
             threads=n,
             shape=shape,
+            realisation=args.realisation,
         )
         bar.close()
     result = seq.rollout

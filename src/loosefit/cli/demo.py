@@ -66,7 +66,15 @@ def add_parser(sub) -> None:
         "(default flared)",
     )
     p.add_argument("--resolution", default="cpu", choices=("cpu", "paper"))
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seeds the procedural dance")
+    p.add_argument(
+        "--realisation",
+        type=int,
+        default=None,
+        metavar="N",
+        help="the learned model: draw realisation N of the cloth (its residual process "
+        "seeded by N, the same on every run); without it, the motion stage's garment",
+    )
     p.add_argument("--fps", type=float, default=30.0)
     add_bvh_args(p)
     add_avatar_args(p)
@@ -97,6 +105,13 @@ def run(args: argparse.Namespace) -> int:
             "no --garment: the pretrained model animates the skirt it was trained on (use "
             "--physics to simulate another)",
             repr(args.garment),
+        )
+    if args.realisation is not None and not learned:
+        raise LoosefitInputError(
+            "--realisation",
+            "realisation",
+            "no --realisation with --physics or --no-physics (the learned model draws it)",
+            repr(args.realisation),
         )
     if threads_of(args) is not None and not learned:  # a bad count, or one nothing reads
         raise LoosefitInputError(
@@ -139,9 +154,11 @@ def run(args: argparse.Namespace) -> int:
                 runtime=args.runtime,
                 collision=args.collision,
                 threads=n,
+                realisation=args.realisation,
             )
             bar.close()
         garment, source = seq.vertices, f"loosefit model {path.parent.name}"
+        log(realisation_line(animator.model, args.realisation))
         line = stage_line(animator.model, animator.model.stages, seq.rollout)
         log(throughput(motion, seq.rollout) + "; " + line)
     elif args.no_physics:
@@ -178,3 +195,19 @@ def _simulate(args: argparse.Namespace, avatar, template, motion):
         f"{q['inside_max']:.4f} (worst frame), edge strain p99 {q['strain_p99']:.3f}"
     )
     return result.garment_vertices
+
+
+def realisation_line(model, realisation: int | None) -> str:
+    """What the learned garment is: the motion stage's, or a realisation of the cloth."""
+    if realisation is not None:
+        return (
+            f"realisation {realisation} of the cloth (the set's residual process seeded by "
+            f"{realisation}: the same garments on every run; another N, another way the cloth "
+            "may land)"
+        )
+    if getattr(model, "residual", None) is not None:
+        return (
+            "the motion stage's garment, the centre of what the cloth may do; "
+            "--realisation N draws one plausible realisation of it"
+        )
+    return "the motion stage's garment (this set has no residual process: no realisations)"

@@ -96,6 +96,8 @@ def run_export_model(args: argparse.Namespace) -> int:
         f"wrote {done.onnx} ({done.onnx.stat().st_size / 1e6:.1f} MB), {done.json} and "
         f"{done.obj} (the garment's mesh)"
     )
+    if done.residual is not None:
+        log(f"and {done.residual}: the set's residual process, for realisations of the cloth")
     check = done.check  # what the export recorded
     if check is None:
         log("not checked against PyTorch (--no-check)")

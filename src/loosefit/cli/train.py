@@ -1,4 +1,5 @@
-"""``loosefit train generative|motion|detail|baseline|engine``: train a learned stage (resumable).
+"""``loosefit train generative|motion|detail|baseline|engine|residual``: train a learned stage
+(resumable), or fit a motion stage's residual process.
 
 Each stage is its own subcommand with only its own flags: ``add_common_args`` adds the
 ones every stage takes, the ``_add_*_args`` helpers the ones a few share. A flag of
@@ -16,7 +17,7 @@ from pathlib import Path
 from loosefit.cli.common import log
 from loosefit.errors import LoosefitInputError
 
-STAGES = ("generative", "motion", "detail", "baseline", "engine")
+STAGES = ("generative", "motion", "detail", "baseline", "engine", "residual")
 
 
 def add_parser(sub) -> None:
@@ -33,6 +34,7 @@ def add_parser(sub) -> None:
         "detail": _add_detail_parser(stages),
         "baseline": _add_baseline_parser(stages),
         "engine": _add_engine_parser(stages),
+        "residual": _add_residual_parser(stages),
     }
     _refuse_other_stages_flags(p, parsers)
 
@@ -286,6 +288,43 @@ def _add_engine_parser(stages) -> argparse.ArgumentParser:
     return p
 
 
+def _add_residual_parser(stages) -> argparse.ArgumentParser:
+    p = stages.add_parser(
+        "residual",
+        help="a motion stage's residual process: seeded realisations of the cloth "
+        "(`loosefit animate --realisation N`)",
+        description="Fit a motion stage's residual process: its rollouts through the data "
+        "set's training clips against the simulation, the leading directions of what it "
+        "misses, drawn in time as an AR(1) process. Seconds a clip; no gradient, the "
+        "motion stage is not changed. Writes residual.pt beside the motion stage.",
+    )
+    p.add_argument("--data", default="datasets/demo", help="the data set it was trained on")
+    p.add_argument(
+        "--motion",
+        default=None,
+        help="the motion stage's checkpoint (default: the pretrained set's motion.pt)",
+    )
+    p.add_argument("--directions", type=int, default=8, help="directions kept (default 8)")
+    p.add_argument(
+        "--correlation",
+        type=float,
+        default=0.97,
+        metavar="RHO",
+        help="the AR(1) correlation from frame to frame, in [0, 1) (default 0.97)",
+    )
+    p.add_argument(
+        "--scale",
+        type=float,
+        default=1.0,
+        help="times the training residuals' spread (default 1; the pretrained set's scale "
+        "is chosen on validation clips by bench/quality/residual_process.py)",
+    )
+    p.add_argument("--out", default=None, help="the file (default residual.pt beside --motion)")
+    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
+    p.set_defaults(func=run_residual)
+    return p
+
+
 class _OtherStagesFlag(argparse.Action):
     """A hidden entry for a flag this parser lacks: refused, naming where it belongs.
 
@@ -503,3 +542,22 @@ def run_engine(args: argparse.Namespace) -> int:
     motion = args.motion or pretrained_checkpoint()
     report = train_engine(cfg, args.data, motion, out, log=log)
     return _finish(out, report, "engine")
+
+
+def run_residual(args: argparse.Namespace) -> int:
+    from loosefit.api import pretrained_checkpoint
+    from loosefit.api.train import fit_residual
+
+    _start(args, "residual")
+    motion = args.motion or pretrained_checkpoint()
+    path = fit_residual(
+        motion,
+        args.data,
+        args.out,
+        directions=args.directions,
+        correlation=args.correlation,
+        scale=args.scale,
+        log=log,
+    )
+    log(f"residual process in {path}")
+    return 0

@@ -22,6 +22,7 @@ from loosefit.garment.fingerprint import garment_fingerprint
 from loosefit.inference.checkpoints import (
     DETAIL_FORMAT,
     MOTION_FORMAT,
+    RESIDUAL_FORMAT,
     check_format,
     checkpoint_fields,
     load_generative,
@@ -73,6 +74,7 @@ from loosefit.model.detail import DetailConfig, DetailGenerator
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.losses import PHYSICS_TERMS, terms_of
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
+from loosefit.model.residual import ResidualProcess, residual_offsets
 from loosefit.types import GarmentTemplate, Motion
 
 # -- the paper's model ------------------------------------------------------------------------
@@ -105,6 +107,7 @@ class AnimationModel:
     lengths: LengthConfig = field(default_factory=LengthConfig)  # edges back to rest length
     physics_terms: tuple[str, ...] = ()  # the physics terms the stages were trained with
     trained_on: dict | None = None  # a packaged set's training record (package.training_record)
+    residual: ResidualProcess | None = None  # its realisations (residual.pt), if fitted
     _avatar: object = None  # the avatar, built on first use
     _handler: CollisionHandler | None = None  # Eq. 16's operators, built on first use
     _restorer: LengthRestorer | None = None  # the edge-length operator, built on first use
@@ -124,8 +127,9 @@ class AnimationModel:
 
         Args:
             path: a motion-stage checkpoint (``checkpoint.pt`` or ``model.pt`` of a run, or
-                a packaged ``motion.pt``, which takes the ``detail.pt`` beside it, if there
-                is one), or a detail checkpoint (with the motion stage it records).
+                a packaged ``motion.pt``, which takes the ``detail.pt`` and ``residual.pt``
+                beside it, if there are), or a detail checkpoint (with the motion stage it
+                records).
             generative: the generative-stage checkpoint; by default the one recorded.
             detail: a detail checkpoint to attach explicitly.
             device: where to put the networks.
@@ -142,6 +146,8 @@ class AnimationModel:
         beside = path.parent / "detail.pt"
         if detail is None and path.name == "motion.pt" and beside.is_file():
             detail = beside
+        if path.name == "motion.pt" and (path.parent / "residual.pt").is_file():
+            attach_residual(model, path.parent / "residual.pt")
         return attach_detail(model, detail) if detail is not None else model
 
     @property
@@ -219,6 +225,7 @@ class AnimationModel:
         *,
         collision: str = "full",
         body: OtherBody | None = None,
+        realisation: int | None = None,
     ) -> RolloutResult:
         """:func:`~loosefit.inference.rollout.rollout` of ``motion`` (checked first) through
         the motion stage, then the detail stage (if the model has one), the edge lengths
@@ -241,12 +248,22 @@ class AnimationModel:
         ``body``: another body (:meth:`other_body`), ``motion`` on it; the motion stage runs
         on the trained body and the garment is carried onto this one, then fitted to it
         (:mod:`loosefit.inference.other_body`).
+
+        ``realisation``: None, the motion stage's garment (the centre of what the cloth may
+        do); an int >= 0, that realisation of the model's residual process
+        (:mod:`loosefit.model.residual`), the same on every run and machine.
+
+        Raises:
+            LoosefitInputError: a ``realisation`` asked of a model with no residual process,
+                or one that is not an int >= 0.
         """
         check_runtime(runtime)
         self.check_motion(motion)
         stages = stages or self.stages
         run_motion = self._trained_motion(motion, body, stages)
         hooks = RolloutHooks(progress=progress)
+        if realisation is not None:
+            hooks.offsets = self.residual_offsets(motion.num_frames, realisation)
         if restart_every is not None:
             shape = (motion.num_frames, self.template.num_vertices, 3)
             hooks.restart = RestartFromTruth(truth, restart_every, shape, self.device)
@@ -314,6 +331,19 @@ class AnimationModel:
                 if later:
                     r.collisions = collision_records(later)
         return results
+
+    def residual_offsets(self, frames: int, realisation: int) -> torch.Tensor:
+        """(frames, V, 3) realisation ``realisation``'s root-frame offsets
+        (:func:`~loosefit.model.residual.residual_offsets`)."""
+        if self.residual is None:
+            raise LoosefitInputError(
+                self.path,
+                "residual.pt",
+                "a set with a residual process, for a realisation",
+                "none beside this motion stage",
+                hint="fit one: loosefit train residual --motion MOTION.pt --data DATA",
+            )
+        return residual_offsets(self.residual, frames, realisation)
 
     def motion_stage(self, step: StepFunction | None = None) -> MotionStage:
         """The motion stage a rollout runs (``step``: its network call, e.g. in
@@ -531,6 +561,51 @@ def _attach(model: AnimationModel, path: Path, data: dict) -> AnimationModel:
     for prm in g.parameters():
         prm.requires_grad_(False)
     return model
+
+
+def attach_residual(
+    model: AnimationModel, path: str | Path, data: dict | None = None
+) -> AnimationModel:
+    """Load a residual process into ``model`` (``model.residual``), checked to belong to it.
+
+    Raises:
+        LoosefitInputError: not a residual checkpoint, or one fitted to another garment or
+            motion stage (the message names both fingerprints).
+    """
+    path = Path(path)
+    if data is None:
+        data = read_checkpoint_file(path, RESIDUAL_FORMAT, model.device)
+    else:
+        check_format(path, data, RESIDUAL_FORMAT)
+    with checkpoint_fields(path, "residual checkpoint"):
+        have = stage_fingerprints(model)
+        for key, what in (("garment", "garment"), ("motion", "motion stage")):
+            if data["fingerprints"][key] != have[key]:
+                raise LoosefitInputError(
+                    path,
+                    f"fingerprints.{key}",
+                    f"the {what} of {Path(model.path).name} (fingerprint {have[key]})",
+                    f"a residual process fitted to another {what} "
+                    f"(fingerprint {data['fingerprints'][key]})",
+                )
+        process = ResidualProcess.from_dict(data["process"], str(path))
+    if process.num_vertices != model.template.num_vertices:
+        raise LoosefitInputError(
+            path, "process.basis", f"{model.template.num_vertices} vertices", process.num_vertices
+        )
+    model.residual = process
+    return model
+
+
+def residual_record(model: AnimationModel, process: ResidualProcess, fitted_on: dict) -> dict:
+    """A residual checkpoint's contents: the process, the stages it belongs to, what it was
+    fitted on (data set, clips, frames, and how its scale was chosen)."""
+    return {
+        "format": RESIDUAL_FORMAT,
+        "fingerprints": stage_fingerprints(model),
+        "process": process.to_dict(),
+        "fitted_on": dict(fitted_on),
+    }
 
 
 def load_detail_model(

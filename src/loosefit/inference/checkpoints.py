@@ -42,7 +42,15 @@ MOTION_FORMAT = "loosefit.motion/1"
 DETAIL_FORMAT = "loosefit.detail/1"
 BASELINE_FORMAT = "loosefit.baseline/1"
 ENGINE_FORMAT = "loosefit.engine/1"
-FORMATS = (GENERATIVE_FORMAT, MOTION_FORMAT, DETAIL_FORMAT, BASELINE_FORMAT, ENGINE_FORMAT)
+RESIDUAL_FORMAT = "loosefit.residual/1"
+FORMATS = (
+    GENERATIVE_FORMAT,
+    MOTION_FORMAT,
+    DETAIL_FORMAT,
+    BASELINE_FORMAT,
+    ENGINE_FORMAT,
+    RESIDUAL_FORMAT,
+)
 
 # what a wrong stage's checkpoint is, said when one is passed for another
 _WHAT = {
@@ -51,6 +59,7 @@ _WHAT = {
     DETAIL_FORMAT: "the detail stage",
     BASELINE_FORMAT: "a baseline",
     ENGINE_FORMAT: "the engine tier",
+    RESIDUAL_FORMAT: "a motion stage's residual process",
 }
 
 

@@ -22,7 +22,9 @@ from loosefit.inference.checkpoints import (
     FORMATS,
     GENERATIVE_FORMAT,
     MOTION_FORMAT,
+    RESIDUAL_FORMAT,
     check_format,
+    read_checkpoint_file,
     read_file,
 )
 from loosefit.inference.engine.model import load_engine
@@ -60,6 +62,20 @@ def _generative_set(path: Path, data: dict, device, generative=None, detail=None
         "a checkpoint that animates (the generative stage alone decodes, it does not animate)",
         repr(GENERATIVE_FORMAT),
         hint="pass the motion stage trained on it (a set's motion.pt, a motion run's model.pt)",
+    )
+
+
+def _residual_set(path: Path, data: dict, device, generative=None, detail=None):
+    beside = path.parent / "motion.pt"
+    if beside.is_file():
+        motion = read_checkpoint_file(beside, MOTION_FORMAT, device)
+        return _motion_set(beside, motion, device, generative, detail)
+    raise LoosefitInputError(
+        path,
+        "format",
+        "a checkpoint that animates (a residual process adds to a motion stage)",
+        repr(RESIDUAL_FORMAT),
+        hint="pass the set's motion.pt, which takes the residual.pt beside it",
     )
 
 
@@ -107,6 +123,13 @@ CHECKPOINTS: tuple[CheckpointFormat, ...] = (
         "the engine tier: a small network and a garment basis, for game engines",
         "engine.pt of a set (the pretrained set); model.pt and checkpoint.pt of an engine run",
         _engine,
+    ),
+    CheckpointFormat(
+        RESIDUAL_FORMAT,
+        "a motion stage's residual process: its seeded realisations of the cloth",
+        "residual.pt of a set (the pretrained set, a packaged one). Opened with the "
+        "motion.pt beside it",
+        _residual_set,
     ),
 )
 

@@ -251,6 +251,10 @@ class RolloutHooks:
     progress: Callable[[int, int], None] | None = None  # progress(done, total) every frame
     clock: StageClock = field(default_factory=StageClock)  # seconds per stage
     restart: RestartFromTruth | None = None  # replaces the previous garment (drift)
+    # (T, V, 3) root-frame offsets added to each motion frame's garment as shown and as the
+    # later stages take it, never to the motion stage's previous state (a realisation of
+    # :mod:`loosefit.model.residual`)
+    offsets: torch.Tensor | None = None
 
 
 @torch.no_grad()
@@ -266,7 +270,8 @@ def rollout(
         model: the motion stage (and where the garment starts).
         motion: T frames on the skeleton the encoder was trained on.
         options: the later stages and how they run (default: none).
-        hooks: progress, the stage clock, a drift measurement's restarts.
+        hooks: progress, the stage clock, a drift measurement's restarts, a realisation's
+            offsets.
 
     Returns:
         :class:`RolloutResult` (``collisions`` is left to the caller, who holds the
@@ -295,6 +300,11 @@ def rollout(
     jobs = []
     hidden = model.encoder.initial_hidden(1, device)
     prev = model.rest_state[None].float()
+    offsets = hooks.offsets
+    if offsets is not None:
+        if tuple(offsets.shape) != (T, V, 3):
+            raise ValueError(f"offsets: expected {(T, V, 3)}, found {tuple(offsets.shape)}")
+        offsets = offsets.to(device=device, dtype=prev.dtype)
     try:
         with clock.measure("rollout"):
             for t in range(total):
@@ -309,7 +319,8 @@ def rollout(
                     z, hidden, prev = model(feats[t : t + 1], prev, hidden)
                     check_garment(prev, model.config.max_distance, frame_name(t, P))
                     if t >= P:
-                        world = from_root_frame(prev, H[t : t + 1], p[t : t + 1])
+                        shown = prev if offsets is None else prev + offsets[m : m + 1]
+                        world = from_root_frame(shown, H[t : t + 1], p[t : t + 1])
                         codes[m] = z[0].cpu()
                         if stages:
                             decoded[m] = world[0].cpu()
