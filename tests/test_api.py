@@ -255,7 +255,8 @@ def test_a_configured_block_gives_the_model_its_own_stages_back(model):
 @pytest.mark.parametrize("folder", ["dance", "salsa"])
 def test_one_animate_reads_each_checkpoint_file_once(folder, monkeypatch):
     """``loosefit.load(...).animate(...)`` reads every file of the set once: the motion
-    stage, the generative stage it records and (the salsa set) the detail stage beside."""
+    stage, the generative stage it records and what lies beside it (the dance set's
+    residual process, the salsa set's detail stage)."""
     from collections import Counter
 
     import torch
@@ -271,7 +272,8 @@ def test_one_animate_reads_each_checkpoint_file_once(folder, monkeypatch):
 
     monkeypatch.setattr(torch, "load", counted)
     loosefit.load(REPO / "checkpoints" / folder / "motion.pt").animate("sway", frames=3)
-    want = {"motion.pt": 1, "generative.pt": 1} | ({"detail.pt": 1} if folder == "salsa" else {})
+    beside = {"salsa": {"detail.pt": 1}, "dance": {"residual.pt": 1}}[folder]
+    want = {"motion.pt": 1, "generative.pt": 1} | beside
     assert dict(reads) == want
 
 
@@ -299,3 +301,19 @@ def test_motion_for_caps_a_motion_before_playing_it_again(model):
     np.testing.assert_array_equal(again.rotations[:7], capped.rotations)
     given = motion_for(whole, avatar, model.fps, max_frames=4)
     np.testing.assert_array_equal(given.rotations, whole.rotations[:4])
+
+
+def test_the_pretrained_set_draws_seeded_realisations_of_the_cloth(model):
+    from tests.conftest import REPO
+
+    assert model.model.residual is not None  # its residual.pt, beside motion.pt
+    centre = model.animate("sway", frames=6).vertices
+    one = model.animate("sway", frames=6, realisation=1).vertices
+    again = model.animate("sway", frames=6, realisation=1).vertices
+    two = model.animate("sway", frames=6, realisation=2).vertices
+    np.testing.assert_array_equal(one, again)
+    assert 1e-3 < np.abs(one - centre).max() < 0.3  # a take, not another garment
+    assert np.abs(one - two).max() > 1e-3
+    engine = loosefit.load(REPO / "checkpoints" / "dance" / "engine.pt")
+    with pytest.raises(LoosefitInputError, match="realisation"):
+        engine.animate("sway", frames=3, realisation=0)

@@ -8,7 +8,7 @@ handling's sticky side (``CollisionConfig.sticky_factor``) at other values. *Mis
 the simulation covers and the model does not. Writes the section "The raised knee" of
 ``--page``::
 
-    OMP_NUM_THREADS=1 python bench/quality/knee_cover.py --data datasets/dance \\
+    OMP_NUM_THREADS=1 python bench/quality/knee_cover.py --data datasets/dance --feedback \\
         --page docs/design/notes/collision.md
 """
 
