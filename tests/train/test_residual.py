@@ -88,3 +88,34 @@ def test_a_realisation_of_a_model_without_a_process_is_refused(model, toy_datase
 def test_too_few_frames_for_the_directions_are_refused(model, toy_dataset):
     with pytest.raises(LoosefitInputError, match="frames"):
         fit_residual(model, toy_dataset, ResidualConfig(directions=500), log=lambda *_: None)
+
+
+def test_evaluate_scores_a_set_by_its_realisations(model, toy_dataset, fitted, tmp_path):
+    """``loosefit evaluate --members ... --realisations S``: a set with a residual process is
+    scored by S realisations (the energy score with their spread), another by its one
+    garment."""
+    import dataclasses
+    import json
+    import shutil
+
+    from loosefit.eval.ensemble import evaluate_ensemble
+
+    seed1 = tmp_path / "seed1"
+    shutil.copytree(toy_dataset, seed1)
+    seq = DatasetReader(seed1).read("c")
+    moved = dataclasses.replace(seq, garment_vertices=seq.garment_vertices + 0.01)
+    moved.save(seed1 / "sequences" / "c.npz")
+    manifest = json.loads((seed1 / "manifest.json").read_text())
+    manifest["config"]["seed"] = 1
+    (seed1 / "manifest.json").write_text(json.dumps(manifest))
+    process, _ = fitted
+    model.residual = process.with_scale(2.0)
+    try:
+        many = evaluate_ensemble({"ours": model}, [toy_dataset, seed1], surface=False,
+                                 realisations=3)  # fmt: skip
+        one = evaluate_ensemble({"ours": model}, [toy_dataset, seed1], surface=False)
+    finally:
+        model.residual = None
+    a, b = many["clips"]["c"]["models"]["ours"], one["clips"]["c"]["models"]["ours"]
+    assert a["samples"] == 3 and b["samples"] == 1
+    assert a["energy_score_cm"] != b["energy_score_cm"]

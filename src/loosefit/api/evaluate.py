@@ -120,6 +120,7 @@ class Evaluation:
         stages=None,
         threads: int | None = None,
         progress: Log | None = None,
+        realisations: int = 0,
     ) -> dict:
         """The model rolled out on every clip with members and scored against them: the
         simulation's own spread, RMSE to their mean, the energy score, hem flare and speed
@@ -131,10 +132,12 @@ class Evaluation:
             stages: the stages after the decoders (None: all).
             threads: torch's intra-op threads meanwhile (None: the free cores, at most 4).
             progress: called with a line a step.
+            realisations: S > 0: a model with a residual process is scored by its
+                realisations 0..S-1 (the energy score with its spread); 0: its one garment.
 
         Raises:
             LoosefitInputError: no clip with members (:attr:`members` None) or none with
-                two or more.
+                two or more, or ``realisations`` not an int >= 0.
         """
         from loosefit.eval.ensemble import evaluate_ensemble
         from loosefit.inference.threads import inference_threads
@@ -143,6 +146,8 @@ class Evaluation:
             raise LoosefitInputError(
                 self.where, "members", "clips simulated from several seeds", "none"
             )
+        if not (isinstance(realisations, int) and realisations >= 0):
+            raise LoosefitInputError("evaluate", "realisations", "an integer >= 0", realisations)
         with inference_threads(threads):
             return evaluate_ensemble(
                 {self.name: self.model},
@@ -152,6 +157,7 @@ class Evaluation:
                 stages=stages,
                 progress=progress,
                 ensembles=self.members,
+                realisations=realisations,
             )
 
     def write_report(self, result: dict, out: str | Path) -> Path:
@@ -229,6 +235,7 @@ def evaluate(
     threads: int | None = None,
     out: str | Path | None = None,
     progress: Log | None = None,
+    realisations: int = 0,
 ) -> dict:
     """A trained model rolled out on a data set's held-out clips (or sequences) and scored
     against the simulation, and against each clip's members where it has any; its report
@@ -245,7 +252,11 @@ def evaluate(
     )
     if evaluation.members is not None:
         result["ensemble"] = evaluation.ensemble(
-            surface=surface, stages=stages, threads=threads, progress=progress
+            surface=surface,
+            stages=stages,
+            threads=threads,
+            progress=progress,
+            realisations=realisations,
         )
     if out is not None:
         evaluation.write_report(result, out)

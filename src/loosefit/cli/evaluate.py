@@ -37,6 +37,14 @@ def add_parser(sub) -> None:
         "spread, RMSE to their mean, the energy score, hem flare and speed against their "
         "range, the raised knee); members inside --data (NAME@seedS) count without it",
     )
+    p.add_argument(
+        "--realisations",
+        type=int,
+        default=0,
+        metavar="S",
+        help="with --members: score a set with a residual process by its realisations "
+        "0..S-1 (the energy score with their spread); default 0, its one garment",
+    )
     p.add_argument("--split", default="test", help="with a dataset: train, test or all")
     p.add_argument("--horizons", default="100,500,1200", help="frames for iter-N errors")
     p.add_argument("--max-frames", type=int, default=None, help="roll out at most this many")
@@ -52,6 +60,8 @@ def run(args: argparse.Namespace) -> int:
     from loosefit.cli.common import open_model
 
     threads_of(args)  # a bad count before the work
+    if args.realisations < 0:
+        raise LoosefitInputError("--realisations", "realisations", "S >= 0", args.realisations)
     model = open_model(args.checkpoint, args.generative, args.detail)
     evaluation = open_evaluation(model, args.data, split=args.split, members=args.members)
     try:
@@ -71,7 +81,11 @@ def run(args: argparse.Namespace) -> int:
     if evaluation.members is not None:
         with inference_threads(args) as n:
             result["ensemble"] = evaluation.ensemble(
-                surface=not args.rmse_only, stages=stages(args), threads=n, progress=log
+                surface=not args.rmse_only,
+                stages=stages(args),
+                threads=n,
+                progress=log,
+                realisations=args.realisations,
             )
     print(evaluation.write_report(result, args.out).read_text())
     log(f"wrote {args.out}/evaluation.{{md,csv,json}} and rmse_per_frame.png")

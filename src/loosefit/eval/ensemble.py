@@ -442,6 +442,7 @@ def evaluate_ensemble(
     flagged: bool = True,
     progress=None,
     ensembles: dict | None = None,
+    realisations: int = 0,
 ) -> dict:
     """Roll models out on every clip that has members and score them against the ensemble.
 
@@ -455,6 +456,9 @@ def evaluate_ensemble(
         flagged: count members the simulator's quality gate flagged.
         progress: ``progress(message)`` or None.
         ensembles: the members already gathered (:func:`gather_ensembles` of ``sources``).
+        realisations: S > 0: a model with a residual process (its seeded realisations,
+            :mod:`loosefit.model.residual`) is scored by its realisations 0..S-1 as its
+            samples; 0 (and any other model): its one garment.
 
     Returns:
         ``{"split", "sources", "clips"}``: per clip, :func:`score_clip`'s figures and the
@@ -489,8 +493,14 @@ def evaluate_ensemble(
         for name, model in models.items():
             if progress:
                 progress(f"{clip}: {name} on {ens.frames} frames")
-            result = model.animate(motion, stages=stages)
-            preds[name] = np.asarray(result.vertices, np.float32)[None]
+            if realisations > 0 and getattr(model, "residual", None) is not None:
+                preds[name] = np.stack([
+                    np.asarray(model.animate(motion, stages=stages, realisation=k).vertices)
+                    for k in range(realisations)
+                ]).astype(np.float32)  # fmt: skip
+            else:
+                result = model.animate(motion, stages=stages)
+                preds[name] = np.asarray(result.vertices, np.float32)[None]
         scored = score_clip(preds, members, ctx, surface=surface)
         scored["members"]["labels"] = [m.label for m in ens.members]
         scored["members"]["sources"] = [f"{m.source}:{m.name}" for m in ens.members]
