@@ -62,6 +62,8 @@ METHODS = {
 FLARE_SHARE = 0.80  # of the turn's frames inside the members' range
 RMSE_RATIO = 1.25  # RMSE against the members over their own
 DECODER_SHARE = 0.5  # the decoder's reconstruction over the chaos floor
+RMSE_MEAN_BOUND = 1.05  # a stochastic stage's RMSE to the members' mean over the deterministic's
+STED_BOUND = 1.10  # its STED over the deterministic set's
 
 
 def rollouts(args, ens, motion, cache: Path) -> dict:
@@ -384,6 +386,24 @@ def targets(scores: dict) -> list[str]:
             f"every clip: **{'met' if below else 'not met'}** ({'; '.join(cells)} cm).",
             "",
         ]
+        for what, field, bound in (
+            ("RMSE to the members' mean", "rmse_to_mean_cm", RMSE_MEAN_BOUND),
+            ("STED", "sted_to_members", STED_BOUND),
+        ):
+            ratios = {
+                clip: c["models"][key][field] / c["models"]["ours-full"][field]
+                for clip, c in scores.items()
+                if field in c["models"][key]
+            }
+            if not ratios:
+                continue
+            ok = all(r <= bound for r in ratios.values())
+            said = "; ".join(f"{clip} {r:.3f}" for clip, r in ratios.items())
+            lines += [
+                f"Its {what} (its first realisation's) at most {bound:g}x the deterministic "
+                f"set's on every clip: **{'met' if ok else 'not met'}** ({said}).",
+                "",
+            ]
     return lines
 
 

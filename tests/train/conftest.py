@@ -24,3 +24,22 @@ def generative(toy_dataset, tmp_path_factory):
     )
     train_generative(toy_dataset, out, cfg, log=lambda *_: None, progress=False)
     return out / "checkpoint.pt"
+
+
+def toy_member(toy_dataset, out):
+    """A copy of the toy data set as another seed's simulation of it (seed 1): its test
+    clip's garment moved 1 cm in x. Returns the folder and its manifest."""
+    import dataclasses
+    import json
+    import shutil
+
+    from loosefit.data.format import DatasetReader
+
+    shutil.copytree(toy_dataset, out)
+    seq = DatasetReader(out).read("c")
+    moved = dataclasses.replace(seq, garment_vertices=seq.garment_vertices + 0.01)
+    moved.save(out / "sequences" / "c.npz")
+    manifest = json.loads((out / "manifest.json").read_text())
+    manifest["config"]["seed"] = 1
+    (out / "manifest.json").write_text(json.dumps(manifest))
+    return out, manifest

@@ -538,19 +538,11 @@ def test_evaluate_scores_a_model_against_each_clip_s_members(trained, toy_datase
     """`loosefit evaluate --members`: the held-out clip's second simulation (another data
     set of the same clip) gives the ensemble's section; a data set of other cloth is refused
     before any rollout, naming the field."""
-    import shutil
-
     from loosefit.cli import main
+    from tests.train.conftest import toy_member
 
     run, _ = trained
-    seed1 = tmp_path / "seed1"
-    shutil.copytree(toy_dataset, seed1)
-    seq = DatasetReader(seed1).read("c")
-    moved = dataclasses.replace(seq, garment_vertices=seq.garment_vertices + 0.01)
-    moved.save(seed1 / "sequences" / "c.npz")
-    manifest = json.loads((seed1 / "manifest.json").read_text())
-    manifest["config"]["seed"] = 1
-    (seed1 / "manifest.json").write_text(json.dumps(manifest))
+    seed1, manifest = toy_member(toy_dataset, tmp_path / "seed1")
     ev = tmp_path / "eval"
     assert (
         main(

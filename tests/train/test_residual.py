@@ -94,20 +94,10 @@ def test_evaluate_scores_a_set_by_its_realisations(model, toy_dataset, fitted, t
     """``loosefit evaluate --members ... --realisations S``: a set with a residual process is
     scored by S realisations (the energy score with their spread), another by its one
     garment."""
-    import dataclasses
-    import json
-    import shutil
-
     from loosefit.eval.ensemble import evaluate_ensemble
+    from tests.train.conftest import toy_member
 
-    seed1 = tmp_path / "seed1"
-    shutil.copytree(toy_dataset, seed1)
-    seq = DatasetReader(seed1).read("c")
-    moved = dataclasses.replace(seq, garment_vertices=seq.garment_vertices + 0.01)
-    moved.save(seed1 / "sequences" / "c.npz")
-    manifest = json.loads((seed1 / "manifest.json").read_text())
-    manifest["config"]["seed"] = 1
-    (seed1 / "manifest.json").write_text(json.dumps(manifest))
+    seed1, _ = toy_member(toy_dataset, tmp_path / "seed1")
     process, _ = fitted
     model.residual = process.with_scale(2.0)
     try:

@@ -538,17 +538,26 @@ def attach_detail(
         return _attach(model, path, data)
 
 
-def _attach(model: AnimationModel, path: Path, data: dict) -> AnimationModel:
+def check_fingerprints(model: AnimationModel, path: Path, data: dict, kind: str) -> None:
+    """A file's recorded stages against ``model``'s (:func:`stage_fingerprints`).
+
+    Raises:
+        LoosefitInputError: another garment or motion stage, naming both fingerprints and
+            ``kind``, what the file holds ("a detail stage trained on").
+    """
     have = stage_fingerprints(model)
     for key, what in (("garment", "garment"), ("motion", "motion stage")):
         if data["fingerprints"][key] != have[key]:
             raise LoosefitInputError(
                 path,
                 f"fingerprints.{key}",
-                f"the {what} of {model.path.name} (fingerprint {have[key]})",
-                f"a detail stage trained on another {what} "
-                f"(fingerprint {data['fingerprints'][key]})",
+                f"the {what} of {Path(model.path).name} (fingerprint {have[key]})",
+                f"{kind} another {what} (fingerprint {data['fingerprints'][key]})",
             )
+
+
+def _attach(model: AnimationModel, path: Path, data: dict) -> AnimationModel:
+    check_fingerprints(model, path, data, "a detail stage trained on")
     g = DetailGenerator(
         model.template.faces,
         model.template.num_vertices,
@@ -578,16 +587,7 @@ def attach_residual(
     else:
         check_format(path, data, RESIDUAL_FORMAT)
     with checkpoint_fields(path, "residual checkpoint"):
-        have = stage_fingerprints(model)
-        for key, what in (("garment", "garment"), ("motion", "motion stage")):
-            if data["fingerprints"][key] != have[key]:
-                raise LoosefitInputError(
-                    path,
-                    f"fingerprints.{key}",
-                    f"the {what} of {Path(model.path).name} (fingerprint {have[key]})",
-                    f"a residual process fitted to another {what} "
-                    f"(fingerprint {data['fingerprints'][key]})",
-                )
+        check_fingerprints(model, path, data, "a residual process fitted to")
         process = ResidualProcess.from_dict(data["process"], str(path))
     if process.num_vertices != model.template.num_vertices:
         raise LoosefitInputError(
