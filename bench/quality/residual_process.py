@@ -2,16 +2,17 @@
 clips choose its scale by the energy score.
 
 The process (:mod:`loosefit.model.residual`) is fitted on the data set's training clips
-(:func:`loosefit.train.residual.fit_residual`). Each scale s of ``--scales`` is then
-scored on the validation clips (simulated, never trained on, never the held-out ones),
-``--samples`` realisations a clip against the clip's one simulation: the energy score, the
-RMSE of a realisation, STED. The scales are scored through the motion stage and the edge
-lengths (collision handling, 85 % of a frame's time, moves these figures little); the
-chosen scale is then checked through every stage. The rule: the lowest mean energy score
-among the scales whose RMSE and STED stay within 5 % and 10 % of the deterministic
-garment's on every validation clip (the bounds the held-out targets set, applied where
-the choice is made); s = 0 (no process) if none does better. Writes the process with the
-chosen scale (``--out``, beside the set's ``motion.pt``)::
+(:func:`loosefit.train.residual.fit_residual`), its gain on the motion's intensity on the
+validation clips (the motion stage's error there against the intensity). Each scale s of
+``--scales`` is then scored on the validation clips (simulated, never trained on, never the
+held-out ones), ``--samples`` realisations a clip against the clip's one simulation: the
+energy score, the RMSE of a realisation, STED. The scales are scored through the motion
+stage and the edge lengths (collision handling, 85 % of a frame's time, moves these figures
+little); the chosen scale is then checked through every stage. The rule: the lowest mean
+energy score among the scales whose RMSE and STED stay within 5 % and 10 % of the
+deterministic garment's on every validation clip (the bounds the held-out targets set,
+applied where the choice is made); s = 0 (no process) if none does better. Writes the
+process with the chosen scale (``--out``, beside the set's ``motion.pt``)::
 
     OMP_NUM_THREADS=1 python bench/quality/residual_process.py --data datasets/dance \\
         --out checkpoints/dance/residual.pt --page docs/results/RESIDUAL.md
@@ -61,6 +62,7 @@ def main() -> None:
     p.add_argument("--scales", default="0.5,0.75,1,1.5,2", help="scales s scored")
     p.add_argument("--samples", type=int, default=8, help="realisations a clip")
     p.add_argument("--clips", default=None, help="comma-separated clips (validation ones)")
+    p.add_argument("--no-gain", action="store_true", help="the same spread every frame (m_t = 1)")
     p.add_argument("--out", default=None, help="where to write the chosen process")
     p.add_argument("--page", default=None, help="the Markdown page to write")
     args = p.parse_args()
@@ -69,10 +71,11 @@ def main() -> None:
     model = loosefit.load(args.checkpoint).model
     model.residual = None  # fitted afresh, whatever the set has
     config = ResidualConfig(args.directions, args.correlation, 1.0)
-    process, record = fit_residual(model, args.data, config)
-    fit_seconds = time.perf_counter() - t0
     reader = DatasetReader(args.data)
     clips = args.clips.split(",") if args.clips else validation_clips(reader)
+    gain_clips = None if args.no_gain else clips
+    process, record = fit_residual(model, args.data, config, gain_clips=gain_clips)
+    fit_seconds = time.perf_counter() - t0
     scales = [float(s) for s in args.scales.split(",")]
     faces = model.template.faces
     rows: dict[float, dict[str, dict]] = {0.0: {}, **{s: {} for s in scales}}
@@ -137,6 +140,20 @@ def main() -> None:
     print(f"[residual] {time.perf_counter() - t0:.0f} s in all")
 
 
+def gain_text(fit: dict | None, process) -> str:
+    """The gain's fit in words."""
+    if not fit:
+        return "The same spread at every frame (m_t = 1)."
+    a, b = process.gain
+    c0, c1 = fit["error_cm"]
+    return (
+        f"The spread follows the motion's intensity w_t (the joints' mean angular speed, "
+        f"rad/s, over half a second): the motion stage's error on the same validation clips "
+        f"({fit['frames']} frames) is {c0:.2f} + {c1:.2f} w_t cm (correlation "
+        f"{fit['correlation']:.2f}), so m_t = {a:.3f} + {b:.3f} w_t (within 0.1-4)."
+    )
+
+
 def markdown(args, record, process, clips, rows, chosen, full, started, fit_seconds) -> str:
     cfg = process.config
     total = float((process.std.pow(2).sum() / process.num_vertices).sqrt())
@@ -151,7 +168,8 @@ def markdown(args, record, process, clips, rows, chosen, full, started, fit_seco
         f"the simulation less the rollout in the root frame, is {100 * record['residual_rms']:.2f}"
         f" cm RMS a vertex; its {cfg.directions} leading directions hold "
         f"{100 * total:.2f} cm of it (at s = 1, the RMS offset a vertex); AR(1) correlation "
-        f"{cfg.correlation:g} a frame. Scored on the validation clips ({', '.join(clips)}), "
+        f"{cfg.correlation:g} a frame. {gain_text(record.get('gain'), process)} "
+        f"Scored on the validation clips ({', '.join(clips)}), "
         f"{args.samples} realisations a clip, through the motion stage and the edge lengths, "
         "against each clip's simulation: energy score (lower is "
         "better), a realisation's RMSE and STED (mean over realisations). s = 0: the "

@@ -89,6 +89,7 @@ def test_a_set_s_residual_process_is_exported_beside_the_graph(skirt, avatar, tm
     assert done.residual == tmp_path / "tiny.residual.npz" and done.residual in done.paths
     with np.load(done.residual) as z:
         assert float(z["correlation"]) == 0.9 and float(z["scale"]) == 0.5
+        assert z["gain"].tolist() == [1.0, 0.0]  # the same spread every frame
         # the formula the file documents gives the rollout's offsets
         from loosefit.model.residual import residual_draws
 

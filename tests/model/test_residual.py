@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 
@@ -92,3 +93,41 @@ def test_bad_residuals_and_seeds_are_refused():
     p = ResidualProcess(torch.eye(6).view(6, 2, 3), torch.ones(6), ResidualConfig(6))
     with pytest.raises(LoosefitInputError, match="seed"):
         residual_draws(p, 5, -1)
+
+
+def _spin(T: int, rate: float, fps: float = 30.0, J: int = 3) -> torch.Tensor:
+    """(T, J, 3, 3) every joint turning about Z at ``rate`` rad/s."""
+    angle = torch.arange(T, dtype=torch.float64) * rate / fps
+    c, s = torch.cos(angle), torch.sin(angle)
+    R = torch.zeros(T, 3, 3, dtype=torch.float64)
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    return R[:, None].expand(T, J, 3, 3)
+
+
+def test_the_motion_s_intensity_is_its_joints_mean_angular_speed():
+    from loosefit.model.residual import motion_intensity
+
+    np.testing.assert_allclose(motion_intensity(_spin(40, 2.0).numpy(), 30.0), 2.0, rtol=1e-6)
+    np.testing.assert_allclose(motion_intensity(_spin(40, 0.0).numpy(), 30.0), 0.0, atol=1e-9)
+    assert motion_intensity(_spin(1, 2.0).numpy(), 30.0).shape == (1,)
+    with pytest.raises(LoosefitInputError, match="rotations"):
+        motion_intensity(np.zeros((5, 3, 3)), 30.0)
+
+
+def test_the_spread_follows_the_intensity_through_the_gain():
+    basis = torch.zeros(1, 2, 3)
+    basis[0, 0, 0] = 1.0
+    p = ResidualProcess(basis, torch.tensor([0.02]), ResidualConfig(1, 0.5, 1.0))
+    g = p.with_gain((0.5, 0.25))
+    w = np.array([0.0, 2.0, 100.0, -100.0])
+    np.testing.assert_allclose(g.multiplier(w), [0.5, 1.0, 4.0, 0.1])  # clamped to 0.1-4
+    plain, scaled = residual_offsets(p, 4, 3), residual_offsets(g, 4, 3, w)
+    want = plain[:, 0, 0].numpy() * g.multiplier(w)
+    np.testing.assert_allclose(scaled[:, 0, 0].numpy(), want, rtol=1e-6)
+    assert ResidualProcess.from_dict(g.to_dict()).gain == (0.5, 0.25)
+    bad = g.to_dict()
+    bad["gain"] = [1.0, float("nan")]
+    with pytest.raises(LoosefitInputError, match="gain"):
+        ResidualProcess.from_dict(bad, "residual.pt")
+    with pytest.raises(LoosefitInputError, match="frames"):
+        residual_offsets(g, 4, 3, w[:2])

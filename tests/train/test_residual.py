@@ -109,3 +109,26 @@ def test_evaluate_scores_a_set_by_its_realisations(model, toy_dataset, fitted, t
     a, b = many["clips"]["c"]["models"]["ours"], one["clips"]["c"]["models"]["ours"]
     assert a["samples"] == 3 and b["samples"] == 1
     assert a["energy_score_cm"] != b["energy_score_cm"]
+
+
+def test_the_gain_is_fitted_on_clips_not_trained_on_and_scales_a_realisation(model, toy_dataset):
+    from loosefit.model.residual import motion_intensity
+
+    process, record = fit_residual(
+        model, toy_dataset, ResidualConfig(4, 0.9, 1.0), gain_clips=["c"], log=lambda *_: None
+    )
+    fit = record["gain"]
+    assert fit["clips"] == ["c"] and fit["frames"] == 16 and np.isfinite(fit["correlation"])
+    assert process.gain != (1.0, 0.0) and all(np.isfinite(process.gain))
+    motion = DatasetReader(toy_dataset).read("c").motion
+    model.residual = process
+    try:
+        plain = model.animate(motion, stages=MOTION_ONLY).vertices
+        drawn = model.animate(motion, stages=MOTION_ONLY, realisation=1).vertices
+    finally:
+        model.residual = None
+    w = motion_intensity(motion.rotations, motion.fps)
+    off = residual_offsets(process, motion.num_frames, 1, w)
+    _, H, p, P = model.motion_stage().inputs(motion)
+    want = from_root_frame(off, H[P:], torch.zeros_like(p[P:])).numpy()
+    np.testing.assert_allclose(drawn - plain, want, atol=1e-5)

@@ -152,8 +152,9 @@ def export_onnx(model, out: str | Path, *, config=None) -> ExportedModel:
 def write_residual(process, path: str | Path) -> Path:
     """A residual process (:mod:`loosefit.model.residual`) as ``.npz`` for an engine that
     draws realisations itself: ``basis`` (K, V, 3) float32, ``std`` (K,) m, ``correlation``
-    rho and ``scale`` s. A realisation's offset at frame t is ``s * sum_k std_k c_tk
-    basis_k`` (c_t = rho c_t-1 + sqrt(1 - rho^2) e_t, e_t standard normal), in the root
+    rho, ``scale`` s and ``gain`` (a, b). A realisation's offset at frame t is ``s * m_t *
+    sum_k std_k c_tk basis_k`` (c_t = rho c_t-1 + sqrt(1 - rho^2) e_t, e_t standard normal;
+    m_t = clamp(a + b w_t, 0.1, 4), w_t the motion's intensity, ``motion_intensity``), in the root
     frame: turned by the frame's heading and added to the graph's world garment, never to
     the garment the graph is fed back (docs/use/ENGINE_EXPORT.md)."""
     import numpy as np
@@ -169,6 +170,7 @@ def write_residual(process, path: str | Path) -> Path:
                 std=process.std.numpy().astype(np.float32),
                 correlation=np.float64(process.config.correlation),
                 scale=np.float64(process.config.scale),
+                gain=np.asarray(process.gain, np.float64),
             )
     return path
 

@@ -128,6 +128,7 @@ def fit_residual(
     directions: int = 8,
     correlation: float = 0.97,
     scale: float = 1.0,
+    gain: bool = True,
     log=print,
 ) -> Path:
     """Fit a motion stage's residual process (:mod:`loosefit.model.residual`) on a data
@@ -139,6 +140,9 @@ def fit_residual(
         data: the data set it was trained on.
         out: the file to write.
         directions, correlation, scale: :class:`~loosefit.model.residual.ResidualConfig`.
+        gain: the spread following the motion's intensity, fitted on the data set's
+            validation clips (those it simulated and its split leaves out), where it has
+            any; False, or none there: the same spread every frame.
         log: where each clip's line goes.
 
     Returns:
@@ -154,9 +158,15 @@ def fit_residual(
     from loosefit.train.residual import fit_residual as fit
 
     config = ResidualConfig(directions, correlation, scale)  # refused before the work
+    from loosefit.data.format import DatasetReader
+    from loosefit.eval.heldout import validation_clips
+
     model = AnimationModel.from_checkpoint(motion)
     model.residual = None
-    process, record = fit(model, data, config, log=log)
+    clips = validation_clips(DatasetReader(data)) if gain else []
+    if gain and not clips:
+        log("[residual] no validation clips in the data set: the same spread every frame")
+    process, record = fit(model, data, config, gain_clips=clips or None, log=log)
     path = Path(out) if out is not None else Path(motion).parent / "residual.pt"
     save_atomic(residual_record(model, process, record), path)
     return path

@@ -319,6 +319,12 @@ def _add_residual_parser(stages) -> argparse.ArgumentParser:
         help="times the training residuals' spread (default 1; the pretrained set's scale "
         "is chosen on validation clips by bench/quality/residual_process.py)",
     )
+    p.add_argument(
+        "--no-gain",
+        action="store_true",
+        help="the same spread every frame (default: following the motion's intensity, "
+        "fitted on the data set's validation clips where it has any)",
+    )
     p.add_argument("--out", default=None, help="the file (default residual.pt beside --motion)")
     p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
     p.set_defaults(func=run_residual)
@@ -557,6 +563,7 @@ def run_residual(args: argparse.Namespace) -> int:
         directions=args.directions,
         correlation=args.correlation,
         scale=args.scale,
+        gain=not args.no_gain,
         log=log,
     )
     log(f"residual process in {path}")

@@ -74,7 +74,7 @@ from loosefit.model.detail import DetailConfig, DetailGenerator
 from loosefit.model.generative import GarmentGenerativeModel
 from loosefit.model.losses import PHYSICS_TERMS, terms_of
 from loosefit.model.motion_encoder import DynamicMotionEncoder, MotionEncoderConfig
-from loosefit.model.residual import ResidualProcess, residual_offsets
+from loosefit.model.residual import ResidualProcess, motion_intensity, residual_offsets
 from loosefit.types import GarmentTemplate, Motion
 
 # -- the paper's model ------------------------------------------------------------------------
@@ -263,7 +263,7 @@ class AnimationModel:
         run_motion = self._trained_motion(motion, body, stages)
         hooks = RolloutHooks(progress=progress)
         if realisation is not None:
-            hooks.offsets = self.residual_offsets(motion.num_frames, realisation)
+            hooks.offsets = self.residual_offsets(motion, realisation)
         if restart_every is not None:
             shape = (motion.num_frames, self.template.num_vertices, 3)
             hooks.restart = RestartFromTruth(truth, restart_every, shape, self.device)
@@ -332,9 +332,10 @@ class AnimationModel:
                     r.collisions = collision_records(later)
         return results
 
-    def residual_offsets(self, frames: int, realisation: int) -> torch.Tensor:
-        """(frames, V, 3) realisation ``realisation``'s root-frame offsets
-        (:func:`~loosefit.model.residual.residual_offsets`)."""
+    def residual_offsets(self, motion: Motion, realisation: int) -> torch.Tensor:
+        """(T, V, 3) realisation ``realisation``'s root-frame offsets along ``motion``
+        (:func:`~loosefit.model.residual.residual_offsets`, its spread following the
+        motion's intensity)."""
         if self.residual is None:
             raise LoosefitInputError(
                 self.path,
@@ -343,7 +344,8 @@ class AnimationModel:
                 "none beside this motion stage",
                 hint="fit one: loosefit train residual --motion MOTION.pt --data DATA",
             )
-        return residual_offsets(self.residual, frames, realisation)
+        intensity = motion_intensity(motion.rotations, motion.fps)
+        return residual_offsets(self.residual, motion.num_frames, realisation, intensity)
 
     def motion_stage(self, step: StepFunction | None = None) -> MotionStage:
         """The motion stage a rollout runs (``step``: its network call, e.g. in

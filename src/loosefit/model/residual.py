@@ -5,27 +5,36 @@ away lands centimetres away (docs/results/ENSEMBLE.md). The motion stage, fitted
 simulation of each clip with a squared error, predicts the centre of what the cloth may
 do. The residual process models where a simulation lands around it:
 
-    x_t = f(M_t, x_{t-1}) + s * sum_k sigma_k c_{t,k} u_k,
+    x_t = f(M_t, x_{t-1}) + s * m_t * sum_k sigma_k c_{t,k} u_k,
     c_t = rho c_{t-1} + sqrt(1 - rho^2) e_t,   e_t ~ N(0, I)
+    m_t = clamp(a + b w_t, 0.1, 4)
 
 u_k (V, 3) the leading principal directions of the motion stage's residuals (the simulated
 garment less the rolled-out one, in the root frame) over the training clips, sigma_k their
 standard deviations, c_t a stationary AR(1) process of unit variance drawn from a seed,
 and s a scale that the validation clips choose by the energy score
-(``bench/quality/residual_process.py``). The offsets are added to the garment shown and
-passed to the later stages, never to the motion stage's own previous state: the dynamics
-stay the trained ones, and a seed gives the same garments on every run and machine (the
-draws are torch's CPU generator's).
+(``bench/quality/residual_process.py``). m_t follows the motion: w_t is its intensity
+(:func:`motion_intensity`, the joints' mean angular speed), and (a, b) the line through
+the motion stage's error against w_t on clips it was not trained on, divided by that
+error's mean (the training clips' residuals cannot give it: they are fitted, 3.5-4.5 cm
+at every speed). (1, 0): the same spread at every frame. The offsets are added to the
+garment shown and passed to the later stages, never to the motion stage's own previous
+state: the dynamics stay the trained ones, and a seed gives the same garments on every run
+and machine (the draws are torch's CPU generator's).
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 
+import numpy as np
 import torch
 
 from loosefit.errors import LoosefitInputError
 from loosefit.model.engine import correlate_noise, fit_basis
+
+GAIN_LOW, GAIN_HIGH = 0.1, 4.0  # m_t's range
+INTENSITY_WINDOW = 15  # frames the motion's intensity is averaged over (half a second)
 
 
 @dataclass(frozen=True)
@@ -61,6 +70,7 @@ class ResidualProcess:
     basis: torch.Tensor
     std: torch.Tensor
     config: ResidualConfig
+    gain: tuple[float, float] = (1.0, 0.0)  # (a, b): m_t = clamp(a + b w_t, 0.1, 4)
 
     @property
     def num_vertices(self) -> int:
@@ -69,13 +79,26 @@ class ResidualProcess:
     def with_scale(self, scale: float) -> ResidualProcess:
         """The same process at another scale s."""
         c = replace(self.config, scale=scale)
-        return ResidualProcess(self.basis, self.std, c)
+        return ResidualProcess(self.basis, self.std, c, self.gain)
+
+    def with_gain(self, gain: tuple[float, float]) -> ResidualProcess:
+        """The same process with another gain (a, b) on the motion's intensity."""
+        a, b = (float(v) for v in gain)
+        if not (np.isfinite(a) and np.isfinite(b)):
+            raise LoosefitInputError("ResidualProcess", "gain", "two finite numbers", gain)
+        return ResidualProcess(self.basis, self.std, self.config, (a, b))
+
+    def multiplier(self, intensity: np.ndarray) -> np.ndarray:
+        """(T,) m_t of a motion's intensity w_t (T,)."""
+        a, b = self.gain
+        return np.clip(a + b * np.asarray(intensity, np.float64), GAIN_LOW, GAIN_HIGH)
 
     def to_dict(self) -> dict:
         return {
             "config": asdict(self.config),
             "basis": self.basis.float().contiguous(),
             "std": self.std.float().contiguous(),
+            "gain": [float(v) for v in self.gain],
         }
 
     @classmethod
@@ -91,7 +114,10 @@ class ResidualProcess:
             raise LoosefitInputError(source, "std", f"({K},) finite, >= 0", tuple(std.shape))
         if not torch.isfinite(basis).all():
             raise LoosefitInputError(source, "basis", "finite numbers", "NaN or infinity")
-        return cls(basis, std, config)
+        gain = data.get("gain", (1.0, 0.0))
+        if len(gain) != 2 or not all(np.isfinite(float(v)) for v in gain):
+            raise LoosefitInputError(source, "gain", "two finite numbers (a, b)", gain)
+        return cls(basis, std, config, (float(gain[0]), float(gain[1])))
 
 
 def fit_residual_process(residuals: torch.Tensor, config: ResidualConfig) -> ResidualProcess:
@@ -123,8 +149,39 @@ def residual_draws(process: ResidualProcess, frames: int, seed: int) -> torch.Te
     return correlate_noise(white, process.config.correlation)
 
 
-def residual_offsets(process: ResidualProcess, frames: int, seed: int) -> torch.Tensor:
+def residual_offsets(
+    process: ResidualProcess, frames: int, seed: int, intensity: np.ndarray | None = None
+) -> torch.Tensor:
     """(frames, V, 3) the root-frame offsets of realisation ``seed``, float32 on the CPU:
-    ``s * sum_k sigma_k c_{t,k} u_k``."""
+    ``s * m_t * sum_k sigma_k c_{t,k} u_k``; ``intensity`` (frames,) the motion's w_t
+    (None: m_t = 1)."""
     c = residual_draws(process, frames, seed) * (process.std * process.config.scale)
+    if intensity is not None:
+        if len(intensity) != frames:
+            raise LoosefitInputError("intensity", "frames", frames, len(intensity))
+        c = c * torch.from_numpy(process.multiplier(intensity)).float()[:, None]
     return (c @ process.basis.flatten(1)).view(frames, process.num_vertices, 3)
+
+
+def motion_intensity(rotations: np.ndarray, fps: float, window: int = INTENSITY_WINDOW):
+    """(T,) rad/s: a motion's intensity w_t, the mean over its joints of each local
+    rotation's angular speed from the frame before, averaged over ``window`` frames about t
+    (the ends held).
+
+    Args:
+        rotations: (T, J, 3, 3) local joint rotations.
+        fps: frames per second.
+        window: frames averaged (odd).
+    """
+    R = np.asarray(rotations, np.float64)
+    if R.ndim != 4 or R.shape[-2:] != (3, 3) or len(R) < 1:
+        raise LoosefitInputError("motion", "rotations", "(T, J, 3, 3)", tuple(R.shape))
+    if len(R) == 1:
+        return np.zeros(1)
+    rel = np.einsum("tjab,tjac->tjbc", R[:-1], R[1:])  # R_{t-1}^T R_t
+    cos = np.clip((np.trace(rel, axis1=2, axis2=3) - 1.0) / 2.0, -1.0, 1.0)
+    speed = np.arccos(cos).mean(1) * fps  # (T - 1,)
+    speed = np.concatenate([speed[:1], speed])
+    half = window // 2
+    padded = np.pad(speed, (half, half), mode="edge")
+    return np.convolve(padded, np.ones(2 * half + 1) / (2 * half + 1), mode="valid")

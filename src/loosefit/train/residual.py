@@ -38,12 +38,59 @@ def clip_residuals(model, seq) -> torch.Tensor:
     return to_root_frame(truth, H, p) - to_root_frame(torch.as_tensor(rolled), H, p)
 
 
+def fit_gain(
+    model, data: str | Path, clips: list[str], log: Callable[[str], None] = print
+) -> tuple[tuple[float, float], dict]:
+    """The gain (a, b) of the residual process on the motion's intensity: the least-squares
+    line through the motion stage's per-frame error (its rollout against the simulation,
+    RMS over the vertices) against the motion's intensity w_t
+    (:func:`~loosefit.model.residual.motion_intensity`) over ``clips``, divided by the
+    error's mean, so that m_t is 1 on average over them.
+
+    Args:
+        model: an :class:`~loosefit.inference.animator.AnimationModel`.
+        data: the data set; ``clips``: clips of it the motion stage was not trained on.
+        log: where each clip's line goes.
+
+    Returns:
+        (a, b), and the fit's record (clips, frames, the line in cm and cm per rad/s, the
+        correlation of error and intensity).
+    """
+    from loosefit.data.format import DatasetReader
+    from loosefit.eval.metrics import rmse_per_frame
+    from loosefit.inference.stages import MOTION_ONLY
+    from loosefit.model.residual import motion_intensity
+
+    if not clips:
+        raise LoosefitInputError(Path(data), "clips", "at least one clip for the gain", "none")
+    reader = DatasetReader(data)
+    errors, speeds = [], []
+    for name in clips:
+        seq = reader.read(name)
+        rolled = model.animate(seq.motion, stages=MOTION_ONLY).vertices
+        errors.append(rmse_per_frame(rolled, seq.garment_vertices))
+        speeds.append(motion_intensity(seq.motion.rotations, seq.motion.fps))
+        log(f"[residual] gain: {name}, error {100 * errors[-1].mean():.2f} cm")
+    e, w = np.concatenate(errors), np.concatenate(speeds)
+    slope, intercept = np.polyfit(w, e, 1)
+    mean = float(e.mean())
+    gain = (float(intercept / mean), float(slope / mean))
+    record = {
+        "clips": list(clips),
+        "frames": int(len(e)),
+        "error_cm": [100 * float(intercept), 100 * float(slope)],
+        "correlation": float(np.corrcoef(w, e)[0, 1]),
+    }
+    return gain, record
+
+
 def fit_residual(
     model,
     data: str | Path,
     config: ResidualConfig | None = None,
     *,
     split: str = "train",
+    gain_clips: list[str] | None = None,
     log: Callable[[str], None] = print,
 ) -> tuple[ResidualProcess, dict]:
     """The residual process of ``model``'s motion stage over a data set's split.
@@ -53,6 +100,8 @@ def fit_residual(
         data: a data set simulated on the model's garment and body.
         config: the process's size, memory and scale (default :class:`ResidualConfig`).
         split: the clips it is fitted on.
+        gain_clips: clips the motion stage was not trained on, to fit the spread's gain on
+            the motion's intensity (:func:`fit_gain`); None: the same spread every frame.
         log: where each clip's line goes.
 
     Returns:
@@ -91,11 +140,16 @@ def fit_residual(
             f"{len(residuals)} frames",
         )
     process = fit_residual_process(residuals, config)
+    gain_record = None
+    if gain_clips:
+        gain, gain_record = fit_gain(model, data, gain_clips, log)
+        process = process.with_gain(gain)
     record = {
         "dataset": Path(data).name,
         "split": split,
         "clips": list(clips),
         "frames": len(residuals),
         "residual_rms": float(residuals.pow(2).sum(-1).mean().sqrt()),
+        "gain": gain_record,
     }
     return process, record
