@@ -32,8 +32,8 @@ from loosefit.data.format import DatasetReader
 from loosefit.eval.ensemble import energy_score
 from loosefit.eval.heldout import validation_clips
 from loosefit.eval.metrics import rmse, sted
-from loosefit.inference.animator import residual_record
 from loosefit.inference.checkpoints import save_atomic
+from loosefit.inference.residual import residual_record
 from loosefit.inference.stages import Stages
 from loosefit.model.residual import ResidualConfig
 from loosefit.train.common import machine

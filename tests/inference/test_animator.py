@@ -12,9 +12,8 @@ from loosefit.inference.animator import (
     AnimationModel,
     attach_detail,
     load_animation_model,
-    stage_fingerprints,
 )
-from loosefit.inference.checkpoints import load_torch, model_fingerprint
+from loosefit.inference.checkpoints import load_torch, model_fingerprint, stage_fingerprints
 from tests.conftest import REPO, WITH_DETAIL
 
 PAIR = REPO / "checkpoints" / "dance"

@@ -8,8 +8,8 @@ import torch
 
 from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
-from loosefit.inference.animator import attach_residual, residual_record
 from loosefit.inference.checkpoints import save_atomic
+from loosefit.inference.residual import attach_residual, residual_record
 from loosefit.inference.stages import MOTION_ONLY
 from loosefit.model.motion_features import from_root_frame
 from loosefit.model.residual import ResidualConfig, residual_offsets

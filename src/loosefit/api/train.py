@@ -152,8 +152,9 @@ def fit_residual(
         LoosefitInputError: a bad configuration, a data set of another garment, too few
             training frames for ``directions``.
     """
-    from loosefit.inference.animator import AnimationModel, residual_record
+    from loosefit.inference.animator import AnimationModel
     from loosefit.inference.checkpoints import save_atomic
+    from loosefit.inference.residual import residual_record
     from loosefit.model.residual import ResidualConfig
     from loosefit.train.residual import fit_residual as fit
 

@@ -18,11 +18,10 @@ import numpy as np
 import torch
 
 from loosefit.errors import LoosefitInputError
-from loosefit.garment.fingerprint import garment_fingerprint
 from loosefit.inference.checkpoints import (
     DETAIL_FORMAT,
     MOTION_FORMAT,
-    RESIDUAL_FORMAT,
+    check_fingerprints,
     check_format,
     checkpoint_fields,
     load_generative,
@@ -43,6 +42,7 @@ from loosefit.inference.model_common import (
 )
 from loosefit.inference.other_body import BodyCarryStage, OtherBody
 from loosefit.inference.references import carried_drape, reconstruction
+from loosefit.inference.residual import attach_residual
 from loosefit.inference.rollout import (
     MotionStage,
     RestartFromTruth,
@@ -512,15 +512,6 @@ def _animation_model(path: Path, data: dict, generative, device) -> AnimationMod
     )
 
 
-def stage_fingerprints(model: AnimationModel) -> dict:
-    """What a detail stage is tied to: the motion stage's weights and the garment."""
-    t = model.template
-    return {
-        "motion": model_fingerprint(model.encoder),
-        "garment": garment_fingerprint(t.vertices, t.faces),
-    }
-
-
 def attach_detail(
     model: AnimationModel, path: str | Path, data: dict | None = None
 ) -> AnimationModel:
@@ -540,24 +531,6 @@ def attach_detail(
         return _attach(model, path, data)
 
 
-def check_fingerprints(model: AnimationModel, path: Path, data: dict, kind: str) -> None:
-    """A file's recorded stages against ``model``'s (:func:`stage_fingerprints`).
-
-    Raises:
-        LoosefitInputError: another garment or motion stage, naming both fingerprints and
-            ``kind``, what the file holds ("a detail stage trained on").
-    """
-    have = stage_fingerprints(model)
-    for key, what in (("garment", "garment"), ("motion", "motion stage")):
-        if data["fingerprints"][key] != have[key]:
-            raise LoosefitInputError(
-                path,
-                f"fingerprints.{key}",
-                f"the {what} of {Path(model.path).name} (fingerprint {have[key]})",
-                f"{kind} another {what} (fingerprint {data['fingerprints'][key]})",
-            )
-
-
 def _attach(model: AnimationModel, path: Path, data: dict) -> AnimationModel:
     check_fingerprints(model, path, data, "a detail stage trained on")
     g = DetailGenerator(
@@ -572,42 +545,6 @@ def _attach(model: AnimationModel, path: Path, data: dict) -> AnimationModel:
     for prm in g.parameters():
         prm.requires_grad_(False)
     return model
-
-
-def attach_residual(
-    model: AnimationModel, path: str | Path, data: dict | None = None
-) -> AnimationModel:
-    """Load a residual process into ``model`` (``model.residual``), checked to belong to it.
-
-    Raises:
-        LoosefitInputError: not a residual checkpoint, or one fitted to another garment or
-            motion stage (the message names both fingerprints).
-    """
-    path = Path(path)
-    if data is None:
-        data = read_checkpoint_file(path, RESIDUAL_FORMAT, model.device)
-    else:
-        check_format(path, data, RESIDUAL_FORMAT)
-    with checkpoint_fields(path, "residual checkpoint"):
-        check_fingerprints(model, path, data, "a residual process fitted to")
-        process = ResidualProcess.from_dict(data["process"], str(path))
-    if process.num_vertices != model.template.num_vertices:
-        raise LoosefitInputError(
-            path, "process.basis", f"{model.template.num_vertices} vertices", process.num_vertices
-        )
-    model.residual = process
-    return model
-
-
-def residual_record(model: AnimationModel, process: ResidualProcess, fitted_on: dict) -> dict:
-    """A residual checkpoint's contents: the process, the stages it belongs to, what it was
-    fitted on (data set, clips, frames, and how its scale was chosen)."""
-    return {
-        "format": RESIDUAL_FORMAT,
-        "fingerprints": stage_fingerprints(model),
-        "process": process.to_dict(),
-        "fitted_on": dict(fitted_on),
-    }
 
 
 def load_detail_model(

@@ -377,3 +377,31 @@ def load_generative(
         model = GarmentGenerativeModel(stored, config, ssdr=ssdr).to(device)
         load_weights(model, data["model"], path, "this generative configuration")
     return model.eval(), data
+
+
+def stage_fingerprints(model) -> dict:
+    """What the stages beside a motion stage (a detail stage, a residual process) are tied
+    to: the motion stage's weights and the garment (``model``: an ``AnimationModel``)."""
+    t = model.template
+    return {
+        "motion": model_fingerprint(model.encoder),
+        "garment": garment_fingerprint(t.vertices, t.faces),
+    }
+
+
+def check_fingerprints(model, path: Path, data: dict, kind: str) -> None:
+    """A file's recorded stages against ``model``'s (:func:`stage_fingerprints`).
+
+    Raises:
+        LoosefitInputError: another garment or motion stage, naming both fingerprints and
+            ``kind``, what the file holds ("a detail stage trained on").
+    """
+    have = stage_fingerprints(model)
+    for key, what in (("garment", "garment"), ("motion", "motion stage")):
+        if data["fingerprints"][key] != have[key]:
+            raise LoosefitInputError(
+                path,
+                f"fingerprints.{key}",
+                f"the {what} of {Path(model.path).name} (fingerprint {have[key]})",
+                f"{kind} another {what} (fingerprint {data['fingerprints'][key]})",
+            )

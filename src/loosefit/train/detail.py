@@ -41,13 +41,13 @@ from loosefit.inference.animator import (
     AnimationModel,
     load_animation_model,
     load_detail_model,
-    stage_fingerprints,
 )
 from loosefit.inference.checkpoints import (
     DETAIL_FORMAT,
     load_weights,
     read_checkpoint_file,
     save_atomic,
+    stage_fingerprints,
 )
 from loosefit.inference.rollout import motion_root_frames
 from loosefit.inference.stages import MOTION_ONLY, Stages
