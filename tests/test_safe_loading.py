@@ -109,14 +109,15 @@ def test_a_newer_format_version_asks_for_an_upgrade(tmp_path, skirt):
 
 
 def test_every_checkpoint_says_what_it_is():
-    """Every committed set (the shipped one and the salsa set, which has all three stages):
+    """Every committed set (the shipped one, with its engine tier and residual process, and
+    the salsa set, which has all three stages):
     its format, the version that wrote it, the garment's fingerprint, and the networks'
     configuration."""
     from loosefit.api import pretrained_checkpoint
     from loosefit.inference.checkpoints import load_torch
 
     sets = {
-        pretrained_checkpoint().parent: ("generative", "motion", "engine"),
+        pretrained_checkpoint().parent: ("generative", "motion", "engine", "residual"),
         WITH_DETAIL: ("generative", "motion", "detail"),
     }
     for root, names in sets.items():
@@ -124,10 +125,11 @@ def test_every_checkpoint_says_what_it_is():
         for name in names:
             data = load_torch(root / f"{name}.pt")
             assert data["format"] == f"loosefit.{name}/1" and data["loosefit_version"]
-            assert data["model_config"]
+            # a residual process's configuration is its process's (size, memory, scale)
+            assert data["process"]["config"] if name == "residual" else data["model_config"]
             garment = (
                 data["fingerprints"]["garment"]
-                if name == "detail"
+                if name in ("detail", "residual")
                 else data["garment"]["fingerprint"]
             )
             assert len(garment) == 16

@@ -164,8 +164,13 @@ def test_a_fixed_pixel_ratio_sizes_the_canvas(clips, chromium_binary):
     try:
         assert viewer.url.endswith("/?fixedDpr=0.5")
         with Chromium(chromium_binary, width=800, height=600) as browser:
-            browser.open(viewer.url, settle=1.0)
+            # the panel built and the canvas there: a loaded machine may take longer than
+            # a second to make them
+            browser.open(viewer.url, settle=1.0, panel=viewer.panel_labels)
             canvas = "document.querySelector('canvas[data-engine]')"  # three.js's
+            deadline = time.monotonic() + browser.timeout
+            while not browser.evaluate(f"{canvas} !== null") and time.monotonic() < deadline:
+                time.sleep(0.1)
             width, css_width = browser.evaluate(f"[{canvas}.width, {canvas}.clientWidth]")
             # the headless browser's default: WebGL without multisampling (NO_ANTIALIAS)
             gl = f"{canvas}.getContext('webgl2')"
