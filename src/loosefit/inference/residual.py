@@ -5,7 +5,6 @@ the motion stage and garment it was fitted to."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from loosefit.errors import LoosefitInputError
 from loosefit.inference.checkpoints import (
@@ -18,14 +17,10 @@ from loosefit.inference.checkpoints import (
 )
 from loosefit.model.residual import ResidualProcess
 
-if TYPE_CHECKING:
-    from loosefit.inference.animator import AnimationModel
 
-
-def attach_residual(
-    model: AnimationModel, path: str | Path, data: dict | None = None
-) -> AnimationModel:
-    """Load a residual process into ``model`` (``model.residual``), checked to belong to it.
+def attach_residual(model, path: str | Path, data: dict | None = None):
+    """Load a residual process into ``model`` (an ``AnimationModel``: ``model.residual``),
+    checked to belong to it; returns ``model``.
 
     Raises:
         LoosefitInputError: not a residual checkpoint, or one fitted to another garment or
@@ -47,9 +42,10 @@ def attach_residual(
     return model
 
 
-def residual_record(model: AnimationModel, process: ResidualProcess, fitted_on: dict) -> dict:
-    """A residual checkpoint's contents: the process, the stages it belongs to, what it was
-    fitted on (data set, clips, frames, and how its scale was chosen)."""
+def residual_record(model, process: ResidualProcess, fitted_on: dict) -> dict:
+    """A residual checkpoint's contents: the process, the stages it belongs to (``model``'s,
+    an ``AnimationModel``), what it was fitted on (data set, clips, frames, and how its
+    scale was chosen)."""
     return {
         "format": RESIDUAL_FORMAT,
         "fingerprints": stage_fingerprints(model),
