@@ -36,6 +36,7 @@ from loosefit.eval.ensemble import (
     SECTION,
     clip_context,
     ensemble_markdown,
+    model_samples,
     score_members,
     score_model,
 )
@@ -98,14 +99,7 @@ def rollouts(args, ens, motion, cache: Path) -> dict:
             elif key == "ours-realisations":  # seeds 0, 1, ... of its residual process
                 if models[kind].residual is None:
                     continue  # a set without one
-                result = Rollout(
-                    np.stack(
-                        [
-                            models[kind].animate(motion, stages=stages, realisation=k).vertices
-                            for k in range(args.samples)
-                        ]
-                    )  # fmt: skip
-                )
+                result = Rollout(model_samples(models[kind], motion, args.samples, stages))
             else:
                 result = models[kind].animate(motion, stages=stages)
             seconds = time.perf_counter() - t0
@@ -201,10 +195,7 @@ def validation_choice(args, cache: Path) -> dict:
                     elif ours.residual is None:
                         continue  # a set without a residual process
                     else:
-                        x = np.stack([
-                            ours.animate(seq.motion, realisation=k).vertices
-                            for k in range(args.samples)
-                        ])  # fmt: skip
+                        x = model_samples(ours, seq.motion, args.samples)
                 else:
                     from loosefit.inference.engine.model import load_engine, rollout_engine
 

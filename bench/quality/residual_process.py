@@ -29,7 +29,7 @@ import torch
 
 import loosefit
 from loosefit.data.format import DatasetReader
-from loosefit.eval.ensemble import energy_score
+from loosefit.eval.ensemble import energy_score, model_samples
 from loosefit.eval.heldout import validation_clips
 from loosefit.eval.metrics import rmse, sted
 from loosefit.inference.checkpoints import save_atomic
@@ -88,11 +88,8 @@ def main() -> None:
         rows[0.0][name] = score(g[None], truth, faces)
         for s in scales:
             model.residual = process.with_scale(s)
-            gs = [
-                model.animate(seq.motion, stages=SCORED, realisation=k).vertices
-                for k in range(args.samples)
-            ]
-            rows[s][name] = score(np.stack(gs), truth, faces)
+            gs = model_samples(model, seq.motion, args.samples, SCORED)
+            rows[s][name] = score(gs, truth, faces)
         ready[name] = seq
         print(f"[residual] {name}: " + ", ".join(
             f"s={s:g} ES {100 * rows[s][name]['es']:.2f}" for s in rows), flush=True)  # fmt: skip
@@ -120,9 +117,7 @@ def main() -> None:
             seq = ready[name]
             truth = np.asarray(seq.garment_vertices, np.float64)
             g0 = model.animate(seq.motion).vertices
-            gs = np.stack([
-                model.animate(seq.motion, realisation=k).vertices for k in range(args.samples)
-            ])  # fmt: skip
+            gs = model_samples(model, seq.motion, args.samples)
             full[name] = (score(g0[None], truth, faces), score(gs, truth, faces))
             print(f"[residual] {name} every stage: ES {100 * full[name][0]['es']:.2f} -> "
                   f"{100 * full[name][1]['es']:.2f}", flush=True)  # fmt: skip

@@ -669,9 +669,18 @@ def test_a_packaged_set_takes_the_residual_process_fitted_beside_it(trained, toy
     )  # fmt: skip
     np.testing.assert_array_equal(one, again)
     assert np.abs(one - plain).max() > 1e-4 and np.abs(one - other).max() > 1e-4
-    # a residual process fitted to another motion stage is refused, naming both
+    # a set without a residual process refuses a realisation, naming the file
     (tmp_path / "set" / "residual.pt").rename(tmp_path / "residual.pt")
     with pytest.raises(LoosefitInputError, match="residual"):
         inf.AnimationModel.from_checkpoint(mout).animate(
             DatasetReader(toy_dataset).read("c").motion, realisation=0
         )
+    # one fitted to another motion stage is refused, naming the fingerprint; fitting again
+    # reads the motion stage alone and writes a new one over it
+    stale = torch.load(tmp_path / "residual.pt", weights_only=False)
+    stale["fingerprints"]["motion"] = "0" * 16
+    torch.save(stale, tmp_path / "set" / "residual.pt")
+    with pytest.raises(LoosefitInputError, match="fingerprints.motion"):
+        inf.AnimationModel.from_checkpoint(mout)
+    assert main([*args, "--directions", "4", "--scale", "2"]) == 0
+    assert inf.AnimationModel.from_checkpoint(mout).residual.config.scale == 2.0

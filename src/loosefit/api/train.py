@@ -152,18 +152,17 @@ def fit_residual(
         LoosefitInputError: a bad configuration, a data set of another garment, too few
             training frames for ``directions``.
     """
-    from loosefit.inference.animator import AnimationModel
+    from loosefit.data.format import DatasetReader
+    from loosefit.eval.heldout import validation_clips
+    from loosefit.inference.animator import load_animation_model
     from loosefit.inference.checkpoints import save_atomic
     from loosefit.inference.residual import residual_record
     from loosefit.model.residual import ResidualConfig
     from loosefit.train.residual import fit_residual as fit
 
     config = ResidualConfig(directions, correlation, scale)  # refused before the work
-    from loosefit.data.format import DatasetReader
-    from loosefit.eval.heldout import validation_clips
-
-    model = AnimationModel.from_checkpoint(motion)
-    model.residual = None
+    # the motion stage alone: a residual.pt beside it (even a stale one) is not read
+    model = load_animation_model(motion)
     clips = validation_clips(DatasetReader(data)) if gain else []
     if gain and not clips:
         log("[residual] no validation clips in the data set: the same spread every frame")

@@ -432,6 +432,24 @@ def score_clip(
     return {"members": own, "models": models}
 
 
+def model_samples(model, motion, realisations: int = 0, stages=None) -> np.ndarray:
+    """(S, T, V, 3) float32: a model's garments of ``motion`` to score as its samples: its
+    realisations 0..S-1 where ``realisations`` = S > 0 and it has a residual process
+    (:mod:`loosefit.model.residual`), else its one garment (S = 1).
+
+    Args:
+        model: a trained pipeline (:func:`loosefit.load`'s ``.model``).
+        motion: the motion to animate.
+        realisations: S, the realisations asked for (0: the one garment).
+        stages: the stages after the decoders (None: the model's).
+    """
+    if realisations > 0 and getattr(model, "residual", None) is not None:
+        runs = [model.animate(motion, stages=stages, realisation=k) for k in range(realisations)]
+    else:
+        runs = [model.animate(motion, stages=stages)]
+    return np.stack([np.asarray(r.vertices, np.float32) for r in runs])
+
+
 def evaluate_ensemble(
     models: dict,
     sources: list[str | Path],
@@ -493,14 +511,7 @@ def evaluate_ensemble(
         for name, model in models.items():
             if progress:
                 progress(f"{clip}: {name} on {ens.frames} frames")
-            if realisations > 0 and getattr(model, "residual", None) is not None:
-                preds[name] = np.stack([
-                    np.asarray(model.animate(motion, stages=stages, realisation=k).vertices)
-                    for k in range(realisations)
-                ]).astype(np.float32)  # fmt: skip
-            else:
-                result = model.animate(motion, stages=stages)
-                preds[name] = np.asarray(result.vertices, np.float32)[None]
+            preds[name] = model_samples(model, motion, realisations, stages)
         scored = score_clip(preds, members, ctx, surface=surface)
         scored["members"]["labels"] = [m.label for m in ens.members]
         scored["members"]["sources"] = [f"{m.source}:{m.name}" for m in ens.members]

@@ -22,7 +22,6 @@ from loosefit.inference.checkpoints import (
     DETAIL_FORMAT,
     MOTION_FORMAT,
     check_fingerprints,
-    check_format,
     checkpoint_fields,
     load_generative,
     load_weights,
@@ -452,10 +451,7 @@ def load_animation_model(
             checkpoint, or one other than the encoder was trained on.
     """
     path = Path(path)
-    if data is None:
-        data = read_checkpoint_file(path, MOTION_FORMAT, device)
-    else:
-        check_format(path, data, MOTION_FORMAT)
+    data = read_checkpoint_file(path, MOTION_FORMAT, device, data=data)
     with checkpoint_fields(path, "motion-stage checkpoint"):
         return _animation_model(path, data, generative, device)
 
@@ -523,10 +519,7 @@ def attach_detail(
             another motion stage (the message names both fingerprints).
     """
     path = Path(path)
-    if data is None:
-        data = read_checkpoint_file(path, DETAIL_FORMAT, model.device)
-    else:
-        check_format(path, data, DETAIL_FORMAT)
+    data = read_checkpoint_file(path, DETAIL_FORMAT, model.device, data=data)
     with checkpoint_fields(path, "detail checkpoint"):
         return _attach(model, path, data)
 
@@ -557,10 +550,7 @@ def load_detail_model(
     """All three learned stages from a detail checkpoint (and the motion stage it records;
     ``data``: the detail file's contents, when already read)."""
     path = Path(path)
-    if data is None:
-        data = read_checkpoint_file(path, DETAIL_FORMAT, "cpu")
-    else:
-        check_format(path, data, DETAIL_FORMAT)
+    data = read_checkpoint_file(path, DETAIL_FORMAT, "cpu", data=data)
     with checkpoint_fields(path, "detail checkpoint"):
         mpath = recorded_checkpoint(
             path,

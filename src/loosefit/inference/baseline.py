@@ -12,7 +12,6 @@ from loosefit.errors import LoosefitInputError
 from loosefit.inference.checkpoints import (
     BASELINE_FORMAT,
     MOTION_FORMAT,
-    check_format,
     checkpoint_fields,
     load_weights,
     model_config,
@@ -73,10 +72,7 @@ class BaselineModel:
         """
         path = Path(path)
         hints = {MOTION_FORMAT: "this is our motion stage; open it with loosefit.load"}
-        if data is None:
-            data = read_checkpoint_file(path, BASELINE_FORMAT, device, hints)
-        else:
-            check_format(path, data, BASELINE_FORMAT, hints)
+        data = read_checkpoint_file(path, BASELINE_FORMAT, device, hints, data=data)
         with checkpoint_fields(path, "baseline checkpoint"):
             return _baseline(path, data, device)
 

@@ -111,7 +111,14 @@ def save_atomic(data: dict, path: Path) -> None:
         torch.save(data, tmp)
 
 
-def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict | None = None):
+def read_checkpoint_file(
+    path: str | Path,
+    fmt: str,
+    device="cpu",
+    hints: dict | None = None,
+    *,
+    data: dict | None = None,
+):
     """A checkpoint's dict, checked to carry ``format == fmt``.
 
     Args:
@@ -119,11 +126,12 @@ def read_checkpoint_file(path: str | Path, fmt: str, device="cpu", hints: dict |
         fmt: the expected format string.
         device: ``map_location``.
         hints: a hint to show per format found instead (by default: which stage it is).
+        data: the file's contents when already read (each file is read once): only checked.
 
     Raises:
         LoosefitInputError: a missing or unreadable file, or another format.
     """
-    return check_format(path, read_file(path, device), fmt, hints)
+    return check_format(path, read_file(path, device) if data is None else data, fmt, hints)
 
 
 def read_file(path: str | Path, device="cpu"):

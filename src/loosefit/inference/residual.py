@@ -10,7 +10,6 @@ from loosefit.errors import LoosefitInputError
 from loosefit.inference.checkpoints import (
     RESIDUAL_FORMAT,
     check_fingerprints,
-    check_format,
     checkpoint_fields,
     read_checkpoint_file,
     stage_fingerprints,
@@ -27,10 +26,7 @@ def attach_residual(model, path: str | Path, data: dict | None = None):
             motion stage (the message names both fingerprints).
     """
     path = Path(path)
-    if data is None:
-        data = read_checkpoint_file(path, RESIDUAL_FORMAT, model.device)
-    else:
-        check_format(path, data, RESIDUAL_FORMAT)
+    data = read_checkpoint_file(path, RESIDUAL_FORMAT, model.device, data=data)
     with checkpoint_fields(path, "residual checkpoint"):
         check_fingerprints(model, path, data, "a residual process fitted to")
         process = ResidualProcess.from_dict(data["process"], str(path))

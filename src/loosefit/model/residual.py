@@ -31,6 +31,7 @@ import numpy as np
 import torch
 
 from loosefit.errors import LoosefitInputError
+from loosefit.geometry.rotations import rotation_angle
 from loosefit.model.engine import correlate_noise, fit_basis
 
 GAIN_LOW, GAIN_HIGH = 0.1, 4.0  # m_t's range
@@ -178,9 +179,7 @@ def motion_intensity(rotations: np.ndarray, fps: float, window: int = INTENSITY_
         raise LoosefitInputError("motion", "rotations", "(T, J, 3, 3)", tuple(R.shape))
     if len(R) == 1:
         return np.zeros(1)
-    rel = np.einsum("tjab,tjac->tjbc", R[:-1], R[1:])  # R_{t-1}^T R_t
-    cos = np.clip((np.trace(rel, axis1=2, axis2=3) - 1.0) / 2.0, -1.0, 1.0)
-    speed = np.arccos(cos).mean(1) * fps  # (T - 1,)
+    speed = rotation_angle(R[:-1], R[1:]).mean(1) * fps  # (T - 1,): R_{t-1}^T R_t's angle
     speed = np.concatenate([speed[:1], speed])
     half = window // 2
     padded = np.pad(speed, (half, half), mode="edge")

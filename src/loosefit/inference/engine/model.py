@@ -19,7 +19,6 @@ import torch
 from loosefit.errors import LoosefitInputError
 from loosefit.inference.checkpoints import (
     ENGINE_FORMAT,
-    check_format,
     checkpoint_fields,
     float_weights,
     load_weights,
@@ -147,10 +146,7 @@ def load_engine(path: str | Path, device="cpu", data: dict | None = None) -> Eng
         LoosefitInputError: not an engine-tier checkpoint, or fields that do not fit.
     """
     path = Path(path)
-    if data is None:
-        data = read_checkpoint_file(path, ENGINE_FORMAT, device)
-    else:
-        check_format(path, data, ENGINE_FORMAT)
+    data = read_checkpoint_file(path, ENGINE_FORMAT, device, data=data)
     with checkpoint_fields(path, "engine-tier checkpoint"):
         config = EngineConfig(**data["model_config"]["engine"])
         weights = float_weights(data["model"])
