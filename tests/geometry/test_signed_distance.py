@@ -58,10 +58,25 @@ def test_on_skin_and_beyond_skin_of_points_inside():
     assert inside.all()
     # every one is inside, so none on the outer side of its closest face
     assert not on_skin(x[inside], body, hit, inside, reach=1.0).any()
-    moved, direction = beyond_skin(x[inside], hit, inside, epsilon=0.01)
+    moved, direction = beyond_skin(x[inside], hit, inside, epsilon=0.01, body=body)
     np.testing.assert_allclose(direction[:2], [[0, 0, 1], [0, 0, 1]], atol=1e-6)
     np.testing.assert_allclose(moved[:2], [[0.1, -0.1, 0.51], [0.0, 0.0, 0.51]], atol=1e-6)
     np.testing.assert_allclose(np.linalg.norm(direction, axis=1), 1.0, atol=1e-6)
+
+
+def test_a_point_on_the_skin_goes_out_along_its_face_not_along_rounding_noise():
+    """A point the inside test counts in but that lies on the skin (distance 0 in float32,
+    a few 1e-8 m from its closest point in float64): it goes epsilon out along its face's
+    normal. Divided by its distance, the rounding sent such a vertex 24 m away."""
+    body = _body()
+    x = np.array([ON])
+    hit = body.query(x, 2.0, sign="normal")
+    hit.inside[:] = True  # as a winding number on the seam of two body parts may say
+    hit.distance[:] = 0.0
+    hit.points[:] = np.float32(x + [2.4e-8, 0.0, 0.0])  # the float32 closest point
+    moved, direction = beyond_skin(x, hit, hit.inside, epsilon=0.01, body=body)
+    np.testing.assert_allclose(direction, [[0, 0, 1]], atol=1e-6)
+    np.testing.assert_allclose(moved, [[0.2, 0.1, 0.51]], atol=1e-6)
 
 
 def test_on_skin_keeps_points_outside_within_reach():

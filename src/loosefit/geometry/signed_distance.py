@@ -34,14 +34,26 @@ def on_skin(x: np.ndarray, body: Surface, hit, inside: np.ndarray, reach: float)
     return (side > 0) & (hit.distance[inside] < reach)
 
 
+# m: a point this close to its closest skin point lies on the skin (float32 query rounding):
+# the way from it to the skin is noise, and its closest face's normal is the way out
+ON_SKIN = 1e-6
+
+
 def beyond_skin(
-    x: np.ndarray, hit, inside: np.ndarray, epsilon: float
+    x: np.ndarray, hit, inside: np.ndarray, epsilon: float, body: Surface
 ) -> tuple[np.ndarray, np.ndarray]:
     """The points ``x`` (K, 3), the answers ``hit`` of whose ``inside`` (N,) bool mask are
     theirs, moved to ``epsilon`` beyond their closest skin; and the unit directions (K, 3)
-    from each toward that skin."""
+    from each toward that skin (for a point on the skin, within :data:`ON_SKIN`, its
+    closest face's outward normal of ``body``)."""
     p = hit.points[inside].astype(np.float64)
-    out = (p - x) / np.maximum(hit.distance[inside, None], 1e-12)
+    to = p - x
+    length = np.linalg.norm(to, axis=1, keepdims=True)
+    out = to / np.maximum(length, 1e-12)
+    flat = length[:, 0] <= ON_SKIN
+    if flat.any():
+        fn = face_normals(body, hit.faces[inside][flat])
+        out[flat] = fn / np.maximum(np.linalg.norm(fn, axis=-1, keepdims=True), 1e-30)
     return p + epsilon * out, out
 
 

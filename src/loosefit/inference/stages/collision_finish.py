@@ -94,7 +94,7 @@ def last_projection(
         if not inside.any():
             break
         idx = near[inside]
-        beyond, out = beyond_skin(x[idx], hit, inside, cfg.epsilon)
+        beyond, out = beyond_skin(x[idx], hit, inside, cfg.epsilon, body)
         # moved before and still inside: on an inner skin, or caught between two body
         # parts that a projection only swaps: it goes on the way it went, as far as the
         # limit lets it (those at the limit stay, and are not asked again)
@@ -182,7 +182,7 @@ def mend_tears(
         inside = hit.inside & (hit.faces >= 0)
         if inside.any():
             idx = touched[inside]
-            x[idx] = beyond_skin(x[idx], hit, inside, cfg.epsilon)[0]
+            x[idx] = beyond_skin(x[idx], hit, inside, cfg.epsilon, body)[0]
             stale[idx] = True
     if stale.any():  # where the last projections left them (the others as asked)
         idx = np.flatnonzero(stale)
