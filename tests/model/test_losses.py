@@ -19,6 +19,7 @@ from loosefit.model.losses import (
     membrane_energy,
     mesh_hinges,
     signed_edge_change,
+    speed_error,
 )
 
 # a unit right triangle and a pair of triangles sharing the edge 0 -> 1
@@ -134,3 +135,18 @@ def test_hem_radius_by_hand():
     # batched, and blind to height
     up = x + torch.tensor([0.0, 0, 2])
     assert hem_radius(torch.stack([x, up]), hem).tolist() == pytest.approx([3.5, 3.5])
+
+
+def test_speed_error_by_hand():
+    # two vertices: the truth steps 3 m and 0 m; the prediction steps 4 m (in another
+    # direction) and 1 m: errors 1 and 1, mean square 1
+    before = torch.zeros(2, 3)
+    y = torch.tensor([[3.0, 0, 0], [0, 0, 0]])
+    x = torch.tensor([[0.0, 4, 0], [0, 0, 1]])
+    assert float(speed_error(x, before, y, before)) == pytest.approx(1.0)
+    # the direction of a step is free: a turned step of the same length costs nothing
+    assert float(speed_error(torch.tensor([[0.0, 3, 0], [0, 0, 0]]), before, y, before)) == 0.0
+    # each garment steps from its own frame before; batched
+    moved = before + 5.0
+    batch = speed_error(torch.stack([x, y + 5.0]), torch.stack([before, moved]), y, before)
+    assert batch.tolist() == pytest.approx([1.0, 0.0])

@@ -1,5 +1,6 @@
 """One window of the motion encoder's training: the gradient stays within the window, and
-an unrolled window differentiates through the encoder's own fed-back predictions."""
+an unrolled window differentiates through the encoder's own fed-back predictions; the speed
+term starts at each clip's second motion frame."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import torch
 
 import loosefit.inference.animator as inf
 import loosefit.train.motion_window as mw
+from loosefit.errors import LoosefitInputError
 from loosefit.data.format import DatasetReader
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.train.clips import prepare_clips, stack_clips
@@ -103,3 +105,34 @@ def test_unrolled_training_differentiates_through_its_own_predictions(trained, t
     assert torch.equal(g0, g1)  # ground truth fed back: nothing to unroll
     _, g = grads(0.0, True, 10, 20)
     assert g[:, :10].abs().max() == 0 and g[:, 10:20].abs().max() > 0  # still within the window
+
+
+def test_speed_term_starts_at_each_clips_second_motion_frame(trained, toy_dataset, skirt):
+    model, batch, lap = _windows(trained, toy_dataset, skirt)
+    enc = model.encoder
+    P = batch["preroll"]
+
+    def speed(stop: int) -> torch.Tensor:
+        window = mw.run_window(
+            enc,
+            model.generative,
+            lap,
+            batch,
+            0,
+            stop,
+            hidden=enc.initial_hidden(2),
+            previous=model.rest_state[None].expand(2, -1, -1),
+            teacher=0.0,
+            loss=mw.MotionLossConfig(speed=1.0),
+        )
+        return window.terms["speed"]
+
+    # up to the first motion frame: no frame with a truth to step from (it steps from the
+    # rest drape, whose truth is no target)
+    assert float(speed(int(P.min()) + 1).detach()) == 0.0
+    later = speed(int(P.max()) + 5)
+    assert float(later.detach()) > 0
+    (g,) = torch.autograd.grad(later, batch["features"])
+    assert g.abs().max() > 0  # it trains the encoder
+    with pytest.raises(LoosefitInputError, match="speed"):
+        mw.MotionLossConfig(speed=-1.0)

@@ -81,13 +81,15 @@ def _add_precision_arg(p: argparse.ArgumentParser) -> None:
 
 def _add_physics_args(p: argparse.ArgumentParser, *extra: str) -> None:
     """The weights of the physics loss terms (generative, motion): ``--membrane``,
-    ``--bending``, and ``extra`` of ``collision`` (generative) and ``flare`` (motion)."""
+    ``--bending``, and ``extra`` of ``collision`` (generative) and ``flare`` and ``speed``
+    (motion)."""
     terms = {
         "membrane": "membrane term (edge lengths against rest",
         "bending": "bending term (dihedral angles against rest",
         "collision": "collision term (cloth outside the whole body",
         "flare": "hem-flare term (the hem's mean distance from the root's vertical axis "
         "against the simulation's",
+        "speed": "speed term (each vertex's speed against the simulation's, whatever its direction",
     }
     for name in ("membrane", "bending", *extra):
         p.add_argument(
@@ -163,7 +165,7 @@ def _add_motion_parser(stages) -> argparse.ArgumentParser:
     _add_clip_args(p)
     add_common_args(p, "runs/motion-PRESET-ps, or -nops")
     _add_precision_arg(p)
-    _add_physics_args(p, "flare")
+    _add_physics_args(p, "flare", "speed")
     _add_init_arg(p)
     p.set_defaults(func=run_motion)
     return p
@@ -410,11 +412,12 @@ def _start(args: argparse.Namespace, stage: str) -> None:
 
 def _physics_weights(loss, args: argparse.Namespace):
     """A loss config with the physics weights given (``--membrane``, ``--bending``,
-    ``--collision``, ``--flare``: those the stage has), checked as the config checks its
-    weights."""
+    ``--collision``, ``--flare``, ``--speed``: those the stage has), checked as the config
+    checks its weights."""
     import dataclasses
 
-    given = {n: getattr(args, n, None) for n in ("membrane", "bending", "collision", "flare")}
+    names = ("membrane", "bending", "collision", "flare", "speed")
+    given = {n: getattr(args, n, None) for n in names}
     return dataclasses.replace(loss, **{n: v for n, v in given.items() if v is not None})
 
 

@@ -216,6 +216,21 @@ def hem_radius(x: torch.Tensor, hem: torch.Tensor) -> torch.Tensor:
     return x[..., hem, :2].norm(dim=-1).mean(-1)
 
 
+def speed_error(
+    x: torch.Tensor, x_before: torch.Tensor, y: torch.Tensor, y_before: torch.Tensor
+) -> torch.Tensor:
+    """(..., V, 3) each -> (...): the mean over vertices of the squared difference of each
+    vertex's speed (the length of its step from the frame before) between a prediction ``x``
+    and the truth ``y``. It asks for the truth's energy, not its phase: a step of the right
+    length in another direction costs nothing, a garment that moves less than the truth does.
+
+    Args:
+        x, x_before: the prediction and the garment it stepped from, in one frame.
+        y, y_before: the truth and its frame before, in the same frame.
+    """
+    return ((x - x_before).norm(dim=-1) - (y - y_before).norm(dim=-1)).pow(2).mean(-1)
+
+
 def membrane_energy(x: torch.Tensor, edges: torch.Tensor, rest: torch.Tensor) -> torch.Tensor:
     """(..., V, 3) -> (...): the mean over edges of the squared strain ``(l / L - 1)^2``."""
     return signed_edge_change(x, edges, rest).pow(2).mean(-1)

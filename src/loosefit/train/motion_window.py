@@ -20,6 +20,7 @@ from loosefit.model.losses import (
     PhysicsLossConfig,
     hem_radius,
     physics_terms,
+    speed_error,
 )
 from loosefit.model.motion_encoder import DynamicMotionEncoder
 from loosefit.train.clips import Clip, stack_clips
@@ -30,9 +31,11 @@ from loosefit.train.common import autocast, shard
 class MotionLossConfig:
     """Eqs. 10-12 and the length unit of the geometry terms, and the optional terms beyond
     the paper (0: off): the physics terms of :mod:`loosefit.model.losses` (the collision
-    term needs the body at every frame: the generative stage takes it) and the hem's flare,
+    term needs the body at every frame: the generative stage takes it), the hem's flare,
     its mean distance from the root's vertical axis against the simulation's (a network that
-    averages fold configurations pulls the hem in)."""
+    averages fold configurations pulls the hem in), and the vertices' speed against the
+    simulation's (an average of chaotic runs moves less than any one of them; the term asks
+    for the runs' energy, whatever the direction)."""
 
     laplacian: float = 1.5  # lambda_4: weight of the Laplacian coordinates' squared error
     latent: float = 0.5  # lambda_5: weight of the code's squared error
@@ -42,10 +45,13 @@ class MotionLossConfig:
     collision: float = 0.0  # must stay 0 here (it needs the body: the generative stage's)
     collision_epsilon: float = 0.002  # m; the collision term's margin (unused while it is 0)
     flare: float = 0.0  # weight of the hem flare's squared error, in the length unit; 0: off
+    speed: float = 0.0  # weight of the vertex speeds' squared error (length unit a frame); 0: off
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.flare, (int, float)) and self.flare >= 0):
-            raise LoosefitInputError("MotionLossConfig", "flare", "a weight >= 0", self.flare)
+        for name in ("flare", "speed"):
+            w = getattr(self, name)
+            if not (isinstance(w, (int, float)) and w >= 0):
+                raise LoosefitInputError("MotionLossConfig", name, "a weight >= 0", w)
         if self.collision:
             raise LoosefitInputError(
                 "MotionLossConfig",
@@ -177,6 +183,7 @@ def run_window(
     for t in range(start, stop):
         if t > 0:
             previous = change_frame(previous, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
+        given = previous  # the garment this frame steps from, in its root frame
         with autocast(precision, device):
             z, hidden = encoder(batch["features"][:, t], previous, hidden)
             v = generative.decode(z)["vertices"]
@@ -201,6 +208,16 @@ def run_window(
                     raise ValueError("the flare term needs the garment's hem vertices")
                 d = s * (hem_radius(v, hem) - hem_radius(vt, hem))  # (b,)
                 sums["flare"] = sums.get("flare", 0.0) + loss.flare * (w * d.pow(2)).sum()
+            if loss.speed > 0 and t > 0:
+                # the truth's step from its frame before, in this frame's root frame; a
+                # clip's first motion frame steps from the rest drape: no target, weight 0
+                kb = (k - 1).clamp(min=0)
+                before = change_frame(
+                    batch["target"][rows, kb], H[:, t - 1], p[:, t - 1], H[:, t], p[:, t]
+                )
+                stepped = w * ((t - P) >= 1).to(device)  # (b,)
+                e = speed_error(s * v, s * given, s * vt, s * before)  # (b,)
+                sums["speed"] = sums.get("speed", 0.0) + loss.speed * (stepped * e).sum()
         previous = v if unroll else v.detach()
         if teacher > 0:
             draw = torch.rand(len(every), generator=generator)  # (B,) the whole batch's
