@@ -1,6 +1,6 @@
 """One window of the motion encoder's training: the gradient stays within the window, and
 an unrolled window differentiates through the encoder's own fed-back predictions; the speed
-term starts at each clip's second motion frame."""
+term starts at each clip's second motion frame and a window's second."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import torch
 
 import loosefit.inference.animator as inf
 import loosefit.train.motion_window as mw
-from loosefit.errors import LoosefitInputError
 from loosefit.data.format import DatasetReader
+from loosefit.errors import LoosefitInputError
 from loosefit.geometry.laplacian import Laplacian
 from loosefit.train.clips import prepare_clips, stack_clips
 from tests.train.test_motion import _train
@@ -107,18 +107,18 @@ def test_unrolled_training_differentiates_through_its_own_predictions(trained, t
     assert g[:, :10].abs().max() == 0 and g[:, 10:20].abs().max() > 0  # still within the window
 
 
-def test_speed_term_starts_at_each_clips_second_motion_frame(trained, toy_dataset, skirt):
+def test_speed_term_starts_at_a_clips_and_a_windows_second_frame(trained, toy_dataset, skirt):
     model, batch, lap = _windows(trained, toy_dataset, skirt)
     enc = model.encoder
     P = batch["preroll"]
 
-    def speed(stop: int) -> torch.Tensor:
+    def speed(stop: int, start: int = 0) -> torch.Tensor:
         window = mw.run_window(
             enc,
             model.generative,
             lap,
             batch,
-            0,
+            start,
             stop,
             hidden=enc.initial_hidden(2),
             previous=model.rest_state[None].expand(2, -1, -1),
@@ -130,6 +130,8 @@ def test_speed_term_starts_at_each_clips_second_motion_frame(trained, toy_datase
     # up to the first motion frame: no frame with a truth to step from (it steps from the
     # rest drape, whose truth is no target)
     assert float(speed(int(P.min()) + 1).detach()) == 0.0
+    # a window's first frame has no prediction of its own before it in the window
+    assert float(speed(int(P.max()) + 5, start=int(P.max()) + 4).detach()) == 0.0
     later = speed(int(P.max()) + 5)
     assert float(later.detach()) > 0
     (g,) = torch.autograd.grad(later, batch["features"])

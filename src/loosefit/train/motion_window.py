@@ -180,10 +180,14 @@ def run_window(
     rows = torch.arange(len(P), device=device)
     weight = torch.full((len(P),), float(part.weight), device=device)  # (b,)
     sums = {"geometry": 0.0, "laplacian": 0.0, "latent": 0.0}
+    if loss.speed > 0:
+        sums["speed"] = 0.0  # reported even for a window with no frame that has it
+    own = None  # the encoder's own prediction of the frame before (the speed term's)
     for t in range(start, stop):
         if t > 0:
             previous = change_frame(previous, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
-        given = previous  # the garment this frame steps from, in its root frame
+            if own is not None:
+                own = change_frame(own, H[:, t - 1], p[:, t - 1], H[:, t], p[:, t])
         with autocast(precision, device):
             z, hidden = encoder(batch["features"][:, t], previous, hidden)
             v = generative.decode(z)["vertices"]
@@ -208,17 +212,21 @@ def run_window(
                     raise ValueError("the flare term needs the garment's hem vertices")
                 d = s * (hem_radius(v, hem) - hem_radius(vt, hem))  # (b,)
                 sums["flare"] = sums.get("flare", 0.0) + loss.flare * (w * d.pow(2)).sum()
-            if loss.speed > 0 and t > 0:
-                # the truth's step from its frame before, in this frame's root frame; a
-                # clip's first motion frame steps from the rest drape: no target, weight 0
+            if loss.speed > 0 and own is not None:
+                # the encoder's step from its own prediction of the frame before (whatever
+                # it was given: a step from the truth would measure its error), against the
+                # truth's step, both in this frame's root frame. A clip's first motion frame
+                # steps from the rest drape, and a window's first frame has no prediction
+                # before it in the window: weight 0
                 kb = (k - 1).clamp(min=0)
                 before = change_frame(
                     batch["target"][rows, kb], H[:, t - 1], p[:, t - 1], H[:, t], p[:, t]
                 )
                 stepped = w * ((t - P) >= 1).to(device)  # (b,)
-                e = speed_error(s * v, s * given, s * vt, s * before)  # (b,)
-                sums["speed"] = sums.get("speed", 0.0) + loss.speed * (stepped * e).sum()
+                e = speed_error(s * v, s * own, s * vt, s * before)  # (b,)
+                sums["speed"] = sums["speed"] + loss.speed * (stepped * e).sum()
         previous = v if unroll else v.detach()
+        own = previous if loss.speed > 0 else None
         if teacher > 0:
             draw = torch.rand(len(every), generator=generator)  # (B,) the whole batch's
             use = (draw < teacher) & every
