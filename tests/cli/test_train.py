@@ -26,6 +26,8 @@ OWN = {
         "--membrane": "10",
         "--bending": "0.5",
         "--flare": "1",
+        "--speed": "10",
+        "--unroll": None,
         "--init": "m.pt",
     },
     "detail": {
@@ -91,7 +93,7 @@ def test_a_stage_s_defaults_are_the_flat_parser_s(stage):
         0,
     )
     assert args.epochs is args.batch_size is args.lr is args.max_frames is args.seed is None
-    defaults = {"--decoder": "decomposed", "--mirror": False}
+    defaults = {"--decoder": "decomposed", "--mirror": False, "--unroll": False}
     for flag in OWN[stage]:
         value = getattr(args, flag[2:].replace("-", "_"))
         assert value == defaults.get(flag, False if flag.startswith("--no-") else None), flag
@@ -157,3 +159,22 @@ def test_torchrun_runs_the_generative_and_motion_stages_only(stage, tmp_path, mo
     err = capsys.readouterr().err
     assert "torchrun" in err and "generative or motion" in err
     assert not (tmp_path / stage).exists()
+
+
+def test_motion_flags_reach_its_configuration(monkeypatch, tmp_path):
+    import loosefit.api as api
+
+    seen = {}
+
+    def capture(cfg, data, generative, out, **kw):
+        seen["cfg"] = cfg
+        return {}
+
+    monkeypatch.setattr(api, "train_motion", capture)
+    monkeypatch.setattr(cli_train, "_finish", lambda out, report, kept="model": 0)
+    argv = ["train", "motion", "--generative", "g.pt", "--out", str(tmp_path)]
+    main([*argv, "--unroll", "--speed", "10", "--flare", "1"])
+    cfg = seen["cfg"]
+    assert cfg.unroll is True and cfg.loss.speed == 10.0 and cfg.loss.flare == 1.0
+    main(argv)
+    assert seen["cfg"].unroll is False and seen["cfg"].loss.speed == 0.0

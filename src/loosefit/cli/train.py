@@ -162,6 +162,12 @@ def _add_motion_parser(stages) -> argparse.ArgumentParser:
         choices=("scheduled", "teacher"),
         help="previous states by scheduled sampling (default) or ground truth",
     )
+    p.add_argument(
+        "--unroll",
+        action="store_true",
+        help="differentiate through the encoder's own fed-back predictions within a "
+        "window (unrolled training, as for learned simulators)",
+    )
     _add_clip_args(p)
     add_common_args(p, "runs/motion-PRESET-ps, or -nops")
     _add_precision_arg(p)
@@ -474,6 +480,7 @@ def run_motion(args: argparse.Namespace) -> int:
         previous=args.previous,
         previous_state=False if args.no_previous_state else None,
         mirror=True if args.mirror else None,
+        unroll=True if args.unroll else None,
         joints=args.joints,
         precision=args.precision,
     )
