@@ -37,6 +37,20 @@ def _windows(trained, toy_dataset, skirt):
     return model, batch, Laplacian(skirt.faces, skirt.num_vertices)
 
 
+def _run(model, batch, lap, start: int, stop: int, **kw) -> mw.WindowResult:
+    """One window of the toy model from a fresh GRU state and the rest drape (``kw``: the
+    rest of :func:`~loosefit.train.motion_window.run_window`'s arguments, teacher 0 and
+    the default loss unless given)."""
+    kw = {
+        "hidden": model.encoder.initial_hidden(2),
+        "previous": model.rest_state[None].expand(2, -1, -1),
+        "teacher": 0.0,
+        "loss": mw.MotionLossConfig(),
+        **kw,
+    }
+    return mw.run_window(model.encoder, model.generative, lap, batch, start, stop, **kw)
+
+
 def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, skirt):
     model, batch, lap = _windows(trained, toy_dataset, skirt)
     enc = model.encoder
@@ -74,24 +88,9 @@ def test_truncated_backpropagation_stops_at_the_window(trained, toy_dataset, ski
 
 def test_unrolled_training_differentiates_through_its_own_predictions(trained, toy_dataset, skirt):
     model, batch, lap = _windows(trained, toy_dataset, skirt)
-    enc = model.encoder
-    prev = model.rest_state[None].expand(2, -1, -1)
 
     def grads(teacher: float, unroll: bool, start: int = 0, stop: int = 20):
-        hidden = enc.initial_hidden(2)
-        window = mw.run_window(
-            enc,
-            model.generative,
-            lap,
-            batch,
-            start,
-            stop,
-            hidden=hidden,
-            previous=prev,
-            teacher=teacher,
-            loss=mw.MotionLossConfig(),
-            unroll=unroll,
-        )
+        window = _run(model, batch, lap, start, stop, teacher=teacher, unroll=unroll)
         assert not window.previous.requires_grad  # the next window starts detached either way
         total = window.terms["total"]
         return total, torch.autograd.grad(total, batch["features"])[0]
@@ -109,23 +108,11 @@ def test_unrolled_training_differentiates_through_its_own_predictions(trained, t
 
 def test_speed_term_starts_at_a_clips_and_a_windows_second_frame(trained, toy_dataset, skirt):
     model, batch, lap = _windows(trained, toy_dataset, skirt)
-    enc = model.encoder
     P = batch["preroll"]
 
     def speed(stop: int, start: int = 0) -> torch.Tensor:
-        window = mw.run_window(
-            enc,
-            model.generative,
-            lap,
-            batch,
-            start,
-            stop,
-            hidden=enc.initial_hidden(2),
-            previous=model.rest_state[None].expand(2, -1, -1),
-            teacher=0.0,
-            loss=mw.MotionLossConfig(speed=1.0),
-        )
-        return window.terms["speed"]
+        loss = mw.MotionLossConfig(speed=1.0)
+        return _run(model, batch, lap, start, stop, loss=loss).terms["speed"]
 
     # up to the first motion frame: no frame with a truth to step from (it steps from the
     # rest drape, whose truth is no target)
