@@ -188,8 +188,7 @@ def main() -> None:
         cells = " | ".join(f"{f:.3f} | {s:.3f}" for f, s in ratios)
         lines.append(f"| {clip} | {kind} | {rate:.1f} | {pitch:+.1f} | {cells} |")
     lines.append("")
-    for name in sets:
-        k = list(sets).index(name)
+    for k, name in enumerate(sets):
         for kind in ("training", "validation", "held out"):
             r = [row[4 + k] for row in rows if row[1] == kind]
             if r:
