@@ -129,7 +129,7 @@ def steps(work: Path, out: Path, device: str, tiny: bool, mocap: Path, sizes: di
         simulate = [*cli, "simulate", "--preset", "tiny", "--workers", "1", "--batch", "2"]
         gen_args = ["--preset", "cpu", "--epochs", "2", "--max-frames", "8"]
         motion_args = ["--preset", "cpu", "--epochs", "2"]
-        bench = ["--sizes", "1,4", "--frames", "4"]
+        bench = ["--sizes", "1,4", "--pipeline-sizes", "1,2", "--frames", "4", "--repeats", "1"]
     else:
         simulate = [*cli, "simulate", "--preset", "paper", "--bvh", str(mocap), "--workers", "1",
                     "--batch", str(sizes["batch"])]  # fmt: skip
