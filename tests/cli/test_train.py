@@ -14,6 +14,7 @@ OWN = {
         "--membrane": "10",
         "--bending": "0.5",
         "--collision": "30",
+        "--kl": "1e-4",
         "--init": "g.pt",
     },
     "motion": {
@@ -178,3 +179,23 @@ def test_motion_flags_reach_its_configuration(monkeypatch, tmp_path):
     assert cfg.unroll is True and cfg.loss.speed == 10.0 and cfg.loss.flare == 1.0
     main(argv)
     assert seen["cfg"].unroll is False and seen["cfg"].loss.speed == 0.0
+
+
+def test_generative_flags_reach_its_configuration(monkeypatch, tmp_path, capsys):
+    import loosefit.api as api
+
+    seen = {}
+
+    def capture(cfg, data, out, **kw):
+        seen["cfg"] = cfg
+        return {}
+
+    monkeypatch.setattr(api, "train_generative", capture)
+    monkeypatch.setattr(cli_train, "_finish", lambda out, report, kept="model": 0)
+    argv = ["train", "generative", "--out", str(tmp_path)]
+    main([*argv, "--kl", "1e-4", "--collision", "30"])
+    assert seen["cfg"].loss.kl == 1e-4 and seen["cfg"].loss.collision == 30.0
+    main(argv)
+    assert seen["cfg"].loss.kl == 1e-3  # the paper's lambda_3
+    assert main([*argv, "--kl", "-1"]) != 0
+    assert "field 'kl': expected a number >= 0, found -1.0" in capsys.readouterr().err

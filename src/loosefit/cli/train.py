@@ -11,6 +11,7 @@ hidden entry for each flag the other stages have.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 from pathlib import Path
 
@@ -139,6 +140,14 @@ def _add_generative_parser(stages) -> argparse.ArgumentParser:
     add_common_args(p, "runs/generative-PRESET-DECODER")
     _add_precision_arg(p)
     _add_physics_args(p, "collision")
+    p.add_argument(
+        "--kl",
+        type=float,
+        default=None,
+        metavar="W",
+        help="weight of the latent's KL term (lambda_3; default 1e-3): lower lets the "
+        "decoder reconstruct closer, at the cost of a less regular latent",
+    )
     _add_init_arg(p)
     p.set_defaults(func=run_generative)
     return p
@@ -420,8 +429,6 @@ def _physics_weights(loss, args: argparse.Namespace):
     """A loss config with the physics weights given (``--membrane``, ``--bending``,
     ``--collision``, ``--flare``, ``--speed``: those the stage has), checked as the config
     checks its weights."""
-    import dataclasses
-
     names = ("membrane", "bending", "collision", "flare", "speed")
     given = {n: getattr(args, n, None) for n in names}
     return dataclasses.replace(loss, **{n: v for n, v in given.items() if v is not None})
@@ -456,6 +463,8 @@ def run_generative(args: argparse.Namespace) -> int:
         precision=args.precision,
     )
     cfg.loss = _physics_weights(cfg.loss, args)
+    if args.kl is not None:
+        cfg.loss = dataclasses.replace(cfg.loss, kl=args.kl)
     cfg.init = args.init
     out = args.out or f"runs/generative-{args.preset}-{cfg.model.decoder}"
     report = train_generative(cfg, args.data, out, log=log)

@@ -25,6 +25,7 @@ The ablations of paper 4.2 are configurations of the same class:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from itertools import pairwise
 
@@ -292,6 +293,10 @@ class GenerativeLossConfig:
         from loosefit.model.losses import PhysicsLossConfig
 
         PhysicsLossConfig(self.membrane, self.bending, self.collision, self.collision_epsilon)
+        for name in ("laplacian", "unposed", "template", "kl"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise LoosefitInputError("GenerativeLossConfig", name, "a number >= 0", value)
 
 
 def squared_error(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
