@@ -26,6 +26,7 @@ OWN = {
         "--precision": "bf16",
         "--membrane": "10",
         "--bending": "0.5",
+        "--collision": "30",
         "--flare": "1",
         "--speed": "10",
         "--unroll": None,
@@ -149,7 +150,7 @@ def test_the_refused_flags_are_not_in_a_stage_s_help(capsys):
         build_parser().parse_args(["train", "motion", "--help"])
     out = capsys.readouterr().out
     assert "--flare" in out and "--mirror" in out
-    assert "--no-discriminator" not in out and "--method" not in out and "--collision" not in out
+    assert "--no-discriminator" not in out and "--method" not in out and "--kl" not in out
 
 
 @pytest.mark.parametrize("stage", ["detail", "baseline"])
@@ -174,9 +175,10 @@ def test_motion_flags_reach_its_configuration(monkeypatch, tmp_path):
     monkeypatch.setattr(api, "train_motion", capture)
     monkeypatch.setattr(cli_train, "_finish", lambda out, report, kept="model": 0)
     argv = ["train", "motion", "--generative", "g.pt", "--out", str(tmp_path)]
-    main([*argv, "--unroll", "--speed", "10", "--flare", "1"])
+    main([*argv, "--unroll", "--speed", "10", "--flare", "1", "--collision", "30"])
     cfg = seen["cfg"]
     assert cfg.unroll is True and cfg.loss.speed == 10.0 and cfg.loss.flare == 1.0
+    assert cfg.loss.collision == 30.0
     main(argv)
     assert seen["cfg"].unroll is False and seen["cfg"].loss.speed == 0.0
 

@@ -447,8 +447,53 @@ def test_membrane_and_bending_terms_train_and_are_recorded(
     model = inf.load_animation_model(tmp_path / "phys" / "model.pt")
     assert "membrane" in model.physics_terms and "bending" in model.physics_terms
     assert "collision" in model.missing_physics_terms
+
+
+def test_collision_term_trains_on_the_simulation_s_body_contacts(
+    toy_dataset, generative, skirt, tmp_path
+):
+    loss = mw.MotionLossConfig(collision=30.0)
+    _train(toy_dataset, generative, skirt, tmp_path / "touch", epochs=2, loss=loss)
+    history = torch.load(tmp_path / "touch" / "checkpoint.pt", weights_only=False)["history"]
+    assert "collision" in history[0] and np.isfinite(history[-1]["total"])
+    model = inf.load_animation_model(tmp_path / "touch" / "model.pt")
+    assert "collision" in model.physics_terms
     with pytest.raises(LoosefitInputError, match="collision"):
-        mw.MotionLossConfig(collision=1.0)
+        mw.MotionLossConfig(collision=-1.0)
+
+
+def test_body_contacts_lie_under_each_simulated_vertex_in_its_root_frame(trained, toy_dataset):
+    """The collision term's contacts: each clip's own body (a mirrored clip's mirrored),
+    in the frame its target is in, so the simulated cloth lies on their outer side."""
+    from loosefit.motion.mirror import mirror_garment, vertex_twins
+
+    out, _ = trained
+    model = inf.load_animation_model(out / "model.pt")
+    reader = DatasetReader(toy_dataset)
+    args = (reader, "train", model.generative, model.floor_height, model.rollout_config)
+    clips = prepare_clips(*args, mirror=True, contacts=True)
+    assert prepare_clips(*args)[0].contacts is None
+    for c in clips:
+        points, normals = c.contacts
+        assert points.shape == normals.shape == c.target.shape
+        length = normals.norm(dim=-1)
+        near = length > 0
+        assert near.float().mean() > 0.3, c.name  # the waist and the legs are within reach
+        np.testing.assert_allclose(length[near].numpy(), 1.0, atol=1e-4)
+        way = c.target - points
+        depth = (way * normals).sum(-1)[near]
+        np.testing.assert_allclose(depth.abs().numpy(), way.norm(dim=-1)[near].numpy(), atol=1e-5)
+        # the toy cloth swings into a leg here and there; the carried waist never does
+        outside = float((depth > -0.005).float().mean())
+        assert outside > 0.9 and depth.median() > 0, (c.name, outside)
+    twins = vertex_twins(reader.template.vertices)
+    for c, m in zip(clips[::2], clips[1::2], strict=True):
+        # the body is symmetric to millimetres: the mirrored clip's contacts are the
+        # clip's, mirrored, where both have one
+        both = (c.contacts[1].norm(dim=-1) > 0)[:, twins] & (m.contacts[1].norm(dim=-1) > 0)
+        mirrored = mirror_garment(c.contacts[0].numpy(), twins)
+        gap = np.linalg.norm(m.contacts[0].numpy() - mirrored, axis=-1)[both.numpy()]
+        assert np.median(gap) < 0.005, (c.name, np.median(gap))
 
 
 def test_flare_term_trains_and_pulls_the_hem_out(toy_dataset, generative, skirt, tmp_path):

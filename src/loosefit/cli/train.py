@@ -82,7 +82,7 @@ def _add_precision_arg(p: argparse.ArgumentParser) -> None:
 
 def _add_physics_args(p: argparse.ArgumentParser, *extra: str) -> None:
     """The weights of the physics loss terms (generative, motion): ``--membrane``,
-    ``--bending``, and ``extra`` of ``collision`` (generative) and ``flare`` and ``speed``
+    ``--bending``, and ``extra`` of ``collision`` (both) and ``flare`` and ``speed``
     (motion)."""
     terms = {
         "membrane": "membrane term (edge lengths against rest",
@@ -180,7 +180,7 @@ def _add_motion_parser(stages) -> argparse.ArgumentParser:
     _add_clip_args(p)
     add_common_args(p, "runs/motion-PRESET-ps, or -nops")
     _add_precision_arg(p)
-    _add_physics_args(p, "flare", "speed")
+    _add_physics_args(p, "collision", "flare", "speed")
     _add_init_arg(p)
     p.set_defaults(func=run_motion)
     return p

@@ -42,6 +42,9 @@ class Clip:
         latent: (T, latent) the generative encoder's code of ``target`` (Z*), or None
             when prepared without a generative model (the baselines').
         preroll: P.
+        contacts: the body's closest point to each simulated vertex and its outward normal
+            there, (T, V, 3) each, root frame (a zero normal: no body within reach), or
+            None when prepared without them (the collision term's).
     """
 
     name: str
@@ -52,6 +55,7 @@ class Clip:
     target: torch.Tensor
     latent: torch.Tensor | None
     preroll: int
+    contacts: tuple[torch.Tensor, torch.Tensor] | None = None
 
     @property
     def length(self) -> int:
@@ -89,13 +93,21 @@ def prepare_clips(
     max_frames: int | None = None,
     mirror: bool = False,
     joints: str = "all",
+    contacts: bool = False,
 ) -> list[Clip]:
     """Every clip of a split on the rollout timeline, with its targets (and, given a
     generative model, their latent codes).
 
     ``mirror`` adds each clip mirrored left-right (:func:`clip_versions`).
     ``joints`` names the joint set of the features (``MotionEncoderConfig.joints``).
+    ``contacts``: also each simulated vertex's closest point on the whole body, posed by
+    the clip's motion on the data set's avatar, and the normal there (the collision term's;
+    :func:`~loosefit.train.frames.body_contacts`).
     """
+    from loosefit.train.frames import avatar_for, body_contacts
+
+    avatar = avatar_for(reader) if contacts else None
+    faces = avatar.collider_faces(arms=True).cpu().numpy() if contacts else None
     clips = []
     for label, m, v in clip_versions(reader, split, max_frames, mirror):
         rot, root, P = timeline(m, floor_height, config)
@@ -105,7 +117,15 @@ def prepare_clips(
             rot, root, m.fps, floor_height, feature_joints(m.joint_names, joints)
         )
         latent = None if generative is None else latent_codes(generative, target)  # (T, Z)
-        clips.append(Clip(label, m, feats, H, p, target, latent, P))
+        touch = None
+        if contacts:
+            body = avatar.pose_motion(m).vertices.float().cpu().numpy()  # (T, Vb, 3)
+            cp, cn = body_contacts(np.asarray(v, np.float32), body, faces)
+            touch = (
+                to_root_frame(torch.from_numpy(cp), H[P:], p[P:]),
+                to_root_frame(torch.from_numpy(cn), H[P:], torch.zeros_like(p[P:])),
+            )
+        clips.append(Clip(label, m, feats, H, p, target, latent, P, touch))
     return clips
 
 
@@ -162,6 +182,9 @@ def stack_clips(
     }
     if clips[0].latent is not None:
         batch["latent"] = torch.stack([pad_frames(c.latent, T) for c in clips])  # (B, T, Z)
+    if clips[0].contacts is not None:  # (B, T, V, 3) each
+        batch["contact_points"] = torch.stack([pad_frames(c.contacts[0], T) for c in clips])
+        batch["contact_normals"] = torch.stack([pad_frames(c.contacts[1], T) for c in clips])
     if extra is not None:
         batch["extra"] = torch.stack([pad_frames(x, T) for x in extra])  # (B, T, ...)
     return batch

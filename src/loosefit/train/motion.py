@@ -250,6 +250,7 @@ class MotionTrainer(Trainer):
             max_frames=config.max_frames,
             mirror=config.mirror,
             joints=config.model.joints,
+            contacts=config.loss.collision > 0,
         )
         self.fps = clips[0].motion.fps
         rest = self.rest_drape(rest_state, settle)

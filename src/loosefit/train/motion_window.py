@@ -31,7 +31,9 @@ from loosefit.train.common import autocast, shard
 class MotionLossConfig:
     """Eqs. 10-12 and the length unit of the geometry terms, and the optional terms beyond
     the paper (0: off): the physics terms of :mod:`loosefit.model.losses` (the collision
-    term needs the body at every frame: the generative stage takes it), the hem's flare,
+    term keeps each vertex on the outer side of the body where the simulation's lies: the
+    tangent plane at its closest body point, found once per training frame, so that a
+    prediction whose raised knee comes through the front of the skirt pays), the hem's flare,
     its mean distance from the root's vertical axis against the simulation's (a network that
     averages fold configurations pulls the hem in), and the vertices' speed against the
     simulation's (an average of chaotic runs moves less than any one of them; the term asks
@@ -42,8 +44,8 @@ class MotionLossConfig:
     length_scale: float = 100.0  # lengths times this in the loss: metres to centimetres
     membrane: float = 0.0  # weight of edge lengths against rest; 0: off
     bending: float = 0.0  # weight of dihedral angles against rest; 0: off
-    collision: float = 0.0  # must stay 0 here (it needs the body: the generative stage's)
-    collision_epsilon: float = 0.002  # m; the collision term's margin (unused while it is 0)
+    collision: float = 0.0  # weight of the depth behind the simulation's body contacts; 0: off
+    collision_epsilon: float = 0.002  # m; the collision term's margin
     flare: float = 0.0  # weight of the hem flare's squared error, in the length unit; 0: off
     speed: float = 0.0  # weight of the vertex speeds' squared error (length unit a frame); 0: off
 
@@ -52,13 +54,6 @@ class MotionLossConfig:
             w = getattr(self, name)
             if not (isinstance(w, (int, float)) and w >= 0):
                 raise LoosefitInputError("MotionLossConfig", name, "a weight >= 0", w)
-        if self.collision:
-            raise LoosefitInputError(
-                "MotionLossConfig",
-                "collision",
-                "0 (the motion stage takes membrane and bending)",
-                self.collision,
-            )
         PhysicsLossConfig(self.membrane, self.bending, self.collision, self.collision_epsilon)
 
 
@@ -204,8 +199,13 @@ def run_window(
             sums["geometry"] = sums["geometry"] + (w * geometry).sum()
             sums["laplacian"] = sums["laplacian"] + loss.laplacian * (w * lap).sum()
             sums["latent"] = sums["latent"] + loss.latent * (w * (z - zt).pow(2).sum(-1)).sum()
-            if loss.membrane > 0 or loss.bending > 0:
-                for key, e in physics_terms(v, structure, loss).items():  # (b,) each
+            if loss.membrane > 0 or loss.bending > 0 or loss.collision > 0:
+                touch = None
+                if loss.collision > 0:
+                    if "contact_points" not in batch:
+                        raise ValueError("the collision term needs the clips' body contacts")
+                    touch = (batch["contact_points"][rows, k], batch["contact_normals"][rows, k])
+                for key, e in physics_terms(v, structure, loss, touch, s).items():  # (b,) each
                     sums[key] = sums.get(key, 0.0) + (w * e).sum()
             if loss.flare > 0:
                 if hem is None:
