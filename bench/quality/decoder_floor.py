@@ -12,7 +12,10 @@ cover and whole), RMSE in cm (the RMS over frames of each frame's RMS vertex dis
    A member that its own data set flagged and left out of its split (the simulation's
    quality gate) is left out here too; its figures go to the JSON.
 2. **The oracle**: the shipped generative model's reconstruction of the corpus's clip (its
-   encoder's code Z* decoded; ``AnimationModel.reconstruct``).
+   encoder's code Z* decoded; ``AnimationModel.reconstruct``), and on the training clips
+   pooled. ``--generative LABEL=CHECKPOINT`` adds other generative stages (a run's
+   ``checkpoint.pt``; LABEL says how it was trained) on the same rows, to show what a
+   recipe buys.
 3. **Linear bases**: the PCA of the training split's garments (every ``--stride``-th frame;
    with ``--mirror``, each training clip mirrored left-right too, as the engine tier and the
    motion stage train), in two representations:
@@ -52,6 +55,7 @@ import numpy as np
 import torch
 
 import loosefit
+from loosefit.api.generative import open_generative
 from loosefit.data.format import DatasetReader
 from loosefit.eval.metrics import rmse_per_frame
 from loosefit.geometry.inverse_skinning import InverseSkinningConfig, seed_weights, skin, unskin
@@ -117,6 +121,17 @@ class Representation:
 def member_reader(root: Path) -> tuple[DatasetReader, dict]:
     reader = DatasetReader(root)
     return reader, json.loads((root / "manifest.json").read_text())
+
+
+def reconstruction_errors(reconstruct, reader: DatasetReader, clips: list[str]) -> dict:
+    """Each clip's per-frame reconstruction RMSE (T,) in cm; ``reconstruct(motion, garment)``
+    gives the garment (T, V, 3) through a generative model."""
+    out = {}
+    for clip in clips:
+        seq = reader.read(clip)
+        rec = reconstruct(seq.motion, seq.garment_vertices)
+        out[clip] = 100 * rmse_per_frame(rec, seq.garment_vertices)
+    return out
 
 
 def chaos_floor(reader: DatasetReader, seeds_root: Path | None, clip: str, frames: int | None):
@@ -276,6 +291,14 @@ def main() -> None:
         action="store_false",
         help="the training clips as they are, not also mirrored",
     )
+    p.add_argument(
+        "--generative",
+        action="append",
+        default=[],
+        metavar="LABEL=CHECKPOINT",
+        help="also this generative stage's reconstruction (a run's checkpoint.pt), LABEL "
+        "saying how it was trained (repeat for more)",
+    )
     p.add_argument("--train-error", action="store_true", help="also the training clips' error")
     p.add_argument(
         "--check-exact",
@@ -331,11 +354,21 @@ def main() -> None:
     # the oracle: per frame, so one pass over each whole clip serves its cut rows too
     t0 = time.perf_counter()
     model = loosefit.load(args.checkpoint).model
-    oracle = {}
-    for clip in held_out:
-        seq = reader.read(clip)
-        res = model.reconstruct(seq.motion, seq.garment_vertices)
-        oracle[clip] = 100 * rmse_per_frame(res.vertices, seq.garment_vertices)
+    stages = {"the shipped generative model": lambda m, g: model.reconstruct(m, g).vertices}
+    recipes = [spec.partition("=") for spec in args.generative]
+    for label, eq, path in recipes:
+        if not (label and eq and path):
+            p.error(f"--generative takes LABEL=CHECKPOINT, found {label}{eq}{path!r}")
+        gen = open_generative(path, args.data)
+        stages[label] = lambda m, g, gen=gen: gen.reconstruct(m, g).sequence.garment_vertices
+    train_clips = reader.training_clips("train")
+    errors, trained = {}, {}
+    for label, rec in stages.items():
+        errors[label] = reconstruction_errors(rec, reader, held_out)
+        trained[label] = rms(
+            np.concatenate(list(reconstruction_errors(rec, reader, train_clips).values()))
+        )
+    oracle = errors["the shipped generative model"]
     result["seconds"]["oracle"] = time.perf_counter() - t0
     log(f"oracle: {result['seconds']['oracle']:.1f} s")
 
@@ -400,6 +433,15 @@ def main() -> None:
     cat = np.concatenate([oracle[c] for c in held_out])
     result["oracle_pooled_cm"] = rms(cat)
     result["oracle_pooled_frames"] = int(len(cat))
+    result["generative_stages"] = {
+        label: {
+            "checkpoint": args.checkpoint if i == 0 else recipes[i - 1][2],
+            "train_cm": trained[label],
+            "held_out_pooled_cm": rms(np.concatenate([errors[label][c] for c in held_out])),
+            "rows_cm": {row: rms(errors[label][clip][:n]) for row, (clip, n, _) in rows.items()},
+        }
+        for i, label in enumerate(stages)
+    }
 
     # the least K of each representation that reaches the target on every row (and the
     # strict one: half the closest pair of seeds)
@@ -560,6 +602,36 @@ def markdown(r: dict) -> str:
         + ".",
         "",
     ]
+    gens = r.get("generative_stages", {})
+    if len(gens) > 1:
+        labels = list(clips)
+        lines += [
+            "### Generative stages",
+            "",
+            "Each generative stage's reconstruction (its encoder's code decoded) of the "
+            "held-out clips and, pooled, of the training clips (unmirrored): what a recipe "
+            "buys, and whether it is capacity or generalisation that it lacks. Bold: at most "
+            "the target.",
+            "",
+            "| generative stage | training clips | " + " | ".join(labels) + " | held-out, pooled |",
+            "|---|---:|" + "---:|" * len(labels) + "---:|",
+            "| target | | "
+            + " | ".join(f"{clips[c]['chaos']['target_cm']:.2f}" for c in labels)
+            + " | |",
+        ]
+        for label, g in gens.items():
+            cells = [
+                f"**{g['rows_cm'][c]:.2f}**"
+                if g["rows_cm"][c] <= clips[c]["chaos"]["target_cm"]
+                else f"{g['rows_cm'][c]:.2f}"
+                for c in labels
+            ]
+            lines.append(
+                f"| {label} | {g['train_cm']:.2f} | "
+                + " | ".join(cells)
+                + f" | {g['held_out_pooled_cm']:.2f} |"
+            )
+        lines.append("")
     if "train_cm" in r:
         lines += [
             "### The same bases on the training clips",

@@ -15,8 +15,10 @@ the simulation covers and the model does not. Writes the section "The raised kne
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -59,6 +61,7 @@ def main() -> None:
         "--feedback", action="store_true", help="also every stage with its garment fed back"
     )
     p.add_argument("--page", default=None, help="a Markdown page to write the section into")
+    p.add_argument("--json", default=None, help="also the rows and totals as JSON here")
     args = p.parse_args()
     torch.set_num_threads(1)
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
@@ -110,6 +113,19 @@ def main() -> None:
     print(page)
     if args.page:
         write_section(args.page, "## The raised knee", page)
+    if args.json:
+        keys = ("clip", "knee_frames", "simulation_covers", "garment", "ours_covers", "missed")
+        record = {
+            "checkpoint": args.checkpoint,
+            "data": args.data,
+            "clips": args.clips,
+            "started": started,
+            "rows": [dict(zip(keys + ("rmse_cm",), row, strict=True)) for row in rows],
+            "totals": {
+                label: {"missed": m, "simulation_covers": s} for label, (m, s) in totals.items()
+            },
+        }
+        Path(args.json).write_text(json.dumps(record, indent=1) + "\n")
 
 
 if __name__ == "__main__":
