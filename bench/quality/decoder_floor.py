@@ -48,6 +48,7 @@ import itertools
 import json
 import os
 import platform
+import shlex
 import time
 from pathlib import Path
 
@@ -132,6 +133,19 @@ def reconstruction_errors(reconstruct, reader: DatasetReader, clips: list[str]) 
         rec = reconstruct(seq.motion, seq.garment_vertices)
         out[clip] = 100 * rmse_per_frame(rec, seq.garment_vertices)
     return out
+
+
+def generative_recipe(checkpoint: Path) -> str | None:
+    """How a generative run's checkpoint was trained, in words (its ``config.json`` beside
+    it, the epochs the checkpoint holds); None without the file."""
+    path = checkpoint.parent / "config.json"
+    if not path.is_file():
+        return None
+    t = json.loads(path.read_text())["train"]
+    epochs = torch.load(checkpoint, map_location="cpu", weights_only=False).get("epoch")
+    loss = ", ".join(f"{k} {v:g}" for k, v in t["loss"].items() if k != "length_scale")
+    start = f"from `{t['init']}`" if t.get("init") else "from scratch"
+    return f"{epochs} epochs {start}, lr {t['lr']:g}, batch {t['batch_size']}; loss: {loss}"
 
 
 def chaos_floor(reader: DatasetReader, seeds_root: Path | None, clip: str, frames: int | None):
@@ -325,7 +339,7 @@ def main() -> None:
         "machine": args.machine or machine_line(torch.get_num_threads()),
         "date": args.date,
         "command": "OMP_NUM_THREADS=1 python bench/quality/decoder_floor.py "
-        + " ".join(a for a in os.sys.argv[1:]),
+        + shlex.join(os.sys.argv[1:]),
         "data": str(args.data),
         "seeds": str(args.seeds),
         "checkpoint": str(args.checkpoint),
@@ -439,6 +453,7 @@ def main() -> None:
             "train_cm": trained[label],
             "held_out_pooled_cm": rms(np.concatenate([errors[label][c] for c in held_out])),
             "rows_cm": {row: rms(errors[label][clip][:n]) for row, (clip, n, _) in rows.items()},
+            "recipe": None if i == 0 else generative_recipe(Path(recipes[i - 1][2])),
         }
         for i, label in enumerate(stages)
     }
@@ -631,6 +646,8 @@ def markdown(r: dict) -> str:
                 + " | ".join(cells)
                 + f" | {g['held_out_pooled_cm']:.2f} |"
             )
+        lines.append("")
+        lines += [f"- {label}: {g['recipe']}." for label, g in gens.items() if g.get("recipe")]
         lines.append("")
     if "train_cm" in r:
         lines += [
