@@ -118,6 +118,27 @@ def share_batch(
     return {k: v.to(device) for k, v in batch.items()}, part
 
 
+def window_physics(
+    v: torch.Tensor,
+    structure: ClothStructure | None,
+    loss: MotionLossConfig,
+    batch: dict[str, torch.Tensor],
+    rows: torch.Tensor,
+    k: torch.Tensor,
+) -> dict[str, torch.Tensor]:
+    """The physics terms of ``loss`` (those with a weight) of one frame's predictions
+    ``v`` (b, V, 3), (b,) each; the collision term against the body contacts of each
+    clip's motion frame ``k`` (b,) in ``batch``."""
+    if not (loss.membrane > 0 or loss.bending > 0 or loss.collision > 0):
+        return {}
+    touch = None
+    if loss.collision > 0:
+        if "contact_points" not in batch:
+            raise ValueError("the collision term needs the clips' body contacts")
+        touch = (batch["contact_points"][rows, k], batch["contact_normals"][rows, k])
+    return physics_terms(v, structure, loss, touch, loss.length_scale)
+
+
 def run_window(
     encoder: DynamicMotionEncoder,
     generative: GarmentGenerativeModel,
@@ -199,14 +220,8 @@ def run_window(
             sums["geometry"] = sums["geometry"] + (w * geometry).sum()
             sums["laplacian"] = sums["laplacian"] + loss.laplacian * (w * lap).sum()
             sums["latent"] = sums["latent"] + loss.latent * (w * (z - zt).pow(2).sum(-1)).sum()
-            if loss.membrane > 0 or loss.bending > 0 or loss.collision > 0:
-                touch = None
-                if loss.collision > 0:
-                    if "contact_points" not in batch:
-                        raise ValueError("the collision term needs the clips' body contacts")
-                    touch = (batch["contact_points"][rows, k], batch["contact_normals"][rows, k])
-                for key, e in physics_terms(v, structure, loss, touch, s).items():  # (b,) each
-                    sums[key] = sums.get(key, 0.0) + (w * e).sum()
+            for key, e in window_physics(v, structure, loss, batch, rows, k).items():
+                sums[key] = sums.get(key, 0.0) + (w * e).sum()  # (b,) each
             if loss.flare > 0:
                 if hem is None:
                     raise ValueError("the flare term needs the garment's hem vertices")
