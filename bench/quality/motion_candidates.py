@@ -109,13 +109,15 @@ def knee_cell(row: dict, garment: str) -> str:
 
 
 def markdown(rows: dict, started: str, command: str) -> str:
+    """The page; ``command``: the stem of the JSON beside it in bench/figures."""
     labels = list(rows)
     ref = rows[labels[0]]
     clips = list(ref["held_out"])
     lines = [
         "# Motion-stage candidates against the ensemble",
         "",
-        f"Gathered by `{command}` ({started}) from each candidate's "
+        f"Gathered by `bench/quality/motion_candidates.py` ({started}; its arguments in "
+        f"`bench/figures/{command}.json`) from each candidate's "
         "`bench/quality/ensemble.py --validation` figures (rolled out through every stage, "
         "deterministic: no realisations) and `bench/quality/knee_cover.py`. The validation "
         "clips choose (the energy score, lower is better); the held-out clips are shown, never "
@@ -182,8 +184,8 @@ def main() -> None:
             raise SystemExit(f"{what} names no --candidate: {', '.join(sorted(stray))}")
     rows = gather(candidates, knees, configs)
     started = time.strftime("%Y-%m-%d")
-    command = "python bench/quality/motion_candidates.py (arguments in the JSON)"
     out = Path(args.out)
+    command = out.stem
     (FIGURES / f"{out.stem}.json").write_text(
         json.dumps({"arguments": vars(args), "candidates": rows}, indent=1) + "\n"
     )
