@@ -379,9 +379,10 @@ def main() -> None:
     errors, trained = {}, {}
     for label, rec in stages.items():
         errors[label] = reconstruction_errors(rec, reader, held_out)
-        trained[label] = rms(
-            np.concatenate(list(reconstruction_errors(rec, reader, train_clips).values()))
-        )
+        if recipes:  # the training clips only where the page sets stages side by side
+            trained[label] = rms(
+                np.concatenate(list(reconstruction_errors(rec, reader, train_clips).values()))
+            )
     oracle = errors["the shipped generative model"]
     result["seconds"]["oracle"] = time.perf_counter() - t0
     log(f"oracle: {result['seconds']['oracle']:.1f} s")
@@ -450,7 +451,7 @@ def main() -> None:
     result["generative_stages"] = {
         label: {
             "checkpoint": args.checkpoint if i == 0 else recipes[i - 1][2],
-            "train_cm": trained[label],
+            "train_cm": trained.get(label),
             "held_out_pooled_cm": rms(np.concatenate([errors[label][c] for c in held_out])),
             "rows_cm": {row: rms(errors[label][clip][:n]) for row, (clip, n, _) in rows.items()},
             "recipe": None if i == 0 else generative_recipe(Path(recipes[i - 1][2])),

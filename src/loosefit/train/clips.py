@@ -104,7 +104,7 @@ def prepare_clips(
     the clip's motion on the data set's avatar, and the normal there (the collision term's;
     :func:`~loosefit.train.frames.body_contacts`).
     """
-    from loosefit.train.frames import avatar_for, body_contacts
+    from loosefit.train.frames import avatar_for, root_frame_contacts
 
     avatar = avatar_for(reader) if contacts else None
     faces = avatar.collider_faces(arms=True).cpu().numpy() if contacts else None
@@ -119,12 +119,8 @@ def prepare_clips(
         latent = None if generative is None else latent_codes(generative, target)  # (T, Z)
         touch = None
         if contacts:
-            body = avatar.pose_motion(m).vertices.float().cpu().numpy()  # (T, Vb, 3)
-            cp, cn = body_contacts(np.asarray(v, np.float32), body, faces)
-            touch = (
-                to_root_frame(torch.from_numpy(cp), H[P:], p[P:]),
-                to_root_frame(torch.from_numpy(cn), H[P:], torch.zeros_like(p[P:])),
-            )
+            body = avatar.pose_motion(m).vertices  # (T, Vb, 3)
+            touch = root_frame_contacts(np.asarray(v, np.float32), body, faces, H[P:], p[P:])
         clips.append(Clip(label, m, feats, H, p, target, latent, P, touch))
     return clips
 

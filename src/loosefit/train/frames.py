@@ -114,9 +114,9 @@ def prepare_split(
         out["H"].append(H)
         out["p"].append(p)
         if contacts:
-            cp, cn = body_contacts(g.numpy(), body.vertices.float().cpu().numpy(), faces)
-            out["cp"].append(to_root_frame(torch.from_numpy(cp), H, p))
-            out["cn"].append(to_root_frame(torch.from_numpy(cn), H, torch.zeros_like(p)))
+            cp, cn = root_frame_contacts(g.numpy(), body.vertices, faces, H, p)
+            out["cp"].append(cp)
+            out["cn"].append(cn)
     return PreparedFrames(
         names=names,
         clip=torch.cat(out["clip"]),
@@ -128,6 +128,19 @@ def prepare_split(
         fps=float(fps),
         contact_points=torch.cat(out["cp"]).contiguous() if contacts else None,
         contact_normals=torch.cat(out["cn"]).contiguous() if contacts else None,
+    )
+
+
+def root_frame_contacts(
+    garment: np.ndarray, body: torch.Tensor, faces: np.ndarray, H: torch.Tensor, p: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`body_contacts` of garments (T, V, 3) on the posed body (T, Vb, 3), world
+    frame, put in the root frames ``H`` (T, 3, 3), ``p`` (T, 3): the points moved, the
+    normals turned only. (T, V, 3) each, float32."""
+    cp, cn = body_contacts(garment, body.float().cpu().numpy(), faces)
+    return (
+        to_root_frame(torch.from_numpy(cp), H, p),
+        to_root_frame(torch.from_numpy(cn), H, torch.zeros_like(p)),
     )
 
 
