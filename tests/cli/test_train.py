@@ -197,6 +197,9 @@ def test_generative_flags_reach_its_configuration(monkeypatch, tmp_path, capsys)
     argv = ["train", "generative", "--out", str(tmp_path)]
     main([*argv, "--kl", "1e-4", "--collision", "30"])
     assert seen["cfg"].loss.kl == 1e-4 and seen["cfg"].loss.collision == 30.0
+    assert seen["cfg"].mirror is False
+    main([*argv, "--mirror"])
+    assert seen["cfg"].mirror is True
     main(argv)
     assert seen["cfg"].loss.kl == 1e-3  # the paper's lambda_3
     assert main([*argv, "--kl", "-1"]) != 0

@@ -285,3 +285,14 @@ def test_warm_start_begins_from_the_given_weights(toy_dataset, tmp_path):
     other.model = GenerativeConfig(uv_size=32, channels=(4, 8, 8, 16), rec_hidden=(16, 16, 16))
     with pytest.raises(LoosefitInputError, match="model_config"):
         train_generative(toy_dataset, tmp_path / "other", other, **quiet)
+
+
+def test_a_mirrored_run_trains_on_every_frame_and_its_mirror_image(toy_dataset, tmp_path):
+    """``mirror`` doubles the training frames (each clip and itself mirrored), not the
+    held-out ones, and its report scores each mirrored clip by name."""
+    quiet = dict(log=lambda *_: None, progress=False)
+    report = train_generative(toy_dataset, tmp_path / "m", _config(epochs=1, mirror=True), **quiet)
+    assert report["train"]["frames"] == 64 and report["test"]["frames"] == 16
+    assert {"a", "a~mirror", "b", "b~mirror"} <= set(report["train"]["clips"])
+    _, cfg, _ = load_checkpoint(tmp_path / "m" / "checkpoint.pt")
+    assert cfg.mirror is True

@@ -137,7 +137,10 @@ def test_a_warm_start_takes_the_weights_of_the_same_configuration_only():
 
 def test_a_generative_config_round_trips_through_its_dict():
     cfg = TrainGenerativeConfig(
-        epochs=3, model=GenerativeConfig(uv_size=32, latent=8), laplacian="cotangent"
+        epochs=3,
+        model=GenerativeConfig(uv_size=32, latent=8),
+        laplacian="cotangent",
+        mirror=True,
     )
     back = TrainGenerativeConfig.from_dict(cfg.to_dict())
-    assert back == cfg and back.model.latent == 8
+    assert back == cfg and back.model.latent == 8 and back.mirror

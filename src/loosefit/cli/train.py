@@ -113,14 +113,19 @@ def _add_init_arg(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_clip_args(p: argparse.ArgumentParser) -> None:
-    """``--mirror`` and ``--joints`` (motion, baseline): what the network trains on."""
+def _add_mirror_arg(p: argparse.ArgumentParser) -> None:
+    """``--mirror`` (generative, motion, baseline)."""
     p.add_argument(
         "--mirror",
         action="store_true",
         help="also train on every clip mirrored left-right (twice the data, no "
         "simulation; the garment must be mirror-symmetric)",
     )
+
+
+def _add_clip_args(p: argparse.ArgumentParser) -> None:
+    """``--mirror`` and ``--joints`` (motion, baseline): what the network trains on."""
+    _add_mirror_arg(p)
     p.add_argument(
         "--joints",
         default=None,
@@ -148,6 +153,7 @@ def _add_generative_parser(stages) -> argparse.ArgumentParser:
         help="weight of the latent's KL term (lambda_3; default 1e-3): lower lets the "
         "decoder reconstruct closer, at the cost of a less regular latent",
     )
+    _add_mirror_arg(p)
     _add_init_arg(p)
     p.set_defaults(func=run_generative)
     return p
@@ -461,6 +467,7 @@ def run_generative(args: argparse.Namespace) -> int:
         decoder=args.decoder,
         **_common_overrides(args),
         precision=args.precision,
+        mirror=True if args.mirror else None,
     )
     cfg.loss = _physics_weights(cfg.loss, args)
     if args.kl is not None:

@@ -68,6 +68,7 @@ def prepare_split(
     skinning: InverseSkinningConfig | None = None,
     max_frames: int | None = None,
     contacts: bool = False,
+    mirror: bool = False,
 ) -> PreparedFrames:
     """Root-frame garments and inverse-skinning targets for every frame of a split.
 
@@ -83,8 +84,10 @@ def prepare_split(
     Returns:
         :class:`PreparedFrames`.
     """
+    from loosefit.train.clips import clip_versions
+
     skinning = skinning or InverseSkinningConfig()
-    names = reader.training_clips(split)
+    names: list[str] = []
     template = torch.from_numpy(reader.template.vertices)
     seeds = avatar.seed_points(skinning.num_seeds)
     weights = seed_weights(template, seeds.rest.float().cpu(), skinning.temperature)[None]
@@ -93,14 +96,14 @@ def prepare_split(
     }
     faces = avatar.collider_faces(arms=True).cpu().numpy() if contacts else None
     fps = None
-    for i, name in enumerate(names):
-        seq = reader.read(name)
-        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        g = torch.from_numpy(seq.garment_vertices[: motion.num_frames])
+    for i, (name, motion, garment) in enumerate(clip_versions(reader, split, max_frames, mirror)):
+        names.append(name)
+        g = torch.from_numpy(np.ascontiguousarray(garment, np.float32))
         fps = motion.fps if fps is None else fps
         if motion.fps != fps:
+            clip = name.removesuffix("~mirror")
             raise LoosefitInputError(
-                reader.sequence_path(name), "fps", f"{fps} like the other clips", motion.fps
+                reader.sequence_path(clip), "fps", f"{fps} like the other clips", motion.fps
             )
         with torch.no_grad():
             body = avatar.pose_motion(motion)

@@ -72,6 +72,7 @@ class TrainGenerativeConfig(TrainerConfig):
     eval_every: int = 50  # epochs; test-split error into TensorBoard
     precision: str = "fp32"  # the forward pass's: "fp32", or "bf16" (autocast; see the module)
     init: str | None = None  # warm start: a generative checkpoint of this garment and model
+    mirror: bool = False  # also every training frame mirrored left-right (the garment symmetric)
 
     # ``full``: the paper's (a GPU, 500 epochs); ``cpu``: 64x64 UV maps, narrower convolutions
     # and a 10x larger learning rate (1e-3), everything else the paper's (why:
@@ -202,7 +203,9 @@ class GenerativeTrainer(Trainer):
         t0 = time.perf_counter()
         self.contacts = config.loss.collision > 0
         mf = config.max_frames
-        self.train = prepare_split(reader, "train", avatar, config.skinning, mf, self.contacts)
+        self.train = prepare_split(
+            reader, "train", avatar, config.skinning, mf, self.contacts, config.mirror
+        )
         self.test = prepare_split(reader, "test", avatar, config.skinning, mf)
         run.log(
             f"prepared {len(self.train)} train and {len(self.test)} test frames "
