@@ -58,7 +58,7 @@ import torch
 import loosefit
 from loosefit.api.generative import open_generative
 from loosefit.data.format import DatasetReader
-from loosefit.eval.metrics import rmse_per_frame
+from loosefit.eval.metrics import rmse_per_frame, sted
 from loosefit.geometry.inverse_skinning import InverseSkinningConfig, seed_weights, skin, unskin
 from loosefit.inference.rollout import motion_root_frames
 from loosefit.inference.timeline import RolloutConfig
@@ -124,14 +124,19 @@ def member_reader(root: Path) -> tuple[DatasetReader, dict]:
     return reader, json.loads((root / "manifest.json").read_text())
 
 
-def reconstruction_errors(reconstruct, reader: DatasetReader, clips: list[str]) -> dict:
+def reconstruction_errors(
+    reconstruct, reader: DatasetReader, clips: list[str], steds: dict | None = None
+) -> dict:
     """Each clip's per-frame reconstruction RMSE (T,) in cm; ``reconstruct(motion, garment)``
-    gives the garment (T, V, 3) through a generative model."""
+    gives the garment (T, V, 3) through a generative model. ``steds``: also each clip's
+    STED against the simulation (the surface's roughness and jitter), written there."""
     out = {}
     for clip in clips:
         seq = reader.read(clip)
         rec = reconstruct(seq.motion, seq.garment_vertices)
         out[clip] = 100 * rmse_per_frame(rec, seq.garment_vertices)
+        if steds is not None:
+            steds[clip] = sted(np.asarray(rec), seq.garment_vertices, reader.template.faces)["sted"]
     return out
 
 
@@ -145,7 +150,16 @@ def generative_recipe(checkpoint: Path) -> str | None:
     epochs = torch.load(checkpoint, map_location="cpu", weights_only=False).get("epoch")
     loss = ", ".join(f"{k} {v:g}" for k, v in t["loss"].items() if k != "length_scale")
     start = f"from `{t['init']}`" if t.get("init") else "from scratch"
-    return f"{epochs} epochs {start}, lr {t['lr']:g}, batch {t['batch_size']}; loss: {loss}"
+    data = "; every training clip also mirrored" if t.get("mirror") else ""
+    return f"{epochs} epochs {start}, lr {t['lr']:g}, batch {t['batch_size']}{data}; loss: {loss}"
+
+
+def pooled_sted(steds: dict | None, errors: dict) -> float | None:
+    """The clips' STED, weighted by their frames; None where not measured."""
+    if not steds:
+        return None
+    n = {c: len(errors[c]) for c in steds}
+    return float(sum(steds[c] * n[c] for c in steds) / sum(n.values()))
 
 
 def chaos_floor(reader: DatasetReader, seeds_root: Path | None, clip: str, frames: int | None):
@@ -313,6 +327,12 @@ def main() -> None:
         help="also this generative stage's reconstruction (a run's checkpoint.pt), LABEL "
         "saying how it was trained (repeat for more)",
     )
+    p.add_argument(
+        "--keep-generative",
+        action="store_true",
+        help="also keep the generative stages the page's figures (bench/figures/) already "
+        "hold, measured by an earlier run, not measured again",
+    )
     p.add_argument("--train-error", action="store_true", help="also the training clips' error")
     p.add_argument(
         "--check-exact",
@@ -376,9 +396,10 @@ def main() -> None:
         gen = open_generative(path, args.data)
         stages[label] = lambda m, g, gen=gen: gen.reconstruct(m, g).sequence.garment_vertices
     train_clips = reader.training_clips("train")
-    errors, trained = {}, {}
+    errors, trained, steds = {}, {}, {}
     for label, rec in stages.items():
-        errors[label] = reconstruction_errors(rec, reader, held_out)
+        steds[label] = {} if recipes else None
+        errors[label] = reconstruction_errors(rec, reader, held_out, steds[label])
         if recipes:  # the training clips only where the page sets stages side by side
             trained[label] = rms(
                 np.concatenate(list(reconstruction_errors(rec, reader, train_clips).values()))
@@ -455,9 +476,20 @@ def main() -> None:
             "held_out_pooled_cm": rms(np.concatenate([errors[label][c] for c in held_out])),
             "rows_cm": {row: rms(errors[label][clip][:n]) for row, (clip, n, _) in rows.items()},
             "recipe": None if i == 0 else generative_recipe(Path(recipes[i - 1][2])),
+            "held_out_sted": pooled_sted(steds[label], errors[label]),
+            "measured": args.date,
         }
         for i, label in enumerate(stages)
     }
+    if args.keep_generative:  # earlier runs' stages, not measured again (their checkpoints
+        # may be gone); the same rows of the same corpus, marked with their date
+        before = json.loads((FIGURES / f"{Path(args.out).stem}.json").read_text())
+        for label, g in before.get("generative_stages", {}).items():
+            if label not in result["generative_stages"]:
+                kept = {"measured": before["date"], **g}
+                if set(kept["rows_cm"]) != set(rows):
+                    p.error(f"--keep-generative: {label!r} was measured on other rows")
+                result["generative_stages"][label] = kept
 
     # the least K of each representation that reaches the target on every row (and the
     # strict one: half the closest pair of seeds)
@@ -627,13 +659,18 @@ def markdown(r: dict) -> str:
             "Each generative stage's reconstruction (its encoder's code decoded) of the "
             "held-out clips and, pooled, of the training clips (unmirrored): what a recipe "
             "buys, and whether it is capacity or generalisation that it lacks. Bold: at most "
-            "the target.",
+            "the target. STED: the held-out clips' reconstructions against the simulation "
+            "(frame-weighted; the surface's roughness and jitter, which a decoder that "
+            "fits closer can trade away). Measured: the date of the run that measured the "
+            "row (`--keep-generative` keeps earlier rows).",
             "",
-            "| generative stage | training clips | " + " | ".join(labels) + " | held-out, pooled |",
-            "|---|---:|" + "---:|" * len(labels) + "---:|",
+            "| generative stage | training clips | "
+            + " | ".join(labels)
+            + " | held-out, pooled | held-out STED | measured |",
+            "|---|---:|" + "---:|" * len(labels) + "---:|---:|---|",
             "| target | | "
             + " | ".join(f"{clips[c]['chaos']['target_cm']:.2f}" for c in labels)
-            + " | |",
+            + " | | | |",
         ]
         for label, g in gens.items():
             cells = [
@@ -642,10 +679,13 @@ def markdown(r: dict) -> str:
                 else f"{g['rows_cm'][c]:.2f}"
                 for c in labels
             ]
+            st = g.get("held_out_sted")
             lines.append(
                 f"| {label} | {g['train_cm']:.2f} | "
                 + " | ".join(cells)
-                + f" | {g['held_out_pooled_cm']:.2f} |"
+                + f" | {g['held_out_pooled_cm']:.2f} | "
+                + ("-" if st is None else f"{st:.4f}")
+                + f" | {g.get('measured', r['date'])} |"
             )
         lines.append("")
         lines += [f"- {label}: {g['recipe']}." for label, g in gens.items() if g.get("recipe")]

@@ -19,7 +19,9 @@ motion stage sits in one table with its recipe::
         --candidate "X=runs/dance/X/ENSEMBLE_X.json" --knee X=runs/dance/X/knee.json \\
         --config X=runs/dance/X/motion/config.json --out docs/results/MOTION_CANDIDATES.md
 
-The first candidate is the reference the others are compared with.
+The first candidate is the reference the others are compared with. ``--keep`` adds the
+candidates given to those the page's JSON already holds (their runs may be gone; each keeps
+the date it was gathered), so that a new candidate joins the table without the old runs.
 """
 
 from __future__ import annotations
@@ -116,7 +118,8 @@ def markdown(rows: dict, started: str, command: str) -> str:
     lines = [
         "# Motion-stage candidates against the ensemble",
         "",
-        f"Gathered by `bench/quality/motion_candidates.py` ({started}; its arguments in "
+        f"Gathered by `bench/quality/motion_candidates.py` ({started}; its calls and the date "
+        f"each candidate was gathered (`--keep` keeps earlier ones) in "
         f"`bench/figures/{command}.json`) from each candidate's "
         "`bench/quality/ensemble.py --validation` figures (rolled out through every stage, "
         "deterministic: no realisations) and `bench/quality/knee_cover.py`. The validation "
@@ -173,21 +176,33 @@ def main() -> None:
     p.add_argument("--knee", action="append", default=[], metavar="LABEL=KNEE_JSON")
     p.add_argument("--config", action="append", default=[], metavar="LABEL=CONFIG_JSON")
     p.add_argument("--out", default="docs/results/MOTION_CANDIDATES.md")
+    p.add_argument(
+        "--keep",
+        action="store_true",
+        help="also keep the candidates the page's figures (bench/figures/) already hold, "
+        "gathered earlier (their runs may be gone); a --candidate of the same label replaces one",
+    )
     args = p.parse_args()
     candidates = pairs(args.candidate, "candidate")
-    if not candidates:
+    if not candidates and not args.keep:
         raise SystemExit("name at least one --candidate LABEL=ENSEMBLE_JSON")
     knees, configs = pairs(args.knee, "knee"), pairs(args.config, "config")
     for what, given in (("--knee", knees), ("--config", configs)):
         stray = set(given) - set(candidates)
         if stray:
             raise SystemExit(f"{what} names no --candidate: {', '.join(sorted(stray))}")
-    rows = gather(candidates, knees, configs)
     started = time.strftime("%Y-%m-%d")
     out = Path(args.out)
     command = out.stem
+    rows, calls = {}, []
+    if args.keep:  # the earlier candidates first, in their order (the first: the reference)
+        before = json.loads((FIGURES / f"{out.stem}.json").read_text())
+        rows, calls = before["candidates"], before["calls"]
+    for label, row in gather(candidates, knees, configs).items():
+        rows[label] = {"gathered": started} | row
+    calls.append({"gathered": started, "arguments": vars(args)})
     (FIGURES / f"{out.stem}.json").write_text(
-        json.dumps({"arguments": vars(args), "candidates": rows}, indent=1) + "\n"
+        json.dumps({"calls": calls, "candidates": rows}, indent=1) + "\n"
     )
     out.write_text(markdown(rows, started, command))
     print(out.read_text())
