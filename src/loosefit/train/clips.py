@@ -5,7 +5,6 @@ garment in the root frame (and, given a generative model, that garment's codes).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -25,7 +24,7 @@ from loosefit.model.motion_features import (
     root_frames,
     to_root_frame,
 )
-from loosefit.motion.mirror import mirror_garment, mirror_motion, vertex_twins
+from loosefit.train.frames import avatar_for, clip_versions, root_frame_contacts
 from loosefit.types import Motion
 
 
@@ -62,26 +61,6 @@ class Clip:
         return int(self.features.shape[0])
 
 
-def clip_versions(
-    reader: DatasetReader, split: str, max_frames: int | None = None, mirror: bool = False
-) -> Iterator[tuple[str, Motion, np.ndarray]]:
-    """Every clip of a split as (name, motion, simulated garment (T, V, 3), world frame),
-    each followed, with ``mirror``, by itself mirrored left-right (``NAME~mirror``): the
-    motion by :func:`~loosefit.motion.mirror.mirror_motion`, the garment reflected about
-    X = 0 onto its twin vertices (:func:`~loosefit.motion.mirror.vertex_twins`; the garment
-    must be mirror-symmetric). Physics has no handedness, so that is the simulation of the
-    mirrored motion, up to the body's own asymmetry (mm). ``max_frames``: the first frames
-    of each clip only."""
-    twins = vertex_twins(reader.template.vertices) if mirror else None
-    for name in reader.training_clips(split):
-        seq = reader.read(name)
-        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        garment = seq.garment_vertices[: motion.num_frames]
-        yield name, motion, garment
-        if mirror:
-            yield f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins)
-
-
 @torch.no_grad()
 def prepare_clips(
     reader: DatasetReader,
@@ -104,8 +83,6 @@ def prepare_clips(
     the clip's motion on the data set's avatar, and the normal there (the collision term's;
     :func:`~loosefit.train.frames.body_contacts`).
     """
-    from loosefit.train.frames import avatar_for, root_frame_contacts
-
     avatar = avatar_for(reader) if contacts else None
     faces = avatar.collider_faces(arms=True).cpu().numpy() if contacts else None
     clips = []

@@ -1,5 +1,6 @@
 """The arrays the generative model trains on: a data set's frames in the root frame
-(:mod:`loosefit.model.motion_features`), with their unposed targets.
+(:mod:`loosefit.model.motion_features`), with their unposed targets; and the clips every
+training stage reads, each with its mirror image if asked (:func:`clip_versions`).
 
 **Unposed targets.** The unposed decoder is supervised by the inverse skinning
 of each simulated frame (paper Eq. 4) with seed points on the body, computed
@@ -8,6 +9,7 @@ here once per dataset.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +20,8 @@ from loosefit.data.format import DatasetReader
 from loosefit.errors import LoosefitInputError
 from loosefit.geometry.inverse_skinning import InverseSkinningConfig, seed_weights, unskin
 from loosefit.model.motion_features import from_root_frame, heading_frames, to_root_frame
+from loosefit.motion.mirror import mirror_garment, mirror_motion, vertex_twins
+from loosefit.types import Motion
 
 
 @dataclass
@@ -56,6 +60,26 @@ class PreparedFrames:
         return from_root_frame(x, self.heading[index], self.origin[index])
 
 
+def clip_versions(
+    reader: DatasetReader, split: str, max_frames: int | None = None, mirror: bool = False
+) -> Iterator[tuple[str, Motion, np.ndarray]]:
+    """Every clip of a split as (name, motion, simulated garment (T, V, 3), world frame),
+    each followed, with ``mirror``, by itself mirrored left-right (``NAME~mirror``): the
+    motion by :func:`~loosefit.motion.mirror.mirror_motion`, the garment reflected about
+    X = 0 onto its twin vertices (:func:`~loosefit.motion.mirror.vertex_twins`; the garment
+    must be mirror-symmetric). Physics has no handedness, so that is the simulation of the
+    mirrored motion, up to the body's own asymmetry (mm). ``max_frames``: the first frames
+    of each clip only."""
+    twins = vertex_twins(reader.template.vertices) if mirror else None
+    for name in reader.training_clips(split):
+        seq = reader.read(name)
+        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
+        garment = seq.garment_vertices[: motion.num_frames]
+        yield name, motion, garment
+        if mirror:
+            yield f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins)
+
+
 def avatar_for(reader: DatasetReader, device: str = "cpu") -> Avatar:
     """The avatar a dataset was simulated on (its manifest's body shape)."""
     return Avatar(AvatarConfig(shape=dict(reader.body.get("shape", {}))), device=device)
@@ -84,8 +108,6 @@ def prepare_split(
     Returns:
         :class:`PreparedFrames`.
     """
-    from loosefit.train.clips import clip_versions
-
     skinning = skinning or InverseSkinningConfig()
     names: list[str] = []
     template = torch.from_numpy(reader.template.vertices)
