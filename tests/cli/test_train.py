@@ -198,8 +198,9 @@ def test_generative_flags_reach_its_configuration(monkeypatch, tmp_path, capsys)
     main([*argv, "--kl", "1e-4", "--collision", "30"])
     assert seen["cfg"].loss.kl == 1e-4 and seen["cfg"].loss.collision == 30.0
     assert seen["cfg"].mirror is False
-    main([*argv, "--mirror"])
+    main([*argv, "--mirror", "--decoder", "basis", "--basis-size", "64"])
     assert seen["cfg"].mirror is True
+    assert seen["cfg"].model.decoder == "basis" and seen["cfg"].model.basis_size == 64
     main(argv)
     assert seen["cfg"].loss.kl == 1e-3  # the paper's lambda_3
     assert main([*argv, "--kl", "-1"]) != 0

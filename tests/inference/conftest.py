@@ -40,6 +40,10 @@ def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
         weights = torch.softmax(torch.randn(V, bones), -1).numpy()
         mean = np.tile(np.eye(3, 4, dtype=np.float32), (bones, 1, 1))
         ssdr = (skirt.vertices, weights, mean)
+    basis = None
+    if decoder == "basis":  # 6 random orthonormal directions about the skirt, 1-3 cm spread
+        dirs = torch.linalg.qr(torch.randn(3 * V, 6)).Q.T.reshape(6, V, 3)
+        basis = (torch.from_numpy(skirt.vertices), dirs, torch.linspace(0.01, 0.03, 6))
     config = GenerativeConfig(
         decoder=decoder,
         uv_size=32,
@@ -48,8 +52,11 @@ def tiny_model(skirt, avatar, decoder: str, previous_state: bool):
         half=4,
         rec_hidden=(8, 8, 8),
         ssdr_bones=bones,
+        basis_size=6,
     )
-    gen = GarmentGenerativeModel(skirt, config, ssdr).eval()
+    gen = GarmentGenerativeModel(skirt, config, ssdr, basis).eval()
+    if decoder == "basis":  # offsets too, not the zero they start at
+        torch.nn.init.normal_(gen.dyn.ups[-1][-1].weight, std=0.01)
     J = len(avatar.joint_names)
     enc = DynamicMotionEncoder(
         gen, num_features(J), MotionEncoderConfig(motion_fc=8, gru=8, previous_state=previous_state)

@@ -28,15 +28,17 @@ from loosefit.train.generative import TrainGenerativeConfig, load_checkpoint, tr
 SMALL = dict(uv_size=32, channels=(4, 8, 8, 8), rec_hidden=(16, 16, 16))
 
 
-@pytest.mark.parametrize("decoder", ["decomposed", "vertex", "ssdr"])
+@pytest.mark.parametrize("decoder", ["decomposed", "vertex", "ssdr", "basis"])
 def test_decoders_give_garments_of_the_template(skirt, decoder):
     V = skirt.num_vertices
     ssdr = None
+    basis = _basis(skirt) if decoder == "basis" else None
     if decoder == "ssdr":
         B = 3
         w = np.full((V, B), 1.0 / B, np.float32)
         ssdr = (skirt.vertices, w, np.tile(np.eye(3, 4, dtype=np.float32), (B, 1, 1)))
-    model = GarmentGenerativeModel(skirt, GenerativeConfig(decoder=decoder, **SMALL), ssdr=ssdr)
+    config = GenerativeConfig(decoder=decoder, basis_size=5, **SMALL)
+    model = GarmentGenerativeModel(skirt, config, ssdr=ssdr, basis=basis)
     x = torch.from_numpy(skirt.vertices)[None].repeat(2, 1, 1)
     out = model(x)
     assert out.vertices.shape == (2, V, 3) and out.mu.shape == (2, 128)
@@ -48,6 +50,38 @@ def test_decoders_give_garments_of_the_template(skirt, decoder):
         torch.testing.assert_close(model.decode(torch.randn(2, 128))["vertices"], x)
 
 
+def _basis(skirt, k: int = 5, seed: int = 0):
+    """A random orthonormal basis of ``k`` directions about the skirt, 1-5 cm spread."""
+    V = skirt.num_vertices
+    gen = torch.Generator().manual_seed(seed)
+    dirs = torch.linalg.qr(torch.randn(3 * V, k, generator=gen)).Q.T.reshape(k, V, 3)
+    return torch.from_numpy(skirt.vertices), dirs, torch.linspace(0.01, 0.05, k)
+
+
+def test_the_basis_decoder_starts_as_the_projection_onto_its_basis(skirt):
+    """Decoder "basis" before training: the code's first K entries are the garment's
+    coefficients on the basis over their scales, the rest zero, and the decoded garment is
+    the garment's projection onto the basis (what lies outside it is lost, no more)."""
+    mean, dirs, scale = _basis(skirt)
+    model = GarmentGenerativeModel(
+        skirt,
+        GenerativeConfig(decoder="basis", basis_size=5, latent=8, **SMALL),
+        basis=(mean, dirs, scale),
+    ).eval()
+    gen = torch.Generator().manual_seed(1)
+    inside = torch.randn(3, 5, generator=gen) * scale
+    outside = 0.01 * torch.randn(3, *mean.shape, generator=gen)
+    outside -= torch.einsum("bk,kvc->bvc", torch.einsum("bvc,kvc->bk", outside, dirs), dirs)
+    x = mean + torch.einsum("bk,kvc->bvc", inside, dirs) + outside
+    mu, logvar = model.encode(x)
+    torch.testing.assert_close(mu[:, :5], inside / scale, atol=1e-4, rtol=0)
+    torch.testing.assert_close(mu[:, 5:], torch.zeros(3, 3))
+    assert (logvar == -6.0).all()  # a narrow posterior at the start
+    out = model(x, sample=False)
+    assert out.unposed is None and out.offsets.abs().max() == 0
+    torch.testing.assert_close(out.vertices, x - outside, atol=1e-5, rtol=0)
+
+
 def test_bad_configurations_and_inputs(skirt):
     with pytest.raises(LoosefitInputError, match="decoder"):
         GenerativeConfig(decoder="linear")
@@ -55,6 +89,17 @@ def test_bad_configurations_and_inputs(skirt):
         GenerativeConfig(uv_size=40)
     with pytest.raises(LoosefitInputError, match="ssdr"):
         GarmentGenerativeModel(skirt, GenerativeConfig(decoder="ssdr", **SMALL))
+    with pytest.raises(LoosefitInputError, match="basis_size"):
+        GenerativeConfig(decoder="basis", basis_size=200)  # more than the latent's 128
+    with pytest.raises(LoosefitInputError, match="basis"):
+        GarmentGenerativeModel(skirt, GenerativeConfig(decoder="basis", **SMALL))
+    mean, dirs, scale = _basis(skirt, k=4)
+    with pytest.raises(LoosefitInputError, match=r"directions \(5, "):
+        GarmentGenerativeModel(
+            skirt,
+            GenerativeConfig(decoder="basis", basis_size=5, **SMALL),
+            basis=(mean, dirs, scale),
+        )
     model = GarmentGenerativeModel(skirt, GenerativeConfig(**SMALL))
     with pytest.raises(LoosefitInputError, match="vertices"):
         model.encode(torch.zeros(1, 5, 3))
@@ -285,6 +330,34 @@ def test_warm_start_begins_from_the_given_weights(toy_dataset, tmp_path):
     other.model = GenerativeConfig(uv_size=32, channels=(4, 8, 8, 16), rec_hidden=(16, 16, 16))
     with pytest.raises(LoosefitInputError, match="model_config"):
         train_generative(toy_dataset, tmp_path / "other", other, **quiet)
+
+
+def test_a_basis_decoder_trains_from_its_projection_and_loads(toy_dataset, skirt, tmp_path):
+    """Decoder "basis": the training frames' principal directions, kept in the checkpoint
+    (a model without its data set), and the start is the projection onto them."""
+    from loosefit.data.format import DatasetReader
+    from loosefit.inference.checkpoints import load_generative
+    from loosefit.model.engine import fit_basis
+    from loosefit.train.frames import avatar_for, prepare_split
+
+    quiet = dict(log=lambda *_: None, progress=False)
+    cfg = _config(epochs=6, model=GenerativeConfig(decoder="basis", basis_size=3, **SMALL))
+    start = train_generative(
+        toy_dataset, tmp_path / "start", _config(**{**vars(cfg), "epochs": 1, "lr": 0.0}), **quiet
+    )
+    report = train_generative(toy_dataset, tmp_path / "b", cfg, **quiet)
+    assert np.isfinite(report["test"]["rmse_cm"]) and start["train"]["rmse_cm"] < 0.01
+    model, _ = load_generative(tmp_path / "b" / "checkpoint.pt", skirt)
+    reader = DatasetReader(toy_dataset)
+    frames = prepare_split(reader, "train", avatar_for(reader))
+    want = fit_basis(frames.posed, 3)
+    torch.testing.assert_close(model.basis_dirs, want.basis)
+    torch.testing.assert_close(model.basis_mean, want.mean)
+    # the start: the projection onto the basis (a learning rate of 0 keeps it)
+    first, _ = load_generative(tmp_path / "start" / "checkpoint.pt", skirt)
+    c = torch.einsum("nvc,kvc->nk", frames.posed - want.mean, want.basis)
+    projected = want.mean + torch.einsum("nk,kvc->nvc", c, want.basis)
+    torch.testing.assert_close(first.reconstruct_all(frames.posed), projected, atol=1e-5, rtol=0)
 
 
 def test_a_mirrored_run_trains_on_every_frame_and_its_mirror_image(toy_dataset, tmp_path):

@@ -141,7 +141,19 @@ def _add_generative_parser(stages) -> argparse.ArgumentParser:
         help="the garment VAE (3.2)",
         description="Train the generative model, the garment VAE (paper 3.2).",
     )
-    p.add_argument("--decoder", default="decomposed", help="decomposed, vertex or ssdr")
+    p.add_argument(
+        "--decoder",
+        default="decomposed",
+        help="decomposed (the paper's), vertex or ssdr (its ablations), or basis (a linear "
+        "basis of the training garments and a UV offset map: held-out motion decoded closer)",
+    )
+    p.add_argument(
+        "--basis-size",
+        type=int,
+        default=None,
+        metavar="K",
+        help="decoder basis: its directions (default 128, at most the latent's 128)",
+    )
     add_common_args(p, "runs/generative-PRESET-DECODER")
     _add_precision_arg(p)
     _add_physics_args(p, "collision")
@@ -465,6 +477,7 @@ def run_generative(args: argparse.Namespace) -> int:
         "generative",
         args.preset,
         decoder=args.decoder,
+        basis_size=args.basis_size,
         **_common_overrides(args),
         precision=args.precision,
         mirror=True if args.mirror else None,

@@ -382,7 +382,11 @@ def load_generative(
                 m["ssdr_weights"].float().cpu(),
                 torch.zeros(B, 3, 4),
             )
-        model = GarmentGenerativeModel(stored, config, ssdr=ssdr).to(device)
+        basis = None
+        if config.decoder == "basis":  # the basis's buffers, the state dict's below
+            m = data["model"]
+            basis = tuple(m[k].float().cpu() for k in ("basis_mean", "basis_dirs", "basis_scale"))
+        model = GarmentGenerativeModel(stored, config, ssdr=ssdr, basis=basis).to(device)
         load_weights(model, data["model"], path, "this generative configuration")
     return model.eval(), data
 

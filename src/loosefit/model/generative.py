@@ -21,6 +21,22 @@ The ablations of paper 4.2 are configurations of the same class:
 * ``decoder="ssdr"``: a linear decoder from the latent code to the bone
   transforms of a precomputed skinning decomposition (SSDR, Le and Deng 2012),
   whose linear blend skinning is the garment.
+
+And one beyond the paper, for held-out motion:
+
+* ``decoder="basis"``: the garment's deformation decomposed over a linear basis (the
+  training garments' principal directions, :func:`~loosefit.model.engine.fit_basis`) and a
+  UV offset map for what the basis misses::
+
+      mu = E_gen(S_t) + (P (V_t - M)) / s        the first K entries: the basis's coefficients
+      V_t = M + (s z_K) P + uv.sample(D_dyn(z))   z_K: the code's first K entries
+
+  ``M`` the mean garment, ``P`` (K, 3V) the directions, ``s`` (K,) their coefficients'
+  standard deviations. It starts as the projection onto the basis (``E_gen``'s output layer
+  and ``D_dyn``'s last convolution at zero): a held-out garment is decoded to within what
+  the basis can hold (docs/results/DECODER_FLOOR.md), where a learned decoder alone
+  generalises only as far as its training frames reach. It has no unposed decoder, so the
+  inverse-skinning and template terms do not apply.
 """
 
 from __future__ import annotations
@@ -34,23 +50,28 @@ import torch
 from torch import nn
 
 from loosefit.errors import LoosefitInputError
+from loosefit.model.engine import project
 from loosefit.model.uvmap import UVMap
 from loosefit.types import GarmentTemplate
 
-DECODERS = ("decomposed", "vertex", "ssdr")
+DECODERS = ("decomposed", "vertex", "ssdr", "basis")
+BASIS_START_LOGVAR = -6.0  # decoder "basis": the posterior's log variance at the start
 
 
 @dataclass
 class GenerativeConfig:
     """Sizes of the generative model (the paper's, where it gives them)."""
 
-    decoder: str = "decomposed"  # "decomposed" (the paper's), "vertex" or "ssdr" (ablations)
+    decoder: str = (
+        "decomposed"  # "decomposed" (the paper's), "vertex" or "ssdr" (ablations), "basis"
+    )
     uv_size: int = 64  # H = W of the UV maps; four stride-2 convolutions divide it by 16
     channels: tuple[int, ...] = (32, 64, 128, 256)  # the encoder's four convolutions
     latent: int = 128  # Z_t
     half: int = 64  # z_s and z_d
     rec_hidden: tuple[int, ...] = (256, 512, 1024)  # D_rec: these and the output, 4 FC layers
     ssdr_bones: int = 32  # decoder="ssdr": bones of the skinning decomposition
+    basis_size: int = 128  # decoder="basis": K, the basis's directions (at most ``latent``)
 
     def __post_init__(self) -> None:
         src = "GenerativeConfig"
@@ -58,6 +79,10 @@ class GenerativeConfig:
             raise LoosefitInputError(src, "decoder", f"one of {DECODERS}", repr(self.decoder))
         if self.uv_size % 16 or self.uv_size < 16:
             raise LoosefitInputError(src, "uv_size", "a multiple of 16", repr(self.uv_size))
+        if self.decoder == "basis" and not 0 < self.basis_size <= self.latent:
+            raise LoosefitInputError(
+                src, "basis_size", f"1..{self.latent} (the latent's size)", self.basis_size
+            )
         if len(self.channels) != 4:
             raise LoosefitInputError(src, "channels", "4 widths", repr(self.channels))
         self.channels = tuple(int(c) for c in self.channels)
@@ -150,6 +175,8 @@ class GarmentGenerativeModel(nn.Module):
         ssdr: decoder "ssdr" only: the rest shape (V, 3) and weights (V, B) of a
             skinning decomposition, and the mean bone transforms (B, 3, 4) the
             linear decoder starts from.
+        basis: decoder "basis" only: the mean garment (V, 3), the K orthonormal directions
+            (K, V, 3) and their coefficients' standard deviations (K,), root frame.
     """
 
     def __init__(
@@ -157,6 +184,7 @@ class GarmentGenerativeModel(nn.Module):
         template: GarmentTemplate,
         config: GenerativeConfig | None = None,
         ssdr: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        basis: tuple[torch.Tensor, torch.Tensor, torch.Tensor] | None = None,
     ) -> None:
         super().__init__()
         self.config = cfg = config or GenerativeConfig()
@@ -171,6 +199,8 @@ class GarmentGenerativeModel(nn.Module):
             self.dyn = UVDecoder(cfg.half, cfg.channels, cfg.uv_size, 3)
         elif cfg.decoder == "vertex":
             self.dec = UVDecoder(cfg.latent, cfg.channels, cfg.uv_size, 3)
+        elif cfg.decoder == "basis":
+            self._init_basis(basis, V)
         else:
             if ssdr is None:
                 raise LoosefitInputError(
@@ -192,6 +222,31 @@ class GarmentGenerativeModel(nn.Module):
             with torch.no_grad():
                 self.bones.bias.copy_(mean.reshape(-1))
 
+    def _init_basis(self, basis, V: int) -> None:
+        """Decoder "basis": its buffers, the offset decoder, and the start (the projection)."""
+        cfg, K = self.config, self.config.basis_size
+        if basis is None:
+            raise LoosefitInputError("GarmentGenerativeModel", "basis", "a linear basis", "None")
+        mean, dirs, scale = (torch.as_tensor(np.asarray(a)).float() for a in basis)
+        if mean.shape != (V, 3) or dirs.shape != (K, V, 3) or scale.shape != (K,):
+            raise LoosefitInputError(
+                "GarmentGenerativeModel",
+                "basis",
+                f"mean ({V}, 3), directions ({K}, {V}, 3), scales ({K},)",
+                f"{tuple(mean.shape)}, {tuple(dirs.shape)}, {tuple(scale.shape)}",
+            )
+        self.register_buffer("basis_mean", mean)
+        self.register_buffer("basis_dirs", dirs)
+        self.register_buffer("basis_scale", scale)
+        self.dyn = UVDecoder(cfg.latent, cfg.channels, cfg.uv_size, 3)
+        last = self.dyn.ups[-1][-1]  # the offsets start at zero ...
+        nn.init.zeros_(last.weight)
+        nn.init.zeros_(last.bias)
+        with torch.no_grad():  # ... and the code at the coefficients, a narrow posterior
+            self.encoder.fc.weight.zero_()
+            self.encoder.fc.bias[: cfg.latent].zero_()
+            self.encoder.fc.bias[cfg.latent :].fill_(BASIS_START_LOGVAR)
+
     # -- the pieces --------------------------------------------------------------
 
     def encode(self, vertices: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -205,6 +260,10 @@ class GarmentGenerativeModel(nn.Module):
             )
         h = self.encoder(self.uv.encode(vertices))
         mu, logvar = h.chunk(2, dim=-1)
+        if self.config.decoder == "basis":  # the basis's coefficients, scaled, plus E_gen's
+            K = self.config.basis_size
+            c = project(vertices, self.basis_mean, self.basis_dirs) / self.basis_scale
+            mu = torch.cat([mu[:, :K] + c, mu[:, K:]], dim=-1)
         return mu, logvar.clamp(-20.0, 10.0)
 
     def decode(self, z: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -217,6 +276,9 @@ class GarmentGenerativeModel(nn.Module):
             return {"vertices": unposed + offsets, "unposed": unposed, "offsets": offsets}
         if kind == "vertex":
             return {"vertices": self.uv.sample(self.dec(z))}
+        if kind == "basis":
+            offsets = self.uv.sample(self.dyn(z))
+            return {"vertices": basis_garment(self, z) + offsets, "offsets": offsets}
         A = self.bones(z).view(B, -1, 3, 4)  # (B, bones, 3, 4)
         posed = torch.einsum("bkij,vj->bvki", A[..., :3], self.ssdr_rest) + A[:, None, :, :, 3]
         return {"vertices": (self.ssdr_weights[None, :, :, None] * posed).sum(2)}
@@ -267,6 +329,13 @@ class GarmentGenerativeModel(nn.Module):
             unposed=out.get("unposed"),
             offsets=out.get("offsets"),
         )
+
+
+def basis_garment(model: GarmentGenerativeModel, z: torch.Tensor) -> torch.Tensor:
+    """Decoder "basis": the garments (B, V, 3) its basis holds for codes (B, latent)."""
+    K = model.config.basis_size
+    c = z[:, :K] * model.basis_scale  # (B, K)
+    return model.basis_mean + (c @ model.basis_dirs.flatten(1)).view(-1, *model.basis_mean.shape)
 
 
 # -- losses (pure functions) ----------------------------------------------------------

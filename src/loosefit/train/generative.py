@@ -109,6 +109,14 @@ def _ssdr_init(frames: PreparedFrames, template: GarmentTemplate, cfg: TrainGene
     return d.rest, d.weights, d.transforms.mean(0)
 
 
+def _basis_init(frames: PreparedFrames, cfg: TrainGenerativeConfig):
+    """Decoder "basis": the principal directions of the training frames (root frame)."""
+    from loosefit.model.engine import fit_basis
+
+    b = fit_basis(frames.posed, cfg.model.basis_size)
+    return b.mean, b.basis, b.scale
+
+
 # -- the step ---------------------------------------------------------------------------------
 
 
@@ -220,7 +228,12 @@ class GenerativeTrainer(Trainer):
                 f"skinning decomposition: {config.model.ssdr_bones} bones "
                 f"in {time.perf_counter() - t0:.1f} s"
             )
-        self.model = GarmentGenerativeModel(template, config.model, ssdr=ssdr).to(device)
+        basis = None
+        if config.model.decoder == "basis":
+            basis = _basis_init(self.train, config)
+            run.log(f"linear basis: {config.model.basis_size} directions of the training frames")
+        self.model = GarmentGenerativeModel(template, config.model, ssdr=ssdr, basis=basis)
+        self.model.to(device)
         self.lap = Laplacian(
             template.faces, template.num_vertices, kind=config.laplacian, vertices=template.vertices
         ).to(device)

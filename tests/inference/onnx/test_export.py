@@ -131,7 +131,8 @@ def test_unsupported_stages_are_named(model, tmp_path, monkeypatch):
 
 @needs_ort
 @pytest.mark.parametrize(
-    ("decoder", "previous_state"), [("decomposed", False), ("vertex", True), ("ssdr", True)]
+    ("decoder", "previous_state"),
+    [("decomposed", False), ("vertex", True), ("ssdr", True), ("basis", True)],
 )
 def test_every_decoder_exports(skirt, avatar, tmp_path, decoder, previous_state):
     tiny = tiny_model(skirt, avatar, decoder, previous_state)

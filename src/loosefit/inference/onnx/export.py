@@ -51,7 +51,7 @@ from loosefit.garment.obj import write_obj
 from loosefit.geometry.rotations import axis_angle_to_matrix
 from loosefit.inference.protocols import LearnedStages
 from loosefit.model.detail import DetailGenerator
-from loosefit.model.generative import GarmentGenerativeModel
+from loosefit.model.generative import GarmentGenerativeModel, basis_garment
 from loosefit.model.motion_features import (
     JOINT_SETS,
     feature_joints,
@@ -81,7 +81,9 @@ OUTPUTS = (
     "next_root_translation",
     "latent",
 )
-SUPPORTED_DECODERS = frozenset({"decomposed", "vertex", "ssdr"})  # GenerativeConfig.decoder
+SUPPORTED_DECODERS = frozenset(
+    {"decomposed", "vertex", "ssdr", "basis"}
+)  # GenerativeConfig.decoder
 STATE = {  # output -> the input it becomes on the next frame
     "next_garment": "previous_garment",
     "next_hidden": "hidden",
@@ -196,6 +198,8 @@ def decode(
         return unposed + sample(g.dyn(g.to_dynamic(z)))
     if kind == "vertex":
         return sample(g.dec(z))
+    if kind == "basis":
+        return basis_garment(g, z) + sample(g.dyn(z))
     A = g.bones(z).view(B, -1, 3, 4)  # (B, bones, 3, 4)
     posed = torch.einsum("bkij,vj->bvki", A[..., :3], g.ssdr_rest) + A[:, None, :, :, 3]
     return (g.ssdr_weights[None, :, :, None] * posed).sum(2)
