@@ -482,14 +482,21 @@ def main() -> None:
         for i, label in enumerate(stages)
     }
     if args.keep_generative:  # earlier runs' stages, not measured again (their checkpoints
-        # may be gone); the same rows of the same corpus, marked with their date
+        # may be gone), after the shipped one and before this run's; marked with their date
         before = json.loads((FIGURES / f"{Path(args.out).stem}.json").read_text())
+        stages_now = result["generative_stages"]
+        shipped = next(iter(stages_now))
+        kept = {}
         for label, g in before.get("generative_stages", {}).items():
-            if label not in result["generative_stages"]:
-                kept = {"measured": before["date"], **g}
-                if set(kept["rows_cm"]) != set(rows):
+            if label not in stages_now:
+                if set(g["rows_cm"]) != set(rows):
                     p.error(f"--keep-generative: {label!r} was measured on other rows")
-                result["generative_stages"][label] = kept
+                kept[label] = {"measured": before["date"], **g}
+        result["generative_stages"] = {
+            shipped: stages_now[shipped],
+            **kept,
+            **{k: v for k, v in stages_now.items() if k != shipped},
+        }
 
     # the least K of each representation that reaches the target on every row (and the
     # strict one: half the closest pair of seeds)
