@@ -353,6 +353,10 @@ def test_a_basis_decoder_trains_from_its_projection_and_loads(toy_dataset, skirt
     want = fit_basis(frames.posed, 3)
     torch.testing.assert_close(model.basis_dirs, want.basis)
     torch.testing.assert_close(model.basis_mean, want.mean)
+    # more directions than training frames: refused before any training, by name
+    many = _config(epochs=1, model=GenerativeConfig(decoder="basis", basis_size=100, **SMALL))
+    with pytest.raises(LoosefitInputError, match="basis_size.*at most the 32 training frames"):
+        train_generative(toy_dataset, tmp_path / "many", many, **quiet)
     # the start: the projection onto the basis (a learning rate of 0 keeps it)
     first, _ = load_generative(tmp_path / "start" / "checkpoint.pt", skirt)
     c = torch.einsum("nvc,kvc->nk", frames.posed - want.mean, want.basis)

@@ -110,10 +110,22 @@ def _ssdr_init(frames: PreparedFrames, template: GarmentTemplate, cfg: TrainGene
 
 
 def _basis_init(frames: PreparedFrames, cfg: TrainGenerativeConfig):
-    """Decoder "basis": the principal directions of the training frames (root frame)."""
+    """Decoder "basis": the principal directions of the training frames (root frame).
+
+    Raises:
+        LoosefitInputError: fewer training frames than directions asked for.
+    """
     from loosefit.model.engine import fit_basis
 
-    b = fit_basis(frames.posed, cfg.model.basis_size)
+    K, N = cfg.model.basis_size, len(frames)
+    if N < K:
+        raise LoosefitInputError(
+            "--basis-size",
+            "basis_size",
+            f"at most the {N} training frames (each clip's mirror image counts with --mirror)",
+            K,
+        )
+    b = fit_basis(frames.posed, K)
     return b.mean, b.basis, b.scale
 
 
