@@ -15,6 +15,8 @@ OWN = {
         "--bending": "0.5",
         "--collision": "30",
         "--kl": "1e-4",
+        "--mirror": None,
+        "--basis-size": "64",
         "--init": "g.pt",
     },
     "motion": {

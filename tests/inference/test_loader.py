@@ -62,7 +62,8 @@ def test_the_engine_tier_animates_as_its_rollout():
 
     result = loosefit.load(PAIR / "engine.pt").animate("sway", frames=10)
     want = rollout_engine(load_engine(PAIR / "engine.pt"), result.motion)
-    np.testing.assert_array_equal(result.vertices, want)
+    # the same rollout; float32 sums may round apart by an ulp with other thread counts
+    np.testing.assert_allclose(result.vertices, want, rtol=0, atol=1e-6)
     assert result.source == f"loosefit model {PAIR / 'engine.pt'}"
 
 

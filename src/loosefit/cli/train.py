@@ -113,19 +113,16 @@ def _add_init_arg(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_mirror_arg(p: argparse.ArgumentParser) -> None:
-    """``--mirror`` (generative, motion, baseline)."""
+def _add_clip_args(p: argparse.ArgumentParser, joints: bool = True) -> None:
+    """What the network trains on: ``--mirror`` and (motion, baseline) ``--joints``."""
     p.add_argument(
         "--mirror",
         action="store_true",
         help="also train on every clip mirrored left-right (twice the data, no "
         "simulation; the garment must be mirror-symmetric)",
     )
-
-
-def _add_clip_args(p: argparse.ArgumentParser) -> None:
-    """``--mirror`` and ``--joints`` (motion, baseline): what the network trains on."""
-    _add_mirror_arg(p)
+    if not joints:
+        return
     p.add_argument(
         "--joints",
         default=None,
@@ -147,13 +144,7 @@ def _add_generative_parser(stages) -> argparse.ArgumentParser:
         help="decomposed (the paper's), vertex or ssdr (its ablations), or basis (a linear "
         "basis of the training garments and a UV offset map: held-out motion decoded closer)",
     )
-    p.add_argument(
-        "--basis-size",
-        type=int,
-        default=None,
-        metavar="K",
-        help="decoder basis: its directions (default 128, at most the latent's 128)",
-    )
+    p.add_argument("--basis-size", type=int, metavar="K", help="decoder basis: K directions (128)")
     add_common_args(p, "runs/generative-PRESET-DECODER")
     _add_precision_arg(p)
     _add_physics_args(p, "collision")
@@ -165,7 +156,7 @@ def _add_generative_parser(stages) -> argparse.ArgumentParser:
         help="weight of the latent's KL term (lambda_3; default 1e-3): lower lets the "
         "decoder reconstruct closer, at the cost of a less regular latent",
     )
-    _add_mirror_arg(p)
+    _add_clip_args(p, joints=False)
     _add_init_arg(p)
     p.set_defaults(func=run_generative)
     return p

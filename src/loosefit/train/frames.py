@@ -69,15 +69,25 @@ def clip_versions(
     X = 0 onto its twin vertices (:func:`~loosefit.motion.mirror.vertex_twins`; the garment
     must be mirror-symmetric). Physics has no handedness, so that is the simulation of the
     mirrored motion, up to the body's own asymmetry (mm). ``max_frames``: the first frames
-    of each clip only."""
+    of each clip only.
+
+    Raises (on the call, before any clip is read): what
+    :meth:`~loosefit.data.format.DatasetReader.training_clips` refuses (clips of another
+    cloth configuration), and an asymmetric garment with ``mirror``.
+    """
+    names = reader.training_clips(split)
     twins = vertex_twins(reader.template.vertices) if mirror else None
-    for name in reader.training_clips(split):
-        seq = reader.read(name)
-        motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
-        garment = seq.garment_vertices[: motion.num_frames]
-        yield name, motion, garment
-        if mirror:
-            yield f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins)
+
+    def versions() -> Iterator[tuple[str, Motion, np.ndarray]]:
+        for name in names:
+            seq = reader.read(name)
+            motion = seq.motion if max_frames is None else seq.motion.slice(0, max_frames)
+            garment = seq.garment_vertices[: motion.num_frames]
+            yield name, motion, garment
+            if mirror:
+                yield f"{name}~mirror", mirror_motion(motion), mirror_garment(garment, twins)
+
+    return versions()
 
 
 def avatar_for(reader: DatasetReader, device: str = "cpu") -> Avatar:
@@ -90,6 +100,7 @@ def prepare_split(
     split: str,
     avatar: Avatar,
     skinning: InverseSkinningConfig | None = None,
+    *,
     max_frames: int | None = None,
     contacts: bool = False,
     mirror: bool = False,
@@ -108,6 +119,7 @@ def prepare_split(
     Returns:
         :class:`PreparedFrames`.
     """
+    versions = clip_versions(reader, split, max_frames, mirror)  # refuses before any work
     skinning = skinning or InverseSkinningConfig()
     names: list[str] = []
     template = torch.from_numpy(reader.template.vertices)
@@ -118,7 +130,7 @@ def prepare_split(
     }
     faces = avatar.collider_faces(arms=True).cpu().numpy() if contacts else None
     fps = None
-    for i, (name, motion, garment) in enumerate(clip_versions(reader, split, max_frames, mirror)):
+    for i, (name, motion, garment) in enumerate(versions):
         names.append(name)
         g = torch.from_numpy(np.ascontiguousarray(garment, np.float32))
         fps = motion.fps if fps is None else fps

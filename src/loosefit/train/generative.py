@@ -224,9 +224,15 @@ class GenerativeTrainer(Trainer):
         self.contacts = config.loss.collision > 0
         mf = config.max_frames
         self.train = prepare_split(
-            reader, "train", avatar, config.skinning, mf, self.contacts, config.mirror
+            reader,
+            "train",
+            avatar,
+            config.skinning,
+            max_frames=mf,
+            contacts=self.contacts,
+            mirror=config.mirror,
         )
-        self.test = prepare_split(reader, "test", avatar, config.skinning, mf)
+        self.test = prepare_split(reader, "test", avatar, config.skinning, max_frames=mf)
         run.log(
             f"prepared {len(self.train)} train and {len(self.test)} test frames "
             f"in {time.perf_counter() - t0:.1f} s"
