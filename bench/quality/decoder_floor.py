@@ -148,8 +148,14 @@ def generative_recipe(checkpoint: Path) -> str | None:
         return None
     t = json.loads(path.read_text())["train"]
     epochs = torch.load(checkpoint, map_location="cpu", weights_only=False).get("epoch")
-    loss = ", ".join(f"{k} {v:g}" for k, v in t["loss"].items() if k != "length_scale")
+    decoder = t["model"]["decoder"]
+    unused = {"length_scale"} | ({"unposed", "template"} if decoder != "decomposed" else set())
+    loss = ", ".join(f"{k} {v:g}" for k, v in t["loss"].items() if k not in unused)
     start = f"from `{t['init']}`" if t.get("init") else "from scratch"
+    if decoder == "basis":
+        start = f"of decoder basis ({t['model']['basis_size']} directions) from its start, the projection"
+    elif decoder != "decomposed" and not t.get("init"):
+        start = f"of decoder {decoder} from scratch"
     data = "; every training clip also mirrored" if t.get("mirror") else ""
     return f"{epochs} epochs {start}, lr {t['lr']:g}, batch {t['batch_size']}{data}; loss: {loss}"
 
@@ -747,6 +753,14 @@ def markdown(r: dict) -> str:
         )
     else:
         lines.append("- The shipped generative model's reconstruction reaches it on every clip.")
+    for label, g in list(r.get("generative_stages", {}).items())[1:]:
+        ratio = {c: g["rows_cm"][c] / clips[c]["chaos"]["target_cm"] / 2 for c in clips}
+        worst = max(ratio, key=ratio.get)
+        if all(g["rows_cm"][c] <= clips[c]["chaos"]["target_cm"] for c in clips):
+            lines.append(
+                f"- {label} reaches it on every clip: at most {ratio[worst]:.2f}x the chaos "
+                f"floor ({worst})."
+            )
     for kind in REPRESENTATIONS:
         k = r["least_k_everywhere_reaches_target"][kind]
         line = (
