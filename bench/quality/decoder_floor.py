@@ -153,7 +153,8 @@ def generative_recipe(checkpoint: Path) -> str | None:
     loss = ", ".join(f"{k} {v:g}" for k, v in t["loss"].items() if k not in unused)
     start = f"from `{t['init']}`" if t.get("init") else "from scratch"
     if decoder == "basis":
-        start = f"of decoder basis ({t['model']['basis_size']} directions) from its start, the projection"
+        k = t["model"]["basis_size"]
+        start = f"of decoder basis ({k} directions) from its start, the projection"
     elif decoder != "decomposed" and not t.get("init"):
         start = f"of decoder {decoder} from scratch"
     data = "; every training clip also mirrored" if t.get("mirror") else ""
