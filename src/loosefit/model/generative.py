@@ -166,6 +166,19 @@ class GenerativeOutput:
     offsets: torch.Tensor | None = None
 
 
+def _checked(field: str, arrays, shapes, expected: str) -> tuple[torch.Tensor, ...]:
+    """A decoder's given arrays as float32 tensors, each of its shape in ``shapes``.
+
+    Raises:
+        LoosefitInputError: another shape, naming ``field``, ``expected`` and what was found.
+    """
+    out = tuple(torch.as_tensor(np.asarray(a)).float() for a in arrays)
+    if len(out) != len(shapes) or any(t.shape != s for t, s in zip(out, shapes, strict=False)):
+        found = ", ".join(str(tuple(t.shape)) for t in out)
+        raise LoosefitInputError("GarmentGenerativeModel", field, expected, found)
+    return out
+
+
 class GarmentGenerativeModel(nn.Module):
     """The VAE of paper 3.2 on one garment (its template and UV layout).
 
@@ -206,15 +219,13 @@ class GarmentGenerativeModel(nn.Module):
                 raise LoosefitInputError(
                     "GarmentGenerativeModel", "ssdr", "a skinning decomposition", "None"
                 )
-            rest, weights, mean = (torch.as_tensor(np.asarray(a)).float() for a in ssdr)
-            B = weights.shape[1]
-            if rest.shape != (V, 3) or weights.shape != (V, B) or mean.shape != (B, 3, 4):
-                raise LoosefitInputError(
-                    "GarmentGenerativeModel",
-                    "ssdr",
-                    f"rest ({V}, 3), weights ({V}, B), mean transforms (B, 3, 4)",
-                    f"{tuple(rest.shape)}, {tuple(weights.shape)}, {tuple(mean.shape)}",
-                )
+            B = np.asarray(ssdr[1]).shape[-1]
+            rest, weights, mean = _checked(
+                "ssdr",
+                ssdr,
+                ((V, 3), (V, B), (B, 3, 4)),
+                f"rest ({V}, 3), weights ({V}, B), mean transforms (B, 3, 4)",
+            )
             self.register_buffer("ssdr_rest", rest)
             self.register_buffer("ssdr_weights", weights)
             self.bones = nn.Linear(cfg.latent, 12 * B)
@@ -227,14 +238,12 @@ class GarmentGenerativeModel(nn.Module):
         cfg, K = self.config, self.config.basis_size
         if basis is None:
             raise LoosefitInputError("GarmentGenerativeModel", "basis", "a linear basis", "None")
-        mean, dirs, scale = (torch.as_tensor(np.asarray(a)).float() for a in basis)
-        if mean.shape != (V, 3) or dirs.shape != (K, V, 3) or scale.shape != (K,):
-            raise LoosefitInputError(
-                "GarmentGenerativeModel",
-                "basis",
-                f"mean ({V}, 3), directions ({K}, {V}, 3), scales ({K},)",
-                f"{tuple(mean.shape)}, {tuple(dirs.shape)}, {tuple(scale.shape)}",
-            )
+        mean, dirs, scale = _checked(
+            "basis",
+            basis,
+            ((V, 3), (K, V, 3), (K,)),
+            f"mean ({V}, 3), directions ({K}, {V}, 3), scales ({K},)",
+        )
         self.register_buffer("basis_mean", mean)
         self.register_buffer("basis_dirs", dirs)
         self.register_buffer("basis_scale", scale)
