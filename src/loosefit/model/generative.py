@@ -50,7 +50,7 @@ import torch
 from torch import nn
 
 from loosefit.errors import LoosefitInputError
-from loosefit.model.engine import project
+from loosefit.model.engine import project, reconstruct
 from loosefit.model.uvmap import UVMap
 from loosefit.types import GarmentTemplate
 
@@ -62,9 +62,7 @@ BASIS_START_LOGVAR = -6.0  # decoder "basis": the posterior's log variance at th
 class GenerativeConfig:
     """Sizes of the generative model (the paper's, where it gives them)."""
 
-    decoder: str = (
-        "decomposed"  # "decomposed" (the paper's), "vertex" or "ssdr" (ablations), "basis"
-    )
+    decoder: str = "decomposed"  # the paper's; "vertex", "ssdr" (ablations) or "basis"
     uv_size: int = 64  # H = W of the UV maps; four stride-2 convolutions divide it by 16
     channels: tuple[int, ...] = (32, 64, 128, 256)  # the encoder's four convolutions
     latent: int = 128  # Z_t
@@ -342,9 +340,8 @@ class GarmentGenerativeModel(nn.Module):
 
 def basis_garment(model: GarmentGenerativeModel, z: torch.Tensor) -> torch.Tensor:
     """Decoder "basis": the garments (B, V, 3) its basis holds for codes (B, latent)."""
-    K = model.config.basis_size
-    c = z[:, :K] * model.basis_scale  # (B, K)
-    return model.basis_mean + (c @ model.basis_dirs.flatten(1)).view(-1, *model.basis_mean.shape)
+    c = z[:, : model.config.basis_size] * model.basis_scale  # (B, K)
+    return reconstruct(c, model.basis_mean, model.basis_dirs)
 
 
 # -- losses (pure functions) ----------------------------------------------------------

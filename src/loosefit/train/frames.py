@@ -134,10 +134,9 @@ def prepare_split(
         names.append(name)
         g = torch.from_numpy(np.ascontiguousarray(garment, np.float32))
         fps = motion.fps if fps is None else fps
-        if motion.fps != fps:
-            clip = name.removesuffix("~mirror")
+        if motion.fps != fps:  # a mirror image has its clip's: only a clip can differ
             raise LoosefitInputError(
-                reader.sequence_path(clip), "fps", f"{fps} like the other clips", motion.fps
+                reader.sequence_path(name), "fps", f"{fps} like the other clips", motion.fps
             )
         with torch.no_grad():
             body = avatar.pose_motion(motion)

@@ -81,9 +81,8 @@ OUTPUTS = (
     "next_root_translation",
     "latent",
 )
-SUPPORTED_DECODERS = frozenset(
-    {"decomposed", "vertex", "ssdr", "basis"}
-)  # GenerativeConfig.decoder
+# GenerativeConfig.decoder
+SUPPORTED_DECODERS = frozenset({"decomposed", "vertex", "ssdr", "basis"})
 STATE = {  # output -> the input it becomes on the next frame
     "next_garment": "previous_garment",
     "next_hidden": "hidden",
