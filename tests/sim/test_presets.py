@@ -7,11 +7,11 @@ import pytest
 from loosefit.errors import LoosefitInputError
 from loosefit.sim.dataset_config import read_config_file, write_config_file
 from loosefit.sim.jobs import plan_jobs, short_spec
-from loosefit.sim.presets import BALLET_CLIPS, PRESETS, preset
+from loosefit.sim.presets import BALLET_CLIPS, BALLET_TEST, BALLET_TRAIN, PRESETS, preset
 
 
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
-    expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, paper"
+    expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, paper"
     with pytest.raises(LoosefitInputError, match=expected):
         preset("huge")
     with pytest.raises(
@@ -74,6 +74,39 @@ def test_salsa_speed_adds_faster_training_clips_only(tmp_path):
     cfg = preset("salsa", bvh_folder=str(tmp_path))
     cfg.motions.speeds = (1.0,)
     with pytest.raises(LoosefitInputError, match="speeds"):
+        plan_jobs(cfg)
+
+
+def test_dance_speed_retimes_the_ballet_training_clips_only(tmp_path):
+    salsa = tmp_path / "cmu-salsa"
+    salsa.mkdir()
+    for name in ("60_01", "60_03", "61_03", "60_07", "61_07", "60_05"):
+        (salsa / f"{name}.bvh").write_text("")
+    dance = plan_jobs(preset("dance", bvh_folder=str(salsa)))
+    jobs = plan_jobs(preset("dance-speed", bvh_folder=str(salsa)))
+    assert jobs[: len(dance)] == dance  # the corpus's clips, same seeds: --reuse takes them
+    extra = jobs[len(dance) :]
+    assert [j.name for j in extra] == [f"{c}_x{s}" for s in ("1.25", "0.8") for c in BALLET_TRAIN]
+    assert not any(j.test for j in extra)
+    assert extra[0].spec == f"speed:1.25:{tmp_path / 'cmu-ballet' / '05_01.bvh'}"
+    assert len({j.seed for j in jobs}) == len(jobs)
+    # no salsa clip retimed: 60_05, a validation clip of the corpus, stays out of training
+    assert not any(j.name.startswith("60_") and "_x" in j.name for j in jobs)
+    assert not set(BALLET_TRAIN) & set(BALLET_TEST)
+
+
+def test_retimed_clips_must_exist_and_not_be_held_out(tmp_path):
+    for name in ("60_01", "60_03"):
+        (tmp_path / f"{name}.bvh").write_text("")
+    cfg = preset("salsa", bvh_folder=str(tmp_path))
+    cfg.motions.speeds = (1.25,)
+    cfg.motions.speed_clips = ("60_01",)
+    assert [j.name for j in plan_jobs(cfg)][-1] == "60_01_x1.25"
+    cfg.motions.speed_clips = ("60_09",)
+    with pytest.raises(LoosefitInputError, match=r"speed_clips.*60_09"):
+        plan_jobs(cfg)
+    cfg.motions.speed_clips = ("60_03",)  # held out
+    with pytest.raises(LoosefitInputError, match=r"speed_clips.*not held out.*60_03"):
         plan_jobs(cfg)
 
 

@@ -38,6 +38,10 @@ class MotionSource:
     test_every: int = 4  # procedural: every n-th dance is held out for testing
     # bvh: the speeds each training clip is also played at (NAME_xSPEED; held-out clips never)
     speeds: tuple[float, ...] = ()
+    # bvh: the clips played at ``speeds``, folder files and specs alike (empty: every folder
+    # file not held out); naming them keeps clips a data set leaves out of training (its
+    # validation clips) from coming back retimed
+    speed_clips: tuple[str, ...] = ()
 
 
 @dataclass

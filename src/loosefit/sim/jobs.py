@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
-from loosefit.sim.dataset_config import DatasetConfig, check_seeds
+from loosefit.sim.dataset_config import DatasetConfig, MotionSource, check_seeds
 
 if TYPE_CHECKING:
     from loosefit.body.regions import BodyParts
@@ -114,11 +114,8 @@ def _clips(config: DatasetConfig) -> list[Job]:
             # One long held-out sequence, so that rollouts can be judged over 1,200+ frames.
             name = "chain_" + "_".join(f.stem for f in held_out)
             jobs.append(Job(name, "+".join(str(f) for f in held_out), config.seed + 500, True))
+        _check_speeds(m)
         for k, speed in enumerate(m.speeds):
-            if not (np.isfinite(speed) and speed > 0 and speed != 1.0):
-                raise LoosefitInputError(
-                    "MotionSource", "speeds", "positive factors other than 1", m.speeds
-                )
             jobs += [
                 Job(
                     f"{f.stem}_x{speed:g}",
@@ -127,7 +124,7 @@ def _clips(config: DatasetConfig) -> list[Job]:
                     False,
                 )
                 for i, f in enumerate(files)
-                if f.stem not in m.test
+                if f.stem not in m.test and (not m.speed_clips or f.stem in m.speed_clips)
             ]
     if m.kind == "procedural" and m.moves:
         for i, move in enumerate(m.moves):
@@ -160,9 +157,42 @@ def _clips(config: DatasetConfig) -> list[Job]:
             Job(n, spec, config.seed + 2000 + i, n in m.test)
             for i, (n, spec) in enumerate(zip(names, m.specs, strict=True))
         ]
+        if m.kind == "bvh":  # the named specs retimed too, after every original clip
+            for k, speed in enumerate(m.speeds):
+                jobs += [
+                    Job(
+                        f"{n}_x{speed:g}",
+                        f"speed:{speed:g}:{spec}",
+                        config.seed + 2100 + 100 * k + i,
+                        False,
+                    )
+                    for i, (n, spec) in enumerate(zip(names, m.specs, strict=True))
+                    if n in m.speed_clips and n not in m.test
+                ]
     if m.kind not in ("bvh", "procedural", "specs"):
         raise LoosefitInputError("MotionSource", "kind", "bvh, procedural or specs", repr(m.kind))
+    known = {j.name for j in jobs} | folder_stems
+    unknown = sorted(set(m.speed_clips) - known)
+    if unknown:
+        raise LoosefitInputError(
+            "MotionSource", "speed_clips", f"names of the motions {sorted(known)}", repr(unknown)
+        )
     return jobs
+
+
+def _check_speeds(m: MotionSource) -> None:
+    """Refuses a speed that is not a positive factor other than 1, and a retimed clip that
+    is held out (a held-out motion must never be trained on, at any speed)."""
+    for speed in m.speeds:
+        if not (np.isfinite(speed) and speed > 0 and speed != 1.0):
+            raise LoosefitInputError(
+                "MotionSource", "speeds", "positive factors other than 1", m.speeds
+            )
+    held = sorted(set(m.speed_clips) & set(m.test))
+    if held:
+        raise LoosefitInputError(
+            "MotionSource", "speed_clips", "clips not held out (not in test)", repr(held)
+        )
 
 
 def spec_name(spec: str) -> str:
