@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import loosefit.sim.workers as workers
-from loosefit.data.format import DatasetReader
+from loosefit.data.format import FORMAT, DatasetReader
 from loosefit.errors import LoosefitInputError
-from loosefit.sim.dataset_config import read_config_file
+from loosefit.sim.dataset_config import config_dict, normalized, read_config_file
 from loosefit.sim.driver import SimulationError
 from loosefit.sim.generate import generate
 from loosefit.sim.jobs import plan_jobs
@@ -336,6 +336,28 @@ def test_reuse_takes_shared_clips_and_simulates_only_the_rest(tiny_dataset, tmp_
         generate(other, tmp_path / "other", workers=1, progress=False, reuse=source)
     with pytest.raises(LoosefitInputError, match="no manifest.json"):
         generate(cfg, tmp_path / "x", workers=1, progress=False, reuse=tmp_path / "none")
+
+
+def test_reuse_knows_a_motion_folder_by_where_it_is_not_how_it_is_written(tmp_path, monkeypatch):
+    """A data set made with ``../shared/mocap/x`` lends its clips to one that names the same
+    folder by its absolute path (a preset's default); another folder is refused."""
+    (tmp_path / "shared" / "mocap" / "x").mkdir(parents=True)
+    (tmp_path / "shared" / "mocap" / "y").mkdir()
+    (tmp_path / "main").mkdir()
+    monkeypatch.chdir(tmp_path / "main")
+    theirs = preset("tiny")
+    theirs.motions.folder = "../shared/mocap/x"
+    source = tmp_path / "source"
+    source.mkdir()
+    manifest = {"format": FORMAT, "config": normalized(config_dict(theirs)), "sequences": {}}
+    (source / "manifest.json").write_text(json.dumps(manifest))
+    ours = preset("tiny")
+    ours.motions.folder = str(tmp_path / "shared" / "mocap" / "x")
+    mine = {"sequences": {}}
+    assert adopt_clips(ours, plan_jobs(ours), mine, tmp_path / "mine", source) == []
+    ours.motions.folder = str(tmp_path / "shared" / "mocap" / "y")
+    with pytest.raises(LoosefitInputError, match=r"differs in \['motions.folder'\]"):
+        adopt_clips(ours, plan_jobs(ours), mine, tmp_path / "mine", source)
 
 
 @pytest.mark.heavy

@@ -159,6 +159,14 @@ def open_manifest(config: DatasetConfig, out: Path) -> dict:
     }
 
 
+def _same_value(field: str, theirs, ours) -> bool:
+    """Whether two data sets' motion fields agree; a folder is compared as the folder it
+    names (``../shared/mocap/x`` and its absolute path are one folder)."""
+    if field == "folder" and theirs and ours:
+        return Path(theirs).resolve() == Path(ours).resolve()
+    return theirs == ours
+
+
 def adopt_clips(
     config: DatasetConfig, jobs: list[Job], manifest: dict, out: Path, source: Path
 ) -> list[str]:
@@ -195,7 +203,11 @@ def adopt_clips(
     same = ("garment", "cloth", "unfold", "limits", "fps", "seed", "shape")
     clip = ("kind", "folder", "max_frames", "start_frame")
     differs = [k for k in same if theirs.get(k) != ours.get(k)]
-    differs += [f"motions.{k}" for k in clip if theirs["motions"].get(k) != ours["motions"][k]]
+    differs += [
+        f"motions.{k}"
+        for k in clip
+        if not _same_value(k, theirs["motions"].get(k), ours["motions"][k])
+    ]
     if other.get("format") != FORMAT or differs:
         raise LoosefitInputError(
             source,
