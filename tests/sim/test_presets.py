@@ -10,6 +10,15 @@ from loosefit.sim.jobs import plan_jobs, short_spec
 from loosefit.sim.presets import BALLET_CLIPS, BALLET_TEST, BALLET_TRAIN, PRESETS, preset
 
 
+def _salsa_folder(tmp_path, names: tuple[str, ...]):
+    """A ``cmu-salsa`` folder of empty BVH files named ``names`` (the jobs only read names)."""
+    salsa = tmp_path / "cmu-salsa"
+    salsa.mkdir()
+    for name in names:
+        (salsa / f"{name}.bvh").write_text("")
+    return salsa
+
+
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
     expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, paper"
     with pytest.raises(LoosefitInputError, match=expected):
@@ -36,10 +45,7 @@ def test_salsa_holds_out_its_test_clips_as_one_long_sequence(tmp_path):
 
 
 def test_dance_is_salsa_and_the_ballet_clips_with_three_held_out(tmp_path):
-    salsa = tmp_path / "cmu-salsa"
-    salsa.mkdir()
-    for name in ("60_01", "60_03", "61_03", "60_02", "60_07", "61_07"):
-        (salsa / f"{name}.bvh").write_text("")
+    salsa = _salsa_folder(tmp_path, ("60_01", "60_03", "61_03", "60_02", "60_07", "61_07"))
     plain = plan_jobs(preset("salsa", bvh_folder=str(salsa)))
     cfg = preset("dance", bvh_folder=str(salsa))
     jobs = plan_jobs(cfg)
@@ -78,10 +84,7 @@ def test_salsa_speed_adds_faster_training_clips_only(tmp_path):
 
 
 def test_dance_speed_retimes_the_ballet_training_clips_only(tmp_path):
-    salsa = tmp_path / "cmu-salsa"
-    salsa.mkdir()
-    for name in ("60_01", "60_03", "61_03", "60_07", "61_07", "60_05"):
-        (salsa / f"{name}.bvh").write_text("")
+    salsa = _salsa_folder(tmp_path, ("60_01", "60_03", "61_03", "60_07", "61_07", "60_05"))
     dance = plan_jobs(preset("dance", bvh_folder=str(salsa)))
     jobs = plan_jobs(preset("dance-speed", bvh_folder=str(salsa)))
     assert jobs[: len(dance)] == dance  # the corpus's clips, same seeds: --reuse takes them

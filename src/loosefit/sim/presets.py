@@ -115,18 +115,10 @@ def _salsa(speeds: tuple[float, ...]) -> dict:
     }
 
 
-# Every preset, by name: a configuration file's fields (see the module's docstring).
-PRESETS: dict[str, dict] = {
-    "tiny": _TINY,
-    "demo": {
-        "garment": CPU_SKIRT,
-        "cloth": {"settle_seconds": 0.6, "blend_seconds": 0.4},
-        "motions": {"kind": "procedural", "count": 4, "seconds": 4.0, "test_every": 4},
-    },
-    "salsa": _salsa(()),
-    "salsa-speed": _salsa((1.25,)),
-    "salsa-speeds": _salsa((1.25, 1.5)),
-    "dance": {
+def _dance(speeds: tuple[float, ...] = (), speed_clips: tuple[str, ...] = ()) -> dict:
+    """The salsa clips as ``salsa`` and the ballet clips beside them, ``speed_clips`` also
+    played at ``speeds``."""
+    return {
         "garment": CPU_SKIRT,
         # a leap's thigh goes up to 8.8 cm into the hips: a clip whose legs fold deeper
         # than 5 cm turns its limbs up to 30 degrees (10 ballet clips; no salsa clip,
@@ -139,22 +131,25 @@ PRESETS: dict[str, dict] = {
             "test": SALSA_TEST + BALLET_TEST,
             "start_frame": 10,
             "chain_test": True,
+            "speeds": speeds,
+            "speed_clips": speed_clips,
         },
-    },
-    "dance-speed": {
+    }
+
+
+# Every preset, by name: a configuration file's fields (see the module's docstring).
+PRESETS: dict[str, dict] = {
+    "tiny": _TINY,
+    "demo": {
         "garment": CPU_SKIRT,
-        "unfold": {"deep_degrees": 30.0},
-        "motions": {
-            "kind": "bvh",
-            "folder": "{salsa}",
-            "specs": tuple(f"{{ballet}}/{clip}.bvh" for clip in BALLET_CLIPS),
-            "test": SALSA_TEST + BALLET_TEST,
-            "start_frame": 10,
-            "chain_test": True,
-            "speeds": (1.25, 0.8),
-            "speed_clips": BALLET_TRAIN,
-        },
+        "cloth": {"settle_seconds": 0.6, "blend_seconds": 0.4},
+        "motions": {"kind": "procedural", "count": 4, "seconds": 4.0, "test_every": 4},
     },
+    "salsa": _salsa(()),
+    "salsa-speed": _salsa((1.25,)),
+    "salsa-speeds": _salsa((1.25, 1.5)),
+    "dance": _dance(),
+    "dance-speed": _dance(speeds=(1.25, 0.8), speed_clips=BALLET_TRAIN),
     "paper": {
         "garment": {"type": "skirt", "resolution": "paper", "style": "flared"},
         "cloth": {"device": "cuda:0"},
