@@ -115,17 +115,7 @@ def _clips(config: DatasetConfig) -> list[Job]:
             name = "chain_" + "_".join(f.stem for f in held_out)
             jobs.append(Job(name, "+".join(str(f) for f in held_out), config.seed + 500, True))
         _check_speeds(m)
-        for k, speed in enumerate(m.speeds):
-            jobs += [
-                Job(
-                    f"{f.stem}_x{speed:g}",
-                    f"speed:{speed:g}:{f}",
-                    config.seed + 100 * (k + 1) + i,
-                    False,
-                )
-                for i, f in enumerate(files)
-                if f.stem not in m.test and (not m.speed_clips or f.stem in m.speed_clips)
-            ]
+        jobs += _retimed(m, [(f.stem, str(f)) for f in files], config.seed + 100, every=True)
     if m.kind == "procedural" and m.moves:
         for i, move in enumerate(m.moves):
             test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
@@ -158,17 +148,7 @@ def _clips(config: DatasetConfig) -> list[Job]:
             for i, (n, spec) in enumerate(zip(names, m.specs, strict=True))
         ]
         if m.kind == "bvh":  # the named specs retimed too, after every original clip
-            for k, speed in enumerate(m.speeds):
-                jobs += [
-                    Job(
-                        f"{n}_x{speed:g}",
-                        f"speed:{speed:g}:{spec}",
-                        config.seed + 2100 + 100 * k + i,
-                        False,
-                    )
-                    for i, (n, spec) in enumerate(zip(names, m.specs, strict=True))
-                    if n in m.speed_clips and n not in m.test
-                ]
+            jobs += _retimed(m, list(zip(names, m.specs, strict=True)), config.seed + 2100)
     if m.kind not in ("bvh", "procedural", "specs"):
         raise LoosefitInputError("MotionSource", "kind", "bvh, procedural or specs", repr(m.kind))
     known = {j.name for j in jobs} | folder_stems
@@ -178,6 +158,21 @@ def _clips(config: DatasetConfig) -> list[Job]:
             "MotionSource", "speed_clips", f"names of the motions {sorted(known)}", repr(unknown)
         )
     return jobs
+
+
+def _retimed(
+    m: MotionSource, clips: list[tuple[str, str]], first_seed: int, every: bool = False
+) -> list[Job]:
+    """The training jobs of ``clips`` ((name, spec) each) played at each of ``m.speeds``
+    (``NAME_xSPEED``): those ``m.speed_clips`` names, or with ``every`` and none named,
+    every clip not held out. Speed ``k``'s clip ``i`` is simulated from seed
+    ``first_seed + 100 k + i``."""
+    return [
+        Job(f"{name}_x{speed:g}", f"speed:{speed:g}:{spec}", first_seed + 100 * k + i, False)
+        for k, speed in enumerate(m.speeds)
+        for i, (name, spec) in enumerate(clips)
+        if name not in m.test and (name in m.speed_clips or (every and not m.speed_clips))
+    ]
 
 
 def _check_speeds(m: MotionSource) -> None:
