@@ -64,6 +64,8 @@ def recipe(config: dict) -> str:
     if t.get("mirror"):
         parts.append("mirrored clips")
     parts.append(f"generative `{config.get('generative', '?')}`")
+    if config.get("dataset"):
+        parts.append(f"data `{Path(config['dataset']).name}`")
     return "; ".join(parts)
 
 
@@ -124,7 +126,8 @@ def markdown(rows: dict, started: str, command: str) -> str:
         "`bench/quality/ensemble.py --validation` figures (rolled out through every stage, "
         "deterministic: no realisations) and `bench/quality/knee_cover.py`. The validation "
         "clips choose (the energy score, lower is better); the held-out clips are shown, never "
-        f"used to choose. Machine of the first: {ref['machine']}.",
+        f"used to choose. Machine of the first: {ref['machine']}. A recipe names its training "
+        "data where the run recorded it; a candidate gathered before that trained on `dance`.",
         "",
         "## Recipes and the validation clips",
         "",
