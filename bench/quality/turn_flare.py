@@ -39,6 +39,7 @@ from loosefit.eval.motion_signals import fastest_turn, turn_rate
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.inference.stages import MOTION_ONLY
 from loosefit.model.motion_features import heading_yaw, yaw_matrix
+from loosefit.motion.pelvis import pelvis_pitch
 from loosefit.train.common import machine
 
 UPPER = ("Spine1", "Spine2", "Neck", "Head", "Shoulder", "Arm", "Hand", "Thumb", "Finger")
@@ -73,12 +74,6 @@ def root_parts(rotations: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
     yaw = heading_yaw(R)
     tilt = yaw_matrix(yaw).transpose(-1, -2) @ R
     return torch.as_tensor(np.unwrap(yaw.numpy())), tilt
-
-
-def pelvis_pitch(rotations: np.ndarray) -> np.ndarray:
-    """(T,) degrees: the pelvis's forward axis (-Y at rest) above the horizontal."""
-    forward = -np.asarray(rotations[:, 0, :, 1], np.float64)
-    return np.degrees(np.arcsin(np.clip(forward[:, 2], -1.0, 1.0)))
 
 
 def probe_variants(motion, truth) -> list[tuple[str, object, dict]]:

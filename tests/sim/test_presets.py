@@ -20,7 +20,10 @@ def _salsa_folder(tmp_path, names: tuple[str, ...]):
 
 
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
-    expected = "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, paper"
+    expected = (
+        "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, dance-pitch, "
+        "paper"
+    )
     with pytest.raises(LoosefitInputError, match=expected):
         preset("huge")
     with pytest.raises(
@@ -110,6 +113,41 @@ def test_retimed_clips_must_exist_and_not_be_held_out(tmp_path):
         plan_jobs(cfg)
     cfg.motions.speed_clips = ("60_03",)  # held out
     with pytest.raises(LoosefitInputError, match=r"speed_clips.*not held out.*60_03"):
+        plan_jobs(cfg)
+
+
+def test_dance_pitch_pitches_the_ballet_training_clips_only(tmp_path):
+    salsa = _salsa_folder(tmp_path, ("60_01", "60_03", "61_03", "60_07", "61_07", "60_05"))
+    dance = plan_jobs(preset("dance", bvh_folder=str(salsa)))
+    jobs = plan_jobs(preset("dance-pitch", bvh_folder=str(salsa)))
+    assert jobs[: len(dance)] == dance  # the corpus's clips, same seeds: --reuse takes them
+    extra = jobs[len(dance) :]
+    assert [j.name for j in extra] == [f"{c}_pitch{d}" for d in ("10", "-10") for c in BALLET_TRAIN]
+    assert not any(j.test for j in extra)
+    assert extra[0].spec == f"pitch:10:{tmp_path / 'cmu-ballet' / '05_01.bvh'}"
+    assert short_spec(extra[-1].spec) == "pitch:-10:05_20.bvh"
+    assert len({j.seed for j in jobs}) == len(jobs)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("pitches", (0.0,), "degrees other than 0"),
+        ("pitches", (50.0,), "from -45 to 45"),
+        ("pitches", (float("nan"),), "degrees other than 0"),
+        ("pitches", (5.0, 5.0), "distinct degrees"),
+        ("pitch_clips", ("60_09",), r"pitch_clips.*60_09"),
+        ("pitch_clips", ("60_03",), r"pitch_clips.*not held out.*60_03"),
+    ],
+)
+def test_bad_pitches_are_refused_before_any_simulation(tmp_path, field, value, match):
+    for name in ("60_01", "60_03"):
+        (tmp_path / f"{name}.bvh").write_text("")
+    cfg = preset("salsa", bvh_folder=str(tmp_path))
+    cfg.motions.pitches = (10.0,)
+    assert [j.name for j in plan_jobs(cfg)][-1] == "60_01_pitch10"  # every training clip
+    setattr(cfg.motions, field, value)
+    with pytest.raises(LoosefitInputError, match=match):
         plan_jobs(cfg)
 
 

@@ -12,8 +12,8 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--preset",
         default="demo",
-        help="tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, paper, "
-        "dress-tiny or dress",
+        help="tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, dance-pitch, "
+        "paper, dress-tiny or dress",
     )
     p.add_argument(
         "--config",

@@ -15,6 +15,7 @@ from loosefit.motion.bvh import BVH_UNITS
 from loosefit.motion.chain import chain_motions
 from loosefit.motion.files import CLIP_READERS, is_capture_file, read_clip
 from loosefit.motion.mirror import mirror_motion
+from loosefit.motion.pelvis import MAX_PITCH_DEGREES, pitch_pelvis
 from loosefit.motion.procedural import MOVES, named_motion, random_dance
 from loosefit.motion.resample import resample_motion, retime_motion
 from loosefit.motion.retarget import RetargetConfig, retarget_bvh
@@ -68,6 +69,9 @@ def load_motion(
             (:func:`~loosefit.motion.mirror.mirror_motion`), or behind
             ``speed:FACTOR:``, played FACTOR times as fast at the same frame rate
             (:func:`~loosefit.motion.resample.retime_motion`), or behind
+            ``pitch:DEGREES:``, the pelvis pitched DEGREES more (positive raises its
+            front), the spine and legs as captured
+            (:func:`~loosefit.motion.pelvis.pitch_pelvis`), or behind
             ``frames:START:STOP:``, its frames START to STOP - 1 (at ``fps``, before
             ``start_frame`` and ``max_frames``); a BVH file behind ``units:UNIT:``
             (m, cm, mm) or ``scale:METRES_PER_UNIT:``, read in that unit (otherwise
@@ -119,6 +123,8 @@ def _load_one(
         return mirror_motion(load_motion(text[len("mirror:") :], avatar, fps, seed, retarget))
     if text.startswith("speed:") and not path.exists():
         return _load_retimed(text, avatar, fps, seed, retarget)
+    if text.startswith("pitch:") and not path.exists():
+        return _load_pitched(text, avatar, fps, seed, retarget)
     if text.startswith("frames:") and not path.exists():
         return _load_frames(text, avatar, fps, seed, retarget)
     if path.suffix.lower() in CLIP_READERS and (
@@ -199,6 +205,26 @@ def _load_retimed(
             repr(text),
         )
     return retime_motion(load_motion(inner, avatar, fps, seed, retarget), speed)
+
+
+def _load_pitched(
+    text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
+) -> Motion:
+    """``pitch:DEGREES:MOTION``: the pelvis pitched DEGREES more, its children as captured."""
+    value, _, inner = text[len("pitch:") :].partition(":")
+    try:
+        degrees = float(value)
+    except ValueError:
+        degrees = float("nan")
+    if not (inner and math.isfinite(degrees) and abs(degrees) <= MAX_PITCH_DEGREES):
+        raise LoosefitInputError(
+            "motion",
+            "pitch:DEGREES:MOTION",
+            f"degrees from -{MAX_PITCH_DEGREES:g} to {MAX_PITCH_DEGREES:g} and a motion",
+            repr(text),
+        )
+    motion = load_motion(inner, avatar, fps, seed, retarget)
+    return pitch_pelvis(motion, avatar.skeleton.parents, degrees)
 
 
 def _load_frames(

@@ -42,6 +42,14 @@ class MotionSource:
     # file not held out); naming them keeps clips a data set leaves out of training (its
     # validation clips) from coming back retimed
     speed_clips: tuple[str, ...] = ()
+    # bvh: the pelvis pitches (degrees added, positive raises its front) each of
+    # ``pitch_clips`` is also danced at (NAME_pitchDEG; held-out clips never); the same steps
+    # at another pitch of the pelvis, the spine and legs as captured
+    # (loosefit.motion.pelvis.pitch_pelvis)
+    pitches: tuple[float, ...] = ()
+    # bvh: the clips danced at ``pitches``, folder files and specs alike (empty: every folder
+    # file not held out)
+    pitch_clips: tuple[str, ...] = ()
 
 
 @dataclass

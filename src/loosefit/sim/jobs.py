@@ -114,8 +114,10 @@ def _clips(config: DatasetConfig) -> list[Job]:
             # One long held-out sequence, so that rollouts can be judged over 1,200+ frames.
             name = "chain_" + "_".join(f.stem for f in held_out)
             jobs.append(Job(name, "+".join(str(f) for f in held_out), config.seed + 500, True))
-        _check_speeds(m)
-        jobs += _retimed(m, [(f.stem, str(f)) for f in files], config.seed + 100, every=True)
+        _check_variants(m)
+        folder = [(f.stem, str(f)) for f in files]
+        jobs += _retimed(m, folder, config.seed + 100, every=True)
+        jobs += _pitched(m, folder, config.seed + 3100, every=True)
     if m.kind == "procedural" and m.moves:
         for i, move in enumerate(m.moves):
             test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
@@ -147,16 +149,19 @@ def _clips(config: DatasetConfig) -> list[Job]:
             Job(n, spec, config.seed + 2000 + i, n in m.test)
             for i, (n, spec) in enumerate(zip(names, m.specs, strict=True))
         ]
-        if m.kind == "bvh":  # the named specs retimed too, after every original clip
-            jobs += _retimed(m, list(zip(names, m.specs, strict=True)), config.seed + 2100)
+        if m.kind == "bvh":  # the named specs retimed and pitched too, after every original
+            named = list(zip(names, m.specs, strict=True))
+            jobs += _retimed(m, named, config.seed + 2100)
+            jobs += _pitched(m, named, config.seed + 4100)
     if m.kind not in ("bvh", "procedural", "specs"):
         raise LoosefitInputError("MotionSource", "kind", "bvh, procedural or specs", repr(m.kind))
     known = {j.name for j in jobs} | folder_stems
-    unknown = sorted(set(m.speed_clips) - known)
-    if unknown:
-        raise LoosefitInputError(
-            "MotionSource", "speed_clips", f"names of the motions {sorted(known)}", repr(unknown)
-        )
+    for field_name, named in (("speed_clips", m.speed_clips), ("pitch_clips", m.pitch_clips)):
+        unknown = sorted(set(named) - known)
+        if unknown:
+            raise LoosefitInputError(
+                "MotionSource", field_name, f"names of the motions {sorted(known)}", repr(unknown)
+            )
     return jobs
 
 
@@ -175,19 +180,49 @@ def _retimed(
     ]
 
 
-def _check_speeds(m: MotionSource) -> None:
-    """Refuses a speed that is not a positive factor other than 1, and a retimed clip that
-    is held out (a held-out motion must never be trained on, at any speed)."""
+def _pitched(
+    m: MotionSource, clips: list[tuple[str, str]], first_seed: int, every: bool = False
+) -> list[Job]:
+    """The training jobs of ``clips`` ((name, spec) each) danced with the pelvis at each of
+    ``m.pitches`` (``NAME_pitchDEG``): those ``m.pitch_clips`` names, or with ``every`` and
+    none named, every clip not held out. Pitch ``k``'s clip ``i`` is simulated from seed
+    ``first_seed + 100 k + i``."""
+    return [
+        Job(f"{name}_pitch{deg:g}", f"pitch:{deg:g}:{spec}", first_seed + 100 * k + i, False)
+        for k, deg in enumerate(m.pitches)
+        for i, (name, spec) in enumerate(clips)
+        if name not in m.test and (name in m.pitch_clips or (every and not m.pitch_clips))
+    ]
+
+
+def _check_variants(m: MotionSource) -> None:
+    """Refuses a speed that is not a positive factor other than 1, a pitch that is zero,
+    repeated or beyond :data:`~loosefit.motion.pelvis.MAX_PITCH_DEGREES`, and a retimed or
+    pitched clip that is held out (a held-out motion must never be trained on, at any speed
+    or pitch)."""
+    from loosefit.motion.pelvis import MAX_PITCH_DEGREES
+
     for speed in m.speeds:
         if not (np.isfinite(speed) and speed > 0 and speed != 1.0):
             raise LoosefitInputError(
                 "MotionSource", "speeds", "positive factors other than 1", m.speeds
             )
-    held = sorted(set(m.speed_clips) & set(m.test))
-    if held:
-        raise LoosefitInputError(
-            "MotionSource", "speed_clips", "clips not held out (not in test)", repr(held)
-        )
+    for deg in m.pitches:
+        if not (np.isfinite(deg) and deg != 0 and abs(deg) <= MAX_PITCH_DEGREES):
+            raise LoosefitInputError(
+                "MotionSource",
+                "pitches",
+                f"degrees other than 0, from -{MAX_PITCH_DEGREES:g} to {MAX_PITCH_DEGREES:g}",
+                m.pitches,
+            )
+    if len({f"{d:g}" for d in m.pitches}) != len(m.pitches):
+        raise LoosefitInputError("MotionSource", "pitches", "distinct degrees", m.pitches)
+    for field_name, named in (("speed_clips", m.speed_clips), ("pitch_clips", m.pitch_clips)):
+        held = sorted(set(named) & set(m.test))
+        if held:
+            raise LoosefitInputError(
+                "MotionSource", field_name, "clips not held out (not in test)", repr(held)
+            )
 
 
 def spec_name(spec: str) -> str:

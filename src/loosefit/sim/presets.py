@@ -26,6 +26,11 @@ the preset is built: ``{salsa}``, the folder of the CMU salsa clips (``--bvh``, 
   also played 1.25 and 0.8 times as fast (``05_01_x1.25``, ``05_01_x0.8``; 2,700 frames
   more, the ballet training frames three times over); ``--reuse`` a ``dance`` folder to
   simulate only those (about an hour of one CPU core).
+* ``dance-pitch``: ``dance``, and its seven ballet training clips also danced with the
+  pelvis pitched 10 degrees up and 10 down, the spine and legs as captured
+  (``05_01_pitch10``, ``05_01_pitch-10``; 2,700 frames more): the same steps at the
+  pelvis pitches the captures disagree on (salsa 3-9 degrees below the horizontal, ballet
+  10-30); ``--reuse`` a ``dance`` folder to simulate only those (about two core-hours).
 * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
   salsa plus procedural dances; meant for a GPU.
 * ``dress-tiny``: ``tiny`` with a coarse strapless dress, for tests.
@@ -115,9 +120,14 @@ def _salsa(speeds: tuple[float, ...]) -> dict:
     }
 
 
-def _dance(speeds: tuple[float, ...] = (), speed_clips: tuple[str, ...] = ()) -> dict:
+def _dance(
+    speeds: tuple[float, ...] = (),
+    speed_clips: tuple[str, ...] = (),
+    pitches: tuple[float, ...] = (),
+    pitch_clips: tuple[str, ...] = (),
+) -> dict:
     """The salsa clips as ``salsa`` and the ballet clips beside them, ``speed_clips`` also
-    played at ``speeds``."""
+    played at ``speeds``, ``pitch_clips`` also danced with the pelvis at ``pitches``."""
     return {
         "garment": CPU_SKIRT,
         # a leap's thigh goes up to 8.8 cm into the hips: a clip whose legs fold deeper
@@ -133,6 +143,8 @@ def _dance(speeds: tuple[float, ...] = (), speed_clips: tuple[str, ...] = ()) ->
             "chain_test": True,
             "speeds": speeds,
             "speed_clips": speed_clips,
+            "pitches": pitches,
+            "pitch_clips": pitch_clips,
         },
     }
 
@@ -150,6 +162,7 @@ PRESETS: dict[str, dict] = {
     "salsa-speeds": _salsa((1.25, 1.5)),
     "dance": _dance(),
     "dance-speed": _dance(speeds=(1.25, 0.8), speed_clips=BALLET_TRAIN),
+    "dance-pitch": _dance(pitches=(10.0, -10.0), pitch_clips=BALLET_TRAIN),
     "paper": {
         "garment": {"type": "skirt", "resolution": "paper", "style": "flared"},
         "cloth": {"device": "cuda:0"},
