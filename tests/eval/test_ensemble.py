@@ -84,6 +84,24 @@ def test_hem_flare_speed_and_band():
     assert (en.turn_window(1, 100).start, en.turn_window(99, 100).stop) == (0, 100)
 
 
+def test_hem_tilt_is_the_front_over_the_back_along_the_heading():
+    angles = np.linspace(0, 2 * np.pi, 16, endpoint=False) + np.pi / 16  # none side-on
+    ring = np.stack([np.cos(angles), np.sin(angles), np.zeros(16)], -1) * 0.4
+    slope = 0.05 * np.arange(T)  # metres of height per metre along +Y, frame by frame
+    garment = ring[None] + np.array([0.0, 0.0, 0.5])
+    garment = np.repeat(garment, T, 0)
+    garment[..., 2] += slope[:, None] * ring[None, :, 1]
+    pelvis = np.tile([0.0, 0.0, 0.9], (T, 1))
+    hem = np.arange(16)
+    facing_y = np.tile([0.0, 1.0, -0.3], (T, 1))  # tipped down: only its heading counts
+    tilt = en.hem_tilt(garment, pelvis, facing_y, hem)
+    expected = slope * 2 * np.abs(ring[ring[:, 1] > 0, 1]).mean()  # front mean minus back mean
+    np.testing.assert_allclose(tilt, expected, atol=1e-12)
+    np.testing.assert_allclose(en.hem_tilt(garment, pelvis, -facing_y, hem), -expected, atol=1e-12)
+    sideways = en.hem_tilt(garment, pelvis, np.tile([1.0, 0.0, 0.0], (T, 1)), hem)
+    np.testing.assert_allclose(sideways, 0.0, atol=1e-12)
+
+
 def _cylinder(radius: float, z0: float, z1: float, n: int = 24):
     """An open tube about +Z (a skirt) as vertices and triangles."""
     a = np.linspace(0, 2 * np.pi, n, endpoint=False)
