@@ -169,29 +169,41 @@ def _retimed(
     m: MotionSource, clips: list[tuple[str, str]], first_seed: int, every: bool = False
 ) -> list[Job]:
     """The training jobs of ``clips`` ((name, spec) each) played at each of ``m.speeds``
-    (``NAME_xSPEED``): those ``m.speed_clips`` names, or with ``every`` and none named,
-    every clip not held out. Speed ``k``'s clip ``i`` is simulated from seed
-    ``first_seed + 100 k + i``."""
-    return [
-        Job(f"{name}_x{speed:g}", f"speed:{speed:g}:{spec}", first_seed + 100 * k + i, False)
-        for k, speed in enumerate(m.speeds)
-        for i, (name, spec) in enumerate(clips)
-        if name not in m.test and (name in m.speed_clips or (every and not m.speed_clips))
-    ]
+    (``NAME_xSPEED``, ``speed:SPEED:SPEC``): those ``m.speed_clips`` names, or with
+    ``every`` and none named, every clip not held out. See :func:`_variants`."""
+    return _variants(m, clips, first_seed, every, m.speeds, m.speed_clips, "_x{:g}", "speed:{:g}:")
 
 
 def _pitched(
     m: MotionSource, clips: list[tuple[str, str]], first_seed: int, every: bool = False
 ) -> list[Job]:
     """The training jobs of ``clips`` ((name, spec) each) danced with the pelvis at each of
-    ``m.pitches`` (``NAME_pitchDEG``): those ``m.pitch_clips`` names, or with ``every`` and
-    none named, every clip not held out. Pitch ``k``'s clip ``i`` is simulated from seed
-    ``first_seed + 100 k + i``."""
+    ``m.pitches`` (``NAME_pitchDEG``, ``pitch:DEG:SPEC``): those ``m.pitch_clips`` names,
+    or with ``every`` and none named, every clip not held out. See :func:`_variants`."""
+    return _variants(
+        m, clips, first_seed, every, m.pitches, m.pitch_clips, "_pitch{:g}", "pitch:{:g}:"
+    )
+
+
+def _variants(
+    m: MotionSource,
+    clips: list[tuple[str, str]],
+    first_seed: int,
+    every: bool,
+    values: tuple[float, ...],
+    chosen: tuple[str, ...],
+    suffix: str,
+    prefix: str,
+) -> list[Job]:
+    """Training jobs of ``clips`` changed by each of ``values``: named ``NAME`` +
+    ``suffix``, their spec ``prefix`` + the clip's, both formatted with the value; the
+    ``chosen`` names, or with ``every`` and none chosen, every clip not held out. Value
+    ``k``'s clip ``i`` is simulated from seed ``first_seed + 100 k + i``."""
     return [
-        Job(f"{name}_pitch{deg:g}", f"pitch:{deg:g}:{spec}", first_seed + 100 * k + i, False)
-        for k, deg in enumerate(m.pitches)
+        Job(name + suffix.format(v), prefix.format(v) + spec, first_seed + 100 * k + i, False)
+        for k, v in enumerate(values)
         for i, (name, spec) in enumerate(clips)
-        if name not in m.test and (name in m.pitch_clips or (every and not m.pitch_clips))
+        if name not in m.test and (name in chosen or (every and not chosen))
     ]
 
 
