@@ -15,8 +15,8 @@ import torch
 
 from loosefit.body.capsules import avatar_capsules
 from loosefit.data.format import DatasetReader
-from loosefit.eval.ensemble import hem_flare
 from loosefit.eval.heading import fastest_turn
+from loosefit.eval.hem import hem_flare
 from loosefit.eval.metrics import rmse
 from loosefit.eval.stage_account import TURN_WINDOW
 from loosefit.garment.mesh_checks import hem_loop

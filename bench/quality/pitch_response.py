@@ -30,7 +30,7 @@ import torch
 
 import loosefit
 from loosefit.data.format import DatasetReader
-from loosefit.eval.ensemble import hem_flare, hem_tilt
+from loosefit.eval.hem import hem_flare, hem_tilt
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.inference.stages import MOTION_ONLY
 from loosefit.motion.pelvis import pelvis_pitch
@@ -41,7 +41,7 @@ PITCHED = re.compile(r"(.+)_pitch(-?[0-9.]+)")
 
 def clip_figures(garment: np.ndarray, motion, hem: np.ndarray) -> tuple[float, float]:
     """(tilt, flare) in cm: the clip's mean hem tilt and hem flare
-    (:func:`~loosefit.eval.ensemble.hem_tilt`, :func:`~loosefit.eval.ensemble.hem_flare`)."""
+    (:func:`~loosefit.eval.hem.hem_tilt`, :func:`~loosefit.eval.hem.hem_flare`)."""
     T = min(len(garment), motion.num_frames)
     forward = -np.asarray(motion.rotations[:T, 0, :, 1])  # the pelvis's -Y
     tilt = hem_tilt(garment[:T], np.asarray(motion.root_translation)[:T], forward, hem).mean()

@@ -33,8 +33,9 @@ import torch
 
 import loosefit
 from loosefit.data.format import DatasetReader
-from loosefit.eval.ensemble import hem_flare, hem_speed, turn_window
+from loosefit.eval.ensemble import turn_window
 from loosefit.eval.heldout import validation_clips
+from loosefit.eval.hem import hem_flare, hem_speed
 from loosefit.eval.motion_signals import fastest_turn, turn_rate
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.inference.stages import MOTION_ONLY

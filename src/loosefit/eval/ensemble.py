@@ -10,8 +10,8 @@ drape. The measures here treat the members as samples of what the cloth may do:
 - :func:`rmse_to_mean`: against the members' vertex-wise mean;
 - :func:`energy_score`: a proper score of the model's samples against each member taken as
   the observation; it rewards the right spread and does not reward a mean;
-- :func:`hem_flare`, :func:`hem_speed` and :func:`inside_band`: the hem's swing against the
-  members' range frame by frame;
+- :func:`~loosefit.eval.hem.hem_flare`, :func:`~loosefit.eval.hem.hem_speed` and
+  :func:`inside_band`: the hem's swing against the members' range frame by frame;
 - :func:`cloth_in_front`: whether the skirt covers a raised knee.
 
 Members are gathered from one or several data sets and checked to be of the same garment,
@@ -29,6 +29,7 @@ import numpy as np
 
 from loosefit.errors import LoosefitInputError
 from loosefit.eval.ensemble_members import gather_ensembles
+from loosefit.eval.hem import hem_flare, hem_speed
 from loosefit.eval.metrics import rmse, rmse_per_frame
 
 TURN_WINDOW = 30  # frames either side of the fastest turn (61 in all)
@@ -110,48 +111,6 @@ def members_energy_score(members: np.ndarray) -> np.ndarray:
     return np.mean(
         [energy_score(np.delete(members, k, axis=0), members[k : k + 1]) for k in range(M)], axis=0
     )
-
-
-def hem_flare(garment: np.ndarray, pelvis: np.ndarray, hem: np.ndarray) -> np.ndarray:
-    """(T,) the hem's mean horizontal distance (m) from the pelvis's vertical axis (+Z up).
-
-    Args:
-        garment: (T, V, 3) world positions.
-        pelvis: (T, 3) the root joint's world position.
-        hem: (H,) the hem ring's vertices.
-    """
-    d = np.asarray(garment, np.float64)[:, hem, :2] - np.asarray(pelvis, np.float64)[:, None, :2]
-    return np.linalg.norm(d, axis=-1).mean(-1)
-
-
-def hem_tilt(
-    garment: np.ndarray, pelvis: np.ndarray, forward: np.ndarray, hem: np.ndarray
-) -> np.ndarray:
-    """(T,) metres: the hem's mean height in front of the pelvis minus behind it, front and
-    back along the heading (positive when the front of the hem rides higher).
-
-    Args:
-        garment: (T, V, 3) world positions.
-        pelvis: (T, 3) the root joint's world position.
-        forward: (T, 3) the way the pelvis faces; its horizontal part is the heading.
-        hem: (H,) the hem ring's vertices.
-    """
-    f = np.asarray(forward, np.float64) * np.array([1.0, 1.0, 0.0])
-    f /= np.linalg.norm(f, axis=1, keepdims=True)
-    ring = np.asarray(garment, np.float64)[:, hem]  # (T, H, 3)
-    ahead = ((ring - np.asarray(pelvis, np.float64)[:, None]) * f[:, None]).sum(-1) > 0
-    z = ring[..., 2]
-    front = (z * ahead).sum(1) / np.maximum(ahead.sum(1), 1)
-    back = (z * ~ahead).sum(1) / np.maximum((~ahead).sum(1), 1)
-    return front - back
-
-
-def hem_speed(garment: np.ndarray, hem: np.ndarray, fps: float) -> np.ndarray:
-    """(T,) the hem ring's mean vertex speed (m/s), backward differences (the first frame 0)."""
-    x = np.asarray(garment, np.float64)[:, hem]
-    v = np.zeros(len(x))
-    v[1:] = np.linalg.norm(np.diff(x, axis=0), axis=-1).mean(-1) * fps
-    return v
 
 
 def inside_band(series: np.ndarray, band: np.ndarray) -> np.ndarray:

@@ -30,8 +30,8 @@ import numpy as np
 import torch
 
 from loosefit.eval.depth import inside_depths
-from loosefit.eval.ensemble import hem_flare
 from loosefit.eval.heading import fastest_turn
+from loosefit.eval.hem import hem_flare
 from loosefit.eval.metrics import hausdorff, rmse, sted
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.garment.quality import PENETRATION_TOLERANCE

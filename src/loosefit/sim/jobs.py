@@ -171,7 +171,16 @@ def _retimed(
     """The training jobs of ``clips`` ((name, spec) each) played at each of ``m.speeds``
     (``NAME_xSPEED``, ``speed:SPEED:SPEC``): those ``m.speed_clips`` names, or with
     ``every`` and none named, every clip not held out. See :func:`_variants`."""
-    return _variants(m, clips, first_seed, every, m.speeds, m.speed_clips, "_x{:g}", "speed:{:g}:")
+    return _variants(
+        m,
+        clips,
+        first_seed,
+        every,
+        values=m.speeds,
+        chosen=m.speed_clips,
+        suffix="_x{:g}",
+        prefix="speed:{:g}:",
+    )
 
 
 def _pitched(
@@ -181,7 +190,14 @@ def _pitched(
     ``m.pitches`` (``NAME_pitchDEG``, ``pitch:DEG:SPEC``): those ``m.pitch_clips`` names,
     or with ``every`` and none named, every clip not held out. See :func:`_variants`."""
     return _variants(
-        m, clips, first_seed, every, m.pitches, m.pitch_clips, "_pitch{:g}", "pitch:{:g}:"
+        m,
+        clips,
+        first_seed,
+        every,
+        values=m.pitches,
+        chosen=m.pitch_clips,
+        suffix="_pitch{:g}",
+        prefix="pitch:{:g}:",
     )
 
 
@@ -190,6 +206,7 @@ def _variants(
     clips: list[tuple[str, str]],
     first_seed: int,
     every: bool,
+    *,
     values: tuple[float, ...],
     chosen: tuple[str, ...],
     suffix: str,
