@@ -43,9 +43,10 @@ def clip_figures(garment: np.ndarray, motion, hem: np.ndarray) -> tuple[float, f
     """(tilt, flare) in cm: the clip's mean hem tilt and hem flare
     (:func:`~loosefit.eval.hem.hem_tilt`, :func:`~loosefit.eval.hem.hem_flare`)."""
     T = min(len(garment), motion.num_frames)
+    pelvis = np.asarray(motion.root_translation)[:T]
     forward = -np.asarray(motion.rotations[:T, 0, :, 1])  # the pelvis's -Y
-    tilt = hem_tilt(garment[:T], np.asarray(motion.root_translation)[:T], forward, hem).mean()
-    flare = hem_flare(garment[:T], np.asarray(motion.root_translation)[:T], hem).mean()
+    tilt = hem_tilt(garment[:T], pelvis, forward, hem).mean()
+    flare = hem_flare(garment[:T], pelvis, hem).mean()
     return 100 * float(tilt), 100 * float(flare)
 
 
@@ -72,6 +73,7 @@ def main() -> None:
     sets = dict(s.split("=", 1) for s in args.sets)
     models = {name: loosefit.load(path).model for name, path in sets.items()}
     figures: dict[str, dict[str, tuple[float, float]]] = {}  # clip -> who -> (tilt, flare)
+    pitches: dict[str, float] = {}  # clip -> the pelvis's median pitch, degrees
 
     def measure(clip: str) -> dict[str, tuple[float, float]]:
         if clip not in figures:
@@ -82,7 +84,7 @@ def main() -> None:
             for name, model in models.items():
                 g = np.asarray(model.animate(seq.motion, stages=MOTION_ONLY).vertices)
                 out[name] = clip_figures(g, seq.motion, hem)
-            out["pitch"] = (float(np.median(pelvis_pitch(seq.motion.rotations))), 0.0)
+            pitches[clip] = float(np.median(pelvis_pitch(seq.motion.rotations)))
             figures[clip] = out
             print(f"{clip}: done", flush=True)
         return figures[clip]
@@ -115,7 +117,7 @@ def main() -> None:
             d = (b[w][0] - a[w][0], b[w][1] - a[w][1])
             responses[w].append(d)
             cells.append(f"{d[0]:+.1f} | {d[1]:+.1f}")
-        lines.append(f"| {base} | {a['pitch'][0]:+.1f} | {deg:+g} | " + " | ".join(cells) + " |")
+        lines.append(f"| {base} | {pitches[base]:+.1f} | {deg:+g} | " + " | ".join(cells) + " |")
     lines.append("")
     sim = np.array(responses["simulation"])
     for w in sets:

@@ -188,15 +188,20 @@ def _load_in_units(
     return load_motion(inner, avatar, fps, seed, cfg)
 
 
+def _number_and_motion(text: str, prefix: str) -> tuple[float, str]:
+    """``PREFIX:NUMBER:MOTION`` -> (NUMBER, MOTION); NaN for a number that does not read."""
+    value, _, inner = text[len(prefix) :].partition(":")
+    try:
+        return float(value), inner
+    except ValueError:
+        return float("nan"), inner
+
+
 def _load_retimed(
     text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
 ) -> Motion:
     """``speed:FACTOR:MOTION``: played FACTOR times as fast, at the same frame rate."""
-    factor, _, inner = text[len("speed:") :].partition(":")
-    try:
-        speed = float(factor)
-    except ValueError:
-        speed = float("nan")
+    speed, inner = _number_and_motion(text, "speed:")
     if not (inner and MIN_SPEED <= speed <= MAX_SPEED):
         raise LoosefitInputError(
             "motion",
@@ -211,11 +216,7 @@ def _load_pitched(
     text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
 ) -> Motion:
     """``pitch:DEGREES:MOTION``: the pelvis pitched DEGREES more, its children as captured."""
-    value, _, inner = text[len("pitch:") :].partition(":")
-    try:
-        degrees = float(value)
-    except ValueError:
-        degrees = float("nan")
+    degrees, inner = _number_and_motion(text, "pitch:")
     if not (inner and math.isfinite(degrees) and abs(degrees) <= MAX_PITCH_DEGREES):
         raise LoosefitInputError(
             "motion",

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from loosefit.errors import LoosefitInputError
+from loosefit.geometry.rotations import axis_angle_to_matrix
 from loosefit.types import Motion
 
 # what a spec may ask for: a pitch a body can take on top of a capture's
@@ -51,14 +52,6 @@ def lateral_axes(root_rotations: np.ndarray) -> np.ndarray:
         )
     heading = flat / norm[:, None]
     return np.cross(heading, np.array([0.0, 0.0, 1.0]))
-
-
-def axis_angle_matrices(axes: np.ndarray, radians: float) -> np.ndarray:
-    """(T, 3, 3) rotations by ``radians`` about each of (T, 3) unit ``axes`` (Rodrigues)."""
-    k = np.zeros((len(axes), 3, 3))
-    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -axes[:, 2], axes[:, 1], -axes[:, 0]
-    k = k - k.transpose(0, 2, 1)
-    return np.eye(3) + np.sin(radians) * k + (1.0 - np.cos(radians)) * k @ k
 
 
 def pitch_pelvis(motion: Motion, parents: np.ndarray, degrees: float) -> Motion:
@@ -96,7 +89,7 @@ def pitch_pelvis(motion: Motion, parents: np.ndarray, degrees: float) -> Motion:
         )
     rot = motion.rotations.astype(np.float64)  # (T, J, 3, 3)
     root = rot[:, 0]
-    turn = axis_angle_matrices(lateral_axes(root), np.radians(degrees))  # (T, 3, 3)
+    turn = axis_angle_to_matrix(lateral_axes(root) * np.radians(degrees)).astype(np.float64)
     new_root = turn @ root
     out = rot.copy()
     out[:, 0] = new_root
