@@ -22,7 +22,7 @@ def _salsa_folder(tmp_path, names: tuple[str, ...]):
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
     expected = (
         "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, dance-pitch, "
-        "paper"
+        "dance-spin, paper"
     )
     with pytest.raises(LoosefitInputError, match=expected):
         preset("huge")
@@ -146,6 +146,40 @@ def test_bad_pitches_are_refused_before_any_simulation(tmp_path, field, value, m
     cfg = preset("salsa", bvh_folder=str(tmp_path))
     cfg.motions.pitches = (10.0,)
     assert [j.name for j in plan_jobs(cfg)][-1] == "60_01_pitch10"  # every training clip
+    setattr(cfg.motions, field, value)
+    with pytest.raises(LoosefitInputError, match=match):
+        plan_jobs(cfg)
+
+
+def test_dance_spin_spins_the_ballet_training_clips_only(tmp_path):
+    salsa = _salsa_folder(tmp_path, ("60_01", "60_03", "61_03", "60_07", "61_07", "60_05"))
+    dance = plan_jobs(preset("dance", bvh_folder=str(salsa)))
+    jobs = plan_jobs(preset("dance-spin", bvh_folder=str(salsa)))
+    assert jobs[: len(dance)] == dance  # the corpus's clips, same seeds: --reuse takes them
+    extra = jobs[len(dance) :]
+    assert [j.name for j in extra] == [f"{c}_spin1" for c in BALLET_TRAIN]
+    assert not any(j.test for j in extra)
+    assert short_spec(extra[0].spec) == "spin:1:05_01.bvh"
+    assert len({j.seed for j in jobs}) == len(jobs)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("spins", (0.0,), "turns a second other than 0"),
+        ("spins", (5.0,), "from -4 to 4"),
+        ("spins", (float("inf"),), "turns a second other than 0"),
+        ("spins", (1.0, 1.0), "distinct rates"),
+        ("spin_clips", ("60_09",), r"spin_clips.*60_09"),
+        ("spin_clips", ("60_03",), r"spin_clips.*not held out.*60_03"),
+    ],
+)
+def test_bad_spins_are_refused_before_any_simulation(tmp_path, field, value, match):
+    for name in ("60_01", "60_03"):
+        (tmp_path / f"{name}.bvh").write_text("")
+    cfg = preset("salsa", bvh_folder=str(tmp_path))
+    cfg.motions.spins = (-1.5,)
+    assert [j.name for j in plan_jobs(cfg)][-1] == "60_01_spin-1.5"  # every training clip
     setattr(cfg.motions, field, value)
     with pytest.raises(LoosefitInputError, match=match):
         plan_jobs(cfg)

@@ -20,6 +20,7 @@ from loosefit.motion.procedural import MOVES, named_motion, random_dance
 from loosefit.motion.resample import resample_motion, retime_motion
 from loosefit.motion.retarget import RetargetConfig, retarget_bvh
 from loosefit.motion.smpl import npz_fields
+from loosefit.motion.spin import MAX_TURNS_PER_SECOND, spin_motion
 from loosefit.types import Motion
 
 PROCEDURAL_NAMES = ("dance", *MOVES)
@@ -72,6 +73,9 @@ def load_motion(
             ``pitch:DEGREES:``, the pelvis pitched DEGREES more (positive raises its
             front), the spine and legs as captured
             (:func:`~loosefit.motion.pelvis.pitch_pelvis`), or behind
+            ``spin:TURNS:``, with spins on the spot added, each peaking at TURNS turns a
+            second, one every 3 s, alternately left and right
+            (:func:`~loosefit.motion.spin.spin_motion`), or behind
             ``frames:START:STOP:``, its frames START to STOP - 1 (at ``fps``, before
             ``start_frame`` and ``max_frames``); a BVH file behind ``units:UNIT:``
             (m, cm, mm) or ``scale:METRES_PER_UNIT:``, read in that unit (otherwise
@@ -125,6 +129,8 @@ def _load_one(
         return _load_retimed(text, avatar, fps, seed, retarget)
     if text.startswith("pitch:") and not path.exists():
         return _load_pitched(text, avatar, fps, seed, retarget)
+    if text.startswith("spin:") and not path.exists():
+        return _load_spun(text, avatar, fps, seed, retarget)
     if text.startswith("frames:") and not path.exists():
         return _load_frames(text, avatar, fps, seed, retarget)
     if path.suffix.lower() in CLIP_READERS and (
@@ -226,6 +232,22 @@ def _load_pitched(
         )
     motion = load_motion(inner, avatar, fps, seed, retarget)
     return pitch_pelvis(motion, avatar.skeleton.parents, degrees)
+
+
+def _load_spun(
+    text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
+) -> Motion:
+    """``spin:TURNS:MOTION``: spins on the spot added, peaking at TURNS turns a second."""
+    turns, inner = _number_and_motion(text, "spin:")
+    if not (inner and math.isfinite(turns) and turns != 0 and abs(turns) <= MAX_TURNS_PER_SECOND):
+        raise LoosefitInputError(
+            "motion",
+            "spin:TURNS:MOTION",
+            f"turns a second other than 0, from -{MAX_TURNS_PER_SECOND:g} to "
+            f"{MAX_TURNS_PER_SECOND:g}, and a motion",
+            repr(text),
+        )
+    return spin_motion(load_motion(inner, avatar, fps, seed, retarget), turns)
 
 
 def _load_frames(

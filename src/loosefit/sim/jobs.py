@@ -118,6 +118,7 @@ def _clips(config: DatasetConfig) -> list[Job]:
         folder = [(f.stem, str(f)) for f in files]
         jobs += _retimed(m, folder, config.seed + 100, every=True)
         jobs += _pitched(m, folder, config.seed + 3100, every=True)
+        jobs += _spun(m, folder, config.seed + 5100, every=True)
     if m.kind == "procedural" and m.moves:
         for i, move in enumerate(m.moves):
             test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
@@ -153,10 +154,11 @@ def _clips(config: DatasetConfig) -> list[Job]:
             named = list(zip(names, m.specs, strict=True))
             jobs += _retimed(m, named, config.seed + 2100)
             jobs += _pitched(m, named, config.seed + 4100)
+            jobs += _spun(m, named, config.seed + 6100)
     if m.kind not in ("bvh", "procedural", "specs"):
         raise LoosefitInputError("MotionSource", "kind", "bvh, procedural or specs", repr(m.kind))
     known = {j.name for j in jobs} | folder_stems
-    for field_name, named in (("speed_clips", m.speed_clips), ("pitch_clips", m.pitch_clips)):
+    for field_name, named in _variant_clips(m):
         unknown = sorted(set(named) - known)
         if unknown:
             raise LoosefitInputError(
@@ -201,6 +203,33 @@ def _pitched(
     )
 
 
+def _spun(
+    m: MotionSource, clips: list[tuple[str, str]], first_seed: int, every: bool = False
+) -> list[Job]:
+    """The training jobs of ``clips`` ((name, spec) each) danced with spins on the spot at
+    each of ``m.spins`` (``NAME_spinTURNS``, ``spin:TURNS:SPEC``): those ``m.spin_clips``
+    names, or with ``every`` and none named, every clip not held out. See :func:`_variants`."""
+    return _variants(
+        m,
+        clips,
+        first_seed,
+        every,
+        values=m.spins,
+        chosen=m.spin_clips,
+        suffix="_spin{:g}",
+        prefix="spin:{:g}:",
+    )
+
+
+def _variant_clips(m: MotionSource) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """Each variant's field of chosen clips and its names."""
+    return (
+        ("speed_clips", m.speed_clips),
+        ("pitch_clips", m.pitch_clips),
+        ("spin_clips", m.spin_clips),
+    )
+
+
 def _variants(
     m: MotionSource,
     clips: list[tuple[str, str]],
@@ -226,10 +255,12 @@ def _variants(
 
 def _check_variants(m: MotionSource) -> None:
     """Refuses a speed that is not a positive factor other than 1, a pitch that is zero,
-    repeated or beyond :data:`~loosefit.motion.pelvis.MAX_PITCH_DEGREES`, and a retimed or
-    pitched clip that is held out (a held-out motion must never be trained on, at any speed
-    or pitch)."""
+    repeated or beyond :data:`~loosefit.motion.pelvis.MAX_PITCH_DEGREES`, a spin rate that
+    is zero, repeated or beyond :data:`~loosefit.motion.spin.MAX_TURNS_PER_SECOND`, and a
+    retimed, pitched or spun clip that is held out (a held-out motion must never be trained
+    on, at any speed, pitch or spin)."""
     from loosefit.motion.pelvis import MAX_PITCH_DEGREES
+    from loosefit.motion.spin import MAX_TURNS_PER_SECOND
 
     for speed in m.speeds:
         if not (np.isfinite(speed) and speed > 0 and speed != 1.0):
@@ -246,7 +277,18 @@ def _check_variants(m: MotionSource) -> None:
             )
     if len({f"{d:g}" for d in m.pitches}) != len(m.pitches):
         raise LoosefitInputError("MotionSource", "pitches", "distinct degrees", m.pitches)
-    for field_name, named in (("speed_clips", m.speed_clips), ("pitch_clips", m.pitch_clips)):
+    for tps in m.spins:
+        if not (np.isfinite(tps) and tps != 0 and abs(tps) <= MAX_TURNS_PER_SECOND):
+            raise LoosefitInputError(
+                "MotionSource",
+                "spins",
+                f"turns a second other than 0, from -{MAX_TURNS_PER_SECOND:g} to "
+                f"{MAX_TURNS_PER_SECOND:g}",
+                m.spins,
+            )
+    if len({f"{t:g}" for t in m.spins}) != len(m.spins):
+        raise LoosefitInputError("MotionSource", "spins", "distinct rates", m.spins)
+    for field_name, named in _variant_clips(m):
         held = sorted(set(named) & set(m.test))
         if held:
             raise LoosefitInputError(

@@ -31,6 +31,11 @@ the preset is built: ``{salsa}``, the folder of the CMU salsa clips (``--bvh``, 
   (``05_01_pitch10``, ``05_01_pitch-10``; 2,700 frames more): the same steps at the
   pelvis pitches the captures disagree on (salsa 3-9 degrees below the horizontal, ballet
   10-30); ``--reuse`` a ``dance`` folder to simulate only those (about two core-hours).
+* ``dance-spin``: ``dance``, and its seven ballet training clips also danced with spins on
+  the spot added, one turn a second at each spin's peak, a spin every 3 s, alternately left
+  and right (``05_01_spin1``; 1,330 frames more): turns from every pose of the ballet, where
+  the captures hold a few turns from the poses their dancers turned from; ``--reuse`` a
+  ``dance`` folder to simulate only those.
 * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
   salsa plus procedural dances; meant for a GPU.
 * ``dress-tiny``: ``tiny`` with a coarse strapless dress, for tests.
@@ -125,9 +130,12 @@ def _dance(
     speed_clips: tuple[str, ...] = (),
     pitches: tuple[float, ...] = (),
     pitch_clips: tuple[str, ...] = (),
+    spins: tuple[float, ...] = (),
+    spin_clips: tuple[str, ...] = (),
 ) -> dict:
     """The salsa clips as ``salsa`` and the ballet clips beside them, ``speed_clips`` also
-    played at ``speeds``, ``pitch_clips`` also danced with the pelvis at ``pitches``."""
+    played at ``speeds``, ``pitch_clips`` also danced with the pelvis at ``pitches``,
+    ``spin_clips`` also danced with spins at ``spins``."""
     return {
         "garment": CPU_SKIRT,
         # a leap's thigh goes up to 8.8 cm into the hips: a clip whose legs fold deeper
@@ -145,6 +153,8 @@ def _dance(
             "speed_clips": speed_clips,
             "pitches": pitches,
             "pitch_clips": pitch_clips,
+            "spins": spins,
+            "spin_clips": spin_clips,
         },
     }
 
@@ -163,6 +173,7 @@ PRESETS: dict[str, dict] = {
     "dance": _dance(),
     "dance-speed": _dance(speeds=(1.25, 0.8), speed_clips=BALLET_TRAIN),
     "dance-pitch": _dance(pitches=(10.0, -10.0), pitch_clips=BALLET_TRAIN),
+    "dance-spin": _dance(spins=(1.0,), spin_clips=BALLET_TRAIN),
     "paper": {
         "garment": {"type": "skirt", "resolution": "paper", "style": "flared"},
         "cloth": {"device": "cuda:0"},
