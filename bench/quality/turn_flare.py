@@ -63,6 +63,14 @@ def turn_ratios(garment, truth, motion, hem) -> tuple[float, float]:
     return float(flare), float(speed)
 
 
+def simulated_flare(truth, motion, hem) -> float:
+    """cm: the simulation's hem flare, its mean over the 61 frames around the motion's
+    fastest turn. truth: (T, V, 3) world; hem: (H,)."""
+    pelvis = np.asarray(motion.root_translation)[: len(truth)]
+    w = turn_window(fastest_turn(motion), len(truth))
+    return float(100.0 * hem_flare(truth, pelvis, hem)[w].mean())
+
+
 def with_rotations(motion, rotations: np.ndarray):
     """The motion with other joint rotations (T, J, 3, 3)."""
     return replace(motion, rotations=np.asarray(rotations, motion.rotations.dtype))
@@ -133,6 +141,7 @@ def main() -> None:
     p.add_argument(
         "--sets", nargs="+", default=["shipped=checkpoints/dance/motion.pt"], help="NAME=MOTION.pt"
     )
+    p.add_argument("--clips", nargs="*", help="only these clips in part 1 (default: every one)")
     p.add_argument("--probe", default="05_02", help="the clip of part 2 (none: no part 2)")
     p.add_argument("--out", default="docs/results/TURN_FLARE.md")
     p.add_argument("--about", default="", help="a paragraph on how the sets were made")
@@ -144,6 +153,11 @@ def main() -> None:
     kinds = {c: "training" for c in reader.split("train")}
     kinds.update({c: "held out" for c in reader.split("test")})
     kinds.update({c: "validation" for c in validation_clips(reader)})
+    if args.clips:
+        unknown = sorted(set(args.clips) - set(kinds))
+        if unknown:
+            p.error(f"--clips: {unknown} are not clips of {args.data} ({sorted(kinds)})")
+        kinds = {c: k for c, k in kinds.items() if c in args.clips}
     sets = dict(s.split("=", 1) for s in args.sets)
     models = {name: loosefit.load(path).model for name, path in sets.items()}
     rows = []
@@ -152,7 +166,8 @@ def main() -> None:
         motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
         hem = hem_loop(seq.template.vertices, seq.template.faces)
         rate = float(np.abs(turn_rate(motion)).max())
-        row = [clip, kind, rate, float(np.median(pelvis_pitch(motion.rotations)))]
+        pitch = float(np.median(pelvis_pitch(motion.rotations)))
+        row = [clip, kind, rate, pitch, simulated_flare(truth, motion, hem)]
         for model in models.values():
             g = np.asarray(model.animate(motion, stages=MOTION_ONLY).vertices)
             row.append(turn_ratios(g, truth, motion, hem))
@@ -173,20 +188,20 @@ def main() -> None:
         "pelvis's vertical axis) and its mean vertex speed, the motion stage alone over the "
         "simulation; the turn's rate (rad/s); the pelvis's median pitch over the clip "
         "(degrees; the forward axis above the horizontal: the capture's tilt the motion "
-        "features carry).",
+        "features carry); the simulation's flare there (cm).",
         "",
-        "| clip | split | turn rad/s | pelvis pitch deg | "
+        "| clip | split | turn rad/s | pelvis pitch deg | simulated flare cm | "
         + " | ".join(f"{n}: flare | {n}: speed" for n in sets)
         + " |",
-        "|---|---|---:|---:|" + "---:|---:|" * len(sets),
+        "|---|---|---:|---:|---:|" + "---:|---:|" * len(sets),
     ]
-    for clip, kind, rate, pitch, *ratios in rows:
+    for clip, kind, rate, pitch, flare, *ratios in rows:
         cells = " | ".join(f"{f:.3f} | {s:.3f}" for f, s in ratios)
-        lines.append(f"| {clip} | {kind} | {rate:.1f} | {pitch:+.1f} | {cells} |")
+        lines.append(f"| {clip} | {kind} | {rate:.1f} | {pitch:+.1f} | {flare:.1f} | {cells} |")
     lines.append("")
     for k, name in enumerate(sets):
         for kind in ("training", "validation", "held out"):
-            r = [row[4 + k] for row in rows if row[1] == kind]
+            r = [row[5 + k] for row in rows if row[1] == kind]
             if r:
                 f, s = np.array(r).T
                 lines.append(

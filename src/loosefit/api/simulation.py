@@ -91,7 +91,8 @@ def dataset_config(
         units, up, kind, offset, attach: how a garment file is read and placed
             (:func:`~loosefit.fitting.place.import_garment`; offset in metres).
         motions: a folder of motion files, or comma-separated motions (files, moves,
-            ``dance:SECONDS``, ``mirror:...``, ``speed:F:...``, ``A+B``), one clip each.
+            ``dance:SECONDS``, ``mirror:...``, ``speed:F:...``, ``pitch:D:...``,
+            ``spin:T:...``, ``A+B``), one clip each.
         test: the clips held out, by name.
         seeds: an ensemble's member seeds (distinct integers >= 0), one run of each clip
             each.

@@ -37,7 +37,8 @@ def add_parser(sub) -> None:
         help="a motion run's model.pt or checkpoint.pt (default: the pretrained set in "
         "checkpoints/dance), then a .bvh, .gltf/.glb or .npz (loosefit or SMPL) motion, a "
         "procedural move, or dance:SECONDS "
-        "(mirror:MOTION mirrors one left-right; A+B plays one after another). A .glb/.gltf "
+        "(mirror:MOTION mirrors one left-right; speed:F:, pitch:DEGREES: and spin:TURNS: "
+        "change it: docs/use/INPUTS.md; A+B plays one after another). A .glb/.gltf "
         "with a skinned mesh is a character: the garment goes on its own mesh, and "
         "NAME_dressed.glb (their file with the garment) is written beside the sequence",
     )

@@ -45,7 +45,7 @@ def add_parser(sub) -> None:
         default=None,
         metavar="FOLDER_OR_SPECS",
         help="a folder of BVH files, or comma-separated motions (files, moves, "
-        "dance:SECONDS, mirror:..., speed:F:..., A+B), one clip each",
+        "dance:SECONDS, mirror:..., speed:F:..., pitch:D:..., spin:T:..., A+B), one clip each",
     )
     p.add_argument(
         "--test",
