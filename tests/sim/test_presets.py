@@ -22,7 +22,7 @@ def _salsa_folder(tmp_path, names: tuple[str, ...]):
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
     expected = (
         "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, dance-pitch, "
-        "dance-spin, paper"
+        "dance-spin, dance-spins, paper"
     )
     with pytest.raises(LoosefitInputError, match=expected):
         preset("huge")
@@ -161,6 +161,9 @@ def test_dance_spin_spins_the_ballet_training_clips_only(tmp_path):
     assert not any(j.test for j in extra)
     assert short_spec(extra[0].spec) == "spin:1:05_01.bvh"
     assert len({j.seed for j in jobs}) == len(jobs)
+    spins = plan_jobs(preset("dance-spins", bvh_folder=str(salsa)))
+    assert spins[: len(jobs)] == jobs  # dance-spin's clips, same seeds: --reuse takes them
+    assert [j.name for j in spins[len(jobs) :]] == [f"{c}_spin0.5" for c in BALLET_TRAIN]
 
 
 @pytest.mark.parametrize(

@@ -36,6 +36,10 @@ the preset is built: ``{salsa}``, the folder of the CMU salsa clips (``--bvh``, 
   and right (``05_01_spin1``; 1,330 frames more): turns from every pose of the ballet, where
   the captures hold a few turns from the poses their dancers turned from; ``--reuse`` a
   ``dance`` folder to simulate only those.
+* ``dance-spins``: ``dance-spin``, and the same seven clips with spins peaking at half a
+  turn a second (``05_01_spin0.5``; 1,330 frames more): the flare a slower turn builds, so
+  that a model learns how the flare grows with the rate rather than that a turn flares;
+  ``--reuse`` a ``dance-spin`` folder to simulate only those.
 * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
   salsa plus procedural dances; meant for a GPU.
 * ``dress-tiny``: ``tiny`` with a coarse strapless dress, for tests.
@@ -174,6 +178,7 @@ PRESETS: dict[str, dict] = {
     "dance-speed": _dance(speeds=(1.25, 0.8), speed_clips=BALLET_TRAIN),
     "dance-pitch": _dance(pitches=(10.0, -10.0), pitch_clips=BALLET_TRAIN),
     "dance-spin": _dance(spins=(1.0,), spin_clips=BALLET_TRAIN),
+    "dance-spins": _dance(spins=(1.0, 0.5), spin_clips=BALLET_TRAIN),
     "paper": {
         "garment": {"type": "skirt", "resolution": "paper", "style": "flared"},
         "cloth": {"device": "cuda:0"},
