@@ -116,9 +116,7 @@ def _clips(config: DatasetConfig) -> list[Job]:
             jobs.append(Job(name, "+".join(str(f) for f in held_out), config.seed + 500, True))
         _check_variants(m)
         folder = [(f.stem, str(f)) for f in files]
-        jobs += _retimed(m, folder, config.seed + 100, every=True)
-        jobs += _pitched(m, folder, config.seed + 3100, every=True)
-        jobs += _spun(m, folder, config.seed + 5100, every=True)
+        jobs += _every_variant(m, folder, config.seed, folder=True)
     if m.kind == "procedural" and m.moves:
         for i, move in enumerate(m.moves):
             test = m.test_every > 0 and (i % m.test_every == m.test_every - 1)
@@ -152,9 +150,7 @@ def _clips(config: DatasetConfig) -> list[Job]:
         ]
         if m.kind == "bvh":  # the named specs retimed and pitched too, after every original
             named = list(zip(names, m.specs, strict=True))
-            jobs += _retimed(m, named, config.seed + 2100)
-            jobs += _pitched(m, named, config.seed + 4100)
-            jobs += _spun(m, named, config.seed + 6100)
+            jobs += _every_variant(m, named, config.seed, folder=False)
     if m.kind not in ("bvh", "procedural", "specs"):
         raise LoosefitInputError("MotionSource", "kind", "bvh, procedural or specs", repr(m.kind))
     known = {j.name for j in jobs} | folder_stems
@@ -167,67 +163,55 @@ def _clips(config: DatasetConfig) -> list[Job]:
     return jobs
 
 
-def _retimed(
-    m: MotionSource, clips: list[tuple[str, str]], first_seed: int, every: bool = False
+@dataclass(frozen=True)
+class _Variant:
+    """One way a data set dances its clips again: the ``MotionSource`` fields of its values
+    and chosen clips, the clip name's suffix and the spec's prefix (each formatted with the
+    value), and the seed offsets of the folder's clips and of the named specs'."""
+
+    values: str
+    clips: str
+    suffix: str
+    prefix: str
+    folder_seed: int
+    named_seed: int
+
+
+# retimed (``NAME_xSPEED``), pelvis pitched (``NAME_pitchDEG``), spun (``NAME_spinTURNS``);
+# the seed offsets are the data sets': a change would break ``--reuse`` of simulated clips
+_VARIANTS = (
+    _Variant("speeds", "speed_clips", "_x{:g}", "speed:{:g}:", 100, 2100),
+    _Variant("pitches", "pitch_clips", "_pitch{:g}", "pitch:{:g}:", 3100, 4100),
+    _Variant("spins", "spin_clips", "_spin{:g}", "spin:{:g}:", 5100, 6100),
+)
+
+
+def _every_variant(
+    m: MotionSource, clips: list[tuple[str, str]], seed: int, *, folder: bool
 ) -> list[Job]:
-    """The training jobs of ``clips`` ((name, spec) each) played at each of ``m.speeds``
-    (``NAME_xSPEED``, ``speed:SPEED:SPEC``): those ``m.speed_clips`` names, or with
-    ``every`` and none named, every clip not held out. See :func:`_variants`."""
-    return _variants(
-        m,
-        clips,
-        first_seed,
-        every,
-        values=m.speeds,
-        chosen=m.speed_clips,
-        suffix="_x{:g}",
-        prefix="speed:{:g}:",
-    )
+    """The training jobs of ``clips`` ((name, spec) each) in every variant of
+    :data:`_VARIANTS` (retimed, pitched, spun), in that order: the clips each variant's field
+    of chosen clips names, or for a ``folder``'s clips and none chosen, every clip not held
+    out. See :func:`_variants`."""
+    return [
+        job
+        for v in _VARIANTS
+        for job in _variants(
+            m,
+            clips,
+            seed + (v.folder_seed if folder else v.named_seed),
+            folder,
+            values=getattr(m, v.values),
+            chosen=getattr(m, v.clips),
+            suffix=v.suffix,
+            prefix=v.prefix,
+        )
+    ]
 
 
-def _pitched(
-    m: MotionSource, clips: list[tuple[str, str]], first_seed: int, every: bool = False
-) -> list[Job]:
-    """The training jobs of ``clips`` ((name, spec) each) danced with the pelvis at each of
-    ``m.pitches`` (``NAME_pitchDEG``, ``pitch:DEG:SPEC``): those ``m.pitch_clips`` names,
-    or with ``every`` and none named, every clip not held out. See :func:`_variants`."""
-    return _variants(
-        m,
-        clips,
-        first_seed,
-        every,
-        values=m.pitches,
-        chosen=m.pitch_clips,
-        suffix="_pitch{:g}",
-        prefix="pitch:{:g}:",
-    )
-
-
-def _spun(
-    m: MotionSource, clips: list[tuple[str, str]], first_seed: int, every: bool = False
-) -> list[Job]:
-    """The training jobs of ``clips`` ((name, spec) each) danced with spins on the spot at
-    each of ``m.spins`` (``NAME_spinTURNS``, ``spin:TURNS:SPEC``): those ``m.spin_clips``
-    names, or with ``every`` and none named, every clip not held out. See :func:`_variants`."""
-    return _variants(
-        m,
-        clips,
-        first_seed,
-        every,
-        values=m.spins,
-        chosen=m.spin_clips,
-        suffix="_spin{:g}",
-        prefix="spin:{:g}:",
-    )
-
-
-def _variant_clips(m: MotionSource) -> tuple[tuple[str, tuple[str, ...]], ...]:
-    """Each variant's field of chosen clips and its names."""
-    return (
-        ("speed_clips", m.speed_clips),
-        ("pitch_clips", m.pitch_clips),
-        ("spin_clips", m.spin_clips),
-    )
+def _variant_clips(m: MotionSource) -> list[tuple[str, tuple[str, ...]]]:
+    """Each variant's field of chosen clips and the names in it."""
+    return [(v.clips, getattr(m, v.clips)) for v in _VARIANTS]
 
 
 def _variants(
