@@ -20,7 +20,7 @@ from loosefit.motion.procedural import MOVES, named_motion, random_dance
 from loosefit.motion.resample import resample_motion, retime_motion
 from loosefit.motion.retarget import RetargetConfig, retarget_bvh
 from loosefit.motion.smpl import npz_fields
-from loosefit.motion.spin import MAX_TURNS_PER_SECOND, spin_motion
+from loosefit.motion.spin import SPIN_RATES, is_spin_rate, spin_motion
 from loosefit.types import Motion
 
 PROCEDURAL_NAMES = ("dance", *MOVES)
@@ -239,13 +239,9 @@ def _load_spun(
 ) -> Motion:
     """``spin:TURNS:MOTION``: spins on the spot added, peaking at TURNS turns a second."""
     turns, inner = _number_and_motion(text, "spin:")
-    if not (inner and math.isfinite(turns) and turns != 0 and abs(turns) <= MAX_TURNS_PER_SECOND):
+    if not (inner and is_spin_rate(turns)):
         raise LoosefitInputError(
-            "motion",
-            "spin:TURNS:MOTION",
-            f"turns a second other than 0, from -{MAX_TURNS_PER_SECOND:g} to "
-            f"{MAX_TURNS_PER_SECOND:g}, and a motion",
-            repr(text),
+            "motion", "spin:TURNS:MOTION", f"{SPIN_RATES}, and a motion", repr(text)
         )
     return spin_motion(load_motion(inner, avatar, fps, seed, retarget), turns)
 

@@ -35,11 +35,33 @@ SPIN_FIRST_SECONDS = 1.0
 # what a spec may ask for: a dancer's fastest spins (the salsa captures turn at up to 3.9
 # turns a second, 25 rad/s)
 MAX_TURNS_PER_SECOND = 4.0
+# what every caller that takes a spin rate asks for, in its error
+SPIN_RATES = (
+    f"turns a second other than 0, from -{MAX_TURNS_PER_SECOND:g} to {MAX_TURNS_PER_SECOND:g}"
+)
+
+
+def is_spin_rate(turns_per_second: float) -> bool:
+    """Whether a spin rate is one :func:`spin_motion` takes: finite, not 0, within
+    :data:`MAX_TURNS_PER_SECOND` either way."""
+    t = turns_per_second
+    return math.isfinite(t) and t != 0 and abs(t) <= MAX_TURNS_PER_SECOND
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
+
+
+def _spin_starts(num_frames: int, fps: float) -> list[float]:
+    """Seconds: when each spin that fits whole in a clip of ``num_frames`` at ``fps`` starts
+    (``SPIN_FIRST_SECONDS + k SPIN_EVERY_SECONDS``, none that would end after the last
+    frame)."""
+    last = (num_frames - 1) / fps
+    starts: list[float] = []
+    while (start := SPIN_FIRST_SECONDS + len(starts) * SPIN_EVERY_SECONDS) + SPIN_SECONDS <= last:
+        starts.append(start)
+    return starts
 
 
 def spin_rates(num_frames: int, fps: float, turns_per_second: float) -> np.ndarray:
@@ -53,23 +75,18 @@ def spin_rates(num_frames: int, fps: float, turns_per_second: float) -> np.ndarr
     t = np.arange(num_frames, dtype=np.float64) / fps
     peak = 2.0 * math.pi * turns_per_second
     rates = np.zeros(num_frames)
-    k = 0
-    while (start := SPIN_FIRST_SECONDS + k * SPIN_EVERY_SECONDS) + SPIN_SECONDS <= t[-1]:
+    for k, start in enumerate(_spin_starts(num_frames, fps)):
         s = t - start
         envelope = _smoothstep(s / SPIN_RAMP_SECONDS) * _smoothstep(
             (SPIN_SECONDS - s) / SPIN_RAMP_SECONDS
         )
         rates += (-1.0) ** k * peak * envelope
-        k += 1
     return rates
 
 
 def spin_count(num_frames: int, fps: float) -> int:
     """How many spins a clip of ``num_frames`` at ``fps`` holds (:func:`spin_rates`)."""
-    last = (num_frames - 1) / fps
-    if last < SPIN_FIRST_SECONDS + SPIN_SECONDS:
-        return 0
-    return int((last - SPIN_FIRST_SECONDS - SPIN_SECONDS) // SPIN_EVERY_SECONDS) + 1
+    return len(_spin_starts(num_frames, fps))
 
 
 def spin_motion(motion: Motion, turns_per_second: float) -> Motion:
@@ -90,14 +107,8 @@ def spin_motion(motion: Motion, turns_per_second: float) -> Motion:
             short to hold one spin.
     """
     tps = turns_per_second
-    if not (math.isfinite(tps) and tps != 0 and abs(tps) <= MAX_TURNS_PER_SECOND):
-        raise LoosefitInputError(
-            f"motion '{motion.name}'",
-            "spin rate",
-            f"turns a second other than 0, from -{MAX_TURNS_PER_SECOND:g} to "
-            f"{MAX_TURNS_PER_SECOND:g}",
-            repr(turns_per_second),
-        )
+    if not is_spin_rate(tps):
+        raise LoosefitInputError(f"motion '{motion.name}'", "spin rate", SPIN_RATES, repr(tps))
     count = spin_count(motion.num_frames, motion.fps)
     if count == 0:
         need = math.floor((SPIN_FIRST_SECONDS + SPIN_SECONDS) * motion.fps)

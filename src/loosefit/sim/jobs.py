@@ -240,11 +240,11 @@ def _variants(
 def _check_variants(m: MotionSource) -> None:
     """Refuses a speed that is not a positive factor other than 1, a pitch that is zero,
     repeated or beyond :data:`~loosefit.motion.pelvis.MAX_PITCH_DEGREES`, a spin rate that
-    is zero, repeated or beyond :data:`~loosefit.motion.spin.MAX_TURNS_PER_SECOND`, and a
+    is zero, repeated or beyond :func:`~loosefit.motion.spin.is_spin_rate`'s bound, and a
     retimed, pitched or spun clip that is held out (a held-out motion must never be trained
     on, at any speed, pitch or spin)."""
     from loosefit.motion.pelvis import MAX_PITCH_DEGREES
-    from loosefit.motion.spin import MAX_TURNS_PER_SECOND
+    from loosefit.motion.spin import SPIN_RATES, is_spin_rate
 
     for speed in m.speeds:
         if not (np.isfinite(speed) and speed > 0 and speed != 1.0):
@@ -261,15 +261,8 @@ def _check_variants(m: MotionSource) -> None:
             )
     if len({f"{d:g}" for d in m.pitches}) != len(m.pitches):
         raise LoosefitInputError("MotionSource", "pitches", "distinct degrees", m.pitches)
-    for tps in m.spins:
-        if not (np.isfinite(tps) and tps != 0 and abs(tps) <= MAX_TURNS_PER_SECOND):
-            raise LoosefitInputError(
-                "MotionSource",
-                "spins",
-                f"turns a second other than 0, from -{MAX_TURNS_PER_SECOND:g} to "
-                f"{MAX_TURNS_PER_SECOND:g}",
-                m.spins,
-            )
+    if not all(is_spin_rate(t) for t in m.spins):
+        raise LoosefitInputError("MotionSource", "spins", SPIN_RATES, m.spins)
     if len({f"{t:g}" for t in m.spins}) != len(m.spins):
         raise LoosefitInputError("MotionSource", "spins", "distinct rates", m.spins)
     for field_name, named in _variant_clips(m):
