@@ -47,28 +47,23 @@ UPPER = ("Spine1", "Spine2", "Neck", "Head", "Shoulder", "Arm", "Hand", "Thumb",
 LEGS = ("UpLeg", "Leg", "Foot", "Toe")
 
 
-def turn_ratios(garment, truth, motion, hem) -> tuple[float, float]:
-    """(flare, speed): the garment's mean over the truth's over the 61 frames around the
-    motion's fastest turn. garment, truth: (T, V, 3) world; hem: (H,)."""
-    T = min(len(garment), len(truth))
-    pelvis = np.asarray(motion.root_translation)[:T]
+def turn_means(garment, motion, hem) -> tuple[float, float]:
+    """(flare m, speed m/s): the hem's mean flare and mean vertex speed over the 61 frames
+    around the motion's fastest turn. garment: (T, V, 3) world, T <= the motion's frames;
+    hem: (H,)."""
+    T = len(garment)
     w = turn_window(fastest_turn(motion), T)
-    flare = (
-        hem_flare(garment[:T], pelvis, hem)[w].mean() / hem_flare(truth[:T], pelvis, hem)[w].mean()
-    )
-    speed = (
-        hem_speed(garment[:T], hem, motion.fps)[w].mean()
-        / hem_speed(truth[:T], hem, motion.fps)[w].mean()
-    )
+    flare = hem_flare(garment, np.asarray(motion.root_translation)[:T], hem)[w].mean()
+    speed = hem_speed(garment, hem, motion.fps)[w].mean()
     return float(flare), float(speed)
 
 
-def simulated_flare(truth, motion, hem) -> float:
-    """cm: the simulation's hem flare, its mean over the 61 frames around the motion's
-    fastest turn. truth: (T, V, 3) world; hem: (H,)."""
-    pelvis = np.asarray(motion.root_translation)[: len(truth)]
-    w = turn_window(fastest_turn(motion), len(truth))
-    return float(100.0 * hem_flare(truth, pelvis, hem)[w].mean())
+def turn_ratios(garment, truth, motion, hem) -> tuple[float, float]:
+    """(flare, speed): the garment's :func:`turn_means` over the truth's, on the frames both
+    have. garment, truth: (T, V, 3) world; hem: (H,)."""
+    T = min(len(garment), len(truth))
+    (gf, gs), (tf, ts) = (turn_means(x[:T], motion, hem) for x in (garment, truth))
+    return gf / tf, gs / ts
 
 
 def with_rotations(motion, rotations: np.ndarray):
@@ -167,7 +162,7 @@ def main() -> None:
         hem = hem_loop(seq.template.vertices, seq.template.faces)
         rate = float(np.abs(turn_rate(motion)).max())
         pitch = float(np.median(pelvis_pitch(motion.rotations)))
-        row = [clip, kind, rate, pitch, simulated_flare(truth, motion, hem)]
+        row = [clip, kind, rate, pitch, 100.0 * turn_means(truth, motion, hem)[0]]
         for model in models.values():
             g = np.asarray(model.animate(motion, stages=MOTION_ONLY).vertices)
             row.append(turn_ratios(g, truth, motion, hem))
