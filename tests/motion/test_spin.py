@@ -99,3 +99,11 @@ def test_a_motion_too_short_for_a_spin_is_refused_with_the_frames_it_needs(avata
     motion = load_motion("walk", avatar).slice(0, 30)
     with pytest.raises(LoosefitInputError, match=r"at least 79 frames at 30 fps.*found 30"):
         spin_motion(motion, 1.0)
+
+
+@pytest.mark.parametrize(("frames", "fps"), [(169, 30.0), (141, 25.0), (337, 60.0), (300, 30.0)])
+def test_the_count_is_the_spins_the_rates_hold(frames, fps):
+    rates = spin_rates(frames, fps, 1.0)
+    moving = np.abs(rates) > 0
+    spins = int(moving[0]) + int((moving[1:] & ~moving[:-1]).sum())  # runs of turning
+    assert spin_count(frames, fps) == spins
