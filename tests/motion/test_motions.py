@@ -76,6 +76,7 @@ def test_a_saved_motion_is_read_back_and_resampled_to_the_rate_asked(avatar, tmp
         ("spin:9:walk", "spin:TURNS:MOTION"),
         ("spin:left:walk", "spin:TURNS:MOTION"),
         ("spin:1:", "spin:TURNS:MOTION"),
+        ("spin:1,hold=-2:walk", "spin:TURNS:MOTION"),
         ("frames:5:5:spin", "frames:START:STOP:MOTION"),
         ("frames:0:100000:spin", "frames:START:STOP"),
         ("units:furlong:walk.bvh", "units:UNIT:MOTION"),

@@ -12,14 +12,17 @@ from loosefit.errors import LoosefitInputError
 from loosefit.model.motion_features import heading_yaw
 from loosefit.motion.motions import load_motion
 from loosefit.motion.spin import (
-    SPIN_EVERY_SECONDS,
     SPIN_FIRST_SECONDS,
     SPIN_RAMP_SECONDS,
-    SPIN_SECONDS,
+    Spin,
+    read_spin,
     spin_count,
     spin_motion,
     spin_rates,
 )
+
+SPIN_SECONDS = Spin(1.0).seconds  # the default spin: 1.6 s, one starting every 3 s
+SPIN_EVERY_SECONDS = Spin(1.0).every
 
 
 def _yaw(motion) -> np.ndarray:
@@ -92,7 +95,7 @@ def test_a_rate_that_is_zero_or_beyond_the_bound_is_refused(avatar, turns):
     motion = load_motion("walk", avatar)
     with pytest.raises(LoosefitInputError) as err:
         spin_motion(motion, turns)
-    assert err.value.field == "spin rate" and "from -4 to 4" in str(err.value)
+    assert err.value.field == "spin" and "from -4 to 4" in str(err.value)
 
 
 def test_a_motion_too_short_for_a_spin_is_refused_with_the_frames_it_needs(avatar):
@@ -107,3 +110,77 @@ def test_the_count_is_the_spins_the_rates_hold(frames, fps):
     moving = np.abs(rates) > 0
     spins = int(moving[0]) + int((moving[1:] & ~moving[:-1]).sum())  # runs of turning
     assert spin_count(frames, fps) == spins
+
+
+def test_the_default_spin_is_1_6_s_long_and_one_starts_every_3_s():
+    assert (SPIN_SECONDS, SPIN_EVERY_SECONDS) == pytest.approx((1.6, 3.0))
+
+
+def test_a_slow_spin_rises_over_its_ramp_peaks_once_and_turns_its_area():
+    fps, slow = 30.0, Spin(1.0, ramp=0.8, hold=0.0)
+    rates = spin_rates(300, fps, slow)
+    t = np.arange(300) / fps
+    first = t < SPIN_FIRST_SECONDS + slow.every
+    peak = int(np.argmax(rates[first]))
+    assert t[peak] == pytest.approx(SPIN_FIRST_SECONDS + 0.8, abs=0.5 / fps)
+    assert rates[peak] == pytest.approx(2 * math.pi, rel=1e-3)
+    # halfway up its ramp a smoothstep is at half the peak
+    assert np.interp(SPIN_FIRST_SECONDS + 0.4, t, rates) == pytest.approx(math.pi, rel=1e-3)
+    # a rise and a fall of 0.8 s each, no hold: 0.8 turns
+    assert rates[first].sum() / fps == pytest.approx(2 * math.pi * 0.8, rel=1e-3)
+    assert spin_count(300, fps, slow) == 3 and spin_count(300, fps, Spin(1.0, hold=2.0)) == 2
+
+
+@pytest.mark.parametrize(
+    ("text", "spin"),
+    [
+        ("1", Spin(1.0)),
+        ("-0.5", Spin(-0.5)),
+        ("1,ramp=0.8,hold=0", Spin(1.0, ramp=0.8, hold=0.0)),
+        ("2,hold=1.5", Spin(2.0, hold=1.5)),
+        ("1, ramp=0.4", Spin(1.0)),
+    ],
+)
+def test_a_spin_reads_from_its_field_and_writes_it_back(text, spin):
+    assert read_spin(text) == spin
+    assert read_spin(spin.spec()) == spin and read_spin(spin.turns) == Spin(spin.turns)
+
+
+def test_a_spin_names_only_what_differs_from_the_default():
+    assert (Spin(1.0).spec(), Spin(1.0).label()) == ("1", "1")
+    slow = Spin(1.0, ramp=0.8, hold=0.0)
+    assert (slow.spec(), slow.label()) == ("1,ramp=0.8,hold=0", "1_ramp0.8_hold0")
+    assert Spin(0.5, hold=2.0).label() == "0.5_hold2"
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "1,ramp=0.05",
+        "1,ramp=3",
+        "1,hold=-1",
+        "1,hold=11",
+        "1,twist=1",
+        "1,ramp",
+        "1,ramp=0.5,ramp=0.6",
+        "fast",
+        "0",
+    ],
+)
+def test_a_spin_beyond_its_bounds_or_of_an_unknown_field_does_not_read(text):
+    assert read_spin(text) is None
+
+
+def test_the_spec_takes_a_ramp_and_a_hold_and_refuses_one_out_of_bounds(avatar):
+    walk = load_motion("walk", avatar)
+    slow = load_motion("spin:1,ramp=0.8,hold=0:walk", avatar)
+    np.testing.assert_array_equal(slow.rotations, spin_motion(walk, Spin(1.0, 0.8, 0.0)).rotations)
+    assert slow.name == "spin:1,ramp=0.8,hold=0:walk"
+    with pytest.raises(LoosefitInputError, match=r"spin:TURNS:MOTION.*ramp from 0.1 to 2 s"):
+        load_motion("spin:1,ramp=0:walk", avatar)
+
+
+def test_a_motion_too_short_for_a_long_spin_is_refused_with_the_frames_it_needs(avatar):
+    motion = load_motion("walk", avatar).slice(0, 100)
+    with pytest.raises(LoosefitInputError, match=r"at least 139 frames at 30 fps.*3.6 s long"):
+        spin_motion(motion, Spin(1.0, hold=2.8))

@@ -22,7 +22,7 @@ def _salsa_folder(tmp_path, names: tuple[str, ...]):
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
     expected = (
         "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, dance-pitch, "
-        "dance-spin, dance-spins, paper"
+        "dance-spin, dance-spins, dance-spins-slow, paper"
     )
     with pytest.raises(LoosefitInputError, match=expected):
         preset("huge")
@@ -164,6 +164,12 @@ def test_dance_spin_spins_the_ballet_training_clips_only(tmp_path):
     spins = plan_jobs(preset("dance-spins", bvh_folder=str(salsa)))
     assert spins[: len(jobs)] == jobs  # dance-spin's clips, same seeds: --reuse takes them
     assert [j.name for j in spins[len(jobs) :]] == [f"{c}_spin0.5" for c in BALLET_TRAIN]
+    slow = plan_jobs(preset("dance-spins-slow", bvh_folder=str(salsa)))
+    assert slow[: len(spins)] == spins  # dance-spins's clips, same seeds: --reuse takes them
+    added = slow[len(spins) :]
+    assert [j.name for j in added] == [f"{c}_spin1_ramp0.8_hold0" for c in BALLET_TRAIN]
+    assert short_spec(added[0].spec) == "spin:1,ramp=0.8,hold=0:05_01.bvh"
+    assert len({j.seed for j in slow}) == len(slow)
 
 
 @pytest.mark.parametrize(
@@ -172,7 +178,10 @@ def test_dance_spin_spins_the_ballet_training_clips_only(tmp_path):
         ("spins", (0.0,), "turns a second other than 0"),
         ("spins", (5.0,), "from -4 to 4"),
         ("spins", (float("inf"),), "turns a second other than 0"),
-        ("spins", (1.0, 1.0), "distinct rates"),
+        ("spins", (1.0, 1.0), "distinct spins"),
+        ("spins", (1.0, "1,ramp=0.4"), "distinct spins"),
+        ("spins", ("1,ramp=0",), "a ramp from 0.1 to 2 s"),
+        ("spins", ("1,wobble=2",), r"TURNS\[,ramp=SECONDS\]"),
         ("spin_clips", ("60_09",), r"spin_clips.*60_09"),
         ("spin_clips", ("60_03",), r"spin_clips.*not held out.*60_03"),
     ],

@@ -20,7 +20,7 @@ from loosefit.motion.procedural import MOVES, named_motion, random_dance
 from loosefit.motion.resample import resample_motion, retime_motion
 from loosefit.motion.retarget import RetargetConfig, retarget_bvh
 from loosefit.motion.smpl import npz_fields
-from loosefit.motion.spin import SPIN_RATES, is_spin_rate, spin_motion
+from loosefit.motion.spin import SPIN_FORM, read_spin, spin_motion
 from loosefit.types import Motion
 
 PROCEDURAL_NAMES = ("dance", *MOVES)
@@ -74,8 +74,9 @@ def load_motion(
             front), the spine and legs as captured
             (:func:`~loosefit.motion.pelvis.pitch_pelvis`), or behind
             ``spin:TURNS:``, with spins on the spot added, each peaking at TURNS turns a
-            second, one every 3 s, alternately left and right
-            (:func:`~loosefit.motion.spin.spin_motion`), or behind
+            second, alternately left and right, or ``spin:TURNS,ramp=S,hold=S:``, each
+            rising over ``ramp`` seconds and holding ``hold`` (default 0.4 and 0.8; either
+            may be left out) (:func:`~loosefit.motion.spin.spin_motion`), or behind
             ``frames:START:STOP:``, its frames START to STOP - 1 (at ``fps``, before
             ``start_frame`` and ``max_frames``); a BVH file behind ``units:UNIT:``
             (m, cm, mm) or ``scale:METRES_PER_UNIT:``, read in that unit (otherwise
@@ -237,13 +238,15 @@ def _load_pitched(
 def _load_spun(
     text: str, avatar: Avatar, fps: float, seed: int, retarget: RetargetConfig | None
 ) -> Motion:
-    """``spin:TURNS:MOTION``: spins on the spot added, peaking at TURNS turns a second."""
-    turns, inner = _number_and_motion(text, "spin:")
-    if not (inner and is_spin_rate(turns)):
+    """``spin:TURNS[,ramp=SECONDS][,hold=SECONDS]:MOTION``: spins on the spot added, each
+    peaking at TURNS turns a second (:class:`~loosefit.motion.spin.Spin`)."""
+    field, _, inner = text[len("spin:") :].partition(":")
+    spin = read_spin(field)
+    if not (inner and spin is not None):
         raise LoosefitInputError(
-            "motion", "spin:TURNS:MOTION", f"{SPIN_RATES}, and a motion", repr(text)
+            "motion", "spin:TURNS:MOTION", f"{SPIN_FORM}, and a motion", repr(text)
         )
-    return spin_motion(load_motion(inner, avatar, fps, seed, retarget), turns)
+    return spin_motion(load_motion(inner, avatar, fps, seed, retarget), spin)
 
 
 def _load_frames(

@@ -50,10 +50,11 @@ class MotionSource:
     # bvh: the clips danced at ``pitches``, folder files and specs alike (empty: every folder
     # file not held out)
     pitch_clips: tuple[str, ...] = ()
-    # bvh: the spin rates (turns a second at each spin's peak, the sign the first spin's
-    # direction) each of ``spin_clips`` is also danced at, spins on the spot added
-    # (NAME_spinTURNS; held-out clips never; loosefit.motion.spin.spin_motion)
-    spins: tuple[float, ...] = ()
+    # bvh: the spins each of ``spin_clips`` is also danced with, on the spot: a rate (turns
+    # a second at each spin's peak, the sign the first spin's direction; NAME_spinTURNS) or
+    # the spec's field "TURNS,ramp=SECONDS,hold=SECONDS" (NAME_spinTURNS_rampS_holdS); held-out
+    # clips never (loosefit.motion.spin.spin_motion)
+    spins: tuple[float | str, ...] = ()
     # bvh: the clips danced at ``spins``, folder files and specs alike (empty: every folder
     # file not held out)
     spin_clips: tuple[str, ...] = ()

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -163,11 +164,28 @@ def _clips(config: DatasetConfig) -> list[Job]:
     return jobs
 
 
+def _number(value: float) -> str:
+    return f"{value:g}"
+
+
+def _spin_label(value: float | str) -> str:
+    from loosefit.motion.spin import read_spin
+
+    return read_spin(value).label()
+
+
+def _spin_spec(value: float | str) -> str:
+    from loosefit.motion.spin import read_spin
+
+    return read_spin(value).spec()
+
+
 @dataclass(frozen=True)
 class _Variant:
     """One way a data set dances its clips again: the ``MotionSource`` fields of its values
-    and chosen clips, the clip name's suffix and the spec's prefix (each formatted with the
-    value), and the seed offsets of the folder's clips and of the named specs'."""
+    and chosen clips, the clip name's suffix and the spec's prefix (each with the value's
+    text: ``name_part`` in the name, ``spec_part`` in the spec), and the seed offsets of the
+    folder's clips and of the named specs'."""
 
     values: str
     clips: str
@@ -175,14 +193,25 @@ class _Variant:
     prefix: str
     folder_seed: int
     named_seed: int
+    name_part: Callable[[float | str], str] = _number
+    spec_part: Callable[[float | str], str] = _number
+
+    def suffixed(self, value: float | str) -> str:
+        """The suffix of a clip danced at ``value``."""
+        return self.suffix.format(self.name_part(value))
+
+    def prefixed(self, value: float | str) -> str:
+        """The spec's prefix of a clip danced at ``value``."""
+        return self.prefix.format(self.spec_part(value))
 
 
-# retimed (``NAME_xSPEED``), pelvis pitched (``NAME_pitchDEG``), spun (``NAME_spinTURNS``);
-# the seed offsets are the data sets': a change would break ``--reuse`` of simulated clips
+# retimed (``NAME_xSPEED``), pelvis pitched (``NAME_pitchDEG``), spun (``NAME_spinTURNS``,
+# ``NAME_spinTURNS_rampS_holdS``); the seed offsets are the data sets': a change would break
+# ``--reuse`` of simulated clips
 _VARIANTS = (
-    _Variant("speeds", "speed_clips", "_x{:g}", "speed:{:g}:", 100, 2100),
-    _Variant("pitches", "pitch_clips", "_pitch{:g}", "pitch:{:g}:", 3100, 4100),
-    _Variant("spins", "spin_clips", "_spin{:g}", "spin:{:g}:", 5100, 6100),
+    _Variant("speeds", "speed_clips", "_x{}", "speed:{}:", 100, 2100),
+    _Variant("pitches", "pitch_clips", "_pitch{}", "pitch:{}:", 3100, 4100),
+    _Variant("spins", "spin_clips", "_spin{}", "spin:{}:", 5100, 6100, _spin_label, _spin_spec),
 )
 
 
@@ -203,8 +232,8 @@ def _every_variant(
             folder,
             values=getattr(m, v.values),
             chosen=getattr(m, v.clips),
-            suffix=v.suffix,
-            prefix=v.prefix,
+            suffix=v.suffixed,
+            prefix=v.prefixed,
         )
     ]
 
@@ -220,17 +249,17 @@ def _variants(
     first_seed: int,
     every: bool,
     *,
-    values: tuple[float, ...],
+    values: tuple[float | str, ...],
     chosen: tuple[str, ...],
-    suffix: str,
-    prefix: str,
+    suffix: Callable[[float | str], str],
+    prefix: Callable[[float | str], str],
 ) -> list[Job]:
     """Training jobs of ``clips`` changed by each of ``values``: named ``NAME`` +
-    ``suffix``, their spec ``prefix`` + the clip's, both formatted with the value; the
+    ``suffix(value)``, their spec ``prefix(value)`` + the clip's; the
     ``chosen`` names, or with ``every`` and none chosen, every clip not held out. Value
     ``k``'s clip ``i`` is simulated from seed ``first_seed + 100 k + i``."""
     return [
-        Job(name + suffix.format(v), prefix.format(v) + spec, first_seed + 100 * k + i, False)
+        Job(name + suffix(v), prefix(v) + spec, first_seed + 100 * k + i, False)
         for k, v in enumerate(values)
         for i, (name, spec) in enumerate(clips)
         if name not in m.test and (name in chosen or (every and not chosen))
@@ -240,11 +269,11 @@ def _variants(
 def _check_variants(m: MotionSource) -> None:
     """Refuses a speed that is not a positive factor other than 1, a pitch that is zero,
     repeated or beyond :data:`~loosefit.motion.pelvis.MAX_PITCH_DEGREES`, a spin rate that
-    is zero, repeated or beyond :func:`~loosefit.motion.spin.is_spin_rate`'s bound, and a
+    that does not read or is repeated (:func:`~loosefit.motion.spin.read_spin`), and a
     retimed, pitched or spun clip that is held out (a held-out motion must never be trained
     on, at any speed, pitch or spin)."""
     from loosefit.motion.pelvis import MAX_PITCH_DEGREES
-    from loosefit.motion.spin import SPIN_RATES, is_spin_rate
+    from loosefit.motion.spin import SPIN_FORM, read_spin
 
     for speed in m.speeds:
         if not (np.isfinite(speed) and speed > 0 and speed != 1.0):
@@ -261,10 +290,11 @@ def _check_variants(m: MotionSource) -> None:
             )
     if len({f"{d:g}" for d in m.pitches}) != len(m.pitches):
         raise LoosefitInputError("MotionSource", "pitches", "distinct degrees", m.pitches)
-    if not all(is_spin_rate(t) for t in m.spins):
-        raise LoosefitInputError("MotionSource", "spins", SPIN_RATES, m.spins)
-    if len({f"{t:g}" for t in m.spins}) != len(m.spins):
-        raise LoosefitInputError("MotionSource", "spins", "distinct rates", m.spins)
+    spins = [read_spin(t) for t in m.spins]
+    if any(spin is None for spin in spins):
+        raise LoosefitInputError("MotionSource", "spins", SPIN_FORM, m.spins)
+    if len({spin.label() for spin in spins}) != len(spins):
+        raise LoosefitInputError("MotionSource", "spins", "distinct spins", m.spins)
     for field_name, named in _variant_clips(m):
         held = sorted(set(named) & set(m.test))
         if held:

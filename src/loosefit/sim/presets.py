@@ -40,6 +40,11 @@ the preset is built: ``{salsa}``, the folder of the CMU salsa clips (``--bvh``, 
   turn a second (``05_01_spin0.5``; 1,330 frames more): the flare a slower turn builds, so
   that a model learns how the flare grows with the rate rather than that a turn flares;
   ``--reuse`` a ``dance-spin`` folder to simulate only those.
+* ``dance-spins-slow``: ``dance-spins``, and the same seven clips with spins that build as
+  a dancer's do: the rate rising over 0.8 s to one turn a second and falling back at once
+  (``05_01_spin1_ramp0.8_hold0``, ``spin:1,ramp=0.8,hold=0:``; 1,330 frames more), where
+  the others rise in 0.4 s and hold 0.8 s; ``--reuse`` a ``dance-spins`` folder to simulate
+  only those.
 * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
   salsa plus procedural dances; meant for a GPU.
 * ``dress-tiny``: ``tiny`` with a coarse strapless dress, for tests.
@@ -134,7 +139,7 @@ def _dance(
     speed_clips: tuple[str, ...] = (),
     pitches: tuple[float, ...] = (),
     pitch_clips: tuple[str, ...] = (),
-    spins: tuple[float, ...] = (),
+    spins: tuple[float | str, ...] = (),
     spin_clips: tuple[str, ...] = (),
 ) -> dict:
     """The salsa clips as ``salsa`` and the ballet clips beside them, ``speed_clips`` also
@@ -179,6 +184,7 @@ PRESETS: dict[str, dict] = {
     "dance-pitch": _dance(pitches=(10.0, -10.0), pitch_clips=BALLET_TRAIN),
     "dance-spin": _dance(spins=(1.0,), spin_clips=BALLET_TRAIN),
     "dance-spins": _dance(spins=(1.0, 0.5), spin_clips=BALLET_TRAIN),
+    "dance-spins-slow": _dance(spins=(1.0, 0.5, "1,ramp=0.8,hold=0"), spin_clips=BALLET_TRAIN),
     "paper": {
         "garment": {"type": "skirt", "resolution": "paper", "style": "flared"},
         "cloth": {"device": "cuda:0"},
