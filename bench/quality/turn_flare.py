@@ -36,7 +36,7 @@ from loosefit.data.format import DatasetReader
 from loosefit.eval.ensemble import turn_window
 from loosefit.eval.heldout import validation_clips
 from loosefit.eval.hem import hem_flare, hem_speed
-from loosefit.eval.motion_signals import fastest_turn, turn_rate
+from loosefit.eval.motion_signals import fastest_turn, turn_extent, turn_rate
 from loosefit.garment.mesh_checks import hem_loop
 from loosefit.inference.stages import MOTION_ONLY
 from loosefit.model.motion_features import heading_yaw, yaw_matrix
@@ -160,9 +160,12 @@ def main() -> None:
         seq = reader.read(clip)
         motion, truth = seq.motion, np.asarray(seq.garment_vertices, np.float32)
         hem = hem_loop(seq.template.vertices, seq.template.faces)
-        rate = float(np.abs(turn_rate(motion)).max())
+        rates = turn_rate(motion)
+        fastest = fastest_turn(motion)
+        seconds, turns = turn_extent(rates, fastest, motion.fps)
         pitch = float(np.median(pelvis_pitch(motion.rotations)))
-        row = [clip, kind, rate, pitch, 100.0 * turn_means(truth, motion, hem)[0]]
+        flare = 100.0 * turn_means(truth, motion, hem)[0]
+        row = [clip, kind, abs(float(rates[fastest])), seconds, turns, pitch, flare]
         for model in models.values():
             g = np.asarray(model.animate(motion, stages=MOTION_ONLY).vertices)
             row.append(turn_ratios(g, truth, motion, hem))
@@ -181,22 +184,27 @@ def main() -> None:
         "",
         "Over the 61 frames around the fastest turn: the hem's flare (mean distance from the "
         "pelvis's vertical axis) and its mean vertex speed, the motion stage alone over the "
-        "simulation; the turn's rate (rad/s); the pelvis's median pitch over the clip "
+        "simulation; the turn's rate (rad/s), how long it stays above half that rate and how "
+        "far it turns in that time (a brief flick and a built-up pirouette tell apart here); "
+        "the pelvis's median pitch over the clip "
         "(degrees; the forward axis above the horizontal: the capture's tilt the motion "
         "features carry); the simulation's flare there (cm).",
         "",
-        "| clip | split | turn rad/s | pelvis pitch deg | simulated flare cm | "
+        "| clip | split | turn rad/s | turn s | turns | pelvis pitch deg | simulated flare cm | "
         + " | ".join(f"{n}: flare | {n}: speed" for n in sets)
         + " |",
-        "|---|---|---:|---:|---:|" + "---:|---:|" * len(sets),
+        "|---|---|---:|---:|---:|---:|---:|" + "---:|---:|" * len(sets),
     ]
-    for clip, kind, rate, pitch, flare, *ratios in rows:
+    for clip, kind, rate, seconds, turns, pitch, flare, *ratios in rows:
         cells = " | ".join(f"{f:.3f} | {s:.3f}" for f, s in ratios)
-        lines.append(f"| {clip} | {kind} | {rate:.1f} | {pitch:+.1f} | {flare:.1f} | {cells} |")
+        lines.append(
+            f"| {clip} | {kind} | {rate:.1f} | {seconds:.2f} | {turns:.2f} | {pitch:+.1f} | "
+            f"{flare:.1f} | {cells} |"
+        )
     lines.append("")
     for k, name in enumerate(sets):
         for kind in ("training", "validation", "held out"):
-            r = [row[5 + k] for row in rows if row[1] == kind]
+            r = [row[7 + k] for row in rows if row[1] == kind]
             if r:
                 f, s = np.array(r).T
                 lines.append(

@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from loosefit.errors import LoosefitInputError
-from loosefit.eval.motion_signals import fastest_turn, highest_leg, spin_rate, turn_rate
+from loosefit.eval.motion_signals import (
+    fastest_turn,
+    highest_leg,
+    spin_rate,
+    turn_extent,
+    turn_rate,
+)
 
 
 def yaw(angles: np.ndarray) -> np.ndarray:
@@ -42,6 +48,21 @@ def test_the_fastest_turn_is_where_the_spin_peaks():
     assert abs(frame - 70) <= 2
     rate = np.abs(turn_rate(motion_turning(angles, fps)))
     assert frame == int(np.argmax(rate))
+
+
+def test_a_turn_s_extent_is_its_run_above_half_its_peak_and_the_angle_turned_in_it():
+    fps = 30.0
+    rate = np.zeros(100)
+    rate[20:50] = -6.0  # 1 s at 6 rad/s, right
+    rate[50:60] = 1.0  # the other way after it: not the same turn
+    rate[60:70] = -6.0  # a second turn after a pause
+    seconds, turns = turn_extent(rate, 30, fps)
+    assert seconds == pytest.approx(1.0)
+    assert turns == pytest.approx(6.0 / (2 * np.pi))
+    rate[45:50] = -2.0  # slower than half the peak: the turn ends before it
+    assert turn_extent(rate, 30, fps)[0] == pytest.approx(25 / fps)
+    assert turn_extent(rate, 30, fps, fraction=0.3)[0] == pytest.approx(1.0)
+    assert turn_extent(rate, 0, fps) == (0.0, 0.0)  # a still frame is no turn
 
 
 def test_spin_rate_is_counter_clockwise_positive_and_checks_its_shape():

@@ -188,6 +188,37 @@ def fastest_turn(motion, window: int = 5) -> int:
     return heading_fastest_turn(R, motion.fps, window, "step")
 
 
+def turn_extent(
+    rate: np.ndarray, frame: int, fps: float, fraction: float = 0.5
+) -> tuple[float, float]:
+    """How long a turn lasts and how far it turns: the run of frames around ``frame`` where
+    the rate keeps its sign and at least ``fraction`` of its size there.
+
+    Args:
+        rate: (T,) the heading's turn rate (rad/s, :func:`turn_rate`).
+        frame: a frame of the turn (its fastest, :func:`fastest_turn`).
+        fps: frames a second.
+
+    Returns:
+        (seconds, turns): the run's length, and the heading's turn over it in turns (its
+        size; a brief flick and a built-up pirouette of one peak rate tell apart here);
+        (0, 0) at a frame that does not turn.
+    """
+    rate = np.asarray(rate, np.float64)
+    peak = rate[frame]
+    if peak == 0:
+        return 0.0, 0.0
+    inside = np.sign(rate) == np.sign(peak)
+    inside &= np.abs(rate) >= fraction * abs(peak)
+    first = last = frame
+    while first > 0 and inside[first - 1]:
+        first -= 1
+    while last < len(rate) - 1 and inside[last + 1]:
+        last += 1
+    span = rate[first : last + 1]
+    return (last - first + 1) / fps, float(abs(span.sum()) / fps / (2.0 * np.pi))
+
+
 def highest_leg(joints_z: np.ndarray) -> tuple[int, float]:
     """The frame where one foot is highest above the other, and that height (m).
 
