@@ -22,7 +22,7 @@ def _salsa_folder(tmp_path, names: tuple[str, ...]):
 def test_unknown_preset_and_empty_bvh_folder(tmp_path):
     expected = (
         "one of tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, dance-pitch, "
-        "dance-spin, dance-spins, dance-spins-slow, paper"
+        "dance-spin, dance-spins, dance-spins-slow, dance-turns, paper"
     )
     with pytest.raises(LoosefitInputError, match=expected):
         preset("huge")
@@ -170,6 +170,11 @@ def test_dance_spin_spins_the_ballet_training_clips_only(tmp_path):
     assert [j.name for j in added] == [f"{c}_spin1_ramp0.8_hold0" for c in BALLET_TRAIN]
     assert short_spec(added[0].spec) == "spin:1,ramp=0.8,hold=0:05_01.bvh"
     assert len({j.seed for j in slow}) == len(slow)
+    turns = plan_jobs(preset("dance-turns", bvh_folder=str(salsa)))
+    assert turns[: len(slow)] == slow
+    flicks = turns[len(slow) :]
+    assert [j.name for j in flicks] == [f"{c}_spin2_ramp0.25_hold0" for c in BALLET_TRAIN]
+    assert len({j.seed for j in turns}) == len(turns)
 
 
 @pytest.mark.parametrize(

@@ -13,7 +13,7 @@ def add_parser(sub) -> None:
         "--preset",
         default="demo",
         help="tiny, demo, salsa, salsa-speed, salsa-speeds, dance, dance-speed, dance-pitch, "
-        "dance-spin, dance-spins, dance-spins-slow, paper, dress-tiny or dress",
+        "dance-spin, dance-spins, dance-spins-slow, dance-turns, paper, dress-tiny or dress",
     )
     p.add_argument(
         "--config",

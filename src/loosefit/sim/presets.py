@@ -45,6 +45,11 @@ the preset is built: ``{salsa}``, the folder of the CMU salsa clips (``--bvh``, 
   (``05_01_spin1_ramp0.8_hold0``, ``spin:1,ramp=0.8,hold=0:``; 1,330 frames more), where
   the others rise in 0.4 s and hold 0.8 s; ``--reuse`` a ``dance-spins`` folder to simulate
   only those.
+* ``dance-turns``: ``dance-spins-slow``, and the same seven clips with flicks: brief turns
+  rising over 0.25 s to two turns a second and falling back at once, half a turn each, one
+  every 1.9 s (``05_01_spin2_ramp0.25_hold0``; 1,330 frames more): a turn that is fast but
+  over before the skirt can flare far, beside the long ones that flare it; ``--reuse`` a
+  ``dance-spins-slow`` folder to simulate only those.
 * ``paper``: the paper's scale (a 9,352-vertex skirt, 20 clips, > 10K frames):
   salsa plus procedural dances; meant for a GPU.
 * ``dress-tiny``: ``tiny`` with a coarse strapless dress, for tests.
@@ -185,6 +190,9 @@ PRESETS: dict[str, dict] = {
     "dance-spin": _dance(spins=(1.0,), spin_clips=BALLET_TRAIN),
     "dance-spins": _dance(spins=(1.0, 0.5), spin_clips=BALLET_TRAIN),
     "dance-spins-slow": _dance(spins=(1.0, 0.5, "1,ramp=0.8,hold=0"), spin_clips=BALLET_TRAIN),
+    "dance-turns": _dance(
+        spins=(1.0, 0.5, "1,ramp=0.8,hold=0", "2,ramp=0.25,hold=0"), spin_clips=BALLET_TRAIN
+    ),
     "paper": {
         "garment": {"type": "skirt", "resolution": "paper", "style": "flared"},
         "cloth": {"device": "cuda:0"},
