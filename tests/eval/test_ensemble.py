@@ -76,6 +76,13 @@ def test_band_and_turn_window():
     assert (en.turn_window(1, 100).start, en.turn_window(99, 100).stop) == (0, 100)
 
 
+def test_band_gap_is_the_distance_outside_the_members_range():
+    band = np.array([[0.30, 0.30, 0.30, 0.30], [0.32, 0.34, 0.32, 0.32]])  # (M=2, T=4)
+    series = np.array([0.31, 0.25, 0.40, 0.32])
+    np.testing.assert_allclose(en.band_gap(series, band), [0.0, 0.05, 0.08, 0.0], atol=1e-12)
+    assert (en.band_gap(series, band) == 0).tolist() == en.inside_band(series, band).tolist()
+
+
 def _cylinder(radius: float, z0: float, z1: float, n: int = 24):
     """An open tube about +Z (a skirt) as vertices and triangles."""
     a = np.linspace(0, 2 * np.pi, n, endpoint=False)

@@ -11,7 +11,8 @@ drape. The measures here treat the members as samples of what the cloth may do:
 - :func:`energy_score`: a proper score of the model's samples against each member taken as
   the observation; it rewards the right spread and does not reward a mean;
 - :func:`~loosefit.eval.hem.hem_flare`, :func:`~loosefit.eval.hem.hem_speed` and
-  :func:`inside_band`: the hem's swing against the members' range frame by frame;
+  :func:`inside_band`: the hem's swing against the members' range frame by frame, and
+  :func:`band_gap` how far outside it;
 - :func:`cloth_in_front`: whether the skirt covers a raised knee.
 
 Members are gathered from one or several data sets and checked to be of the same garment,
@@ -117,6 +118,14 @@ def inside_band(series: np.ndarray, band: np.ndarray) -> np.ndarray:
     """(T,), (M, T) -> (T,) bool: the series between the members' lowest and highest."""
     band = np.asarray(band)
     return (series >= band.min(0)) & (series <= band.max(0))
+
+
+def band_gap(series: np.ndarray, band: np.ndarray) -> np.ndarray:
+    """(T,), (M, T) -> (T,): how far the series lies outside the members' range, frame by
+    frame (0 inside it): how near a miss is, where :func:`inside_band` says only whether."""
+    band = np.asarray(band)
+    series = np.asarray(series)
+    return np.maximum(band.min(0) - series, 0.0) + np.maximum(series - band.max(0), 0.0)
 
 
 def turn_window(frame: int, frames: int, half: int = TURN_WINDOW) -> slice:
