@@ -43,12 +43,10 @@ MAX_TURNS_PER_SECOND = 4.0
 MIN_RAMP_SECONDS, MAX_RAMP_SECONDS = 0.1, 2.0
 MAX_HOLD_SECONDS = 10.0
 # what every caller that takes a spin asks for, in its error
-SPIN_RATES = (
-    f"turns a second other than 0, from -{MAX_TURNS_PER_SECOND:g} to {MAX_TURNS_PER_SECOND:g}"
-)
 SPIN_FORM = (
-    f"TURNS[,ramp=SECONDS][,hold=SECONDS]: {SPIN_RATES}; a ramp from {MIN_RAMP_SECONDS:g} to "
-    f"{MAX_RAMP_SECONDS:g} s (default {SPIN_RAMP_SECONDS:g}); a hold from 0 to "
+    f"TURNS[,ramp=SECONDS][,hold=SECONDS]: turns a second other than 0, from "
+    f"-{MAX_TURNS_PER_SECOND:g} to {MAX_TURNS_PER_SECOND:g}; a ramp from {MIN_RAMP_SECONDS:g} "
+    f"to {MAX_RAMP_SECONDS:g} s (default {SPIN_RAMP_SECONDS:g}); a hold from 0 to "
     f"{MAX_HOLD_SECONDS:g} s (default {SPIN_HOLD_SECONDS:g})"
 )
 
@@ -79,8 +77,11 @@ class Spin:
     def is_valid(self) -> bool:
         """Whether :func:`spin_motion` takes it: a finite rate other than 0 within
         :data:`MAX_TURNS_PER_SECOND`, a ramp and hold within their bounds."""
+        t = self.turns
         return (
-            is_spin_rate(self.turns)
+            math.isfinite(t)
+            and t != 0
+            and abs(t) <= MAX_TURNS_PER_SECOND
             and MIN_RAMP_SECONDS <= self.ramp <= MAX_RAMP_SECONDS
             and 0.0 <= self.hold <= MAX_HOLD_SECONDS
         )
@@ -100,13 +101,6 @@ class Spin:
         return [(k, v) for k, v, default in pairs if v != default]
 
 
-def is_spin_rate(turns_per_second: float) -> bool:
-    """Whether a spin rate is one :func:`spin_motion` takes: finite, not 0, within
-    :data:`MAX_TURNS_PER_SECOND` either way."""
-    t = turns_per_second
-    return math.isfinite(t) and t != 0 and abs(t) <= MAX_TURNS_PER_SECOND
-
-
 def read_spin(value: float | str | Spin) -> Spin | None:
     """A :class:`Spin` from a rate (turns a second, the default ramp and hold), the spec's
     field ``TURNS[,ramp=SECONDS][,hold=SECONDS]`` or a :class:`Spin`; None for one that does
@@ -122,15 +116,21 @@ def read_spin(value: float | str | Spin) -> Spin | None:
             turns = float(head)
             for part in rest:
                 key, eq, number = part.partition("=")
-                if not eq or key.strip() not in ("ramp", "hold") or key.strip() in fields:
+                key = key.strip()
+                if not eq or key not in ("ramp", "hold") or key in fields:
                     return None
-                fields[key.strip()] = float(number)
+                fields[key] = float(number)
         except ValueError:
             return None
         spin = Spin(turns, **fields)
     else:
         return None
     return spin if spin.is_valid() else None
+
+
+def _as_spin(spin: Spin | float) -> Spin:
+    """A :class:`Spin` as given, or one of the default ramp and hold peaking at a bare rate."""
+    return spin if isinstance(spin, Spin) else Spin(float(spin))
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -157,7 +157,7 @@ def spin_rates(num_frames: int, fps: float, spin: Spin | float) -> np.ndarray:
     it turns the other way from spin ``k - 1``. None starts that would end after the last
     frame. A bare number is the rate of a :class:`Spin` of the default ramp and hold.
     """
-    spin = spin if isinstance(spin, Spin) else Spin(float(spin))
+    spin = _as_spin(spin)
     t = np.arange(num_frames, dtype=np.float64) / fps
     peak = 2.0 * math.pi * spin.turns
     rates = np.zeros(num_frames)
@@ -171,8 +171,7 @@ def spin_rates(num_frames: int, fps: float, spin: Spin | float) -> np.ndarray:
 def spin_count(num_frames: int, fps: float, spin: Spin | float = 1.0) -> int:
     """How many spins of ``spin``'s length a clip of ``num_frames`` at ``fps`` holds
     (:func:`spin_rates`)."""
-    spin = spin if isinstance(spin, Spin) else Spin(float(spin))
-    return len(_spin_starts(num_frames, fps, spin))
+    return len(_spin_starts(num_frames, fps, _as_spin(spin)))
 
 
 def spin_motion(motion: Motion, spin: Spin | float) -> Motion:
